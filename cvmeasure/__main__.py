@@ -1,0 +1,3 @@
+from cvmeasure.cli import console_main
+
+console_main()

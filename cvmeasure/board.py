@@ -1,0 +1,149 @@
+"""Calibration board specifications (spec ``board JSON``) and their OpenCV objects.
+
+Board frame: OpenCV's object coordinates, origin at the board's outer top-left
+chessboard corner, x along ``squares_x``, y along ``squares_y``, z = 0, in mm.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_json
+
+__all__ = ["CharucoBoardSpec", "ChessboardSpec", "BoardSpec", "board_from_dict", "load_board"]
+
+
+@dataclass(frozen=True)
+class CharucoBoardSpec:
+    """A ChArUco board: squares, sizes in mm, ArUco dictionary name."""
+
+    squares_x: int
+    squares_y: int
+    square_mm: float
+    marker_mm: float
+    dictionary: str = "DICT_5X5_100"
+    legacy_pattern: bool = False
+    type: Literal["charuco"] = "charuco"
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        if not self.legacy_pattern:
+            out.pop("legacy_pattern")
+        return {"type": out.pop("type"), **out}
+
+    @property
+    def corner_count(self) -> int:
+        return (self.squares_x - 1) * (self.squares_y - 1)
+
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        return self.squares_x * self.square_mm, self.squares_y * self.square_mm
+
+    def cv_dictionary(self):
+        import cv2
+
+        return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+
+    def cv_board(self):
+        """The ``cv2.aruco.CharucoBoard`` (lengths in mm)."""
+        import cv2
+
+        board = cv2.aruco.CharucoBoard(
+            (self.squares_x, self.squares_y), self.square_mm, self.marker_mm, self.cv_dictionary()
+        )
+        board.setLegacyPattern(bool(self.legacy_pattern))
+        return board
+
+    def corners_mm(self) -> np.ndarray:
+        """Inner chessboard corners (N, 3) in the board frame, in OpenCV's id order."""
+        return np.asarray(self.cv_board().getChessboardCorners(), dtype=np.float64).reshape(-1, 3)
+
+
+@dataclass(frozen=True)
+class ChessboardSpec:
+    """A plain chessboard, counted by inner corners."""
+
+    inner_x: int
+    inner_y: int
+    square_mm: float
+    type: Literal["chessboard"] = "chessboard"
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        return {"type": out.pop("type"), **out}
+
+    @property
+    def corner_count(self) -> int:
+        return self.inner_x * self.inner_y
+
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        return (self.inner_x + 1) * self.square_mm, (self.inner_y + 1) * self.square_mm
+
+    def corners_mm(self) -> np.ndarray:
+        """Inner corners (N, 3), row by row as findChessboardCorners orders them.
+
+        Origin here is the first inner corner plus one square, so that the
+        board frame matches a ChArUco board's (outer top-left corner at 0).
+        """
+        xs, ys = np.meshgrid(np.arange(1, self.inner_x + 1), np.arange(1, self.inner_y + 1))
+        pts = np.column_stack((xs.ravel(), ys.ravel(), np.zeros(xs.size))) * self.square_mm
+        pts[:, 2] = 0.0
+        return pts
+
+
+BoardSpec = CharucoBoardSpec | ChessboardSpec
+
+
+def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
+    """Validate a board JSON object and build its spec; InputError on schema errors."""
+    if not isinstance(data, dict):
+        raise InputError(source, "board JSON must be an object")
+    kind = data.get("type")
+    try:
+        if kind == "charuco":
+            spec = CharucoBoardSpec(
+                squares_x=int(data["squares_x"]),
+                squares_y=int(data["squares_y"]),
+                square_mm=float(data["square_mm"]),
+                marker_mm=float(data["marker_mm"]),
+                dictionary=str(data.get("dictionary", "DICT_5X5_100")),
+                legacy_pattern=bool(data.get("legacy_pattern", False)),
+            )
+            import cv2
+
+            if not hasattr(cv2.aruco, spec.dictionary):
+                raise InputError(source, f"unknown ArUco dictionary {spec.dictionary!r}")
+            if spec.squares_x < 2 or spec.squares_y < 2:
+                raise InputError(source, "a ChArUco board needs at least 2x2 squares")
+            if not 0 < spec.marker_mm < spec.square_mm:
+                raise InputError(source, "marker_mm must be positive and smaller than square_mm")
+            return spec
+        if kind == "chessboard":
+            spec2 = ChessboardSpec(
+                inner_x=int(data["inner_x"]),
+                inner_y=int(data["inner_y"]),
+                square_mm=float(data["square_mm"]),
+            )
+            if spec2.inner_x < 2 or spec2.inner_y < 2 or spec2.square_mm <= 0:
+                raise InputError(
+                    source, "a chessboard needs >= 2x2 inner corners and square_mm > 0"
+                )
+            return spec2
+    except KeyError as exc:
+        raise InputError(source, f"board JSON lacks {exc.args[0]!r}") from None
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(source, f"board JSON has a malformed value: {exc}") from None
+    raise InputError(source, f"board type must be 'charuco' or 'chessboard', got {kind!r}")
+
+
+def load_board(path: str | os.PathLike[str]) -> BoardSpec:
+    """Read a board JSON file (spec)."""
+    return board_from_dict(read_json(path, what="board JSON"), source=str(path))

@@ -1,0 +1,178 @@
+"""The camera model: pinhole intrinsics plus OpenCV (Brown-Conrady) distortion.
+
+Frames: image pixels in OpenCV's convention (x right, y down, the centre of the
+top-left pixel at (0, 0)); camera frame x right, y down, z forward, in mm.
+The camera JSON (spec ``camera JSON``) holds ``image_size`` [w, h],
+``camera_matrix`` (3x3), ``dist_coeffs`` (OpenCV order, 4/5/8/12/14 values) and,
+when written by ``cvmeasure calibrate``, the calibration record that lets a
+user judge and redo the solve (RMS, standard deviations, per-view errors,
+views used and rejected, ...), kept verbatim in :attr:`CameraModel.calibration`.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import atomic_write_json, read_json
+
+__all__ = ["CameraModel", "load_camera", "save_camera"]
+
+_VALID_DIST_LENGTHS = (4, 5, 8, 12, 14)
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics and distortion of one camera at one image size.
+
+    Attributes
+    ----------
+    image_size_px : (width, height) in pixels.
+    camera_matrix : ndarray (3, 3), float64, pixels.
+    dist_coeffs : ndarray (K,), float64, OpenCV order (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
+    calibration : dict, everything else the camera JSON holds (RMS, sigmas, views...).
+    """
+
+    image_size_px: tuple[int, int]
+    camera_matrix: np.ndarray
+    dist_coeffs: np.ndarray
+    calibration: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        k = np.asarray(self.camera_matrix, dtype=np.float64).reshape(3, 3)
+        d = np.asarray(self.dist_coeffs, dtype=np.float64).ravel()
+        if d.size == 0:
+            d = np.zeros(5)
+        if d.size not in _VALID_DIST_LENGTHS:
+            raise ValueError(
+                f"dist_coeffs must have one of {_VALID_DIST_LENGTHS} values, got {d.size}"
+            )
+        w, h = (int(v) for v in self.image_size_px)
+        object.__setattr__(self, "camera_matrix", k)
+        object.__setattr__(self, "dist_coeffs", d)
+        object.__setattr__(self, "image_size_px", (w, h))
+
+    # -- convenience ---------------------------------------------------------
+    @property
+    def fx(self) -> float:
+        return float(self.camera_matrix[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.camera_matrix[1, 1])
+
+    @property
+    def principal_point_px(self) -> tuple[float, float]:
+        return float(self.camera_matrix[0, 2]), float(self.camera_matrix[1, 2])
+
+    @classmethod
+    def ideal(
+        cls,
+        image_size_px: tuple[int, int],
+        focal_px: float,
+        dist_coeffs: Any = (0.0, 0.0, 0.0, 0.0, 0.0),
+        principal_point_px: tuple[float, float] | None = None,
+    ) -> CameraModel:
+        """A camera with square pixels and the given focal length (px)."""
+        w, h = image_size_px
+        cx, cy = (
+            principal_point_px if principal_point_px is not None else ((w - 1) / 2, (h - 1) / 2)
+        )
+        k = np.array([[focal_px, 0, cx], [0, focal_px, cy], [0, 0, 1]], dtype=np.float64)
+        return cls((w, h), k, np.asarray(dist_coeffs, dtype=np.float64))
+
+    def scaled(self, factor: float) -> CameraModel:
+        """The same lens for an image resized by ``factor`` (pixel-centre convention kept)."""
+        k = self.camera_matrix.copy()
+        k[0, 0] *= factor
+        k[1, 1] *= factor
+        k[0, 2] = (k[0, 2] + 0.5) * factor - 0.5
+        k[1, 2] = (k[1, 2] + 0.5) * factor - 0.5
+        w, h = self.image_size_px
+        return CameraModel((round(w * factor), round(h * factor)), k, self.dist_coeffs.copy())
+
+    # -- geometry ------------------------------------------------------------
+    def project(self, points_cam_mm: np.ndarray) -> np.ndarray:
+        """Project camera-frame points (N, 3) in mm to distorted pixels (N, 2)."""
+        import cv2
+
+        pts = np.asarray(points_cam_mm, dtype=np.float64).reshape(-1, 1, 3)
+        img, _ = cv2.projectPoints(
+            pts, np.zeros(3), np.zeros(3), self.camera_matrix, self.dist_coeffs
+        )
+        return img.reshape(-1, 2)
+
+    def undistort_px(self, points_px: np.ndarray) -> np.ndarray:
+        """Remove lens distortion: distorted pixels (N, 2) -> ideal pinhole pixels (N, 2)."""
+        import cv2
+
+        pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
+        if pts.shape[0] == 0:
+            return np.zeros((0, 2))
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+        out = cv2.undistortPoints(
+            pts, self.camera_matrix, self.dist_coeffs, P=self.camera_matrix, criteria=crit
+        )
+        return out.reshape(-1, 2)
+
+    def normalized(self, points_px: np.ndarray) -> np.ndarray:
+        """Distorted pixels (N, 2) -> normalised ray coordinates x/z, y/z (N, 2)."""
+        und = self.undistort_px(points_px)
+        k = self.camera_matrix
+        return np.column_stack(((und[:, 0] - k[0, 2]) / k[0, 0], (und[:, 1] - k[1, 2]) / k[1, 1]))
+
+    # -- serialisation -------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "image_size": list(self.image_size_px),
+            "camera_matrix": self.camera_matrix.tolist(),
+            "dist_coeffs": self.dist_coeffs.tolist(),
+        }
+        for key, value in self.calibration.items():
+            out.setdefault(key, value)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], *, source: str = "camera JSON") -> CameraModel:
+        """Build from the camera JSON of the spec; InputError names ``source`` on schema errors."""
+        if not isinstance(data, dict):
+            raise InputError(source, "camera JSON must be an object")
+        try:
+            size = data["image_size"]
+            k = np.asarray(data["camera_matrix"], dtype=np.float64)
+            d = np.asarray(data.get("dist_coeffs", []), dtype=np.float64).ravel()
+        except KeyError as exc:
+            raise InputError(source, f"camera JSON lacks {exc.args[0]!r}") from None
+        except (TypeError, ValueError) as exc:
+            raise InputError(source, f"camera JSON has a malformed value: {exc}") from None
+        if k.shape != (3, 3) or not np.all(np.isfinite(k)) or k[0, 0] <= 0 or k[1, 1] <= 0:
+            raise InputError(
+                source, "camera_matrix must be a finite 3x3 matrix with positive focal lengths"
+            )
+        if len(size) != 2 or min(size) <= 0:
+            raise InputError(source, "image_size must be [width, height] in pixels")
+        if d.size and d.size not in _VALID_DIST_LENGTHS:
+            raise InputError(
+                source, f"dist_coeffs must have one of {_VALID_DIST_LENGTHS} values, got {d.size}"
+            )
+        rest = {
+            k2: v
+            for k2, v in data.items()
+            if k2 not in ("image_size", "camera_matrix", "dist_coeffs")
+        }
+        return cls((int(size[0]), int(size[1])), k, d, rest)
+
+
+def load_camera(path: str | os.PathLike[str]) -> CameraModel:
+    """Read a camera JSON file (spec); InputError naming the file on any problem."""
+    return CameraModel.from_dict(read_json(path, what="camera JSON"), source=str(path))
+
+
+def save_camera(path: str | os.PathLike[str], camera: CameraModel) -> Path:
+    """Write a camera JSON file atomically."""
+    return atomic_write_json(path, camera.to_dict())

@@ -1,0 +1,134 @@
+"""The marker kit: five colour-coded discs on white rings (spec ``The marker kit``).
+
+This module is the one place where the kit's colours and sizes live. A
+measurement always reads the kit it is given (``--kit kit.json``); the default
+kit below is what ``cvmeasure targets markers --format json`` prints.
+``srgb`` is the printed colour under D65 (8-bit, gamma-encoded); ``lab_d65`` is
+CIE L*a*b* (D65 white, 2 degree observer), computed from ``srgb`` with
+colour-science.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_json
+
+__all__ = ["ROLES", "MarkerSpec", "MarkerKit", "default_kit", "load_kit", "srgb8_to_lab_d65"]
+
+#: The five roles of the spec, in the kit's order.
+ROLES: tuple[str, ...] = ("origin", "axis", "pin", "wire_a", "wire_b")
+
+
+def srgb8_to_lab_d65(srgb8: Any) -> np.ndarray:
+    """8-bit gamma-encoded sRGB (..., 3) -> CIE L*a*b* under D65 (..., 3)."""
+    import colour
+
+    rgb = np.asarray(srgb8, dtype=np.float64) / 255.0
+    xyz = colour.sRGB_to_XYZ(rgb)
+    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    return colour.XYZ_to_Lab(xyz, d65)
+
+
+@dataclass(frozen=True)
+class MarkerSpec:
+    """One marker of the kit: role, colour name, printed colour, sizes in mm."""
+
+    role: str
+    name: str
+    srgb: tuple[int, int, int]
+    diameter_mm: float
+    ring_mm: float
+
+    @property
+    def lab_d65(self) -> np.ndarray:
+        return srgb8_to_lab_d65(self.srgb)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "role": self.role,
+            "name": self.name,
+            "srgb": list(self.srgb),
+            "lab_d65": [round(float(v), 1) for v in self.lab_d65],
+            "diameter_mm": self.diameter_mm,
+            "ring_mm": self.ring_mm,
+        }
+
+
+@dataclass(frozen=True)
+class MarkerKit:
+    """A named set of markers, one per role."""
+
+    name: str
+    markers: tuple[MarkerSpec, ...]
+
+    def __post_init__(self) -> None:
+        roles = [m.role for m in self.markers]
+        if sorted(roles) != sorted(ROLES):
+            raise ValueError(f"a kit needs exactly one marker per role {ROLES}, got {roles}")
+
+    def by_role(self, role: str) -> MarkerSpec:
+        for marker in self.markers:
+            if marker.role == role:
+                return marker
+        raise KeyError(role)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "markers": [m.to_dict() for m in self.markers]}
+
+    @classmethod
+    def from_dict(cls, data: Any, *, source: str = "kit JSON") -> MarkerKit:
+        """Validate and build a kit from the spec's kit JSON."""
+        if not isinstance(data, dict) or not isinstance(data.get("markers"), list):
+            raise InputError(source, "kit JSON must be an object with a 'markers' list")
+        markers = []
+        for i, m in enumerate(data["markers"]):
+            try:
+                srgb = tuple(int(v) for v in m["srgb"])
+                if len(srgb) != 3 or not all(0 <= v <= 255 for v in srgb):
+                    raise ValueError("srgb must be three values in 0..255")
+                spec = MarkerSpec(
+                    role=str(m["role"]),
+                    name=str(m.get("name", m["role"])),
+                    srgb=srgb,  # type: ignore[arg-type]
+                    diameter_mm=float(m["diameter_mm"]),
+                    ring_mm=float(m["ring_mm"]),
+                )
+            except (KeyError, TypeError, ValueError) as exc:
+                raise InputError(source, f"marker #{i} is malformed: {exc}") from None
+            if not 0 < spec.diameter_mm < spec.ring_mm:
+                raise InputError(source, f"marker {spec.role!r}: need 0 < diameter_mm < ring_mm")
+            markers.append(spec)
+        try:
+            return cls(str(data.get("name", "kit")), tuple(markers))
+        except ValueError as exc:
+            raise InputError(source, str(exc)) from None
+
+
+def default_kit() -> MarkerKit:
+    """The project's kit ``seed-5``: the seed paper's five colours, made printable.
+
+    Colours are spaced far apart in CIELAB (pairwise Delta E 2000 > 20) and stay
+    inside the CMYK-printable gamut; sizes suit a 4608x3072 photo of the
+    DIWire top plate from about 0.5 m (a 10 mm disc is ~80 px across).
+    """
+    return MarkerKit(
+        "seed-5",
+        (
+            MarkerSpec("origin", "dark green", (0, 110, 70), 10.0, 14.0),
+            MarkerSpec("axis", "yellow-green", (140, 190, 40), 10.0, 14.0),
+            MarkerSpec("pin", "yellow", (245, 200, 0), 8.0, 12.0),
+            MarkerSpec("wire_a", "blue", (20, 70, 180), 8.0, 12.0),
+            MarkerSpec("wire_b", "magenta", (200, 30, 130), 8.0, 12.0),
+        ),
+    )
+
+
+def load_kit(path: str | os.PathLike[str]) -> MarkerKit:
+    """Read a kit JSON file (spec)."""
+    return MarkerKit.from_dict(read_json(path, what="kit JSON"), source=str(path))

@@ -1,0 +1,46 @@
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from cvmeasure.errors import InputError
+from cvmeasure.imageio import read_photo
+
+RAW_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "raw"
+
+
+def test_jpeg_png_tiff_roundtrip(tmp_path):
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:40, 0:60]
+    img = np.dstack((xx * 4, yy * 6, 100 + 0 * xx)).astype(np.uint8)
+    img[rng.integers(0, 40, 5), rng.integers(0, 60, 5)] += 1
+    for ext in (".png", ".tiff"):
+        p = tmp_path / f"x{ext}"
+        cv2.imwrite(str(p), img)
+        np.testing.assert_array_equal(read_photo(p).bgr, img)
+    p = tmp_path / "x.jpg"
+    cv2.imwrite(str(p), img, [cv2.IMWRITE_JPEG_QUALITY, 100])
+    assert np.abs(read_photo(p).bgr.astype(int) - img).mean() < 3
+
+
+def test_unreadable_photo_named(tmp_path):
+    p = tmp_path / "broken.jpg"
+    p.write_bytes(b"\xff\xd8 not really a jpeg")
+    with pytest.raises(InputError, match="broken.jpg: unreadable photo"):
+        read_photo(p)
+    with pytest.raises(InputError, match="not found"):
+        read_photo(tmp_path / "nope.jpg")
+
+
+@pytest.mark.skipif(not RAW_DIR.is_dir(), reason="../shared/data/real/raw is absent")
+def test_real_dng_decodes_linear_with_camera_white_balance():
+    photo = read_photo(RAW_DIR / "Blackmagic.dng", half_size=True)
+    assert photo.linear and photo.bgr.dtype == np.uint16
+    assert photo.bgr.shape == (1088, 2064, 3)
+
+
+@pytest.mark.skipif(not RAW_DIR.is_dir(), reason="../shared/data/real/raw is absent")
+def test_real_nef_that_is_a_scan_decodes():
+    photo = read_photo(RAW_DIR / "Nikon_uncompressed.nef")
+    assert photo.bgr.shape == (593, 869, 3)
