@@ -1,5 +1,3 @@
-from pathlib import Path
-
 import cv2
 import numpy as np
 import pytest
@@ -7,7 +5,6 @@ import pytest
 from cvmeasure.errors import InputError
 from cvmeasure.imageio import read_photo
 
-RAW_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "real" / "raw"
 
 
 def test_jpeg_png_tiff_roundtrip(tmp_path):
@@ -33,14 +30,12 @@ def test_unreadable_photo_named(tmp_path):
         read_photo(tmp_path / "nope.jpg")
 
 
-@pytest.mark.skipif(not RAW_DIR.is_dir(), reason="../shared/data/real/raw is absent")
-def test_real_dng_decodes_linear_with_camera_white_balance():
-    photo = read_photo(RAW_DIR / "Blackmagic.dng", half_size=True)
+def test_real_dng_decodes_linear_with_camera_white_balance(shared_real):
+    photo = read_photo(shared_real / "raw" / "Blackmagic.dng", half_size=True)
     assert photo.linear and photo.bgr.dtype == np.uint16
     assert photo.bgr.shape == (1088, 2064, 3)
 
 
-@pytest.mark.skipif(not RAW_DIR.is_dir(), reason="../shared/data/real/raw is absent")
-def test_real_nef_that_is_a_scan_decodes():
-    photo = read_photo(RAW_DIR / "Nikon_uncompressed.nef")
+def test_real_nef_that_is_a_scan_decodes(shared_real):
+    photo = read_photo(shared_real / "raw" / "Nikon_uncompressed.nef")
     assert photo.bgr.shape == (593, 869, 3)
