@@ -6,7 +6,6 @@ from cvmeasure.errors import InputError
 from cvmeasure.imageio import read_photo
 
 
-
 def test_jpeg_png_tiff_roundtrip(tmp_path):
     rng = np.random.default_rng(3)
     yy, xx = np.mgrid[0:40, 0:60]
