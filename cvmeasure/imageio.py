@@ -3,7 +3,9 @@
 Every reader returns a :class:`Photo` whose ``bgr`` is an OpenCV-order colour
 image: uint8 for 8-bit files, uint16 for 16-bit TIFF/PNG and RAW. RAW files are
 decoded *linear* (gamma 1), with the camera's white balance and no
-auto-brightening, so colour work can use the linear data directly.
+auto-brightening, so colour work can use the linear data directly
+(:meth:`Photo.linear_rgb` gives the same scene-linear floats for every file
+type). Files named ``*.linear.png`` / ``*.linear.tiff`` are read as linear too.
 An unreadable file raises :class:`~cvmeasure.errors.InputError` naming it.
 """
 
@@ -17,7 +19,15 @@ import numpy as np
 
 from cvmeasure.errors import InputError
 
-__all__ = ["Photo", "RAW_SUFFIXES", "read_photo", "is_raw"]
+__all__ = [
+    "Photo",
+    "RAW_SUFFIXES",
+    "LINEAR_SUFFIXES",
+    "PHOTO_SUFFIXES",
+    "read_photo",
+    "is_raw",
+    "is_linear_name",
+]
 
 RAW_SUFFIXES = frozenset(
     {
@@ -46,6 +56,14 @@ RAW_SUFFIXES = frozenset(
     }
 )
 
+#: Suffixes of every photo file read_photo understands (lower case).
+PHOTO_SUFFIXES = (
+    frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}) | RAW_SUFFIXES
+)
+
+#: Suffixes of 16-bit files that may hold linear data (named ``*.linear<suffix>``).
+LINEAR_SUFFIXES = frozenset({".png", ".tif", ".tiff"})
+
 
 @dataclass(frozen=True)
 class Photo:
@@ -60,19 +78,37 @@ class Photo:
         h, w = self.bgr.shape[:2]
         return w, h
 
+    def linear_rgb(self) -> np.ndarray:
+        """Scene-linear colour in [0, 1], float32, BGR order (H, W, 3).
+
+        RAW and other linear data are only scaled; gamma-encoded files (JPEG, PNG,
+        TIFF) are decoded with the sRGB transfer function. This is what colour
+        segmentation should work on: the same pixel values whichever file type.
+        """
+        img = self.bgr.astype(np.float32) / float(np.iinfo(self.bgr.dtype).max)
+        if self.linear:
+            return img
+        return np.where(img <= 0.04045, img / 12.92, np.power((img + 0.055) / 1.055, 2.4)).astype(
+            np.float32
+        )
+
+    def bgr8(self) -> np.ndarray:
+        """Display-referred 8-bit BGR (linear data sRGB-encoded first); the same array for JPEGs."""
+        img = self.bgr
+        if img.dtype == np.uint8 and not self.linear:
+            return img
+        scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
+        if self.linear:
+            scaled = np.where(
+                scaled <= 0.0031308, 12.92 * scaled, 1.055 * np.power(scaled, 1 / 2.4) - 0.055
+            )
+        return np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
     def gray8(self) -> np.ndarray:
         """An 8-bit grey image (display-referred: linear data is gamma-encoded first)."""
         import cv2
 
-        img = self.bgr
-        if img.dtype != np.uint8:
-            scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
-            if self.linear:
-                scaled = np.where(
-                    scaled <= 0.0031308, 12.92 * scaled, 1.055 * np.power(scaled, 1 / 2.4) - 0.055
-                )
-            img = np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
-        return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        return cv2.cvtColor(self.bgr8(), cv2.COLOR_BGR2GRAY)
 
 
 def is_raw(path: str | os.PathLike[str]) -> bool:
@@ -80,13 +116,35 @@ def is_raw(path: str | os.PathLike[str]) -> bool:
     return Path(path).suffix.lower() in RAW_SUFFIXES
 
 
-def read_photo(path: str | os.PathLike[str], *, half_size: bool = False) -> Photo:
-    """Decode a photo file. ``half_size`` is honoured for RAW only (fast preview)."""
+def is_linear_name(path: str | os.PathLike[str]) -> bool:
+    """True for ``*.linear.png`` / ``*.linear.tif(f)``: a 16-bit file holding linear data."""
+    suffixes = [s.lower() for s in Path(path).suffixes]
+    return len(suffixes) >= 2 and suffixes[-2] == ".linear" and suffixes[-1] in LINEAR_SUFFIXES
+
+
+def read_photo(
+    path: str | os.PathLike[str], *, half_size: bool = False, linear: bool | None = None
+) -> Photo:
+    """Decode a photo file.
+
+    Parameters
+    ----------
+    path : path-like
+        JPEG, PNG, TIFF or camera RAW file.
+    half_size : bool
+        Honoured for RAW only: 2x2 binning without demosaicing (fast preview).
+    linear : bool, optional
+        Whether the pixel values are scene-linear. Default: True for RAW and for
+        ``*.linear.png`` / ``*.linear.tif(f)`` files (how the photo lab writes its
+        16-bit linear renders), False otherwise (gamma-encoded sRGB).
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "photo not found")
     if is_raw(path):
         return Photo(str(path), _read_raw(path, half_size=half_size), linear=True)
+    if linear is None:
+        linear = is_linear_name(path)
     import cv2
 
     data = np.fromfile(path, dtype=np.uint8)
@@ -99,7 +157,7 @@ def read_photo(path: str | os.PathLike[str], *, half_size: bool = False) -> Phot
         img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
     if img.dtype not in (np.uint8, np.uint16):
         raise InputError(path, f"unsupported sample type {img.dtype}")
-    return Photo(str(path), np.ascontiguousarray(img), linear=False)
+    return Photo(str(path), np.ascontiguousarray(img), linear=bool(linear))
 
 
 def _read_raw(path: Path, *, half_size: bool) -> np.ndarray:
@@ -107,14 +165,40 @@ def _read_raw(path: Path, *, half_size: bool) -> np.ndarray:
 
     try:
         with rawpy.imread(str(path)) as raw:
-            rgb = raw.postprocess(
-                gamma=(1, 1),
-                no_auto_bright=True,
-                use_camera_wb=True,
-                output_bps=16,
-                user_flip=0,
-                half_size=half_size,
-            )
+            if raw.raw_type == rawpy.RawType.Stack:
+                rgb = _stack_to_rgb16(raw)
+            else:
+                rgb = raw.postprocess(
+                    gamma=(1, 1),
+                    no_auto_bright=True,
+                    use_camera_wb=True,
+                    output_bps=16,
+                    user_flip=0,
+                    half_size=half_size,
+                )
     except (rawpy.LibRawError, OSError, ValueError) as exc:
         raise InputError(path, f"unreadable RAW photo: {exc}") from None
     return np.ascontiguousarray(rgb[:, :, ::-1])
+
+
+def _stack_to_rgb16(raw: object) -> np.ndarray:
+    """RGB uint16 from a RAW file whose data is already 3-channel (``RawType.Stack``).
+
+    Scanner NEFs and linear DNGs store RGB per pixel, not a Bayer mosaic. LibRaw's
+    ``postprocess`` scales them by a white level that can be far below the data
+    (the Nikon scan: white 255, data up to 55000) and clips most pixels; here the
+    channels are taken as stored, minus black, scaled by the real white level (the
+    declared one, or the 16-bit full scale when the data exceed it), and multiplied
+    by the camera white balance when the file has a usable one (all of R, G, B > 0).
+    """
+    data = np.asarray(raw.raw_image_visible)[..., :3].astype(np.float32)
+    black = np.asarray(raw.black_level_per_channel[:3], dtype=np.float32)
+    white = float(raw.white_level)
+    if float(data.max(initial=0.0)) > white:
+        white = float(np.iinfo(np.uint16).max)
+    scale = 1.0 / np.maximum(white - black, 1.0)
+    wb = np.asarray(raw.camera_whitebalance[:3], dtype=np.float32)
+    if np.all(wb > 0):
+        scale = scale * wb / wb[1]
+    linear = np.clip((data - black) * scale, 0.0, 1.0)
+    return (linear * 65535.0 + 0.5).astype(np.uint16)
