@@ -1,0 +1,141 @@
+"""The forward model, its effects and its inverse."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.sim import (
+    EFFECT_NAMES,
+    Effect,
+    SimParams,
+    max_reachable_deg,
+    parse_effect,
+    pin_command_for_angle,
+    simulate,
+)
+from cvmeasure.sim.kinematics import head_geometry, pin_angle_for_loaded_deg
+
+CMDS = np.array([-120.0, -60.0, -25.0, 25.0, 60.0, 120.0])
+
+
+def test_directions_are_mirror_images_and_signed():
+    res = simulate(CMDS)
+    np.testing.assert_allclose(res.loaded_bend_deg[:3], -res.loaded_bend_deg[:2:-1], atol=1e-12)
+    assert np.all(np.sign(res.loaded_bend_deg) == np.sign(CMDS))
+    assert np.all(res.springback_deg > 0)  # opens back towards straight
+    np.testing.assert_allclose(
+        res.springback_deg,
+        np.sign(res.loaded_bend_deg) * (res.loaded_bend_deg - res.unloaded_bend_deg),
+    )
+    np.testing.assert_array_equal(res.pin_deg, CMDS)
+
+
+def test_dead_zone_gives_no_bend():
+    p = SimParams()
+    res = simulate([0.0, p.approach_deg - 0.5, -(p.approach_deg - 0.5)], p)
+    np.testing.assert_array_equal(res.loaded_bend_deg, 0.0)
+    np.testing.assert_array_equal(res.unloaded_bend_deg, 0.0)
+
+
+def test_loaded_angle_follows_tangent_construction():
+    p = SimParams()
+    geom = head_geometry(p)
+    phi = pin_angle_for_loaded_deg(geom, 90.0)
+    from cvmeasure.sim.kinematics import contact_angle_deg
+
+    cmd = float(phi - contact_angle_deg(geom) + p.approach_deg)
+    assert simulate([cmd], p).loaded_bend_deg[0] == pytest.approx(90.0, abs=1e-9)
+
+
+def _delta(effect, cmds=CMDS, **kw):
+    base = simulate(cmds, **kw)
+    eff = simulate(cmds, effects=[effect], **kw)
+    return base, eff
+
+
+def test_backlash_and_offset_and_scale_change_pin_travel():
+    _, b = _delta(Effect("backlash", 1.5))
+    np.testing.assert_allclose(np.abs(b.pin_deg), np.abs(CMDS) - 1.5)
+    _, o = _delta(Effect("offset", 2.0))
+    np.testing.assert_allclose(o.pin_deg, CMDS + 2.0)
+    _, s = _delta(Effect("scale", 0.04))
+    np.testing.assert_allclose(s.pin_deg, CMDS * 1.04)
+
+
+def test_drift_accumulates_with_bend_index():
+    cmds = np.full(10, 60.0)
+    _, d = _delta(Effect("drift", 0.1), cmds)
+    np.testing.assert_allclose(d.pin_deg, 60.0 - 0.1 * np.arange(10))
+    assert np.all(np.diff(d.unloaded_bend_deg) < 0)  # the helix: every bend a bit less
+
+
+def test_springback_asymmetry_only_changes_unloaded():
+    base, eff = _delta(Effect("springback_asymmetry", 0.3))
+    np.testing.assert_allclose(eff.loaded_bend_deg, base.loaded_bend_deg)
+    ratio = eff.springback_deg / base.springback_deg
+    np.testing.assert_allclose(ratio, np.where(CMDS > 0, 1.3, 0.7), rtol=1e-9)
+
+
+def test_camera_tilt_foreshortens_measured_angles():
+    tau = 20.0
+    base, eff = _delta(Effect("camera_tilt", tau))
+    expected = np.degrees(
+        np.arctan2(
+            np.sin(np.radians(base.loaded_bend_deg)) * np.cos(np.radians(tau)),
+            np.cos(np.radians(base.loaded_bend_deg)),
+        )
+    )
+    np.testing.assert_allclose(eff.loaded_bend_deg, expected)
+    np.testing.assert_allclose(eff.pin_deg, base.pin_deg)
+
+
+def test_axis_offset_breaks_symmetry_with_cos_shape():
+    cmds = np.array([30.0, -30.0, 140.0, -140.0])
+    base, eff = _delta(Effect("axis_offset", 0.3), cmds)
+    d = np.abs(eff.loaded_bend_deg) - np.abs(base.loaded_bend_deg)
+    # small angles: one direction gains what the other loses; sign flips at large angles
+    assert d[0] * d[1] < 0 and d[2] * d[3] < 0
+    assert np.sign(d[0]) != np.sign(d[2])
+    # cw - ccw difference of ~3 deg at small angles for 0.3 mm (reference section 2.1)
+    assert abs(d[0] - d[1]) == pytest.approx(3.1, abs=0.6)
+
+
+def test_effect_bounds_and_parsing():
+    assert parse_effect("backlash=1.2") == Effect("backlash", 1.2)
+    assert parse_effect("none") == Effect("none")
+    with pytest.raises(ValueError, match="unknown effect"):
+        parse_effect("wobble=1")
+    with pytest.raises(ValueError, match="physical bounds"):
+        Effect("backlash", -1.0)
+    with pytest.raises(ValueError, match="NAME=VALUE"):
+        parse_effect("backlash")
+    for name in EFFECT_NAMES:  # every spec name can be simulated
+        e = Effect.from_dict(Effect(name, 0.0).to_dict())
+        assert simulate(CMDS, effects=[e]).loaded_bend_deg.shape == CMDS.shape
+
+
+@pytest.mark.parametrize(
+    "effects",
+    [(), (Effect("backlash", 1.0),), (Effect("springback_asymmetry", -0.3), Effect("offset", 1.0))],
+)
+def test_inverse_round_trip(effects):
+    targets = np.array([-150.0, -90.0, -5.0, 0.0, 3.0, 45.0, 90.0, 130.0])
+    cmd = pin_command_for_angle(targets, SimParams(), effects)
+    res = simulate(cmd, SimParams(), effects)
+    np.testing.assert_allclose(res.unloaded_bend_deg, targets, atol=1e-6)
+    assert pin_command_for_angle(90.0) == pytest.approx(
+        float(pin_command_for_angle(np.array([90.0]))[0])
+    )
+
+
+def test_inverse_ignores_camera_and_refuses_unreachable():
+    tilt = (Effect("camera_tilt", 20.0),)
+    assert pin_command_for_angle(60.0, effects=tilt) == pytest.approx(pin_command_for_angle(60.0))
+    with pytest.raises(ValueError, match="reachable"):
+        pin_command_for_angle(max_reachable_deg() + 1.0)
+
+
+def test_invalid_command():
+    with pytest.raises(ValueError, match="finite"):
+        simulate([np.nan])
