@@ -1,0 +1,128 @@
+"""The calibration JSON: modes, fitting from trials, validated load/save."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cvmeasure.driver.calibration import (
+    FORMAT,
+    MODES,
+    Calibration,
+    calibration_plan,
+    fit_calibration,
+    load_calibration,
+    read_trials_csv,
+    samples_from_trials,
+    save_calibration,
+)
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import write_csv_rows
+from tests.cvmeasure.driver.test_compensation import final_of_loaded, loaded_of_pin, trials
+
+
+def trial_rows(angles=MODES["standard"], noise_deg=0.01, seed=1):
+    pin, loaded, unloaded = trials(angles, noise_deg=noise_deg, seed=seed)
+    targets = list(angles) * 2
+    return [
+        {
+            "trial": i + 1,
+            "commanded_pin_deg": p,
+            "loaded_bend_deg": lo,
+            "unloaded_bend_deg": un,
+            "target_deg": t,
+            "loaded_uncertainty_deg": 0.01,
+            "unloaded_uncertainty_deg": 0.01,
+        }
+        for i, (p, lo, un, t) in enumerate(zip(pin, loaded, unloaded, targets, strict=True))
+    ]
+
+
+def test_modes_and_plan():
+    assert MODES["quick"] == (10, 20, 45, 75, 110)
+    assert len(MODES["standard"]) == 11
+    plan = calibration_plan("quick")
+    assert len(plan) == 10
+    assert plan[0] == ("ccw", 10.0) and plan[-1] == ("cw", 110.0)
+    with pytest.raises(ValueError, match="unknown mode"):
+        calibration_plan("slow")
+
+
+def test_round_trip_keeps_samples_models_and_compensation(tmp_path):
+    samples = samples_from_trials(trial_rows())
+    cal = fit_calibration(samples, model="pchip", name="steel-3mm")
+    assert cal.mode == "standard"
+    path = save_calibration(tmp_path / "cal.json", cal)
+    d = json.loads(path.read_text())
+    assert d["format"] == FORMAT
+    assert len(d["samples"]["ccw"]) == 11 and len(d["samples"]["cw"]) == 11
+    s0 = d["samples"]["cw"][0]
+    assert s0["springback_deg"] == pytest.approx(-(s0["loaded_bend_deg"] - s0["unloaded_bend_deg"]))
+    assert s0["uncertainty_deg"]["springback_deg"] == pytest.approx(np.hypot(0.01, 0.01))
+    assert set(d["scores"]) == {"linear", "cubic", "pchip", "physical"}
+    again = load_calibration(path)
+    assert isinstance(again, Calibration)
+    assert again.samples == cal.samples
+    for target in (9.0, -9.0, 44.4, -101.0):
+        assert again.compensate(target) == pytest.approx(cal.compensate(target), abs=1e-12)
+        final = float(final_of_loaded(loaded_of_pin(again.compensate(target))))
+        assert final == pytest.approx(target, abs=0.1)
+
+
+def test_refit_changes_model_not_samples():
+    cal = fit_calibration(samples_from_trials(trial_rows()), model="linear")
+    cubic = cal.refit("cubic")
+    assert cubic.model == "cubic" and cubic.samples == cal.samples
+    assert cubic.compensation.springback["ccw"].coef != ()
+
+
+def test_read_trials_csv(tmp_path):
+    rows = trial_rows()
+    path = write_csv_rows(tmp_path / "t.csv", rows, list(rows[0]))
+    samples = read_trials_csv(path)
+    assert len(samples) == 22 and samples[11].direction == "cw"
+    assert samples[3].target_deg == 20.0
+    bad = dict(rows[0], loaded_bend_deg="abc")
+    path = write_csv_rows(tmp_path / "bad.csv", [bad], list(rows[0]))
+    with pytest.raises(InputError, match=r"bad\.csv: line 2: loaded_bend_deg is 'abc'"):
+        read_trials_csv(path)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "message"),
+    [
+        (lambda d: d.update(format="other/1"), "format is 'other/1'"),
+        (lambda d: d.pop("samples"), "missing key 'samples'"),
+        (
+            lambda d: d["samples"]["ccw"][2].update(loaded_bend_deg="x"),
+            r"samples\.ccw\[2\]\.loaded_bend_deg",
+        ),
+        (
+            lambda d: d["samples"]["cw"][0].update(loaded_bend_deg=5.0),
+            "sign does not match direction cw",
+        ),
+        (lambda d: d["samples"]["ccw"][1].update(springback_deg=9.0), "does not equal sign"),
+        (lambda d: d["springback"]["ccw"].update(model="spline"), "unknown model 'spline'"),
+        (lambda d: d["springback"]["cw"]["final_deg"].pop(), "differ in length"),
+        (lambda d: d["motion"].clear(), "motion: no fitted curve"),
+        (lambda d: d.update(mode="turbo"), "unknown mode 'turbo'"),
+    ],
+)
+def test_schema_errors_name_the_file_and_key(tmp_path, mutate, message):
+    d = fit_calibration(samples_from_trials(trial_rows())).to_dict()
+    mutate(d)
+    path = tmp_path / "broken.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=rf"broken\.json: .*{message}"):
+        load_calibration(path)
+
+
+def test_corrupt_and_missing_files(tmp_path):
+    path = tmp_path / "cal.json"
+    path.write_text('{"format": "diwire-material/1",')
+    with pytest.raises(InputError, match=r"cal\.json: corrupt calibration JSON"):
+        load_calibration(path)
+    with pytest.raises(InputError, match="not found"):
+        load_calibration(tmp_path / "none.json")
