@@ -1,0 +1,365 @@
+"""Camera calibration from board detections: model choice and iterative rejection.
+
+The solve is OpenCV 5's ``calibrateCameraExtended`` (Zhang's method followed by
+Levenberg-Marquardt) with one of four distortion models, wrapped in a loop that
+drops outlier corners (residual beyond 4 robust sigmas) and bad views (RMS above
+3x the median view RMS, or too few corners left) and solves again.
+
+References
+----------
+Z. Zhang, "A flexible new technique for camera calibration", IEEE TPAMI 22(11),
+2000, doi:10.1109/34.888718.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.calibration.detect import MIN_CORNERS, BoardDetection
+from cvmeasure.camera import CameraModel
+from cvmeasure.errors import InputError
+
+__all__ = [
+    "DistortionModel",
+    "DISTORTION_MODELS",
+    "INTRINSIC_NAMES",
+    "ViewResult",
+    "RejectedView",
+    "CalibrationResult",
+    "calibrate_views",
+    "model_flags",
+    "view_residuals_px",
+    "tilt_deg_from_rvec",
+    "MIN_VIEWS",
+]
+
+DistortionModel = Literal["5", "8", "rational", "thin-prism"]
+
+#: Model name -> (OpenCV flags, number of distortion coefficients).
+DISTORTION_MODELS: dict[str, tuple[str, int]] = {
+    "5": ("k1 k2 p1 p2 k3", 5),
+    "8": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
+    "rational": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
+    "thin-prism": ("rational + thin prism: k1..k6, s1..s4", 12),
+}
+
+#: Names of the 18 intrinsics whose standard deviations OpenCV returns, in its order.
+INTRINSIC_NAMES = (
+    "fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3",
+    "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tau_x", "tau_y",
+)  # fmt: skip
+
+#: Fewest usable views a calibration accepts.
+MIN_VIEWS = 3
+
+_OUTLIER_SIGMAS = 4.0
+_OUTLIER_FLOOR_PX = 0.25
+_VIEW_RMS_FACTOR = 3.0
+_VIEW_RMS_FLOOR_PX = 0.5
+
+
+def model_flags(model: str) -> int:
+    """OpenCV calibration flags for a distortion model name (see :data:`DISTORTION_MODELS`).
+
+    ``CALIB_DISABLE_SCHUR_COMPLEMENT`` is never used: in OpenCV 5.0.0 it has the
+    same value as ``CALIB_TILTED_MODEL`` (0x40000) and silently frees tau_x, tau_y.
+    """
+    import cv2
+
+    if model not in DISTORTION_MODELS:
+        raise ValueError(
+            f"unknown distortion model {model!r}; choose one of {list(DISTORTION_MODELS)}"
+        )
+    if model == "5":
+        return 0
+    if model in ("8", "rational"):
+        return cv2.CALIB_RATIONAL_MODEL
+    return cv2.CALIB_RATIONAL_MODEL | cv2.CALIB_THIN_PRISM_MODEL
+
+
+def tilt_deg_from_rvec(rvec: np.ndarray) -> float:
+    """Angle between the board normal and the optical axis, degrees (0 = fronto-parallel)."""
+    import cv2
+
+    rot, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
+    return float(np.degrees(np.arccos(np.clip(abs(rot[2, 2]), 0.0, 1.0))))
+
+
+@dataclass(frozen=True)
+class ViewResult:
+    """One view used by the solve: its error and the board pose (camera <- board)."""
+
+    source: str
+    rms_px: float
+    corner_count: int
+    corners_rejected: int
+    tilt_deg: float
+    rvec: np.ndarray
+    tvec_mm: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "source": self.source,
+            "rms_px": self.rms_px,
+            "corner_count": self.corner_count,
+            "corners_rejected": self.corners_rejected,
+            "tilt_deg": self.tilt_deg,
+            "rvec": self.rvec.tolist(),
+            "tvec_mm": self.tvec_mm.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class RejectedView:
+    """A photo left out of the solve, and why."""
+
+    source: str
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"source": self.source, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """The solved camera and everything needed to judge and redo the solve.
+
+    Attributes
+    ----------
+    camera : CameraModel
+        Intrinsics and distortion (no calibration record attached).
+    model : str
+        Distortion model name (:data:`DISTORTION_MODELS`).
+    flags : int
+        OpenCV flags used.
+    rms_px : float
+        RMS reprojection error over all used corners, px.
+    std_devs : dict of str -> float
+        One standard deviation of every free intrinsic (px for fx..cy).
+    views : tuple of ViewResult
+    rejected : tuple of RejectedView
+    detections : tuple of BoardDetection
+        The corner sets actually used (outliers removed), parallel to ``views``.
+    rounds : int
+        Solves run by the rejection loop.
+    """
+
+    camera: CameraModel
+    model: str
+    flags: int
+    rms_px: float
+    std_devs: dict[str, float]
+    views: tuple[ViewResult, ...]
+    rejected: tuple[RejectedView, ...]
+    detections: tuple[BoardDetection, ...] = field(repr=False)
+    rounds: int = 1
+
+    @property
+    def image_size_px(self) -> tuple[int, int]:
+        return self.camera.image_size_px
+
+    @property
+    def corner_count(self) -> int:
+        return int(sum(v.corner_count for v in self.views))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": self.model,
+            "flags": self.flags,
+            "rms_px": self.rms_px,
+            "std_devs": dict(self.std_devs),
+            "views_used": [v.to_dict() for v in self.views],
+            "views_rejected": [r.to_dict() for r in self.rejected],
+            "corner_count": self.corner_count,
+            "rounds": self.rounds,
+        }
+
+
+def view_residuals_px(
+    camera: CameraModel, detection: BoardDetection, rvec: np.ndarray, tvec: np.ndarray
+) -> np.ndarray:
+    """Reprojection residuals (N, 2), observed minus projected, px."""
+    import cv2
+
+    proj, _ = cv2.projectPoints(
+        detection.object_mm.reshape(-1, 1, 3),
+        np.asarray(rvec, dtype=np.float64),
+        np.asarray(tvec, dtype=np.float64),
+        camera.camera_matrix,
+        camera.dist_coeffs,
+    )
+    return detection.corners_px - proj.reshape(-1, 2)
+
+
+def _solve(
+    dets: Sequence[BoardDetection], image_size: tuple[int, int], flags: int
+) -> tuple[float, CameraModel, list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
+    import cv2
+
+    objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in dets]
+    imgs = [d.corners_px.astype(np.float32).reshape(-1, 1, 2) for d in dets]
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
+        objs, imgs, image_size, None, None, flags=flags, criteria=crit
+    )
+    camera = CameraModel(image_size, k, np.asarray(dist, dtype=np.float64).ravel())
+    return (
+        float(rms),
+        camera,
+        [np.asarray(r, dtype=np.float64).ravel() for r in rvecs],
+        [np.asarray(t, dtype=np.float64).ravel() for t in tvecs],
+        np.asarray(sd_intr, dtype=np.float64).ravel(),
+        np.asarray(per_view, dtype=np.float64).ravel(),
+    )
+
+
+def _free_intrinsics(model: str) -> tuple[str, ...]:
+    n_dist = DISTORTION_MODELS[model][1]
+    if n_dist == 12:
+        return INTRINSIC_NAMES[:16]
+    return INTRINSIC_NAMES[: 4 + n_dist]
+
+
+def calibrate_views(
+    detections: Sequence[BoardDetection],
+    image_size_px: tuple[int, int],
+    *,
+    model: DistortionModel = "5",
+    reject_outliers: bool = True,
+    max_rounds: int = 5,
+    min_views: int = MIN_VIEWS,
+    source: str = "calibration photos",
+) -> CalibrationResult:
+    """Calibrate a camera from board detections, dropping bad corners and views.
+
+    Parameters
+    ----------
+    detections : sequence of BoardDetection
+        One per photo; detections that are not ``ok`` are reported as rejected.
+    image_size_px : (width, height)
+        Every detection must come from a photo of this size (others are rejected).
+    model : {"5", "8", "rational", "thin-prism"}
+        Distortion model (see :data:`DISTORTION_MODELS`).
+    reject_outliers : bool
+        Run the rejection loop (corners beyond 4 robust sigmas, views above 3x
+        the median view RMS), at most ``max_rounds`` solves.
+    min_views : int
+        Fewer usable views raise :class:`InputError` naming ``source``.
+
+    Returns
+    -------
+    CalibrationResult
+    """
+    flags = model_flags(model)
+    size = (int(image_size_px[0]), int(image_size_px[1]))
+    rejected: list[RejectedView] = []
+    active: list[BoardDetection] = []
+    for det in detections:
+        if not det.ok:
+            rejected.append(RejectedView(det.source, det.reason))
+        elif tuple(det.image_size_px) != size:
+            rejected.append(
+                RejectedView(
+                    det.source,
+                    f"image size {det.image_size_px[0]}x{det.image_size_px[1]} differs from "
+                    f"{size[0]}x{size[1]}",
+                )
+            )
+        elif det.corner_count < MIN_CORNERS:
+            rejected.append(RejectedView(det.source, f"too few corners ({det.corner_count})"))
+        else:
+            active.append(det)
+    original = {id(d): d.corner_count for d in active}
+    origin_of = {id(d): d for d in active}
+    n_rejected_corners = {id(d): 0 for d in active}
+
+    def check_count() -> None:
+        if len(active) < min_views:
+            why = "; ".join(f"{r.source}: {r.reason}" for r in rejected[:6])
+            raise InputError(
+                source,
+                f"only {len(active)} usable view(s), need at least {min_views}"
+                + (f" (skipped: {why})" if why else ""),
+            )
+
+    check_count()
+    rounds = 0
+    while True:
+        rounds += 1
+        try:
+            rms, camera, rvecs, tvecs, sd_intr, per_view = _solve(active, size, flags)
+        except Exception as exc:  # cv2.error: degenerate views
+            raise InputError(source, f"the calibration solve failed: {exc}") from None
+        if not reject_outliers or rounds >= max_rounds:
+            break
+        residuals = [
+            view_residuals_px(camera, d, r, t) for d, r, t in zip(active, rvecs, tvecs, strict=True)
+        ]
+        allres = np.concatenate(residuals).ravel()
+        sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
+        limit = max(_OUTLIER_SIGMAS * sigma, _OUTLIER_FLOOR_PX)
+        view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
+        changed = False
+        new_active: list[BoardDetection] = []
+        for det, res, vrms in zip(active, residuals, per_view, strict=True):
+            if vrms > view_limit:
+                rejected.append(
+                    RejectedView(
+                        det.source,
+                        f"view RMS {vrms:.3f} px is above {view_limit:.3f} px "
+                        f"({_VIEW_RMS_FACTOR:g}x the median view)",
+                    )
+                )
+                changed = True
+                continue
+            keep = np.linalg.norm(res, axis=1) <= limit
+            if not keep.all():
+                changed = True
+                sub = det.subset(keep)
+                key = id(sub)
+                original[key] = original[id(det)]
+                origin_of[key] = origin_of[id(det)]
+                n_rejected_corners[key] = n_rejected_corners[id(det)] + int((~keep).sum())
+                if sub.corner_count < MIN_CORNERS:
+                    rejected.append(
+                        RejectedView(
+                            det.source,
+                            f"too few corners left after outlier removal ({sub.corner_count})",
+                        )
+                    )
+                    continue
+                det = sub
+            new_active.append(det)
+        active = new_active
+        check_count()
+        if not changed:
+            break
+    names = _free_intrinsics(model)
+    std_devs = {n: float(sd_intr[INTRINSIC_NAMES.index(n)]) for n in names}
+    views = tuple(
+        ViewResult(
+            d.source,
+            float(e),
+            d.corner_count,
+            n_rejected_corners[id(d)],
+            tilt_deg_from_rvec(r),
+            r,
+            t,
+        )
+        for d, e, r, t in zip(active, per_view, rvecs, tvecs, strict=True)
+    )
+    return CalibrationResult(
+        camera=camera,
+        model=model,
+        flags=flags,
+        rms_px=rms,
+        std_devs=std_devs,
+        views=views,
+        rejected=tuple(rejected),
+        detections=tuple(active),
+        rounds=rounds,
+    )
