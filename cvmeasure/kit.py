@@ -37,20 +37,32 @@ def srgb8_to_lab_d65(srgb8: Any) -> np.ndarray:
 
 @dataclass(frozen=True)
 class MarkerSpec:
-    """One marker of the kit: role, colour name, printed colour, sizes in mm."""
+    """One marker of the kit: role, colour name, printed colour, sizes in mm.
+
+    ``lab_sigma`` / ``rgb_sigma`` (optional) are the colour's standard deviations
+    per channel in CIE L*a*b* and in 8-bit sRGB under D65, as learnt from a
+    reference photo (``cvmeasure markers learn``); without them a measurement
+    uses the defaults of :mod:`cvmeasure.markers.colour`.
+    """
 
     role: str
     name: str
     srgb: tuple[int, int, int]
     diameter_mm: float
     ring_mm: float
+    lab_sigma: tuple[float, float, float] | None = None
+    rgb_sigma: tuple[float, float, float] | None = None
 
     @property
     def lab_d65(self) -> np.ndarray:
         return srgb8_to_lab_d65(self.srgb)
 
+    def colour_sigma(self, space: str) -> tuple[float, float, float] | None:
+        """The learnt per-channel spread in ``space`` ("lab" or "rgb"), if any."""
+        return {"lab": self.lab_sigma, "rgb": self.rgb_sigma}[space]
+
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "role": self.role,
             "name": self.name,
             "srgb": list(self.srgb),
@@ -58,6 +70,11 @@ class MarkerSpec:
             "diameter_mm": self.diameter_mm,
             "ring_mm": self.ring_mm,
         }
+        if self.lab_sigma is not None:
+            out["lab_sigma"] = [round(float(v), 2) for v in self.lab_sigma]
+        if self.rgb_sigma is not None:
+            out["rgb_sigma"] = [round(float(v), 2) for v in self.rgb_sigma]
+        return out
 
 
 @dataclass(frozen=True)
@@ -98,6 +115,8 @@ class MarkerKit:
                     srgb=srgb,  # type: ignore[arg-type]
                     diameter_mm=float(m["diameter_mm"]),
                     ring_mm=float(m["ring_mm"]),
+                    lab_sigma=_sigma(m.get("lab_sigma")),
+                    rgb_sigma=_sigma(m.get("rgb_sigma")),
                 )
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(source, f"marker #{i} is malformed: {exc}") from None
@@ -108,6 +127,15 @@ class MarkerKit:
             return cls(str(data.get("name", "kit")), tuple(markers))
         except ValueError as exc:
             raise InputError(source, str(exc)) from None
+
+
+def _sigma(value: Any) -> tuple[float, float, float] | None:
+    if value is None:
+        return None
+    sigma = tuple(float(v) for v in value)
+    if len(sigma) != 3 or not all(v > 0 for v in sigma):
+        raise ValueError("a colour sigma must be three positive values")
+    return sigma  # type: ignore[return-value]
 
 
 def default_kit() -> MarkerKit:

@@ -1,0 +1,279 @@
+"""Marker colours: white balance, chromatic adaptation and learnt colour classifiers.
+
+The seed paper typed LAB/RGB thresholds by hand for one light. Here a
+classifier is *derived*: each role is a Gaussian in a colour space (mean and
+covariance), a pixel belongs to the nearest role by Mahalanobis distance when
+that distance is below ``max_distance``. The means come from the kit JSON
+(``lab_d65`` / ``srgb``) or are learnt from a reference photo; the photo is
+first brought to D65 by a white balance measured on the photo itself (the
+brightest unclipped pixels: the markers' white rings) and a CAT02 chromatic
+adaptation (colour-science).
+
+Spaces
+------
+``"lab"`` : CIE L*a*b* under D65 (not OpenCV's 8-bit scaling), after adaptation.
+``"rgb"`` : white-balanced, gamma-encoded sRGB in 0..255, after adaptation.
+
+Speed: pixels are classified through a lookup table over 15-bit quantised
+colours (32 levels per channel) computed only for the colours that occur, so
+the colour science runs on a few thousand colours, not on every pixel.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.kit import ROLES, MarkerKit
+
+__all__ = [
+    "ColourSpace",
+    "COLOUR_SPACES",
+    "WhiteEstimate",
+    "ColourModel",
+    "estimate_white",
+    "adaptation_matrix",
+    "bgr8_to_space",
+    "kit_colour_model",
+    "learnt_colour_model",
+    "classify_bgr8",
+    "DEFAULT_SIGMA",
+]
+
+ColourSpace = Literal["lab", "rgb"]
+COLOUR_SPACES: tuple[str, ...] = ("lab", "rgb")
+
+#: Default per-channel standard deviation of a marker's colour in each space
+#: (shading, print and light variation left after white balance).
+DEFAULT_SIGMA: dict[str, tuple[float, float, float]] = {
+    "lab": (16.0, 9.0, 9.0),
+    "rgb": (28.0, 28.0, 28.0),
+}
+
+_SRGB_TO_XYZ = np.array(
+    [[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]
+)
+_XYZ_TO_SRGB = np.linalg.inv(_SRGB_TO_XYZ)
+_D65_XY = np.array([0.3127, 0.3290])
+_D65_XYZ = np.array([_D65_XY[0] / _D65_XY[1], 1.0, (1 - _D65_XY.sum()) / _D65_XY[1]])
+_QUANT_SHIFT = 3  # 8-bit -> 5-bit per channel for the lookup table
+
+
+def _srgb_decode(v: np.ndarray) -> np.ndarray:
+    """Gamma-encoded sRGB in 0..1 -> linear."""
+    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
+
+
+def _srgb_encode(v: np.ndarray) -> np.ndarray:
+    """Linear sRGB -> gamma-encoded in 0..1 (clipped)."""
+    v = np.clip(v, 0.0, 1.0)
+    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
+
+
+@dataclass(frozen=True)
+class WhiteEstimate:
+    """The photo's white: mean gamma-encoded sRGB (0..255, R, G, B order) of the whitest pixels.
+
+    ``n_pixels`` is how many pixels it came from; ``clipped_fraction`` the share of
+    the brightest pixels that had a clipped channel (a hint of overexposure).
+    """
+
+    srgb8: tuple[float, float, float]
+    n_pixels: int
+    clipped_fraction: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "srgb8": [round(v, 2) for v in self.srgb8],
+            "n_pixels": self.n_pixels,
+            "clipped_fraction": round(self.clipped_fraction, 4),
+        }
+
+
+def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEstimate:
+    """Estimate the light's white from the brightest unclipped pixels (the white rings).
+
+    Parameters
+    ----------
+    bgr8 : ndarray of shape (H, W, 3), uint8
+        The photo (any size; a reduced copy is enough).
+    top_fraction : float
+        Share of the unclipped pixels, by luminance, averaged into the white.
+    """
+    px = np.asarray(bgr8).reshape(-1, 3)
+    luma = px.astype(np.float32) @ np.array([0.114, 0.587, 0.299], dtype=np.float32)
+    clipped = px.max(axis=1) >= 250
+    ok = ~clipped
+    n_ok = int(ok.sum())
+    if n_ok == 0:
+        return WhiteEstimate((255.0, 255.0, 255.0), 0, 1.0)
+    k = max(20, int(np.ceil(top_fraction * n_ok)))
+    k = min(k, n_ok)
+    luma_ok = luma[ok]
+    threshold = np.partition(luma_ok, n_ok - k)[n_ok - k]
+    top = px[ok][luma_ok >= threshold].astype(np.float64)
+    bright = luma >= threshold
+    clipped_fraction = float(clipped[bright].sum() / max(1, bright.sum()))
+    b, g, r = np.median(top, axis=0)
+    return WhiteEstimate((float(r), float(g), float(b)), int(top.shape[0]), clipped_fraction)
+
+
+def adaptation_matrix(white: WhiteEstimate | None) -> np.ndarray:
+    """3x3 matrix: the photo's linear sRGB -> XYZ adapted to D65, the white at Y = 1.
+
+    Chromatic adaptation is CAT02 von Kries (colour-science) from the measured
+    white to D65; ``None`` means the photo is already balanced with white at 255.
+    """
+    import colour
+
+    if white is None:
+        return _SRGB_TO_XYZ.copy()
+    lin_white = _srgb_decode(np.asarray(white.srgb8, dtype=np.float64) / 255.0)
+    xyz_white = _SRGB_TO_XYZ @ np.maximum(lin_white, 1e-6)
+    xyz_white = xyz_white / xyz_white[1]
+    cat = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        xyz_white, _D65_XYZ, transform="CAT02"
+    )
+    # exposure: the white maps to Y = 1 (L* = 100)
+    y_white = float((_SRGB_TO_XYZ @ np.maximum(lin_white, 1e-6))[1])
+    return cat @ _SRGB_TO_XYZ / y_white
+
+
+def _rgb8_to_space(rgb8: np.ndarray, matrix: np.ndarray, space: str) -> np.ndarray:
+    """(N, 3) R, G, B values 0..255 of the photo -> (N, 3) in ``space`` after adaptation."""
+    import colour
+
+    lin = _srgb_decode(np.asarray(rgb8, dtype=np.float64) / 255.0)
+    xyz = lin @ matrix.T
+    if space == "lab":
+        return colour.XYZ_to_Lab(xyz, _D65_XY)
+    if space == "rgb":
+        return _srgb_encode(xyz @ _XYZ_TO_SRGB.T) * 255.0
+    raise ValueError(f"unknown colour space {space!r}; valid: {COLOUR_SPACES}")
+
+
+def bgr8_to_space(
+    bgr8: np.ndarray, space: ColourSpace, white: WhiteEstimate | None = None
+) -> np.ndarray:
+    """Convert BGR pixels (..., 3) uint8 to ``space`` after white balance and CAT02 to D65."""
+    arr = np.asarray(bgr8)
+    flat = arr.reshape(-1, 3)[:, ::-1]
+    out = _rgb8_to_space(flat, adaptation_matrix(white), space)
+    return out.reshape(arr.shape[:-1] + (3,))
+
+
+@dataclass(frozen=True)
+class ColourModel:
+    """One Gaussian per role in a colour space; nearest-role Mahalanobis classification.
+
+    Attributes
+    ----------
+    space : "lab" or "rgb".
+    roles : tuple of role names, the order of ``means_`` rows.
+    means : ndarray (K, 3), float, each role's colour in ``space`` under D65.
+    covariances : ndarray (K, 3, 3), float, each role's colour covariance.
+    max_distance : float, largest Mahalanobis distance still counted as the role.
+    """
+
+    space: str
+    roles: tuple[str, ...]
+    means: np.ndarray
+    covariances: np.ndarray
+    max_distance: float = 4.0
+
+    def __post_init__(self) -> None:
+        if self.space not in COLOUR_SPACES:
+            raise ValueError(f"unknown colour space {self.space!r}; valid: {COLOUR_SPACES}")
+        means = np.asarray(self.means, dtype=np.float64).reshape(-1, 3)
+        covs = np.asarray(self.covariances, dtype=np.float64).reshape(-1, 3, 3)
+        if len(self.roles) != means.shape[0] or covs.shape[0] != means.shape[0]:
+            raise ValueError("roles, means and covariances must have the same length")
+        object.__setattr__(self, "means", means)
+        object.__setattr__(self, "covariances", covs)
+
+    def distances(self, values: np.ndarray) -> np.ndarray:
+        """Mahalanobis distance of colours (N, 3) in ``space`` to every role: (N, K)."""
+        v = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+        out = np.empty((v.shape[0], len(self.roles)))
+        for k in range(len(self.roles)):
+            d = v - self.means[k]
+            inv = np.linalg.inv(self.covariances[k])
+            out[:, k] = np.sqrt(np.einsum("ni,ij,nj->n", d, inv, d))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "space": self.space,
+            "roles": list(self.roles),
+            "means": np.round(self.means, 3).tolist(),
+            "covariances": np.round(self.covariances, 3).tolist(),
+            "max_distance": self.max_distance,
+        }
+
+
+def _marker_mean(marker: Any, space: str) -> np.ndarray:
+    if space == "lab":
+        return np.asarray(marker.lab_d65, dtype=np.float64)
+    return np.asarray(marker.srgb, dtype=np.float64)
+
+
+def kit_colour_model(
+    kit: MarkerKit, space: ColourSpace = "lab", *, max_distance: float = 4.0
+) -> ColourModel:
+    """The colour model of a kit: the kit's D65 colours, with its learnt spreads if it has them."""
+    if space not in COLOUR_SPACES:
+        raise ValueError(f"unknown colour space {space!r}; valid: {COLOUR_SPACES}")
+    means, covs = [], []
+    for role in ROLES:
+        marker = kit.by_role(role)
+        means.append(_marker_mean(marker, space))
+        sigma = marker.colour_sigma(space) or DEFAULT_SIGMA[space]
+        covs.append(np.diag(np.square(np.maximum(np.asarray(sigma, dtype=np.float64), 1.0))))
+    return ColourModel(space, ROLES, np.array(means), np.array(covs), max_distance)
+
+
+def learnt_colour_model(
+    samples: dict[str, np.ndarray], space: ColourSpace, *, max_distance: float = 4.0
+) -> ColourModel:
+    """A model from labelled colour samples: {role: (N, 3) values in ``space``}."""
+    roles = tuple(r for r in ROLES if r in samples)
+    means, covs = [], []
+    for role in roles:
+        v = np.asarray(samples[role], dtype=np.float64).reshape(-1, 3)
+        if v.shape[0] < 10:
+            raise ValueError(f"role {role!r}: need at least 10 colour samples, got {v.shape[0]}")
+        means.append(v.mean(axis=0))
+        covs.append(np.cov(v.T) + np.eye(3) * 1.0)
+    return ColourModel(space, roles, np.array(means), np.array(covs), max_distance)
+
+
+def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | None) -> np.ndarray:
+    """Label each pixel with the index of its role in ``model.roles``, or -1 for none.
+
+    Parameters
+    ----------
+    bgr8 : ndarray of shape (H, W, 3), uint8
+    model : the colour model (means under D65).
+    white : the photo's white (see :func:`estimate_white`); ``None`` = already balanced.
+
+    Returns
+    -------
+    labels : ndarray of shape (H, W), int8
+    """
+    img = np.asarray(bgr8)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError("classify_bgr8 needs an (H, W, 3) uint8 BGR image")
+    q = (img >> _QUANT_SHIFT).astype(np.int32)
+    idx = (q[..., 2] << 10) | (q[..., 1] << 5) | q[..., 0]  # R, G, B
+    used = np.flatnonzero(np.bincount(idx.ravel(), minlength=1 << 15))
+    rgb8 = np.column_stack(((used >> 10) & 31, (used >> 5) & 31, used & 31)).astype(np.float64)
+    rgb8 = rgb8 * (1 << _QUANT_SHIFT) + (1 << _QUANT_SHIFT) / 2 - 0.5
+    values = _rgb8_to_space(rgb8, adaptation_matrix(white), model.space)
+    dist = model.distances(values)
+    best = np.argmin(dist, axis=1)
+    lut_used = np.where(dist[np.arange(len(used)), best] <= model.max_distance, best, -1)
+    lut = np.full(1 << 15, -1, dtype=np.int8)
+    lut[used] = lut_used.astype(np.int8)
+    return lut[idx]

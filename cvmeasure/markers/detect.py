@@ -1,0 +1,259 @@
+"""Finding the kit's markers on a reduced copy of the photo.
+
+The photo is subsampled (every ``step``-th pixel, so a reduced pixel (i, j) is
+exactly the full-resolution pixel (i * step, j * step)), white-balanced, and
+every pixel labelled with its nearest marker colour (:mod:`.colour`). Each
+role's pixels form connected regions; a region is a candidate disc when it is
+compact and round and surrounded by the white ring. A partly hidden disc gets
+its circle from Hough circles on the region's mask (the gradient votes of the
+visible arc), a whole one from its moments. All coordinates returned are
+full-resolution image pixels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.markers.colour import (
+    ColourModel,
+    WhiteEstimate,
+    classify_bgr8,
+    estimate_white,
+)
+
+__all__ = [
+    "MarkerCandidate",
+    "MarkerSearch",
+    "search_step",
+    "find_markers",
+]
+
+#: The reduced copy holds at most this many pixels.
+SEARCH_MAX_PIXELS = 300_000
+#: Smallest region (reduced pixels) that can be a marker disc.
+MIN_AREA_PX = 10
+
+
+@dataclass(frozen=True)
+class MarkerCandidate:
+    """One disc-shaped region of a role's colour, in full-resolution pixels.
+
+    ``fill`` is area / bounding-box area (pi/4 for a whole disc); ``ring_fraction``
+    the share of bright (white-ring) pixels just outside it.
+    """
+
+    role: str
+    centre_px: tuple[float, float]
+    radius_px: float
+    area_px: float
+    fill: float
+    ring_fraction: float
+
+    @property
+    def score(self) -> float:
+        return self.area_px * (0.25 + self.ring_fraction)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "role": self.role,
+            "x_px": round(self.centre_px[0], 3),
+            "y_px": round(self.centre_px[1], 3),
+            "r_px": round(self.radius_px, 3),
+            "fill": round(self.fill, 3),
+            "ring_fraction": round(self.ring_fraction, 3),
+        }
+
+
+@dataclass(frozen=True)
+class MarkerSearch:
+    """What the search found: one candidate per role, or the reason there is none."""
+
+    found: dict[str, MarkerCandidate]
+    failures: dict[str, str]
+    white: WhiteEstimate
+    step: int
+    others: dict[str, tuple[MarkerCandidate, ...]] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+
+def search_step(shape: tuple[int, ...], max_pixels: int = SEARCH_MAX_PIXELS) -> int:
+    """Subsampling step so that the reduced copy has at most ``max_pixels`` pixels."""
+    h, w = shape[:2]
+    return max(1, math.ceil(math.sqrt(h * w / max_pixels)))
+
+
+def _ring_fraction(bright: np.ndarray, cx: float, cy: float, r: float, ring_ratio: float) -> float:
+    """Share of bright pixels in the annulus between the disc and the ring's outer edge."""
+    h, w = bright.shape
+    outer = max(r * ring_ratio, r + 1.5)
+    inner = r + max(0.6, 0.25 * (outer - r))
+    x0, x1 = max(0, int(cx - outer - 1)), min(w, int(cx + outer + 2))
+    y0, y1 = max(0, int(cy - outer - 1)), min(h, int(cy + outer + 2))
+    if x1 <= x0 or y1 <= y0:
+        return 0.0
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    d = np.hypot(xx - cx, yy - cy)
+    ann = (d >= inner) & (d <= outer)
+    if not ann.any():
+        return 0.0
+    return float(bright[y0:y1, x0:x1][ann].mean())
+
+
+def _hough_circle(
+    mask: np.ndarray, x: int, y: int, w: int, h: int
+) -> tuple[float, float, float] | None:
+    """Hough circle of a partly hidden region (reduced pixels), or None."""
+    import cv2
+
+    pad = max(w, h)
+    H, W = mask.shape
+    x0, y0 = max(0, x - pad), max(0, y - pad)
+    x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
+    crop = (mask[y0:y1, x0:x1] * 255).astype(np.uint8)
+    crop = cv2.GaussianBlur(crop, (0, 0), 1.0)
+    r_max = max(w, h)
+    circles = cv2.HoughCircles(
+        crop,
+        cv2.HOUGH_GRADIENT,
+        dp=1,
+        minDist=max(2 * r_max, 4),
+        param1=100,
+        param2=max(4, int(0.8 * r_max)),
+        minRadius=max(2, int(0.4 * r_max)),
+        maxRadius=int(1.3 * r_max) + 1,
+    )
+    if circles is None:
+        return None
+    cx, cy, r = (float(v) for v in circles[0, 0])
+    return cx + x0, cy + y0, r
+
+
+def _candidates(
+    role: str,
+    mask: np.ndarray,
+    bright: np.ndarray,
+    ring_ratio: float,
+    step: int,
+) -> tuple[list[MarkerCandidate], str]:
+    """Round, ring-surrounded regions of one role's mask; the reason when there are none."""
+    import cv2
+
+    n, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    found: list[MarkerCandidate] = []
+    largest = 0
+    for i in range(1, n):
+        x, y, w, h, area = (int(v) for v in stats[i])
+        largest = max(largest, area)
+        if area < MIN_AREA_PX:
+            continue
+        fill = area / float(w * h)
+        aspect = w / float(h)
+        if not (0.3 <= fill <= 0.97 and 0.4 <= aspect <= 2.5):
+            continue
+        cx, cy = (float(v) for v in centroids[i])
+        r = math.sqrt(area / math.pi)
+        if fill < 0.68 or not 0.75 <= aspect <= 1.33:
+            circle = _hough_circle(mask, x, y, w, h)
+            if circle is None:
+                continue
+            cx, cy, r = circle
+        ring = _ring_fraction(bright, cx, cy, r, ring_ratio)
+        if ring < 0.2:
+            continue
+        found.append(
+            MarkerCandidate(
+                role,
+                (cx * step, cy * step),
+                r * step,
+                area * step * step,
+                fill,
+                ring,
+            )
+        )
+    if found:
+        return sorted(found, key=lambda c: -c.score), ""
+    n_pixels = int(mask.sum())
+    if n_pixels == 0:
+        return [], "no pixels of its colour in the photo"
+    return [], (
+        f"no round disc of its colour on a white ring (largest region {largest * step * step} px)"
+    )
+
+
+def find_markers(
+    bgr8: np.ndarray,
+    kit: MarkerKit,
+    model: ColourModel,
+    *,
+    max_pixels: int = SEARCH_MAX_PIXELS,
+    white: WhiteEstimate | None = None,
+) -> MarkerSearch:
+    """Find each role's disc on a reduced copy of the photo.
+
+    Parameters
+    ----------
+    bgr8 : ndarray of shape (H, W, 3), uint8, the full-resolution photo.
+    kit : the marker kit (sizes: ring to disc ratio).
+    model : the colour model (see :func:`cvmeasure.markers.colour.kit_colour_model`).
+    max_pixels : size of the reduced copy.
+    white : the photo's white; estimated from the brightest pixels when None.
+
+    Returns
+    -------
+    MarkerSearch
+        ``found[role]`` in full-resolution pixels, or ``failures[role]`` saying why.
+        A role with two similar discs is ambiguous (a failure naming both).
+    """
+    step = search_step(bgr8.shape, max_pixels)
+    small = np.ascontiguousarray(bgr8[::step, ::step])
+    if white is None:
+        white = estimate_white(small)
+    labels = classify_bgr8(small, model, white)
+    luma = small.astype(np.float32) @ np.array([0.114, 0.587, 0.299], dtype=np.float32)
+    white_luma = 0.114 * white.srgb8[2] + 0.587 * white.srgb8[1] + 0.299 * white.srgb8[0]
+    bright = (luma >= 0.72 * white_luma).astype(np.float32)
+
+    per_role: dict[str, list[MarkerCandidate]] = {}
+    failures: dict[str, str] = {}
+    for k, role in enumerate(model.roles):
+        marker = kit.by_role(role)
+        mask = (labels == k).astype(np.uint8)
+        cands, reason = _candidates(role, mask, bright, marker.ring_mm / marker.diameter_mm, step)
+        per_role[role] = cands
+        if not cands:
+            failures[role] = reason
+    for role in ROLES:
+        if role not in model.roles:
+            failures[role] = "the colour model has no entry for this role"
+
+    # scale consistency: every disc should show about the same px per mm
+    scales = [c[0].radius_px / (kit.by_role(r).diameter_mm / 2) for r, c in per_role.items() if c]
+    px_per_mm = float(np.median(scales)) if scales else 0.0
+    found: dict[str, MarkerCandidate] = {}
+    others: dict[str, tuple[MarkerCandidate, ...]] = {}
+    for role, cands in per_role.items():
+        if not cands:
+            continue
+        half_d = kit.by_role(role).diameter_mm / 2
+        if px_per_mm > 0:
+            plausible = [c for c in cands if 0.6 <= c.radius_px / half_d / px_per_mm <= 1.6]
+            cands = plausible or cands
+        best = cands[0]
+        rivals = [c for c in cands[1:] if c.score > 0.5 * best.score]
+        if rivals:
+            where = ", ".join(
+                f"({c.centre_px[0]:.0f}, {c.centre_px[1]:.0f})" for c in [best, *rivals]
+            )
+            failures[role] = f"ambiguous: {1 + len(rivals)} discs of its colour at {where}"
+            continue
+        found[role] = best
+        others[role] = tuple(cands[1:])
+    return MarkerSearch(found, failures, white, step, others)

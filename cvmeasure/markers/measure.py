@@ -1,0 +1,483 @@
+"""The per-photo pipeline: a bender photo -> signed pin and bend angles with uncertainties.
+
+``measure_machine_photo`` runs search (reduced copy, colour model adapted to the
+photo's light), sub-pixel refinement at full resolution around each marker
+only, the optional lens and plane corrections, and the machine-frame angles.
+Its result's ``to_dict()`` is the spec's JSON Lines record of a machine photo.
+
+Frames of the angle computation
+-------------------------------
+* no camera, no plane: image pixels as in the photo (angles are invariant to
+  uniform scale, so no camera is needed for an ideal, parallel view);
+* ``camera``: undistorted pixels (lens distortion removed from every edge point
+  before the circle fit);
+* ``plane``: millimetres on the marker plane (edge points undistorted and
+  mapped through the plane's homography, so the fitted circle's centre is the
+  disc's true centre, not the centre of its perspective ellipse).
+
+The reported ``markers`` are always centres in the photo's own pixels.
+Stated uncertainties are sampling errors of the edge fits (with a floor per
+centre); they do not include camera or plane calibration errors.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.camera import CameraModel
+from cvmeasure.errors import InputError
+from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.markers.angles import machine_angles, springback_deg, springback_sigma_deg
+from cvmeasure.markers.colour import (
+    ColourModel,
+    ColourSpace,
+    bgr8_to_space,
+    kit_colour_model,
+)
+from cvmeasure.markers.detect import MarkerCandidate, find_markers
+from cvmeasure.markers.refine import (
+    CENTRE_FLOOR_PX,
+    CircleFit,
+    disc_edge_points,
+    fit_circle_robust,
+)
+from cvmeasure.markers.seed_baseline import seed_find_circles
+
+__all__ = [
+    "Method",
+    "METHODS",
+    "MarkerMeasurement",
+    "MachinePhotoResult",
+    "MarkerNotFoundError",
+    "TrialResult",
+    "measure_machine_photo",
+    "measure_photo_file",
+    "measure_trial",
+    "to_bgr8",
+    "SEED_CENTRE_SIGMA_PX",
+]
+
+Method = Literal["ours", "seed"]
+METHODS: tuple[str, ...] = ("ours", "seed")
+
+#: Centre standard uncertainty (px per axis) stated for the seed method's Hough centres.
+SEED_CENTRE_SIGMA_PX = 0.5
+#: Fewest edge points a disc needs for a centre.
+MIN_EDGE_POINTS = 12
+#: Warning thresholds.
+HIDDEN_COVERAGE = 0.8
+OVEREXPOSED_FRACTION = 0.25
+FAR_DELTA_E = 25.0
+LOW_CONTRAST = 25.0
+
+
+class MarkerNotFoundError(InputError):
+    """A marker is missing or ambiguous in a photo. ``reasons`` maps role -> why."""
+
+    def __init__(self, source: str | os.PathLike[str], reasons: Mapping[str, str], kit: MarkerKit):
+        self.reasons = dict(reasons)
+        parts = [
+            f"marker {role!r} ({kit.by_role(role).name}) {why}"
+            if why.startswith("ambiguous")
+            else f"marker {role!r} ({kit.by_role(role).name}) not found: {why}"
+            for role, why in self.reasons.items()
+        ]
+        super().__init__(source, "; ".join(parts))
+
+
+@dataclass(frozen=True)
+class MarkerMeasurement:
+    """One marker's centre and radius in the photo's pixels, with quality figures.
+
+    ``sigma_px`` is the centre's standard uncertainty (RMS of the two axes);
+    ``coverage`` the share of its boundary seen; ``delta_e`` the CIE76 colour
+    difference between the white-balanced disc and the kit's colour.
+    """
+
+    role: str
+    x_px: float
+    y_px: float
+    r_px: float
+    sigma_px: float
+    n_edge_points: int = 0
+    coverage: float = 1.0
+    contrast: float = 0.0
+    delta_e: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"x_px": self.x_px, "y_px": self.y_px, "r_px": self.r_px}
+
+
+@dataclass(frozen=True)
+class MachinePhotoResult:
+    """The measurement of one machine photo (spec ``Per-photo results``)."""
+
+    pin_angle_deg: float
+    bend_angle_deg: float
+    markers: Mapping[str, MarkerMeasurement]
+    uncertainty_deg: Mapping[str, float]
+    warnings: tuple[str, ...] = ()
+    photo: str | None = None
+    method: str = "ours"
+    space: str = "lab"
+    frame: str = "image"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The spec's JSON Lines record (plus ``photo``)."""
+        out: dict[str, Any] = {}
+        if self.photo is not None:
+            out["photo"] = self.photo
+        out.update(
+            {
+                "pin_angle_deg": round(self.pin_angle_deg, 6),
+                "bend_angle_deg": round(self.bend_angle_deg, 6),
+                "markers": {
+                    r: {k: round(v, 4) for k, v in self.markers[r].to_dict().items()} for r in ROLES
+                },
+                "uncertainty_deg": {k: round(v, 6) for k, v in self.uncertainty_deg.items()},
+                "warnings": list(self.warnings),
+            }
+        )
+        return out
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """One trial: a loaded and an unloaded photo of one bend (spec ``springback_deg``)."""
+
+    loaded: MachinePhotoResult
+    unloaded: MachinePhotoResult
+    trial: int | str | None = None
+
+    @property
+    def springback_deg(self) -> float:
+        return springback_deg(self.loaded.bend_angle_deg, self.unloaded.bend_angle_deg)
+
+    @property
+    def springback_sigma_deg(self) -> float:
+        return springback_sigma_deg(
+            self.loaded.uncertainty_deg["bend_angle_deg"],
+            self.unloaded.uncertainty_deg["bend_angle_deg"],
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.trial is not None:
+            out["trial"] = self.trial
+        out.update(
+            {
+                "photo_loaded": self.loaded.photo,
+                "photo_unloaded": self.unloaded.photo,
+                "measured_pin_deg": round(self.loaded.pin_angle_deg, 6),
+                "loaded_bend_deg": round(self.loaded.bend_angle_deg, 6),
+                "unloaded_bend_deg": round(self.unloaded.bend_angle_deg, 6),
+                "springback_deg": round(self.springback_deg, 6),
+                "uncertainty_deg": {"springback_deg": round(self.springback_sigma_deg, 6)},
+                "warnings": list(self.loaded.warnings) + list(self.unloaded.warnings),
+            }
+        )
+        return out
+
+
+def measure_trial(
+    loaded: MachinePhotoResult, unloaded: MachinePhotoResult, trial: int | str | None = None
+) -> TrialResult:
+    """Pair a loaded and an unloaded measurement of one bend."""
+    return TrialResult(loaded, unloaded, trial)
+
+
+def to_bgr8(image: np.ndarray, *, linear: bool = False) -> np.ndarray:
+    """Any (H, W, 3) uint8/uint16 BGR image -> display-referred uint8 BGR."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError("a colour (H, W, 3) BGR image is needed")
+    if img.dtype == np.uint8 and not linear:
+        return img
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"unsupported sample type {img.dtype}")
+    scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
+    if linear:
+        scaled = np.where(
+            scaled <= 0.0031308, 12.92 * scaled, 1.055 * np.power(scaled, 1 / 2.4) - 0.055
+        )
+    return np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+def _camera_for(camera: CameraModel, shape: tuple[int, ...], source: str) -> CameraModel:
+    h, w = shape[:2]
+    cw, ch = camera.image_size_px
+    if (cw, ch) == (w, h):
+        return camera
+    factor = w / cw
+    if abs(h / ch - factor) > 0.01 * factor:
+        raise InputError(
+            source, f"photo is {w}x{h} px but the camera model is for {cw}x{ch} (other aspect)"
+        )
+    return camera.scaled(factor)
+
+
+@dataclass(frozen=True)
+class _Transform:
+    """Image pixels -> the measurement frame of the angles."""
+
+    name: str
+    func: Any = None
+    y_down: bool = True
+
+    def __call__(self, pts: np.ndarray) -> np.ndarray:
+        return pts if self.func is None else np.asarray(self.func(pts), dtype=np.float64)
+
+    def jacobian(self, xy: tuple[float, float], h: float = 0.5) -> np.ndarray:
+        if self.func is None:
+            return np.eye(2)
+        x, y = xy
+        p = np.array([[x + h, y], [x - h, y], [x, y + h], [x, y - h]])
+        q = self(p)
+        return np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
+
+
+def _transform(
+    camera: CameraModel | None, plane: Any, shape: tuple[int, ...], source: str
+) -> _Transform:
+    if plane is not None:
+        if hasattr(plane, "image_to_plane_mm"):
+            func = plane.image_to_plane_mm
+        else:
+            h_mat = np.asarray(plane, dtype=np.float64).reshape(3, 3)
+            cam = _camera_for(camera, shape, source) if camera is not None else None
+
+            def func(pts: np.ndarray) -> np.ndarray:
+                und = cam.undistort_px(pts) if cam is not None else np.asarray(pts)
+                hom = np.column_stack((und, np.ones(len(und)))) @ h_mat.T
+                return hom[:, :2] / hom[:, 2:3]
+
+        h, w = shape[:2]
+        t = _Transform("plane", func)
+        det = float(np.linalg.det(t.jacobian(((w - 1) / 2, (h - 1) / 2))))
+        return _Transform("plane", func, y_down=det > 0)
+    if camera is not None:
+        return _Transform("undistorted", _camera_for(camera, shape, source).undistort_px)
+    return _Transform("image")
+
+
+def _refine(
+    bgr: np.ndarray, cand: MarkerCandidate, ring_ratio: float
+) -> tuple[CircleFit, Any] | str:
+    """Sub-pixel circle of one disc (image px), or why there is none."""
+    centre, radius = cand.centre_px, cand.radius_px
+    fit = None
+    edges = None
+    for _ in range(3):
+        edges = disc_edge_points(bgr, centre, radius, ring_ratio)
+        if edges.points_px.shape[0] < MIN_EDGE_POINTS:
+            return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
+        try:
+            fit = fit_circle_robust(edges.points_px)
+        except (ValueError, np.linalg.LinAlgError):
+            return "its edge points do not form a circle"
+        moved = math.hypot(fit.centre[0] - centre[0], fit.centre[1] - centre[1])
+        if not (0.5 * cand.radius_px < fit.radius < 1.6 * cand.radius_px):
+            return f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
+        centre, radius = fit.centre, fit.radius
+        if moved < 0.05 * radius:
+            break
+    return fit, edges
+
+
+def _colour_delta_e(kit: MarkerKit, role: str, edges: Any) -> float | None:
+    ring = np.asarray(edges.ring_bgr, dtype=np.float64)
+    if ring.max() <= 0:
+        return None
+    from cvmeasure.markers.colour import WhiteEstimate
+
+    white = WhiteEstimate((float(ring[2]), float(ring[1]), float(ring[0])), 1, 0.0)
+    disc = np.clip(np.asarray(edges.disc_bgr, dtype=np.float64), 0, 255).reshape(1, 3)
+    lab = bgr8_to_space(disc, "lab", white).reshape(3)
+    return float(np.linalg.norm(lab - kit.by_role(role).lab_d65))
+
+
+def _measure_ours(
+    bgr: np.ndarray,
+    bgr8: np.ndarray,
+    kit: MarkerKit,
+    model: ColourModel,
+    transform: _Transform,
+    source: str,
+) -> tuple[dict[str, MarkerMeasurement], dict[str, np.ndarray], dict[str, np.ndarray], list[str]]:
+    search = find_markers(bgr8, kit, model)
+    failures = dict(search.failures)
+    markers: dict[str, MarkerMeasurement] = {}
+    centres: dict[str, np.ndarray] = {}
+    covs: dict[str, np.ndarray] = {}
+    warnings: list[str] = []
+    for role in ROLES:
+        if role not in search.found:
+            continue
+        spec = kit.by_role(role)
+        got = _refine(bgr, search.found[role], spec.ring_mm / spec.diameter_mm)
+        if isinstance(got, str):
+            failures[role] = got
+            continue
+        fit, edges = got
+        cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
+        delta_e = _colour_delta_e(kit, role, edges)
+        markers[role] = MarkerMeasurement(
+            role,
+            fit.centre[0],
+            fit.centre[1],
+            fit.radius,
+            float(math.sqrt(0.5 * np.trace(cov_img))),
+            fit.n_points,
+            fit.coverage,
+            edges.contrast,
+            delta_e,
+        )
+        if transform.func is None:
+            centres[role] = np.array(fit.centre)
+            covs[role] = cov_img
+        else:
+            pts_f = transform(edges.points_px)
+            fit_f = fit_circle_robust(pts_f)
+            jac = transform.jacobian(fit.centre)
+            centres[role] = np.array(fit_f.centre)
+            covs[role] = jac @ cov_img @ jac.T
+        if fit.coverage < HIDDEN_COVERAGE:
+            warnings.append(
+                f"marker {role!r} partly hidden ({100 * fit.coverage:.0f} % of its edge visible)"
+            )
+        if edges.clipped_fraction > OVEREXPOSED_FRACTION:
+            warnings.append(
+                f"marker {role!r} overexposed ({100 * edges.clipped_fraction:.0f} % of its ring clipped)"
+            )
+        if edges.contrast < LOW_CONTRAST:
+            warnings.append(f"marker {role!r} has low contrast ({edges.contrast:.0f}/255)")
+        if delta_e is not None and delta_e > FAR_DELTA_E:
+            warnings.append(
+                f"marker {role!r} colour far from the kit (Delta E {delta_e:.0f} after white balance)"
+            )
+    if failures:
+        raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
+    if search.white.clipped_fraction > 0.5:
+        warnings.append("photo overexposed (the brightest pixels are clipped)")
+    return markers, centres, covs, warnings
+
+
+def _measure_seed(
+    bgr8: np.ndarray, kit: MarkerKit, space: str, transform: _Transform, source: str
+) -> tuple[dict[str, MarkerMeasurement], dict[str, np.ndarray], dict[str, np.ndarray], list[str]]:
+    circles = seed_find_circles(bgr8, kit, space)
+    failures = {
+        r: "no Hough circle in its colour box" for r, c in circles.items() if c.centre_px is None
+    }
+    if failures:
+        raise MarkerNotFoundError(source, failures, kit)
+    markers, centres, covs = {}, {}, {}
+    cov = np.eye(2) * SEED_CENTRE_SIGMA_PX**2
+    for role, c in circles.items():
+        if c.centre_px is None or c.radius_px is None:
+            continue
+        markers[role] = MarkerMeasurement(
+            role, c.centre_px[0], c.centre_px[1], c.radius_px, SEED_CENTRE_SIGMA_PX
+        )
+        centres[role] = np.array(c.centre_px)
+        covs[role] = cov
+    warnings = [
+        f"marker {r!r}: {c.n_circles} circles, took the first"
+        for r, c in circles.items()
+        if c.n_circles > 1
+    ]
+    return markers, centres, covs, warnings
+
+
+def measure_machine_photo(
+    bgr: np.ndarray,
+    kit: MarkerKit,
+    *,
+    camera: CameraModel | None = None,
+    plane: Any = None,
+    method: Method = "ours",
+    space: ColourSpace = "lab",
+    colour_model: ColourModel | None = None,
+    linear: bool = False,
+    source: str = "photo",
+    photo: str | None = None,
+) -> MachinePhotoResult:
+    """Measure the signed pin and bend angles of one bender photo.
+
+    Parameters
+    ----------
+    bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR).
+    kit : the marker kit the photo shows.
+    camera : lens model; with it, lens distortion is removed from the edge points.
+    plane : the marker plane: a :class:`cvmeasure.calibration.plane.PlaneFit` (or
+        anything with ``image_to_plane_mm(points_px)``), or a 3x3 homography
+        undistorted px -> plane mm; with it, angles are computed on the plane.
+    method : "ours" (colour model + sub-pixel fits) or "seed" (the paper's baseline).
+    space : colour space of the segmentation, "lab" or "rgb".
+    colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
+    linear : the image holds linear (gamma 1) data, e.g. from RAW.
+    source : what error messages name (the file).
+    photo : what the result's ``photo`` field says.
+
+    Returns
+    -------
+    MachinePhotoResult
+
+    Raises
+    ------
+    MarkerNotFoundError (an InputError)
+        A marker is missing or ambiguous: names the role(s) and why.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
+    if space not in ("lab", "rgb"):
+        raise ValueError(f"unknown colour space {space!r}; valid: ('lab', 'rgb')")
+    img = np.asarray(bgr)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise InputError(source, "not a colour photo")
+    bgr8 = to_bgr8(img, linear=linear)
+    if method == "seed":
+        transform = _Transform("image")
+        markers, centres, covs, warnings = _measure_seed(bgr8, kit, space, transform, source)
+    else:
+        transform = _transform(camera, plane, img.shape, source)
+        model = colour_model or kit_colour_model(kit, space)
+        work = bgr8 if linear or img.dtype == np.uint8 else img
+        markers, centres, covs, warnings = _measure_ours(work, bgr8, kit, model, transform, source)
+    try:
+        angles = machine_angles(centres, covs, y_down=transform.y_down)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
+    return MachinePhotoResult(
+        angles.pin_angle_deg,
+        angles.bend_angle_deg,
+        markers,
+        {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg},
+        tuple(warnings),
+        photo,
+        method,
+        space,
+        transform.name,
+    )
+
+
+def measure_photo_file(
+    path: str | os.PathLike[str], kit: MarkerKit, **options: Any
+) -> MachinePhotoResult:
+    """Read a photo file (JPEG, PNG, TIFF, RAW) and measure it; InputError names the file."""
+    from cvmeasure.imageio import read_photo
+
+    photo = read_photo(path)
+    options.setdefault("photo", str(path))
+    return measure_machine_photo(
+        photo.bgr8() if photo.linear else photo.bgr,
+        kit,
+        source=str(path),
+        **options,
+    )

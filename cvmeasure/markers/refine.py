@@ -1,0 +1,276 @@
+"""Sub-pixel marker centres: edge points on the disc's boundary and a robust circle fit.
+
+Around each detected disc (full resolution, a small region only) the colour
+image is projected onto the axis between the disc's colour and its white
+ring's colour, giving a scalar image that is 1 on the disc and 0 on the ring.
+Its 0.5 iso-contour (marching squares, :func:`skimage.measure.find_contours`)
+gives sub-pixel edge points; a geometric circle fit with Tukey weights
+(iteratively reweighted Gauss-Newton, Taubin's algebraic fit to start) gives
+the centre, its covariance and the residuals. Edge points hidden by another
+marker or the wire are down-weighted to zero by the robust loss.
+
+References
+----------
+G. Taubin, "Estimation of planar curves, surfaces and nonplanar space curves",
+IEEE TPAMI 13(11), 1991, doi:10.1109/34.103273.
+N. Chernov, C. Lesort, "Least squares fitting of circles", J. Math. Imaging
+Vision 23, 2005, doi:10.1007/s10851-005-0482-8.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "CircleFit",
+    "EdgePoints",
+    "fit_circle_taubin",
+    "fit_circle_robust",
+    "disc_edge_points",
+    "CORRELATION_FACTOR",
+    "CENTRE_FLOOR_PX",
+]
+
+#: Variance inflation for neighbouring edge points that share noise (blur, JPEG
+#: blocks): the effective number of independent points is N / CORRELATION_FACTOR.
+#: Calibrated on rendered photos (benchmarks/markers.py).
+CORRELATION_FACTOR = 4.0
+#: Standard uncertainty floor of a centre (px, per axis): what the residuals cannot
+#: see (colour fringes, print tolerance, JPEG chroma subsampling).
+CENTRE_FLOOR_PX = 0.01
+
+
+@dataclass(frozen=True)
+class CircleFit:
+    """A circle fitted to edge points, in the frame of the points.
+
+    Attributes
+    ----------
+    centre : (x, y).
+    radius : float.
+    covariance : ndarray (2, 2), the centre's covariance (same units squared).
+    rms_residual : float, weighted RMS distance of inliers to the circle.
+    n_points, n_inliers : int.
+    coverage : float, share of the circle's 10-degree sectors that hold inliers.
+    """
+
+    centre: tuple[float, float]
+    radius: float
+    covariance: np.ndarray
+    rms_residual: float
+    n_points: int
+    n_inliers: int
+    coverage: float
+
+    @property
+    def sigma(self) -> float:
+        """Standard uncertainty of the centre, RMS over the two axes."""
+        return float(math.sqrt(max(0.0, 0.5 * np.trace(self.covariance))))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "x": self.centre[0],
+            "y": self.centre[1],
+            "r": self.radius,
+            "covariance": np.asarray(self.covariance).tolist(),
+            "rms_residual": self.rms_residual,
+            "n_points": self.n_points,
+            "n_inliers": self.n_inliers,
+            "coverage": self.coverage,
+        }
+
+
+def fit_circle_taubin(points: np.ndarray) -> tuple[float, float, float]:
+    """Taubin's algebraic circle fit: (cx, cy, r) of points (N, 2), N >= 3."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if p.shape[0] < 3:
+        raise ValueError("a circle fit needs at least 3 points")
+    mean = p.mean(axis=0)
+    x, y = (p - mean).T
+    z = x * x + y * y
+    zm = z.mean()
+    z0 = (z - zm) / (2.0 * math.sqrt(zm)) if zm > 0 else z
+    a = np.column_stack((z0, x, y))
+    _, _, vt = np.linalg.svd(a, full_matrices=False)
+    v = vt[-1]
+    a0 = v[0] / (2.0 * math.sqrt(zm)) if zm > 0 else v[0]
+    coef = np.array([a0, v[1], v[2], -zm * a0])
+    if abs(coef[0]) < 1e-15:
+        raise ValueError("points are collinear: no circle")
+    cx = -coef[1] / (2 * coef[0])
+    cy = -coef[2] / (2 * coef[0])
+    r = math.sqrt(max(0.0, (coef[1] ** 2 + coef[2] ** 2 - 4 * coef[0] * coef[3]))) / abs(
+        2 * coef[0]
+    )
+    return float(cx + mean[0]), float(cy + mean[1]), float(r)
+
+
+def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
+    ang = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
+    bins = np.unique(np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(int) % 36)
+    return float(bins.size / 36.0)
+
+
+def fit_circle_robust(
+    points: np.ndarray,
+    *,
+    init: tuple[float, float, float] | None = None,
+    iterations: int = 12,
+    tukey_c: float = 4.685,
+    min_scale: float = 0.02,
+    correlation_factor: float = CORRELATION_FACTOR,
+) -> CircleFit:
+    """Geometric circle fit with Tukey biweights (IRLS Gauss-Newton).
+
+    Parameters
+    ----------
+    points : ndarray of shape (N, 2), float, edge points (any planar frame).
+    init : (cx, cy, r) start; Taubin's fit when None.
+    tukey_c : Tukey constant in units of the robust residual scale (1.4826 MAD).
+    min_scale : smallest residual scale, in the points' units.
+    correlation_factor : variance inflation for correlated neighbouring points.
+
+    Returns
+    -------
+    CircleFit
+        The covariance is ``s^2 (J^T W J)^-1 * correlation_factor`` with s the
+        weighted residual RMS: sampling error only, not model error.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if p.shape[0] < 5:
+        raise ValueError(f"a robust circle fit needs at least 5 points, got {p.shape[0]}")
+    cx, cy, r = init if init is not None else fit_circle_taubin(p)
+    theta = np.array([cx, cy, r], dtype=np.float64)
+    w = np.ones(p.shape[0])
+    scale = max(min_scale, 1.0)
+    for it in range(iterations):
+        d = p - theta[:2]
+        dist = np.hypot(d[:, 0], d[:, 1])
+        dist = np.maximum(dist, 1e-12)
+        res = dist - theta[2]
+        mad = 1.4826 * np.median(np.abs(res - np.median(res)))
+        scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
+        u = res / (tukey_c * scale)
+        w = np.where(np.abs(u) < 1.0, (1 - u * u) ** 2, 0.0)
+        if w.sum() < 5:
+            w = np.ones_like(w)
+        jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones_like(dist)))
+        jw = jac * w[:, None]
+        try:
+            step = np.linalg.solve(jw.T @ jac, -(jw.T @ res))
+        except np.linalg.LinAlgError:
+            break
+        theta = theta + step
+        if np.abs(step).max() < 1e-7:
+            break
+    d = p - theta[:2]
+    dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+    res = dist - theta[2]
+    inl = w > 0
+    n_in = int(inl.sum())
+    jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones_like(dist)))
+    jw = jac * w[:, None]
+    dof = max(1.0, float(w.sum()) - 3.0)
+    s2 = float((w * res * res).sum() / dof)
+    try:
+        cov = np.linalg.inv(jw.T @ jac) * s2 * correlation_factor
+    except np.linalg.LinAlgError:
+        cov = np.full((3, 3), np.inf)
+    return CircleFit(
+        (float(theta[0]), float(theta[1])),
+        float(theta[2]),
+        cov[:2, :2].copy(),
+        float(math.sqrt(s2)),
+        int(p.shape[0]),
+        n_in,
+        _coverage(p[inl], theta[:2]) if n_in else 0.0,
+    )
+
+
+@dataclass(frozen=True)
+class EdgePoints:
+    """Sub-pixel points on one disc's boundary (full-resolution image pixels).
+
+    ``disc_bgr`` / ``ring_bgr`` are the median colours inside the disc and on its
+    white ring; ``contrast`` their distance (0..255 units); ``clipped_fraction``
+    the share of ring pixels with a saturated channel.
+    """
+
+    points_px: np.ndarray
+    disc_bgr: tuple[float, float, float]
+    ring_bgr: tuple[float, float, float]
+    contrast: float
+    clipped_fraction: float
+
+
+def disc_edge_points(
+    bgr: np.ndarray,
+    centre_px: tuple[float, float],
+    radius_px: float,
+    ring_ratio: float,
+    *,
+    blur_px: float = 0.8,
+    band: float = 0.3,
+) -> EdgePoints:
+    """Edge points of a disc on its white ring, from a small region of the full photo.
+
+    Parameters
+    ----------
+    bgr : ndarray (H, W, 3), uint8 or uint16, the full-resolution photo.
+    centre_px, radius_px : the disc's approximate circle (full-resolution pixels).
+    ring_ratio : ring outer diameter / disc diameter (kit).
+    blur_px : Gaussian blur (px) of the scalar image before the iso-contour.
+    band : keep contour points within ``band * radius`` of the approximate circle.
+    """
+    import cv2
+    from skimage.measure import find_contours
+
+    h, w = bgr.shape[:2]
+    cx, cy = centre_px
+    half = int(math.ceil(radius_px * max(ring_ratio, 1.2) * 1.05 + 4))
+    x0, x1 = max(0, int(cx) - half), min(w, int(cx) + half + 1)
+    y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
+    if x1 - x0 < 5 or y1 - y0 < 5:
+        return EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0)
+    roi = bgr[y0:y1, x0:x1].astype(np.float32)
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    dist = np.hypot(xx - cx, yy - cy)
+    inner = dist < 0.6 * radius_px
+    outer_r = radius_px * ring_ratio
+    ring = (dist > radius_px + 0.3 * (outer_r - radius_px)) & (
+        dist < outer_r - 0.15 * (outer_r - radius_px)
+    )
+    if inner.sum() < 3 or ring.sum() < 3:
+        return EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0)
+    disc_c = np.median(roi[inner], axis=0)
+    ring_c = np.median(roi[ring], axis=0)
+    top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
+    clipped = float((roi[ring].max(axis=1) >= top - 1).mean())
+    axis = disc_c - ring_c
+    norm2 = float(axis @ axis)
+    scale = 255.0 / top
+    contrast = math.sqrt(norm2) * scale
+    if norm2 <= 0:
+        return EdgePoints(np.zeros((0, 2)), tuple(disc_c), tuple(ring_c), 0.0, clipped)
+    s = ((roi - ring_c) @ (axis / norm2)).astype(np.float32)
+    if blur_px > 0:
+        s = cv2.GaussianBlur(s, (0, 0), blur_px)
+    pts = []
+    for c in find_contours(s, 0.5):
+        xy = np.column_stack((c[:, 1] + x0, c[:, 0] + y0))
+        d = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy)
+        keep = np.abs(d - radius_px) < band * radius_px
+        if keep.any():
+            pts.append(xy[keep])
+    points = np.concatenate(pts) if pts else np.zeros((0, 2))
+    return EdgePoints(
+        points,
+        tuple(float(v) * scale for v in disc_c),
+        tuple(float(v) * scale for v in ring_c),
+        contrast,
+        clipped,
+    )
