@@ -1,0 +1,406 @@
+"""How far the solved lens can be trusted: projection uncertainty and cross-validation.
+
+* :func:`parameter_covariance` -- covariance of every solved parameter
+  (intrinsics and the 6 pose parameters of each view) from the solve's
+  Jacobian, scaled by the residual variance (Gauss-Markov).
+* :func:`projection_uncertainty` -- propagates that covariance to the pixel a
+  fixed 3-D point projects to, across a grid over the image, as mrcal does
+  ("mean-pcam": the point is carried through every view's board frame, so pose
+  uncertainty counts too). This is *sampling* error from corner noise only; it
+  does not include model error (lens model too simple, board not flat).
+* :func:`projection_diff` -- how far two camera models disagree on where a ray
+  lands, optionally after the rotation that best aligns them.
+* :func:`cross_validate` -- calibrates two halves of the views separately and
+  compares them. A diff well above the two halves' combined uncertainty means
+  model error; it is the first number a user should look at.
+
+References
+----------
+D. Kogan, mrcal documentation, "Projection uncertainty" and "Cross-validation"
+(https://mrcal.secretsauce.net/uncertainty.html).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.calibration.detect import BoardDetection
+from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
+from cvmeasure.camera import CameraModel
+
+__all__ = [
+    "ParameterCovariance",
+    "ProjectionUncertainty",
+    "ProjectionDiff",
+    "CrossValidation",
+    "parameter_covariance",
+    "projection_uncertainty",
+    "projection_diff",
+    "cross_validate",
+    "image_grid_px",
+]
+
+
+def image_grid_px(image_size_px: tuple[int, int], grid: tuple[int, int] = (24, 16)) -> np.ndarray:
+    """Pixel centres of a (nx, ny) grid spanning the whole image, (ny*nx, 2), row-major."""
+    w, h = image_size_px
+    xs = np.linspace(0.0, w - 1.0, grid[0])
+    ys = np.linspace(0.0, h - 1.0, grid[1])
+    gx, gy = np.meshgrid(xs, ys)
+    return np.column_stack((gx.ravel(), gy.ravel()))
+
+
+def _central_mask(points_px: np.ndarray, size: tuple[int, int], frac: float = 0.6) -> np.ndarray:
+    w, h = size
+    dx = np.abs(points_px[:, 0] - (w - 1) / 2) / w
+    dy = np.abs(points_px[:, 1] - (h - 1) / 2) / h
+    return (dx <= frac / 2 + 1e-9) & (dy <= frac / 2 + 1e-9)
+
+
+@dataclass(frozen=True)
+class ParameterCovariance:
+    """Covariance of the solved parameters.
+
+    Parameters are ordered: the free intrinsics (``names[:n_intrinsics]``),
+    then rvec (3) and tvec (3, mm) of each view.
+    """
+
+    names: tuple[str, ...]
+    n_intrinsics: int
+    covariance: np.ndarray
+    residual_sigma_px: float
+    dof: int
+
+    def std_devs(self) -> dict[str, float]:
+        sd = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
+        return {n: float(s) for n, s in zip(self.names[: self.n_intrinsics], sd, strict=False)}
+
+
+def _view_jacobian(camera: CameraModel, det: BoardDetection, rvec, tvec):
+    import cv2
+
+    proj, jac = cv2.projectPoints(
+        det.object_mm.reshape(-1, 1, 3), rvec, tvec, camera.camera_matrix, camera.dist_coeffs
+    )
+    return proj.reshape(-1, 2), jac  # jac columns: r(3) t(3) fx fy cx cy dist(k)
+
+
+def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
+    """Covariance of intrinsics and poses: sigma^2 (J^T J)^-1 with sigma^2 = |r|^2 / (2N - P)."""
+    cam = result.camera
+    names_intr = tuple(result.std_devs)
+    n_i = len(names_intr)
+    n_v = len(result.views)
+    n_dist = cam.dist_coeffs.size
+    blocks = []
+    res = []
+    for k, (det, view) in enumerate(zip(result.detections, result.views, strict=True)):
+        proj, jac = _view_jacobian(cam, det, view.rvec, view.tvec_mm)
+        res.append((det.corners_px - proj).ravel())
+        full = np.zeros((jac.shape[0], n_i + 6 * n_v))
+        intr = np.concatenate([jac[:, 6:10], jac[:, 10 : 10 + n_dist]], axis=1)
+        full[:, :n_i] = intr[:, :n_i]
+        full[:, n_i + 6 * k : n_i + 6 * k + 6] = jac[:, :6]
+        blocks.append(full)
+    jac_all = np.concatenate(blocks)
+    r = np.concatenate(res)
+    p = jac_all.shape[1]
+    dof = max(jac_all.shape[0] - p, 1)
+    sigma2 = float(r @ r) / dof
+    scale = np.sqrt(np.sum(jac_all**2, axis=0))
+    scale[scale == 0] = 1.0
+    js = jac_all / scale
+    cov = np.linalg.pinv(js.T @ js) / np.outer(scale, scale) * sigma2
+    names = names_intr + tuple(
+        f"view{k}_{q}" for k in range(n_v) for q in ("rx", "ry", "rz", "tx", "ty", "tz")
+    )
+    return ParameterCovariance(names, n_i, cov, float(np.sqrt(sigma2)), dof)
+
+
+def _unpack(params: np.ndarray, base: CameraModel, n_i: int):
+    k = np.array([[params[0], 0, params[2]], [0, params[1], params[3]], [0, 0, 1.0]])
+    dist = base.dist_coeffs.copy()
+    dist[: n_i - 4] = params[4:n_i]
+    return k, dist
+
+
+def _mean_pcam_projection(params, base, n_i, n_v, board_pts) -> np.ndarray:
+    """Project points given in every view's board frame, averaged in the camera frame."""
+    import cv2
+
+    k, dist = _unpack(params, base, n_i)
+    cam_pts = np.zeros(board_pts.shape[1:])
+    for v in range(n_v):
+        rv = params[n_i + 6 * v : n_i + 6 * v + 3]
+        tv = params[n_i + 6 * v + 3 : n_i + 6 * v + 6]
+        rot, _ = cv2.Rodrigues(rv)
+        cam_pts += board_pts[v] @ rot.T + tv
+    cam_pts /= n_v
+    img, _ = cv2.projectPoints(cam_pts.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), k, dist)
+    return img.reshape(-1, 2)
+
+
+@dataclass(frozen=True)
+class ProjectionUncertainty:
+    """One-sigma projection uncertainty across the image.
+
+    Attributes
+    ----------
+    grid_px : ndarray (M, 2)
+        Pixels where it was evaluated.
+    sigma_px : ndarray (M,)
+        Worst-direction standard deviation of the projected pixel, px.
+    distance_mm : float
+        Range of the 3-D points (the median board distance by default).
+    """
+
+    grid_px: np.ndarray
+    grid_shape: tuple[int, int]
+    sigma_px: np.ndarray
+    distance_mm: float
+    image_size_px: tuple[int, int]
+
+    @property
+    def median_px(self) -> float:
+        return float(np.median(self.sigma_px))
+
+    @property
+    def p95_px(self) -> float:
+        return float(np.percentile(self.sigma_px, 95))
+
+    @property
+    def max_px(self) -> float:
+        return float(np.max(self.sigma_px))
+
+    @property
+    def centre_px(self) -> float:
+        w, h = self.image_size_px
+        d = np.linalg.norm(self.grid_px - [(w - 1) / 2, (h - 1) / 2], axis=1)
+        return float(self.sigma_px[np.argmin(d)])
+
+    @property
+    def central_p95_px(self) -> float:
+        mask = _central_mask(self.grid_px, self.image_size_px)
+        return float(np.percentile(self.sigma_px[mask], 95))
+
+    def to_dict(self, *, with_grid: bool = True) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "what": "1-sigma worst-direction pixel uncertainty of a projected point, "
+            "from corner noise only (not model error)",
+            "distance_mm": self.distance_mm,
+            "centre_px": self.centre_px,
+            "median_px": self.median_px,
+            "central_60pct_p95_px": self.central_p95_px,
+            "p95_px": self.p95_px,
+            "max_px": self.max_px,
+        }
+        if with_grid:
+            out["grid_shape"] = list(self.grid_shape)
+            out["sigma_px_grid"] = np.round(
+                self.sigma_px.reshape(self.grid_shape[1], self.grid_shape[0]), 4
+            ).tolist()
+        return out
+
+
+def projection_uncertainty(
+    result: CalibrationResult,
+    *,
+    grid: tuple[int, int] = (24, 16),
+    distance_mm: float | None = None,
+    covariance: ParameterCovariance | None = None,
+) -> ProjectionUncertainty:
+    """Projection uncertainty across the image (mrcal-style, "mean-pcam").
+
+    For each grid pixel the point at ``distance_mm`` along its ray is expressed
+    in every view's board frame; a perturbed solution maps it back through each
+    perturbed pose, averages, and projects with the perturbed intrinsics. The
+    gradient of that pixel with respect to all parameters, with the parameter
+    covariance, gives the 2x2 pixel covariance; its worst-direction sigma is
+    reported.
+    """
+    import cv2
+
+    cov = covariance or parameter_covariance(result)
+    cam = result.camera
+    n_i = cov.n_intrinsics
+    n_v = len(result.views)
+    if distance_mm is None:
+        distance_mm = float(np.median([np.linalg.norm(v.tvec_mm) for v in result.views]))
+    pts_px = image_grid_px(cam.image_size_px, grid)
+    rays = np.column_stack((cam.normalized(pts_px), np.ones(len(pts_px))))
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    p_cam = rays * distance_mm
+    board_pts = np.empty((n_v, len(p_cam), 3))
+    params = np.concatenate(
+        [[cam.fx, cam.fy, *cam.principal_point_px], cam.dist_coeffs[: n_i - 4]]
+        + [np.concatenate([v.rvec, v.tvec_mm]) for v in result.views]
+    )
+    for v, view in enumerate(result.views):
+        rot, _ = cv2.Rodrigues(view.rvec)
+        board_pts[v] = (p_cam - view.tvec_mm) @ rot  # R^T (p - t)
+    grad = np.empty((len(p_cam), 2, params.size))
+    sd = np.sqrt(np.clip(np.diag(cov.covariance), 1e-30, None))
+    for j in range(params.size):
+        h = sd[j] * 1e-2
+        up = params.copy()
+        dn = params.copy()
+        up[j] += h
+        dn[j] -= h
+        grad[:, :, j] = (
+            _mean_pcam_projection(up, cam, n_i, n_v, board_pts)
+            - _mean_pcam_projection(dn, cam, n_i, n_v, board_pts)
+        ) / (2 * h)
+    var_q = np.einsum("mij,jk,mlk->mil", grad, cov.covariance, grad)
+    worst = np.sqrt(np.clip(np.linalg.eigvalsh(var_q)[:, -1], 0.0, None))
+    return ProjectionUncertainty(pts_px, tuple(grid), worst, float(distance_mm), cam.image_size_px)
+
+
+@dataclass(frozen=True)
+class ProjectionDiff:
+    """Where two camera models send the same ray apart, across the image, px."""
+
+    grid_px: np.ndarray
+    grid_shape: tuple[int, int]
+    diff_px: np.ndarray
+    image_size_px: tuple[int, int]
+    rotation_deg: float
+
+    @property
+    def rms_px(self) -> float:
+        return float(np.sqrt(np.mean(self.diff_px**2)))
+
+    @property
+    def central_rms_px(self) -> float:
+        mask = _central_mask(self.grid_px, self.image_size_px)
+        return float(np.sqrt(np.mean(self.diff_px[mask] ** 2)))
+
+    @property
+    def p95_px(self) -> float:
+        return float(np.percentile(self.diff_px, 95))
+
+    @property
+    def max_px(self) -> float:
+        return float(np.max(self.diff_px))
+
+    def to_dict(self, *, with_grid: bool = False) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "central_60pct_rms_px": self.central_rms_px,
+            "rms_px": self.rms_px,
+            "p95_px": self.p95_px,
+            "max_px": self.max_px,
+            "fitted_rotation_deg": self.rotation_deg,
+        }
+        if with_grid:
+            out["grid_shape"] = list(self.grid_shape)
+            out["diff_px_grid"] = np.round(
+                self.diff_px.reshape(self.grid_shape[1], self.grid_shape[0]), 4
+            ).tolist()
+        return out
+
+
+def _project_rays(camera: CameraModel, rays: np.ndarray, rvec: np.ndarray) -> np.ndarray:
+    import cv2
+
+    img, _ = cv2.projectPoints(
+        rays.reshape(-1, 1, 3), rvec, np.zeros(3), camera.camera_matrix, camera.dist_coeffs
+    )
+    return img.reshape(-1, 2)
+
+
+def projection_diff(
+    camera_a: CameraModel,
+    camera_b: CameraModel,
+    *,
+    grid: tuple[int, int] = (24, 16),
+    fit_rotation: bool = True,
+) -> ProjectionDiff:
+    """Pixel distance between where A and B project the same ray (at infinity).
+
+    Each grid pixel is unprojected with A and projected with B. With
+    ``fit_rotation`` the rotation of B's frame that best aligns the two over
+    the central 60 % of the image is removed first (the frame of a camera is
+    only known up to what its poses absorb; mrcal's "implied transform").
+    """
+    from scipy.optimize import least_squares
+
+    if tuple(camera_a.image_size_px) != tuple(camera_b.image_size_px):
+        raise ValueError("the two camera models have different image sizes")
+    pts = image_grid_px(camera_a.image_size_px, grid)
+    rays = np.column_stack((camera_a.normalized(pts), np.ones(len(pts))))
+    rvec = np.zeros(3)
+    if fit_rotation:
+        mask = _central_mask(pts, camera_a.image_size_px)
+
+        def resid(rv: np.ndarray) -> np.ndarray:
+            return (_project_rays(camera_b, rays[mask], rv) - pts[mask]).ravel()
+
+        rvec = least_squares(resid, np.zeros(3), x_scale=1e-3).x
+    diff = np.linalg.norm(_project_rays(camera_b, rays, rvec) - pts, axis=1)
+    return ProjectionDiff(
+        pts, tuple(grid), diff, camera_a.image_size_px, float(np.degrees(np.linalg.norm(rvec)))
+    )
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Two independent calibrations from the even and odd views, compared."""
+
+    diff: ProjectionDiff
+    views: tuple[int, int]
+    focal_px: tuple[float, float]
+    expected_px: float
+    ratio: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "what": "even/odd halves calibrated separately; projection difference "
+            "after the best-fit rotation (mrcal-style)",
+            "views": list(self.views),
+            "fx_px": list(self.focal_px),
+            **self.diff.to_dict(),
+            "expected_from_uncertainty_px": self.expected_px,
+            "ratio_to_expected": self.ratio,
+        }
+
+
+def cross_validate(
+    detections: Sequence[BoardDetection],
+    image_size_px: tuple[int, int],
+    *,
+    model: str = "5",
+    grid: tuple[int, int] = (24, 16),
+) -> CrossValidation | None:
+    """Calibrate even and odd views separately and compare them.
+
+    Returns None when either half has fewer than 3 usable views. ``ratio`` is
+    the central-60 % RMS diff over the combined central projection uncertainty
+    of the halves; ~1-2 is what noise explains, far above means model error.
+    """
+    from cvmeasure.errors import InputError
+
+    usable = [d for d in detections if d.ok]
+    halves = (usable[0::2], usable[1::2])
+    if min(len(h) for h in halves) < 3:
+        return None
+    try:
+        res = [calibrate_views(h, image_size_px, model=model) for h in halves]  # type: ignore[arg-type]
+    except InputError:
+        return None
+    diff = projection_diff(res[0].camera, res[1].camera, grid=grid, fit_rotation=True)
+    unc = [projection_uncertainty(r, grid=grid) for r in res]
+    mask = _central_mask(diff.grid_px, diff.image_size_px)
+    expected = float(
+        np.sqrt(np.mean(unc[0].sigma_px[mask] ** 2) + np.mean(unc[1].sigma_px[mask] ** 2))
+    )
+    ratio = diff.central_rms_px / expected if expected > 0 else float("inf")
+    return CrossValidation(
+        diff,
+        (len(res[0].views), len(res[1].views)),
+        (res[0].camera.fx, res[1].camera.fx),
+        expected,
+        float(ratio),
+    )

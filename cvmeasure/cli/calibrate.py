@@ -1,0 +1,114 @@
+"""``cvmeasure calibrate``: lens calibration from board photos -> camera JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "calibrate",
+        help="calibrate the lens from photos of a ChArUco board or chessboard",
+        description="Detect the board in every photo (JPEG, PNG, TIFF or camera RAW), solve "
+        "the lens (OpenCV calibrateCameraExtended, iterative rejection of bad corners and "
+        "views), and write the camera JSON with RMS, standard deviations, per-view errors, "
+        "views used and rejected, image coverage, projection uncertainty and the "
+        "cross-validation difference of two halves. Photos without a usable board are "
+        "named and skipped; too few good views exit with code 2.",
+    )
+    p.add_argument("photos", nargs="+", type=Path, help="calibration photos")
+    p.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="camera JSON to write")
+    p.add_argument(
+        "--model",
+        choices=("5", "8", "rational", "thin-prism"),
+        default="5",
+        help="distortion model: 5 (k1 k2 p1 p2 k3, default), 8 / rational (k1..k6), "
+        "thin-prism (k1..k6, s1..s4)",
+    )
+    p.add_argument(
+        "--no-reject", action="store_true", help="keep every corner and view (no rejection loop)"
+    )
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.board import load_board
+    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.camera import save_camera
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import to_jsonable
+    from cvmeasure.provenance import provenance
+
+    board = load_board(args.board)
+
+    def progress(msg: str) -> None:
+        if not args.json:
+            print(msg, file=sys.stderr, flush=True)
+
+    detections = detect_photos(args.photos, board, progress=progress)
+    sizes = [d.image_size_px for d in detections]
+    size = max(set(sizes), key=sizes.count)
+    source = (
+        f"{len(args.photos)} photo(s) ({args.photos[0]}{', ...' if len(args.photos) > 1 else ''})"
+    )
+    if not any(d.ok for d in detections):
+        first = detections[0]
+        raise InputError(
+            first.source if len(detections) == 1 else source,
+            f"no usable board in any photo ({first.source}: {first.reason})",
+        )
+    report = calibrate_detections(
+        detections, size, model=args.model, reject_outliers=not args.no_reject, source=source
+    )
+    argv = [
+        "cvmeasure",
+        "calibrate",
+        *map(str, args.photos),
+        "--board",
+        str(args.board),
+        "-o",
+        str(args.out),
+        "--model",
+        args.model,
+    ]
+    camera = report.camera_model(board, provenance=provenance(argv))
+    path = save_camera(args.out, camera)
+    summary = report.summary()
+    if args.json:
+        print(json.dumps(to_jsonable({"camera_json": str(path), **summary}), indent=2))
+        return 0
+    cv = report.cross_validation
+    print(f"camera JSON: {path}")
+    if cv is not None:
+        print(
+            f"cross-validation (halves {cv.views[0]}+{cv.views[1]} views): "
+            f"{cv.diff.central_rms_px:.3f} px RMS in the central 60 %, "
+            f"{cv.diff.rms_px:.3f} px over the image ({cv.ratio:.1f}x what noise explains)"
+        )
+    sd = report.result.std_devs
+    cam = report.camera
+    print(
+        f"RMS {report.result.rms_px:.4f} px over {report.result.corner_count} corners, "
+        f"{len(report.result.views)} views"
+    )
+    print(
+        f"fx {cam.fx:.3f} +- {sd['fx']:.3f}  fy {cam.fy:.3f} +- {sd['fy']:.3f}  "
+        f"cx {cam.principal_point_px[0]:.3f} +- {sd['cx']:.3f}  "
+        f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px (1 sigma, noise only)"
+    )
+    print(
+        f"projection uncertainty (1 sigma): centre {report.uncertainty.centre_px:.3f} px, "
+        f"p95 {report.uncertainty.p95_px:.3f} px, max {report.uncertainty.max_px:.3f} px"
+    )
+    for r in report.result.rejected:
+        print(f"skipped {r.source}: {r.reason}")
+    for w in report.warnings:
+        print(f"warning: {w}")
+    return 0

@@ -1,0 +1,97 @@
+"""``cvmeasure plane``: the affine plane check from a board lying on the measurement plane."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "plane",
+        help="plane tilt, scale, affine verdict and rectifying homography from one photo",
+        description="From a photo of the board lying on the measurement plane: the plane's "
+        "tilt against the image plane and its direction, the scale in mm per pixel, "
+        "whether ignoring the tilt keeps angle errors within --tolerance-deg, and the "
+        "homography from undistorted image pixels to board millimetres.",
+    )
+    p.add_argument("photo", type=Path, help="photo of the board on the plane")
+    p.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
+    p.add_argument("--camera", type=Path, required=True, help="camera JSON (cvmeasure calibrate)")
+    p.add_argument(
+        "--tolerance-deg",
+        type=float,
+        default=0.05,
+        help="worst angle error (deg) an affine model may cause (default 0.05)",
+    )
+    p.add_argument("-o", "--out", type=Path, help="also write the result JSON here")
+    p.add_argument(
+        "--rectified",
+        type=Path,
+        help="also write the photo rectified to the plane (top view, PNG/JPEG/TIFF)",
+    )
+    p.add_argument(
+        "--px-per-mm", type=float, default=4.0, help="resolution of --rectified (default 4)"
+    )
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.board import load_board
+    from cvmeasure.calibration.plane import estimate_plane, rectify_image
+    from cvmeasure.camera import load_camera
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.provenance import provenance
+
+    if not args.tolerance_deg > 0:
+        raise InputError("--tolerance-deg", "must be a positive number of degrees")
+    board = load_board(args.board)
+    camera = load_camera(args.camera)
+    photo = read_photo(args.photo)
+    plane = estimate_plane(
+        photo.gray8(), board, camera, tolerance_deg=args.tolerance_deg, source=str(args.photo)
+    )
+    result = plane.to_dict()
+    result["provenance"] = provenance(
+        [
+            "cvmeasure",
+            "plane",
+            str(args.photo),
+            "--board",
+            str(args.board),
+            "--camera",
+            str(args.camera),
+            "--tolerance-deg",
+            str(args.tolerance_deg),
+        ]
+    )
+    if args.rectified is not None:
+        import cv2
+
+        img = rectify_image(photo.bgr, plane, px_per_mm=args.px_per_mm)
+        ok, buf = cv2.imencode(args.rectified.suffix or ".png", img)
+        if not ok:
+            raise InputError(args.rectified, "cannot encode an image with this file suffix")
+        atomic_write_bytes(args.rectified, buf.tobytes())
+        result["rectified"] = {"path": str(args.rectified), "px_per_mm": args.px_per_mm}
+    if args.out is not None:
+        atomic_write_json(args.out, result)
+    if args.json:
+        print(json.dumps(to_jsonable(result), indent=2))
+        return 0
+    verdict = "affine model OK" if plane.affine_ok else "affine model NOT enough"
+    print(
+        f"tilt {plane.tilt_deg:.3f} deg towards {plane.tilt_direction_deg:.1f} deg, "
+        f"{plane.mm_per_px:.5f} mm/px"
+    )
+    print(
+        f"worst angle error from ignoring the tilt: {plane.worst_angle_error_deg:.4f} deg "
+        f"(tolerance {plane.tolerance_deg:g}): {verdict}"
+    )
+    return 0
