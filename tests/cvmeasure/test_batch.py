@@ -1,0 +1,283 @@
+"""Batch measurement: real photo files, real spawned workers, a real killed subprocess, Dask."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from cvmeasure.batch import (
+    MeasureContext,
+    detect_kind,
+    done_keys,
+    list_photos,
+    measure_one,
+    photo_key,
+    run_batch,
+)
+from cvmeasure.cli import main
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_jsonl
+from cvmeasure.imageio import read_photo
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def disc_photos(folder: Path, n: int, *, size=(320, 240), seed=5, ext=".jpg"):
+    """n photos of one dark disc on a light ground; returns {file name: (x, y, r) px}."""
+    rng = np.random.default_rng(seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    w, h = size
+    truth = {}
+    for i in range(n):
+        r = float(rng.uniform(0.08, 0.15) * h)
+        x = float(rng.uniform(r + 4, w - r - 4))
+        y = float(rng.uniform(r + 4, h - r - 4))
+        # anti-aliased disc, 8x supersampled inside its bounding box (exact area)
+        ss = 8
+        x0, y0 = int(x - r) - 2, int(y - r) - 2
+        bw, bh = int(2 * r) + 5, int(2 * r) + 5
+        yy, xx = np.mgrid[0 : bh * ss, 0 : bw * ss]
+        px = x0 + (xx + 0.5) / ss - 0.5
+        py = y0 + (yy + 0.5) / ss - 0.5
+        inside = (px - x) ** 2 + (py - y) ** 2 <= r * r
+        cover = np.zeros((h, w))
+        cover[y0 : y0 + bh, x0 : x0 + bw] = inside.reshape(bh, ss, bw, ss).mean(axis=(1, 3))
+        grey = 225 - 180 * cover + rng.normal(0, 2, (h, w))
+        img = np.clip(np.dstack([grey, grey * 0.9, grey * 0.8]), 0, 255).astype(np.uint8)
+        name = f"photo_{i:03d}{ext}"
+        cv2.imwrite(str(folder / name), img)
+        truth[name] = (x, y, r)
+    return truth
+
+
+def check_against_truth(records, truth):
+    assert sorted(r["file_name"] for r in records) == sorted(truth)
+    for rec in records:
+        x, y, r = truth[rec["file_name"]]
+        assert rec["ok"], rec["error"]
+        assert abs(rec["x_px"] - x) < 0.15 and abs(rec["y_px"] - y) < 0.15
+        assert abs(rec["r_px"] - r) < 0.5  # Otsu level on a blurred edge: area within 0.5 px radius
+
+
+def test_list_photos_folder_glob_file_and_errors(tmp_path):
+    disc_photos(tmp_path / "a", 3)
+    (tmp_path / "a" / "notes.txt").write_text("not a photo")
+    assert [p.name for p in list_photos(tmp_path / "a")] == [f"photo_{i:03d}.jpg" for i in range(3)]
+    assert len(list_photos(str(tmp_path / "a" / "photo_00[01].jpg"))) == 2
+    # the same photo named twice is listed once
+    assert len(list_photos([tmp_path / "a", tmp_path / "a" / "photo_000.jpg"])) == 3
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match="empty: no photos found"):
+        list_photos(tmp_path / "empty")
+    with pytest.raises(InputError, match="nope: no such photo"):
+        list_photos(tmp_path / "nope")
+
+
+def test_serial_batch_measures_and_resume_measures_nothing_again(tmp_path):
+    truth = disc_photos(tmp_path / "p", 5)
+    out = tmp_path / "results.jsonl"
+    photos = list_photos(tmp_path / "p")
+    summary = run_batch(photos, out, kind="disc", workers=1)
+    assert (summary.measured, summary.failed, summary.backend) == (5, 0, "serial")
+    check_against_truth(read_jsonl(out), truth)
+    before = out.read_bytes()
+    again = run_batch(photos, out, kind="disc", workers=1)
+    assert (again.measured, again.already_done) == (0, 5)
+    assert out.read_bytes() == before
+    # a photo changed on disk (new mtime/size) is measured again; the others are not
+    changed = tmp_path / "p" / "photo_002.jpg"
+    cv2.imwrite(str(changed), cv2.imread(str(changed))[:, ::-1])
+    third = run_batch(photos, out, kind="disc", workers=1)
+    assert third.measured == 1 and read_jsonl(out)[-1]["file_name"] == "photo_002.jpg"
+
+
+def test_spawn_pool_gives_the_serial_results(tmp_path):
+    truth = disc_photos(tmp_path / "p", 8, seed=9)
+    photos = list_photos(tmp_path / "p")
+    run_batch(photos, tmp_path / "serial.jsonl", kind="disc", workers=1)
+    summary = run_batch(photos, tmp_path / "pool.jsonl", kind="disc", workers=2)
+    assert summary.backend == "spawn-pool" and summary.workers == 2
+    serial = {r["photo_key"]: r for r in read_jsonl(tmp_path / "serial.jsonl")}
+    pool = read_jsonl(tmp_path / "pool.jsonl")
+    check_against_truth(pool, truth)
+    assert len({r["worker_pid"] for r in pool} - {os.getpid()}) >= 1
+    for rec in pool:
+        assert rec["x_px"] == serial[rec["photo_key"]]["x_px"]
+
+
+def test_partial_last_line_is_repaired_before_appending(tmp_path):
+    truth = disc_photos(tmp_path / "p", 3)
+    photos = list_photos(tmp_path / "p")
+    out = tmp_path / "r.jsonl"
+    run_batch(photos[:2], out, kind="disc", workers=1)
+    with open(out, "a") as fh:
+        fh.write('{"photo": "cut by a kill')  # a write interrupted mid-line
+    run_batch(photos, out, kind="disc", workers=1)
+    check_against_truth(read_jsonl(out), truth)
+
+
+def test_bad_photo_is_recorded_and_the_batch_goes_on(tmp_path):
+    disc_photos(tmp_path / "p", 2)
+    (tmp_path / "p" / "broken.jpg").write_bytes(b"\xff\xd8 truncated")
+    out = tmp_path / "r.jsonl"
+    assert main(["batch", str(tmp_path / "p"), "--kind", "disc", "-o", str(out), "--quiet"]) == 2
+    records = {r["file_name"]: r for r in read_jsonl(out)}
+    assert records["broken.jpg"]["ok"] is False
+    assert "broken.jpg: unreadable photo" in records["broken.jpg"]["error"]
+    assert records["photo_000.jpg"]["ok"] and records["photo_001.jpg"]["ok"]
+
+
+def test_cli_json_summary_and_input_errors(tmp_path, capsys):
+    disc_photos(tmp_path / "p", 2)
+    out = tmp_path / "r.jsonl"
+    assert (
+        main(
+            [
+                "batch",
+                str(tmp_path / "p"),
+                "--kind",
+                "disc",
+                "-o",
+                str(out),
+                "--json",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["measured"] == 2 and summary["failed"] == 0
+    assert main(["batch", str(tmp_path / "nothing"), "--kind", "disc", "-o", str(out)]) == 2
+    assert "nothing: no such photo" in capsys.readouterr().err
+    bad_kit = tmp_path / "kit.json"
+    bad_kit.write_text("{not json")
+    assert main(["batch", str(tmp_path / "p"), "--kit", str(bad_kit), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "kit.json" in err
+
+
+def test_linear_16_bit_photo_measures_like_the_jpeg(tmp_path):
+    """A linear photo (as RAW decodes to) goes through the same measurement as a JPEG."""
+    truth = disc_photos(tmp_path / "j", 1, seed=21, ext=".png")
+    png = tmp_path / "j" / "photo_000.png"
+    srgb = cv2.imread(str(png)).astype(np.float32) / 255
+    linear = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    lin_path = tmp_path / "j" / "photo_000.linear.tiff"
+    cv2.imwrite(str(lin_path), np.round(linear * 65535).astype(np.uint16))
+    recs = [measure_one(str(p), photo_key(p), "disc", MeasureContext()) for p in (png, lin_path)]
+    x, y, r = truth["photo_000.png"]
+    for rec in recs:
+        assert rec["ok"], rec["error"]
+        assert abs(rec["x_px"] - x) < 0.15 and abs(rec["y_px"] - y) < 0.15
+    assert abs(recs[0]["r_px"] - recs[1]["r_px"]) < 0.05
+
+
+def test_real_raw_photo_goes_through_the_batch(shared_real, tmp_path):
+    dng = shared_real / "raw" / "Blackmagic.dng"
+    jpg = tmp_path / "Blackmagic.jpg"
+    cv2.imwrite(str(jpg), read_photo(dng).bgr8(), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    out = tmp_path / "r.jsonl"
+    summary = run_batch([dng, jpg], out, kind="disc", workers=2)
+    assert summary.failed == 0
+    rec = {r["file_name"]: r for r in read_jsonl(out)}
+    assert rec["Blackmagic.dng"]["image_size_px"] == [4128, 2176]
+    # the same scene through RAW and through its JPEG: the same largest blob, within 1 px
+    for k in ("x_px", "y_px", "r_px"):
+        assert abs(rec["Blackmagic.dng"][k] - rec["Blackmagic.jpg"][k]) < 1.0
+
+
+def test_detect_kind_board_vs_machine(tmp_path):
+    from cvmeasure.board import CharucoBoardSpec
+
+    board = CharucoBoardSpec(squares_x=7, squares_y=5, square_mm=20.0, marker_mm=15.0)
+    img = board.cv_board().generateImage((700, 500), marginSize=20)
+    cv2.imwrite(str(tmp_path / "board.png"), img)
+    disc_photos(tmp_path, 1)
+    assert detect_kind(read_photo(tmp_path / "board.png")) == "part"
+    assert detect_kind(read_photo(tmp_path / "photo_000.jpg")) == "machine"
+
+
+@pytest.mark.slow
+def test_killed_batch_resumes_and_measures_each_photo_exactly_once(tmp_path):
+    truth = disc_photos(tmp_path / "p", 60, size=(900, 675), seed=13, ext=".png")
+    out = tmp_path / "r.jsonl"
+    cmd = [
+        sys.executable,
+        "-m",
+        "cvmeasure",
+        "batch",
+        str(tmp_path / "p"),
+        "--kind",
+        "disc",
+        "-o",
+        str(out),
+        "--workers",
+        "2",
+        "--quiet",
+    ]
+    proc = subprocess.Popen(cmd, cwd=REPO, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if out.exists() and out.read_bytes().count(b"\n") >= 8:
+                break
+            time.sleep(0.005)
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait(timeout=30)
+    first = len(done_keys(out))
+    assert 8 <= first < 60, f"kill came too late to test resuming ({first} done)"
+    resumed = subprocess.run(
+        cmd[:-1] + ["--json"], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert resumed.returncode == 0, resumed.stderr
+    summary = json.loads(resumed.stdout)
+    assert summary["already_done"] == first and summary["measured"] == 60 - first
+    records = read_jsonl(out)
+    keys = [r["photo_key"] for r in records]
+    assert len(keys) == len(set(keys)) == 60  # nothing lost, nothing measured twice
+    check_against_truth(records, truth)
+
+
+@pytest.mark.slow
+def test_dask_local_cluster_on_loopback(tmp_path, capsys):
+    from distributed import LocalCluster
+
+    truth = disc_photos(tmp_path / "p", 6, seed=17)
+    out = tmp_path / "r.jsonl"
+    with LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        silence_logs=50,
+    ) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tcp://127.0.0.1:")
+        code = main(
+            [
+                "batch",
+                str(tmp_path / "p"),
+                "--kind",
+                "disc",
+                "-o",
+                str(out),
+                "--scheduler",
+                address,
+                "--json",
+            ]
+        )
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["backend"] == "dask" and summary["workers"] == 2
+    check_against_truth(read_jsonl(out), truth)
+    assert {r["worker_pid"] for r in read_jsonl(out)}.isdisjoint({os.getpid()})
