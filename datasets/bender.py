@@ -1,0 +1,321 @@
+"""Synthetic photos of the bender's top plate with the five kit markers.
+
+Geometry (machine frame of the spec, mm, z = 0 plane): the die of radius
+``die_radius_mm`` is centred on the origin (the pin's rotation centre, where
+the ``origin`` marker sits). The wire (diameter ``wire_diameter_mm``) comes in
+along -x, tangent to the die, on the side away from the bend; it wraps around
+the die on an arc of radius ``die_radius_mm + wire_diameter_mm / 2`` through
+the bend angle and leaves as a straight leg at ``bend_angle_deg`` from +x.
+``wire_a`` and ``wire_b`` sit on the leg's centreline ``wire_a_mm`` and
+``wire_b_mm`` along it from the end of the wrap; ``axis`` sits upstream on the
+wire guide at (``axis_x_mm``, 0); ``pin`` on the pin, ``pin_radius_mm`` from the
+origin at ``pin_angle_deg``. All shapes are flat (heights are ignored, so the
+truth is exact for the plane z = 0); shadows are cast as if the wire and the
+markers stood a few mm above the plate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.camera import CameraModel
+from cvmeasure.geometry import direction_deg
+from cvmeasure.kit import MarkerKit, default_kit
+from datasets.lighting import Lighting, srgb8_to_linear
+from datasets.optics import Pose
+from datasets.photo import RenderedPhoto, circle_image_geometry, render_scene, resolve_camera
+from datasets.raster import (
+    Layer,
+    Window,
+    circle_bbox,
+    polyline_bbox,
+    sdf_alpha,
+    sdf_capsules,
+    sdf_circle,
+    sdf_rect,
+)
+
+__all__ = ["BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
+
+_TABLE = (62, 56, 50)
+_PLATE = (150, 152, 156)
+_GUIDE = (96, 98, 104)
+_DIE = (120, 122, 128)
+_PIN = (185, 186, 190)
+_WIRE = (165, 166, 170)
+_HOLE = (30, 30, 32)
+_WHITE = (236, 236, 232)
+_OCCLUDER = (45, 40, 36)
+
+
+@dataclass(frozen=True)
+class BenderGeometry:
+    """Sizes and positions of the bender's parts (machine frame, mm)."""
+
+    die_radius_mm: float = 8.0
+    wire_diameter_mm: float = 3.0
+    pin_radius_mm: float = 18.0
+    pin_diameter_mm: float = 5.0
+    axis_x_mm: float = -70.0
+    wire_a_mm: float = 30.0
+    wire_b_mm: float = 70.0
+    leg_length_mm: float = 105.0
+    infeed_length_mm: float = 160.0
+    plate_mm: tuple[float, float, float, float] = (-190.0, -130.0, 150.0, 130.0)
+    wire_height_mm: float = 3.0
+    marker_height_mm: float = 4.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def bender_wire_polyline(
+    bend_angle_deg: float, geometry: BenderGeometry = BenderGeometry()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Wire centreline (N, 2) in machine mm, and the start and direction of the bent leg.
+
+    Returns ``(polyline_mm, leg_start_mm, leg_direction)``.
+    """
+    theta = np.radians(bend_angle_deg)
+    side = 1.0 if bend_angle_deg >= 0 else -1.0
+    rho = geometry.die_radius_mm + geometry.wire_diameter_mm / 2
+    infeed = np.array([[-geometry.infeed_length_mm, -side * rho], [0.0, -side * rho]])
+    n_arc = max(2, int(np.ceil(abs(bend_angle_deg) / 1.5)) + 1)
+    phi = -side * np.pi / 2 + np.linspace(0.0, theta, n_arc)
+    arc = rho * np.column_stack((np.cos(phi), np.sin(phi)))
+    direction = np.array([np.cos(theta), np.sin(theta)])
+    start = arc[-1]
+    leg = start + np.outer([0.0, geometry.leg_length_mm], direction)
+    polyline = np.vstack((infeed, arc[1:], leg[1:]))
+    return polyline, start, direction
+
+
+def _brushed(seed: int, base: np.ndarray) -> Any:
+    """Brushed-metal albedo: fine streaks along x, deterministic in plane mm."""
+    rng = np.random.default_rng([seed, 0xB0])
+    freqs = rng.uniform(0.8, 6.0, 6)
+    phases = rng.uniform(0, 2 * np.pi, 6)
+    amps = rng.uniform(0.004, 0.012, 6)
+
+    def colour(win: Window) -> np.ndarray:
+        m = np.ones_like(win.v)
+        for f, p, a in zip(freqs, phases, amps, strict=True):
+            m += a * np.sin(f * win.v + p + 0.02 * win.u)
+        return m[..., None] * base
+
+    return colour
+
+
+def _wire_shader(radius_mm: float, polyline: np.ndarray, base: np.ndarray) -> Any:
+    """Cylinder shading across the wire with a specular line along its crest."""
+
+    def colour(win: Window) -> np.ndarray:
+        t = np.clip((sdf_capsules(win.u, win.v, polyline, radius_mm) + radius_mm) / radius_mm, 0, 1)
+        nz = np.sqrt(1.0 - t * t)
+        shade = 0.35 + 0.65 * nz
+        spec = 0.6 * np.exp(-((t / 0.22) ** 2))
+        return shade[..., None] * base + spec[..., None]
+
+    return colour
+
+
+def _circle_layer(centre, radius_mm, colour, *, kind="paint", strength=0.0, soft_mm=0.0):
+    return Layer(
+        bbox_mm=circle_bbox(centre, radius_mm + soft_mm + 0.5),
+        alpha=lambda w: sdf_alpha(sdf_circle(w.u, w.v, centre, radius_mm), soft_mm),
+        colour=colour,
+        kind=kind,
+        strength=strength,
+    )
+
+
+def render_bender_photo(
+    *,
+    pin_angle_deg: float,
+    bend_angle_deg: float,
+    kit: MarkerKit | None = None,
+    camera: CameraModel | None = None,
+    pose: Pose | None = None,
+    lighting: Lighting | None = None,
+    seed: int = 0,
+    scale: float = 1.0,
+    occlude: dict[str, float] | None = None,
+    geometry: BenderGeometry | None = None,
+    linear: bool = False,
+) -> RenderedPhoto:
+    """Render a photo of the bender from above with the kit's five markers.
+
+    Parameters
+    ----------
+    pin_angle_deg : angle of origin -> pin from +x (machine frame), degrees.
+    bend_angle_deg : angle of the bent leg from +x, degrees; 0 is straight.
+    kit : marker kit (default :func:`cvmeasure.kit.default_kit`).
+    camera : camera model at 4608 px width (default :func:`default_camera`); ``scale``
+        resizes it (and the photo).
+    pose : camera pose in the machine frame (default: straight down from 850 mm
+        above (-10, 0), about 8 px/mm at full size).
+    lighting : see :class:`Lighting` (default: a realistic workshop photo).
+    seed : drives noise, surface texture and the direction of occluders.
+    occlude : ``{role: fraction}``, hide that fraction (0..1) of a marker's ring
+        diameter under a dark occluder (1 hides it completely).
+    geometry : sizes of the machine parts.
+    linear : also return the 16-bit linear RGB image.
+
+    Returns
+    -------
+    RenderedPhoto whose truth holds ``pin_angle_deg`` and ``bend_angle_deg``
+    computed from the rendered marker centres (spec definitions), and for every
+    role ``x_mm``, ``y_mm``, ``centre_px`` (the projected disc centre: the
+    truth), ``ellipse_centre_px`` (centre of the disc's image ellipse, which
+    differs from ``centre_px`` under perspective), ``r_px`` and ``occluded_fraction``.
+    """
+    kit = kit or default_kit()
+    geo = geometry or BenderGeometry()
+    pose = pose or Pose(distance_mm=850.0, offset_mm=(-10.0, 0.0))
+    light = lighting if lighting is not None else Lighting()
+    occlude = dict(occlude or {})
+    for role, frac in occlude.items():
+        kit.by_role(role)  # KeyError for an unknown role
+        if not 0.0 <= frac <= 1.0:
+            raise ValueError(f"occlude[{role!r}] must be in [0, 1], got {frac}")
+
+    polyline, leg_start, leg_dir = bender_wire_polyline(bend_angle_deg, geo)
+    pin_rad = np.radians(pin_angle_deg)
+    pin_centre = geo.pin_radius_mm * np.array([np.cos(pin_rad), np.sin(pin_rad)])
+    centres = {
+        "origin": np.zeros(2),
+        "axis": np.array([geo.axis_x_mm, 0.0]),
+        "pin": pin_centre,
+        "wire_a": leg_start + geo.wire_a_mm * leg_dir,
+        "wire_b": leg_start + geo.wire_b_mm * leg_dir,
+    }
+    az = np.radians(light.light_azimuth_deg)
+    away = -np.array([np.cos(az), np.sin(az)]) * 0.85  # shadow per mm of height (50 deg sun)
+    rng = np.random.default_rng([seed, 0xBE])
+    lin = srgb8_to_linear
+    wire_r = geo.wire_diameter_mm / 2
+    x0, y0, x1, y1 = geo.plate_mm
+
+    layers: list[Layer] = [
+        Layer(None, lambda w: np.ones_like(w.u), lin(_TABLE)),
+        Layer(
+            (x0 - 1, y0 - 1, x1 + 1, y1 + 1),
+            lambda w: sdf_alpha(
+                sdf_rect(w.u, w.v, ((x0 + x1) / 2, (y0 + y1) / 2), ((x1 - x0) / 2, (y1 - y0) / 2))
+            ),
+            _brushed(seed, lin(_PLATE)),
+        ),
+    ]
+    for hx, hy in ((x0 + 15, y0 + 15), (x1 - 15, y0 + 15), (x0 + 15, y1 - 15), (x1 - 15, y1 - 15)):
+        layers.append(_circle_layer((hx, hy), 3.2, lin(_HOLE)))
+    guide_c = ((geo.axis_x_mm - 60 + geo.axis_x_mm + 45) / 2, 0.0)
+    layers.append(
+        Layer(
+            (guide_c[0] - 53.5, -15.5, guide_c[0] + 53.5, 15.5),
+            lambda w: sdf_alpha(sdf_rect(w.u, w.v, guide_c, (52.5, 14.0))),
+            lin(_GUIDE),
+        )
+    )
+    layers.append(_circle_layer((0.0, 0.0), geo.die_radius_mm, lin(_DIE)))
+    layers.append(_circle_layer(tuple(pin_centre), geo.pin_diameter_mm / 2, lin(_PIN)))
+    # cast shadows (wire, markers, occluders) on the plate
+    if light.shadow_strength > 0:
+        wire_shadow = polyline + away * geo.wire_height_mm
+        layers.append(
+            Layer(
+                polyline_bbox(wire_shadow, wire_r + 3.0),
+                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, wire_shadow, wire_r), 1.2),
+                kind="shadow",
+                strength=light.shadow_strength,
+            )
+        )
+        for marker in kit.markers:
+            if occlude.get(marker.role, 0.0) >= 1.0:
+                continue
+            c = tuple(centres[marker.role] + away * geo.marker_height_mm)
+            layers.append(
+                _circle_layer(
+                    c,
+                    marker.ring_mm / 2,
+                    None,
+                    kind="shadow",
+                    strength=light.shadow_strength,
+                    soft_mm=2.0,
+                )
+            )
+    layers.append(
+        Layer(
+            polyline_bbox(polyline, wire_r + 1.0),
+            lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline, wire_r)),
+            _wire_shader(wire_r, polyline, lin(_WIRE)),
+        )
+    )
+    for marker in kit.markers:
+        c = tuple(centres[marker.role])
+        layers.append(_circle_layer(c, marker.ring_mm / 2, lin(_WHITE)))
+        layers.append(_circle_layer(c, marker.diameter_mm / 2, lin(marker.srgb)))
+    occluders = {}
+    for role, frac in sorted(occlude.items()):
+        if frac <= 0:
+            continue
+        ring_r = kit.by_role(role).ring_mm / 2
+        ang = float(rng.uniform(0.0, 360.0))
+        d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
+        edge = ring_r - 2.0 * ring_r * frac - 1e-3
+        half = (2.0 * ring_r + 2.0, 1.6 * ring_r)
+        oc = tuple(centres[role] + d * (edge + half[0]))
+        occluders[role] = {"fraction": frac, "direction_deg": ang, "edge_offset_mm": edge}
+        reach = float(np.hypot(*half)) + 0.5
+        layers.append(
+            Layer(
+                (oc[0] - reach, oc[1] - reach, oc[0] + reach, oc[1] + reach),
+                lambda w, oc=oc, ang=ang, half=half: sdf_alpha(sdf_rect(w.u, w.v, oc, half, ang)),
+                lin(_OCCLUDER),
+            )
+        )
+
+    pin_true = float(direction_deg(centres["origin"], centres["pin"]))
+    bend_true = float(direction_deg(centres["wire_a"], centres["wire_b"]))
+    truth: dict[str, Any] = {
+        "kind": "bender",
+        "pin_angle_deg": pin_true,
+        "bend_angle_deg": bend_true,
+        "requested": {"pin_angle_deg": pin_angle_deg, "bend_angle_deg": bend_angle_deg},
+        "kit": kit.to_dict(),
+        "geometry": {**geo.to_dict(), "wire_centreline_mm": polyline.tolist()},
+        "occluders": occluders,
+        "notes": "centre_px is the projection of each disc's centre (the truth); "
+        "ellipse_centre_px is the centre of the disc's image ellipse, which differs under "
+        "perspective. Shapes are flat at machine z = 0.",
+    }
+    cam = resolve_camera(camera, scale)
+    rot, t_mm = pose.extrinsics("machine")
+    markers = {}
+    for marker in kit.markers:
+        c = centres[marker.role]
+        disc = circle_image_geometry(cam, rot, t_mm, c, marker.diameter_mm / 2)
+        ring = circle_image_geometry(cam, rot, t_mm, c, marker.ring_mm / 2)
+        markers[marker.role] = {
+            "x_mm": float(c[0]),
+            "y_mm": float(c[1]),
+            "diameter_mm": marker.diameter_mm,
+            "ring_mm": marker.ring_mm,
+            **disc,
+            "ring_r_px": ring["r_px"],
+            "occluded_fraction": float(occlude.get(marker.role, 0.0)),
+        }
+    truth["markers"] = markers
+    return render_scene(
+        layers,
+        frame="machine",
+        camera=cam,
+        pose=pose,
+        lighting=light,
+        seed=seed,
+        scale=1.0,
+        linear=linear,
+        truth=truth,
+    )

@@ -1,0 +1,200 @@
+"""Light, lens and sensor: from a linear albedo image to a camera photo.
+
+The pipeline, in order (all in linear light, RGB in the sRGB primaries):
+
+1. illuminant: a Planckian light of ``cct_k`` (CIE xy by Kang 2002 via
+   colour-science) multiplies the albedo (von Kries model in sRGB; the
+   albedo is the colour seen under D65), normalised so its largest channel is 1;
+2. exposure and vignetting (``1 - vignetting * (r / r_corner)^2``);
+3. lens/sensor blur (Gaussian, ``blur_px`` at the seed resolution);
+4. sensor noise: shot noise (``full_well_e`` electrons at full scale)
+   plus Gaussian read noise (both drawn as Gaussians), scaled by ``noise`` (0 = none);
+5. white balance: the camera divides by the illuminant it *believes* in
+   (``wb_cct_k`` if set, else ``cct_k + wb_error_k``), then clips to [0, 1];
+6. outputs: 16-bit linear RGB (like a RAW developed linearly), and the 8-bit
+   sRGB-encoded BGR image, JPEG-compressed at ``jpeg_quality`` (None: no JPEG).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Lighting", "illuminant_rgb", "srgb8_to_linear", "develop", "Developed"]
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Illumination and imaging conditions of one photo.
+
+    Attributes
+    ----------
+    cct_k : correlated colour temperature of the light, K (2700 warm .. 6500 daylight).
+    wb_error_k : error of the camera's automatic white balance, K.
+    wb_cct_k : if set, a fixed white-balance preset (K) used instead of ``cct_k + wb_error_k``.
+    exposure : multiplier on the signal (1 puts white paper near 80 % of full scale).
+    vignetting : relative fall-off of brightness in the image corners.
+    noise : multiplier on shot + read noise (0 = noiseless).
+    full_well_e, read_noise_e : sensor electrons at full scale and read noise, e-.
+    blur_px : Gaussian sigma of the lens + demosaicing blur, pixels at 4608 px width.
+    jpeg_quality : 1..100, or None for no JPEG compression.
+    shadow_strength : darkness of cast shadows (0 = none).
+    light_azimuth_deg : direction the light comes from, in the scene frame (shadows
+        fall the opposite way).
+    """
+
+    cct_k: float = 5000.0
+    wb_error_k: float = 250.0
+    wb_cct_k: float | None = None
+    exposure: float = 1.0
+    vignetting: float = 0.2
+    noise: float = 1.0
+    full_well_e: float = 15000.0
+    read_noise_e: float = 4.0
+    blur_px: float = 0.7
+    jpeg_quality: int | None = 92
+    shadow_strength: float = 0.35
+    light_azimuth_deg: float = 135.0
+
+    def __post_init__(self) -> None:
+        if not 1667.0 <= self.cct_k <= 25000.0:
+            raise ValueError(f"cct_k must be in [1667, 25000] K, got {self.cct_k}")
+        if self.jpeg_quality is not None and not 1 <= int(self.jpeg_quality) <= 100:
+            raise ValueError(f"jpeg_quality must be in 1..100 or None, got {self.jpeg_quality}")
+
+    @property
+    def camera_wb_cct_k(self) -> float:
+        """The colour temperature the camera's white balance assumes, K."""
+        if self.wb_cct_k is not None:
+            return float(self.wb_cct_k)
+        return float(np.clip(self.cct_k + self.wb_error_k, 1667.0, 25000.0))
+
+    @classmethod
+    def clean(cls) -> Lighting:
+        """Daylight, perfect white balance, no vignetting, blur, noise or JPEG."""
+        return cls(
+            cct_k=6504.0,
+            wb_error_k=0.0,
+            vignetting=0.0,
+            noise=0.0,
+            blur_px=0.0,
+            jpeg_quality=None,
+        )
+
+    @classmethod
+    def random(cls, seed: int) -> Lighting:
+        """Plausible workshop lighting: 2700-6500 K, WB error up to +-600 K, ..."""
+        rng = np.random.default_rng(seed)
+        return cls(
+            cct_k=float(rng.uniform(2700.0, 6500.0)),
+            wb_error_k=float(rng.uniform(-600.0, 600.0)),
+            exposure=float(rng.uniform(0.7, 1.15)),
+            vignetting=float(rng.uniform(0.05, 0.35)),
+            noise=1.0,
+            blur_px=float(rng.uniform(0.4, 1.0)),
+            jpeg_quality=int(rng.integers(80, 97)),
+            light_azimuth_deg=float(rng.uniform(0.0, 360.0)),
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["camera_wb_cct_k"] = self.camera_wb_cct_k
+        return out
+
+
+@lru_cache(maxsize=64)
+def _illuminant_rgb_cached(cct_k: float) -> tuple[float, float, float]:
+    import colour
+
+    xy = colour.temperature.CCT_to_xy(cct_k, method="Kang 2002")
+    rgb = colour.XYZ_to_sRGB(colour.xy_to_XYZ(xy), apply_cctf_encoding=False)
+    rgb = np.asarray(rgb, dtype=np.float64) / float(np.max(rgb))
+    return float(rgb[0]), float(rgb[1]), float(rgb[2])
+
+
+def illuminant_rgb(cct_k: float) -> np.ndarray:
+    """Linear sRGB of a Planckian light of ``cct_k`` K, largest channel 1 (3,)."""
+    return np.array(_illuminant_rgb_cached(round(float(cct_k), 3)))
+
+
+def srgb8_to_linear(srgb8: Any) -> np.ndarray:
+    """8-bit gamma-encoded sRGB -> linear RGB in [0, 1] (IEC 61966-2-1, via colour-science)."""
+    import colour
+
+    return np.asarray(
+        colour.cctf_decoding(np.asarray(srgb8, dtype=np.float64) / 255.0, function="sRGB")
+    )
+
+
+@lru_cache(maxsize=1)
+def _encode_lut() -> np.ndarray:
+    """16-bit linear code -> 8-bit sRGB code (65536,), uint8."""
+    import colour
+
+    lin = np.arange(65536, dtype=np.float64) / 65535.0
+    enc = colour.cctf_encoding(lin, function="sRGB")
+    return np.clip(np.round(enc * 255.0), 0, 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Developed:
+    """What the camera hands over: 8-bit BGR, optional 16-bit linear RGB and JPEG bytes."""
+
+    bgr: np.ndarray
+    linear_rgb16: np.ndarray | None
+    jpeg_bytes: bytes | None
+
+
+def develop(
+    albedo_rgb: np.ndarray,
+    lighting: Lighting,
+    *,
+    seed: int,
+    scale: float = 1.0,
+    keep_linear: bool = False,
+) -> Developed:
+    """Turn a linear albedo image (H, W, 3) float32 into a photo (see module docstring).
+
+    ``scale`` is the image width relative to 4608 px (it scales ``blur_px``).
+    Deterministic for a given ``seed``.
+    """
+    import cv2
+
+    rng = np.random.default_rng([seed, 0x5E45])
+    h, w = albedo_rgb.shape[:2]
+    gain = illuminant_rgb(lighting.cct_k) * (lighting.exposure / 1.0)
+    raw = albedo_rgb * gain.astype(np.float32)
+    if lighting.vignetting:
+        yy, xx = np.ogrid[0:h, 0:w]
+        r2 = ((xx - (w - 1) / 2) ** 2 + (yy - (h - 1) / 2) ** 2) / (
+            ((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2
+        )
+        raw *= (1.0 - lighting.vignetting * r2).astype(np.float32)[..., None]
+    sigma = lighting.blur_px * scale
+    if sigma > 0.05:
+        raw = cv2.GaussianBlur(raw, (0, 0), sigmaX=sigma, sigmaY=sigma)
+    if lighting.noise > 0:
+        fw = lighting.full_well_e
+        electrons = np.clip(raw, 0.0, None) * fw
+        # shot (Gaussian limit of Poisson, thousands of electrons) and read noise
+        sd_e = np.sqrt(electrons + lighting.read_noise_e**2)
+        raw = raw + (lighting.noise / fw) * sd_e * rng.standard_normal(raw.shape, dtype=np.float32)
+    raw = np.clip(raw, 0.0, 1.0)  # the sensor saturates before white balance
+    wb = 1.0 / illuminant_rgb(lighting.camera_wb_cct_k)
+    wb /= wb.min()  # cameras only amplify: the strongest channel keeps gain 1
+    out = np.clip(raw * wb.astype(np.float32), 0.0, 1.0)
+    code16 = np.round(out * 65535.0).astype(np.uint16)
+    rgb8 = _encode_lut()[code16]
+    bgr = np.ascontiguousarray(rgb8[..., ::-1])
+    linear = code16 if keep_linear else None
+    jpeg = None
+    if lighting.jpeg_quality is not None:
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(lighting.jpeg_quality)])
+        if not ok:  # pragma: no cover - OpenCV always encodes uint8 BGR
+            raise RuntimeError("JPEG encoding failed")
+        jpeg = buf.tobytes()
+        bgr = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return Developed(bgr=bgr, linear_rgb16=linear, jpeg_bytes=jpeg)

@@ -1,0 +1,163 @@
+"""The rendered photo with its ground truth, and the shared render driver."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.camera import CameraModel
+from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
+from datasets.lighting import Lighting, develop
+from datasets.optics import Frame, Pose, default_camera, project_frame_points
+from datasets.raster import Layer, rasterise
+
+__all__ = ["RenderedPhoto", "render_scene", "resolve_camera", "circle_image_geometry"]
+
+
+@dataclass(frozen=True)
+class RenderedPhoto:
+    """A synthetic photo and its exact ground truth.
+
+    Attributes
+    ----------
+    bgr : ndarray (H, W, 3), uint8; the photo as a reader sees it (decoded JPEG
+        when the lighting compresses, else the 8-bit sRGB image).
+    camera : the exact camera model the photo was rendered with (at its size).
+    truth : JSON-able dict; the geometry, pose, lighting and per-kind truth.
+    linear_rgb16 : ndarray (H, W, 3), uint16, linear RGB (RGB order) after white
+        balance, before gamma and JPEG; only when rendered with ``linear=True``.
+    jpeg_bytes : the JPEG file exactly as written by :meth:`save`, if compressed.
+    """
+
+    bgr: np.ndarray
+    camera: CameraModel
+    truth: dict[str, Any]
+    linear_rgb16: np.ndarray | None = None
+    jpeg_bytes: bytes | None = None
+
+    def save(self, path_stem: str | os.PathLike[str]) -> tuple[Path, Path]:
+        """Write ``<stem>.jpg`` (or ``<stem>.png`` when uncompressed) and ``<stem>.truth.json``.
+
+        Both writes are atomic. Returns ``(photo_path, truth_json_path)``.
+        """
+        import cv2
+
+        stem = Path(path_stem)
+        if self.jpeg_bytes is not None:
+            photo = atomic_write_bytes(stem.with_name(stem.name + ".jpg"), self.jpeg_bytes)
+        else:
+            ok, buf = cv2.imencode(".png", self.bgr)
+            if not ok:  # pragma: no cover
+                raise RuntimeError("PNG encoding failed")
+            photo = atomic_write_bytes(stem.with_name(stem.name + ".png"), buf.tobytes())
+        truth = dict(self.truth)
+        truth["photo"] = photo.name
+        truth_path = atomic_write_json(stem.with_name(stem.name + ".truth.json"), truth)
+        return photo, truth_path
+
+    def save_linear_tiff(self, path: str | os.PathLike[str]) -> Path:
+        """Write the 16-bit linear RGB image as a TIFF (atomic)."""
+        import cv2
+
+        if self.linear_rgb16 is None:
+            raise ValueError("this photo was rendered without linear=True")
+        ok, buf = cv2.imencode(".tiff", np.ascontiguousarray(self.linear_rgb16[..., ::-1]))
+        if not ok:  # pragma: no cover
+            raise RuntimeError("TIFF encoding failed")
+        return atomic_write_bytes(path, buf.tobytes())
+
+
+def circle_image_geometry(
+    camera: CameraModel,
+    rot: np.ndarray,
+    t_mm: np.ndarray,
+    centre_mm: Sequence[float],
+    radius_mm: float,
+) -> dict[str, Any]:
+    """Where a plane circle lands in the photo.
+
+    Returns ``centre_px`` (the projection of the circle's centre, distorted:
+    the truth for "where is the marker"), ``ellipse_centre_px`` (the centre of
+    the circle's image ellipse under the pinhole model, pushed through the
+    distortion; a fitted ellipse finds this, not ``centre_px``),
+    ``ellipse_axes_px`` (semi-axes, pinhole) and ``r_px`` (sqrt of their product).
+    """
+    k = camera.camera_matrix
+    hom = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))  # plane (x, y, 1) -> pinhole px
+    cx, cy = centre_mm
+    conic = np.array(
+        [[1.0, 0.0, -cx], [0.0, 1.0, -cy], [-cx, -cy, cx * cx + cy * cy - radius_mm**2]]
+    )
+    hinv = np.linalg.inv(hom)
+    img_conic = hinv.T @ conic @ hinv
+    a = img_conic[:2, :2]
+    b = img_conic[:2, 2]
+    centre_ideal = -np.linalg.solve(a, b)
+    f0 = img_conic[2, 2] + b @ centre_ideal
+    evals = np.linalg.eigvalsh(a)
+    axes = np.sqrt(np.abs(-f0 / evals))
+    # push the pinhole ellipse centre through the distortion
+    norm = (centre_ideal - k[:2, 2]) / np.diag(k)[:2]
+    ell_px = camera.project(np.array([[norm[0], norm[1], 1.0]]))[0]
+    centre_px = project_frame_points(camera, rot, t_mm, np.array([[cx, cy]]))[0]
+    return {
+        "centre_px": [float(centre_px[0]), float(centre_px[1])],
+        "ellipse_centre_px": [float(ell_px[0]), float(ell_px[1])],
+        "ellipse_axes_px": sorted((float(axes[0]), float(axes[1])), reverse=True),
+        "r_px": float(np.sqrt(axes[0] * axes[1])),
+    }
+
+
+def resolve_camera(camera: CameraModel | None, scale: float) -> CameraModel:
+    """The camera a photo is rendered with: ``camera`` (default the seed camera) resized by ``scale``."""
+    cam = camera if camera is not None else default_camera()
+    return cam.scaled(scale) if scale != 1.0 else cam
+
+
+def render_scene(
+    layers: Sequence[Layer],
+    *,
+    frame: Frame,
+    camera: CameraModel | None,
+    pose: Pose,
+    lighting: Lighting | None,
+    seed: int,
+    scale: float,
+    linear: bool,
+    truth: dict[str, Any],
+) -> RenderedPhoto:
+    """Rasterise, light, develop; return the photo with ``truth`` plus the common fields."""
+    cam = resolve_camera(camera, scale)
+    light = lighting if lighting is not None else Lighting()
+    rot, t_mm = pose.extrinsics(frame)
+    albedo = rasterise(layers, cam, rot, t_mm)
+    dev = develop(albedo, light, seed=seed, scale=cam.image_size_px[0] / 4608.0, keep_linear=linear)
+    import cv2
+
+    rvec, _ = cv2.Rodrigues(rot)
+    common = {
+        "seed": int(seed),
+        "frame": frame,
+        "image_size": list(cam.image_size_px),
+        "camera": cam.to_dict(),
+        "pose": {
+            **pose.to_dict(),
+            "R_cam_frame": rot.tolist(),
+            "rvec": rvec.ravel().tolist(),
+            "tvec_mm": t_mm.tolist(),
+        },
+        "lighting": light.to_dict(),
+    }
+    full = to_jsonable({**common, **truth})
+    return RenderedPhoto(
+        bgr=dev.bgr,
+        camera=cam,
+        truth=full,
+        linear_rgb16=dev.linear_rgb16,
+        jpeg_bytes=dev.jpeg_bytes,
+    )
