@@ -22,6 +22,7 @@ the colour science runs on a few thousand colours, not on every pixel.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any, Literal
 
 import numpy as np
@@ -102,22 +103,28 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
     top_fraction : float
         Share of the unclipped pixels, by luminance, averaged into the white.
     """
-    px = np.asarray(bgr8).reshape(-1, 3)
-    luma = px.astype(np.float32) @ np.array([0.114, 0.587, 0.299], dtype=np.float32)
-    clipped = px.max(axis=1) >= 250
-    ok = ~clipped
-    n_ok = int(ok.sum())
+    import cv2
+
+    img = np.ascontiguousarray(bgr8)
+    b, g, r = cv2.split(img)
+    maxc = cv2.max(cv2.max(b, g), r)
+    unclipped = (maxc < 250).astype(np.uint8)
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    hist = np.bincount(cv2.bitwise_and(gray, gray, mask=unclipped).ravel(), minlength=256)
+    hist[0] = 0
+    n_ok = int(hist.sum())
     if n_ok == 0:
         return WhiteEstimate((255.0, 255.0, 255.0), 0, 1.0)
-    k = max(20, int(np.ceil(top_fraction * n_ok)))
-    k = min(k, n_ok)
-    luma_ok = luma[ok]
-    threshold = np.partition(luma_ok, n_ok - k)[n_ok - k]
-    top = px[ok][luma_ok >= threshold].astype(np.float64)
-    bright = luma >= threshold
-    clipped_fraction = float(clipped[bright].sum() / max(1, bright.sum()))
-    b, g, r = np.median(top, axis=0)
-    return WhiteEstimate((float(r), float(g), float(b)), int(top.shape[0]), clipped_fraction)
+    k = min(n_ok, max(20, int(np.ceil(top_fraction * n_ok))))
+    above = np.cumsum(hist[::-1])[::-1]  # pixels with grey >= level
+    level = int(np.flatnonzero(above >= k)[-1])
+    select = ((gray >= level) & (unclipped > 0)).astype(np.uint8)
+    n_sel = int(cv2.countNonZero(select))
+    mb, mg, mr, _ = cv2.mean(img, mask=select)
+    bright = gray >= level
+    n_bright = int(np.count_nonzero(bright))
+    clipped_fraction = 1.0 - n_sel / max(1, n_bright)
+    return WhiteEstimate((float(mr), float(mg), float(mb)), n_sel, float(clipped_fraction))
 
 
 def adaptation_matrix(white: WhiteEstimate | None) -> np.ndarray:
@@ -219,6 +226,7 @@ def _marker_mean(marker: Any, space: str) -> np.ndarray:
     return np.asarray(marker.srgb, dtype=np.float64)
 
 
+@lru_cache(maxsize=32)
 def kit_colour_model(
     kit: MarkerKit, space: ColourSpace = "lab", *, max_distance: float = 4.0
 ) -> ColourModel:

@@ -34,7 +34,7 @@ __all__ = [
 ]
 
 #: The reduced copy holds at most this many pixels.
-SEARCH_MAX_PIXELS = 300_000
+SEARCH_MAX_PIXELS = 160_000
 #: Smallest region (reduced pixels) that can be a marker disc.
 MIN_AREA_PX = 10
 
@@ -146,9 +146,18 @@ def _candidates(
     """Round, ring-surrounded regions of one role's mask; the reason when there are none."""
     import cv2
 
-    n, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    bx, by, bw, bh = cv2.boundingRect(mask)
     found: list[MarkerCandidate] = []
     largest = 0
+    n, stats, centroids = 0, np.zeros((0, 5), int), np.zeros((0, 2))
+    if bw > 0 and bh > 0:
+        crop = np.ascontiguousarray(mask[by : by + bh, bx : bx + bw])
+        ltype = cv2.CV_16U if crop.size < 131_000 else cv2.CV_32S
+        n, _, stats, centroids = cv2.connectedComponentsWithStats(crop, connectivity=8, ltype=ltype)
+        stats = stats.astype(np.int64)
+        stats[:, 0] += bx
+        stats[:, 1] += by
+        centroids = centroids + (bx, by)
     for i in range(1, n):
         x, y, w, h, area = (int(v) for v in stats[i])
         largest = max(largest, area)
@@ -217,7 +226,9 @@ def find_markers(
     if white is None:
         white = estimate_white(small)
     labels = classify_bgr8(small, model, white)
-    luma = small.astype(np.float32) @ np.array([0.114, 0.587, 0.299], dtype=np.float32)
+    import cv2
+
+    luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
     white_luma = 0.114 * white.srgb8[2] + 0.587 * white.srgb8[1] + 0.299 * white.srgb8[0]
     bright = (luma >= 0.72 * white_luma).astype(np.float32)
 

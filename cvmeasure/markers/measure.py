@@ -72,7 +72,7 @@ SEED_CENTRE_SIGMA_PX = 0.5
 MIN_EDGE_POINTS = 12
 #: Warning thresholds.
 HIDDEN_COVERAGE = 0.8
-OVEREXPOSED_FRACTION = 0.25
+OVEREXPOSED_FRACTION = 0.5
 FAR_DELTA_E = 25.0
 LOW_CONTRAST = 25.0
 
@@ -290,16 +290,40 @@ def _refine(
     return fit, edges
 
 
-def _colour_delta_e(kit: MarkerKit, role: str, edges: Any) -> float | None:
-    ring = np.asarray(edges.ring_bgr, dtype=np.float64)
-    if ring.max() <= 0:
-        return None
+def _colour_delta_e(kit: MarkerKit, edges: Mapping[str, Any]) -> dict[str, float]:
+    """CIE76 difference between each disc's colour, balanced on the rings' white, and the kit's."""
     from cvmeasure.markers.colour import WhiteEstimate
 
-    white = WhiteEstimate((float(ring[2]), float(ring[1]), float(ring[0])), 1, 0.0)
-    disc = np.clip(np.asarray(edges.disc_bgr, dtype=np.float64), 0, 255).reshape(1, 3)
-    lab = bgr8_to_space(disc, "lab", white).reshape(3)
-    return float(np.linalg.norm(lab - kit.by_role(role).lab_d65))
+    rings = np.array([e.ring_bgr for e in edges.values()], dtype=np.float64)
+    if not len(rings) or rings.max() <= 0:
+        return {}
+    b, g, r = np.median(rings, axis=0)
+    white = WhiteEstimate((float(r), float(g), float(b)), len(rings), 0.0)
+    discs = np.clip(np.array([e.disc_bgr for e in edges.values()], dtype=np.float64), 0, 255)
+    lab = bgr8_to_space(discs, "lab", white)
+    return {
+        role: float(np.linalg.norm(lab[i] - kit.by_role(role).lab_d65))
+        for i, role in enumerate(edges)
+    }
+
+
+def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | None) -> list[str]:
+    out = []
+    if fit.coverage < HIDDEN_COVERAGE:
+        out.append(
+            f"marker {role!r} partly hidden ({100 * fit.coverage:.0f} % of its edge visible)"
+        )
+    if edges.clipped_fraction > OVEREXPOSED_FRACTION:
+        out.append(
+            f"marker {role!r} overexposed ({100 * edges.clipped_fraction:.0f} % of its ring clipped)"
+        )
+    if edges.contrast < LOW_CONTRAST:
+        out.append(f"marker {role!r} has low contrast ({edges.contrast:.0f}/255)")
+    if delta_e is not None and delta_e > FAR_DELTA_E:
+        out.append(
+            f"marker {role!r} colour far from the kit (Delta E {delta_e:.0f} after white balance)"
+        )
+    return out
 
 
 def _measure_ours(
@@ -316,6 +340,7 @@ def _measure_ours(
     centres: dict[str, np.ndarray] = {}
     covs: dict[str, np.ndarray] = {}
     warnings: list[str] = []
+    fits: dict[str, tuple[CircleFit, Any]] = {}
     for role in ROLES:
         if role not in search.found:
             continue
@@ -323,10 +348,13 @@ def _measure_ours(
         got = _refine(bgr, search.found[role], spec.ring_mm / spec.diameter_mm)
         if isinstance(got, str):
             failures[role] = got
-            continue
-        fit, edges = got
+        else:
+            fits[role] = got
+    if failures:
+        raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
+    delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()})
+    for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
-        delta_e = _colour_delta_e(kit, role, edges)
         markers[role] = MarkerMeasurement(
             role,
             fit.centre[0],
@@ -336,33 +364,17 @@ def _measure_ours(
             fit.n_points,
             fit.coverage,
             edges.contrast,
-            delta_e,
+            delta_e.get(role),
         )
         if transform.func is None:
             centres[role] = np.array(fit.centre)
             covs[role] = cov_img
         else:
-            pts_f = transform(edges.points_px)
-            fit_f = fit_circle_robust(pts_f)
+            fit_f = fit_circle_robust(transform(edges.points_px))
             jac = transform.jacobian(fit.centre)
             centres[role] = np.array(fit_f.centre)
             covs[role] = jac @ cov_img @ jac.T
-        if fit.coverage < HIDDEN_COVERAGE:
-            warnings.append(
-                f"marker {role!r} partly hidden ({100 * fit.coverage:.0f} % of its edge visible)"
-            )
-        if edges.clipped_fraction > OVEREXPOSED_FRACTION:
-            warnings.append(
-                f"marker {role!r} overexposed ({100 * edges.clipped_fraction:.0f} % of its ring clipped)"
-            )
-        if edges.contrast < LOW_CONTRAST:
-            warnings.append(f"marker {role!r} has low contrast ({edges.contrast:.0f}/255)")
-        if delta_e is not None and delta_e > FAR_DELTA_E:
-            warnings.append(
-                f"marker {role!r} colour far from the kit (Delta E {delta_e:.0f} after white balance)"
-            )
-    if failures:
-        raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
+        warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
     if search.white.clipped_fraction > 0.5:
         warnings.append("photo overexposed (the brightest pixels are clipped)")
     return markers, centres, covs, warnings

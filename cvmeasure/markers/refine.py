@@ -215,62 +215,78 @@ def disc_edge_points(
     *,
     blur_px: float = 0.8,
     band: float = 0.3,
+    step_px: float = 0.25,
 ) -> EdgePoints:
     """Edge points of a disc on its white ring, from a small region of the full photo.
+
+    The region is projected onto the disc-to-ring colour axis (1 on the disc, 0
+    on the ring), blurred, and sampled along rays from the approximate centre
+    (one ray per pixel of circumference, bilinear samples every ``step_px``);
+    on each ray the 0.5 crossing nearest the approximate radius, linearly
+    interpolated, is an edge point.
 
     Parameters
     ----------
     bgr : ndarray (H, W, 3), uint8 or uint16, the full-resolution photo.
     centre_px, radius_px : the disc's approximate circle (full-resolution pixels).
     ring_ratio : ring outer diameter / disc diameter (kit).
-    blur_px : Gaussian blur (px) of the scalar image before the iso-contour.
-    band : keep contour points within ``band * radius`` of the approximate circle.
+    blur_px : Gaussian blur (px) of the scalar image.
+    band : search the edge within ``(1 +- band) * radius``.
+    step_px : sample spacing along each ray (px).
     """
     import cv2
-    from skimage.measure import find_contours
 
     h, w = bgr.shape[:2]
     cx, cy = centre_px
-    half = int(math.ceil(radius_px * max(ring_ratio, 1.2) * 1.05 + 4))
+    empty = EdgePoints(np.zeros((0, 2)), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.0)
+    half = int(math.ceil(radius_px * max(ring_ratio, 1.0 + band) * 1.05 + 4))
     x0, x1 = max(0, int(cx) - half), min(w, int(cx) + half + 1)
     y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
     if x1 - x0 < 5 or y1 - y0 < 5:
-        return EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0)
+        return empty
     roi = bgr[y0:y1, x0:x1].astype(np.float32)
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    dist = np.hypot(xx - cx, yy - cy)
+    yy, xx = np.ogrid[y0:y1, x0:x1]
+    dist = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
     inner = dist < 0.6 * radius_px
     outer_r = radius_px * ring_ratio
-    ring = (dist > radius_px + 0.3 * (outer_r - radius_px)) & (
-        dist < outer_r - 0.15 * (outer_r - radius_px)
-    )
-    if inner.sum() < 3 or ring.sum() < 3:
-        return EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0)
+    gap = outer_r - radius_px
+    ring = (dist > radius_px + 0.3 * gap) & (dist < outer_r - 0.15 * gap)
+    if np.count_nonzero(inner) < 3 or np.count_nonzero(ring) < 3:
+        return empty
     disc_c = np.median(roi[inner], axis=0)
     ring_c = np.median(roi[ring], axis=0)
     top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
     clipped = float((roi[ring].max(axis=1) >= top - 1).mean())
+    scale = 255.0 / top
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
-    scale = 255.0 / top
     contrast = math.sqrt(norm2) * scale
+    disc_t = tuple(float(v) * scale for v in disc_c)
+    ring_t = tuple(float(v) * scale for v in ring_c)
     if norm2 <= 0:
-        return EdgePoints(np.zeros((0, 2)), tuple(disc_c), tuple(ring_c), 0.0, clipped)
+        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped)
     s = ((roi - ring_c) @ (axis / norm2)).astype(np.float32)
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
-    pts = []
-    for c in find_contours(s, 0.5):
-        xy = np.column_stack((c[:, 1] + x0, c[:, 0] + y0))
-        d = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy)
-        keep = np.abs(d - radius_px) < band * radius_px
-        if keep.any():
-            pts.append(xy[keep])
-    points = np.concatenate(pts) if pts else np.zeros((0, 2))
-    return EdgePoints(
-        points,
-        tuple(float(v) * scale for v in disc_c),
-        tuple(float(v) * scale for v in ring_c),
-        contrast,
-        clipped,
-    )
+
+    n_rays = int(np.clip(round(2 * math.pi * radius_px), 48, 1440))
+    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
+    cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
+    map_x = (cx - x0 + radii[None, :] * cos).astype(np.float32)
+    map_y = (cy - y0 + radii[None, :] * sin).astype(np.float32)
+    v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
+    above = v >= 0.5
+    cross = above[:, :-1] != above[:, 1:]
+    cross &= (v[:, :-1] > -0.5) & (v[:, 1:] > -0.5)
+    if not cross.any():
+        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped)
+    va, vb = v[:, :-1], v[:, 1:]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(cross, (0.5 - va) / (vb - va), np.nan)
+    r_cross = radii[None, :-1] + frac * step_px
+    pick = np.nanargmin(np.where(cross, np.abs(r_cross - radius_px), np.inf), axis=1)
+    rows = np.flatnonzero(cross.any(axis=1))
+    r_best = r_cross[rows, pick[rows]]
+    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
+    return EdgePoints(points, disc_t, ring_t, contrast, clipped)
