@@ -1,0 +1,118 @@
+"""``cvmeasure targets``: printable calibration boards and marker-kit sheets."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+from pathlib import Path
+
+__all__ = ["register", "run_charuco", "run_markers"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "targets",
+        help="printable ChArUco boards and marker-kit sheets at exact scale",
+        description="Write printable targets at exact physical scale. Print at 100 %% "
+        "(actual size) and check the ruler on the sheet before use.",
+    )
+    tsub = p.add_subparsers(dest="target", metavar="TARGET")
+    tsub.required = True
+
+    c = tsub.add_parser(
+        "charuco",
+        help="a ChArUco board (or chessboard) from a board JSON",
+        description="Render the board of a board JSON at exact scale with the board JSON "
+        "text and a 100 mm print-check ruler on the sheet. The format follows the file "
+        "suffix (.pdf, .svg, .png) unless --format is given.",
+    )
+    c.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
+    c.add_argument("-o", "--out", type=Path, required=True, help="sheet to write (.pdf/.svg/.png)")
+    c.add_argument("--format", choices=("pdf", "svg", "png"), help="override the file suffix")
+    c.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
+    c.add_argument(
+        "--page",
+        help="paper size: a4, a3, letter, tabloid or WxH in mm (default: just fits the board)",
+    )
+    c.set_defaults(func=run_charuco)
+
+    m = tsub.add_parser(
+        "markers",
+        help="the colour marker kit: printable sheet, or its JSON",
+        description="Write the marker kit (default: the built-in seed-5 kit) as a printable "
+        "sheet, or with --format json print (or write) the kit JSON of the spec.",
+    )
+    m.add_argument("--kit", type=Path, help="kit JSON (default: the built-in kit)")
+    m.add_argument("-o", "--out", type=Path, help="file to write (required unless --format json)")
+    m.add_argument("--format", choices=("pdf", "svg", "png", "json"), help="output format")
+    m.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
+    m.set_defaults(func=run_markers)
+
+
+def _page(text: str | None):
+    from cvmeasure.errors import InputError
+
+    if text is None:
+        return None
+    if "x" in text.lower():
+        try:
+            w, h = (float(v) for v in text.lower().split("x"))
+        except ValueError:
+            raise InputError("--page", f"{text!r} is not WxH in mm") from None
+        return (w, h)
+    return text
+
+
+def run_charuco(args: argparse.Namespace) -> int:
+    from calib_targets.charuco import write_board_sheet
+    from cvmeasure.board import load_board
+    from cvmeasure.errors import InputError
+
+    board = load_board(args.board)
+    fmt = args.format or args.out.suffix.lstrip(".").lower()
+    if fmt not in ("pdf", "svg", "png"):
+        raise InputError(args.out, "unknown sheet format: use .pdf, .svg or .png (or --format)")
+    if not args.dpi > 0:
+        raise InputError("--dpi", "must be positive")
+    try:
+        path = write_board_sheet(board, args.out, fmt, dpi=args.dpi, page=_page(args.page))
+    except ValueError as exc:
+        raise InputError(args.board, str(exc)) from None
+    w, h = board.size_mm
+    print(f"wrote {path} ({w:g} x {h:g} mm board; print at 100 % and check the 100 mm ruler)")
+    return 0
+
+
+def run_markers(args: argparse.Namespace) -> int:
+    from cvmeasure.errors import CvmeasureError, InputError
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.kit import default_kit, load_kit
+
+    kit = load_kit(args.kit) if args.kit else default_kit()
+    fmt = args.format or (args.out.suffix.lstrip(".").lower() if args.out else "json")
+    if fmt == "json":
+        if args.out:
+            atomic_write_json(args.out, kit.to_dict())
+            print(f"wrote {args.out}")
+        else:
+            print(json.dumps(kit.to_dict(), indent=2))
+        return 0
+    if fmt not in ("pdf", "svg", "png"):
+        raise InputError(args.out, "unknown sheet format: use .pdf, .svg, .png or --format json")
+    if args.out is None:
+        raise InputError("--out", "a sheet needs an output file (-o sheet.pdf)")
+    try:
+        markers = importlib.import_module("calib_targets.markers")
+    except ModuleNotFoundError as exc:
+        if exc.name != "calib_targets.markers":
+            raise
+        raise CvmeasureError("marker-kit sheets are not available in this build") from None
+    import inspect
+
+    kwargs = {}
+    if "dpi" in inspect.signature(markers.write_kit_sheet).parameters:
+        kwargs["dpi"] = args.dpi
+    path = markers.write_kit_sheet(kit, args.out, fmt, **kwargs)
+    print(f"wrote {path or args.out} (print at 100 % and check the ruler)")
+    return 0
