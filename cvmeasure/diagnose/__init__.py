@@ -1,0 +1,20 @@
+"""Diagnosis of the simulation against measured trials (issue 6).
+
+:func:`diagnose` fits the nuisance parameter, tries every named effect of
+:mod:`cvmeasure.sim.effects`, selects by grouped cross-validated error with a
+penalty, and reports the cause, its 95 % interval, the held-out gain and an
+identifiability check. :mod:`cvmeasure.diagnose.synthetic` hides effects in
+simulated trials for tests and benchmarks.
+"""
+
+from cvmeasure.diagnose.core import CandidateResult, Diagnosis, diagnose
+from cvmeasure.diagnose.trials import TRIALS_COLUMNS, TrialSet, trials_from_rows
+
+__all__ = [
+    "CandidateResult",
+    "Diagnosis",
+    "diagnose",
+    "TRIALS_COLUMNS",
+    "TrialSet",
+    "trials_from_rows",
+]

@@ -1,0 +1,319 @@
+"""The diagnosis: find what the simulation gets wrong, name the cause, measure the gain.
+
+Steps, on measured trials:
+
+1. Baseline: the simulation with only the nuisance parameter fitted (material
+   strength).
+2. Every candidate effect of the catalogue is fitted in turn (strength plus
+   the effect's one bounded parameter), with grouped K-fold cross-validation
+   for its held-out RMSE.
+3. Selection by held-out error with a penalty for the extra parameter: a
+   candidate is *accepted* only if its held-out RMSE beats the baseline's by
+   ``min_cv_gain`` and its full-data fit improves the BIC by at least
+   ``min_delta_bic`` (one extra parameter; about p < 1e-3). The accepted
+   candidate with the lowest held-out RMSE is the cause; when none is
+   accepted, nothing is named (``cause = "none"``): the residuals are at the
+   noise floor.
+4. The cause's parameter with a 95 % interval (Gauss-Newton covariance,
+   Student t), residual trends before and after, and an identifiability check
+   against the other candidates on this design, naming the experiment that
+   would separate any confounded pair.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvmeasure.diagnose.fitting import (
+    CrossValidation,
+    ModelFit,
+    cross_validate,
+    fit_model,
+    group_folds,
+    residuals,
+)
+from cvmeasure.diagnose.identify import Identifiability, check_identifiability
+from cvmeasure.diagnose.residuals import ResidualTrend, residual_trends
+from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
+from cvmeasure.sim.params import SimParams
+
+__all__ = [
+    "MIN_DELTA_BIC",
+    "MIN_CV_GAIN",
+    "CandidateResult",
+    "Diagnosis",
+    "diagnose",
+]
+
+#: BIC improvement (one extra parameter) a candidate needs ("very strong" evidence).
+MIN_DELTA_BIC = 10.0
+#: Relative held-out RMSE gain over the baseline a candidate needs.
+MIN_CV_GAIN = 0.05
+#: Fewest trials the diagnosis accepts.
+MIN_TRIALS = 8
+
+
+@dataclass(frozen=True)
+class CandidateResult:
+    """One cause tried: its full-data fit, held-out RMSE and whether it passed."""
+
+    cause: str
+    cv_rmse_deg: float
+    fit: ModelFit
+    delta_bic: float
+    accepted: bool
+
+    def to_dict(self) -> dict[str, Any]:
+        fit = self.fit.to_dict()
+        return {
+            "cause": self.cause,
+            "cv_rmse_deg": self.cv_rmse_deg,
+            "fit_rmse_deg": self.fit.rmse_deg,
+            "params": fit.get("params", {}),
+            "intervals": fit.get("intervals", {}),
+            "yield_mpa_scale": self.fit.strength_scale,
+            "delta_bic": self.delta_bic,
+            "accepted": self.accepted,
+        }
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """Result of :func:`diagnose` (angles in degrees)."""
+
+    cause: str
+    params: dict[str, float]
+    intervals: dict[str, tuple[float, float]]
+    baseline_rmse_deg: float  # held-out
+    extended_rmse_deg: float  # held-out
+    candidates: tuple[CandidateResult, ...]
+    baseline_fit: ModelFit
+    extended_fit: ModelFit
+    baseline_residual_deg: NDArray[np.float64]  # full-data fit, [loaded..., unloaded...]
+    extended_residual_deg: NDArray[np.float64]
+    trends_before: tuple[ResidualTrend, ...]
+    trends_after: tuple[ResidualTrend, ...]
+    identifiability: tuple[Identifiability, ...]
+    recommended_experiment: str | None
+    nominal_params: SimParams
+    n_trials: int
+    n_folds: int
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def gain(self) -> float:
+        """Relative held-out RMSE reduction, 1 - extended / baseline."""
+        if self.baseline_rmse_deg <= 0:
+            return 0.0
+        return 1.0 - self.extended_rmse_deg / self.baseline_rmse_deg
+
+    @property
+    def noise_floor_deg(self) -> float:
+        """Residual standard deviation of the chosen model (the noise floor estimate)."""
+        return self.extended_fit.sigma_deg
+
+    def extended_params(self) -> SimParams:
+        """The nominal params with the fitted material strength of the extended model."""
+        return self.extended_fit.params(self.nominal_params)
+
+    def extended_effects(self, base_effects: Sequence[Effect] = ()) -> tuple[Effect, ...]:
+        """``base_effects`` with the named cause added (or refitted)."""
+        kept = tuple(e for e in base_effects if e.name not in (self.cause, "none"))
+        effect = self.extended_fit.effect()
+        return kept if effect is None else (*kept, effect)
+
+    def to_dict(self) -> dict[str, Any]:
+        base_yield = self.nominal_params.yield_mpa
+        return {
+            "cause": self.cause,
+            "params": dict(self.params),
+            "intervals": {k: list(v) for k, v in self.intervals.items()},
+            "baseline_rmse_deg": self.baseline_rmse_deg,
+            "extended_rmse_deg": self.extended_rmse_deg,
+            "gain": self.gain,
+            "noise_floor_deg": self.noise_floor_deg,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "nuisance": {
+                "baseline_yield_mpa": base_yield * self.baseline_fit.strength_scale,
+                "extended_yield_mpa": base_yield * self.extended_fit.strength_scale,
+                "extended_yield_interval_mpa": [
+                    base_yield * v for v in self.extended_fit.strength_interval
+                ],
+            },
+            "fit_rmse_deg": {
+                "baseline": self.baseline_fit.rmse_deg,
+                "extended": self.extended_fit.rmse_deg,
+            },
+            "residual_trends": {
+                "before": [t.to_dict() for t in self.trends_before],
+                "after": [t.to_dict() for t in self.trends_after],
+            },
+            "identifiability": [i.to_dict() for i in self.identifiability],
+            "recommended_experiment": self.recommended_experiment,
+            "n_trials": self.n_trials,
+            "n_folds": self.n_folds,
+            "selection": {
+                "method": "grouped K-fold CV, accept if CV gain >= min_cv_gain and "
+                "delta BIC >= min_delta_bic; lowest CV RMSE wins",
+                "min_cv_gain": MIN_CV_GAIN,
+                "min_delta_bic": MIN_DELTA_BIC,
+            },
+            "notes": list(self.notes),
+        }
+
+
+def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
+    n = fit.n_obs
+    extra = fit.n_params - base.n_params
+    if fit.rss_deg2 <= 0:
+        return math.inf
+    return float(n * math.log(base.rss_deg2 / fit.rss_deg2) - extra * math.log(n))
+
+
+def _design_notes(trials: TrialSet) -> list[str]:
+    notes = []
+    if not trials.both_directions:
+        notes.append(
+            "the plan bends in one direction only: per-direction causes (offset, backlash, "
+            "axis offset, springback asymmetry) are confounded; add reverse bends"
+        )
+    if not trials.has_loaded:
+        notes.append(
+            "no loaded angles: springback causes and machine causes are only separated by "
+            "their shape in the released angle; photograph the loaded angle as well"
+        )
+    return notes
+
+
+def diagnose(
+    trials: TrialSet,
+    params: SimParams | None = None,
+    *,
+    base_effects: Sequence[Effect] = (),
+    candidates: Sequence[str] | None = None,
+    folds: int = 5,
+    min_cv_gain: float = MIN_CV_GAIN,
+    min_delta_bic: float = MIN_DELTA_BIC,
+) -> Diagnosis:
+    """Diagnose measured trials against the simulation.
+
+    Parameters
+    ----------
+    trials : TrialSet
+        Measured bends (both directions and loaded angles give the best power).
+    params : SimParams, optional
+        Nominal simulation parameters (defaults built in).
+    base_effects : sequence of Effect
+        Effects already part of the model (from a params JSON); kept fixed
+        unless a candidate of the same name refits them.
+    candidates : sequence of str, optional
+        Effect names to try (default: the whole catalogue).
+    folds : int
+        K of the grouped K-fold cross-validation.
+    min_cv_gain, min_delta_bic : float
+        Acceptance thresholds (see module notes).
+
+    Raises
+    ------
+    ValueError
+        With fewer than ``MIN_TRIALS`` trials or an unknown candidate name.
+    """
+    params = params or SimParams()
+    if len(trials) < MIN_TRIALS:
+        raise ValueError(f"need at least {MIN_TRIALS} trials to diagnose, got {len(trials)}")
+    names = [n for n in (candidates or EFFECT_NAMES) if n != "none"]
+    for n in names:
+        if n not in EFFECTS:
+            raise ValueError(f"unknown candidate {n!r}")
+    fold_masks = group_folds(trials.group, folds)
+
+    base_fit = fit_model(trials, params, "none", base_effects=base_effects)
+    base_cv: CrossValidation = cross_validate(
+        trials, params, "none", fold_masks, base_effects=base_effects, full_fit=base_fit
+    )
+    results = []
+    for name in names:
+        fit = fit_model(trials, params, name, base_effects=base_effects)
+        cv = cross_validate(
+            trials, params, name, fold_masks, base_effects=base_effects, full_fit=fit
+        )
+        dbic = _delta_bic(base_fit, fit)
+        accepted = cv.rmse_deg <= (1.0 - min_cv_gain) * base_cv.rmse_deg and dbic >= min_delta_bic
+        results.append(CandidateResult(name, cv.rmse_deg, fit, dbic, bool(accepted)))
+    results.sort(key=lambda c: c.cv_rmse_deg)
+
+    notes = _design_notes(trials)
+    accepted = [c for c in results if c.accepted]
+    if accepted:
+        best = accepted[0]
+        ext_fit, ext_cv = best.fit, best.cv_rmse_deg
+        spec = EFFECTS[best.cause]
+        params_out = {spec.param: float(best.fit.value)}
+        intervals = {spec.param: tuple(float(v) for v in best.fit.interval)}
+        ident = tuple(
+            check_identifiability(
+                trials,
+                params,
+                best.cause,
+                [c.cause for c in results if c.cause != best.cause],
+                base_effects=base_effects,
+            )
+        )
+        close = [c.cause for c in accepted[1:] if c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg]
+        if close:
+            notes.append(
+                f"{', '.join(close)} explain the data almost as well as {best.cause} "
+                "(held-out RMSE within 5 %)"
+            )
+        confounded = [i for i in ident if not i.separable]
+        for i in confounded:
+            how = i.experiment or "no experiment in the catalogue separates them"
+            notes.append(
+                f"{i.causes[0]} and {i.causes[1]} cannot be told apart on this data "
+                f"(signature similarity {i.similarity:.3f}); {how}"
+            )
+        experiment = next((i.experiment for i in confounded if i.experiment), None)
+        cause = best.cause
+    else:
+        cause, ext_fit, ext_cv = "none", base_fit, base_cv.rmse_deg
+        params_out, intervals, ident, experiment = {}, {}, (), None
+        notes.append(
+            f"no candidate beats the noise floor (held-out RMSE {base_cv.rmse_deg:.3f} deg); "
+            "nothing is named"
+        )
+    if experiment is None and not trials.both_directions:
+        experiment = "add reverse bends (the same angles in the other direction)"
+    elif experiment is None and not trials.has_loaded:
+        experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
+
+    base_res = residuals(trials, params, base_effects, "none", base_fit.strength_scale, None)
+    ext_res = residuals(
+        trials, params, base_effects, ext_fit.cause, ext_fit.strength_scale, ext_fit.value
+    )
+    return Diagnosis(
+        cause=cause,
+        params=params_out,
+        intervals=intervals,
+        baseline_rmse_deg=base_cv.rmse_deg,
+        extended_rmse_deg=ext_cv,
+        candidates=tuple(results),
+        baseline_fit=base_fit,
+        extended_fit=ext_fit,
+        baseline_residual_deg=base_res,
+        extended_residual_deg=ext_res,
+        trends_before=tuple(residual_trends(trials, base_res)),
+        trends_after=tuple(residual_trends(trials, ext_res)),
+        identifiability=ident,
+        recommended_experiment=experiment,
+        nominal_params=params,
+        n_trials=len(trials),
+        n_folds=len(fold_masks),
+        notes=tuple(notes),
+    )

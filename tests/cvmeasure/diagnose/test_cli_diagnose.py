@@ -1,0 +1,99 @@
+"""``cvmeasure diagnose`` through the CLI entry point, including exit-2 paths."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from cvmeasure.cli import main
+from cvmeasure.diagnose.synthetic import measure_trials, random_plan
+from cvmeasure.fileio import write_csv_rows
+from cvmeasure.sim import Effect, params_from_json, simulate
+
+COLUMNS = ("trial", "commanded_pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "part")
+
+
+@pytest.fixture(scope="module")
+def offset_trials(tmp_path_factory):
+    rng = np.random.default_rng(41)
+    cmd = random_plan(rng, 40)
+    trials = measure_trials(cmd, (Effect("offset", -1.5),), 0.05, rng)
+    path = tmp_path_factory.mktemp("diag") / "trials.csv"
+    write_csv_rows(path, trials.rows(), COLUMNS)
+    return path
+
+
+def test_diagnose_json_plot_and_extended_params(offset_trials, tmp_path, capsys):
+    plot, saved = tmp_path / "res.png", tmp_path / "ext.json"
+    argv = ["diagnose", str(offset_trials), "--json", "--plot", str(plot)]
+    assert main([*argv, "--save-params", str(saved)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cause"] == "offset"
+    assert out["params"]["offset_deg"] == pytest.approx(-1.5, abs=0.05)
+    lo, hi = out["intervals"]["offset_deg"]
+    assert lo < out["params"]["offset_deg"] < hi
+    assert out["extended_rmse_deg"] < 0.2 * out["baseline_rmse_deg"]
+    assert {c["cause"] for c in out["candidates"]} >= {"backlash", "offset", "scale", "drift"}
+    assert all("cv_rmse_deg" in c for c in out["candidates"])
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # the saved extended model carries the named effect and simulates like the truth
+    params, effects = params_from_json(saved)
+    assert [e.name for e in effects] == ["offset"]
+    ref = simulate([60.0, -60.0], effects=[Effect("offset", -1.5)])
+    got = simulate([60.0, -60.0], params, effects)
+    np.testing.assert_allclose(got.unloaded_bend_deg, ref.unloaded_bend_deg, atol=0.1)
+    # diagnosing again with the extended model finds nothing more
+    assert main(["diagnose", str(offset_trials), "--params", str(saved), "--json"]) == 0
+    again = json.loads(capsys.readouterr().out)
+    assert again["cause"] == "none"
+
+
+def test_diagnose_text_summary(offset_trials, capsys):
+    assert main(["diagnose", str(offset_trials)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("cause: offset") and "held-out RMSE" in text
+
+
+def test_unloaded_only_trials_are_accepted(tmp_path, capsys):
+    rng = np.random.default_rng(43)
+    trials = measure_trials(
+        random_plan(rng, 30), (Effect("backlash", 2.0),), 0.05, rng, loaded=False
+    )
+    path = tmp_path / "t.csv"
+    write_csv_rows(path, trials.rows(), COLUMNS)
+    assert "\n1," in path.read_text() and ",," in path.read_text()  # empty loaded cells
+    assert main(["diagnose", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cause"] != "none"
+    assert any("loaded" in n for n in out["notes"])
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("trial,commanded_pin_deg,loaded_bend_deg\n1,3,3\n", "missing column"),
+        ("trial,commanded_pin_deg,loaded_bend_deg,unloaded_bend_deg\n1,x,3,3\n", "not a number"),
+        ("trial,commanded_pin_deg,loaded_bend_deg,unloaded_bend_deg\n1,30,,\n", "neither"),
+        ("trial,commanded_pin_deg,loaded_bend_deg,unloaded_bend_deg\n1,30,20,19\n", "at least"),
+        ("trial,commanded_pin_deg,loaded_bend_deg,unloaded_bend_deg\n", "no trials"),
+    ],
+)
+def test_bad_trials_exit_2(tmp_path, capsys, content, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(content)
+    saved = tmp_path / "ext.json"
+    assert main(["diagnose", str(path), "--json", "--save-params", str(saved)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "bad.csv" in err and message in err and len(err.splitlines()) == 1
+    assert not saved.exists()
+
+
+def test_missing_file_and_bad_params_exit_2(offset_trials, tmp_path, capsys):
+    assert main(["diagnose", str(tmp_path / "nope.csv")]) == 2
+    assert "nope.csv" in capsys.readouterr().err
+    params = tmp_path / "p.json"
+    params.write_text('{"effects": [{"name": "wobble"}]}')
+    assert main(["diagnose", str(offset_trials), "--params", str(params)]) == 2
+    assert "unknown effect" in capsys.readouterr().err
