@@ -1,0 +1,239 @@
+"""``cvmeasure measure``: bender photos -> signed pin, bend and springback angles (JSON Lines)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "measure",
+        help="signed pin and bend angles (and springback) from bender photos",
+        description="Measure each bender photo: the five kit markers' centres, the signed pin "
+        "and bend angles in the machine frame, one standard uncertainty for each, and "
+        "warnings. One JSON Lines record per photo (spec). A photo with a missing or "
+        "ambiguous marker is named on stderr with the role and why; the others go on, "
+        "and the exit code is 2.",
+    )
+    p.add_argument("photos", nargs="*", type=Path, metavar="PHOTO", help="photos to measure")
+    p.add_argument("--kit", type=Path, required=True, help="kit JSON (spec; see `targets markers`)")
+    p.add_argument("--camera", type=Path, help="camera JSON: remove lens distortion")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--plane",
+        type=Path,
+        help="plane JSON (`cvmeasure plane -o`): compute angles on the rectified plane",
+    )
+    g.add_argument(
+        "--board",
+        type=Path,
+        help="board JSON: find this board in each photo and rectify to its plane (needs --camera)",
+    )
+    p.add_argument(
+        "--pair",
+        nargs=2,
+        action="append",
+        type=Path,
+        metavar=("LOADED", "UNLOADED"),
+        help="a trial: loaded and unloaded photo of one bend -> springback_deg (repeatable)",
+    )
+    p.add_argument(
+        "--trials",
+        type=Path,
+        help="trials manifest CSV: trial, photo_loaded, photo_unloaded [, commanded_pin_deg]",
+    )
+    p.add_argument(
+        "-o",
+        "--out",
+        type=Path,
+        help="also write the records: .jsonl (all records) or .csv (trials CSV of the spec)",
+    )
+    p.add_argument(
+        "--overlay",
+        type=Path,
+        help="draw markers, frame and angles: a PNG for one photo, a folder for several",
+    )
+    p.add_argument("--method", choices=("ours", "seed"), default="ours", help="default ours")
+    p.add_argument("--space", choices=("lab", "rgb"), default="lab", help="default lab")
+    p.add_argument("--json", action="store_true", help="print JSON Lines (default: a table)")
+    p.set_defaults(func=run)
+
+
+def _load_plane(path: Path) -> Any:
+    import numpy as np
+
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import read_json
+
+    data = read_json(path, what="plane JSON")
+    try:
+        h = np.asarray(data["H_board_image"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(path, "plane JSON lacks a 3x3 'H_board_image'") from None
+    if h.shape != (3, 3) or not np.all(np.isfinite(h)) or abs(np.linalg.det(h)) < 1e-15:
+        raise InputError(path, "'H_board_image' must be a finite, invertible 3x3 matrix")
+    return h
+
+
+def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]:
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import read_csv_rows
+
+    rows = read_csv_rows(path, required=("photo_loaded", "photo_unloaded"))
+    out = []
+    for i, row in enumerate(rows, start=1):
+        loaded, unloaded = row["photo_loaded"], row["photo_unloaded"]
+        if not loaded or not unloaded:
+            raise InputError(path, f"row {i}: empty photo_loaded or photo_unloaded")
+        trial = row.get("trial") or str(i)
+        out.append((trial, path.parent / loaded, path.parent / unloaded, row))
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from cvmeasure.camera import load_camera
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_bytes, atomic_write_text, write_csv_rows
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.kit import load_kit
+    from cvmeasure.markers.measure import measure_machine_photo, measure_trial
+    from cvmeasure.markers.overlay import draw_overlay
+
+    kit = load_kit(args.kit)
+    camera = load_camera(args.camera) if args.camera else None
+    plane = _load_plane(args.plane) if args.plane else None
+    board = None
+    if args.board is not None:
+        from cvmeasure.board import load_board
+
+        if camera is None:
+            raise InputError("--board", "rectifying to a board's plane needs --camera")
+        board = load_board(args.board)
+
+    trials: list[tuple[str, Path, Path, dict[str, str]]] = []
+    for i, (loaded, unloaded) in enumerate(args.pair or [], start=1):
+        trials.append((str(i), loaded, unloaded, {}))
+    if args.trials is not None:
+        trials.extend(_trials_manifest(args.trials))
+    photos: list[Path] = list(args.photos)
+    for _, loaded, unloaded, _ in trials:
+        photos.extend(p for p in (loaded, unloaded) if p not in photos)
+    if not photos:
+        raise InputError("measure", "no photos given (PHOTO..., --pair or --trials)")
+    if args.overlay is not None and len(photos) > 1 and args.overlay.suffix:
+        raise InputError(args.overlay, "several photos: --overlay must be a folder")
+
+    results: dict[Path, Any] = {}
+    records: list[dict[str, Any]] = []
+    failed = 0
+    for path in photos:
+        try:
+            photo = read_photo(path)
+            bgr = photo.bgr8() if photo.linear else photo.bgr
+            photo_plane = plane
+            if board is not None:
+                from cvmeasure.calibration.plane import estimate_plane
+
+                photo_plane = estimate_plane(photo.gray8(), board, camera, source=str(path))
+            res = measure_machine_photo(
+                bgr,
+                kit,
+                camera=camera,
+                plane=photo_plane,
+                method=args.method,
+                space=args.space,
+                source=str(path),
+                photo=str(path),
+            )
+        except InputError as exc:
+            print(f"cvmeasure measure: {exc}", file=sys.stderr)
+            failed += 1
+            continue
+        results[path] = res
+        records.append(res.to_dict())
+        _emit(res.to_dict(), args.json)
+        if args.overlay is not None:
+            target = (
+                args.overlay if args.overlay.suffix else args.overlay / f"{path.stem}.overlay.png"
+            )
+            ok, buf = cv2.imencode(".png", draw_overlay(bgr, res, kit))
+            if not ok:
+                raise InputError(target, "cannot encode the overlay PNG")
+            atomic_write_bytes(target, buf.tobytes())
+
+    trial_rows = []
+    for trial, loaded, unloaded, row in trials:
+        if loaded not in results or unloaded not in results:
+            print(
+                f"cvmeasure measure: trial {trial}: no springback (a photo of the pair failed)",
+                file=sys.stderr,
+            )
+            continue
+        t = measure_trial(results[loaded], results[unloaded], trial)
+        rec = t.to_dict()
+        records.append(rec)
+        _emit(rec, args.json)
+        trial_rows.append(
+            {
+                "trial": trial,
+                "commanded_pin_deg": row.get("commanded_pin_deg", ""),
+                "loaded_bend_deg": rec["loaded_bend_deg"],
+                "unloaded_bend_deg": rec["unloaded_bend_deg"],
+                "measured_pin_deg": rec["measured_pin_deg"],
+                "springback_deg": rec["springback_deg"],
+                "springback_sigma_deg": rec["uncertainty_deg"]["springback_deg"],
+                "photo_loaded": str(loaded),
+                "photo_unloaded": str(unloaded),
+            }
+        )
+
+    if args.out is not None:
+        if args.out.suffix.lower() == ".csv":
+            if not trials:
+                raise InputError(
+                    args.out, "a .csv output is the trials CSV: give --pair or --trials"
+                )
+            write_csv_rows(args.out, trial_rows, columns=list(_TRIAL_COLUMNS))
+        else:
+            atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
+    return 2 if failed else 0
+
+
+_TRIAL_COLUMNS = (
+    "trial",
+    "commanded_pin_deg",
+    "loaded_bend_deg",
+    "unloaded_bend_deg",
+    "measured_pin_deg",
+    "springback_deg",
+    "springback_sigma_deg",
+    "photo_loaded",
+    "photo_unloaded",
+)
+
+
+def _emit(record: dict[str, Any], as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(record), flush=True)
+        return
+    if "springback_deg" in record:
+        print(
+            f"trial {record.get('trial', '-')}: loaded {record['loaded_bend_deg']:+.3f}  "
+            f"unloaded {record['unloaded_bend_deg']:+.3f}  springback "
+            f"{record['springback_deg']:+.3f} +- {record['uncertainty_deg']['springback_deg']:.3f} deg"
+        )
+        return
+    u = record["uncertainty_deg"]
+    warn = f"  [{'; '.join(record['warnings'])}]" if record["warnings"] else ""
+    print(
+        f"{record.get('photo', '-')}: pin {record['pin_angle_deg']:+.3f} +- {u['pin_angle_deg']:.3f}"
+        f"  bend {record['bend_angle_deg']:+.3f} +- {u['bend_angle_deg']:.3f} deg{warn}"
+    )
