@@ -1,0 +1,377 @@
+"""Circle and polyline fits of a wire centreline, and the arc quantities they give.
+
+Our default method (issue 5): a robust *geometric* circle fit of the sub-pixel
+centreline (Taubin's algebraic fit as the start, then orthogonal distances
+with a soft-L1 loss), and, when the part was bent in ``N`` chords, a
+polyline fit with ``N`` straight segments whose vertices give the per-segment
+bend angles directly.
+
+Frame: any right-handed planar frame in mm (the part module uses the board
+plane as seen by the camera, y up, so counter-clockwise as seen in the photo is
+positive). Signed angles are wrapped to (-180, 180].
+
+References
+----------
+G. Taubin, "Estimation of planar curves, surfaces and nonplanar space curves
+defined by implicit equations", IEEE TPAMI 13(11) (1991) 1115-1138,
+doi:10.1109/34.103273.
+N. Chernov, *Circular and Linear Regression: Fitting Circles and Lines by Least
+Squares*, CRC Press (2010), doi:10.1201/EBK1439835906.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.design import divide_into_chords
+from cvmeasure.geometry import wrap_deg
+
+__all__ = [
+    "CircleFit",
+    "PolylineFit",
+    "ArcGeometry",
+    "fit_circle",
+    "fit_circle_taubin",
+    "fit_polyline",
+    "arc_geometry",
+    "arc_angle_from_chord_deg",
+    "sagitta_radius_mm",
+]
+
+
+@dataclass(frozen=True)
+class CircleFit:
+    """A circle fitted to points.
+
+    Attributes
+    ----------
+    centre_mm : (x, y), mm.
+    radius_mm : float, mm.
+    rms_residual_mm : RMS orthogonal distance of the inliers to the circle, mm.
+    radius_sigma_mm : one standard uncertainty of the radius from the fit
+        residuals (sampling only; not model or calibration errors), mm.
+    n_points : points used; ``n_inliers`` those within 3 robust sigmas.
+    """
+
+    centre_mm: tuple[float, float]
+    radius_mm: float
+    rms_residual_mm: float
+    radius_sigma_mm: float
+    n_points: int
+    n_inliers: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "centre_mm": list(self.centre_mm),
+            "radius_mm": self.radius_mm,
+            "rms_residual_mm": self.rms_residual_mm,
+            "radius_sigma_mm": self.radius_sigma_mm,
+            "n_points": self.n_points,
+            "n_inliers": self.n_inliers,
+        }
+
+
+def _check_points(points: np.ndarray, minimum: int) -> np.ndarray:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
+    if len(pts) < minimum:
+        raise ValueError(f"need at least {minimum} points, got {len(pts)}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points must be finite")
+    return pts
+
+
+def fit_circle_taubin(points_mm: np.ndarray) -> tuple[np.ndarray, float]:
+    """Taubin's algebraic circle fit; returns (centre (2,), radius).
+
+    Unbiased to first order (unlike Kåsa's), used to start the geometric fit.
+    """
+    pts = _check_points(points_mm, 3)
+    mean = pts.mean(axis=0)
+    x, y = (pts - mean).T
+    z = x * x + y * y
+    zm = z.mean()
+    z0 = (z - zm) / (2.0 * math.sqrt(zm)) if zm > 0 else z
+    m = np.column_stack((z0, x, y))
+    _, _, vt = np.linalg.svd(m, full_matrices=False)
+    a = vt[-1]
+    a0 = a[0] / (2.0 * math.sqrt(zm))
+    a3 = -zm * a0
+    if abs(a0) < 1e-300:
+        raise ValueError("points are collinear; no circle")
+    cx, cy = -a[1] / (2 * a0), -a[2] / (2 * a0)
+    radius = math.sqrt(max(cx * cx + cy * cy - a3 / a0, 0.0))
+    return np.array([cx, cy]) + mean, radius
+
+
+def fit_circle(points_mm: np.ndarray, *, f_scale_mm: float | None = None) -> CircleFit:
+    """Robust geometric circle fit (orthogonal distances, soft-L1 loss).
+
+    Parameters
+    ----------
+    points_mm : ndarray of shape (N, 2), N >= 3
+    f_scale_mm : soft-L1 scale (residuals beyond it count less); default the
+        robust spread (1.4826 MAD) of the previous pass's residuals.
+
+    Three passes, each on the points within 3 robust sigmas of the previous
+    circle (the first from Taubin's fit), so that shadow blobs and specular
+    spurs on the centreline do not pull the circle.
+
+    Examples
+    --------
+    >>> t = np.linspace(0, np.pi, 50)
+    >>> fit = fit_circle(np.column_stack((3 + 10 * np.cos(t), -2 + 10 * np.sin(t))))
+    >>> round(fit.radius_mm, 9), tuple(round(c, 9) for c in fit.centre_mm)
+    (10.0, (3.0, -2.0))
+    """
+    from scipy.optimize import least_squares
+
+    pts = _check_points(points_mm, 3)
+    centre0, r0 = fit_circle_taubin(pts)
+    # work in a centred, scaled frame for conditioning
+    shift = pts.mean(axis=0)
+    scale = max(r0, 1e-12)
+    p = (pts - shift) / scale
+    c0 = (centre0 - shift) / scale
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        return np.hypot(p[:, 0] - q[0], p[:, 1] - q[1]) - q[2]
+
+    q = np.array([c0[0], c0[1], 1.0])
+    keep = np.ones(len(p), dtype=bool)
+    # soft-L1 fits, each on the points within 3 robust sigmas of the previous one
+    for _ in range(3):
+        res_all = residuals(q)
+        spread = 1.4826 * float(np.median(np.abs(res_all[keep] - np.median(res_all[keep]))))
+        fs = (f_scale_mm / scale) if f_scale_mm else max(spread, 1e-9)
+        keep = np.abs(res_all - np.median(res_all[keep])) <= max(3.0 * spread, 1e-12)
+        if keep.sum() < 3:
+            keep[:] = True
+        pk = p[keep]
+        sol = least_squares(
+            lambda v, pk=pk: np.hypot(pk[:, 0] - v[0], pk[:, 1] - v[1]) - v[2],
+            q,
+            loss="soft_l1",
+            f_scale=fs,
+            method="trf",
+            x_scale="jac",
+            xtol=1e-14,
+            ftol=1e-14,
+            gtol=1e-14,
+        )
+        q = sol.x
+    cx, cy, r = q
+    res = residuals(q)
+    spread = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+    inl = np.abs(res) <= max(3.0 * spread, 1e-12)
+    n_in = int(inl.sum())
+    rms = float(np.sqrt(np.mean(res[inl] ** 2))) * scale if n_in else float("nan")
+    # sampling uncertainty of r from the Gauss-Newton covariance on the inliers
+    sigma_r = float("nan")
+    if n_in > 3:
+        d = p[inl] - [cx, cy]
+        dist = np.hypot(*d.T)
+        jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones(n_in)))
+        s2 = float(np.sum(res[inl] ** 2)) / (n_in - 3)
+        try:
+            cov = np.linalg.inv(jac.T @ jac) * s2
+            sigma_r = float(math.sqrt(max(cov[2, 2], 0.0))) * scale
+        except np.linalg.LinAlgError:
+            pass
+    centre = np.array([cx, cy]) * scale + shift
+    return CircleFit(
+        (float(centre[0]), float(centre[1])),
+        float(abs(r) * scale),
+        rms,
+        sigma_r,
+        len(pts),
+        n_in,
+    )
+
+
+@dataclass(frozen=True)
+class ArcGeometry:
+    """The seed paper's arc quantities (its Fig. 7) of one circular arc.
+
+    Attributes
+    ----------
+    radius_mm : r.
+    chord_width_mm : d, the straight distance between the arc's end points.
+    height_mm : h, the sagitta (chord to arc top); exceeds r for arcs over 180 deg.
+    arc_angle_deg : theta_arc, the angle the arc subtends at its centre (0, 360).
+    """
+
+    radius_mm: float
+    chord_width_mm: float
+    height_mm: float
+    arc_angle_deg: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "radius_mm": self.radius_mm,
+            "chord_width_mm": self.chord_width_mm,
+            "height_mm": self.height_mm,
+            "arc_angle_deg": self.arc_angle_deg,
+        }
+
+
+def sagitta_radius_mm(chord_width_mm: float, height_mm: float) -> float:
+    """Radius from chord width d and height h: r = d^2 / 8h + h / 2 (seed Eq. 1)."""
+    if height_mm <= 0:
+        raise ValueError(f"height_mm must be positive, got {height_mm}")
+    return chord_width_mm**2 / (8.0 * height_mm) + height_mm / 2.0
+
+
+def arc_angle_from_chord_deg(chord_width_mm: float, height_mm: float) -> float:
+    """Arc angle from chord width d and height h, valid on (0, 360): 4 atan(2h / d).
+
+    The seed's ``2 asin(d / 2r)`` (its Eq. 2) is the same below 180 degrees
+    but folds longer arcs back below 180.
+    """
+    return float(np.degrees(4.0 * math.atan2(2.0 * height_mm, chord_width_mm)))
+
+
+def arc_geometry(circle: CircleFit, ordered_points_mm: np.ndarray) -> ArcGeometry:
+    """Arc quantities of ordered points (N, 2) lying along ``circle``.
+
+    The arc runs from the first to the last point; its angle is the total
+    unwrapped angle the points sweep around the centre (so arcs past 180
+    degrees are measured as such).
+    """
+    pts = _check_points(ordered_points_mm, 2)
+    c = np.asarray(circle.centre_mm)
+    ang = np.unwrap(np.arctan2(pts[:, 1] - c[1], pts[:, 0] - c[0]))
+    sweep = abs(float(ang[-1] - ang[0]))
+    r = circle.radius_mm
+    return ArcGeometry(
+        radius_mm=r,
+        chord_width_mm=2.0 * r * math.sin(min(sweep, 2 * math.pi) / 2.0),
+        height_mm=r * (1.0 - math.cos(sweep / 2.0)),
+        arc_angle_deg=math.degrees(sweep),
+    )
+
+
+@dataclass(frozen=True)
+class PolylineFit:
+    """A polyline of straight segments fitted to a centreline.
+
+    Attributes
+    ----------
+    vertices_mm : ndarray (N+1, 2), the chord end points (the bend vertices
+        between them, the wire's ends at both extremes), mm.
+    bend_deg : ndarray (N-1,), signed bend at each interior vertex, from the
+        fitted segment directions; counter-clockwise positive.
+    segment_length_mm : ndarray (N,), vertex-to-vertex lengths, mm.
+    rms_residual_mm : RMS distance of the used points to their segment, mm.
+    """
+
+    vertices_mm: np.ndarray
+    bend_deg: np.ndarray
+    segment_length_mm: np.ndarray
+    rms_residual_mm: float
+
+    @property
+    def divisions(self) -> int:
+        return len(self.vertices_mm) - 1
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "vertices_mm": self.vertices_mm.tolist(),
+            "bend_deg": self.bend_deg.tolist(),
+            "segment_length_mm": self.segment_length_mm.tolist(),
+            "rms_residual_mm": self.rms_residual_mm,
+        }
+
+
+def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Total-least-squares line: (point on it, unit direction)."""
+    mean = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - mean, full_matrices=False)
+    return mean, vt[0]
+
+
+def _intersect(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    cross = d1[0] * d2[1] - d1[1] * d2[0]
+    if abs(cross) < 1e-12:
+        return 0.5 * (p1 + p2)
+    t = ((p2[0] - p1[0]) * d2[1] - (p2[1] - p1[1]) * d2[0]) / cross
+    return p1 + t * d1
+
+
+def fit_polyline(
+    ordered_points_mm: np.ndarray,
+    divisions: int,
+    *,
+    corner_margin: float = 0.2,
+    iterations: int = 4,
+) -> PolylineFit:
+    """Fit ``divisions`` straight segments to an ordered centreline.
+
+    Each segment is a total-least-squares line through the points between two
+    vertices, leaving out a ``corner_margin`` fraction of the segment length at
+    both ends (where the wire is rounded around the bending pin). Inner vertices
+    are the intersections of neighbouring lines; the end vertices are the first
+    and last points projected onto the end lines. The split points start at an
+    equal-chord division of the centreline and follow the vertices for a few
+    ``iterations``.
+
+    Parameters
+    ----------
+    ordered_points_mm : ndarray (M, 2), ordered from one wire end to the other.
+    divisions : number of straight chords N >= 1.
+    """
+    pts = _check_points(ordered_points_mm, 2 * divisions + 2)
+    if divisions < 1:
+        raise ValueError(f"divisions must be >= 1, got {divisions}")
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s = np.concatenate(([0.0], np.cumsum(seg)))
+    verts = divide_into_chords(pts, divisions)
+    lines: list[tuple[np.ndarray, np.ndarray]] = []
+    rms = float("nan")
+    for _ in range(max(1, iterations)):
+        # arc-length positions of the vertices: nearest centreline point
+        vs = np.array([s[int(np.argmin(np.hypot(*(pts - v).T)))] for v in verts])
+        vs[0], vs[-1] = 0.0, s[-1]
+        vs = np.maximum.accumulate(vs)
+        lines = []
+        sq, count = 0.0, 0
+        for i in range(divisions):
+            a, b = vs[i], vs[i + 1]
+            margin = corner_margin * (b - a)
+            lo = a + (margin if i > 0 else 0.0)
+            hi = b - (margin if i < divisions - 1 else 0.0)
+            sel = (s >= lo) & (s <= hi)
+            if sel.sum() < 2:
+                sel = (s >= a) & (s <= b)
+            if sel.sum() < 2:
+                raise ValueError("too few centreline points for the number of divisions")
+            p0, d = _fit_line(pts[sel])
+            # orient along the traversal
+            if np.dot(pts[sel][-1] - pts[sel][0], d) < 0:
+                d = -d
+            lines.append((p0, d))
+            off = (pts[sel] - p0) @ np.array([-d[1], d[0]])
+            sq += float(off @ off)
+            count += int(sel.sum())
+        rms = math.sqrt(sq / max(count, 1))
+        new = [lines[0][0] + np.dot(pts[0] - lines[0][0], lines[0][1]) * lines[0][1]]
+        for i in range(divisions - 1):
+            new.append(_intersect(*lines[i], *lines[i + 1]))
+        pl, dl = lines[-1]
+        new.append(pl + np.dot(pts[-1] - pl, dl) * dl)
+        verts = np.array(new)
+    dirs = np.array([d for _, d in lines])
+    cross = dirs[:-1, 0] * dirs[1:, 1] - dirs[:-1, 1] * dirs[1:, 0]
+    dot = np.sum(dirs[:-1] * dirs[1:], axis=1)
+    bends = np.asarray(wrap_deg(np.degrees(np.arctan2(cross, dot))), dtype=np.float64).reshape(-1)
+    return PolylineFit(
+        vertices_mm=verts,
+        bend_deg=bends,
+        segment_length_mm=np.hypot(*np.diff(verts, axis=0).T),
+        rms_residual_mm=rms,
+    )

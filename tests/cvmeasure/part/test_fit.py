@@ -1,0 +1,123 @@
+"""Circle and polyline fits on synthetic centrelines with known truth."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cvmeasure.design import arc_points_mm, bend_angles_deg
+from cvmeasure.part.fit import (
+    arc_angle_from_chord_deg,
+    arc_geometry,
+    fit_circle,
+    fit_circle_taubin,
+    fit_polyline,
+    sagitta_radius_mm,
+)
+
+
+def _dense_polygon(vertices: np.ndarray, per_segment: int = 80) -> np.ndarray:
+    pieces = [
+        np.linspace(a, b, per_segment, endpoint=False)
+        for a, b in zip(vertices[:-1], vertices[1:], strict=True)
+    ]
+    return np.vstack([*pieces, vertices[-1:]])
+
+
+@pytest.mark.parametrize(
+    ("span_deg", "noise_mm", "rel_tol"), [(20, 0.01, 2e-3), (90, 0.02, 5e-4), (180, 0.02, 2e-4)]
+)
+def test_geometric_circle_fit_on_short_and_long_arcs(span_deg, noise_mm, rel_tol):
+    rng = np.random.default_rng(5)
+    t = np.radians(np.linspace(10, 10 + span_deg, 400))
+    pts = np.column_stack((12 + 65 * np.cos(t), -7 + 65 * np.sin(t)))
+    pts += rng.normal(0, noise_mm, pts.shape)
+    fit = fit_circle(pts)
+    assert fit.radius_mm == pytest.approx(65.0, rel=rel_tol)
+    assert np.hypot(fit.centre_mm[0] - 12, fit.centre_mm[1] + 7) < 65 * rel_tol * 4
+    assert fit.rms_residual_mm == pytest.approx(noise_mm, rel=0.2)
+    # the stated sigma is honest to within a factor 3 of the actual error here
+    assert abs(fit.radius_mm - 65.0) < 4 * fit.radius_sigma_mm
+
+
+def test_circle_fit_ignores_outliers_that_break_taubin():
+    rng = np.random.default_rng(11)
+    t = np.radians(np.linspace(0, 120, 300))
+    pts = np.column_stack((50 * np.cos(t), 50 * np.sin(t))) + rng.normal(0, 0.01, (300, 2))
+    pts[::10] += rng.normal(0, 3.0, (30, 2))  # 10 % gross outliers (shadow blobs)
+    _, r_taubin = fit_circle_taubin(pts)
+    fit = fit_circle(pts)
+    assert abs(fit.radius_mm - 50.0) < 0.01
+    assert abs(r_taubin - 50.0) > 5 * abs(fit.radius_mm - 50.0)
+    assert fit.n_inliers <= 280
+
+
+def test_degenerate_inputs_raise():
+    with pytest.raises(ValueError, match="at least 3"):
+        fit_circle(np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="collinear"):
+        fit_circle_taubin(np.column_stack((np.arange(5.0), np.zeros(5))))
+    with pytest.raises(ValueError, match="finite"):
+        fit_circle(np.array([[0, 0], [1, np.nan], [2, 1.0]]))
+
+
+@pytest.mark.parametrize("arc_deg", [70.0, 180.0, 250.0])
+def test_arc_geometry_matches_the_seed_formulas(arc_deg):
+    r = 80.0
+    pts = arc_points_mm((3.0, 4.0), r, 30.0, arc_deg, chords=200)
+    geo = arc_geometry(fit_circle(pts), pts)
+    assert geo.arc_angle_deg == pytest.approx(arc_deg, abs=1e-6)
+    assert geo.chord_width_mm == pytest.approx(np.hypot(*(pts[-1] - pts[0])), abs=1e-6)
+    # the sagitta formula and 4 atan(2h/d) invert the geometry exactly
+    assert sagitta_radius_mm(geo.chord_width_mm, geo.height_mm) == pytest.approx(r, rel=1e-9)
+    assert arc_angle_from_chord_deg(geo.chord_width_mm, geo.height_mm) == pytest.approx(arc_deg)
+
+
+@pytest.mark.parametrize(("radius", "arc_deg", "divisions"), [(45.0, 70.0, 6), (85.0, 180.0, 20)])
+def test_polyline_fit_recovers_vertex_bends_of_a_chord_polygon(radius, arc_deg, divisions):
+    rng = np.random.default_rng(divisions)
+    verts = arc_points_mm((0.0, 0.0), radius, 90 + arc_deg / 2, -arc_deg, chords=divisions)
+    pts = _dense_polygon(verts, 150) + rng.normal(0, 0.003, (divisions * 150 + 1, 2))
+    fit = fit_polyline(pts, divisions)
+    assert fit.divisions == divisions
+    # 0.003 mm noise on ~8 mm of usable line per chord: sigma of a bend ~0.011 deg
+    np.testing.assert_allclose(fit.bend_deg, -arc_deg / divisions, atol=0.045)
+    np.testing.assert_allclose(fit.vertices_mm, verts, atol=0.02)
+    # a circle through the fitted vertices gives the design radius
+    assert fit_circle(fit.vertices_mm).radius_mm == pytest.approx(radius, rel=3e-4)
+
+
+def test_polyline_fit_on_a_saddle_with_changing_bend_sign():
+    # an S of 13 chords: left bends, then right bends
+    bends = np.array([4.0] * 6 + [-4.0] * 6)
+    heading = np.radians(np.concatenate(([0.0], np.cumsum(bends))))
+    chord = 15.0
+    verts = np.vstack(
+        ([0.0, 0.0], np.cumsum(chord * np.column_stack((np.cos(heading), np.sin(heading))), axis=0))
+    )
+    np.testing.assert_allclose(bend_angles_deg(verts), bends, atol=1e-9)
+    rng = np.random.default_rng(3)
+    pts = _dense_polygon(verts, 120) + rng.normal(0, 0.003, (13 * 120 + 1, 2))
+    fit = fit_polyline(pts, 13)
+    np.testing.assert_allclose(fit.bend_deg, bends, atol=0.03)
+    assert fit.rms_residual_mm == pytest.approx(0.003, rel=0.2)
+
+
+def test_polyline_fit_tolerates_rounded_corners():
+    # corners rounded with a 6 mm bend radius (the wire wraps the pin)
+    verts = arc_points_mm((0.0, 0.0), 60.0, 150.0, -120.0, chords=8)
+    pts = []
+    for i in range(8):
+        a, b = verts[i], verts[i + 1]
+        pts.append(np.linspace(a, b, 200, endpoint=False))
+    poly = np.vstack([*pts, verts[-1:]])
+    # replace points near each inner vertex by a fillet (pull them towards the inside)
+    for v in verts[1:-1]:
+        d = np.hypot(*(poly - v).T)
+        near = d < 1.0
+        poly[near] = poly[near] + 0.05 * (np.zeros(2) - v) / np.hypot(*v) * (1 - d[near])[:, None]
+    fit = fit_polyline(poly, 8)
+    np.testing.assert_allclose(fit.bend_deg, -15.0, atol=0.01)
+    assert math.isfinite(fit.rms_residual_mm)
