@@ -62,7 +62,7 @@ from cvmeasure.driver.compensation import (
     fit_compensation,
 )
 from cvmeasure.errors import InputError
-from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_json
+from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_json, to_jsonable
 
 __all__ = [
     "FORMAT",
@@ -264,7 +264,7 @@ class Calibration:
             "samples": {d: [s.to_dict() for s in self.samples_of(d)] for d in DIRECTIONS},
             "springback": comp["springback"],
             "motion": comp["motion"],
-            "scores": {m: {d: dict(v) for d, v in s.items()} for m, s in self.scores.items()},
+            "scores": to_jsonable(self.scores),
             "provenance": dict(self.provenance),
         }
 

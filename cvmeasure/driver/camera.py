@@ -65,11 +65,14 @@ class CapturedPhoto:
         Ground truth of a simulated photo (the renderer's truth dict), else None.
     camera_path : str or None
         Where the photo was on the camera (gphoto2: ``folder/name``).
+    camera : CameraModel or None
+        The lens model of the photo when the backend knows it (simulation).
     """
 
     path: Path
     truth: Mapping[str, Any] | None = None
     camera_path: str | None = None
+    camera: Any = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"path": str(self.path), "camera_path": self.camera_path}
@@ -395,7 +398,10 @@ class SimulatedCamera:
 
     def capture(self, name: str) -> CapturedPhoto:
         """Render the current state to ``<out_dir>/<name>.jpg`` (+ ``.truth.json``)."""
-        from datasets import render_bender_photo
+        try:
+            from datasets import render_bender_photo
+        except ImportError:  # the package re-export may not exist yet
+            from datasets.bender import render_bender_photo
 
         s = self.state()
         photo = render_bender_photo(
@@ -409,7 +415,7 @@ class SimulatedCamera:
         out_dir = Path(self.out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
         photo_path, _ = photo.save(out_dir / name)
-        return CapturedPhoto(path=Path(photo_path), truth=photo.truth)
+        return CapturedPhoto(path=Path(photo_path), truth=photo.truth, camera=photo.camera)
 
     def close(self) -> None:
         pass

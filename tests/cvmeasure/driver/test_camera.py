@@ -59,7 +59,10 @@ def test_gphoto2_virtual_camera_capture_and_settings(tmp_path, vcamera_folder):
 
 def test_gphoto2_wrong_port_and_no_camera(tmp_path, vcamera_folder):
     root, _, _ = vcamera_folder
-    with virtual_camera_env(root), pytest.raises(DeviceError, match="no camera on gphoto2 port usb:009,009"):
+    with (
+        virtual_camera_env(root),
+        pytest.raises(DeviceError, match="no camera on gphoto2 port usb:009,009"),
+    ):
         open_camera("gphoto2://usb:009,009", tmp_path)
     # outside the virtual environment this machine has no camera at all
     with pytest.raises(DeviceError, match="no camera found|could not open"):

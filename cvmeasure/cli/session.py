@@ -1,0 +1,183 @@
+"""``cvmeasure session``: the automatic calibration session (bend, photograph, measure, fit)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "session",
+        help="automatic calibration session: bend, photograph, measure, write the calibration",
+        description="For each calibration angle and direction: feed, bend, photograph loaded, "
+        "release, photograph unloaded, measure the markers, append to the session log "
+        "(<dir>/session.jsonl; a killed session resumes from it without re-bending a done "
+        "angle). At the end write the calibration JSON, trials CSV and an HTML report. "
+        "--simulate runs against the simulated bender and the simulated camera.",
+    )
+    p.add_argument("-o", "--out", type=Path, required=True, help="calibration JSON to write")
+    p.add_argument("--dir", type=Path, help="session folder (default: <out stem>_session/)")
+    p.add_argument("--simulate", action="store_true", help="simulated bender + camera")
+    p.add_argument("--camera", help="camera URL: gphoto2://[port] or folder:///path")
+    p.add_argument("--mode", choices=("quick", "standard"), default="quick")
+    p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
+    p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
+    p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
+    p.add_argument("--camera-model", type=Path, help="camera JSON (lens model) for measuring")
+    p.add_argument("--params", type=Path, help="sim params JSON (nominal machine; --simulate)")
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="machine effect of the simulated bender, e.g. backlash=0.5 (repeatable)",
+    )
+    p.add_argument("--scale", type=float, default=0.25, help="render scale (--simulate)")
+    p.add_argument("--seed", type=int, default=0, help="render seed (--simulate)")
+    p.add_argument("--feed-mm", type=float, default=40.0, help="wire fed before each bend")
+    p.add_argument("--report", type=Path, help="HTML report (default: <out stem>.html)")
+    p.add_argument("--stop-after", type=int, help=argparse.SUPPRESS)
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.set_defaults(func=run)
+
+
+def _angles(text: str) -> tuple[float, ...]:
+    from cvmeasure.errors import InputError
+
+    try:
+        angles = tuple(float(a) for a in text.split(","))
+    except ValueError:
+        raise InputError("--angles", f"{text!r} is not a comma-separated list of numbers") from None
+    if not angles or any(not 0 < a < 180 for a in angles):
+        raise InputError("--angles", "angles must be in (0, 180) deg")
+    return angles
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.driver.calibration import save_calibration
+    from cvmeasure.driver.camera import SimulatedCamera, open_camera
+    from cvmeasure.driver.session import (
+        SessionConfig,
+        SessionInterrupted,
+        SimulatedBender,
+        run_session,
+    )
+    from cvmeasure.driver.session_report import write_session_report
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import write_csv_rows
+    from cvmeasure.provenance import provenance
+
+    session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
+    angles = _angles(args.angles) if args.angles else ()
+    config = SessionConfig(
+        mode="custom" if angles else args.mode, angles_deg=angles, feed_mm=args.feed_mm
+    )
+    kit = None
+    if args.kit:
+        from cvmeasure.kit import load_kit
+
+        kit = load_kit(args.kit)
+    options = {}
+    if args.camera_model:
+        from cvmeasure.camera import CameraModel
+
+        options["camera"] = CameraModel.load(args.camera_model)
+    params, effects = None, ()
+    if args.params or args.effect:
+        from cvmeasure.sim import SimParams, params_from_json, parse_effect
+
+        params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
+        try:
+            effects = tuple(effects) + tuple(parse_effect(t) for t in args.effect)
+        except ValueError as exc:
+            raise InputError("--effect", str(exc)) from None
+    if args.simulate:
+        machine = SimulatedBender(params, effects)
+        camera = SimulatedCamera(
+            session_dir / "photos",
+            machine.state,
+            scale=args.scale,
+            seed=args.seed,
+        )
+    else:
+        raise InputError(
+            "--simulate",
+            "only simulated sessions are available from the command line so far "
+            "(a real bender needs the streamer: use the library's run_session)",
+        )
+    if args.camera and not args.simulate:
+        camera = open_camera(args.camera, session_dir / "photos")
+
+    def progress(done: int, total: int, step) -> None:
+        if not args.quiet:
+            print(
+                f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
+                f"loaded {step.loaded['bend_angle_deg']:8.3f}  unloaded "
+                f"{step.unloaded['bend_angle_deg']:8.3f}  springback {step.springback_deg:6.3f} deg",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    try:
+        result = run_session(
+            machine,
+            camera,
+            session_dir,
+            config=config,
+            kit=kit,
+            measure_options=options,
+            model=args.model,
+            params=params,
+            name=args.out.stem,
+            progress=progress,
+            stop_after=args.stop_after,
+        )
+    except SessionInterrupted as exc:
+        print(f"cvmeasure session: {exc}; resume with the same command", file=sys.stderr)
+        return 3
+    finally:
+        camera.close()
+    calibration = result.calibration
+    from dataclasses import replace
+
+    calibration = replace(calibration, provenance=provenance())
+    save_calibration(args.out, calibration)
+    trials_path = session_dir / "trials.csv"
+    write_csv_rows(
+        trials_path,
+        [{**s.to_dict(), "trial": s.trial, "direction": s.direction} for s in calibration.samples],
+        (
+            "trial",
+            "commanded_pin_deg",
+            "loaded_bend_deg",
+            "unloaded_bend_deg",
+            "target_deg",
+            "direction",
+            "measured_pin_deg",
+            "springback_deg",
+        ),
+    )
+    report = args.report or args.out.with_suffix(".html")
+    write_session_report(report, calibration, result.steps, session_dir=session_dir)
+    summary = {
+        "out": str(args.out),
+        "report": str(report),
+        "log": str(result.log_path),
+        "trials": str(trials_path),
+        "resumed": result.resumed,
+        "bent_this_run": len(result.bent_this_run),
+        "bends": len(result.steps),
+        "model": calibration.model,
+        "scores": calibration.scores,
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(f"wrote {args.out}, {report} ({len(result.steps)} bends, model {calibration.model})")
+    return 0

@@ -1,0 +1,565 @@
+"""The automatic calibration session: bend, photograph, release, photograph, measure.
+
+For each calibration angle and direction (:func:`~cvmeasure.driver.calibration.calibration_plan`)
+a session:
+
+1. feeds fresh straight wire (``G91 G1 Y<feed>``),
+2. bends: the pin goes to the nominal command for the wanted *loaded* angle
+   (the simulation's inverse kinematics; the calibration measures what really
+   happened, so the nominal model only has to be close), and waits until the
+   move is done,
+3. photographs the loaded wire, releases the pin (``G0 X0``), waits,
+   photographs the unloaded wire,
+4. measures both photos with :func:`cvmeasure.markers.measure_machine_photo`,
+5. appends the sample to an append-only session log (JSON Lines, fsync'd).
+
+A session killed at any point resumes from its log: completed angles are never
+bent again; an angle that was bent but not completely recorded is bent again
+on fresh wire. At the end the samples are fitted
+(:func:`~cvmeasure.driver.calibration.fit_calibration`).
+
+The machine is anything with ``run(lines)`` (send G-code lines and return once
+every move has finished) - e.g. the streamer on the TinyG double, or
+:class:`SimulatedBender`, an in-process stand-in that executes the same G-code
+on the simulation of :mod:`cvmeasure.sim` and exposes the machine state for
+the :class:`~cvmeasure.driver.camera.SimulatedCamera`.
+
+Log records (one JSON object per line): ``{"event": "start", "plan": [...],
+"config": {...}}``, ``{"event": "bend", "step": i, ...}`` (written before
+the bend is sent), ``{"event": "sample", "step": i, ...}`` (a completed
+angle), ``{"event": "resume", "done": n}``, ``{"event": "failed", "step": i,
+"error": "..."}``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+from cvmeasure.driver.calibration import (
+    Calibration,
+    Sample,
+    calibration_plan,
+    fit_calibration,
+)
+from cvmeasure.driver.camera import Camera, MachineState
+from cvmeasure.errors import CvmeasureError, InputError
+from cvmeasure.fileio import append_jsonl, read_jsonl
+
+__all__ = [
+    "Machine",
+    "SessionConfig",
+    "SessionStep",
+    "SessionResult",
+    "SessionInterrupted",
+    "SimulatedBender",
+    "nominal_pin_for_loaded_deg",
+    "photo_state",
+    "session_gcode",
+    "run_session",
+    "read_session_log",
+]
+
+LOG_NAME = "session.jsonl"
+
+
+class Machine(Protocol):
+    """What a session needs from a bender."""
+
+    def run(self, lines: Sequence[str]) -> None:
+        """Send G-code lines; return once every move has finished (machine idle)."""
+        ...
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """What a session bends and how.
+
+    Attributes
+    ----------
+    mode : str
+        ``"quick"``, ``"standard"`` or ``"custom"`` (then ``angles_deg`` is used).
+    angles_deg : tuple of float
+        Calibration angles (wanted loaded bend angles, deg); from the mode
+        unless ``mode == "custom"``.
+    feed_mm : float
+        Fresh wire fed before every bend (mm).
+    feed_rate_mm_min, bend_rate_deg_min : float
+        F words of the feed and the bend moves.
+    duck : bool
+        Duck the pin (Z180 / Z0) when the bend direction changes.
+    """
+
+    mode: str = "quick"
+    angles_deg: tuple[float, ...] = ()
+    feed_mm: float = 40.0
+    feed_rate_mm_min: float = 3000.0
+    bend_rate_deg_min: float = 3000.0
+    duck: bool = True
+
+    def plan(self) -> list[tuple[str, float]]:
+        return calibration_plan(self.angles_deg if self.mode == "custom" else self.mode)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "mode": self.mode,
+            "angles_deg": list(self.angles_deg),
+            "feed_mm": self.feed_mm,
+            "feed_rate_mm_min": self.feed_rate_mm_min,
+            "bend_rate_deg_min": self.bend_rate_deg_min,
+            "duck": self.duck,
+        }
+
+
+@dataclass(frozen=True)
+class SessionStep:
+    """One completed calibration bend, as logged."""
+
+    step: int
+    direction: str
+    target_deg: float
+    commanded_pin_deg: float
+    loaded: Mapping[str, Any]
+    unloaded: Mapping[str, Any]
+    photo_loaded: str
+    photo_unloaded: str
+    truth: Mapping[str, Any] | None = None
+
+    @property
+    def springback_deg(self) -> float:
+        lo, un = self.loaded["bend_angle_deg"], self.unloaded["bend_angle_deg"]
+        return math.copysign(1.0, lo) * (lo - un)
+
+    def sample(self) -> Sample:
+        u_lo = float(self.loaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
+        u_un = float(self.unloaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
+        unc = {}
+        if math.isfinite(u_lo) and math.isfinite(u_un):
+            unc = {
+                "loaded_bend_deg": u_lo,
+                "unloaded_bend_deg": u_un,
+                "springback_deg": math.hypot(u_lo, u_un),
+            }
+        return Sample(
+            direction=self.direction,
+            target_deg=self.target_deg,
+            commanded_pin_deg=self.commanded_pin_deg,
+            loaded_bend_deg=float(self.loaded["bend_angle_deg"]),
+            unloaded_bend_deg=float(self.unloaded["bend_angle_deg"]),
+            uncertainty_deg=unc,
+            measured_pin_deg=float(self.loaded["pin_angle_deg"]),
+            trial=self.step + 1,
+            source="cv",
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {
+            "event": "sample",
+            "step": self.step,
+            "direction": self.direction,
+            "target_deg": self.target_deg,
+            "commanded_pin_deg": self.commanded_pin_deg,
+            "photo_loaded": self.photo_loaded,
+            "photo_unloaded": self.photo_unloaded,
+            "loaded": dict(self.loaded),
+            "unloaded": dict(self.unloaded),
+            "springback_deg": self.springback_deg,
+        }
+        if self.truth is not None:
+            d["truth"] = dict(self.truth)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> SessionStep:
+        return cls(
+            step=int(d["step"]),
+            direction=str(d["direction"]),
+            target_deg=float(d["target_deg"]),
+            commanded_pin_deg=float(d["commanded_pin_deg"]),
+            loaded=d["loaded"],
+            unloaded=d["unloaded"],
+            photo_loaded=str(d["photo_loaded"]),
+            photo_unloaded=str(d["photo_unloaded"]),
+            truth=d.get("truth"),
+        )
+
+
+@dataclass(frozen=True)
+class SessionResult:
+    """A finished session: its steps in plan order, the fitted calibration, what this run bent."""
+
+    steps: tuple[SessionStep, ...]
+    calibration: Calibration
+    bent_this_run: tuple[int, ...]
+    resumed: bool
+    log_path: Path
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "log": str(self.log_path),
+            "resumed": self.resumed,
+            "bent_this_run": list(self.bent_this_run),
+            "steps": [s.to_dict() for s in self.steps],
+            "calibration": self.calibration.to_dict(),
+        }
+
+
+# ----------------------------------------------------------------------------- nominal model
+
+
+def nominal_pin_for_loaded_deg(loaded_deg: float, direction: str, params: Any = None) -> float:
+    """Signed pin command (deg of head rotation from home) that should bend to ``loaded_deg``.
+
+    Uses the tangent-construction kinematics of :mod:`cvmeasure.sim` with the
+    given (default) parameters; ``loaded_deg`` is a magnitude, ``direction``
+    ``"ccw"`` or ``"cw"``.
+    """
+    from cvmeasure.sim import SimParams
+    from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, pin_angle_for_loaded_deg
+
+    params = params or SimParams()
+    sign = -1.0 if direction == "cw" else 1.0
+    geom = head_geometry(params, sign)
+    phi = float(pin_angle_for_loaded_deg(geom, abs(loaded_deg)))
+    return sign * (phi - float(contact_angle_deg(geom)) + params.approach_deg)
+
+
+def _fmt(value: float) -> str:
+    text = f"{value:.3f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def session_gcode(
+    kind: str, config: SessionConfig, *, pin_deg: float = 0.0, previous_direction: str | None = None
+) -> list[str]:
+    """G-code lines of one session action.
+
+    ``kind``: ``"setup"`` (units, absolute mode, pin home, unducked),
+    ``"feed"`` (fresh wire), ``"bend"`` (pin to ``pin_deg``; ducks across
+    when the direction changes), ``"release"`` (pin home).
+    Lines are plain ASCII without realtime characters.
+    """
+    if kind == "setup":
+        return ["G21 G90", "G0 Z0", "G0 X0"]
+    if kind == "feed":
+        return ["G91", f"G1 Y{_fmt(config.feed_mm)} F{_fmt(config.feed_rate_mm_min)}", "G90"]
+    if kind == "bend":
+        lines = []
+        direction = "cw" if pin_deg < 0 else "ccw"
+        if config.duck and previous_direction not in (None, direction):
+            lines += ["G0 Z180", "G0 X0", "G0 Z0"]
+        lines.append(f"G1 X{_fmt(pin_deg)} F{_fmt(config.bend_rate_deg_min)}")
+        return lines
+    if kind == "release":
+        return ["G0 X0"]
+    raise ValueError(f"unknown G-code kind {kind!r}")
+
+
+# ----------------------------------------------------------------------------- simulated machine
+
+
+class SimulatedBender:
+    """An in-process bender that executes the session's G-code on :mod:`cvmeasure.sim`.
+
+    It understands G0/G1, G90/G91, G21 and the X (pin, deg of head rotation
+    from home), Y (feed, mm) and Z (duck) axes; moves are instantaneous. The
+    wire at the head is tracked: the deepest pin position since the last feed
+    is the bend; while the pin presses the wire shows the loaded angle, once
+    released the unloaded one (:meth:`state`).
+
+    Parameters
+    ----------
+    params : cvmeasure.sim.SimParams, optional
+    effects : iterable of cvmeasure.sim.Effect
+        Machine effects of the simulated bender (backlash, offset, ...).
+    """
+
+    def __init__(self, params: Any = None, effects: Sequence[Any] = ()) -> None:
+        from cvmeasure.sim import SimParams
+
+        self.params = params or SimParams()
+        self.effects = tuple(effects)
+        self.x_deg = 0.0
+        self.y_mm = 0.0
+        self.z_deg = 0.0
+        self.peak_deg = 0.0
+        self.bends = 0
+        self.lines: list[str] = []
+        self._relative = False
+
+    def run(self, lines: Sequence[str]) -> None:
+        for line in lines:
+            self.lines.append(line)
+            words = _axis_words(line)
+            if "G91" in line.upper().split():
+                self._relative = True
+            if "G90" in line.upper().split():
+                self._relative = False
+            for axis, value in words.items():
+                self._move(axis, value)
+
+    def _move(self, axis: str, value: float) -> None:
+        if axis == "Y":
+            target = self.y_mm + value if self._relative else value
+            if target != self.y_mm:
+                self.peak_deg = 0.0  # fresh straight wire at the head
+            self.y_mm = target
+        elif axis == "Z":
+            self.z_deg = value
+        elif axis == "X":
+            x = self.x_deg + value if self._relative else value
+            if (
+                self.z_deg < 90
+                and abs(x) > abs(self.peak_deg)
+                and (self.peak_deg == 0 or math.copysign(1, x) == math.copysign(1, self.peak_deg))
+            ):
+                if self.peak_deg == 0:
+                    self.bends += 1
+                self.peak_deg = x
+            self.x_deg = x
+
+    def _simulate(self, command_deg: float) -> Any:
+        from cvmeasure.sim import simulate
+
+        return simulate(
+            [command_deg], self.params, self.effects, bend_index=[max(self.bends - 1, 0)]
+        )
+
+    def state(self) -> MachineState:
+        """The pin angle (photo frame: origin -> pin from +x) and the wire's bend angle."""
+        x, peak = self.x_deg, self.peak_deg
+        if peak == 0:
+            return photo_state(x, 0.0, self.params)
+        bent = self._simulate(peak)
+        bend = float(bent.unloaded_bend_deg[0])
+        if x != 0 and math.copysign(1, x) == math.copysign(1, peak):
+            pressing = float(self._simulate(x).loaded_bend_deg[0])
+            bend = pressing if abs(pressing) > abs(bend) else bend
+        return photo_state(x, bend, self.params)
+
+
+def photo_state(pin_deg: float, bend_angle_deg: float, params: Any = None) -> MachineState:
+    """What a photo of the machine shows, from the pin command and the wire's bend angle.
+
+    The pin's photo angle (origin -> pin from +x, deg) is its die-frame angle
+    in the simulation's kinematics: first contact minus the approach plus the
+    head rotation ``pin_deg``, mirrored for clockwise (negative) rotations;
+    at home the side is taken from the bend (counter-clockwise when straight).
+    """
+    from cvmeasure.sim import SimParams
+    from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry
+
+    params = params or SimParams()
+    side = -1.0 if (pin_deg or bend_angle_deg) < 0 else 1.0
+    geom = head_geometry(params, side)
+    phi = float(contact_angle_deg(geom)) - params.approach_deg + abs(pin_deg)
+    return MachineState(pin_angle_deg=side * phi, bend_angle_deg=float(bend_angle_deg))
+
+
+def _axis_words(line: str) -> dict[str, float]:
+    words: dict[str, float] = {}
+    text = line.upper().split("(")[0].split(";")[0]
+    for token in text.replace("G", " G").split():
+        if token[0] in "XYZA" and len(token) > 1:
+            words[token[0]] = float(token[1:])
+    return words
+
+
+# ----------------------------------------------------------------------------- the session
+
+
+def read_session_log(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """The records of a session log (a cut last line from a crash is ignored)."""
+    return read_jsonl(path, skip_partial_last=True)
+
+
+def _photo_name(step: int, direction: str, angle: float, which: str) -> str:
+    return f"step{step + 1:02d}_{direction}_{angle:05.1f}_{which}".replace(".", "p")
+
+
+def run_session(
+    machine: Machine,
+    camera: Camera,
+    out_dir: str | os.PathLike[str],
+    *,
+    config: SessionConfig = SessionConfig(),
+    kit: Any = None,
+    measure_options: Mapping[str, Any] | None = None,
+    model: str = "linear",
+    params: Any = None,
+    name: str = "calibration",
+    progress: Callable[[int, int, SessionStep], None] | None = None,
+    stop_after: int | None = None,
+) -> SessionResult:
+    """Run (or resume) a calibration session and fit the calibration.
+
+    Parameters
+    ----------
+    machine : Machine
+        The bender (``run(lines)`` returns once the moves are done).
+    camera : Camera
+        Takes the loaded and unloaded photos.
+    out_dir : path
+        Session folder: ``session.jsonl`` (the log) and ``photos/``. An existing
+        log is resumed; it must be of the same plan.
+    config : SessionConfig
+        Mode, angles, feed.
+    kit : MarkerKit, optional
+        The marker kit on the machine (default :func:`cvmeasure.kit.default_kit`).
+    measure_options : mapping, optional
+        Passed on to :func:`cvmeasure.markers.measure_machine_photo` (camera, plane, method...).
+    model : str
+        Springback model of the calibration.
+    params : cvmeasure.sim.SimParams, optional
+        Nominal machine model for the pin commands.
+    progress : callable(done, total, step), optional
+        Called after every completed angle.
+    stop_after : int, optional
+        Stop (without fitting) after this many angles bent in this run
+        (tests and dry runs); raises :class:`SessionInterrupted`.
+
+    Raises
+    ------
+    InputError
+        A photo could not be measured (names the photo and the marker), or the
+        log belongs to another plan.
+    """
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.kit import default_kit
+    from cvmeasure.markers.measure import measure_machine_photo
+
+    kit = kit or default_kit()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / LOG_NAME
+    plan = config.plan()
+    plan_json = [[d, a] for d, a in plan]
+    done: dict[int, SessionStep] = {}
+    resumed = log_path.exists()
+    if resumed:
+        records = read_session_log(log_path)
+        start = next((r for r in records if r.get("event") == "start"), None)
+        if start is None or start.get("plan") != plan_json:
+            raise InputError(
+                log_path, "session log belongs to another plan (use a new folder or the same mode)"
+            )
+        for r in records:
+            if r.get("event") == "sample":
+                done[int(r["step"])] = SessionStep.from_dict(r)
+        append_jsonl(log_path, {"event": "resume", "done": len(done), "time_utc": _now()})
+    else:
+        append_jsonl(
+            log_path,
+            {"event": "start", "plan": plan_json, "config": config.to_dict(), "time_utc": _now()},
+        )
+    options = dict(measure_options or {})
+    bent: list[int] = []
+    previous_direction: str | None = None
+    machine.run(session_gcode("setup", config))
+    for step, (direction, angle) in enumerate(plan):
+        if step in done:
+            previous_direction = direction
+            continue
+        if stop_after is not None and len(bent) >= stop_after:
+            raise SessionInterrupted(f"stopped after {len(bent)} bends as asked")
+        pin = round(nominal_pin_for_loaded_deg(angle, direction, params), 3)  # as sent
+        append_jsonl(
+            log_path,
+            {
+                "event": "bend",
+                "step": step,
+                "direction": direction,
+                "target_deg": angle,
+                "commanded_pin_deg": pin,
+                "time_utc": _now(),
+            },
+        )
+        bent.append(step)
+        machine.run(session_gcode("feed", config))
+        machine.run(
+            session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction)
+        )
+        previous_direction = direction
+        shot_loaded = camera.capture(_photo_name(step, direction, angle, "loaded"))
+        machine.run(session_gcode("release", config))
+        shot_unloaded = camera.capture(_photo_name(step, direction, angle, "unloaded"))
+        results = []
+        for shot in (shot_loaded, shot_unloaded):
+            photo = read_photo(shot.path)
+            opts = dict(options)
+            if shot.camera is not None:
+                opts.setdefault("camera", shot.camera)
+            try:
+                res = measure_machine_photo(
+                    photo.bgr,
+                    kit,
+                    linear=photo.linear,
+                    source=str(shot.path),
+                    photo=str(shot.path),
+                    **opts,
+                )
+            except InputError as exc:
+                append_jsonl(log_path, {"event": "failed", "step": step, "error": str(exc)})
+                raise
+            results.append(res.to_dict())
+        truth = None
+        if shot_loaded.truth is not None and shot_unloaded.truth is not None:
+            truth = {
+                "loaded_bend_deg": shot_loaded.truth.get("bend_angle_deg"),
+                "unloaded_bend_deg": shot_unloaded.truth.get("bend_angle_deg"),
+                "pin_angle_deg": shot_loaded.truth.get("pin_angle_deg"),
+            }
+        record = SessionStep(
+            step=step,
+            direction=direction,
+            target_deg=angle,
+            commanded_pin_deg=pin,
+            loaded=results[0],
+            unloaded=results[1],
+            photo_loaded=os.path.relpath(shot_loaded.path, out),
+            photo_unloaded=os.path.relpath(shot_unloaded.path, out),
+            truth=truth,
+        )
+        _check_sign(record, shot_loaded.path)
+        append_jsonl(log_path, record.to_dict())
+        done[step] = record
+        if progress is not None:
+            progress(len(done), len(plan), record)
+    steps = tuple(done[i] for i in sorted(done))
+    calibration = fit_calibration(
+        [s.sample() for s in steps],
+        model=model,  # type: ignore[arg-type]
+        name=name,
+        mode=config.mode,
+        angles_deg=config.angles_deg or tuple(sorted({a for _, a in plan})),
+    )
+    return SessionResult(
+        steps=steps,
+        calibration=calibration,
+        bent_this_run=tuple(bent),
+        resumed=resumed,
+        log_path=log_path,
+    )
+
+
+class SessionInterrupted(CvmeasureError):
+    """The session stopped before its plan was complete (resume it from its log)."""
+
+
+def _check_sign(record: SessionStep, photo: Path) -> None:
+    sign = -1.0 if record.direction == "cw" else 1.0
+    if sign * record.loaded["bend_angle_deg"] <= 0:
+        raise InputError(
+            photo,
+            f"measured loaded bend {record.loaded['bend_angle_deg']:.2f} deg has the wrong sign "
+            f"for a {record.direction} bend (is the kit mirrored or a marker swapped?)",
+        )
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")

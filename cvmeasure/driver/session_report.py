@@ -1,0 +1,201 @@
+"""Plots and the HTML report of a calibration: data, every model's fit, residuals, overlays.
+
+:func:`plot_calibration` draws, per direction, the measured springback over the
+final angle with the curve of every springback model, and below it each
+model's leave-one-angle-out errors. :func:`write_session_report` writes one
+self-contained HTML file (images embedded) with that plot, the table of model
+scores, the samples, and overlays of the measured markers on the photos.
+Matplotlib is imported only here.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.driver.calibration import Calibration
+from cvmeasure.driver.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
+from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
+
+__all__ = ["plot_calibration", "write_session_report", "overlay_markers"]
+
+_COLOURS = {
+    "linear": "tab:blue",
+    "cubic": "tab:red",
+    "pchip": "tab:green",
+    "physical": "tab:purple",
+}
+
+
+def _figure_png(calibration: Calibration) -> bytes:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directions = [d for d in DIRECTIONS if calibration.samples_of(d)]
+    fig, axes = plt.subplots(
+        2, len(directions), figsize=(6 * len(directions), 7), squeeze=False, sharex="col"
+    )
+    for col, direction in enumerate(directions):
+        samples = calibration.samples_of(direction)
+        sign = -1.0 if direction == "cw" else 1.0
+        final = np.array([sign * s.unloaded_bend_deg for s in samples])
+        loaded = np.array([sign * s.loaded_bend_deg for s in samples])
+        unc = np.array([s.uncertainty_deg.get("springback_deg", 0.0) for s in samples])
+        top, bottom = axes[0, col], axes[1, col]
+        top.errorbar(final, loaded - final, yerr=unc, fmt="ko", ms=4, label="measured", zorder=5)
+        grid = np.linspace(final.min(), final.max(), 300)
+        for model in SPRINGBACK_MODELS:
+            try:
+                curve = fit_springback(final, loaded, model=model, direction=direction)  # type: ignore[arg-type]
+            except ValueError:
+                continue
+            score = curve.loao_rmse_deg
+            label = f"{model} (LOAO RMS {score:.3f} deg)" if score is not None else model
+            top.plot(grid, curve.springback_deg(grid), color=_COLOURS[model], label=label)
+            if curve.loao_errors_deg:
+                bottom.plot(
+                    np.array(curve.final_deg[1:-1]),
+                    curve.loao_errors_deg,
+                    "o-",
+                    color=_COLOURS[model],
+                    label=model,
+                )
+        used = calibration.model
+        top.set_title(f"{direction} bends (compensation uses {used})")
+        top.set_ylabel("springback (deg)")
+        top.legend(fontsize=8)
+        top.grid(alpha=0.3)
+        bottom.axhline(0, color="k", lw=0.8)
+        bottom.set_xlabel("final (unloaded) bend angle (deg)")
+        bottom.set_ylabel("leave-one-angle-out error (deg)")
+        bottom.grid(alpha=0.3)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def plot_calibration(calibration: Calibration, path: str | os.PathLike[str]) -> Path:
+    """Write the data / fits / residuals plot of a calibration as PNG (atomically)."""
+    return atomic_write_bytes(path, _figure_png(calibration))
+
+
+def overlay_markers(bgr: np.ndarray, record: dict[str, Any], *, max_width_px: int = 480) -> bytes:
+    """A PNG of the photo with each measured marker's circle and centre drawn, downscaled."""
+    import cv2
+
+    img = bgr.copy()
+    for role, m in record.get("markers", {}).items():
+        centre = (int(round(m["x_px"])), int(round(m["y_px"])))
+        radius = max(int(round(m["r_px"])), 2)
+        cv2.circle(img, centre, radius, (0, 0, 255), 2, cv2.LINE_AA)
+        cv2.drawMarker(img, centre, (0, 0, 255), cv2.MARKER_CROSS, radius, 1)
+        cv2.putText(img, role, (centre[0] + radius, centre[1]), 0, 0.6, (0, 0, 255), 1)
+    scale = min(1.0, max_width_px / img.shape[1])
+    if scale < 1.0:
+        img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    ok, png = cv2.imencode(".png", img)
+    return png.tobytes() if ok else b""
+
+
+def _img(png: bytes, alt: str) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def write_session_report(
+    path: str | os.PathLike[str],
+    calibration: Calibration,
+    steps: Sequence[Any] = (),
+    *,
+    session_dir: str | os.PathLike[str] | None = None,
+    max_overlays: int = 4,
+) -> Path:
+    """Write the calibration's HTML report (one file, images embedded), atomically.
+
+    Parameters
+    ----------
+    path : path
+        The HTML file.
+    calibration : Calibration
+    steps : sequence of SessionStep
+        The session's steps (for the overlays and the photo names).
+    session_dir : path, optional
+        Folder the steps' photo paths are relative to.
+    max_overlays : int
+        How many steps get loaded/unloaded overlays (spread over the plan).
+    """
+    from cvmeasure.imageio import read_photo
+
+    e = html.escape
+    parts = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        f"<title>Calibration {e(calibration.name)}</title>",
+        "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
+        "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
+        "img{max-width:100%}</style></head><body>",
+        f"<h1>Calibration {e(calibration.name)}</h1>",
+        f"<p>mode {e(calibration.mode)}, angles {e(', '.join(f'{a:g}' for a in calibration.angles_deg))} deg, "
+        f"{len(calibration.samples)} bends; compensation model <b>{e(calibration.model)}</b>; "
+        f"created {e(calibration.created_utc)}.</p>",
+        "<h2>Springback curves and residuals</h2>",
+        _img(_figure_png(calibration), "springback curves"),
+        "<h2>Model scores (leave-one-angle-out, deg)</h2><table><tr><th>model</th>",
+    ]
+    directions = [d for d in DIRECTIONS if calibration.samples_of(d)]
+    parts += [f"<th>{d} RMS</th><th>{d} max</th>" for d in directions] + ["</tr>"]
+    for model, by_dir in calibration.scores.items():
+        cells = []
+        for d in directions:
+            s = by_dir.get(d, {}) if isinstance(by_dir, dict) else {}
+            for key in ("loao_rmse_deg", "loao_max_deg"):
+                v = s.get(key) if isinstance(s, dict) else None
+                cells.append(f"<td>{'-' if v is None else f'{v:.4f}'}</td>")
+        parts.append(f"<tr><th>{e(model)}</th>{''.join(cells)}</tr>")
+    parts.append(
+        "</table><h2>Samples</h2><table><tr><th>trial</th><th>dir</th>"
+        "<th>target</th><th>pin cmd</th><th>loaded</th><th>unloaded</th>"
+        "<th>springback</th><th>u(springback)</th></tr>"
+    )
+    for s in calibration.samples:
+        u = s.uncertainty_deg.get("springback_deg")
+        parts.append(
+            f"<tr><td>{s.trial if s.trial is not None else ''}</td><td>{s.direction}</td>"
+            f"<td>{'' if s.target_deg is None else f'{s.target_deg:g}'}</td>"
+            f"<td>{s.commanded_pin_deg:.3f}</td><td>{s.loaded_bend_deg:.3f}</td>"
+            f"<td>{s.unloaded_bend_deg:.3f}</td><td>{s.springback_deg:.4f}</td>"
+            f"<td>{'' if u is None else f'{u:.4f}'}</td></tr>"
+        )
+    parts.append("</table>")
+    if steps and session_dir is not None:
+        parts.append("<h2>Overlays (measured markers)</h2>")
+        picks = sorted(
+            set(np.linspace(0, len(steps) - 1, min(max_overlays, len(steps))).astype(int))
+        )
+        for i in picks:
+            step = steps[i]
+            parts.append(
+                f"<h3>step {step.step + 1}: {step.direction} {step.target_deg:g} deg</h3><p>"
+            )
+            for which, rel, rec in (
+                ("loaded", step.photo_loaded, step.loaded),
+                ("unloaded", step.photo_unloaded, step.unloaded),
+            ):
+                photo_path = Path(session_dir) / rel
+                if photo_path.exists():
+                    png = overlay_markers(read_photo(photo_path).bgr, dict(rec))
+                    parts.append(_img(png, f"{which} {rel}"))
+                    parts.append(f" {which}: bend {rec['bend_angle_deg']:.3f} deg ")
+            parts.append("</p>")
+    parts.append("</body></html>\n")
+    return atomic_write_text(path, "\n".join(parts))
