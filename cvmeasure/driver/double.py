@@ -1,0 +1,834 @@
+"""A TinyG-like bender on a real pseudo-terminal: the test and demo double.
+
+:class:`FakeTinyG` runs in a thread on the master side of ``os.openpty()``;
+the host opens the slave (``double.port``, e.g. ``/dev/pts/7``) with pyserial
+like any serial port. It behaves as reference ``diwire-tinyg.md`` section 3.3
+proposes:
+
+* **interrupt layer**: a 254-byte receive ring; a byte arriving when it is
+  full is *dropped* (and counted, so overflow bugs show); the realtime
+  characters ``!`` (feedhold), ``~`` (cycle start), ``%`` (queue flush) and
+  ctrl-x (reset) are trapped anywhere in the stream; XOFF is sent at 203
+  buffered bytes, XON below 25; XON/XOFF from the host pause its own output.
+* **line reader**: a line (CR or LF) is read only while at least 4 of the 32
+  planner slots are free; JSON lines are commands, anything else G-code; every
+  line gets one ``{"r":...,"f":[1,status,bytes]}`` once parsed and queued.
+* **planner and executor**: G0/G1 moves on X (pin, deg), Y (feed, mm), Z (pin
+  duck), A; G90/G91, G21, G28.3; moves take ``distance / rate`` seconds of
+  machine time (G0 at the axis maximum rate), divided by ``speedup`` in wall
+  time; moves under 2.5 ms are rejected (status 202); ``sr.line`` follows the
+  ``N`` word of the executing block (a bare ``N`` block is a marker).
+* **reports**: filtered status reports every ``si`` ms and on every state
+  change, queue reports (``qv``), exception reports, ``rx`` after a flush.
+* **faults** (:class:`Fault`): a dropped byte, a malformed reply, an alarm
+  (limit switch, ``er`` 204 + stat 2), a stall (the board freezes), the port
+  vanishing (the pty closes; the machine finishes its queue; :meth:`reconnect`
+  plugs it back in on a new pty).
+* **machine**: every executed pin stroke is run through the simulation
+  (:func:`cvmeasure.sim.simulate`), so the pin angle, the feed, the bend at
+  the die and the bent wire's shape are known (:meth:`FakeTinyG.machine_state`,
+  :meth:`FakeTinyG.wire_shape_mm`).
+
+Simplifications, stated: the RX "wire" has no baud-rate delay (bytes arrive as
+fast as the host writes them); a feedhold stops instantly (no deceleration);
+a reset keeps the positions.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import logging
+import math
+import os
+import select
+import threading
+import time
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.driver.protocol import (
+    AXES,
+    INPUT_LINE_MAX,
+    PLANNER_HEADROOM,
+    PLANNER_SLOTS,
+    RX_BUFFER_BYTES,
+    XOFF,
+    XOFF_HIGH_WATER,
+    XON,
+    XON_LOW_WATER,
+    FooterStyle,
+    GcodeError,
+    MachineStat,
+    Status,
+    format_exception,
+    format_queue_report,
+    format_response,
+    format_rx_report,
+    format_status_report,
+    parse_block,
+)
+
+__all__ = ["FaultKind", "FAULT_KINDS", "Fault", "BendRecord", "MachineState", "FakeTinyG"]
+
+log = logging.getLogger(__name__)
+
+FaultKind = Literal["drop_byte", "malformed_reply", "alarm", "stall", "vanish"]
+#: The faults the double can inject.
+FAULT_KINDS: tuple[str, ...] = ("drop_byte", "malformed_reply", "alarm", "stall", "vanish")
+
+#: Shortest move TinyG plans (MIN_SEGMENT_USEC), machine seconds.
+MIN_MOVE_S = 0.0025
+#: Axis maximum rates (units/min) used for G0, as seen in Pensa's 2016 logs.
+DEFAULT_MAX_RATE = {"x": 7500.0, "y": 10000.0, "z": 30000.0, "a": 7500.0}
+_SR_FIELDS = ("line", "posx", "posy", "posz", "posa", "vel", "stat")
+_BANNER = {"fv": 0.97, "fb": 440.21, "hp": 1, "hv": 8, "id": "cvmeasure-double"}
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One fault to inject, once.
+
+    Attributes
+    ----------
+    kind : one of :data:`FAULT_KINDS`.
+    at_line : the 1-based count of lines the board has received (JSON and
+        G-code) at which it fires: ``drop_byte`` drops a byte of that line,
+        ``malformed_reply`` garbles its reply, ``stall`` freezes the board when
+        it reads it, ``vanish`` closes the port after answering it, ``alarm``
+        trips the limit switch when its move starts executing.
+    byte_index : for ``drop_byte``, which byte of the line (taken modulo its length).
+    duration_s : for ``stall``, how long the board freezes (wall seconds).
+    """
+
+    kind: FaultKind
+    at_line: int
+    byte_index: int = 0
+    duration_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.kind not in FAULT_KINDS:
+            raise ValueError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}")
+        if self.at_line < 1:
+            raise ValueError("at_line counts from 1")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "at_line": self.at_line,
+            "byte_index": self.byte_index,
+            "duration_s": self.duration_s,
+        }
+
+
+@dataclass(frozen=True)
+class BendRecord:
+    """One bend the double executed (simulated), in execution order.
+
+    ``feed_before_mm`` is the wire fed since the previous bend (or the start);
+    angles are signed, machine frame (CCW positive), degrees.
+    """
+
+    line_number: int | None
+    feed_before_mm: float
+    pin_deg: float
+    loaded_bend_deg: float
+    unloaded_bend_deg: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class MachineState:
+    """A snapshot of the double's machine.
+
+    Attributes
+    ----------
+    pin_deg : X, the pin's rotation from home (signed, deg).
+    feed_mm : Y, wire fed since power-up (mm).
+    duck : Z (0 = pin up, 180 = ducked).
+    stat : ``sr.stat`` (:class:`MachineStat`).
+    line : ``sr.line``, the N word of the executing (or last executed) block.
+    bend_angle_deg : the wire leg's angle at the die right now (loaded while the
+        pin holds it, unloaded after release, 0 after a feed), deg.
+    holding : the pin is pressing the wire.
+    bends : every bend executed so far.
+    planner_depth : moves queued (including the executing one).
+    rx_bytes : bytes waiting in the RX ring.
+    """
+
+    pin_deg: float
+    feed_mm: float
+    duck: float
+    stat: int
+    line: int
+    bend_angle_deg: float
+    holding: bool
+    bends: tuple[BendRecord, ...]
+    planner_depth: int
+    rx_bytes: int
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dict(self.__dict__)
+        d["bends"] = [b.to_dict() for b in self.bends]
+        return d
+
+
+@dataclass
+class _Move:
+    seq: int
+    line_number: int | None
+    text: str
+    target: dict[str, float]
+    duration_s: float
+    rate: float
+    start: dict[str, float] | None = None
+    elapsed_s: float = 0.0
+
+
+@dataclass
+class _Stats:
+    rx_dropped_bytes: int = 0
+    rx_peak_bytes: int = 0
+    xoff_sent: int = 0
+    xon_sent: int = 0
+    lines_received: int = 0
+    faults_fired: list[str] = field(default_factory=list)
+    completed: list[int | None] = field(default_factory=list)
+    partial: list[int | None] = field(default_factory=list)
+
+
+class FakeTinyG:
+    """A TinyG v8-like bender on a pseudo-terminal, driving the simulation.
+
+    Parameters
+    ----------
+    speedup : machine seconds per wall second (1 = real time).
+    faults : faults to inject (each fires once).
+    footer_style : ``"g2"`` ``[1,st,n]`` (Pensa's DIWire), ``"440"`` or ``"446"``.
+    rx_buffer_bytes, planner_slots, planner_headroom : the firmware's sizes.
+    sim_params, sim_effects : the machine and wire of :mod:`cvmeasure.sim`
+        (defaults: the simulation's). Measurement-only effects (camera tilt)
+        are ignored: the double bends wire, it does not photograph it.
+    max_rate : axis -> maximum rate (units/min) for G0.
+
+    Examples
+    --------
+    >>> with FakeTinyG(speedup=100.0) as board:  # doctest: +SKIP
+    ...     link = open_link(board.port)
+    """
+
+    def __init__(
+        self,
+        *,
+        speedup: float = 1.0,
+        faults: Sequence[Fault] = (),
+        footer_style: FooterStyle = "g2",
+        rx_buffer_bytes: int = RX_BUFFER_BYTES,
+        planner_slots: int = PLANNER_SLOTS,
+        planner_headroom: int = PLANNER_HEADROOM,
+        sim_params: Any = None,
+        sim_effects: Iterable[Any] = (),
+        max_rate: dict[str, float] | None = None,
+    ) -> None:
+        if not speedup > 0:
+            raise ValueError("speedup must be positive")
+        self.speedup = float(speedup)
+        self.footer_style: FooterStyle = footer_style
+        self.rx_size = int(rx_buffer_bytes)
+        self.slots = int(planner_slots)
+        self.headroom = int(planner_headroom)
+        self.max_rate = dict(DEFAULT_MAX_RATE, **(max_rate or {}))
+        self._faults = list(faults)
+        self._sim_params = sim_params
+        self._sim_effects = tuple(e for e in sim_effects if getattr(e, "name", "") != "camera_tilt")
+        self._lock = threading.RLock()
+        self._thread: threading.Thread | None = None
+        self._running = False
+        self._master: int | None = None
+        self._slave_keep: int | None = None
+        self.port = ""
+        self.stats = _Stats()
+        self._reset_board(keep_position=False)
+        # the machine (physical; survives resets and reconnects)
+        self._bends: list[BendRecord] = []
+        self._feed_since_bend = 0.0
+        self._holding: tuple[float, float, float] | None = None  # pin, loaded, unloaded
+        self._bend_at_die = 0.0
+        self._vanished = False
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> FakeTinyG:
+        """Open the pty and start the board thread; ``self.port`` is the slave path."""
+        self._open_pty()
+        self._running = True
+        self._thread = threading.Thread(target=self._run, name="FakeTinyG", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the thread and close the pty."""
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+            self._thread = None
+        self._close_pty()
+
+    def __enter__(self) -> FakeTinyG:
+        return self.start() if self._thread is None else self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def reconnect(self) -> str:
+        """Plug the board back in after a ``vanish`` fault; return the new port."""
+        with self._lock:
+            self._close_pty()
+            self._open_pty()
+            self._vanished = False
+            return self.port
+
+    @property
+    def vanished(self) -> bool:
+        return self._vanished
+
+    def _open_pty(self) -> None:
+        master, slave = os.openpty()
+        os.set_blocking(master, False)
+        self._master = master
+        self._slave_keep = slave  # keeps the pty alive while the host reopens it
+        self.port = os.ttyname(slave)
+
+    def _close_pty(self) -> None:
+        for fd in (self._master, self._slave_keep):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self._master = None
+        self._slave_keep = None
+
+    # ------------------------------------------------------------------ state
+
+    def _reset_board(self, *, keep_position: bool) -> None:
+        pos = getattr(self, "_pos", None) if keep_position else None
+        self._pos: dict[str, float] = dict(pos) if pos else {a: 0.0 for a in AXES}
+        self._model_pos = dict(self._pos)
+        self._relative = False
+        self._feed_rate: float | None = None
+        self._motion = 0
+        self._ring = bytearray()
+        self._rx_line_count = 0  # lines (terminators) seen by the interrupt
+        self._rx_byte_in_line = 0
+        self._xoff = False
+        self._tx = bytearray()
+        self._tx_paused = False
+        self._planner: deque[_Move] = deque()
+        self._stat = MachineStat.READY
+        self._line = 0
+        self._hold_req = self._cycle_req = self._flush_req = self._reset_req = False
+        self._flush_pending = False
+        self._stall_until = 0.0
+        self._pending_stall_line: tuple[bytes, int] | None = None
+        self._settings: dict[str, Any] = {
+            "ej": 1, "jv": 1, "js": 1, "ee": 0, "ec": 0, "ex": 1,
+            "sv": 1, "si": 100, "qv": 0, "fv": 0.97, "fb": 440.21,
+        }  # fmt: skip
+        self._sr_last: dict[str, Any] = {}
+        self._sr_due = 0.0
+        self._qr_last = self.slots
+        self._seq = 0
+
+    def machine_state(self) -> MachineState:
+        """A consistent snapshot of the machine (thread-safe)."""
+        with self._lock:
+            return MachineState(
+                pin_deg=self._pos["x"],
+                feed_mm=self._pos["y"],
+                duck=self._pos["z"],
+                stat=int(self._stat),
+                line=self._line,
+                bend_angle_deg=self._bend_at_die,
+                holding=self._holding is not None,
+                bends=tuple(self._bends),
+                planner_depth=len(self._planner),
+                rx_bytes=len(self._ring),
+            )
+
+    def wire_shape_mm(self) -> np.ndarray:
+        """The bent wire as a polyline (N, 2), mm, in the order it was fed.
+
+        The first fed point is at the origin, the first leg along +x; at each
+        bend the polyline turns by minus the machine bend angle (the already
+        fed leg rotates, so walking from the first fed point the turn is
+        mirrored), with the *unloaded* (final) angle. The wire still in the
+        feeder since the last bend is included as the last leg.
+        """
+        with self._lock:
+            bends = list(self._bends)
+            tail = self._feed_since_bend
+        pts = [np.zeros(2)]
+        heading = 0.0
+        for b in bends:
+            step = b.feed_before_mm * np.array([math.cos(heading), math.sin(heading)])
+            pts.append(pts[-1] + step)
+            heading -= math.radians(b.unloaded_bend_deg)
+        pts.append(pts[-1] + tail * np.array([math.cos(heading), math.sin(heading)]))
+        return np.asarray(pts)
+
+    def executed_lines(self) -> tuple[list[int | None], list[int | None]]:
+        """(line numbers of completed blocks, of blocks cut short by a flush/alarm)."""
+        with self._lock:
+            return list(self.stats.completed), list(self.stats.partial)
+
+    # ------------------------------------------------------------------ thread
+
+    def _run(self) -> None:
+        last = time.monotonic()
+        while self._running:
+            now = time.monotonic()
+            with self._lock:
+                stalled = now < self._stall_until
+                if not stalled:
+                    if self._pending_stall_line is not None:
+                        raw, nbytes = self._pending_stall_line
+                        self._pending_stall_line = None
+                        self._process_line(raw, nbytes, now)
+                    self._service_realtime(now)
+                    self._advance((now - last) * self.speedup, now)
+                    self._read_lines(now)
+                    self._reports(now)
+                last = now
+                self._flush_tx()
+                fd = self._master
+            if fd is None:
+                time.sleep(0.005)
+                continue
+            busy = bool(self._planner) and not stalled
+            timeout = 0.001 if busy else 0.01
+            try:
+                readable, _, _ = select.select([fd], [fd] if self._tx else [], [], timeout)
+            except (OSError, ValueError):
+                time.sleep(0.005)
+                continue
+            if not readable:
+                continue
+            try:
+                data = os.read(fd, 256)
+            except BlockingIOError:
+                continue
+            except OSError as exc:
+                if exc.errno == errno.EIO:  # no slave open: host away
+                    time.sleep(0.005)
+                    continue
+                raise
+            with self._lock:
+                for byte in data:
+                    self._isr(byte)
+
+    # ------------------------------------------------------------------ interrupt layer
+
+    def _isr(self, byte: int) -> None:
+        byte &= 0x7F
+        if byte in (XON, XOFF):
+            self._tx_paused = byte == XOFF
+            return
+        if byte == 0x21:
+            self._hold_req = True
+            return
+        if byte == 0x7E:
+            self._cycle_req = True
+            return
+        if byte == 0x25:
+            self._flush_req = True
+            return
+        if byte == 0x18:
+            self._reset_req = True
+            return
+        fault = self._fault("drop_byte", self._rx_line_count + 1, consume=False)
+        if fault is not None:
+            terminator = byte in (0x0A, 0x0D)
+            index = self._rx_byte_in_line
+            if index == fault.byte_index or terminator:
+                self._consume(fault)
+                self._rx_byte_in_line = 0 if terminator else index + 1
+                if terminator:
+                    self._rx_line_count += 1
+                return
+        if len(self._ring) >= self.rx_size:
+            self.stats.rx_dropped_bytes += 1
+        else:
+            self._ring.append(byte)
+            self.stats.rx_peak_bytes = max(self.stats.rx_peak_bytes, len(self._ring))
+        if byte in (0x0A, 0x0D):
+            self._rx_line_count += 1
+            self._rx_byte_in_line = 0
+        else:
+            self._rx_byte_in_line += 1
+        if (
+            self._settings["ex"] == 1
+            and not self._xoff
+            and len(self._ring) >= min(XOFF_HIGH_WATER, self.rx_size - 1)
+        ):
+            self._xoff = True
+            self.stats.xoff_sent += 1
+            self._write_now(bytes([XOFF]))
+
+    def _check_xon(self) -> None:
+        if self._xoff and len(self._ring) < XON_LOW_WATER:
+            self._xoff = False
+            self.stats.xon_sent += 1
+            self._write_now(bytes([XON]))
+
+    def _write_now(self, data: bytes) -> None:
+        if self._master is None:
+            return
+        try:
+            os.write(self._master, data)
+        except OSError:
+            pass
+
+    def _send(self, data: bytes) -> None:
+        self._tx += data
+
+    def _flush_tx(self) -> None:
+        if not self._tx or self._tx_paused or self._master is None:
+            return
+        try:
+            n = os.write(self._master, bytes(self._tx))
+        except BlockingIOError:
+            return
+        except OSError:
+            self._tx.clear()
+            return
+        del self._tx[:n]
+
+    # ------------------------------------------------------------------ faults
+
+    def _fault(self, kind: str, line: int, *, consume: bool = True) -> Fault | None:
+        for f in self._faults:
+            if f.kind == kind and f.at_line == line:
+                if consume:
+                    self._consume(f)
+                return f
+        return None
+
+    def _consume(self, fault: Fault) -> None:
+        self._faults.remove(fault)
+        self.stats.faults_fired.append(f"{fault.kind}@{fault.at_line}")
+        log.debug("fault %s at line %d", fault.kind, fault.at_line)
+
+    def _vanish(self) -> None:
+        self._flush_tx_blocking()
+        self._vanished = True
+        self._close_pty()
+
+    def _flush_tx_blocking(self) -> None:
+        deadline = time.monotonic() + 0.5
+        while self._tx and self._master is not None and time.monotonic() < deadline:
+            self._flush_tx()
+
+    # ------------------------------------------------------------------ realtime
+
+    def _service_realtime(self, now: float) -> None:
+        if self._reset_req:
+            self._reset_req = False
+            self._drop_planner()
+            self._reset_board(keep_position=True)
+            self._send(format_response({**_BANNER, "msg": "SYSTEM READY"}, 0, 0, style="g2"))
+            return
+        if self._hold_req:
+            self._hold_req = False
+            if self._stat == MachineStat.RUN:
+                self._set_stat(MachineStat.HOLD, now)
+        if self._cycle_req:
+            self._cycle_req = False
+            if self._stat == MachineStat.HOLD and not self._flush_req and not self._flush_pending:
+                self._set_stat(MachineStat.RUN if self._planner else MachineStat.STOP, now)
+        if self._flush_req:
+            self._flush_req = False
+            self._flush_pending = True
+        if self._flush_pending and self._stat != MachineStat.RUN:
+            self._flush_pending = False
+            self._queue_flush(now)
+
+    def _queue_flush(self, now: float) -> None:
+        self._ring.clear()
+        self._rx_byte_in_line = 0
+        self._drop_planner()
+        self._check_xon()
+        if self._stat != MachineStat.ALARM:
+            self._set_stat(MachineStat.STOP, now)
+        if self._settings["qv"]:
+            self._send(format_queue_report(self.slots))
+            self._qr_last = self.slots
+        self._send(format_rx_report(self.rx_size))
+
+    def _drop_planner(self) -> None:
+        if self._planner:
+            head = self._planner[0]
+            if head.start is not None:
+                self.stats.partial.append(head.line_number)
+                self._machine_move_done(head, complete=False)
+        self._planner.clear()
+        self._model_pos = dict(self._pos)
+
+    # ------------------------------------------------------------------ line reader
+
+    def _free_slots(self) -> int:
+        return self.slots - len(self._planner)
+
+    def _read_lines(self, now: float) -> None:
+        while self._stall_until <= now and self._pending_stall_line is None:
+            if self._free_slots() < self.headroom:
+                return
+            cut = -1
+            for i, b in enumerate(self._ring):
+                if b in (0x0A, 0x0D):
+                    cut = i
+                    break
+            if cut < 0:
+                if len(self._ring) >= self.rx_size:  # a line longer than the buffer
+                    self._ring.clear()
+                    self._send(format_response({}, Status.INPUT_TOO_LONG, self.rx_size))
+                return
+            raw = bytes(self._ring[:cut])
+            del self._ring[: cut + 1]
+            self._check_xon()
+            if not raw:
+                continue  # an empty line: no response in JSON mode
+            self.stats.lines_received += 1
+            count = self.stats.lines_received
+            stall = self._fault("stall", count)
+            if stall is not None:
+                self._stall_until = now + stall.duration_s
+                self._pending_stall_line = (raw, len(raw) + 1)
+                return
+            self._process_line(raw, len(raw) + 1, now)
+            if self._master is None:
+                return
+
+    def _process_line(self, raw: bytes, nbytes: int, now: float) -> None:
+        count = self.stats.lines_received
+        text = raw.decode("ascii", errors="replace").strip()
+        if len(raw) + 1 > INPUT_LINE_MAX:
+            body, status = {}, int(Status.INPUT_TOO_LONG)
+        elif text.startswith("{"):
+            body, status = self._json_command(text, now)
+        elif text[:1] in ("$", "?"):
+            body, status = {}, int(Status.UNRECOGNIZED_NAME)
+        else:
+            body, status = self._gcode(text, count, now)
+        reply = format_response(body, status, nbytes, style=self.footer_style)
+        if self._fault("malformed_reply", count) is not None:
+            reply = reply[: max(3, len(reply) // 2)] + b"\n"
+        self._send(reply)
+        if self._fault("vanish", count) is not None:
+            self._vanish()
+
+    def _json_command(self, text: str, now: float) -> tuple[dict[str, Any], int]:
+        try:
+            obj = json.loads(text)
+        except json.JSONDecodeError:
+            return {}, int(Status.JSON_SYNTAX)
+        if not isinstance(obj, dict):
+            return {}, int(Status.MALFORMED_COMMAND)
+        out: dict[str, Any] = {}
+        for key, value in obj.items():
+            if key == "sr":
+                if isinstance(value, dict):
+                    out["sr"] = value
+                else:
+                    out["sr"] = self._sr_values()
+            elif key == "qr":
+                out["qr"] = self._free_slots()
+            elif key == "rx":
+                out["rx"] = self.rx_size - len(self._ring)
+            elif key == "clear":
+                if self._stat == MachineStat.ALARM:
+                    self._set_stat(MachineStat.STOP, now)
+                out["clear"] = 1
+            elif key == "qf":
+                self._flush_req = True
+                out["qf"] = 1
+            elif key in self._settings:
+                if value is not None and key not in ("fv", "fb"):
+                    if not isinstance(value, (int, float)) or isinstance(value, bool):
+                        return {}, int(Status.BAD_NUMBER)
+                    self._settings[key] = value
+                out[key] = self._settings[key]
+            else:
+                return {}, int(Status.UNRECOGNIZED_NAME)
+        return out, 0
+
+    def _gcode(self, text: str, seq: int, now: float) -> tuple[dict[str, Any], int]:
+        try:
+            block = parse_block(text)
+        except GcodeError as exc:
+            return {}, exc.status
+        if self._stat in (MachineStat.ALARM, MachineStat.SHUTDOWN):
+            return {}, int(Status.MACHINE_ALARMED)
+        relative = self._relative
+        mode = block.distance_mode
+        if mode is not None:
+            relative = mode == "relative"
+        motion = block.motion if block.motion is not None else self._motion
+        feed = block.feed if block.feed is not None else self._feed_rate
+        moved = {k: v for k, v in block.axes.items() if k in AXES}
+        if 28.3 in block.g_codes:
+            self._relative, self._feed_rate = relative, feed
+            self._model_pos.update(moved)
+            self._pos.update(moved)
+            return {}, 0
+        target = dict(self._model_pos)
+        for axis, value in moved.items():
+            target[axis] = target[axis] + value if relative else value
+        deltas = {a: target[a] - self._model_pos[a] for a in AXES}
+        distance = math.sqrt(sum(d * d for d in deltas.values()))
+        duration, rate = 0.0, 0.0
+        if distance > 0:
+            if motion == 1:
+                if not feed or feed <= 0:
+                    return {}, int(Status.FEEDRATE_MISSING)
+                duration, rate = distance / feed * 60.0, feed
+            else:
+                duration = max(abs(d) / self.max_rate[a] * 60.0 for a, d in deltas.items() if d)
+                rate = distance / duration * 60.0
+            if duration < MIN_MOVE_S:
+                return {}, int(Status.MINIMUM_TIME_MOVE)
+        self._relative, self._motion, self._feed_rate = relative, motion, feed
+        if distance == 0 and block.line_number is None:
+            return {}, 0  # modal-only block: nothing to execute
+        self._model_pos = target
+        self._planner.append(_Move(seq, block.line_number, text, target, duration, rate))
+        if self._stat not in (MachineStat.HOLD,):
+            self._set_stat(MachineStat.RUN, now)
+        return {}, 0
+
+    # ------------------------------------------------------------------ executor
+
+    def _advance(self, dt: float, now: float) -> None:
+        while self._planner and self._stat == MachineStat.RUN:
+            head = self._planner[0]
+            if head.start is None:
+                head.start = dict(self._pos)
+                if head.line_number is not None:
+                    self._line = head.line_number
+                if self._fault("alarm", head.seq) is not None:
+                    self._alarm(now)
+                    return
+                self._machine_move_start(head)
+            remaining = head.duration_s - head.elapsed_s
+            step = min(dt, remaining)
+            head.elapsed_s += step
+            dt -= step
+            frac = 1.0 if head.duration_s <= 0 else min(1.0, head.elapsed_s / head.duration_s)
+            for a in AXES:
+                self._pos[a] = head.start[a] + (head.target[a] - head.start[a]) * frac
+            if head.elapsed_s >= head.duration_s:
+                self._pos = dict(head.target)
+                self._planner.popleft()
+                self.stats.completed.append(head.line_number)
+                self._machine_move_done(head, complete=True)
+                continue
+            return
+        if not self._planner and self._stat == MachineStat.RUN:
+            self._set_stat(MachineStat.STOP, now)
+
+    def _alarm(self, now: float) -> None:
+        self._send(format_exception(Status.LIMIT_SWITCH_HIT, "limit switch hit"))
+        self._drop_planner()
+        self._set_stat(MachineStat.ALARM, now)
+
+    def _set_stat(self, stat: MachineStat, now: float) -> None:
+        if stat != self._stat:
+            self._stat = stat
+            self._sr_due = 0.0  # report a state change at once
+
+    # ------------------------------------------------------------------ machine (simulation)
+
+    def _simulate(self, pin_deg: float) -> tuple[float, float]:
+        from cvmeasure.sim import simulate
+
+        res = simulate(
+            [pin_deg], self._sim_params, self._sim_effects, bend_index=[len(self._bends)]
+        )
+        return float(res.loaded_bend_deg[0]), float(res.unloaded_bend_deg[0])
+
+    def _machine_move_start(self, move: _Move) -> None:
+        if move.start is not None and move.target["y"] != move.start["y"]:
+            self._release()
+            self._bend_at_die = 0.0
+
+    def _machine_move_done(self, move: _Move, *, complete: bool) -> None:
+        start = move.start or self._pos
+        dy = self._pos["y"] - start["y"]
+        if dy:
+            self._feed_since_bend += dy
+        if self._pos["x"] == start["x"] or self._pos["z"] > 90.0 or start["z"] > 90.0:
+            return
+        pin = self._pos["x"]
+        loaded, unloaded = self._simulate(pin)
+        held = self._holding
+        if loaded != 0.0 and (held is None or abs(loaded) > abs(held[1]) + 1e-9):
+            if held is not None and math.copysign(1, loaded) != math.copysign(1, held[1]):
+                self._release()
+            self._holding = (pin, loaded, unloaded)
+            self._bend_at_die = loaded
+            self._bend_line = move.line_number
+        elif held is not None and abs(loaded) < abs(held[1]) - 1e-9:
+            self._release()
+
+    def _release(self) -> None:
+        if self._holding is None:
+            return
+        pin, loaded, unloaded = self._holding
+        self._bends.append(
+            BendRecord(
+                getattr(self, "_bend_line", None), self._feed_since_bend, pin, loaded, unloaded
+            )
+        )
+        self._feed_since_bend = 0.0
+        self._bend_at_die = unloaded
+        self._holding = None
+
+    # ------------------------------------------------------------------ reports
+
+    def _sr_values(self) -> dict[str, Any]:
+        head = self._planner[0] if self._planner else None
+        moving = self._stat == MachineStat.RUN and head is not None and head.start is not None
+        return {
+            "line": self._line,
+            "posx": self._pos["x"],
+            "posy": self._pos["y"],
+            "posz": self._pos["z"],
+            "posa": self._pos["a"],
+            "vel": head.rate if moving and head is not None else 0.0,
+            "stat": int(self._stat),
+        }
+
+    def _reports(self, now: float) -> None:
+        if self._settings["qv"]:
+            free = self._free_slots()
+            if free != self._qr_last:
+                self._qr_last = free
+                self._send(format_queue_report(free))
+        if not self._settings["sv"] or now < self._sr_due:
+            return
+        values = {
+            k: round(v, 3) if isinstance(v, float) else v for k, v in self._sr_values().items()
+        }
+        changed = {k: v for k, v in values.items() if self._sr_last.get(k) != v}
+        if self._settings["sv"] == 2:
+            changed = values
+        if changed:
+            self._sr_last.update(changed)
+            self._send(format_status_report(changed))
+        self._sr_due = now + max(float(self._settings["si"]), 1.0) / 1000.0

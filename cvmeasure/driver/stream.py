@@ -1,0 +1,778 @@
+"""Streaming a G-code job to the bender without losing or repeating a line.
+
+The host algorithm of reference ``diwire-tinyg.md`` section 2.10:
+
+* JSON mode; the session settings are sent one at a time (send-response);
+* at most ``window_lines`` lines **and** ``window_bytes`` bytes in flight
+  (default 4 and 200 of the board's 254-byte receive buffer), so the buffer
+  cannot overflow; XON/XOFF stays on as the safety net (the tty honours it);
+* each ``{"r":...}`` acks the head of the in-flight FIFO and its footer's byte
+  count must equal that line's length: a mismatch (a dropped or garbled byte),
+  a non-zero status, a reply that cannot be parsed, a reset banner, an alarm
+  (``er`` >= 200 or stat 2), silence while work is pending (a stall) or the
+  port vanishing stop the job *safely*: feedhold ``!`` then queue flush ``%``
+  (the board defers the flush until the hold has stopped the motion), wait for
+  the flush's ``{"rx":n}``, read the board's line and position, write them to
+  the journal, and raise :class:`JobStopped` naming the line;
+* status, queue, exception and rx reports are never taken for acks;
+* the job's lines carry ``N`` numbers; ``sr.line`` says which one the machine
+  is executing, so the journal knows what the board has *done* (acked lines
+  still in the planner are not done: a flush discards them).
+
+The journal is JSON Lines, append-only (``start``, ``progress``, ``stop``,
+``resume``, ``done``). :func:`stream_job` with ``resume=True`` re-reads it,
+flushes whatever the board still holds, asks the board for its line and
+position, and continues from there (:func:`plan_resume`): a line that was cut
+short is completed (absolute axes: the line again; the relative feed: the
+remaining millimetres), nothing done is sent twice.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import queue
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from cvmeasure.driver.protocol import (
+    AXES,
+    FEEDHOLD,
+    QUEUE_FLUSH,
+    ExceptionReport,
+    GcodeBlock,
+    GcodeError,
+    LineSplitter,
+    MachineStat,
+    Message,
+    QueueReport,
+    Response,
+    RxReport,
+    StatusReport,
+    Unparsed,
+    encode_json,
+    encode_line,
+    parse_block,
+    parse_message,
+    track_positions,
+)
+from cvmeasure.driver.transport import Link
+from cvmeasure.errors import DeviceError, DeviceTimeoutError, InputError
+from cvmeasure.fileio import append_jsonl, read_jsonl
+
+__all__ = [
+    "StreamConfig",
+    "JobLine",
+    "StopInfo",
+    "StreamResult",
+    "ResumePlan",
+    "JobStopped",
+    "BoardConnection",
+    "prepare_job",
+    "job_sha256",
+    "plan_resume",
+    "stream_job",
+    "SETUP_COMMANDS",
+]
+
+log = logging.getLogger(__name__)
+
+#: Session settings, sent one at a time before a job (reference section 2.4).
+SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
+    {"ej": 1},
+    {"js": 1},
+    {"jv": 1},
+    {"ee": 0},
+    {"ec": 0},
+    {"sv": 1},
+    {"si": 100},
+    {"qv": 0},
+    {"sr": {"line": True, "posx": True, "posy": True, "posz": True, "vel": True, "stat": True}},
+)
+_IDLE = (MachineStat.READY, MachineStat.STOP, MachineStat.END)
+
+
+@dataclass(frozen=True)
+class StreamConfig:
+    """Tunables of the streamer (times in wall seconds).
+
+    window_lines, window_bytes : lines and bytes allowed in flight.
+    stall_timeout_s : silence from the board, while it owes an ack or is
+        running, after which the job is stopped as stalled.
+    flush_timeout_s : how long a safe stop waits for the board's flush report.
+    command_timeout_s : how long a setup command waits for its reply.
+    progress_interval_s : how often executed-line progress is journalled.
+    """
+
+    window_lines: int = 4
+    window_bytes: int = 200
+    stall_timeout_s: float = 5.0
+    flush_timeout_s: float = 5.0
+    command_timeout_s: float = 2.0
+    progress_interval_s: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.window_lines < 1 or self.window_bytes < 2:
+            raise ValueError("window_lines must be >= 1 and window_bytes >= 2")
+
+
+@dataclass(frozen=True)
+class JobLine:
+    """One line of a job: its index, ``N`` number, text and bytes on the wire."""
+
+    index: int
+    number: int
+    text: str
+    block: GcodeBlock
+
+    @property
+    def nbytes(self) -> int:
+        return len(self.text) + 1
+
+
+@dataclass(frozen=True)
+class StopInfo:
+    """Why and where a job stopped.
+
+    ``reason`` is one of ``desync``, ``error``, ``malformed``, ``alarm``,
+    ``stall``, ``port_gone``, ``reset``, ``interrupted``; ``line_number`` is
+    the ``N`` of the line that caused it (None when unknown); ``board`` is the
+    board's last known ``sr`` fields after the stop (None when unreachable).
+    """
+
+    reason: str
+    line_number: int | None
+    line: str
+    detail: str
+    board: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """A finished job: lines sent and acked, the last executed ``N``, timings."""
+
+    lines_total: int
+    lines_sent: int
+    resumed_from: int | None
+    executed_line: int | None
+    seconds: float
+    fixup: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class ResumePlan:
+    """Where to continue: the first job index to send, and a completing line for a cut one."""
+
+    start_index: int
+    fixup: str | None
+    done_through: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+class JobStopped(DeviceError):
+    """The job stopped safely on a fault; ``stop`` says where and why."""
+
+    def __init__(self, stop: StopInfo) -> None:
+        self.stop = stop
+        where = f"line N{stop.line_number}" if stop.line_number is not None else "unknown line"
+        super().__init__(
+            f"job stopped ({stop.reason}) at {where} {stop.line!r}: {stop.detail}; "
+            "resume with --resume"
+        )
+
+
+# ---------------------------------------------------------------------------
+# Jobs
+
+
+def prepare_job(lines: Iterable[str], *, source: str = "job") -> list[JobLine]:
+    """Check and number a job's lines.
+
+    Blank and comment-only lines are dropped. Either every line carries an
+    ``N`` word (strictly increasing, >= 1) or none does, and then N1, N2, ...
+    are added. Every line must be sendable (:func:`encode_line`) and parse.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` and the line that is wrong.
+    """
+    texts = [t.strip() for t in lines]
+    texts = [t for t in texts if t and t[0] not in "(;"]
+    if not texts:
+        raise InputError(source, "job has no G-code lines")
+    blocks: list[GcodeBlock] = []
+    for i, t in enumerate(texts, start=1):
+        try:
+            encode_line(t)
+            blocks.append(parse_block(t))
+        except (ValueError, GcodeError) as exc:
+            raise InputError(source, f"line {i}: {exc}") from None
+    numbered = [b.line_number is not None for b in blocks]
+    if not any(numbered):
+        texts = [f"N{i} {t}" for i, t in enumerate(texts, start=1)]
+        blocks = [parse_block(t) for t in texts]
+    elif not all(numbered):
+        raise InputError(source, "some lines have N numbers and some do not")
+    out: list[JobLine] = []
+    previous = 0
+    for i, (t, b) in enumerate(zip(texts, blocks, strict=True)):
+        number = int(b.line_number or 0)
+        if number <= previous:
+            raise InputError(source, f"line {i + 1}: N{number} does not increase (N0 is reserved)")
+        previous = number
+        try:
+            encode_line(t)
+        except ValueError as exc:
+            raise InputError(source, f"line {i + 1}: {exc}") from None
+        out.append(JobLine(i, number, t, b))
+    return out
+
+
+def job_sha256(job: Sequence[JobLine]) -> str:
+    """Identity of a job (its numbered lines) for the journal."""
+    return hashlib.sha256("\n".join(j.text for j in job).encode("ascii")).hexdigest()
+
+
+def plan_resume(
+    job: Sequence[JobLine],
+    *,
+    start_pos: Mapping[str, float],
+    board_line: int,
+    board_pos: Mapping[str, float],
+    tolerance: float = 2e-3,
+    fixup_rate: float = 1000.0,
+    min_move_s: float = 0.005,
+) -> ResumePlan:
+    """Where a stopped job continues, from what the board reports.
+
+    Parameters
+    ----------
+    job : the numbered job.
+    start_pos : the board position when the job started (journal), axis -> value.
+    board_line : ``sr.line`` now (0 = nothing of the job executed: the job's
+        start marker ``N0``).
+    board_pos : ``posx``... now, axis -> value.
+    tolerance : position agreement meaning "the line completed" (units of the axis).
+    fixup_rate : feed (units/min) for completing a cut rapid (G0) move.
+    min_move_s : a completing move is slowed so it lasts at least this long
+        (TinyG rejects moves under 2.5 ms).
+
+    Raises
+    ------
+    DeviceError
+        ``board_line`` is not a line of this job.
+    """
+    if board_line == 0:
+        return ResumePlan(0, None, -1)
+    index = {j.number: j.index for j in job}
+    if board_line not in index:
+        raise DeviceError(
+            f"the board reports line N{board_line}, which is not in this job; "
+            "it was reset or ran another job: re-zero the machine and start again"
+        )
+    k = index[board_line]
+    planned = track_positions([j.block for j in job], start_pos)
+    end = planned[k]
+    rest = {a: end[a] - float(board_pos.get(a, 0.0)) for a in AXES}
+    if all(abs(v) <= tolerance for v in rest.values()):
+        return ResumePlan(k + 1, None, k)
+    line = job[k]
+    relative_modes = [
+        b.block.distance_mode for b in job[: k + 1] if b.block.distance_mode is not None
+    ]
+    relative = bool(relative_modes) and relative_modes[-1] == "relative"
+    moved = [a for a in AXES if a in line.block.axes]
+    if not moved:
+        raise DeviceError(f"line N{line.number} moved nothing but the position disagrees")
+    distance = sum(rest[a] ** 2 for a in moved) ** 0.5
+    rate = line.block.feed if line.block.motion == 1 and line.block.feed else fixup_rate
+    rate = min(rate, max(distance, 1e-6) / min_move_s * 60.0)
+    if relative:
+        words = " ".join(f"{a.upper()}{rest[a]:.4f}" for a in moved)
+        fix = f"N{line.number} G91 G1 {words} F{rate:.4g}"
+    else:
+        words = " ".join(f"{a.upper()}{end[a]:.4f}" for a in moved)
+        fix = f"N{line.number} G90 G1 {words} F{rate:.4g}"
+    return ResumePlan(k + 1, fix, k - 1)
+
+
+# ---------------------------------------------------------------------------
+# The host side of the link
+
+
+class BoardConnection:
+    """Reads the board in a thread; one consumer takes messages in arrival order.
+
+    Parameters
+    ----------
+    link : an open :class:`~cvmeasure.driver.transport.Link`.
+    """
+
+    def __init__(self, link: Link) -> None:
+        self.link = link
+        self.state: dict[str, Any] = {}
+        self.last_rx = time.monotonic()
+        self.error: DeviceError | None = None
+        self.unparsed: list[Unparsed] = []
+        self._queue: queue.Queue[Message | None] = queue.Queue()
+        self._stop = threading.Event()
+        self._splitter = LineSplitter()
+        self._thread = threading.Thread(target=self._reader, name="board-reader", daemon=True)
+        self._thread.start()
+
+    def _reader(self) -> None:
+        while not self._stop.is_set():
+            try:
+                data = self.link.read_available()
+            except DeviceError as exc:
+                self.error = exc
+                self._queue.put(None)
+                return
+            if not data:
+                continue
+            self.last_rx = time.monotonic()
+            for raw in self._splitter.feed(data):
+                msg = parse_message(raw)
+                log.debug("board -> %r", raw)
+                self._queue.put(msg)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+
+    def write(self, data: bytes) -> None:
+        if self.error is not None:
+            raise self.error
+        log.debug("host -> %r", data)
+        self.link.write(data)
+
+    def next_message(self, timeout_s: float) -> Message | None:
+        """The next message (status reports merged into :attr:`state`), or None."""
+        try:
+            msg = self._queue.get(timeout=max(timeout_s, 0.0))
+        except queue.Empty:
+            return None
+        if msg is None:
+            self._queue.put(None)  # keep reporting the error
+            return None
+        if isinstance(msg, StatusReport):
+            self.state.update(msg.fields)
+        elif isinstance(msg, Response) and isinstance(msg.body.get("sr"), dict):
+            self.state.update(msg.body["sr"])
+        elif isinstance(msg, Unparsed):
+            self.unparsed.append(msg)
+        return msg
+
+    def command(self, obj: Mapping[str, Any], *, timeout_s: float = 2.0) -> Response:
+        """Send one JSON command and wait for its response (nothing else in flight)."""
+        data = encode_json(obj)
+        self.write(data)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            if self.error is not None:
+                raise self.error
+            msg = self.next_message(deadline - time.monotonic())
+            if isinstance(msg, Response) and not msg.is_banner:
+                if msg.nbytes != len(data):
+                    raise DeviceError(
+                        f"{self.link.url}: reply to {data!r} counts {msg.nbytes} bytes, "
+                        f"sent {len(data)}"
+                    )
+                return msg
+            if time.monotonic() >= deadline:
+                raise DeviceTimeoutError(
+                    f"{self.link.url}: no reply to {data.decode().strip()} in {timeout_s:g} s"
+                )
+
+    def flush_board(self, *, timeout_s: float) -> bool:
+        """Feedhold + queue flush; wait for the flush's rx report. True when it came."""
+        self.write(FEEDHOLD)
+        self.write(QUEUE_FLUSH)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.error is not None:
+                raise self.error
+            msg = self.next_message(deadline - time.monotonic())
+            if isinstance(msg, RxReport):
+                self.drain(0.02)
+                return True
+        return False
+
+    def drain(self, quiet_s: float) -> None:
+        """Consume messages until none arrives for ``quiet_s``."""
+        while self.next_message(quiet_s) is not None:
+            pass
+
+    def query_status(self, *, timeout_s: float = 2.0) -> dict[str, Any]:
+        """All status fields (``{"sr":null}``), merged into :attr:`state`."""
+        self.command({"sr": None}, timeout_s=timeout_s)
+        return dict(self.state)
+
+
+def _position(state: Mapping[str, Any]) -> dict[str, float]:
+    return {a: float(state.get(f"pos{a}", 0.0) or 0.0) for a in AXES}
+
+
+def _now_utc() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+# ---------------------------------------------------------------------------
+# Streaming
+
+
+@dataclass
+class _Run:
+    job: list[JobLine]
+    board: BoardConnection
+    config: StreamConfig
+    journal: Path | None
+    progress: Callable[[int, int, int | None], None] | None
+    inflight: deque[JobLine] = field(default_factory=deque)
+    sent: int = 0
+    last_progress_t: float = 0.0
+    last_progress_line: int | None = None
+
+    def log(self, record: dict[str, Any]) -> None:
+        if self.journal is not None:
+            append_jsonl(self.journal, {"time_utc": _now_utc(), **record})
+
+    def note_progress(self, force: bool = False) -> None:
+        line = self.board.state.get("line")
+        now = time.monotonic()
+        if line is None or line == self.last_progress_line:
+            return
+        if force or now - self.last_progress_t >= self.config.progress_interval_s:
+            self.last_progress_t = now
+            self.last_progress_line = int(line)
+            self.log({"event": "progress", "executed_line": int(line)})
+
+
+def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: int | None = None):
+    """Stop the board safely, journal where and why, raise JobStopped."""
+    board = run.board
+    state: dict[str, Any] | None = None
+    if board.error is None and reason != "port_gone":
+        try:
+            flushed = board.flush_board(timeout_s=run.config.flush_timeout_s)
+            if not flushed:
+                detail += "; the board did not confirm the flush (unresponsive)"
+            else:
+                state = board.query_status(timeout_s=run.config.command_timeout_s)
+        except DeviceError as exc:
+            detail += f"; stopping failed: {exc}"
+    if line is None and number is None and state is not None:
+        # an alarm names the line the machine was executing when it tripped
+        number = state.get("line")
+        line = _line_by_number(run.job, number)
+    run.inflight.clear()
+    stop = StopInfo(
+        reason=reason,
+        line_number=line.number if line is not None else number,
+        line=line.text if line is not None else "",
+        detail=detail,
+        board=state,
+    )
+    run.log({"event": "stop", **stop.to_dict()})
+    raise JobStopped(stop)
+
+
+def _handle(run: _Run, msg: Message) -> None:
+    """Act on one message while streaming (acks, alarms, garbage)."""
+    if isinstance(msg, Response):
+        if msg.is_banner:
+            head = run.inflight[0] if run.inflight else None
+            _stop(run, "reset", head, "the board reset itself (start-up banner)")
+        if not run.inflight:
+            _stop(run, "desync", None, f"a reply arrived with no line in flight: {msg}")
+        head = run.inflight.popleft()
+        if msg.nbytes != head.nbytes:
+            _stop(
+                run,
+                "desync",
+                head,
+                f"the board consumed {msg.nbytes} bytes for a {head.nbytes}-byte line "
+                "(a byte was lost or garbled on the way)",
+            )
+        if msg.status != 0:
+            _stop(run, "error", head, f"the board answered status {msg.status}")
+    elif isinstance(msg, ExceptionReport):
+        if msg.status >= 200:
+            _stop(run, "alarm", None, f"alarm {msg.status} ({msg.message})")
+    elif isinstance(msg, StatusReport):
+        if msg.stat in (MachineStat.ALARM, MachineStat.SHUTDOWN):
+            _stop(run, "alarm", None, f"machine state {msg.stat} (alarm)")
+        run.note_progress()
+    elif isinstance(msg, Unparsed):
+        head = run.inflight[0] if run.inflight else None
+        _stop(run, "malformed", head, f"unreadable reply {msg.text!r} ({msg.reason})")
+    elif isinstance(msg, (QueueReport, RxReport)):
+        pass
+
+
+def _line_by_number(job: Sequence[JobLine], number: Any) -> JobLine | None:
+    for j in job:
+        if j.number == number:
+            return j
+    return None
+
+
+def _setup(board: BoardConnection, config: StreamConfig, xonxoff: bool) -> dict[str, Any]:
+    for cmd in SETUP_COMMANDS:
+        board.command(cmd, timeout_s=config.command_timeout_s)
+    board.command({"ex": 1 if xonxoff else 0}, timeout_s=config.command_timeout_s)
+    return board.query_status(timeout_s=config.command_timeout_s)
+
+
+def stream_job(
+    link: Link,
+    lines: Sequence[str] | Sequence[JobLine],
+    *,
+    journal: str | Path | None = None,
+    resume: bool = False,
+    config: StreamConfig | None = None,
+    progress: Callable[[int, int, int | None], None] | None = None,
+    source: str = "job",
+) -> StreamResult:
+    """Stream a job to the board and wait until it has executed.
+
+    Parameters
+    ----------
+    link : the open link.
+    lines : G-code lines (numbered by :func:`prepare_job` when they are not
+        :class:`JobLine` already).
+    journal : the JSON Lines journal (needed for ``resume``).
+    resume : continue a stopped job from its journal and the board's state.
+    config : windows and timeouts.
+    progress : called as ``progress(lines_sent, lines_total, executed_line)``.
+    source : the job's name in messages.
+
+    Raises
+    ------
+    JobStopped
+        A fault stopped the job (after a safe stop; the journal has the line).
+    InputError
+        ``resume`` without a journal for this job.
+    DeviceError
+        The board is alarmed before a new job, or does not answer.
+    """
+    config = config or StreamConfig()
+    job = (
+        list(lines)
+        if lines and isinstance(lines[0], JobLine)
+        else prepare_job(lines, source=source)  # type: ignore[arg-type]
+    )
+    sha = job_sha256(job)
+    journal_path = Path(journal) if journal is not None else None
+    t0 = time.perf_counter()
+    board = BoardConnection(link)
+    run = _Run(job, board, config, journal_path, progress)
+    try:
+        return _stream(run, sha, resume, source, link.xonxoff, t0)
+    except KeyboardInterrupt:
+        head = run.inflight[0] if run.inflight else None
+        try:
+            _stop(run, "interrupted", head, "interrupted by the user")
+        except JobStopped:
+            pass
+        raise
+    finally:
+        board.close()
+
+
+def _stream(
+    run: _Run, sha: str, resume: bool, source: str, xonxoff: bool, t0: float
+) -> StreamResult:
+    board, config, job = run.board, run.config, run.job
+    start_index, fixup, resumed_from = 0, None, None
+    if resume:
+        start_pos = _journal_start(run.journal, sha, source)
+        if not board.flush_board(timeout_s=config.flush_timeout_s):
+            raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
+        state = _setup(board, config, xonxoff)
+        if state.get("stat") == MachineStat.ALARM:
+            board.command({"clear": None}, timeout_s=config.command_timeout_s)
+            state = board.query_status(timeout_s=config.command_timeout_s)
+        plan = plan_resume(
+            job,
+            start_pos=start_pos,
+            board_line=int(state.get("line", 0)),
+            board_pos=_position(state),
+        )
+        start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
+        run.log({"event": "resume", "sha256": sha, "board": state, **plan.to_dict()})
+    else:
+        if not board.flush_board(timeout_s=config.flush_timeout_s):
+            raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
+        state = _setup(board, config, xonxoff)
+        if state.get("stat") in (MachineStat.ALARM, MachineStat.SHUTDOWN):
+            raise DeviceError(f"{board.link.url}: the board is alarmed; clear it before a job")
+        marker = JobLine(-1, 0, "N0", parse_block("N0"))
+        board.write(encode_line(marker.text))
+        run.inflight.append(marker)
+        _wait_acks(run)
+        run.log(
+            {
+                "event": "start",
+                "source": source,
+                "sha256": sha,
+                "lines": len(job),
+                "start_pos": _position(state),
+            }
+        )
+    queue_lines: list[JobLine] = []
+    if fixup is not None:
+        k = start_index - 1
+        queue_lines.append(JobLine(k, job[k].number, fixup, parse_block(fixup)))
+    queue_lines.extend(job[start_index:])
+    _send_all(run, queue_lines)
+    executed = _wait_done(run, job[-1].number)
+    run.log({"event": "done", "executed_line": executed})
+    return StreamResult(
+        lines_total=len(job),
+        lines_sent=run.sent,
+        resumed_from=resumed_from,
+        executed_line=executed,
+        seconds=time.perf_counter() - t0,
+        fixup=fixup,
+    )
+
+
+def _journal_start(journal: Path | None, sha: str, source: str) -> dict[str, float]:
+    if journal is None or not journal.is_file():
+        raise InputError(journal or source, "no journal to resume from")
+    records = read_jsonl(journal, skip_partial_last=True)
+    starts = [r for r in records if r.get("event") == "start"]
+    if not starts or starts[-1].get("sha256") != sha:
+        raise InputError(journal, "the journal belongs to a different job")
+    return {a: float(v) for a, v in starts[-1].get("start_pos", {}).items()}
+
+
+def _check_board(run: _Run) -> None:
+    board = run.board
+    if board.error is not None:
+        head = run.inflight[0] if run.inflight else None
+        _stop(run, "port_gone", head, str(board.error))
+
+
+def _watchdog(run: _Run, waiting_for: str) -> None:
+    silence = time.monotonic() - run.board.last_rx
+    if silence > run.config.stall_timeout_s:
+        head = run.inflight[0] if run.inflight else None
+        line = run.board.state.get("line")
+        _stop(
+            run,
+            "stall",
+            head or _line_by_number(run.job, line),
+            f"no word from the board for {silence:.1f} s while waiting for {waiting_for}",
+            number=line,
+        )
+
+
+def _wait_acks(run: _Run) -> None:
+    run.board.last_rx = time.monotonic()
+    while run.inflight:
+        _check_board(run)
+        msg = run.board.next_message(0.05)
+        if msg is not None:
+            _handle(run, msg)
+        else:
+            _watchdog(run, "an ack")
+
+
+def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
+    board, config = run.board, run.config
+    board.last_rx = time.monotonic()
+    i = 0
+    n_total = len(run.job)
+    while i < len(lines) or run.inflight:
+        _check_board(run)
+        # take everything that has arrived, in order
+        while True:
+            msg = board.next_message(0.0)
+            if msg is None:
+                break
+            _handle(run, msg)
+        if i < len(lines):
+            line = lines[i]
+            in_flight_bytes = sum(j.nbytes for j in run.inflight)
+            if (
+                len(run.inflight) < config.window_lines
+                and in_flight_bytes + line.nbytes <= config.window_bytes
+            ):
+                if not run.inflight:
+                    board.last_rx = time.monotonic()  # the watchdog counts from here
+                try:
+                    board.write(encode_line(line.text))
+                except DeviceError as exc:
+                    board.error = board.error or exc
+                    _check_board(run)
+                run.inflight.append(line)
+                run.sent += 1
+                i += 1
+                if run.progress:
+                    run.progress(line.index + 1, n_total, board.state.get("line"))
+                continue
+        msg = board.next_message(0.05)
+        if msg is not None:
+            _handle(run, msg)
+        elif run.inflight:
+            _watchdog(run, f"the ack of N{run.inflight[0].number}")
+
+
+def _wait_done(run: _Run, last_number: int) -> int | None:
+    board = run.board
+    board.last_rx = time.monotonic()
+    deadline_query = time.monotonic() + 1.0
+    while True:
+        _check_board(run)
+        state = board.state
+        if state.get("line") == last_number and state.get("stat") in _IDLE:
+            run.note_progress(force=True)
+            return int(last_number)
+        msg = board.next_message(0.05)
+        if msg is not None:
+            _handle(run, msg)
+            continue
+        if time.monotonic() > deadline_query:
+            # filtered reports may have nothing new to say: ask (nothing is in flight)
+            deadline_query = time.monotonic() + 1.0
+            _query_status(run)
+            continue
+        _watchdog(run, f"the end of N{last_number}")
+
+
+def _query_status(run: _Run) -> None:
+    """Ask for a full status report while no job line is in flight."""
+    board = run.board
+    try:
+        board.write(encode_json({"sr": None}))
+    except DeviceError:
+        _check_board(run)
+    deadline = time.monotonic() + run.config.stall_timeout_s
+    while time.monotonic() < deadline:
+        _check_board(run)
+        msg = board.next_message(0.05)
+        if msg is None:
+            continue
+        if isinstance(msg, Response) and not msg.is_banner and not run.inflight:
+            if msg.status != 0:
+                _stop(run, "error", None, f"status query answered {msg.status}")
+            return
+        _handle(run, msg)
+    _watchdog(run, "a status reply")
