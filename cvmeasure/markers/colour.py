@@ -6,8 +6,10 @@ covariance), a pixel belongs to the nearest role by Mahalanobis distance when
 that distance is below ``max_distance``. The means come from the kit JSON
 (``lab_d65`` / ``srgb``) or are learnt from a reference photo; the photo is
 first brought to D65 by a white balance measured on the photo itself (the
-brightest unclipped pixels: the markers' white rings) and a CAT02 chromatic
-adaptation (colour-science).
+brightest unclipped pixels: the markers' white rings) and a chromatic
+adaptation to D65: per-channel gains in linear RGB (von Kries in the camera's
+RGB, the default: it undoes a camera's white-balance error exactly) or CAT02
+(colour-science, perceptual).
 
 Spaces
 ------
@@ -32,6 +34,7 @@ from cvmeasure.kit import ROLES, MarkerKit
 __all__ = [
     "ColourSpace",
     "COLOUR_SPACES",
+    "ADAPTATIONS",
     "WhiteEstimate",
     "ColourModel",
     "estimate_white",
@@ -41,16 +44,19 @@ __all__ = [
     "learnt_colour_model",
     "classify_bgr8",
     "DEFAULT_SIGMA",
+    "RING_WHITE_Y",
 ]
 
 ColourSpace = Literal["lab", "rgb"]
 COLOUR_SPACES: tuple[str, ...] = ("lab", "rgb")
+#: Ways to bring the photo's white to D65 (see :func:`adaptation_matrix`).
+ADAPTATIONS: tuple[str, ...] = ("rgb-gain", "cat02")
 
 #: Default per-channel standard deviation of a marker's colour in each space
 #: (shading, print and light variation left after white balance).
 DEFAULT_SIGMA: dict[str, tuple[float, float, float]] = {
     "lab": (16.0, 9.0, 9.0),
-    "rgb": (28.0, 28.0, 28.0),
+    "rgb": (18.0, 18.0, 18.0),
 }
 
 _SRGB_TO_XYZ = np.array(
@@ -60,6 +66,9 @@ _XYZ_TO_SRGB = np.linalg.inv(_SRGB_TO_XYZ)
 _D65_XY = np.array([0.3127, 0.3290])
 _D65_XYZ = np.array([_D65_XY[0] / _D65_XY[1], 1.0, (1 - _D65_XY.sum()) / _D65_XY[1]])
 _QUANT_SHIFT = 3  # 8-bit -> 5-bit per channel for the lookup table
+#: Luminance factor Y of the markers' white rings against a perfect white diffuser
+#: (white paper or white PLA: about L* 93); the measured white is mapped to it.
+RING_WHITE_Y = 0.84
 
 
 def _srgb_decode(v: np.ndarray) -> np.ndarray:
@@ -127,25 +136,31 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
     return WhiteEstimate((float(mr), float(mg), float(mb)), n_sel, float(clipped_fraction))
 
 
-def adaptation_matrix(white: WhiteEstimate | None) -> np.ndarray:
-    """3x3 matrix: the photo's linear sRGB -> XYZ adapted to D65, the white at Y = 1.
+def adaptation_matrix(white: WhiteEstimate | None, adaptation: str = "rgb-gain") -> np.ndarray:
+    """3x3 matrix: the photo's linear sRGB -> XYZ under D65, the white at Y = RING_WHITE_Y.
 
-    Chromatic adaptation is CAT02 von Kries (colour-science) from the measured
-    white to D65; ``None`` means the photo is already balanced with white at 255.
+    Parameters
+    ----------
+    white : the photo's measured white; ``None`` = already balanced, white at 255.
+    adaptation : ``"rgb-gain"`` divides each linear RGB channel by the white's (von Kries
+        in the camera's RGB: what a camera's own white balance does, and what corrects
+        its residual error); ``"cat02"`` is CAT02 von Kries from the white's chromaticity
+        to D65 (colour-science), a perceptual chromatic adaptation.
     """
-    import colour
-
+    if adaptation not in ADAPTATIONS:
+        raise ValueError(f"unknown adaptation {adaptation!r}; valid: {ADAPTATIONS}")
     if white is None:
         return _SRGB_TO_XYZ.copy()
-    lin_white = _srgb_decode(np.asarray(white.srgb8, dtype=np.float64) / 255.0)
-    xyz_white = _SRGB_TO_XYZ @ np.maximum(lin_white, 1e-6)
-    xyz_white = xyz_white / xyz_white[1]
+    lin_white = np.maximum(_srgb_decode(np.asarray(white.srgb8, dtype=np.float64) / 255.0), 1e-6)
+    if adaptation == "rgb-gain":
+        return _SRGB_TO_XYZ @ np.diag(RING_WHITE_Y / lin_white)
+    import colour
+
+    xyz_white = _SRGB_TO_XYZ @ lin_white
     cat = colour.adaptation.matrix_chromatic_adaptation_VonKries(
-        xyz_white, _D65_XYZ, transform="CAT02"
+        xyz_white / xyz_white[1], _D65_XYZ, transform="CAT02"
     )
-    # exposure: the white maps to Y = 1 (L* = 100)
-    y_white = float((_SRGB_TO_XYZ @ np.maximum(lin_white, 1e-6))[1])
-    return cat @ _SRGB_TO_XYZ / y_white
+    return cat @ _SRGB_TO_XYZ * (RING_WHITE_Y / float(xyz_white[1]))
 
 
 def _rgb8_to_space(rgb8: np.ndarray, matrix: np.ndarray, space: str) -> np.ndarray:
@@ -162,12 +177,15 @@ def _rgb8_to_space(rgb8: np.ndarray, matrix: np.ndarray, space: str) -> np.ndarr
 
 
 def bgr8_to_space(
-    bgr8: np.ndarray, space: ColourSpace, white: WhiteEstimate | None = None
+    bgr8: np.ndarray,
+    space: ColourSpace,
+    white: WhiteEstimate | None = None,
+    adaptation: str = "rgb-gain",
 ) -> np.ndarray:
-    """Convert BGR pixels (..., 3) uint8 to ``space`` after white balance and CAT02 to D65."""
+    """Convert BGR pixels (..., 3), 0..255, to ``space`` after white balance to D65."""
     arr = np.asarray(bgr8)
     flat = arr.reshape(-1, 3)[:, ::-1]
-    out = _rgb8_to_space(flat, adaptation_matrix(white), space)
+    out = _rgb8_to_space(flat, adaptation_matrix(white, adaptation), space)
     return out.reshape(arr.shape[:-1] + (3,))
 
 
@@ -182,6 +200,7 @@ class ColourModel:
     means : ndarray (K, 3), float, each role's colour in ``space`` under D65.
     covariances : ndarray (K, 3, 3), float, each role's colour covariance.
     max_distance : float, largest Mahalanobis distance still counted as the role.
+    adaptation : how the photo's white is brought to D65 (:func:`adaptation_matrix`).
     """
 
     space: str
@@ -189,8 +208,11 @@ class ColourModel:
     means: np.ndarray
     covariances: np.ndarray
     max_distance: float = 4.0
+    adaptation: str = "rgb-gain"
 
     def __post_init__(self) -> None:
+        if self.adaptation not in ADAPTATIONS:
+            raise ValueError(f"unknown adaptation {self.adaptation!r}; valid: {ADAPTATIONS}")
         if self.space not in COLOUR_SPACES:
             raise ValueError(f"unknown colour space {self.space!r}; valid: {COLOUR_SPACES}")
         means = np.asarray(self.means, dtype=np.float64).reshape(-1, 3)
@@ -217,6 +239,7 @@ class ColourModel:
             "means": np.round(self.means, 3).tolist(),
             "covariances": np.round(self.covariances, 3).tolist(),
             "max_distance": self.max_distance,
+            "adaptation": self.adaptation,
         }
 
 
@@ -228,7 +251,11 @@ def _marker_mean(marker: Any, space: str) -> np.ndarray:
 
 @lru_cache(maxsize=32)
 def kit_colour_model(
-    kit: MarkerKit, space: ColourSpace = "lab", *, max_distance: float = 4.0
+    kit: MarkerKit,
+    space: ColourSpace = "lab",
+    *,
+    max_distance: float = 4.0,
+    adaptation: str = "rgb-gain",
 ) -> ColourModel:
     """The colour model of a kit: the kit's D65 colours, with its learnt spreads if it has them."""
     if space not in COLOUR_SPACES:
@@ -239,11 +266,15 @@ def kit_colour_model(
         means.append(_marker_mean(marker, space))
         sigma = marker.colour_sigma(space) or DEFAULT_SIGMA[space]
         covs.append(np.diag(np.square(np.maximum(np.asarray(sigma, dtype=np.float64), 1.0))))
-    return ColourModel(space, ROLES, np.array(means), np.array(covs), max_distance)
+    return ColourModel(space, ROLES, np.array(means), np.array(covs), max_distance, adaptation)
 
 
 def learnt_colour_model(
-    samples: dict[str, np.ndarray], space: ColourSpace, *, max_distance: float = 4.0
+    samples: dict[str, np.ndarray],
+    space: ColourSpace,
+    *,
+    max_distance: float = 4.0,
+    adaptation: str = "rgb-gain",
 ) -> ColourModel:
     """A model from labelled colour samples: {role: (N, 3) values in ``space``}."""
     roles = tuple(r for r in ROLES if r in samples)
@@ -254,7 +285,7 @@ def learnt_colour_model(
             raise ValueError(f"role {role!r}: need at least 10 colour samples, got {v.shape[0]}")
         means.append(v.mean(axis=0))
         covs.append(np.cov(v.T) + np.eye(3) * 1.0)
-    return ColourModel(space, roles, np.array(means), np.array(covs), max_distance)
+    return ColourModel(space, roles, np.array(means), np.array(covs), max_distance, adaptation)
 
 
 def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | None) -> np.ndarray:
@@ -278,7 +309,7 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
     used = np.flatnonzero(np.bincount(idx.ravel(), minlength=1 << 15))
     rgb8 = np.column_stack(((used >> 10) & 31, (used >> 5) & 31, used & 31)).astype(np.float64)
     rgb8 = rgb8 * (1 << _QUANT_SHIFT) + (1 << _QUANT_SHIFT) / 2 - 0.5
-    values = _rgb8_to_space(rgb8, adaptation_matrix(white), model.space)
+    values = _rgb8_to_space(rgb8, adaptation_matrix(white, model.adaptation), model.space)
     dist = model.distances(values)
     best = np.argmin(dist, axis=1)
     lut_used = np.where(dist[np.arange(len(used)), best] <= model.max_distance, best, -1)
