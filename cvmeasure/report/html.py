@@ -1,0 +1,236 @@
+"""The self-contained HTML report of a results file.
+
+One HTML file, no network: CSS inline, every image (plots, overlay thumbnails)
+embedded as a ``data:`` URI, no scripts.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from collections import Counter
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from cvmeasure.report import plots
+from cvmeasure.report.thumbnails import find_photo, overlay_thumbnail
+
+__all__ = ["build_report", "data_uri", "table_columns"]
+
+#: Columns shown first when present, in this order; other numeric fields follow.
+PREFERRED_COLUMNS: tuple[str, ...] = (
+    "bend_angle_deg",
+    "pin_angle_deg",
+    "springback_deg",
+    "loaded_bend_deg",
+    "unloaded_bend_deg",
+    "radius_mm",
+    "chord_width_mm",
+    "height_mm",
+    "arc_angle_deg",
+    "segment_bend_deg",
+    "x_px",
+    "y_px",
+    "r_px",
+)
+_HIDDEN = {"seconds", "worker_pid", "ok"}
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1b1b1b;max-width:1400px}
+h1{font-size:1.5em;margin-bottom:4px}h2{font-size:1.2em;margin-top:28px;border-bottom:1px solid #ccc}
+.meta{color:#555;font-size:.9em}
+table{border-collapse:collapse;font-size:.85em;margin:8px 0}
+th,td{border:1px solid #d0d0d0;padding:3px 7px;vertical-align:top}
+th{background:#f0f0f0;text-align:left}td.num{text-align:right;font-variant-numeric:tabular-nums}
+tr.fail td{background:#fff0f0}.bad{color:#a01010;font-weight:600}.good{color:#106010;font-weight:600}
+.plots img{max-width:640px;margin:6px 12px 6px 0;border:1px solid #ddd}
+img.thumb{width:240px;height:auto;display:block}
+"""
+
+
+def data_uri(data: bytes, mime: str) -> str:
+    """``data:<mime>;base64,...`` for embedding bytes in HTML."""
+    return f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+def _e(value: Any) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    num = plots.numeric(value)
+    if num is None:
+        return "" if value is None else _e(value)
+    return f"{num:.4f}" if abs(num) < 1e5 else f"{num:.6g}"
+
+
+def table_columns(records: Sequence[Mapping[str, Any]], limit: int = 9) -> list[str]:
+    """The numeric top-level fields to tabulate: preferred ones first, then the rest, sorted."""
+    present: Counter[str] = Counter()
+    for r in records:
+        for k, v in r.items():
+            if k not in _HIDDEN and plots.numeric(v) is not None:
+                present[k] += 1
+    first = [c for c in PREFERRED_COLUMNS if c in present]
+    rest = sorted(k for k in present if k not in first)
+    return (first + rest)[:limit]
+
+
+def _kv_table(rows: Sequence[tuple[str, Any]]) -> str:
+    body = "".join(f"<tr><th>{_e(k)}</th><td class=num>{_fmt(v)}</td></tr>" for k, v in rows)
+    return f"<table>{body}</table>"
+
+
+def _agreement_section(result: Any) -> list[str]:
+    ba, tol = result.bland_altman, result.tolerance
+    out = ["<h2 id=agreement>Agreement with manual readings</h2>"]
+    out.append(
+        f"<p>Difference = vision &minus; manual; {ba.n} photos, {ba.n_readings} manual readings. "
+        f"Verdict against the tolerance ({_e(tol.tolerance.relative or 0):s} relative, "
+        f"{_e(tol.tolerance.absolute_deg)} deg absolute): "
+        f"<span class={'good' if tol.verdict == 'within tolerance' else 'bad'}>{_e(tol.verdict)}</span>"
+        f" ({tol.n_within} of {tol.n_pairs} readings within).</p>"
+    )
+    rows: list[tuple[str, Any]] = [
+        ("bias (deg)", ba.bias_deg),
+        ("bias 95 % CI low", ba.bias_ci_deg[0]),
+        ("bias 95 % CI high", ba.bias_ci_deg[1]),
+        ("lower limit of agreement (deg)", ba.loa_low_deg),
+        ("upper limit of agreement (deg)", ba.loa_high_deg),
+        ("SD of differences (deg)", ba.sd_deg),
+        ("proportional-bias slope", ba.slope),
+        ("proportional-bias p", ba.slope_p),
+    ]
+    if result.manual_rr is not None:
+        rr = result.manual_rr
+        rows += [
+            ("manual repeatability SD (deg)", rr.repeatability_sd_deg),
+            ("manual reproducibility SD (deg)", rr.reproducibility_sd_deg),
+            ("%GRR of total", rr.grr_percent),
+            ("distinct categories (ndc)", rr.ndc),
+        ]
+    if result.vision_repeatability_sd_deg is not None:
+        rows.append(("vision repeatability SD (deg)", result.vision_repeatability_sd_deg))
+    out.append(_kv_table(rows))
+    out.append(
+        f"<div class=plots><img alt='Bland-Altman plot' src='{data_uri(plots.bland_altman_png(result), 'image/png')}'></div>"
+    )
+    return out
+
+
+def build_report(
+    records: Sequence[Mapping[str, Any]],
+    *,
+    title: str = "cvmeasure results",
+    source: str = "",
+    photo_roots: Sequence[Path] = (),
+    agreement: Any = None,
+    thumbnails: bool = True,
+    max_thumbnails: int = 500,
+    thumb_width_px: int = 360,
+    stamp: Mapping[str, Any] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> str:
+    """The HTML text of the report of per-photo result records.
+
+    Parameters
+    ----------
+    records : sequence of mappings
+        Per-photo (or per-trial) result records, as in a results JSON Lines file;
+        shown sorted by trial, then photo path.
+    title, source : str
+        Page title and the results file it shows.
+    photo_roots : sequence of Path
+        Folders where relative photo paths are looked up (besides as written).
+    agreement : AgreementResult, optional
+        Adds the agreement section (table and Bland–Altman plot).
+    thumbnails : bool
+        Embed an overlay thumbnail of each photo (first ``max_thumbnails``).
+    stamp : mapping, optional
+        Provenance shown in the header (command, version, time).
+    progress : callable, optional
+        Called with (thumbnails done, thumbnails to do).
+    """
+    roots = tuple(Path(r) for r in photo_roots)
+    records = sorted(records, key=_sort_key)
+    ok = [r for r in records if r.get("ok", True)]
+    failed = [r for r in records if r.get("ok") is False]
+    kinds = Counter(str(r.get("kind", "-")) for r in records)
+    out = [
+        "<!DOCTYPE html>",
+        "<html lang=en><head><meta charset=utf-8>",
+        "<meta name=viewport content='width=device-width, initial-scale=1'>",
+        f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{_e(title)}</h1>",
+    ]
+    meta = [f"results: {_e(source)}"] if source else []
+    for k, v in (stamp or {}).items():
+        meta.append(f"{_e(k)}: {_e(v)}")
+    out.append(f"<p class=meta>{' &middot; '.join(meta)}</p>")
+    out.append("<h2 id=summary>Summary</h2>")
+    summary = [("records", len(records)), ("measured", len(ok)), ("failed", len(failed))]
+    summary += [(f"kind {k}", n) for k, n in sorted(kinds.items())]
+    out.append(_kv_table(summary))
+
+    figures = [
+        ("angles", plots.angles_png(records)),
+        ("springback", plots.springback_png(records)),
+        ("parts", plots.part_png(records)),
+        ("residuals and uncertainties", plots.residuals_png(records)),
+    ]
+    figures = [(name, png) for name, png in figures if png is not None]
+    if figures:
+        out.append("<h2 id=plots>Plots</h2><div class=plots>")
+        out += [
+            f"<img alt='{_e(name)}' src='{data_uri(png, 'image/png')}'>" for name, png in figures
+        ]
+        out.append("</div>")
+    if agreement is not None:
+        out += _agreement_section(agreement)
+
+    columns = table_columns(records)
+    out.append("<h2 id=photos>Photos</h2><table><thead><tr>")
+    head = (["overlay"] if thumbnails else []) + ["photo", "kind"] + columns + ["warnings / error"]
+    out.append("".join(f"<th>{_e(h)}</th>" for h in head) + "</tr></thead><tbody>")
+    n_thumbs = min(len(records), max_thumbnails) if thumbnails else 0
+    for i, rec in enumerate(records):
+        row_class = " class=fail" if rec.get("ok") is False else ""
+        cells = []
+        if thumbnails:
+            cells.append(_thumb_cell(rec, roots, thumb_width_px) if i < n_thumbs else "<td></td>")
+            if progress and i < n_thumbs:
+                progress(i + 1, n_thumbs)
+        name = rec.get("file_name") or Path(str(rec.get("photo", ""))).name or rec.get("trial", "")
+        cells.append(f"<td title='{_e(rec.get('photo', ''))}'>{_e(name)}</td>")
+        cells.append(f"<td>{_e(rec.get('kind', ''))}</td>")
+        cells += [f"<td class=num>{_fmt(rec.get(c))}</td>" for c in columns]
+        notes = [str(w) for w in rec.get("warnings") or []]
+        if rec.get("error"):
+            notes.insert(0, str(rec["error"]))
+        cells.append(f"<td>{'<br>'.join(_e(n) for n in notes)}</td>")
+        out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
+    out.append("</tbody></table>")
+    out.append("</body></html>")
+    return "\n".join(out) + "\n"
+
+
+def _sort_key(record: Mapping[str, Any]) -> tuple[str, str]:
+    """Photos in file-name order (a batch writes them in completion order)."""
+    name = str(record.get("photo") or record.get("file_name") or "")
+    return (str(record.get("trial", "")).zfill(12), name)
+
+
+def _thumb_cell(record: Mapping[str, Any], roots: tuple[Path, ...], width_px: int) -> str:
+    path = find_photo(record, roots)
+    if path is None:
+        return "<td>photo not found</td>"
+    import cv2
+
+    try:
+        jpeg = overlay_thumbnail(record, path, width_px=width_px)
+    except (ValueError, OSError, cv2.error) as exc:  # an unreadable photo must not stop the report
+        return f"<td>no thumbnail: {_e(exc)}</td>"
+    alt = f"overlay of {path.name}"
+    return f"<td><img class=thumb alt='{_e(alt)}' src='{data_uri(jpeg, 'image/jpeg')}'></td>"
