@@ -126,3 +126,38 @@ def test_corrupt_and_missing_files(tmp_path):
         load_calibration(path)
     with pytest.raises(InputError, match="not found"):
         load_calibration(tmp_path / "none.json")
+
+
+def test_fit_cli_writes_calibration_and_plot(tmp_path, capsys):
+    from cvmeasure.cli import main
+
+    rows = trial_rows()
+    trials_csv = write_csv_rows(tmp_path / "trials.csv", rows, list(rows[0]))
+    out, plot = tmp_path / "cal.json", tmp_path / "fit.png"
+    code = main(
+        ["fit", str(trials_csv), "--model", "pchip", "-o", str(out), "--plot", str(plot), "--json"]
+    )
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["model"] == "pchip" and summary["bends"] == 22
+    assert summary["scores"]["linear"]["ccw"]["loao_rmse_deg"] < 0.05
+    cal = load_calibration(out)
+    final = float(final_of_loaded(loaded_of_pin(cal.compensate(-9.0))))
+    assert final == pytest.approx(-9.0, abs=0.1)
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_fit_cli_bad_input_exit_2(tmp_path, capsys):
+    from cvmeasure.cli import main
+
+    out = tmp_path / "cal.json"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("trial,commanded_pin_deg,loaded_bend_deg\n1,20,18\n")
+    assert main(["fit", str(bad), "-o", str(out)]) == 2
+    assert "bad.csv: missing column(s) unloaded_bend_deg" in capsys.readouterr().err
+    few = write_csv_rows(
+        tmp_path / "few.csv", trial_rows(angles=(10, 20, 45)), list(trial_rows()[0])
+    )
+    assert main(["fit", str(few), "--model", "cubic", "-o", str(out)]) == 2
+    assert "few.csv: cubic springback needs at least 4 distinct angles" in capsys.readouterr().err
+    assert not out.exists()
