@@ -143,8 +143,8 @@ def overlay_thumbnail(
     for role, (x, y, r) in circles.items():
         colour = ROLE_COLOURS_BGR.get(role, (255, 255, 255))
         radius = int(round(max(r * scale, 3.0) * (1 << _SHIFT)))
-        cv2.circle(img, pt(x, y), radius, (255, 255, 255), 3, cv2.LINE_AA, _SHIFT)
-        cv2.circle(img, pt(x, y), radius, colour, 1, cv2.LINE_AA, _SHIFT)
+        cv2.circle(img, pt(x, y), radius, (255, 255, 255), 4, cv2.LINE_AA, _SHIFT)
+        cv2.circle(img, pt(x, y), radius, colour, 2, cv2.LINE_AA, _SHIFT)
         tx, ty = int((x - ox) * scale + r * scale) + 3, int((y - oy) * scale) - 3
         cv2.putText(img, role, (tx, ty), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 2, cv2.LINE_AA)
         cv2.putText(img, role, (tx, ty), cv2.FONT_HERSHEY_SIMPLEX, 0.35, colour, 1, cv2.LINE_AA)
@@ -158,7 +158,7 @@ def overlay_thumbnail(
     x, y, r = (numeric(record.get(k)) for k in ("x_px", "y_px", "r_px"))
     if x is not None and y is not None and r is not None:
         radius = int(round(r * scale * (1 << _SHIFT)))
-        cv2.circle(img, pt(x, y), radius, (0, 0, 255), 1, cv2.LINE_AA, _SHIFT)
+        cv2.circle(img, pt(x, y), radius, (0, 0, 255), 2, cv2.LINE_AA, _SHIFT)
         centre = (int(round((x - ox) * scale)), int(round((y - oy) * scale)))
         cv2.drawMarker(img, centre, (0, 0, 255), cv2.MARKER_CROSS, 8, 1)
     ok, data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, quality])
