@@ -44,6 +44,7 @@ import os
 import select
 import threading
 import time
+import tty
 from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -300,6 +301,11 @@ class FakeTinyG:
 
     def _open_pty(self) -> None:
         master, slave = os.openpty()
+        # Raw mode on the slave *before* the host opens it: a fresh pty echoes,
+        # and the board's first status report would come back as input. (Never
+        # touch the termios later: it is shared with the host, whose pyserial
+        # sets its own flags, IXON included, when it opens the port.)
+        tty.setraw(slave)
         os.set_blocking(master, False)
         self._master = master
         self._slave_keep = slave  # keeps the pty alive while the host reopens it

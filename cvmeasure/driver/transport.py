@@ -22,6 +22,11 @@ from urllib.parse import parse_qs, urlsplit
 
 import serial
 
+try:  # POSIX: pyserial's flush() raises termios.error when the port has vanished
+    from termios import error as _TermiosError
+except ImportError:  # pragma: no cover - Windows
+    _TermiosError = OSError  # type: ignore[misc,assignment]
+
 from cvmeasure.driver.double import FakeTinyG, Fault
 from cvmeasure.errors import DeviceError, InputError
 
@@ -57,7 +62,7 @@ class Link:
             self.serial.flush()
         except serial.SerialTimeoutException as exc:
             raise DeviceError(f"{self.url}: write timed out (flow control stuck?)") from exc
-        except (serial.SerialException, OSError) as exc:
+        except (serial.SerialException, OSError, _TermiosError) as exc:
             raise DeviceError(f"{self.url}: port gone ({exc})") from exc
 
     def read_available(self) -> bytes:
@@ -65,7 +70,7 @@ class Link:
         try:
             waiting = self.serial.in_waiting
             return bytes(self.serial.read(max(1, waiting)))
-        except (serial.SerialException, OSError, TypeError) as exc:
+        except (serial.SerialException, OSError, TypeError, _TermiosError) as exc:
             raise DeviceError(f"{self.url}: port gone ({exc})") from exc
 
     def close(self) -> None:

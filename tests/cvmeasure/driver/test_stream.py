@@ -1,0 +1,167 @@
+"""Streaming jobs to the double over a real pty: windows, faults, safe stops, resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.design import arc_points_mm, bend_angles_deg
+from cvmeasure.driver.double import FakeTinyG, Fault
+from cvmeasure.driver.gcode import design_job
+from cvmeasure.driver.stream import (
+    JobStopped,
+    StreamConfig,
+    plan_resume,
+    prepare_job,
+    stream_job,
+)
+from cvmeasure.driver.transport import open_link
+from cvmeasure.errors import DeviceError, InputError
+from cvmeasure.fileio import read_jsonl
+
+FAST = StreamConfig(stall_timeout_s=0.3, flush_timeout_s=2.0)
+HALF = arc_points_mm((0.0, 0.0), 100.0, 90.0, 180.0, chords=20)
+
+
+@pytest.fixture(scope="module")
+def job():
+    return design_job(HALF, source="half.svg")
+
+
+def run_clean(job, speedup=300.0):
+    with FakeTinyG(speedup=speedup) as board:
+        link = open_link(board.port)
+        result = stream_job(link, job.lines, config=FAST)
+        link.close()
+        return result, board.wire_shape_mm(), board.executed_lines(), board.stats
+
+
+def test_clean_job_bends_the_design(job, tmp_path):
+    result, shape, (completed, partial), stats = run_clean(job)
+    n = len(job.lines)
+    assert result.lines_sent == n and result.executed_line == n
+    assert completed == list(range(0, n + 1)) and partial == []  # N0 marker, then every line once
+    np.testing.assert_allclose(bend_angles_deg(shape), bend_angles_deg(HALF), atol=1e-3)
+    assert stats.rx_dropped_bytes == 0 and stats.rx_peak_bytes <= 200
+
+
+def test_byte_window_bounds_what_is_buffered(job):
+    cfg = StreamConfig(window_lines=50, window_bytes=90)
+    with FakeTinyG(speedup=300.0) as board:
+        link = open_link(board.port)
+        stream_job(link, job.lines, config=cfg)
+        link.close()
+        assert board.stats.rx_peak_bytes <= 90 and board.stats.rx_dropped_bytes == 0
+
+
+def test_sim_url_and_progress(job, tmp_path):
+    seen = []
+    with open_link("sim://?speedup=300") as link:
+        result = stream_job(
+            link, job.lines, journal=tmp_path / "j.jsonl", progress=lambda *a: seen.append(a)
+        )
+        assert link.double is not None and len(link.double.machine_state().bends) == 19
+    assert seen[-1][:2] == (len(job.lines), len(job.lines))
+    events = [r["event"] for r in read_jsonl(tmp_path / "j.jsonl")]
+    assert events[0] == "start" and events[-1] == "done"
+    assert result.executed_line == len(job.lines)
+
+
+FAULTS = [
+    (Fault("drop_byte", 30, byte_index=5), "desync"),
+    (Fault("drop_byte", 31, byte_index=99), "desync"),  # the line terminator itself
+    (Fault("malformed_reply", 30), "malformed"),
+    (Fault("alarm", 30), "alarm"),
+    (Fault("stall", 30, duration_s=0.6), "stall"),
+    (Fault("vanish", 30), "port_gone"),
+]
+
+
+@pytest.mark.parametrize(
+    ("fault", "reason"), FAULTS, ids=[f[0].kind + str(f[0].byte_index) for f in FAULTS]
+)
+def test_fault_stops_safely_and_the_job_resumes(job, tmp_path, fault, reason):
+    _, clean_shape, _, _ = run_clean(job)
+    journal = tmp_path / "job.journal.jsonl"
+    board = FakeTinyG(speedup=50.0, faults=[fault]).start()
+    try:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(link, job.lines, journal=journal, config=FAST)
+        link.close()
+        stop = info.value.stop
+        assert stop.reason == reason
+        assert stop.line_number is not None and f"N{stop.line_number}" in str(info.value)
+        last = read_jsonl(journal)[-1]
+        assert last["event"] == "stop" and last["line_number"] == stop.line_number
+        if reason != "port_gone":
+            assert stop.board is not None and stop.board["stat"] in (2, 3)
+        if board.vanished:
+            board.reconnect()
+        link = open_link(board.port)
+        result = stream_job(link, job.lines, journal=journal, resume=True, config=FAST)
+        link.close()
+        assert result.executed_line == len(job.lines)
+        completed, partial = board.executed_lines()
+        # every line completed exactly once; a line cut by the stop is completed by the fix-up
+        assert completed == list(range(0, len(job.lines) + 1))
+        assert len(partial) <= 1
+        assert board.stats.rx_dropped_bytes == 0
+        np.testing.assert_allclose(board.wire_shape_mm(), clean_shape, atol=2e-3)
+        assert read_jsonl(journal)[-1]["event"] == "done"
+    finally:
+        board.close()
+
+
+def test_resume_needs_the_journal_of_this_job(job, tmp_path):
+    with open_link("sim://?speedup=300") as link:
+        with pytest.raises(InputError, match="no journal"):
+            stream_job(link, job.lines, journal=tmp_path / "none.jsonl", resume=True)
+        stream_job(link, job.lines[:5] + job.lines[-1:], journal=tmp_path / "other.jsonl")
+        with pytest.raises(InputError, match="different job"):
+            stream_job(link, job.lines, journal=tmp_path / "other.jsonl", resume=True)
+
+
+def test_alarmed_board_refuses_a_new_job(job):
+    with FakeTinyG(speedup=300.0, faults=[Fault("alarm", 14)]) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped):
+            stream_job(link, job.lines, config=FAST)
+        with pytest.raises(DeviceError, match="alarmed"):
+            stream_job(link, job.lines, config=FAST)
+        link.close()
+
+
+def test_prepare_job_numbers_and_checks(tmp_path):
+    job = prepare_job(["G21 G90", "", "(comment)", "G91 G1 Y5 F100"])
+    assert [j.text for j in job] == ["N1 G21 G90", "N2 G91 G1 Y5 F100"]
+    assert [j.nbytes for j in job] == [11, 18]
+    with pytest.raises(InputError, match=r"job.gcode: line 2: .*forbidden"):
+        prepare_job(["G21", "G1 X5 ! F1"], source="job.gcode")
+    with pytest.raises(InputError, match="some lines have N numbers"):
+        prepare_job(["N1 G21", "G90"])
+    with pytest.raises(InputError, match="does not increase"):
+        prepare_job(["N2 G21", "N2 G90"])
+    with pytest.raises(InputError, match="line 1: .*unsupported"):
+        prepare_job(["G2 X1"])
+
+
+def test_plan_resume_from_board_reports():
+    job = prepare_job(
+        ["G21 G90", "G91 G1 Y10 F600", "G90 G1 X30 F6000", "G0 X0", "G91 G1 Y10 F600"]
+    )
+    start = {"x": 0.0, "y": 100.0, "z": 0.0}
+    assert plan_resume(job, start_pos=start, board_line=0, board_pos=start).start_index == 0
+    # line 2 done (y = 110): continue with line 3
+    p = plan_resume(job, start_pos=start, board_line=2, board_pos={"y": 110.0})
+    assert (p.start_index, p.fixup) == (2, None)
+    # line 2 cut at y = 104: feed the remaining 6 mm, then line 3
+    p = plan_resume(job, start_pos=start, board_line=2, board_pos={"y": 104.0})
+    assert (p.start_index, p.fixup) == (2, "N2 G91 G1 Y6.0000 F600")
+    # line 3 (absolute pin) cut at x = 29.9999: tiny remainder slowed above 2.5 ms
+    p = plan_resume(job, start_pos=start, board_line=3, board_pos={"x": 29.99, "y": 110.0})
+    assert p.start_index == 3 and p.fixup is not None and p.fixup.startswith("N3 G90 G1 X30.0000 F")
+    rate = float(p.fixup.rsplit("F", 1)[1])
+    assert 0.01 / rate * 60 >= 0.005 - 1e-9
+    with pytest.raises(DeviceError, match="N99, which is not in this job"):
+        plan_resume(job, start_pos=start, board_line=99, board_pos=start)
