@@ -1,0 +1,96 @@
+"""``cvmeasure gcode``: a wire design (SVG/DXF) -> TinyG G-code for the DIWire."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "gcode",
+        help="turn an SVG/DXF wire design into bender G-code",
+        description="Read one open wire path from an SVG or DXF design, divide its curves "
+        "into chords of at least --min-segment-mm, check the bender's rules (no closed "
+        "shapes, segments >= 12 mm, bends within range), compensate springback through the "
+        "calibration (--material) or the simulation's model, and write numbered TinyG "
+        "G-code (G21; X pin deg, Y feed mm relative, Z pin duck). Nothing is written when "
+        "the design breaks a rule (exit 2, the element named).",
+    )
+    p.add_argument("design", type=Path, help="design drawing (.svg or .dxf)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="G-code file to write")
+    p.add_argument("--material", type=Path, help="calibration JSON (cvmeasure fit / session)")
+    p.add_argument(
+        "--params", type=Path, help="simulation params JSON, used when there is no --material"
+    )
+    p.add_argument(
+        "--divisions", type=int, help="chords per curve (default: as many as fit, each >= 12 mm)"
+    )
+    p.add_argument("--min-segment-mm", type=float, default=12.0, help="shortest segment (mm)")
+    p.add_argument("--max-bend-deg", type=float, default=135.0, help="largest bend (deg)")
+    p.add_argument(
+        "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
+    )
+    p.add_argument("--json", action="store_true", help="print the bend list as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure import __version__
+    from cvmeasure.design import load_design
+    from cvmeasure.driver.gcode import SimCompensator, design_job, wire_polyline
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_text
+
+    if args.divisions is not None and args.divisions < 1:
+        raise InputError("--divisions", f"must be >= 1, got {args.divisions}")
+    design = load_design(args.design)
+    path = design.wire()
+    if path.closed:
+        raise InputError(
+            args.design,
+            f"closed shape {path.element or path.kind}: a wire part needs two free ends",
+        )
+    if args.material is not None:
+        from cvmeasure.driver.calibration import load_calibration
+
+        compensation = load_calibration(args.material)
+    elif args.params is not None:
+        from cvmeasure.sim import params_from_json
+
+        params, effects = params_from_json(args.params)
+        compensation = SimCompensator(params, tuple(effects))
+    else:
+        compensation = SimCompensator()
+    points = wire_polyline(
+        path.points_mm,
+        min_segment_mm=args.min_segment_mm,
+        divisions=args.divisions,
+        arcs=path.arcs,
+    )
+    job = design_job(
+        points,
+        source=str(args.design),
+        compensation=compensation,
+        min_segment_mm=args.min_segment_mm,
+        max_bend_deg=args.max_bend_deg,
+        bend_radius_mm=args.bend_radius_mm,
+    )
+    model = f"calibration {args.material.name}" if args.material else "simulation model"
+    header = [
+        f"; cvmeasure {__version__} gcode from {args.design.name}",
+        f"; {len(job.pin_deg)} bends, wire {job.bends.total_feed_mm:.3f} mm, compensation: {model}",
+    ]
+    header = ["".join(c for c in h if c.isprintable() and c not in "!~%$?") for h in header]
+    atomic_write_text(args.out, "\n".join(header) + "\n" + job.text())
+    if args.json:
+        print(json.dumps({"out": str(args.out), **job.to_dict()}, indent=2))
+    else:
+        print(
+            f"wrote {args.out}: {len(job.lines)} lines, {len(job.pin_deg)} bends, "
+            f"{job.bends.total_feed_mm:.1f} mm of wire"
+        )
+    return 0
