@@ -4,9 +4,9 @@ The photo is subsampled (every ``step``-th pixel, so a reduced pixel (i, j) is
 exactly the full-resolution pixel (i * step, j * step)), white-balanced, and
 every pixel labelled with its nearest marker colour (:mod:`.colour`). Each
 role's pixels form connected regions; a region is a candidate disc when it is
-compact and round and surrounded by the white ring. A partly hidden disc gets
-its circle from Hough circles on the region's mask (the gradient votes of the
-visible arc), a whole one from its moments. All coordinates returned are
+compact and round and surrounded by the white ring. A whole disc's circle
+comes from its moments; a partly hidden one's from a robust circle fit to the
+region's outline (Hough circles on its mask as the fallback). All coordinates returned are
 full-resolution image pixels.
 """
 
@@ -25,6 +25,7 @@ from cvmeasure.markers.colour import (
     classify_bgr8,
     estimate_white,
 )
+from cvmeasure.markers.refine import fit_circle_robust
 
 __all__ = [
     "MarkerCandidate",
@@ -107,21 +108,36 @@ def _ring_fraction(bright: np.ndarray, cx: float, cy: float, r: float, ring_rati
     return float(bright[y0:y1, x0:x1][ann].mean())
 
 
-def _hough_circle(
+def _partial_circle(
     mask: np.ndarray, x: int, y: int, w: int, h: int
 ) -> tuple[float, float, float] | None:
-    """Hough circle of a partly hidden region (reduced pixels), or None."""
+    """Circle of a partly hidden region (reduced pixels), or None.
+
+    A robust (Tukey) circle fit to the region's outline: the visible arc is the
+    majority, the occluder's edge the outliers. Hough circles on the region's
+    mask are the fallback when that fit fails.
+    """
     import cv2
 
+    crop = np.ascontiguousarray(mask[y : y + h, x : x + w])
+    contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if contours:
+        pts = max(contours, key=len).reshape(-1, 2).astype(np.float64) + (x, y)
+        if len(pts) >= 8:
+            try:
+                fit = fit_circle_robust(pts, tukey_c=3.0, min_scale=0.5)
+            except (ValueError, np.linalg.LinAlgError):
+                fit = None
+            if fit is not None and fit.coverage >= 0.4 and fit.radius < 1.5 * max(w, h):
+                return fit.centre[0], fit.centre[1], fit.radius + 0.5
     pad = max(w, h)
     H, W = mask.shape
     x0, y0 = max(0, x - pad), max(0, y - pad)
     x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
-    crop = (mask[y0:y1, x0:x1] * 255).astype(np.uint8)
-    crop = cv2.GaussianBlur(crop, (0, 0), 1.0)
+    img = cv2.GaussianBlur((mask[y0:y1, x0:x1] * 255).astype(np.uint8), (0, 0), 1.0)
     r_max = max(w, h)
     circles = cv2.HoughCircles(
-        crop,
+        img,
         cv2.HOUGH_GRADIENT,
         dp=1,
         minDist=max(2 * r_max, 4),
@@ -169,8 +185,10 @@ def _candidates(
             continue
         cx, cy = (float(v) for v in centroids[i])
         r = math.sqrt(area / math.pi)
-        if fill < 0.68 or not 0.75 <= aspect <= 1.33:
-            circle = _hough_circle(mask, x, y, w, h)
+        if (fill < 0.68 or not 0.75 <= aspect <= 1.33) and max(w, h) >= 12:
+            # large enough for its outline to tell the hidden part from the visible arc;
+            # smaller regions keep their moments (the refinement walks to the true circle)
+            circle = _partial_circle(mask, x, y, w, h)
             if circle is None:
                 continue
             cx, cy, r = circle

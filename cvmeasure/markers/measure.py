@@ -71,7 +71,7 @@ SEED_CENTRE_SIGMA_PX = 0.5
 #: Fewest edge points a disc needs for a centre.
 MIN_EDGE_POINTS = 12
 #: Warning thresholds.
-HIDDEN_COVERAGE = 0.8
+HIDDEN_COVERAGE = 0.9
 OVEREXPOSED_FRACTION = 0.5
 FAR_DELTA_E = 25.0
 LOW_CONTRAST = 25.0

@@ -191,6 +191,19 @@ def fit_circle_robust(
     )
 
 
+_SRGB8_TO_LINEAR = np.where(
+    np.arange(256) / 255.0 <= 0.04045,
+    np.arange(256) / 255.0 / 12.92,
+    ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4,
+).astype(np.float32)
+
+
+def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
+    v = np.clip(np.asarray(lin, dtype=np.float64), 0.0, 1.0)
+    enc = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055) * 255.0
+    return (float(enc[0]), float(enc[1]), float(enc[2]))
+
+
 @dataclass(frozen=True)
 class EdgePoints:
     """Sub-pixel points on one disc's boundary (full-resolution image pixels).
@@ -219,7 +232,7 @@ def disc_edge_points(
 ) -> EdgePoints:
     """Edge points of a disc on its white ring, from a small region of the full photo.
 
-    The region is projected onto the disc-to-ring colour axis (1 on the disc, 0
+    The region, in linear light, is projected onto the disc-to-ring colour axis (1 on the disc, 0
     on the ring), blurred, and sampled along rays from the approximate centre
     (one ray per pixel of circumference, bilinear samples every ``step_px``);
     on each ray the 0.5 crossing nearest the approximate radius, linearly
@@ -244,7 +257,15 @@ def disc_edge_points(
     y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
     if x1 - x0 < 5 or y1 - y0 < 5:
         return empty
-    roi = bgr[y0:y1, x0:x1].astype(np.float32)
+    top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
+    raw = bgr[y0:y1, x0:x1]
+    clipped = raw.max(axis=2) >= top - 1
+    # linear light: a blurred edge crosses half-way between its two sides at the edge
+    if bgr.dtype == np.uint8:
+        roi = _SRGB8_TO_LINEAR[raw]
+    else:
+        v = raw.astype(np.float32) / top
+        roi = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
     yy, xx = np.ogrid[y0:y1, x0:x1]
     dist = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
     inner = dist < 0.6 * radius_px
@@ -255,16 +276,14 @@ def disc_edge_points(
         return empty
     disc_c = np.median(roi[inner], axis=0)
     ring_c = np.median(roi[ring], axis=0)
-    top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
-    clipped = float((roi[ring].max(axis=1) >= top - 1).mean())
-    scale = 255.0 / top
+    clipped_fraction = float(clipped[ring].mean())
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
-    contrast = math.sqrt(norm2) * scale
-    disc_t = tuple(float(v) * scale for v in disc_c)
-    ring_t = tuple(float(v) * scale for v in ring_c)
+    disc_t = _linear_to_srgb8(disc_c)
+    ring_t = _linear_to_srgb8(ring_c)
+    contrast = float(np.linalg.norm(np.subtract(disc_t, ring_t)))
     if norm2 <= 0:
-        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped)
+        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped_fraction)
     s = ((roi - ring_c) @ (axis / norm2)).astype(np.float32)
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
@@ -280,7 +299,7 @@ def disc_edge_points(
     cross = above[:, :-1] != above[:, 1:]
     cross &= (v[:, :-1] > -0.5) & (v[:, 1:] > -0.5)
     if not cross.any():
-        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped)
+        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped_fraction)
     va, vb = v[:, :-1], v[:, 1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(cross, (0.5 - va) / (vb - va), np.nan)
@@ -289,4 +308,4 @@ def disc_edge_points(
     rows = np.flatnonzero(cross.any(axis=1))
     r_best = r_cross[rows, pick[rows]]
     points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
-    return EdgePoints(points, disc_t, ring_t, contrast, clipped)
+    return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction)

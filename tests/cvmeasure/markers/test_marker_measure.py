@@ -1,0 +1,204 @@
+"""The per-photo pipeline on rendered bender photos with exact ground truth.
+
+Photos are rendered at scale 0.3 (1382 x 922 px) to keep the suite fast; the
+tolerances below are for that size (the benchmark checks full size).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from cvmeasure.kit import ROLES, MarkerKit, MarkerSpec, default_kit
+from cvmeasure.markers import (
+    MarkerNotFoundError,
+    measure_machine_photo,
+    measure_trial,
+    springback_deg,
+)
+
+datasets = pytest.importorskip("datasets.bender")
+from datasets.bender import BenderGeometry, render_bender_photo  # noqa: E402
+from datasets.lighting import Lighting  # noqa: E402
+from datasets.optics import Pose  # noqa: E402
+
+SCALE = 0.3
+PIN_TOL_DEG = 0.15  # pin marker is 18 mm from the origin: ~43 px at this scale
+BEND_TOL_DEG = 0.06  # wire_a -> wire_b is 40 mm: ~96 px
+CENTRE_TOL_PX = 0.12
+
+WARM = Lighting(cct_k=2700.0, wb_error_k=600.0)
+COOL = Lighting(cct_k=6500.0, wb_error_k=-600.0)
+
+
+@functools.lru_cache(maxsize=None)
+def _render(pin=30.0, bend=25.0, light=WARM, seed=1, pose=None, occlude=(), geometry=None):
+    return render_bender_photo(
+        pin_angle_deg=pin,
+        bend_angle_deg=bend,
+        lighting=light,
+        seed=seed,
+        scale=SCALE,
+        pose=pose,
+        occlude=dict(occlude),
+        geometry=geometry,
+    )
+
+
+def _check(res, photo, pin_tol=PIN_TOL_DEG, bend_tol=BEND_TOL_DEG, centre_tol=CENTRE_TOL_PX):
+    t = photo.truth
+    assert res.pin_angle_deg == pytest.approx(t["pin_angle_deg"], abs=pin_tol)
+    assert res.bend_angle_deg == pytest.approx(t["bend_angle_deg"], abs=bend_tol)
+    for role in ROLES:
+        m = res.markers[role]
+        true_xy = t["markers"][role]["centre_px"]
+        assert np.hypot(m.x_px - true_xy[0], m.y_px - true_xy[1]) < centre_tol, role
+
+
+@pytest.mark.parametrize("space", ["lab", "rgb"])
+@pytest.mark.parametrize("light", [WARM, COOL], ids=["2700K", "6500K"])
+def test_every_role_under_warm_and_cool_light(space, light):
+    photo = _render(light=light)
+    res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera, space=space)
+    _check(res, photo)
+    assert res.frame == "undistorted"
+    assert not [w for w in res.warnings if "colour far" in w]
+    for key in ("pin_angle_deg", "bend_angle_deg"):
+        sigma = res.uncertainty_deg[key]
+        assert 0 < sigma < 0.2
+        assert abs(getattr(res, key) - photo.truth[key]) < 4 * sigma
+
+
+@pytest.mark.parametrize(("pin", "bend"), [(-60.0, -50.0), (120.0, 110.0), (5.0, 0.0)])
+def test_signs_and_large_angles(pin, bend):
+    photo = _render(pin=pin, bend=bend, light=Lighting(cct_k=4000.0), seed=3)
+    res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
+    _check(res, photo)
+
+
+def test_record_is_the_spec_json_lines_object():
+    photo = _render()
+    rec = measure_machine_photo(photo.bgr, default_kit(), photo="a.jpg").to_dict()
+    assert list(rec) == [
+        "photo",
+        "pin_angle_deg",
+        "bend_angle_deg",
+        "markers",
+        "uncertainty_deg",
+        "warnings",
+    ]
+    assert set(rec["markers"]) == set(ROLES)
+    assert set(rec["markers"]["pin"]) == {"x_px", "y_px", "r_px"}
+    assert set(rec["uncertainty_deg"]) == {"pin_angle_deg", "bend_angle_deg"}
+    r_true = photo.truth["markers"]["pin"]["r_px"]
+    assert rec["markers"]["pin"]["r_px"] == pytest.approx(r_true, rel=0.05)
+
+
+def test_lens_model_and_plane_remove_tilt_and_distortion_bias():
+    pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
+    photo = _render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
+    kit = default_kit()
+    rot, t_mm = pose.extrinsics("machine")
+    k = photo.camera.camera_matrix
+    h_image_plane = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
+    plane_h = np.linalg.inv(h_image_plane)  # undistorted px -> machine mm
+    raw = measure_machine_photo(photo.bgr, kit)
+    rect = measure_machine_photo(photo.bgr, kit, camera=photo.camera, plane=plane_h)
+    assert rect.frame == "plane"
+    err_raw = abs(raw.bend_angle_deg - photo.truth["bend_angle_deg"])
+    err_rect = abs(rect.bend_angle_deg - photo.truth["bend_angle_deg"])
+    assert err_raw > 0.3  # a 12 degree tilt foreshortens angles
+    assert err_rect < BEND_TOL_DEG
+    assert rect.pin_angle_deg == pytest.approx(photo.truth["pin_angle_deg"], abs=PIN_TOL_DEG)
+
+
+def test_partly_hidden_marker_warns_and_still_measures():
+    photo = _render(occlude=(("wire_b", 0.3),), seed=5)
+    res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
+    assert any("'wire_b' partly hidden" in w for w in res.warnings)
+    _check(res, photo, bend_tol=2 * BEND_TOL_DEG, centre_tol=0.3)
+
+
+def test_overlapping_markers():
+    # the pin's white ring lies over the edge of the origin's disc
+    geo = BenderGeometry(pin_radius_mm=10.0)
+    photo = _render(pin=-20.0, geometry=geo, seed=6)
+    res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
+    assert any("'origin' partly hidden" in w for w in res.warnings)
+    _check(res, photo, pin_tol=0.3, centre_tol=0.3)
+
+
+def test_missing_marker_names_the_role():
+    photo = _render(occlude=(("axis", 1.0),), seed=7)
+    with pytest.raises(MarkerNotFoundError) as err:
+        measure_machine_photo(photo.bgr, default_kit(), source="photos/p7.jpg")
+    assert list(err.value.reasons) == ["axis"]
+    assert str(err.value).startswith("photos/p7.jpg: marker 'axis' (yellow-green) not found")
+
+
+def test_ambiguous_marker_names_both_places():
+    photo = _render(seed=8)
+    img = photo.bgr.copy()
+    x, y = (round(v) for v in photo.truth["markers"]["pin"]["centre_px"])
+    r = round(photo.truth["markers"]["pin"]["r_px"] * 1.6)
+    img[y - r - 150 : y + r + 1 - 150, x - r + 100 : x + r + 1 + 100] = img[
+        y - r : y + r + 1, x - r : x + r + 1
+    ]
+    with pytest.raises(MarkerNotFoundError, match=r"marker 'pin' \(yellow\) ambiguous: 2 discs"):
+        measure_machine_photo(img, default_kit())
+
+
+def test_wrong_kit_is_reported_not_measured():
+    photo = _render()
+    other = MarkerKit(
+        "other",
+        (
+            MarkerSpec("origin", "orange", (240, 120, 20), 10.0, 14.0),
+            MarkerSpec("axis", "cyan", (0, 170, 200), 10.0, 14.0),
+            MarkerSpec("pin", "red", (200, 20, 30), 8.0, 12.0),
+            MarkerSpec("wire_a", "purple", (110, 40, 150), 8.0, 12.0),
+            MarkerSpec("wire_b", "brown", (120, 70, 30), 8.0, 12.0),
+        ),
+    )
+    with pytest.raises(MarkerNotFoundError) as err:
+        measure_machine_photo(photo.bgr, other)
+    assert len(err.value.reasons) >= 3
+
+
+def test_seed_method_runs_on_a_clean_photo_and_is_coarser():
+    photo = _render(light=Lighting.clean(), seed=9)
+    kit = default_kit()
+    seed = measure_machine_photo(photo.bgr, kit, method="seed")
+    ours = measure_machine_photo(photo.bgr, kit, camera=photo.camera)
+    assert seed.method == "seed"
+    assert seed.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=3.0)
+    assert seed.uncertainty_deg["bend_angle_deg"] > 5 * ours.uncertainty_deg["bend_angle_deg"]
+
+
+def test_trial_springback_from_a_loaded_and_unloaded_pair():
+    loaded = _render(pin=40.0, bend=35.0, seed=10)
+    unloaded = _render(pin=10.0, bend=31.5, seed=11)
+    kit = default_kit()
+    trial = measure_trial(
+        measure_machine_photo(loaded.bgr, kit, camera=loaded.camera, photo="l.jpg"),
+        measure_machine_photo(unloaded.bgr, kit, camera=unloaded.camera, photo="u.jpg"),
+        trial=3,
+    )
+    true = springback_deg(loaded.truth["bend_angle_deg"], unloaded.truth["bend_angle_deg"])
+    assert true == pytest.approx(3.5, abs=1e-6)
+    assert trial.springback_deg == pytest.approx(true, abs=2 * BEND_TOL_DEG)
+    rec = trial.to_dict()
+    assert rec["trial"] == 3 and rec["photo_loaded"] == "l.jpg"
+    assert rec["uncertainty_deg"]["springback_deg"] > 0
+
+
+def test_sixteen_bit_and_linear_input():
+    photo = _render()
+    kit = default_kit()
+    a = measure_machine_photo(photo.bgr, kit)
+    b = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit)
+    assert b.bend_angle_deg == pytest.approx(a.bend_angle_deg, abs=1e-3)
+    with pytest.raises(ValueError, match="unknown method"):
+        measure_machine_photo(photo.bgr, kit, method="magic")  # type: ignore[arg-type]

@@ -1,0 +1,93 @@
+"""Sub-pixel edge points and robust circle fits on drawn discs with exact centres."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from cvmeasure.markers.refine import disc_edge_points, fit_circle_robust, fit_circle_taubin
+
+SS = 8  # supersampling of the drawn discs
+
+
+def _disc_image(centre, r_px, *, ring_ratio=1.4, colour=(70, 110, 0), noise=0.0, seed=0, size=96):
+    """An anti-aliased BGR disc of ``colour`` on a white ring on grey, exact centre (px)."""
+    n = size * SS
+    yy, xx = np.mgrid[0:n, 0:n]
+    # pixel-centre convention: full-res pixel (i, j) covers [i - 0.5, i + 0.5)
+    d = np.hypot((xx + 0.5) / SS - 0.5 - centre[0], (yy + 0.5) / SS - 0.5 - centre[1])
+    img = np.empty((n, n, 3), np.float32)
+    img[:] = (120, 118, 115)
+    img[d < r_px * ring_ratio] = (232, 236, 236)
+    img[d < r_px] = colour
+    small = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
+    small = cv2.GaussianBlur(small, (0, 0), 0.7)
+    if noise:
+        small = small + np.random.default_rng(seed).normal(0, noise, small.shape)
+    return np.clip(np.round(small), 0, 255).astype(np.uint8)
+
+
+def test_taubin_and_robust_fit_exact_points():
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    pts = np.column_stack((12.3 + 7.0 * np.cos(t), -4.5 + 7.0 * np.sin(t)))
+    assert fit_circle_taubin(pts) == pytest.approx((12.3, -4.5, 7.0), abs=1e-9)
+    fit = fit_circle_robust(pts)
+    assert fit.centre == pytest.approx((12.3, -4.5), abs=1e-9)
+    assert fit.radius == pytest.approx(7.0, abs=1e-9)
+    assert fit.coverage == 1.0
+
+
+def test_robust_fit_ignores_an_occluded_arc():
+    rng = np.random.default_rng(5)
+    t = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    r = np.full_like(t, 30.0) + rng.normal(0, 0.05, t.size)
+    r[(t > 1.0) & (t < 1.9)] -= 6.0  # a straight occluder edge cuts into 15 % of the disc
+    pts = np.column_stack((50 + r * np.cos(t), 40 + r * np.sin(t)))
+    fit = fit_circle_robust(pts)
+    assert fit.centre == pytest.approx((50, 40), abs=0.02)
+    assert fit.n_inliers < fit.n_points
+    assert fit.coverage < 1.0
+    with pytest.raises(ValueError):
+        fit_circle_robust(pts[:3])
+
+
+@pytest.mark.parametrize("r_px", [9.0, 20.0, 33.0])
+def test_edge_points_give_centres_to_a_few_hundredths_of_a_pixel(r_px):
+    rng = np.random.default_rng(int(r_px))
+    errs, zs = [], []
+    for k in range(6):
+        c = (48 + rng.uniform(-0.5, 0.5), 47 + rng.uniform(-0.5, 0.5))
+        img = _disc_image(c, r_px, noise=2.0, seed=k, size=int(2 * r_px * 1.6) + 20)
+        c = (c[0] - 48 + img.shape[1] / 2, c[1] - 47 + img.shape[0] / 2)
+        img = _disc_image(c, r_px, noise=2.0, seed=k, size=img.shape[0])
+        start = (c[0] + rng.uniform(-1, 1), c[1] + rng.uniform(-1, 1))
+        edges = disc_edge_points(img, start, r_px * 1.05, 1.4)
+        fit = fit_circle_robust(edges.points_px)
+        err = np.subtract(fit.centre, c)
+        errs.append(np.hypot(*err))
+        zs.extend(err / np.sqrt(np.diag(fit.covariance)))
+        assert fit.radius == pytest.approx(r_px, abs=0.4)  # the drawing blurs in gamma space
+        assert edges.contrast > 100
+    assert max(errs) < 0.03
+    assert np.sqrt(np.mean(np.square(zs))) < 2.0  # stated covariance not over-optimistic
+
+
+def test_edge_points_report_missing_contrast():
+    img = np.full((60, 60, 3), 200, np.uint8)
+    edges = disc_edge_points(img, (30.0, 30.0), 10.0, 1.4)
+    assert edges.points_px.shape == (0, 2)
+    assert edges.contrast == 0.0
+    edge = disc_edge_points(img, (1.0, 1.0), 0.5, 1.4)
+    assert edge.points_px.shape == (0, 2)
+
+
+def test_clipped_ring_is_reported():
+    img = _disc_image((40.0, 40.0), 15.0, size=80)
+    img[img > 225] = 255
+    edges = disc_edge_points(img, (40.0, 40.0), 15.0, 1.4)
+    assert edges.clipped_fraction > 0.9
+    fit = fit_circle_robust(edges.points_px)
+    assert math.hypot(fit.centre[0] - 40, fit.centre[1] - 40) < 0.03
