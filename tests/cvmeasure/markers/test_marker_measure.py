@@ -33,7 +33,7 @@ WARM = Lighting(cct_k=2700.0, wb_error_k=600.0)
 COOL = Lighting(cct_k=6500.0, wb_error_k=-600.0)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _render(pin=30.0, bend=25.0, light=WARM, seed=1, pose=None, occlude=(), geometry=None):
     return render_bender_photo(
         pin_angle_deg=pin,
