@@ -1,6 +1,7 @@
-"""Calibration session end to end (simulated bender + rendered photos): springback and part accuracy (issue 7).
+"""Calibration session end to end (TinyG double + rendered photos): springback and part accuracy (issue 7).
 
-Runs ``run_session`` against the simulated bender (cvmeasure.sim) with the
+Runs ``run_session`` against the TinyG double on a pty (its machine is
+cvmeasure.sim), driven through the streamer, with the
 simulated camera (datasets.render_bender_photo) and the marker measurement,
 then checks (a) each measured springback against the simulation's, and (b)
 that the calibration's compensation bends the seed paper's half circle (R 100
@@ -67,7 +68,12 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.driver.calibration import MODES
     from cvmeasure.driver.camera import SimulatedCamera
     from cvmeasure.driver.compensation import SPRINGBACK_MODELS
-    from cvmeasure.driver.session import SessionConfig, SimulatedBender, run_session
+    from cvmeasure.driver.session import (
+        SessionConfig,
+        double_photo_state,
+        run_session,
+        simulated_bender,
+    )
     from cvmeasure.sim import simulate
 
     scale = 0.25 if args.quick else 0.5
@@ -83,10 +89,18 @@ def main(argv: list[str] | None = None) -> dict:
     worst_sb, worst_part, seconds_per_bend = 0.0, {}, []
     for label, config in sessions.items():
         with tempfile.TemporaryDirectory() as tmp:
-            bender = SimulatedBender()
-            camera = SimulatedCamera(Path(tmp) / "photos", bender.state, scale=scale, seed=11)
+            bender = simulated_bender(speedup=200.0)
+            camera = SimulatedCamera(
+                Path(tmp) / "photos",
+                lambda b=bender: double_photo_state(b.double),
+                scale=scale,
+                seed=11,
+            )
             t0 = time.perf_counter()
-            result = run_session(bender, camera, tmp, config=config, model="linear")
+            try:
+                result = run_session(bender, camera, tmp, config=config, model="linear")
+            finally:
+                bender.close()
             elapsed = time.perf_counter() - t0
         steps = result.steps
         seconds_per_bend.append(elapsed / len(steps))
@@ -165,7 +179,8 @@ def main(argv: list[str] | None = None) -> dict:
             ),
         ],
         notes=[
-            "simulated bender = cvmeasure.sim defaults (3 mm steel, DIWire-like head), no effects;"
+            "bender = the TinyG double on a pty behind the streamer (speedup 200), its machine "
+            "= cvmeasure.sim defaults (3 mm steel, DIWire-like head), no effects;"
             " photos rendered by datasets.render_bender_photo and measured by "
             "cvmeasure.markers.measure_machine_photo with the render's lens model",
             "calibration angles are wanted loaded angles; the saddle's 3.48 deg segment lies "

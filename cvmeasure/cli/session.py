@@ -22,8 +22,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="calibration JSON to write")
     p.add_argument("--dir", type=Path, help="session folder (default: <out stem>_session/)")
-    p.add_argument("--simulate", action="store_true", help="simulated bender + camera")
+    p.add_argument(
+        "--simulate",
+        action="store_true",
+        help="the TinyG double on a pty (simulated machine) + the simulated camera",
+    )
+    p.add_argument("--port", help="the bender's serial port or URL (real sessions)")
     p.add_argument("--camera", help="camera URL: gphoto2://[port] or folder:///path")
+    p.add_argument(
+        "--speedup", type=float, default=200.0, help="time speed-up of the double (--simulate)"
+    )
     p.add_argument("--mode", choices=("quick", "standard"), default="quick")
     p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
@@ -65,10 +73,13 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.driver.session import (
         SessionConfig,
         SessionInterrupted,
-        SimulatedBender,
+        StreamedBender,
+        double_photo_state,
         run_session,
+        simulated_bender,
     )
     from cvmeasure.driver.session_report import write_session_report
+    from cvmeasure.driver.transport import open_link
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import write_csv_rows
     from cvmeasure.provenance import provenance
@@ -98,21 +109,19 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise InputError("--effect", str(exc)) from None
     if args.simulate:
-        machine = SimulatedBender(params, effects)
+        machine = simulated_bender(params=params, effects=effects, speedup=args.speedup)
+        double = machine.double
         camera = SimulatedCamera(
             session_dir / "photos",
-            machine.state,
+            lambda: double_photo_state(double, params),
             scale=args.scale,
             seed=args.seed,
         )
     else:
-        raise InputError(
-            "--simulate",
-            "only simulated sessions are available from the command line so far "
-            "(a real bender needs the streamer: use the library's run_session)",
-        )
-    if args.camera and not args.simulate:
+        if not (args.port and args.camera):
+            raise InputError("--port", "a real session needs --port URL and --camera URL")
         camera = open_camera(args.camera, session_dir / "photos")
+        machine = StreamedBender(open_link(args.port))
 
     def progress(done: int, total: int, step) -> None:
         if not args.quiet:
@@ -143,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
         return 3
     finally:
         camera.close()
+        machine.close()
     calibration = result.calibration
     from dataclasses import replace
 

@@ -19,10 +19,10 @@ on fresh wire. At the end the samples are fitted
 (:func:`~cvmeasure.driver.calibration.fit_calibration`).
 
 The machine is anything with ``run(lines)`` (send G-code lines and return once
-every move has finished) - e.g. the streamer on the TinyG double, or
-:class:`SimulatedBender`, an in-process stand-in that executes the same G-code
-on the simulation of :mod:`cvmeasure.sim` and exposes the machine state for
-the :class:`~cvmeasure.driver.camera.SimulatedCamera`.
+every move has finished): :class:`StreamedBender` drives a board through the
+streamer, a real one or the TinyG double (``sim://``), whose simulated machine
+state (:func:`double_photo_state`) the
+:class:`~cvmeasure.driver.camera.SimulatedCamera` renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
 "config": {...}}``, ``{"event": "bend", "step": i, ...}`` (written before
@@ -57,7 +57,9 @@ __all__ = [
     "SessionStep",
     "SessionResult",
     "SessionInterrupted",
-    "SimulatedBender",
+    "StreamedBender",
+    "simulated_bender",
+    "double_photo_state",
     "nominal_pin_for_loaded_deg",
     "photo_state",
     "session_gcode",
@@ -260,87 +262,74 @@ def session_gcode(
     raise ValueError(f"unknown G-code kind {kind!r}")
 
 
-# ----------------------------------------------------------------------------- simulated machine
+# ----------------------------------------------------------------------------- machines
 
 
-class SimulatedBender:
-    """An in-process bender that executes the session's G-code on :mod:`cvmeasure.sim`.
+class StreamedBender:
+    """A bender on a serial link, driven one action at a time through the streamer.
 
-    It understands G0/G1, G90/G91, G21 and the X (pin, deg of head rotation
-    from home), Y (feed, mm) and Z (duck) axes; moves are instantaneous. The
-    wire at the head is tracked: the deepest pin position since the last feed
-    is the bend; while the pin presses the wire shows the loaded angle, once
-    released the unloaded one (:meth:`state`).
+    Every :meth:`run` numbers its lines (``N`` words increasing over the whole
+    session) and streams them with :func:`cvmeasure.driver.stream.stream_job`,
+    which returns once the board has executed them (or raises
+    :class:`~cvmeasure.driver.stream.JobStopped` after a safe stop).
 
     Parameters
     ----------
-    params : cvmeasure.sim.SimParams, optional
-    effects : iterable of cvmeasure.sim.Effect
-        Machine effects of the simulated bender (backlash, offset, ...).
+    link : cvmeasure.driver.transport.Link
+        The open link (a real port, or ``sim://`` for the TinyG double).
+    config : cvmeasure.driver.stream.StreamConfig, optional
     """
 
-    def __init__(self, params: Any = None, effects: Sequence[Any] = ()) -> None:
-        from cvmeasure.sim import SimParams
-
-        self.params = params or SimParams()
-        self.effects = tuple(effects)
-        self.x_deg = 0.0
-        self.y_mm = 0.0
-        self.z_deg = 0.0
-        self.peak_deg = 0.0
-        self.bends = 0
+    def __init__(self, link: Any, *, config: Any = None, double: Any = None) -> None:
+        self.link = link
+        self.config = config
+        self.double = double
         self.lines: list[str] = []
-        self._relative = False
+        self._number = 0
 
     def run(self, lines: Sequence[str]) -> None:
+        from cvmeasure.driver.stream import stream_job
+
+        numbered = []
         for line in lines:
-            self.lines.append(line)
-            words = _axis_words(line)
-            if "G91" in line.upper().split():
-                self._relative = True
-            if "G90" in line.upper().split():
-                self._relative = False
-            for axis, value in words.items():
-                self._move(axis, value)
+            self._number += 1
+            numbered.append(f"N{self._number} {line}")
+        stream_job(self.link, numbered, config=self.config, source="session")
+        self.lines.extend(numbered)
 
-    def _move(self, axis: str, value: float) -> None:
-        if axis == "Y":
-            target = self.y_mm + value if self._relative else value
-            if target != self.y_mm:
-                self.peak_deg = 0.0  # fresh straight wire at the head
-            self.y_mm = target
-        elif axis == "Z":
-            self.z_deg = value
-        elif axis == "X":
-            x = self.x_deg + value if self._relative else value
-            if (
-                self.z_deg < 90
-                and abs(x) > abs(self.peak_deg)
-                and (self.peak_deg == 0 or math.copysign(1, x) == math.copysign(1, self.peak_deg))
-            ):
-                if self.peak_deg == 0:
-                    self.bends += 1
-                self.peak_deg = x
-            self.x_deg = x
+    def close(self) -> None:
+        """Close the link (and stop the double this bender owns, if any)."""
+        self.link.close()
+        if self.double is not None:
+            self.double.close()
 
-    def _simulate(self, command_deg: float) -> Any:
-        from cvmeasure.sim import simulate
 
-        return simulate(
-            [command_deg], self.params, self.effects, bend_index=[max(self.bends - 1, 0)]
-        )
+def simulated_bender(
+    *, params: Any = None, effects: Sequence[Any] = (), speedup: float = 200.0
+) -> StreamedBender:
+    """The TinyG double on a fresh pseudo-terminal, behind the streamer.
 
-    def state(self) -> MachineState:
-        """The pin angle (photo frame: origin -> pin from +x) and the wire's bend angle."""
-        x, peak = self.x_deg, self.peak_deg
-        if peak == 0:
-            return photo_state(x, 0.0, self.params)
-        bent = self._simulate(peak)
-        bend = float(bent.unloaded_bend_deg[0])
-        if x != 0 and math.copysign(1, x) == math.copysign(1, peak):
-            pressing = float(self._simulate(x).loaded_bend_deg[0])
-            bend = pressing if abs(pressing) > abs(bend) else bend
-        return photo_state(x, bend, self.params)
+    The double simulates the machine with :mod:`cvmeasure.sim` (``params``,
+    ``effects``); moves run ``speedup`` times faster than the real machine.
+    ``bender.double`` is the :class:`~cvmeasure.driver.double.FakeTinyG`;
+    ``bender.close()`` stops it.
+    """
+    from cvmeasure.driver.double import FakeTinyG
+    from cvmeasure.driver.transport import open_link
+
+    double = FakeTinyG(speedup=speedup, sim_params=params, sim_effects=effects).start()
+    try:
+        link = open_link("sim://", double=double)
+    except BaseException:
+        double.close()
+        raise
+    return StreamedBender(link, double=double)
+
+
+def double_photo_state(double: Any, params: Any = None) -> MachineState:
+    """What a photo of the TinyG double's machine shows right now (see :func:`photo_state`)."""
+    state = double.machine_state()
+    return photo_state(state.pin_deg, state.bend_angle_deg, params)
 
 
 def photo_state(pin_deg: float, bend_angle_deg: float, params: Any = None) -> MachineState:
@@ -359,15 +348,6 @@ def photo_state(pin_deg: float, bend_angle_deg: float, params: Any = None) -> Ma
     geom = head_geometry(params, side)
     phi = float(contact_angle_deg(geom)) - params.approach_deg + abs(pin_deg)
     return MachineState(pin_angle_deg=side * phi, bend_angle_deg=float(bend_angle_deg))
-
-
-def _axis_words(line: str) -> dict[str, float]:
-    words: dict[str, float] = {}
-    text = line.upper().split("(")[0].split(";")[0]
-    for token in text.replace("G", " G").split():
-        if token[0] in "XYZA" and len(token) > 1:
-            words[token[0]] = float(token[1:])
-    return words
 
 
 # ----------------------------------------------------------------------------- the session

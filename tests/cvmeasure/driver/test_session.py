@@ -17,10 +17,11 @@ from cvmeasure.cli import main
 from cvmeasure.driver.calibration import load_calibration
 from cvmeasure.driver.session import (
     SessionConfig,
-    SimulatedBender,
+    double_photo_state,
     nominal_pin_for_loaded_deg,
     read_session_log,
     session_gcode,
+    simulated_bender,
 )
 from cvmeasure.sim import simulate
 
@@ -107,20 +108,29 @@ def test_resume_refuses_another_plan(tmp_path, capsys):
     assert main([*args, "--angles", "abc"]) == 2
 
 
-def test_simulated_bender_tracks_loaded_and_unloaded():
+def test_double_behind_the_streamer_shows_loaded_then_unloaded():
     config = SessionConfig()
-    bender = SimulatedBender()
     pin = round(nominal_pin_for_loaded_deg(45.0, "cw"), 3)
     truth = simulate([pin])
-    bender.run(session_gcode("setup", config))
-    assert bender.state().bend_angle_deg == 0.0
-    bender.run(session_gcode("feed", config) + session_gcode("bend", config, pin_deg=pin))
-    assert bender.state().bend_angle_deg == pytest.approx(truth.loaded_bend_deg[0])
-    assert bender.state().bend_angle_deg == pytest.approx(-45.0, abs=0.01)
-    bender.run(session_gcode("release", config))
-    assert bender.state().bend_angle_deg == pytest.approx(truth.unloaded_bend_deg[0])
-    bender.run(session_gcode("feed", config))
-    assert bender.state().bend_angle_deg == 0.0
+    bender = simulated_bender(speedup=500.0)
+    try:
+        bender.run(session_gcode("setup", config))
+        assert double_photo_state(bender.double).bend_angle_deg == 0.0
+        bender.run(session_gcode("feed", config) + session_gcode("bend", config, pin_deg=pin))
+        loaded = double_photo_state(bender.double)
+        assert loaded.bend_angle_deg == pytest.approx(truth.loaded_bend_deg[0], abs=1e-9)
+        assert loaded.bend_angle_deg == pytest.approx(-45.0, abs=0.01)
+        assert (
+            loaded.bend_angle_deg < loaded.pin_angle_deg < 0
+        )  # the pin pushes the leg from outside
+        bender.run(session_gcode("release", config))
+        unloaded = double_photo_state(bender.double)
+        assert unloaded.bend_angle_deg == pytest.approx(truth.unloaded_bend_deg[0], abs=1e-9)
+        bender.run(session_gcode("feed", config))
+        assert double_photo_state(bender.double).bend_angle_deg == 0.0
+        assert bender.lines[0].startswith("N1 G21") and bender.lines[-1] == "N11 G90"
+    finally:
+        bender.close()
     lines = session_gcode("bend", config, pin_deg=30.0, previous_direction="cw")
     assert lines[:3] == ["G0 Z180", "G0 X0", "G0 Z0"]
     assert all(not set(line) & set("!~%$?") for line in lines)
