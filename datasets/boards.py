@@ -16,7 +16,7 @@ from cvmeasure.camera import CameraModel
 from datasets.lighting import Lighting, srgb8_to_linear
 from datasets.optics import Pose, project_frame_points
 from datasets.photo import RenderedPhoto, render_scene, resolve_camera
-from datasets.raster import Layer, Window, sdf_alpha, sdf_rect
+from datasets.raster import Layer, Window, box_coverage, sdf_alpha, sdf_rect
 
 __all__ = ["board_layers", "board_truth", "render_board_view", "random_board_poses"]
 
@@ -33,12 +33,16 @@ def _squares(board: BoardSpec) -> tuple[int, int, float]:
     raise TypeError(f"unknown board spec {type(board).__name__}")
 
 
-def _square_wave(coord_mm: np.ndarray, grad_px: np.ndarray, square_mm: float, n: int):
-    """Box-filtered +-1 wave, +1 in even squares, with lines only inside the board."""
+def _square_wave(coord_mm: np.ndarray, gx: np.ndarray, gy: np.ndarray, square_mm: float, n: int):
+    """Box-filtered +-1 wave, +1 in even squares, with lines only inside the board.
+
+    ``(gx, gy)`` is the pixel gradient of ``coord_mm`` (mm per pixel).
+    """
     k = np.clip(np.round(coord_mm / square_mm), 1, n - 1)
-    d_px = (coord_mm - k * square_mm) / np.maximum(grad_px, 1e-9)
+    d_px = (coord_mm - k * square_mm) / np.maximum(np.hypot(gx, gy), 1e-12)
     sign = 1.0 - 2.0 * np.mod(k, 2)
-    return sign * np.clip(2.0 * d_px, -1.0, 1.0)
+    # coverage of the side beyond the line (the square k), mapped to -1..1
+    return sign * (2.0 * box_coverage(-d_px, gx, gy) - 1.0)
 
 
 def _checker_alpha(board: BoardSpec, first_black_parity: int):
@@ -48,8 +52,8 @@ def _checker_alpha(board: BoardSpec, first_black_parity: int):
 
     def alpha(win: Window) -> np.ndarray:
         du_dx, du_dy, dv_dx, dv_dy = win.jacobian()
-        su = _square_wave(win.u, np.hypot(du_dx, du_dy), s, sx)
-        sv = _square_wave(win.v, np.hypot(dv_dx, dv_dy), s, sy)
+        su = _square_wave(win.u, du_dx, du_dy, s, sx)
+        sv = _square_wave(win.v, dv_dx, dv_dy, s, sy)
         inside = sdf_alpha(sdf_rect(win.u, win.v, (width / 2, height / 2), (width / 2, height / 2)))
         return 0.5 * (1.0 + sigma * su * sv) * inside
 
@@ -206,7 +210,7 @@ def random_board_poses(
 
     The first view is nearly fronto-parallel; the others are tilted 15 to
     ``max_tilt_deg`` towards evenly spread directions, yawed up to +-25 degrees,
-    at distances where the board fills 45-85 % of the image width, and aimed
+    at distances where the board fills 60-90 % of the image width, and aimed
     off-centre so corners reach the image edges (where distortion shows). Every
     pose keeps the whole board (plus its paper margin) inside the image.
     """
@@ -233,7 +237,7 @@ def random_board_poses(
         if attempts > 200 * n:
             raise RuntimeError("could not place the board in the image; try a smaller board")
         i = len(poses)
-        fill = rng.uniform(0.45, 0.85)
+        fill = rng.uniform(0.6, 0.9)
         dist = cam.fx * width / (fill * w)
         if i == 0:
             tilt, direction = rng.uniform(0.0, 4.0), rng.uniform(0.0, 360.0)

@@ -6,7 +6,7 @@ The pipeline, in order (all in linear light, RGB in the sRGB primaries):
    colour-science) multiplies the albedo (von Kries model in sRGB; the
    albedo is the colour seen under D65), normalised so its largest channel is 1;
 2. exposure and vignetting (``1 - vignetting * (r / r_corner)^2``);
-3. lens/sensor blur (Gaussian, ``blur_px`` at the seed resolution);
+3. lens/sensor blur (Gaussian of ``blur_px``, in output pixels);
 4. sensor noise: shot noise (``full_well_e`` electrons at full scale)
    plus Gaussian read noise (both drawn as Gaussians), scaled by ``noise`` (0 = none);
 5. white balance: the camera divides by the illuminant it *believes* in
@@ -39,7 +39,7 @@ class Lighting:
     vignetting : relative fall-off of brightness in the image corners.
     noise : multiplier on shot + read noise (0 = noiseless).
     full_well_e, read_noise_e : sensor electrons at full scale and read noise, e-.
-    blur_px : Gaussian sigma of the lens + demosaicing blur, pixels at 4608 px width.
+    blur_px : Gaussian sigma of the lens + demosaicing blur, in output pixels.
     jpeg_quality : 1..100, or None for no JPEG compression.
     shadow_strength : darkness of cast shadows (0 = none).
     light_azimuth_deg : direction the light comes from, in the scene frame (shadows
@@ -54,7 +54,7 @@ class Lighting:
     noise: float = 1.0
     full_well_e: float = 15000.0
     read_noise_e: float = 4.0
-    blur_px: float = 0.7
+    blur_px: float = 0.6
     jpeg_quality: int | None = 92
     shadow_strength: float = 0.35
     light_azimuth_deg: float = 135.0
@@ -73,14 +73,18 @@ class Lighting:
         return float(np.clip(self.cct_k + self.wb_error_k, 1667.0, 25000.0))
 
     @classmethod
-    def clean(cls) -> Lighting:
-        """Daylight, perfect white balance, no vignetting, blur, noise or JPEG."""
+    def clean(cls, *, blur_px: float = 0.6) -> Lighting:
+        """Daylight, perfect white balance, no vignetting, noise or JPEG (lens blur kept).
+
+        ``blur_px`` stays at 0.6 px (sub-pixel detectors need a band-limited
+        image, as every real lens gives them); pass ``blur_px=0`` for a bare render.
+        """
         return cls(
             cct_k=6504.0,
             wb_error_k=0.0,
             vignetting=0.0,
             noise=0.0,
-            blur_px=0.0,
+            blur_px=blur_px,
             jpeg_quality=None,
         )
 
@@ -94,7 +98,7 @@ class Lighting:
             exposure=float(rng.uniform(0.7, 1.15)),
             vignetting=float(rng.uniform(0.05, 0.35)),
             noise=1.0,
-            blur_px=float(rng.uniform(0.4, 1.0)),
+            blur_px=float(rng.uniform(0.5, 1.0)),
             jpeg_quality=int(rng.integers(80, 97)),
             light_azimuth_deg=float(rng.uniform(0.0, 360.0)),
         )
@@ -153,12 +157,10 @@ def develop(
     lighting: Lighting,
     *,
     seed: int,
-    scale: float = 1.0,
     keep_linear: bool = False,
 ) -> Developed:
     """Turn a linear albedo image (H, W, 3) float32 into a photo (see module docstring).
 
-    ``scale`` is the image width relative to 4608 px (it scales ``blur_px``).
     Deterministic for a given ``seed``.
     """
     import cv2
@@ -173,7 +175,7 @@ def develop(
             ((w - 1) / 2) ** 2 + ((h - 1) / 2) ** 2
         )
         raw *= (1.0 - lighting.vignetting * r2).astype(np.float32)[..., None]
-    sigma = lighting.blur_px * scale
+    sigma = lighting.blur_px
     if sigma > 0.05:
         raw = cv2.GaussianBlur(raw, (0, 0), sigmaX=sigma, sigmaY=sigma)
     if lighting.noise > 0:

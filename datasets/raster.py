@@ -7,12 +7,12 @@ pixels the plane coordinates come from :func:`datasets.optics.plane_coords_mm`
 (exact undistortion + ray/plane intersection) and the layer returns a coverage
 ``alpha`` in [0, 1]:
 
-* signed-distance layers (discs, capsules, rectangles): ``alpha = clip(0.5 -
-  sdf_mm / mm_per_px, 0, 1)`` with ``mm_per_px`` the length of the sdf's pixel
-  gradient, i.e. the box-filtered coverage of a straight edge. The ramp is
-  symmetric about the true edge, so edge positions are unbiased;
-* the checker of a board: the product of two such ramps (the exact box filter
-  of a separable pattern);
+* signed-distance layers (discs, capsules, rectangles): the exact box-filtered
+  coverage of a straight edge at the local distance and orientation (from the
+  sdf and its pixel gradient, :func:`box_coverage`); the profile is symmetric
+  about the true edge, so edge positions are unbiased;
+* the checker of a board: the product of two such per-axis coverages (the
+  exact box filter of the pattern where the pixel grid is aligned with it);
 * ArUco bit patterns: separable "sharp bilinear" sampling of the bit grid,
   again the box filter of the cells.
 """
@@ -31,6 +31,7 @@ from datasets.optics import plane_coords_mm, project_frame_points
 __all__ = [
     "Window",
     "Layer",
+    "box_coverage",
     "sdf_alpha",
     "sdf_circle",
     "sdf_capsules",
@@ -68,14 +69,39 @@ class Window:
         return a[1:-1, 1:-1]
 
 
-def sdf_alpha(sdf_mm: np.ndarray, soft_mm: float = 0.0) -> np.ndarray:
-    """Pixel coverage of the region ``sdf_mm < 0`` (box filter of a straight edge).
+def box_coverage(dist_px: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """Exact coverage of a unit square pixel by the half-plane behind a straight edge.
 
-    ``soft_mm`` widens the ramp (soft shadows, out-of-focus edges).
+    ``dist_px`` is the signed distance (pixels, positive outside) of the pixel
+    centre from the edge, ``(gx, gy)`` the edge normal in pixel axes (any
+    length). Projected on the normal, the pixel's area is the sum of two
+    uniform variables of widths ``|nx|`` and ``|ny|`` (a trapezoid), whose
+    CDF gives the covered fraction.
+    """
+    norm = np.maximum(np.hypot(gx, gy), 1e-300)
+    a = np.abs(gx) / norm
+    b = np.abs(gy) / norm
+    a, b = np.maximum(a, b), np.minimum(a, b)
+    x = -np.abs(dist_px)  # evaluate the lower tail, mirror afterwards
+    lo = -(a + b) / 2
+    mid = -(a - b) / 2
+    quad = np.where(b > 1e-9, (x - lo) ** 2 / (2 * a * np.maximum(b, 1e-9)), 0.0)
+    tail = np.where(x <= lo, 0.0, np.where(x <= mid, quad, (x + a / 2) / a))
+    return np.where(dist_px >= 0, tail, 1.0 - tail)
+
+
+def sdf_alpha(sdf_mm: np.ndarray, soft_mm: float = 0.0) -> np.ndarray:
+    """Pixel coverage of the region ``sdf_mm < 0``.
+
+    The exact box filter of a straight edge at the local orientation
+    (:func:`box_coverage`); ``soft_mm`` instead uses a linear ramp widened by
+    that many mm (soft shadows).
     """
     gy, gx = np.gradient(sdf_mm)
-    mm_per_px = np.maximum(np.hypot(gx, gy), 1e-9)
-    return np.clip(0.5 - sdf_mm / (mm_per_px + soft_mm), 0.0, 1.0)
+    mm_per_px = np.maximum(np.hypot(gx, gy), 1e-12)
+    if soft_mm > 0:
+        return np.clip(0.5 - sdf_mm / (mm_per_px + soft_mm), 0.0, 1.0)
+    return box_coverage(sdf_mm / mm_per_px, gx, gy)
 
 
 def sdf_circle(u: np.ndarray, v: np.ndarray, centre_mm: Sequence[float], radius_mm: float):

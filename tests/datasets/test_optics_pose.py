@@ -1,0 +1,88 @@
+"""Camera, pose and the pixel -> plane trace of the photo lab."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from datasets import Pose, default_camera
+from datasets.optics import plane_coords_mm, project_frame_points
+
+
+def test_default_camera_is_the_seed_camera():
+    cam = default_camera()
+    assert cam.image_size_px == (4608, 3072)
+    assert cam.fx == pytest.approx(7000.0) and cam.fy == pytest.approx(7000.0)
+    small = default_camera((1152, 768))
+    assert small.image_size_px == (1152, 768)
+    assert small.fx == pytest.approx(1750.0)
+    # barrel distortion: a corner ray lands closer to the centre than the pinhole image
+    corner = cam.project(np.array([[2304 / 7000, 1536 / 7000, 1.0]]))[0]
+    cx, cy = cam.principal_point_px
+    assert 20.0 < np.hypot(2304, 1536) - np.hypot(corner[0] - cx, corner[1] - cy) < 60.0
+    with pytest.raises(ValueError, match="aspect"):
+        default_camera((1000, 1000))
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 30.0, -75.0])
+def test_machine_frame_is_not_mirrored_and_yaw_turns_ccw(yaw_deg):
+    cam = default_camera((1152, 768))
+    rot, t = Pose(yaw_deg=yaw_deg, distance_mm=800.0).extrinsics("machine")
+    o, px, py = project_frame_points(cam, rot, t, np.array([[0, 0], [10, 0], [0, 10]]))
+    # image y points down: negate it to get counter-clockwise-as-seen angles
+    ang_x = np.degrees(np.arctan2(-(px - o)[1], (px - o)[0]))
+    ang_y = np.degrees(np.arctan2(-(py - o)[1], (py - o)[0]))
+    assert ang_x == pytest.approx(yaw_deg, abs=0.05)  # small: distortion off-axis
+    assert (ang_y - ang_x) % 360 == pytest.approx(90.0, abs=0.05)
+
+
+def test_board_frame_appears_x_right_y_down():
+    cam = default_camera((1152, 768))
+    rot, t = Pose(distance_mm=800.0, offset_mm=(100.0, 50.0)).extrinsics("board")
+    o, px, py = project_frame_points(cam, rot, t, np.array([[100, 50], [110, 50], [100, 60]]))
+    assert (px - o)[0] > 10 and abs((px - o)[1]) < 0.05
+    assert (py - o)[1] > 10 and abs((py - o)[0]) < 0.05
+
+
+@pytest.mark.parametrize("frame", ["board", "machine"])
+def test_tilt_places_the_camera_where_the_pose_says(frame):
+    pose = Pose(tilt_deg=30.0, tilt_direction_deg=120.0, distance_mm=600.0, offset_mm=(5.0, -7.0))
+    rot, t = pose.extrinsics(frame)
+    assert np.allclose(rot @ rot.T, np.eye(3), atol=1e-12) and np.linalg.det(rot) > 0
+    centre = -rot.T @ t
+    rel = centre - np.array([5.0, -7.0, 0.0])
+    assert np.linalg.norm(rel) == pytest.approx(600.0)
+    assert np.degrees(np.arccos(abs(rel[2]) / 600.0)) == pytest.approx(30.0)
+    assert np.degrees(np.arctan2(rel[1], rel[0])) == pytest.approx(120.0)
+    # the camera sits on the side the frame's normal says (machine z up, board z down)
+    assert (rel[2] > 0) == (frame == "machine")
+    # and looks at the target: it projects to the principal point
+    cam = default_camera((1152, 768))
+    target_px = project_frame_points(cam, rot, t, np.array([[5.0, -7.0]]))[0]
+    assert np.allclose(target_px, cam.principal_point_px, atol=1e-9)
+
+
+def test_plane_trace_inverts_the_projection():
+    cam = default_camera((1152, 768))
+    pose = Pose(tilt_deg=35.0, tilt_direction_deg=-40.0, yaw_deg=12.0, distance_mm=500.0)
+    rot, t = pose.extrinsics("machine")
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-120, 120, (200, 2))
+    px = project_frame_points(cam, rot, t, pts)
+    keep = (px[:, 0] > 0) & (px[:, 0] < 1151) & (px[:, 1] > 0) & (px[:, 1] < 767)
+    u, v = plane_coords_mm(cam, rot, t, px[keep, 0], px[keep, 1])
+    err = np.hypot(u - pts[keep, 0], v - pts[keep, 1])
+    assert keep.sum() > 50 and err.max() < 1e-7
+
+
+def test_pose_validates_and_round_trips():
+    with pytest.raises(ValueError):
+        Pose(tilt_deg=85.0)
+    with pytest.raises(ValueError):
+        Pose(distance_mm=0.0)
+    with pytest.raises(ValueError):
+        Pose().extrinsics("table")  # type: ignore[arg-type]
+    pose = Pose(
+        tilt_deg=10.0, tilt_direction_deg=5.0, yaw_deg=-3.0, distance_mm=700.0, offset_mm=(1, 2)
+    )
+    assert Pose.from_dict(pose.to_dict()) == pose
