@@ -39,7 +39,12 @@ from cvmeasure.diagnose.fitting import (
     residuals,
 )
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
-from cvmeasure.diagnose.residuals import ResidualTrend, residual_trends
+from cvmeasure.diagnose.residuals import (
+    LeftoverCheck,
+    ResidualTrend,
+    leftover_structure,
+    residual_trends,
+)
 from cvmeasure.diagnose.trials import TrialSet
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
@@ -102,6 +107,7 @@ class Diagnosis:
     trends_after: tuple[ResidualTrend, ...]
     identifiability: tuple[Identifiability, ...]
     recommended_experiment: str | None
+    leftover: LeftoverCheck
     nominal_params: SimParams
     n_trials: int
     n_folds: int
@@ -156,6 +162,7 @@ class Diagnosis:
                 "after": [t.to_dict() for t in self.trends_after],
             },
             "identifiability": [i.to_dict() for i in self.identifiability],
+            "leftover": self.leftover.to_dict(),
             "recommended_experiment": self.recommended_experiment,
             "n_trials": self.n_trials,
             "n_folds": self.n_folds,
@@ -182,7 +189,8 @@ def _design_notes(trials: TrialSet) -> list[str]:
     if not trials.both_directions:
         notes.append(
             "the plan bends in one direction only: per-direction causes (offset, backlash, "
-            "axis offset, springback asymmetry) are confounded; add reverse bends"
+            "axis offset, springback asymmetry) are told apart only by their shape along the "
+            "angle, not by their sign; add reverse bends"
         )
     if not trials.has_loaded:
         notes.append(
@@ -297,6 +305,14 @@ def diagnose(
     ext_res = residuals(
         trials, params, base_effects, ext_fit.cause, ext_fit.strength_scale, ext_fit.value
     )
+    leftover = leftover_structure(trials, ext_res, fold_masks)
+    if leftover.unnamed:
+        notes.append(
+            f"a discrepancy remains that no named cause explains (a smoother along the "
+            f"commanded angle lowers the held-out residual RMSE by {100 * leftover.gain:.0f} %): "
+            "check the geometry parameters (die radius, pin radius and orbit, head axis) "
+            "or look for two causes at once"
+        )
     return Diagnosis(
         cause=cause,
         params=params_out,
@@ -312,6 +328,7 @@ def diagnose(
         trends_after=tuple(residual_trends(trials, ext_res)),
         identifiability=ident,
         recommended_experiment=experiment,
+        leftover=leftover,
         nominal_params=params,
         n_trials=len(trials),
         n_folds=len(fold_masks),
