@@ -60,6 +60,7 @@ __all__ = [
     "measure_photo_file",
     "measure_trial",
     "to_bgr8",
+    "refine_candidate",
     "SEED_CENTRE_SIGMA_PX",
 ]
 
@@ -266,10 +267,14 @@ def _transform(
     return _Transform("image")
 
 
-def _refine(
+def refine_candidate(
     bgr: np.ndarray, cand: MarkerCandidate, ring_ratio: float
 ) -> tuple[CircleFit, Any] | str:
-    """Sub-pixel circle of one disc (image px), or why there is none."""
+    """Sub-pixel circle of one found disc (image px) and its edge points, or why there is none.
+
+    Edge points are re-extracted around the refined circle until it stops moving
+    (at most three passes).
+    """
     centre, radius = cand.centre_px, cand.radius_px
     fit = None
     edges = None
@@ -345,7 +350,7 @@ def _measure_ours(
         if role not in search.found:
             continue
         spec = kit.by_role(role)
-        got = _refine(bgr, search.found[role], spec.ring_mm / spec.diameter_mm)
+        got = refine_candidate(bgr, search.found[role], spec.ring_mm / spec.diameter_mm)
         if isinstance(got, str):
             failures[role] = got
         else:

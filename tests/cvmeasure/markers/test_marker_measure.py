@@ -6,8 +6,6 @@ tolerances below are for that size (the benchmark checks full size).
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 import pytest
 
@@ -19,32 +17,17 @@ from cvmeasure.markers import (
     springback_deg,
 )
 
-datasets = pytest.importorskip("datasets.bender")
-from datasets.bender import BenderGeometry, render_bender_photo  # noqa: E402
+pytest.importorskip("datasets.bender")
+from datasets.bender import BenderGeometry  # noqa: E402
 from datasets.lighting import Lighting  # noqa: E402
 from datasets.optics import Pose  # noqa: E402
 
-SCALE = 0.3
 PIN_TOL_DEG = 0.15  # pin marker is 18 mm from the origin: ~43 px at this scale
 BEND_TOL_DEG = 0.06  # wire_a -> wire_b is 40 mm: ~96 px
 CENTRE_TOL_PX = 0.12
 
 WARM = Lighting(cct_k=2700.0, wb_error_k=600.0)
 COOL = Lighting(cct_k=6500.0, wb_error_k=-600.0)
-
-
-@functools.cache
-def _render(pin=30.0, bend=25.0, light=WARM, seed=1, pose=None, occlude=(), geometry=None):
-    return render_bender_photo(
-        pin_angle_deg=pin,
-        bend_angle_deg=bend,
-        lighting=light,
-        seed=seed,
-        scale=SCALE,
-        pose=pose,
-        occlude=dict(occlude),
-        geometry=geometry,
-    )
 
 
 def _check(res, photo, pin_tol=PIN_TOL_DEG, bend_tol=BEND_TOL_DEG, centre_tol=CENTRE_TOL_PX):
@@ -59,8 +42,8 @@ def _check(res, photo, pin_tol=PIN_TOL_DEG, bend_tol=BEND_TOL_DEG, centre_tol=CE
 
 @pytest.mark.parametrize("space", ["lab", "rgb"])
 @pytest.mark.parametrize("light", [WARM, COOL], ids=["2700K", "6500K"])
-def test_every_role_under_warm_and_cool_light(space, light):
-    photo = _render(light=light)
+def test_every_role_under_warm_and_cool_light(render, space, light):
+    photo = render(light=light)
     res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera, space=space)
     _check(res, photo)
     assert res.frame == "undistorted"
@@ -72,14 +55,14 @@ def test_every_role_under_warm_and_cool_light(space, light):
 
 
 @pytest.mark.parametrize(("pin", "bend"), [(-60.0, -50.0), (120.0, 110.0), (5.0, 0.0)])
-def test_signs_and_large_angles(pin, bend):
-    photo = _render(pin=pin, bend=bend, light=Lighting(cct_k=4000.0), seed=3)
+def test_signs_and_large_angles(render, pin, bend):
+    photo = render(pin=pin, bend=bend, light=Lighting(cct_k=4000.0), seed=3)
     res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
     _check(res, photo)
 
 
-def test_record_is_the_spec_json_lines_object():
-    photo = _render()
+def test_record_is_the_spec_json_lines_object(render):
+    photo = render()
     rec = measure_machine_photo(photo.bgr, default_kit(), photo="a.jpg").to_dict()
     assert list(rec) == [
         "photo",
@@ -96,9 +79,9 @@ def test_record_is_the_spec_json_lines_object():
     assert rec["markers"]["pin"]["r_px"] == pytest.approx(r_true, rel=0.05)
 
 
-def test_lens_model_and_plane_remove_tilt_and_distortion_bias():
+def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render):
     pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
-    photo = _render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
+    photo = render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
     kit = default_kit()
     rot, t_mm = pose.extrinsics("machine")
     k = photo.camera.camera_matrix
@@ -114,32 +97,32 @@ def test_lens_model_and_plane_remove_tilt_and_distortion_bias():
     assert rect.pin_angle_deg == pytest.approx(photo.truth["pin_angle_deg"], abs=PIN_TOL_DEG)
 
 
-def test_partly_hidden_marker_warns_and_still_measures():
-    photo = _render(occlude=(("wire_b", 0.3),), seed=5)
+def test_partly_hidden_marker_warns_and_still_measures(render):
+    photo = render(occlude=(("wire_b", 0.3),), seed=5)
     res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
     assert any("'wire_b' partly hidden" in w for w in res.warnings)
     _check(res, photo, bend_tol=2 * BEND_TOL_DEG, centre_tol=0.3)
 
 
-def test_overlapping_markers():
+def test_overlapping_markers(render):
     # the pin's white ring lies over the edge of the origin's disc
     geo = BenderGeometry(pin_radius_mm=10.0)
-    photo = _render(pin=-20.0, geometry=geo, seed=6)
+    photo = render(pin=-20.0, geometry=geo, seed=6)
     res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
     assert any("'origin' partly hidden" in w for w in res.warnings)
     _check(res, photo, pin_tol=0.3, centre_tol=0.3)
 
 
-def test_missing_marker_names_the_role():
-    photo = _render(occlude=(("axis", 1.0),), seed=7)
+def test_missing_marker_names_the_role(render):
+    photo = render(occlude=(("axis", 1.0),), seed=7)
     with pytest.raises(MarkerNotFoundError) as err:
         measure_machine_photo(photo.bgr, default_kit(), source="photos/p7.jpg")
     assert list(err.value.reasons) == ["axis"]
     assert str(err.value).startswith("photos/p7.jpg: marker 'axis' (yellow-green) not found")
 
 
-def test_ambiguous_marker_names_both_places():
-    photo = _render(seed=8)
+def test_ambiguous_marker_names_both_places(render):
+    photo = render(seed=8)
     img = photo.bgr.copy()
     x, y = (round(v) for v in photo.truth["markers"]["pin"]["centre_px"])
     r = round(photo.truth["markers"]["pin"]["r_px"] * 1.6)
@@ -150,8 +133,8 @@ def test_ambiguous_marker_names_both_places():
         measure_machine_photo(img, default_kit())
 
 
-def test_wrong_kit_is_reported_not_measured():
-    photo = _render()
+def test_wrong_kit_is_reported_not_measured(render):
+    photo = render()
     other = MarkerKit(
         "other",
         (
@@ -167,8 +150,8 @@ def test_wrong_kit_is_reported_not_measured():
     assert len(err.value.reasons) >= 3
 
 
-def test_seed_method_runs_on_a_clean_photo_and_is_coarser():
-    photo = _render(light=Lighting.clean(), seed=9)
+def test_seed_method_runs_on_a_clean_photo_and_is_coarser(render):
+    photo = render(light=Lighting.clean(), seed=9)
     kit = default_kit()
     seed = measure_machine_photo(photo.bgr, kit, method="seed")
     ours = measure_machine_photo(photo.bgr, kit, camera=photo.camera)
@@ -177,9 +160,9 @@ def test_seed_method_runs_on_a_clean_photo_and_is_coarser():
     assert seed.uncertainty_deg["bend_angle_deg"] > 5 * ours.uncertainty_deg["bend_angle_deg"]
 
 
-def test_trial_springback_from_a_loaded_and_unloaded_pair():
-    loaded = _render(pin=40.0, bend=35.0, seed=10)
-    unloaded = _render(pin=10.0, bend=31.5, seed=11)
+def test_trial_springback_from_a_loaded_and_unloaded_pair(render):
+    loaded = render(pin=40.0, bend=35.0, seed=10)
+    unloaded = render(pin=10.0, bend=31.5, seed=11)
     kit = default_kit()
     trial = measure_trial(
         measure_machine_photo(loaded.bgr, kit, camera=loaded.camera, photo="l.jpg"),
@@ -194,8 +177,8 @@ def test_trial_springback_from_a_loaded_and_unloaded_pair():
     assert rec["uncertainty_deg"]["springback_deg"] > 0
 
 
-def test_sixteen_bit_and_linear_input():
-    photo = _render()
+def test_sixteen_bit_and_linear_input(render):
+    photo = render()
     kit = default_kit()
     a = measure_machine_photo(photo.bgr, kit)
     b = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit)
