@@ -76,6 +76,7 @@ DEMO_STAGES: tuple[tuple[str, str], ...] = (
     ("bender photos", "cvmeasure.markers.demo"),
     ("finished part", "cvmeasure.part.demo"),
     ("diagnosis", "cvmeasure.diagnose.demo"),
+    ("bender streaming", "cvmeasure.driver.streaming_demo"),
 )
 
 

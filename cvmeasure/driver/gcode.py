@@ -85,6 +85,13 @@ class SimCompensator:
 
         return float(pin_command_for_angle(float(target_final_deg), self.params, self.effects))
 
+    def compensate_many(self, targets_deg: ArrayLike) -> np.ndarray:
+        """Vectorised :meth:`compensate` (raises ValueError if any target is unreachable)."""
+        from cvmeasure.sim import pin_command_for_angle
+
+        t = np.asarray(targets_deg, dtype=np.float64)
+        return np.asarray(pin_command_for_angle(t, self.params, self.effects), dtype=np.float64)
+
 
 @dataclass(frozen=True)
 class BendStep:
@@ -320,6 +327,12 @@ def pin_commands(
         beyond the machine), naming the design and the bend.
     """
     comp = compensation if compensation is not None else SimCompensator()
+    many = getattr(comp, "compensate_many", None)
+    if many is not None and len(bends.bends_deg):
+        try:
+            return tuple(float(p) for p in many(bends.bends_deg))
+        except ValueError:
+            pass  # find and name the bend one by one below
     fn = comp.compensate if hasattr(comp, "compensate") else comp
     out = []
     for i, target in enumerate(bends.bends_deg, start=1):
