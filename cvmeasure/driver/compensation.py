@@ -23,8 +23,11 @@ Springback models (:data:`SPRINGBACK_MODELS`):
     monotone piecewise-cubic Hermite interpolation (Fritsch-Carlson) of the
     loaded angle over the final angle: C1, no overshoot, invertible.
 ``physical``
-    the affine springback law of :mod:`cvmeasure.sim` (``springback = a + b *
-    loaded``, free span plus wrapped zone), two parameters per direction.
+    the springback law of :mod:`cvmeasure.sim`: ``springback = b * loaded + k *
+    lever(loaded)`` (wrapped zone plus free span, whose length ``lever`` follows
+    from the nominal head geometry's tangent construction), two parameters per
+    direction, fitted by least squares; the one model that may be trusted a
+    little beyond its data (it still refuses by default).
 
 Every model is scored by leave-one-angle-out error (the interpolants are exact
 at their own knots, so in-sample error says nothing about them): each interior
@@ -44,6 +47,7 @@ with ``outside="clamp"`` clamps and warns.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -70,6 +74,7 @@ __all__ = [
     "fit_motion",
     "fit_compensation",
     "direction_of",
+    "nominal_lever_mm",
 ]
 
 SpringbackModel = Literal["linear", "cubic", "pchip", "physical"]
@@ -174,8 +179,8 @@ class SpringbackCurve:
         bend angle, averaged over repeats, sorted by final angle.
     coef : tuple of float
         Model coefficients: cubic ``springback = c0 + c1 f + c2 f^2 + c3 f^3``
-        (f = final angle, deg); physical ``(a_deg, b)`` of ``springback = a + b *
-        loaded``; empty for the interpolants.
+        (f = final angle, deg); physical ``(b, k_deg_per_mm)`` of ``springback
+        = b * loaded + k * lever_mm(loaded)``; empty for the interpolants.
     domain_deg : (float, float)
         The calibrated final-angle range; compensation outside it is refused.
     rmse_deg : float
@@ -206,7 +211,9 @@ class SpringbackCurve:
         """Loaded angle magnitude (deg) that springs back to ``final_deg`` (magnitude, deg)."""
         f = np.asarray(final_deg, dtype=np.float64)
         x = _range_policy(np.atleast_1d(f), self.domain_deg, outside, "final angle")
-        out = _springback_loaded(self.model, self.final_deg, self.loaded_deg, self.coef, x)
+        out = _springback_loaded(
+            self.model, self.final_deg, self.loaded_deg, self.coef, x, self.direction
+        )
         return float(out[0]) if f.ndim == 0 else out
 
     def springback_deg(self, final_deg: ArrayLike, *, outside: Outside = "raise") -> Any:
@@ -253,7 +260,31 @@ def _opt_float(value: Any) -> float | None:
     return None if value is None else float(value)
 
 
-def _springback_coef(model: str, final: np.ndarray, loaded: np.ndarray) -> tuple[float, ...]:
+def nominal_lever_mm(loaded_deg: ArrayLike, direction: str = "ccw") -> np.ndarray:
+    """Free-span length (mm) at a loaded angle (deg, magnitude) on the nominal head.
+
+    The tangent construction of :mod:`cvmeasure.sim.kinematics` with the
+    default :class:`~cvmeasure.sim.SimParams` geometry (tabulated every 0.05
+    deg and interpolated); the span between the die tangent point and the pin
+    carries the free-span springback term.
+    """
+    grid, lever = _lever_table(-1.0 if direction == "cw" else 1.0)
+    return np.interp(np.asarray(loaded_deg, dtype=np.float64), grid, lever)
+
+
+@functools.lru_cache(maxsize=2)
+def _lever_table(sign: float) -> tuple[np.ndarray, np.ndarray]:
+    from cvmeasure.sim import SimParams
+    from cvmeasure.sim.kinematics import head_geometry, lever_arm_mm, pin_angle_for_loaded_deg
+
+    geom = head_geometry(SimParams(), sign)
+    grid = np.arange(0.0, 178.0, 0.05)
+    return grid, lever_arm_mm(geom, pin_angle_for_loaded_deg(geom, grid))
+
+
+def _springback_coef(
+    model: str, final: np.ndarray, loaded: np.ndarray, direction: str
+) -> tuple[float, ...]:
     if model == "cubic":
         # numpy.polynomial returns coefficients lowest order first.
         poly = np.polynomial.Polynomial.fit(final, loaded - final, 3).convert()
@@ -261,10 +292,11 @@ def _springback_coef(model: str, final: np.ndarray, loaded: np.ndarray) -> tuple
         coef[: len(poly.coef)] = poly.coef
         return tuple(float(c) for c in coef)
     if model == "physical":
-        # springback = a + b * loaded, least squares (the affine law of cvmeasure.sim).
-        A = np.column_stack([np.ones_like(loaded), loaded])
-        (a, b), *_ = np.linalg.lstsq(A, loaded - final, rcond=None)
-        return (float(a), float(b))
+        # springback = b * loaded + k * lever(loaded): the wrapped zone plus the free
+        # span of the affine law of cvmeasure.sim, least squares over (b, k).
+        A = np.column_stack([loaded, nominal_lever_mm(loaded, direction)])
+        (b, k), *_ = np.linalg.lstsq(A, loaded - final, rcond=None)
+        return (float(b), float(k))
     return ()
 
 
@@ -274,6 +306,7 @@ def _springback_loaded(
     loaded_knots: Sequence[float],
     coef: Sequence[float],
     final: np.ndarray,
+    direction: str,
 ) -> np.ndarray:
     if model in ("linear", "pchip"):
         return _interp_eval(
@@ -282,9 +315,15 @@ def _springback_loaded(
     if model == "cubic":
         return final + np.polynomial.polynomial.polyval(final, coef)
     if model == "physical":
-        a, b = coef
-        # final = loaded - (a + b loaded)  =>  loaded = (final + a) / (1 - b)
-        return (final + a) / (1.0 - b)
+        b, k = coef
+        # final = loaded - b loaded - k lever(loaded): increasing in loaded; bisection
+        lo = np.maximum(final, 0.0)
+        hi = lo + 30.0 + np.abs(final)
+        for _ in range(48):
+            mid = 0.5 * (lo + hi)
+            below = mid * (1.0 - b) - k * nominal_lever_mm(mid, direction) < final
+            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+        return 0.5 * (lo + hi)
     raise ValueError(f"unknown springback model {model!r}")
 
 
@@ -329,16 +368,16 @@ def fit_springback(
             f"{model} springback needs at least {_MIN_POINTS[model]} distinct angles "
             f"per direction, got {len(f)} ({direction})"
         )
-    coef = _springback_coef(model, f, l_)
-    fitted = _springback_loaded(model, f, l_, coef, f)
+    coef = _springback_coef(model, f, l_, direction)
+    fitted = _springback_loaded(model, f, l_, coef, f, direction)
     rmse = float(np.sqrt(np.mean((fitted - l_) ** 2)))
     errors = []
     for i in range(1, len(f) - 1):
         keep = np.arange(len(f)) != i
         if keep.sum() < _MIN_POINTS[model]:
             break
-        c = _springback_coef(model, f[keep], l_[keep])
-        pred = _springback_loaded(model, f[keep], l_[keep], c, f[i : i + 1])[0]
+        c = _springback_coef(model, f[keep], l_[keep], direction)
+        pred = _springback_loaded(model, f[keep], l_[keep], c, f[i : i + 1], direction)[0]
         errors.append(float(pred - l_[i]))
     notes = []
     dof = len(f) - {"cubic": 4, "physical": 2}.get(model, len(f))

@@ -15,6 +15,7 @@ from cvmeasure.driver.compensation import (
     fit_motion,
     fit_springback,
 )
+from cvmeasure.driver.session import nominal_pin_for_loaded_deg
 
 DEAD_ZONE_DEG = 8.0
 SB_A_DEG, SB_B = 1.45, 0.0096  # the seed FEA's affine springback (1.5-2.7 deg over 5-130 deg)
@@ -73,13 +74,25 @@ def test_interpolants_are_exact_at_knots_but_scored_out_of_sample():
     assert curve2.loao_max_deg > 0.05
 
 
-def test_physical_model_recovers_affine_law():
-    pin, loaded, unloaded = trials()
-    sel = loaded < 0
-    curve = fit_springback(-unloaded[sel], -loaded[sel], model="physical", direction="cw")
-    a, b = curve.coef
-    assert a == pytest.approx(SB_A_DEG, abs=1e-9)
-    assert b == pytest.approx(SB_B, abs=1e-12)
+def test_physical_model_recovers_the_simulations_law():
+    from cvmeasure.sim import SimParams, simulate
+    from cvmeasure.sim.springback import springback_law
+
+    law = springback_law(SimParams())
+    bends = simulate(-np.linspace(18.0, 150.0, 9))  # clockwise, noiseless
+    curve = fit_springback(
+        -bends.unloaded_bend_deg, -bends.loaded_bend_deg, model="physical", direction="cw"
+    )
+    b, k = curve.coef
+    assert b == pytest.approx(law.wrap_slope, rel=1e-5)
+    assert k == pytest.approx(float(law.intercept_deg(1.0)), rel=1e-5)
+    assert curve.loao_max_deg < 1e-4  # the law is the model: exact out of sample too
+    final = np.array([3.0, 77.7])
+    assert final[0] < curve.domain_deg[0]  # 3 deg is below the data: warned, not silent
+    with pytest.warns(CompensationRangeWarning, match="extrapolated"):
+        loaded = curve.loaded_for_final_deg(final, outside="warn")
+    pins = [nominal_pin_for_loaded_deg(a, "cw") for a in loaded]
+    assert np.allclose(simulate(pins).unloaded_bend_deg, -final, atol=1e-4)
 
 
 def test_cubic_on_quick_mode_flags_one_dof():
