@@ -179,7 +179,7 @@ def detect_chessboard(
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(search, pattern, flags=flags)
     if not found:
-        found, corners = cv2.findChessboardCornersSB(search, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE)
+        found, corners = cv2.findChessboardCornersSB(search, pattern)
     if not found or corners is None:
         return _empty(
             source,

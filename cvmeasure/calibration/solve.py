@@ -195,6 +195,38 @@ def view_residuals_px(
     return detection.corners_px - proj.reshape(-1, 2)
 
 
+def _robust_residuals(
+    camera: CameraModel, det: BoardDetection, rvec: np.ndarray, tvec: np.ndarray
+) -> np.ndarray:
+    """Residuals under the view's pose refitted to its best-fitting corners (LM).
+
+    With the joint solve's pose, a few gross outliers drag the whole view and
+    make good corners look bad; refitting the pose to the corners within 3x the
+    median residual isolates them.
+    """
+    import cv2
+
+    obj = det.object_mm.reshape(-1, 1, 3)
+    img = det.corners_px.reshape(-1, 1, 2)
+    k, d = camera.camera_matrix, camera.dist_coeffs
+    res = view_residuals_px(camera, det, rvec, tvec)
+    r, t = rvec.reshape(3, 1).copy(), tvec.reshape(3, 1).copy()
+    for _ in range(2):
+        norms = np.linalg.norm(res, axis=1)
+        keep = norms <= 3.0 * float(np.median(norms)) + 1e-9
+        if keep.all() or keep.sum() < MIN_CORNERS:
+            break
+        try:
+            r, t = cv2.solvePnPRefineLM(obj[keep], img[keep], k, d, r, t)
+        except cv2.error:
+            break
+        new = view_residuals_px(camera, det, r.ravel(), t.ravel())
+        if np.median(np.linalg.norm(new, axis=1)) > np.median(norms):
+            break
+        res = new
+    return res
+
+
 def _solve(
     dets: Sequence[BoardDetection], image_size: tuple[int, int], flags: int
 ) -> tuple[float, CameraModel, list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
@@ -206,7 +238,11 @@ def _solve(
     rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
         objs, imgs, image_size, None, None, flags=flags, criteria=crit
     )
-    camera = CameraModel(image_size, k, np.asarray(dist, dtype=np.float64).ravel())
+    dist = np.asarray(dist, dtype=np.float64).ravel()
+    n_dist = (
+        12 if flags & cv2.CALIB_THIN_PRISM_MODEL else (8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
+    )
+    camera = CameraModel(image_size, k, dist[:n_dist])  # OpenCV 5 pads to 14 with zeros
     return (
         float(rms),
         camera,
@@ -273,8 +309,6 @@ def calibrate_views(
             rejected.append(RejectedView(det.source, f"too few corners ({det.corner_count})"))
         else:
             active.append(det)
-    original = {id(d): d.corner_count for d in active}
-    origin_of = {id(d): d for d in active}
     n_rejected_corners = {id(d): 0 for d in active}
 
     def check_count() -> None:
@@ -297,33 +331,42 @@ def calibrate_views(
         if not reject_outliers or rounds >= max_rounds:
             break
         residuals = [
-            view_residuals_px(camera, d, r, t) for d, r, t in zip(active, rvecs, tvecs, strict=True)
+            _robust_residuals(camera, d, r, t) for d, r, t in zip(active, rvecs, tvecs, strict=True)
         ]
         allres = np.concatenate(residuals).ravel()
         sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
         limit = max(_OUTLIER_SIGMAS * sigma, _OUTLIER_FLOOR_PX)
         view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
-        changed = False
-        new_active: list[BoardDetection] = []
-        for det, res, vrms in zip(active, residuals, per_view, strict=True):
-            if vrms > view_limit:
-                rejected.append(
-                    RejectedView(
-                        det.source,
-                        f"view RMS {vrms:.3f} px is above {view_limit:.3f} px "
-                        f"({_VIEW_RMS_FACTOR:g}x the median view)",
-                    )
+        # Views first (judged on their inlier corners, so a few outliers drop corners,
+        # not the view); corners only in a round where no view went, because a bad
+        # view distorts the solve and with it every other view's residuals.
+        bad_views: dict[int, str] = {}
+        for k, res in enumerate(residuals):
+            norms = np.linalg.norm(res, axis=1)
+            n_out = int(np.sum(norms > limit))
+            inliers = norms[norms <= limit]
+            vrms = float(np.sqrt(np.mean(inliers**2))) if inliers.size else float("inf")
+            if n_out > 0.5 * len(norms):
+                bad_views[k] = (
+                    f"{n_out} of {len(norms)} corners are off by more than {limit:.3f} px "
+                    "(blurred or moved photo, or a different lens setting?)"
                 )
-                changed = True
+            elif vrms > view_limit:
+                bad_views[k] = (
+                    f"view RMS {vrms:.3f} px (inlier corners) is above {view_limit:.3f} px "
+                    f"({_VIEW_RMS_FACTOR:g}x the median view)"
+                )
+        changed = bool(bad_views)
+        new_active: list[BoardDetection] = []
+        for k, (det, res) in enumerate(zip(active, residuals, strict=True)):
+            if k in bad_views:
+                rejected.append(RejectedView(det.source, bad_views[k]))
                 continue
             keep = np.linalg.norm(res, axis=1) <= limit
-            if not keep.all():
+            if not bad_views and not keep.all():
                 changed = True
                 sub = det.subset(keep)
-                key = id(sub)
-                original[key] = original[id(det)]
-                origin_of[key] = origin_of[id(det)]
-                n_rejected_corners[key] = n_rejected_corners[id(det)] + int((~keep).sum())
+                n_rejected_corners[id(sub)] = n_rejected_corners[id(det)] + int((~keep).sum())
                 if sub.corner_count < MIN_CORNERS:
                     rejected.append(
                         RejectedView(

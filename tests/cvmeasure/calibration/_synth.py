@@ -13,7 +13,7 @@ import numpy as np
 from cvmeasure.board import CharucoBoardSpec, ChessboardSpec
 from cvmeasure.camera import CameraModel
 
-__all__ = ["board_texture", "render_view", "look_at_pose", "random_poses"]
+__all__ = ["board_texture", "render_view", "look_at_pose", "random_poses", "synthetic_detections"]
 
 
 def board_texture(board, px_per_mm: float) -> np.ndarray:
@@ -123,5 +123,21 @@ def random_poses(
             look_at_pose(
                 board, distance_mm * rng.uniform(0.85, 1.15), tx, ty, (sx, sy), rng.uniform(-20, 20)
             )
+        )
+    return out
+
+
+def synthetic_detections(board, camera: CameraModel, poses, noise_px: float, rng, *, size=None):
+    """Exact corner projections plus Gaussian noise, as BoardDetection objects (no rendering)."""
+    from cvmeasure.calibration.detect import BoardDetection
+
+    obj = board.corners_mm()
+    ids = np.arange(len(obj))
+    out = []
+    for k, (rvec, tvec) in enumerate(poses):
+        proj, _ = cv2.projectPoints(obj, rvec, tvec, camera.camera_matrix, camera.dist_coeffs)
+        pts = proj.reshape(-1, 2) + rng.normal(0.0, noise_px, (len(obj), 2))
+        out.append(
+            BoardDetection(f"view{k:02d}", size or camera.image_size_px, pts, ids, obj.copy())
         )
     return out
