@@ -43,8 +43,11 @@ from typing import Any
 
 from cvmeasure.driver.protocol import (
     AXES,
+    CYCLE_START,
     FEEDHOLD,
     QUEUE_FLUSH,
+    XOFF,
+    XON,
     ExceptionReport,
     GcodeBlock,
     GcodeError,
@@ -74,6 +77,7 @@ __all__ = [
     "ResumePlan",
     "JobStopped",
     "BoardConnection",
+    "StreamControl",
     "prepare_job",
     "job_sha256",
     "plan_resume",
@@ -141,7 +145,7 @@ class StopInfo:
     """Why and where a job stopped.
 
     ``reason`` is one of ``desync``, ``error``, ``malformed``, ``alarm``,
-    ``stall``, ``port_gone``, ``reset``, ``interrupted``; ``line_number`` is
+    ``stall``, ``port_gone``, ``reset``, ``interrupted``, ``aborted``; ``line_number`` is
     the ``N`` of the line that caused it (None when unknown); ``board`` is the
     board's last known ``sr`` fields after the stop (None when unreachable).
     """
@@ -311,6 +315,40 @@ def plan_resume(
     return ResumePlan(k + 1, fix, k - 1)
 
 
+class StreamControl:
+    """Requests to a running job from another thread: feedhold, cycle start, abort.
+
+    ``hold()`` sends ``!`` (the board decelerates and holds, stat 6) and stops
+    sending lines; ``resume()`` sends ``~``; ``abort()`` stops the job safely
+    (feedhold, flush, journal) and :func:`stream_job` raises :class:`JobStopped`
+    with reason ``aborted``, resumable like any other stop.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._hold = self._resume = self._abort = False
+        self.held = False
+
+    def hold(self) -> None:
+        with self._lock:
+            self._hold, self._resume = True, False
+
+    def resume(self) -> None:
+        with self._lock:
+            self._resume, self._hold = True, False
+
+    def abort(self) -> None:
+        with self._lock:
+            self._abort = True
+
+    def take(self) -> tuple[bool, bool, bool]:
+        """(hold, resume, abort) requested since the last call."""
+        with self._lock:
+            out = (self._hold, self._resume, self._abort)
+            self._hold = self._resume = self._abort = False
+            return out
+
+
 # ---------------------------------------------------------------------------
 # The host side of the link
 
@@ -329,6 +367,8 @@ class BoardConnection:
         self.last_rx = time.monotonic()
         self.error: DeviceError | None = None
         self.unparsed: list[Unparsed] = []
+        #: XOFF seen in the data (a link without tty flow control, e.g. socket://)
+        self.paused = False
         self._queue: queue.Queue[Message | None] = queue.Queue()
         self._stop = threading.Event()
         self._splitter = LineSplitter()
@@ -346,6 +386,9 @@ class BoardConnection:
             if not data:
                 continue
             self.last_rx = time.monotonic()
+            for byte in data:
+                if byte in (XON, XOFF):
+                    self.paused = byte == XOFF
             for raw in self._splitter.feed(data):
                 msg = parse_message(raw)
                 log.debug("board -> %r", raw)
@@ -443,6 +486,7 @@ class _Run:
     config: StreamConfig
     journal: Path | None
     progress: Callable[[int, int, int | None], None] | None
+    control: StreamControl | None = None
     inflight: deque[JobLine] = field(default_factory=deque)
     sent: int = 0
     last_progress_t: float = 0.0
@@ -548,6 +592,7 @@ def stream_job(
     config: StreamConfig | None = None,
     progress: Callable[[int, int, int | None], None] | None = None,
     source: str = "job",
+    control: StreamControl | None = None,
 ) -> StreamResult:
     """Stream a job to the board and wait until it has executed.
 
@@ -561,6 +606,7 @@ def stream_job(
     config : windows and timeouts.
     progress : called as ``progress(lines_sent, lines_total, executed_line)``.
     source : the job's name in messages.
+    control : feedhold / cycle start / abort requests from another thread.
 
     Raises
     ------
@@ -581,7 +627,7 @@ def stream_job(
     journal_path = Path(journal) if journal is not None else None
     t0 = time.perf_counter()
     board = BoardConnection(link)
-    run = _Run(job, board, config, journal_path, progress)
+    run = _Run(job, board, config, journal_path, progress, control)
     try:
         return _stream(run, sha, resume, source, link.xonxoff, t0)
     except KeyboardInterrupt:
@@ -695,6 +741,28 @@ def _wait_acks(run: _Run) -> None:
             _watchdog(run, "an ack")
 
 
+def _service_control(run: _Run) -> bool:
+    """Act on hold/resume/abort requests; True while the job is held."""
+    control = run.control
+    if control is None:
+        return False
+    hold, resume, abort = control.take()
+    head = run.inflight[0] if run.inflight else None
+    if abort:
+        _stop(run, "aborted", head, "aborted by the user")
+    if hold and not control.held:
+        run.board.write(FEEDHOLD)
+        control.held = True
+        run.log({"event": "hold", "executing_line": run.board.state.get("line")})
+    if resume and control.held:
+        run.board.write(CYCLE_START)
+        control.held = False
+        run.log({"event": "cycle_start", "executing_line": run.board.state.get("line")})
+    if control.held:
+        run.board.last_rx = time.monotonic()  # a held board is quiet, not stalled
+    return control.held
+
+
 def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
     board, config = run.board, run.config
     board.last_rx = time.monotonic()
@@ -708,7 +776,8 @@ def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
             if msg is None:
                 break
             _handle(run, msg)
-        if i < len(lines):
+        held = _service_control(run)
+        if i < len(lines) and not held and not board.paused:
             line = lines[i]
             in_flight_bytes = sum(j.nbytes for j in run.inflight)
             if (
@@ -745,9 +814,12 @@ def _wait_done(run: _Run, last_number: int) -> int | None:
         if state.get("line") == last_number and state.get("stat") in _IDLE:
             run.note_progress(force=True)
             return int(last_number)
+        held = _service_control(run)
         msg = board.next_message(0.05)
         if msg is not None:
             _handle(run, msg)
+            continue
+        if held:
             continue
         if time.monotonic() > deadline_query:
             # filtered reports may have nothing new to say: ask (nothing is in flight)

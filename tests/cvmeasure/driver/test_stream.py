@@ -2,15 +2,20 @@
 
 from __future__ import annotations
 
+import threading
+import time
+
 import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm, bend_angles_deg
 from cvmeasure.driver.double import FakeTinyG, Fault
 from cvmeasure.driver.gcode import design_job
+from cvmeasure.driver.protocol import QueueReport
 from cvmeasure.driver.stream import (
     JobStopped,
     StreamConfig,
+    StreamControl,
     plan_resume,
     prepare_job,
     stream_job,
@@ -165,3 +170,106 @@ def test_plan_resume_from_board_reports():
     assert 0.01 / rate * 60 >= 0.005 - 1e-9
     with pytest.raises(DeviceError, match="N99, which is not in this job"):
         plan_resume(job, start_pos=start, board_line=99, board_pos=start)
+
+
+def test_feedhold_and_cycle_start_from_another_thread(job, tmp_path):
+    control = StreamControl()
+    states = []
+
+    def progress(sent, total, executed):
+        if sent == 30:
+            control.hold()
+
+    with FakeTinyG(speedup=20.0) as board:
+        link = open_link(board.port)
+        watcher = threading.Thread(target=_watch_hold, args=(board, control, states))
+        watcher.start()
+        result = stream_job(
+            link,
+            job.lines,
+            journal=tmp_path / "j.jsonl",
+            config=FAST,
+            control=control,
+            progress=progress,
+        )
+        watcher.join()
+        link.close()
+        completed, partial = board.executed_lines()
+    assert result.executed_line == len(job.lines)
+    assert states and states[0][0] == 6  # the board held ...
+    assert states[0][1] == states[1][1]  # ... and did not move while held
+    assert completed == list(range(0, len(job.lines) + 1)) and partial == []
+    events = [r["event"] for r in read_jsonl(tmp_path / "j.jsonl")]
+    assert "hold" in events and "cycle_start" in events
+
+
+def _watch_hold(board, control, states):
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and not control.held:
+        time.sleep(0.005)
+    time.sleep(0.15)
+    for _ in range(2):
+        s = board.machine_state()
+        states.append((s.stat, s.feed_mm, s.pin_deg))
+        time.sleep(0.1)
+    control.resume()
+
+
+def test_abort_stops_safely_and_resumes(job, tmp_path):
+    control = StreamControl()
+    journal = tmp_path / "j.jsonl"
+
+    def progress(sent, total, executed):
+        if sent == 40:
+            control.abort()
+
+    with FakeTinyG(speedup=50.0) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(
+                link, job.lines, journal=journal, config=FAST, control=control, progress=progress
+            )
+        assert info.value.stop.reason == "aborted"
+        state = board.machine_state()
+        assert state.stat == 3 and state.planner_depth == 0 and state.rx_bytes == 0
+        stream_job(link, job.lines, journal=journal, config=FAST, resume=True)
+        link.close()
+        completed, _ = board.executed_lines()
+    assert completed == list(range(0, len(job.lines) + 1))
+
+
+def test_ctrl_c_is_journalled_then_reraised(job, tmp_path):
+    journal = tmp_path / "j.jsonl"
+
+    def progress(sent, total, executed):
+        if sent == 25:
+            raise KeyboardInterrupt
+
+    with FakeTinyG(speedup=50.0) as board:
+        link = open_link(board.port)
+        with pytest.raises(KeyboardInterrupt):
+            stream_job(link, job.lines, journal=journal, config=FAST, progress=progress)
+        assert read_jsonl(journal)[-1]["reason"] == "interrupted"
+        stream_job(link, job.lines, journal=journal, config=FAST, resume=True)
+        link.close()
+        completed, _ = board.executed_lines()
+    assert completed == list(range(0, len(job.lines) + 1))
+
+
+def test_xoff_in_the_data_pauses_the_sender():
+    """Without tty flow control (socket://, --no-xonxoff) XON/XOFF arrive as data."""
+    from cvmeasure.driver.stream import BoardConnection
+
+    with open_link("loop://", xonxoff=False) as link:
+        board = BoardConnection(link)
+        try:
+            link.write(b"\x13")
+            deadline = time.monotonic() + 2
+            while not board.paused and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert board.paused
+            link.write(b'{"qr":3}\x11\n')
+            msg = board.next_message(2.0)
+            assert not board.paused and msg == QueueReport(3)
+        finally:
+            board.close()
