@@ -70,10 +70,14 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(summary, indent=2))
     else:
         for model, by_dir in calibration.scores.items():
+            if "error" in by_dir:
+                print(f"{model:9s} not fitted: {by_dir['error']}")
+                continue
             text = ", ".join(
                 f"{d} LOAO RMS {v['loao_rmse_deg']:.4f} deg"
+                if v.get("loao_rmse_deg") is not None
+                else f"{d} not scored (fewer than 3 angles)"
                 for d, v in by_dir.items()
-                if isinstance(v, dict) and v.get("loao_rmse_deg") is not None
             )
             print(f"{model:9s} {text}")
         print(f"wrote {args.out} (model {calibration.model})")

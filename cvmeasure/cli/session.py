@@ -161,7 +161,16 @@ def run(args: argparse.Namespace) -> int:
     trials_path = session_dir / "trials.csv"
     write_csv_rows(
         trials_path,
-        [{**s.to_dict(), "trial": s.trial, "direction": s.direction} for s in calibration.samples],
+        [
+            {
+                **s.to_dict(),
+                "trial": s.trial,
+                "direction": s.direction,
+                "loaded_uncertainty_deg": s.uncertainty_deg.get("loaded_bend_deg"),
+                "unloaded_uncertainty_deg": s.uncertainty_deg.get("unloaded_bend_deg"),
+            }
+            for s in calibration.samples
+        ],
         (
             "trial",
             "commanded_pin_deg",
@@ -171,6 +180,8 @@ def run(args: argparse.Namespace) -> int:
             "direction",
             "measured_pin_deg",
             "springback_deg",
+            "loaded_uncertainty_deg",
+            "unloaded_uncertainty_deg",
         ),
     )
     report = args.report or args.out.with_suffix(".html")

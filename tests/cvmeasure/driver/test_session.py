@@ -134,3 +134,41 @@ def test_double_behind_the_streamer_shows_loaded_then_unloaded():
     lines = session_gcode("bend", config, pin_deg=30.0, previous_direction="cw")
     assert lines[:3] == ["G0 Z180", "G0 X0", "G0 Z0"]
     assert all(not set(line) & set("!~%$?") for line in lines)
+
+
+class _LensCapCamera:
+    """A camera with its lens cap on: real (grey) JPEG files, no markers in them."""
+
+    def __init__(self, out_dir: Path) -> None:
+        self.out_dir = out_dir
+
+    def capture(self, name: str):
+        import cv2
+
+        from cvmeasure.driver.camera import CapturedPhoto
+        from cvmeasure.fileio import atomic_write_bytes
+
+        ok, jpeg = cv2.imencode(".jpg", np.full((96, 128, 3), 40, np.uint8))
+        return CapturedPhoto(path=atomic_write_bytes(self.out_dir / f"{name}.jpg", jpeg.tobytes()))
+
+    def close(self) -> None:
+        pass
+
+
+def test_unmeasurable_photo_names_the_photo_and_keeps_the_log(tmp_path):
+    from cvmeasure.driver.session import run_session
+    from cvmeasure.errors import InputError
+
+    bender = simulated_bender(speedup=500.0)
+    try:
+        with pytest.raises(InputError, match=r"step01_ccw_020p0_loaded\.jpg"):
+            run_session(
+                bender,
+                _LensCapCamera(tmp_path),
+                tmp_path / "s",
+                config=SessionConfig(mode="custom", angles_deg=(20.0,)),
+            )
+    finally:
+        bender.close()
+    events = [r["event"] for r in read_session_log(tmp_path / "s" / "session.jsonl")]
+    assert events == ["start", "bend", "failed"]  # the bend is logged, nothing counted as done
