@@ -101,6 +101,15 @@ def overlay_markers(bgr: np.ndarray, record: dict[str, Any], *, max_width_px: in
         cv2.circle(img, centre, radius, (0, 0, 255), 2, cv2.LINE_AA)
         cv2.drawMarker(img, centre, (0, 0, 255), cv2.MARKER_CROSS, radius, 1)
         cv2.putText(img, role, (centre[0] + radius, centre[1]), 0, 0.6, (0, 0, 255), 1)
+    markers = list(record.get("markers", {}).values())
+    if markers:  # crop to the markers (with a margin) so they are visible in a thumbnail
+        xs = [m["x_px"] for m in markers]
+        ys = [m["y_px"] for m in markers]
+        pad = 4 * max(m["r_px"] for m in markers)
+        x0, x1 = int(max(min(xs) - pad, 0)), int(min(max(xs) + pad, img.shape[1]))
+        y0, y1 = int(max(min(ys) - pad, 0)), int(min(max(ys) + pad, img.shape[0]))
+        if x1 > x0 and y1 > y0:
+            img = img[y0:y1, x0:x1]
     scale = min(1.0, max_width_px / img.shape[1])
     if scale < 1.0:
         img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
