@@ -131,7 +131,11 @@ def _load_board(path: str) -> Any:
 
 @dataclass(frozen=True)
 class BatchSummary:
-    """What a batch run did. Rates are photos per second of wall time."""
+    """What a batch run did. Rates are photos per second of wall time.
+
+    ``steady_photos_per_s`` leaves out the start-up: it counts the photos after
+    each worker's first one, over the time after the last of those first ones.
+    """
 
     output: str
     photos_total: int
@@ -142,9 +146,11 @@ class BatchSummary:
     workers: int
     backend: str
     failures: tuple[tuple[str, str], ...] = field(default=())
+    steady_photos_per_s: float | None = None
 
     @property
     def photos_per_s(self) -> float:
+        """Photos per second of the whole run, worker start-up included."""
         return self.measured / self.seconds if self.seconds > 0 else 0.0
 
     def to_dict(self) -> dict[str, Any]:
@@ -156,6 +162,9 @@ class BatchSummary:
             "failed": self.failed,
             "seconds": round(self.seconds, 3),
             "photos_per_s": round(self.photos_per_s, 4),
+            "steady_photos_per_s": None
+            if self.steady_photos_per_s is None
+            else round(self.steady_photos_per_s, 4),
             "workers": self.workers,
             "backend": self.backend,
             "failures": [{"photo": p, "error": e} for p, e in self.failures],
@@ -590,9 +599,11 @@ def run_batch(
         records = _run_processes(jobs, kind, context, n_workers)
     measured = 0
     failures: list[tuple[str, str]] = []
+    times: list[float] = []
     try:
         for record in records:
             append_jsonl(output, record)
+            times.append(time.perf_counter())
             measured += 1
             if not record["ok"]:
                 failures.append((record["photo"], record["error"]))
@@ -601,6 +612,10 @@ def run_batch(
     finally:
         if client is not None:
             client.close()
+    # steady state: after every worker has delivered its first photo (start-up excluded)
+    steady = None
+    if measured >= n_workers + 2 and times[-1] > times[n_workers - 1]:
+        steady = (measured - n_workers) / (times[-1] - times[n_workers - 1])
     return BatchSummary(
         output=os.fspath(output),
         photos_total=len(paths),
@@ -611,4 +626,5 @@ def run_batch(
         workers=n_workers,
         backend=backend,
         failures=tuple(failures),
+        steady_photos_per_s=steady,
     )
