@@ -261,6 +261,7 @@ class FakeTinyG:
         self._feed_since_bend = 0.0
         self._holding: tuple[float, float, float] | None = None  # pin, loaded, unloaded
         self._bend_at_die = 0.0
+        self._bend_line: int | None = None
         self._vanished = False
 
     # ------------------------------------------------------------------ lifecycle
@@ -797,9 +798,7 @@ class FakeTinyG:
             return
         pin, loaded, unloaded = self._holding
         self._bends.append(
-            BendRecord(
-                getattr(self, "_bend_line", None), self._feed_since_bend, pin, loaded, unloaded
-            )
+            BendRecord(self._bend_line, self._feed_since_bend, pin, loaded, unloaded)
         )
         self._feed_since_bend = 0.0
         self._bend_at_die = unloaded
