@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "release, photograph unloaded, measure the markers, append to the session log "
         "(<dir>/session.jsonl; a killed session resumes from it without re-bending a done "
         "angle). At the end write the calibration JSON, trials CSV and an HTML report. "
-        "--simulate runs against the simulated bender and the simulated camera.",
+        "--simulate runs against the TinyG double on a pseudo-terminal and the simulated camera.",
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="calibration JSON to write")
     p.add_argument("--dir", type=Path, help="session folder (default: <out stem>_session/)")
@@ -30,9 +30,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--port", help="the bender's serial port or URL (real sessions)")
     p.add_argument("--camera", help="camera URL: gphoto2://[port] or folder:///path")
     p.add_argument(
+        "--camera-setting",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="gphoto2 setting applied before the session, e.g. shutterspeed=1/125 (repeatable)",
+    )
+    p.add_argument(
         "--speedup", type=float, default=200.0, help="time speed-up of the double (--simulate)"
     )
-    p.add_argument("--mode", choices=("quick", "standard"), default="quick")
+    p.add_argument(
+        "--mode",
+        choices=("quick", "standard"),
+        default="quick",
+        help="quick: 10 20 45 75 110 deg; standard: 5 10 15 20 30 45 60 75 90 110 130 deg "
+        "(wanted loaded angles, both directions)",
+    )
     p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
@@ -120,7 +133,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         if not (args.port and args.camera):
             raise InputError("--port", "a real session needs --port URL and --camera URL")
-        camera = open_camera(args.camera, session_dir / "photos")
+        options_cam = {}
+        if args.camera_setting:
+            pairs = [t.partition("=") for t in args.camera_setting]
+            if any(not sep or not name for name, sep, _ in pairs):
+                raise InputError("--camera-setting", "expected NAME=VALUE")
+            options_cam["settings"] = {name: value for name, _, value in pairs}
+        camera = open_camera(args.camera, session_dir / "photos", **options_cam)
         machine = StreamedBender(open_link(args.port))
 
     def progress(done: int, total: int, step) -> None:

@@ -172,3 +172,14 @@ def test_unmeasurable_photo_names_the_photo_and_keeps_the_log(tmp_path):
         bender.close()
     events = [r["event"] for r in read_session_log(tmp_path / "s" / "session.jsonl")]
     assert events == ["start", "bend", "failed"]  # the bend is logged, nothing counted as done
+
+
+def test_real_session_needs_port_and_camera(tmp_path, capsys):
+    out = str(tmp_path / "c.json")
+    assert main(["session", "-o", out]) == 2
+    assert "needs --port URL and --camera URL" in capsys.readouterr().err
+    incoming = tmp_path / "incoming"
+    incoming.mkdir()
+    port = str(tmp_path / "ttyNOPE")
+    assert main(["session", "-o", out, "--port", port, "--camera", f"folder://{incoming}"]) == 2
+    assert f"{port}: no such serial port" in capsys.readouterr().err
