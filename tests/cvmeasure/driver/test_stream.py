@@ -273,3 +273,20 @@ def test_xoff_in_the_data_pauses_the_sender():
             assert not board.paused and msg == QueueReport(3)
         finally:
             board.close()
+
+
+def test_a_board_frozen_past_the_flush_timeout_is_reported_unresponsive(job, tmp_path):
+    journal = tmp_path / "j.jsonl"
+    cfg = StreamConfig(stall_timeout_s=0.2, flush_timeout_s=0.3)
+    with FakeTinyG(speedup=50.0, faults=[Fault("stall", 30, duration_s=1.2)]) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(link, job.lines, journal=journal, config=cfg)
+        stop = info.value.stop
+        assert stop.reason == "stall" and stop.board is None
+        assert "did not confirm the flush (unresponsive)" in stop.detail
+        time.sleep(1.2)  # the board wakes up, and acts on the ! and % it was sent
+        stream_job(link, job.lines, journal=journal, config=FAST, resume=True)
+        link.close()
+        completed, _ = board.executed_lines()
+    assert completed == list(range(0, len(job.lines) + 1))
