@@ -281,3 +281,24 @@ def test_dask_local_cluster_on_loopback(tmp_path, capsys):
     assert summary["backend"] == "dask" and summary["workers"] == 2
     check_against_truth(read_jsonl(out), truth)
     assert {r["worker_pid"] for r in read_jsonl(out)}.isdisjoint({os.getpid()})
+
+
+@pytest.mark.slow
+def test_linear_render_goes_through_the_machine_measurement_like_its_jpeg(tmp_path):
+    """The photo lab's 16-bit linear render (the RAW path) and its JPEG: same pipeline, same truth."""
+    from datasets.bender import render_bender_photo
+
+    rendered = render_bender_photo(
+        pin_angle_deg=52.0, bend_angle_deg=41.0, seed=3, scale=0.3, linear=True
+    )
+    jpg, _truth = rendered.save(tmp_path / "bend")
+    tiff = rendered.save_linear_tiff(tmp_path / "bend.linear.tiff")
+    assert read_photo(tiff).linear and not read_photo(jpg).linear
+    out = tmp_path / "r.jsonl"
+    summary = run_batch([jpg, tiff], out, kind="auto", workers=1)
+    assert summary.failed == 0, summary.failures
+    records = {Path(r["photo"]).name: r for r in read_jsonl(out)}
+    for rec in records.values():
+        assert rec["kind"] == "machine"
+        assert abs(rec["bend_angle_deg"] - rendered.truth["bend_angle_deg"]) < 0.1
+        assert abs(rec["pin_angle_deg"] - rendered.truth["pin_angle_deg"]) < 0.1
