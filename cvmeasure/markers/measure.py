@@ -283,7 +283,8 @@ def refine_candidate(
         if edges.points_px.shape[0] < MIN_EDGE_POINTS:
             return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
         try:
-            fit = fit_circle_robust(edges.points_px)
+            init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
+            fit = fit_circle_robust(edges.points_px, init=init)
         except (ValueError, np.linalg.LinAlgError):
             return "its edge points do not form a circle"
         moved = math.hypot(fit.centre[0] - centre[0], fit.centre[1] - centre[1])
@@ -375,8 +376,10 @@ def _measure_ours(
             centres[role] = np.array(fit.centre)
             covs[role] = cov_img
         else:
-            fit_f = fit_circle_robust(transform(edges.points_px))
             jac = transform.jacobian(fit.centre)
+            c_f = transform(np.array([fit.centre]))[0]
+            r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
+            fit_f = fit_circle_robust(transform(edges.points_px), init=(c_f[0], c_f[1], r_f))
             centres[role] = np.array(fit_f.centre)
             covs[role] = jac @ cov_img @ jac.T
         warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))

@@ -145,27 +145,37 @@ def fit_circle_robust(
         raise ValueError(f"a robust circle fit needs at least 5 points, got {p.shape[0]}")
     cx, cy, r = init if init is not None else fit_circle_taubin(p)
     theta = np.array([cx, cy, r], dtype=np.float64)
+    x, y = p[:, 0], p[:, 1]
     w = np.ones(p.shape[0])
-    scale = max(min_scale, 1.0)
+    scale = 0.0
     for it in range(iterations):
-        d = p - theta[:2]
-        dist = np.hypot(d[:, 0], d[:, 1])
-        dist = np.maximum(dist, 1e-12)
+        dx, dy = x - theta[0], y - theta[1]
+        dist = np.maximum(np.sqrt(dx * dx + dy * dy), 1e-12)
         res = dist - theta[2]
-        mad = 1.4826 * np.median(np.abs(res - np.median(res)))
-        scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
+        if it < 4:  # robust scale from the first iterations, then fixed (stable weights)
+            mad = 1.4826 * float(np.median(np.abs(res)))
+            scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
         u = res / (tukey_c * scale)
         w = np.where(np.abs(u) < 1.0, (1 - u * u) ** 2, 0.0)
         if w.sum() < 5:
             w = np.ones_like(w)
-        jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones_like(dist)))
-        jw = jac * w[:, None]
+        ux, uy = dx / dist, dy / dist
+        # normal equations of J = [-ux, -uy, -1] with weights w, written out (3x3)
+        a = np.array(
+            [
+                [(w * ux * ux).sum(), (w * ux * uy).sum(), (w * ux).sum()],
+                [0.0, (w * uy * uy).sum(), (w * uy).sum()],
+                [0.0, 0.0, w.sum()],
+            ]
+        )
+        a[1, 0], a[2, 0], a[2, 1] = a[0, 1], a[0, 2], a[1, 2]
+        g = np.array([(w * ux * res).sum(), (w * uy * res).sum(), (w * res).sum()])
         try:
-            step = np.linalg.solve(jw.T @ jac, -(jw.T @ res))
+            step = np.linalg.solve(a, g)
         except np.linalg.LinAlgError:
             break
         theta = theta + step
-        if np.abs(step).max() < 1e-7:
+        if it >= 4 and np.abs(step).max() < 1e-6:
             break
     d = p - theta[:2]
     dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)

@@ -1,0 +1,242 @@
+"""Marker angles on rendered bender photos: accuracy, honest uncertainty and speed, ours vs the seed method (issue 4)."""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks import Metric, Table, finish
+
+SECTION = "Marker angles: ours vs the seed method (issue 4)"
+
+
+def _photos(n: int, scale: float, seed0: int):
+    """Rendered photos: random light (2700-6500 K, WB error, exposure, noise, blur, JPEG), yaw."""
+    from datasets.bender import render_bender_photo
+    from datasets.lighting import Lighting
+    from datasets.optics import Pose
+
+    rng = np.random.default_rng(seed0)
+    for i in range(n):
+        seed = seed0 + i
+        pin = float(rng.uniform(-120.0, 120.0))
+        bend = float(np.clip(pin * rng.uniform(0.8, 0.95), -110, 110))
+        tilt = i >= n - max(1, n // 5)  # the last fifth: tilted camera, measured on the plane
+        pose = Pose(
+            yaw_deg=float(rng.uniform(-180.0, 180.0)),
+            tilt_deg=float(rng.uniform(4.0, 10.0)) if tilt else 0.0,
+            tilt_direction_deg=float(rng.uniform(0.0, 360.0)),
+            distance_mm=float(rng.uniform(800.0, 900.0)),
+            offset_mm=(float(rng.uniform(-30, 10)), float(rng.uniform(-20, 20))),
+        )
+        light = Lighting.random(seed)
+        photo = render_bender_photo(
+            pin_angle_deg=pin,
+            bend_angle_deg=bend,
+            lighting=light,
+            pose=pose,
+            seed=seed,
+            scale=scale,
+        )
+        yield photo, pose, light, tilt
+
+
+def _plane_h(photo, pose) -> np.ndarray:
+    rot, t_mm = pose.extrinsics("machine")
+    h = photo.camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
+    return np.linalg.inv(h)
+
+
+def _timed(fn, repeats: int) -> tuple[float, object]:
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.markers", description=__doc__)
+    p.add_argument("--quick", action="store_true", help="10 photos at half size (about a minute)")
+    p.add_argument("--n", type=int, help="number of photos (default 16, quick 10)")
+    p.add_argument("--seed", type=int, default=400, help="first render seed (default 400)")
+    args = p.parse_args(argv)
+
+    import cv2
+
+    from cvmeasure.errors import InputError
+    from cvmeasure.kit import default_kit
+    from cvmeasure.markers import measure_machine_photo
+
+    cv2.setNumThreads(1)
+    scale = 0.5 if args.quick else 1.0
+    n = args.n or (10 if args.quick else 16)
+    kit = default_kit()
+    variants = [("ours", "lab"), ("ours", "rgb"), ("seed", "lab"), ("seed", "rgb")]
+    errors: dict[tuple[str, str], list[float]] = {v: [] for v in variants}
+    zs: dict[tuple[str, str], list[float]] = {v: [] for v in variants}
+    failures: dict[tuple[str, str], int] = dict.fromkeys(variants, 0)
+    per_photo_rows = []
+    ratios, decode_s, measure_s = [], [], []
+    tilt_errors = []
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, (photo, pose, light, tilt) in enumerate(_photos(n, scale, args.seed)):
+            path, _ = photo.save(Path(tmp) / f"p{k}")
+            truth = photo.truth
+            plane = _plane_h(photo, pose) if tilt else None
+            t_dec, img = _timed(lambda path=path: cv2.imread(str(path)), 3)
+
+            def run(path=path, plane=plane, camera=photo.camera):
+                return measure_machine_photo(cv2.imread(str(path)), kit, camera=camera, plane=plane)
+
+            t_all, _ = _timed(run, 3)
+            decode_s.append(t_dec)
+            measure_s.append(t_all - t_dec)
+            ratios.append(t_all / t_dec)
+            row = [k, round(light.cct_k), round(light.camera_wb_cct_k), "yes" if tilt else "no"]
+            for method, space in variants:
+                try:
+                    res = measure_machine_photo(
+                        img,
+                        kit,
+                        camera=photo.camera if method == "ours" else None,
+                        plane=plane if method == "ours" else None,
+                        method=method,
+                        space=space,
+                    )
+                except InputError:
+                    failures[(method, space)] += 1
+                    row.append("missed")
+                    continue
+                errs = []
+                for key in ("pin_angle_deg", "bend_angle_deg"):
+                    err = float(getattr(res, key) - truth[key])
+                    err = (err + 180.0) % 360.0 - 180.0
+                    errs.append(err)
+                    errors[(method, space)].append(abs(err))
+                    zs[(method, space)].append(abs(err) / max(res.uncertainty_deg[key], 1e-12))
+                    if tilt and method == "ours" and space == "lab":
+                        tilt_errors.append(abs(err))
+                row.append(f"{errs[0]:+.4f} / {errs[1]:+.4f}")
+            per_photo_rows.append(row)
+            print(f"photo {k + 1}/{n}: {row}", flush=True)
+
+    def p95(v: list[float]) -> float | None:
+        return float(np.percentile(v, 95)) if v else None
+
+    def within2(v: list[float]) -> float | None:
+        return float(100.0 * np.mean(np.asarray(v) < 2.0)) if v else None
+
+    ours = errors[("ours", "lab")]
+    seed = errors[("seed", "lab")]
+    z_ours = zs[("ours", "lab")]
+    ratio_p50 = float(np.median(ratios))
+    metrics = [
+        Metric(
+            "p95 angle error, ours (LAB)",
+            p95(ours),
+            "deg",
+            target="<= 0.02",
+            met=bool(ours) and p95(ours) <= 0.02,
+        ),
+        Metric("p95 angle error, ours (RGB)", p95(errors[("ours", "rgb")]), "deg"),
+        Metric("p95 angle error, seed method (LAB), photos it found", p95(seed), "deg"),
+        Metric("photos the seed method (LAB) missed", failures[("seed", "lab")], f"of {n}"),
+        Metric(
+            "angles with |error| < 2 sigma, ours (LAB)",
+            within2(z_ours),
+            "%",
+            target="about 95 (90-99)",
+            met=bool(z_ours) and 90.0 <= within2(z_ours) <= 99.5,
+        ),
+        Metric(
+            "median |error|/sigma, ours (LAB)",
+            float(np.median(z_ours)) if z_ours else None,
+            "",
+            target="about 0.67 (Gaussian)",
+            met=None,
+        ),
+        Metric(
+            "measure time / decode time, one core (median)",
+            ratio_p50,
+            "x",
+            target="<= 1.5",
+            met=ratio_p50 <= 1.5,
+        ),
+        Metric("measure time after decode (median)", 1000 * float(np.median(measure_s)), "ms"),
+        Metric("JPEG decode time (median)", 1000 * float(np.median(decode_s)), "ms"),
+    ]
+    summary = []
+    for method, space in variants:
+        e = errors[(method, space)]
+        summary.append(
+            [
+                f"{method}/{space}",
+                n - failures[(method, space)],
+                float(np.median(e)) if e else None,
+                p95(e),
+                float(np.max(e)) if e else None,
+                within2(zs[(method, space)]),
+            ]
+        )
+    size = "2304x1536" if args.quick else "4608x3072"
+    return finish(
+        __file__,
+        SECTION,
+        argv,
+        quick=args.quick,
+        metrics=metrics,
+        tables=[
+            Table(
+                "by method (pin and bend angles pooled)",
+                [
+                    "method/space",
+                    "photos measured",
+                    "median |err| deg",
+                    "p95 deg",
+                    "max deg",
+                    "% |err| < 2 sigma",
+                ],
+                summary,
+            ),
+            Table(
+                "per photo: pin / bend error (deg)",
+                [
+                    "photo",
+                    "light K",
+                    "camera WB K",
+                    "tilted",
+                    "ours/lab",
+                    "ours/rgb",
+                    "seed/lab",
+                    "seed/rgb",
+                ],
+                per_photo_rows,
+            ),
+        ],
+        notes=[
+            f"{n} photos rendered by datasets.render_bender_photo at {size} (seed {args.seed}): "
+            "Lighting.random (2700-6500 K, camera white balance off by up to 600 K, exposure "
+            "0.7-1.15, vignetting, shot+read noise, blur 0.4-1 px, JPEG quality 80-96), the seed "
+            "camera's lens distortion, random yaw, 800-900 mm; the last fifth tilted 4-10 deg.",
+            "ours: camera model given (distortion removed from edge points); tilted photos also "
+            "get the plane homography (from the rendering pose, as a plane calibration would give). "
+            f"p95 over the tilted photos alone: {p95(tilt_errors)} deg.",
+            "seed: the paper's fixed colour boxes (widths from its source code 12, centred on the "
+            "kit's colours), medianBlur + HoughCircles, no white balance, no lens model.",
+            "speed: cv2.setNumThreads(1); best of 3 of cv2.imread alone vs cv2.imread + "
+            "measure_machine_photo on the same JPEG. Rendered JPEGs are smoother than real "
+            "photos, so they decode faster: the ratio here is pessimistic.",
+            f"total run {time.perf_counter() - t_start:.0f} s",
+        ],
+    )
+
+
+if __name__ == "__main__":
+    main()
