@@ -35,6 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _summary(result: dict) -> str:
     lines = [f"cause: {result['cause']}"]
+    if len(result["causes"]) > 1:
+        lines.append(f"causes: {', '.join(result['causes'])}")
     for key, value in result["params"].items():
         lo, hi = result["intervals"][key]
         lines.append(f"  {key} = {value:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
@@ -86,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
             extra={
                 "diagnosis": {
                     "cause": result.cause,
+                    "causes": list(result.causes),
                     "params": out["params"],
                     "intervals": out["intervals"],
                     "baseline_rmse_deg": out["baseline_rmse_deg"],

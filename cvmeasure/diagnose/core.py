@@ -31,7 +31,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.diagnose.fitting import (
-    CrossValidation,
     ModelFit,
     cross_validate,
     fit_model,
@@ -61,15 +60,19 @@ __all__ = [
 MIN_DELTA_BIC = 10.0
 #: Relative held-out RMSE gain over the baseline a candidate needs.
 MIN_CV_GAIN = 0.05
+#: A second cause is only tried when a smoother gains this much on the first model's
+#: residuals, or a residual trend has a p-value below SECOND_SCREEN_P.
+SECOND_SCREEN_GAIN = 0.1
+SECOND_SCREEN_P = 1e-4
 #: Fewest trials the diagnosis accepts.
 MIN_TRIALS = 8
 
 
 @dataclass(frozen=True)
 class CandidateResult:
-    """One cause tried: its full-data fit, held-out RMSE and whether it passed."""
+    """One cause tried (on top of any already named): full-data fit, held-out RMSE, verdict."""
 
-    cause: str
+    cause: str  # the effect tried
     cv_rmse_deg: float
     fit: ModelFit
     delta_bic: float
@@ -79,11 +82,12 @@ class CandidateResult:
         fit = self.fit.to_dict()
         return {
             "cause": self.cause,
+            "with": [c for c in self.fit.causes if c != self.cause],
             "cv_rmse_deg": self.cv_rmse_deg,
             "fit_rmse_deg": self.fit.rmse_deg,
-            "params": fit.get("params", {}),
-            "intervals": fit.get("intervals", {}),
-            "yield_mpa_scale": self.fit.strength_scale,
+            "params": fit["params"],
+            "intervals": fit["intervals"],
+            "yield_scale": self.fit.strength_scale,
             "delta_bic": self.delta_bic,
             "accepted": self.accepted,
         }
@@ -99,6 +103,7 @@ class Diagnosis:
     baseline_rmse_deg: float  # held-out
     extended_rmse_deg: float  # held-out
     candidates: tuple[CandidateResult, ...]
+    second_candidates: tuple[CandidateResult, ...]  # tried on top of the cause
     baseline_fit: ModelFit
     extended_fit: ModelFit
     baseline_residual_deg: NDArray[np.float64]  # full-data fit, [loaded..., unloaded...]
@@ -129,16 +134,23 @@ class Diagnosis:
         """The nominal params with the fitted material strength of the extended model."""
         return self.extended_fit.params(self.nominal_params)
 
+    @property
+    def causes(self) -> tuple[str, ...]:
+        """Every cause named, strongest first (empty when nothing is named)."""
+        return self.extended_fit.causes
+
     def extended_effects(self, base_effects: Sequence[Effect] = ()) -> tuple[Effect, ...]:
-        """``base_effects`` with the named cause added (or refitted)."""
-        kept = tuple(e for e in base_effects if e.name not in (self.cause, "none"))
-        effect = self.extended_fit.effect()
-        return kept if effect is None else (*kept, effect)
+        """``base_effects`` with the named causes added (or refitted)."""
+        fitted = self.extended_fit.effects()
+        names = {e.name for e in fitted}
+        kept = tuple(e for e in base_effects if e.name not in names and e.name != "none")
+        return (*kept, *fitted)
 
     def to_dict(self) -> dict[str, Any]:
         base_yield = self.nominal_params.yield_mpa
         return {
             "cause": self.cause,
+            "causes": list(self.causes),
             "params": dict(self.params),
             "intervals": {k: list(v) for k, v in self.intervals.items()},
             "baseline_rmse_deg": self.baseline_rmse_deg,
@@ -146,6 +158,7 @@ class Diagnosis:
             "gain": self.gain,
             "noise_floor_deg": self.noise_floor_deg,
             "candidates": [c.to_dict() for c in self.candidates],
+            "second_candidates": [c.to_dict() for c in self.second_candidates],
             "nuisance": {
                 "baseline_yield_mpa": base_yield * self.baseline_fit.strength_scale,
                 "extended_yield_mpa": base_yield * self.extended_fit.strength_scale,
@@ -184,6 +197,21 @@ def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
     return float(n * math.log(base.rss_deg2 / fit.rss_deg2) - extra * math.log(n))
 
 
+def _structure_left(
+    trials: TrialSet,
+    fit: ModelFit,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    folds: Sequence[NDArray[np.bool_]],
+) -> bool:
+    """Screen for a second cause: structure left along the angle, or a residual trend."""
+    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    if leftover_structure(trials, res, list(folds)).gain > SECOND_SCREEN_GAIN:
+        return True
+    p_values = [t.p_value for t in residual_trends(trials, res) if math.isfinite(t.p_value)]
+    return bool(p_values) and min(p_values) < SECOND_SCREEN_P
+
+
 def _design_notes(trials: TrialSet) -> list[str]:
     notes = []
     if not trials.both_directions:
@@ -209,6 +237,7 @@ def diagnose(
     folds: int = 5,
     min_cv_gain: float = MIN_CV_GAIN,
     min_delta_bic: float = MIN_DELTA_BIC,
+    max_causes: int = 2,
 ) -> Diagnosis:
     """Diagnose measured trials against the simulation.
 
@@ -227,6 +256,9 @@ def diagnose(
         K of the grouped K-fold cross-validation.
     min_cv_gain, min_delta_bic : float
         Acceptance thresholds (see module notes).
+    max_causes : int
+        1 names at most one cause; 2 (default) then tries a second cause on
+        top of the first, accepted by the same rule against the one-cause model.
 
     Raises
     ------
@@ -243,28 +275,38 @@ def diagnose(
     fold_masks = group_folds(trials.group, folds)
 
     base_fit = fit_model(trials, params, "none", base_effects=base_effects)
-    base_cv: CrossValidation = cross_validate(
+    base_cv = cross_validate(
         trials, params, "none", fold_masks, base_effects=base_effects, full_fit=base_fit
     )
-    results = []
-    for name in names:
-        fit = fit_model(trials, params, name, base_effects=base_effects)
-        cv = cross_validate(
-            trials, params, name, fold_masks, base_effects=base_effects, full_fit=fit
-        )
-        dbic = _delta_bic(base_fit, fit)
-        accepted = cv.rmse_deg <= (1.0 - min_cv_gain) * base_cv.rmse_deg and dbic >= min_delta_bic
-        results.append(CandidateResult(name, cv.rmse_deg, fit, dbic, bool(accepted)))
-    results.sort(key=lambda c: c.cv_rmse_deg)
 
+    def round_of(named: ModelFit, named_cv: float, tried: Sequence[str]) -> list[CandidateResult]:
+        out = []
+        for name in tried:
+            fit = fit_model(
+                trials,
+                params,
+                (*named.causes, name),
+                base_effects=base_effects,
+                known=named.param_values_by_cause(),
+            )
+            cv = cross_validate(
+                trials, params, fit.causes, fold_masks, base_effects=base_effects, full_fit=fit
+            )
+            dbic = _delta_bic(named, fit)
+            ok = cv.rmse_deg <= (1.0 - min_cv_gain) * named_cv and dbic >= min_delta_bic
+            out.append(CandidateResult(name, cv.rmse_deg, fit, dbic, bool(ok)))
+        out.sort(key=lambda c: c.cv_rmse_deg)
+        return out
+
+    results = round_of(base_fit, base_cv.rmse_deg, names)
     notes = _design_notes(trials)
     accepted = [c for c in results if c.accepted]
+    second: list[CandidateResult] = []
+    ident: tuple[Identifiability, ...] = ()
+    experiment = None
     if accepted:
         best = accepted[0]
         ext_fit, ext_cv = best.fit, best.cv_rmse_deg
-        spec = EFFECTS[best.cause]
-        params_out = {spec.param: float(best.fit.value)}
-        intervals = {spec.param: tuple(float(v) for v in best.fit.interval)}
         ident = tuple(
             check_identifiability(
                 trials,
@@ -288,10 +330,42 @@ def diagnose(
                 f"(signature similarity {i.similarity:.3f}); {how}"
             )
         experiment = next((i.experiment for i in confounded if i.experiment), None)
+        # a second cause on top of the first (never one confounded with it)
+        blocked = {best.cause, *(i.causes[1] for i in confounded)}
+        if max_causes > 1 and _structure_left(trials, best.fit, params, base_effects, fold_masks):
+            second = round_of(best.fit, best.cv_rmse_deg, [n for n in names if n not in blocked])
+            more = [c for c in second if c.accepted]
+            # two causes must explain the data down to the noise; if structure is still
+            # left, the second name would be forced onto an unnamed discrepancy
+            if (
+                more
+                and leftover_structure(
+                    trials,
+                    residuals(
+                        trials,
+                        params,
+                        base_effects,
+                        more[0].fit.causes,
+                        more[0].fit.strength_scale,
+                        more[0].fit.values,
+                    ),
+                    fold_masks,
+                ).unnamed
+            ):
+                notes.append(
+                    f"{more[0].cause} on top of {best.cause} lowers the held-out RMSE but "
+                    "leaves structure no pair of named causes explains; not named"
+                )
+                more = []
+            if more:
+                ext_fit, ext_cv = more[0].fit, more[0].cv_rmse_deg
+                notes.append(
+                    f"a second cause, {more[0].cause}, improves the held-out RMSE further "
+                    f"({best.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
+                )
         cause = best.cause
     else:
         cause, ext_fit, ext_cv = "none", base_fit, base_cv.rmse_deg
-        params_out, intervals, ident, experiment = {}, {}, (), None
         notes.append(
             f"no candidate beats the noise floor (held-out RMSE {base_cv.rmse_deg:.3f} deg); "
             "nothing is named"
@@ -301,9 +375,9 @@ def diagnose(
     elif experiment is None and not trials.has_loaded:
         experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
 
-    base_res = residuals(trials, params, base_effects, "none", base_fit.strength_scale, None)
+    base_res = residuals(trials, params, base_effects, (), base_fit.strength_scale)
     ext_res = residuals(
-        trials, params, base_effects, ext_fit.cause, ext_fit.strength_scale, ext_fit.value
+        trials, params, base_effects, ext_fit.causes, ext_fit.strength_scale, ext_fit.values
     )
     leftover = leftover_structure(trials, ext_res, fold_masks)
     if leftover.unnamed:
@@ -315,11 +389,12 @@ def diagnose(
         )
     return Diagnosis(
         cause=cause,
-        params=params_out,
-        intervals=intervals,
+        params=ext_fit.param_values(),
+        intervals=ext_fit.param_intervals(),
         baseline_rmse_deg=base_cv.rmse_deg,
         extended_rmse_deg=ext_cv,
         candidates=tuple(results),
+        second_candidates=tuple(second),
         baseline_fit=base_fit,
         extended_fit=ext_fit,
         baseline_residual_deg=base_res,

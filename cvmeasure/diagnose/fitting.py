@@ -40,18 +40,40 @@ _STRENGTH_BOUNDS = (0.2, 5.0)
 _GRID_POINTS = 9
 
 
+Causes = tuple[str, ...]
+
+
+def _as_causes(causes: str | Sequence[str]) -> Causes:
+    if isinstance(causes, str):
+        return () if causes == "none" else (causes,)
+    return tuple(c for c in causes if c != "none")
+
+
 @dataclass(frozen=True)
 class ModelFit:
-    """A fitted model: base simulation, strength scale and (optionally) one effect."""
+    """A fitted model: base simulation, strength scale and zero or more named effects."""
 
-    cause: str  # effect name, "none" for the baseline
+    causes: Causes  # effect names, () for the baseline
     strength_scale: float  # fitted yield / nominal yield (UTS scaled alike)
-    value: float | None  # the effect's parameter (units of EFFECTS[cause].unit)
-    interval: tuple[float, float] | None  # 95 % interval of value
+    values: tuple[float, ...]  # each effect's parameter (units of EFFECTS[name].unit)
+    intervals: tuple[tuple[float, float], ...]  # 95 % interval of each value
     strength_interval: tuple[float, float]
     rss_deg2: float  # residual sum of squares over all measured angles
     n_obs: int
     n_params: int
+
+    @property
+    def cause(self) -> str:
+        """The last effect added ("none" for the baseline)."""
+        return self.causes[-1] if self.causes else "none"
+
+    @property
+    def value(self) -> float | None:
+        return self.values[-1] if self.values else None
+
+    @property
+    def interval(self) -> tuple[float, float] | None:
+        return self.intervals[-1] if self.intervals else None
 
     @property
     def rmse_deg(self) -> float:
@@ -62,37 +84,41 @@ class ModelFit:
         """Residual standard deviation (degrees of freedom corrected)."""
         return math.sqrt(self.rss_deg2 / max(self.n_obs - self.n_params, 1))
 
-    def effect(self) -> Effect | None:
-        if self.cause == "none" or self.value is None:
-            return None
-        spec = EFFECTS[self.cause]
-        return Effect(self.cause, float(np.clip(self.value, spec.lower, spec.upper)))
+    def effects(self) -> tuple[Effect, ...]:
+        """The fitted effects (clipped to their physical bounds)."""
+        return _effects((), self.causes, self.values)
 
     def params(self, base: SimParams) -> SimParams:
         """``base`` with the fitted material strength."""
         return _scaled(base, self.strength_scale)
 
+    def param_values(self) -> dict[str, float]:
+        return {EFFECTS[c].param: v for c, v in zip(self.causes, self.values, strict=True)}
+
+    def param_values_by_cause(self) -> dict[str, float]:
+        return dict(zip(self.causes, self.values, strict=True))
+
+    def param_intervals(self) -> dict[str, tuple[float, float]]:
+        return {EFFECTS[c].param: i for c, i in zip(self.causes, self.intervals, strict=True)}
+
     def to_dict(self) -> dict[str, Any]:
-        spec = EFFECTS[self.cause]
-        out: dict[str, Any] = {
-            "cause": self.cause,
+        return {
+            "causes": list(self.causes),
             "strength_scale": self.strength_scale,
             "strength_interval": list(self.strength_interval),
+            "params": self.param_values(),
+            "intervals": {k: list(v) for k, v in self.param_intervals().items()},
             "rmse_deg": self.rmse_deg,
             "n_obs": self.n_obs,
             "n_params": self.n_params,
         }
-        if self.value is not None:
-            out["params"] = {spec.param: self.value}
-            out["intervals"] = {spec.param: list(self.interval or (math.nan, math.nan))}
-        return out
 
 
 @dataclass(frozen=True)
 class CrossValidation:
     """Held-out residuals of one model (one value per measured angle)."""
 
-    cause: str
+    causes: Causes
     residual_deg: NDArray[np.float64]
 
     @property
@@ -101,34 +127,37 @@ class CrossValidation:
         return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
     def to_dict(self) -> dict[str, Any]:
-        return {"cause": self.cause, "cv_rmse_deg": self.rmse_deg}
+        return {"causes": list(self.causes), "cv_rmse_deg": self.rmse_deg}
 
 
 def _scaled(base: SimParams, scale: float) -> SimParams:
     return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale)
 
 
-def _effects(base_effects: Sequence[Effect], cause: str, value: float | None) -> tuple[Effect, ...]:
-    kept = tuple(e for e in base_effects if e.name not in (cause, "none"))
-    if cause == "none" or value is None:
-        return kept
-    spec = EFFECTS[cause]
-    return (*kept, Effect(cause, float(np.clip(value, spec.lower, spec.upper))))
+def _effects(
+    base_effects: Sequence[Effect], causes: Causes, values: Sequence[float]
+) -> tuple[Effect, ...]:
+    kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
+    added = tuple(
+        Effect(c, float(np.clip(v, EFFECTS[c].lower, EFFECTS[c].upper)))
+        for c, v in zip(causes, values, strict=True)
+    )
+    return (*kept, *added)
 
 
 def predict(
     trials: TrialSet,
     params: SimParams,
     base_effects: Sequence[Effect],
-    cause: str,
+    causes: str | Sequence[str],
     strength_scale: float,
-    value: float | None,
+    values: Sequence[float] = (),
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Predicted (loaded, unloaded) bend angles (deg) of the trials under a model."""
     res = simulate(
         trials.commanded_pin_deg,
         _scaled(params, strength_scale),
-        _effects(base_effects, cause, value),
+        _effects(base_effects, _as_causes(causes), values),
         bend_index=trials.bend_index,
     )
     return res.loaded_bend_deg, res.unloaded_bend_deg
@@ -138,12 +167,12 @@ def residuals(
     trials: TrialSet,
     params: SimParams,
     base_effects: Sequence[Effect],
-    cause: str,
+    causes: str | Sequence[str],
     strength_scale: float,
-    value: float | None,
+    values: Sequence[float] = (),
 ) -> NDArray[np.float64]:
     """Measured minus predicted, stacked ``[loaded..., unloaded...]``; NaN where not measured."""
-    loaded, unloaded = predict(trials, params, base_effects, cause, strength_scale, value)
+    loaded, unloaded = predict(trials, params, base_effects, causes, strength_scale, values)
     return np.concatenate([trials.loaded_bend_deg - loaded, trials.unloaded_bend_deg - unloaded])
 
 
@@ -157,12 +186,13 @@ def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple
 def fit_model(
     trials: TrialSet,
     params: SimParams,
-    cause: str = "none",
+    causes: str | Sequence[str] = "none",
     *,
     base_effects: Sequence[Effect] = (),
-    start: tuple[float, float | None] | None = None,
+    start: tuple[float, Sequence[float]] | None = None,
+    known: dict[str, float] | None = None,
 ) -> ModelFit:
-    """Fit the strength scale (and the parameter of effect ``cause``) to the trials.
+    """Fit the strength scale and the parameters of the effects ``causes`` to the trials.
 
     Parameters
     ----------
@@ -170,38 +200,46 @@ def fit_model(
         Measured bends.
     params : SimParams
         The simulation's nominal parameters.
-    cause : str
-        ``"none"`` (baseline: strength only) or an effect name.
+    causes : str or sequence of str
+        ``"none"`` (baseline: strength only), an effect name, or several.
     base_effects : sequence of Effect
         Effects already known (from the params JSON), kept fixed.
-    start : (strength_scale, value), optional
+    start : (strength_scale, values), optional
         Start point (skips the grid search), e.g. a full-data fit for CV folds.
+    known : dict, optional
+        Start values of some causes (e.g. from a previous round); the others
+        start from the best point of a grid over their bounds.
     """
-    spec = EFFECTS[cause]
-    with_effect = cause != "none"
+    names = _as_causes(causes)
+    specs = [EFFECTS[c] for c in names]
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        value = x[1] if with_effect else None
-        r = residuals(trials, params, base_effects, cause, x[0], value)
+        r = residuals(trials, params, base_effects, names, x[0], x[1:])
         return r[np.isfinite(r)]
 
     if start is not None:
-        x0 = [start[0]] + ([start[1] if start[1] is not None else 0.0] if with_effect else [])
-    elif with_effect:
-        grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
-        costs = [np.sum(resid(np.array([1.0, v])) ** 2) for v in grid]
-        x0 = [1.0, float(grid[int(np.argmin(costs))])]
+        x0 = np.array([start[0], *start[1]], dtype=np.float64)
     else:
-        x0 = [1.0]
-    lower = [_STRENGTH_BOUNDS[0]] + ([spec.lower] if with_effect else [])
-    upper = [_STRENGTH_BOUNDS[1]] + ([spec.upper] if with_effect else [])
-    x0 = np.clip(np.asarray(x0, dtype=np.float64), lower, upper)
+        known = known or {}
+        x0 = np.array([1.0] + [known.get(c, 0.0) for c in names], dtype=np.float64)
+        x0[1:] = np.clip(x0[1:], [s.lower for s in specs], [s.upper for s in specs])
+        for i, (c, spec) in enumerate(zip(names, specs, strict=True), start=1):
+            if c in known:
+                continue
+            grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
+            costs = []
+            for v in grid:
+                x0[i] = v
+                costs.append(np.sum(resid(x0) ** 2))
+            x0[i] = float(grid[int(np.argmin(costs))])
+    lower = np.array([_STRENGTH_BOUNDS[0]] + [s.lower for s in specs])
+    upper = np.array([_STRENGTH_BOUNDS[1]] + [s.upper for s in specs])
     # keep the start strictly inside the bounds (least_squares requires it)
-    span = np.asarray(upper) - np.asarray(lower)
-    x0 = np.clip(x0, np.asarray(lower) + 1e-9 * span, np.asarray(upper) - 1e-9 * span)
-    scale = [0.1] + ([max(abs(spec.typical[1]), 1e-3)] if with_effect else [])
+    span = upper - lower
+    x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
+    scale = np.array([0.1] + [max(abs(s.typical[1]), 1e-3) for s in specs])
     sol = optimize.least_squares(
-        resid, x0, bounds=(lower, upper), x_scale=np.asarray(scale), method="trf", xtol=1e-10
+        resid, x0, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
     )
     r = sol.fun
     n_obs, n_par = r.size, sol.x.size
@@ -213,17 +251,15 @@ def fit_model(
         se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     except np.linalg.LinAlgError:
         se = np.full(n_par, math.inf)
-    strength_ci = _interval(float(sol.x[0]), float(se[0]), dof, *_STRENGTH_BOUNDS)
-    value = float(sol.x[1]) if with_effect else None
-    interval = (
-        _interval(value, float(se[1]), dof, spec.lower, spec.upper) if value is not None else None
-    )
     return ModelFit(
-        cause=cause,
+        causes=names,
         strength_scale=float(sol.x[0]),
-        value=value,
-        interval=interval,
-        strength_interval=strength_ci,
+        values=tuple(float(v) for v in sol.x[1:]),
+        intervals=tuple(
+            _interval(float(sol.x[i]), float(se[i]), dof, spec.lower, spec.upper)
+            for i, spec in enumerate(specs, start=1)
+        ),
+        strength_interval=_interval(float(sol.x[0]), float(se[0]), dof, *_STRENGTH_BOUNDS),
         rss_deg2=rss,
         n_obs=n_obs,
         n_params=n_par,
@@ -243,22 +279,23 @@ def group_folds(groups: Sequence[str], k: int = 5, *, seed: int = 0) -> list[NDA
 def cross_validate(
     trials: TrialSet,
     params: SimParams,
-    cause: str,
+    causes: str | Sequence[str],
     folds: Sequence[NDArray[np.bool_]],
     *,
     base_effects: Sequence[Effect] = (),
     full_fit: ModelFit | None = None,
 ) -> CrossValidation:
     """Held-out residuals: fit on all folds but one, predict the one, for every fold."""
+    names = _as_causes(causes)
     n = len(trials)
     out = np.full(2 * n, np.nan)
-    start = (full_fit.strength_scale, full_fit.value) if full_fit is not None else None
+    start = (full_fit.strength_scale, full_fit.values) if full_fit is not None else None
     for held in folds:
         train = trials.subset(~held)
-        fit = fit_model(train, params, cause, base_effects=base_effects, start=start)
+        fit = fit_model(train, params, names, base_effects=base_effects, start=start)
         test = trials.subset(held)
-        r = residuals(test, params, base_effects, cause, fit.strength_scale, fit.value)
+        r = residuals(test, params, base_effects, names, fit.strength_scale, fit.values)
         idx = np.flatnonzero(held)
         out[idx] = r[: idx.size]
         out[n + idx] = r[idx.size :]
-    return CrossValidation(cause=cause, residual_deg=out)
+    return CrossValidation(causes=names, residual_deg=out)

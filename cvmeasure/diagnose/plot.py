@@ -30,7 +30,11 @@ def residual_plot_png(diagnosis: Diagnosis, trials: TrialSet, *, dpi: int = 100)
     axes = fig.subplots(2, 2, sharey="row")
     rows = (
         ("baseline (nuisance only)", diagnosis.baseline_residual_deg, diagnosis.baseline_fit),
-        (f"extended: {diagnosis.cause}", diagnosis.extended_residual_deg, diagnosis.extended_fit),
+        (
+            f"extended: {' + '.join(diagnosis.causes) or 'none'}",
+            diagnosis.extended_residual_deg,
+            diagnosis.extended_fit,
+        ),
     )
     for row, (title, res, fit) in enumerate(rows):
         for col, (x, xlabel) in enumerate(((cmd, "commanded pin (deg)"), (idx, "bend index"))):

@@ -39,6 +39,7 @@ __all__ = [
     "contact_angle_deg",
     "loaded_angle_deg",
     "lever_arm_mm",
+    "loaded_angle_and_lever",
     "pin_angle_for_loaded_deg",
 ]
 
@@ -127,6 +128,15 @@ def lever_arm_mm(geom: HeadGeometry, pin_angle_deg: ArrayLike) -> NDArray[np.flo
     phi = np.maximum(np.asarray(pin_angle_deg, dtype=np.float64), contact_angle_deg(geom))
     _, lever = _tangent(geom, phi)
     return lever
+
+
+def loaded_angle_and_lever(
+    geom: HeadGeometry, pin_angle_deg: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Both :func:`loaded_angle_deg` and :func:`lever_arm_mm` from one tangent construction."""
+    phi = np.maximum(np.asarray(pin_angle_deg, dtype=np.float64), contact_angle_deg(geom))
+    theta, lever = _tangent(geom, phi)
+    return np.maximum(np.degrees(theta), 0.0), lever
 
 
 def pin_angle_for_loaded_deg(

@@ -25,12 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cvmeasure.sim.effects import Effect
-from cvmeasure.sim.kinematics import (
-    contact_angle_deg,
-    head_geometry,
-    lever_arm_mm,
-    loaded_angle_deg,
-)
+from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, loaded_angle_and_lever
 from cvmeasure.sim.params import SimParams
 from cvmeasure.sim.springback import SpringbackLaw, springback_law
 
@@ -129,8 +124,7 @@ def _forward(
     nominal = head_geometry(params, direction)
     geom = head_geometry(params, direction, axis_offset_mm=values.get("axis_offset", 0.0))
     phi = contact_angle_deg(nominal) - params.approach_deg + r
-    theta_l = loaded_angle_deg(geom, phi)
-    lever = lever_arm_mm(geom, phi)
+    theta_l, lever = loaded_angle_and_lever(geom, phi)
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])

@@ -23,6 +23,7 @@ F. J. Gardiner, "The Spring Back of Metals", Trans. ASME 79 (1957) 1-9.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -175,8 +176,9 @@ class SpringbackLaw:
         }
 
 
+@functools.lru_cache(maxsize=512)
 def springback_law(params: SimParams) -> SpringbackLaw:
-    """The affine springback law for the params' wire bent on its die edge."""
+    """The affine springback law for the params' wire bent on its die edge (cached)."""
     a = params.wire_radius_mm
     rho = params.die_radius_mm + a
     ei = params.youngs_modulus_mpa * math.pi * a**4 / 4.0
