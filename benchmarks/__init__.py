@@ -287,7 +287,7 @@ def finish(
     for note in result["notes"]:
         print(f"note: {note}")
     path = atomic_write_json(RESULTS_DIR / f"{name}.json", result)
-    print(f"wrote {path.relative_to(REPO_ROOT)}")
+    print(f"wrote {_repo_relative(path)}")
     if update_md:
         write_results_md(sections=[name])
     return result

@@ -108,7 +108,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         command += " " + " ".join(args.names)
     if args.render_only:
         path = write_results_md(command=None)
-        print(f"wrote {path.relative_to(REPO_ROOT)}")
+        print(f"wrote {path}")
         return 0
     rows = []
     failed = 0
@@ -123,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     path = write_results_md(command=command)
     print()
     print(format_table(["benchmark", "status", "seconds"], rows))
-    print(f"wrote {path.relative_to(REPO_ROOT)}")
+    print(f"wrote {path}")
     return 1 if failed else 0
 
 

@@ -1,0 +1,107 @@
+"""The benchmark runner's contract: result JSON, RESULTS.md sections, hand-written sections kept."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+import benchmarks
+from benchmarks import Metric, Table, finish, write_results_md
+from benchmarks.__main__ import _declared_section, discover
+
+
+@pytest.fixture
+def bench_dirs(tmp_path, monkeypatch):
+    results = tmp_path / "results"
+    monkeypatch.setattr(benchmarks, "RESULTS_DIR", results)
+    monkeypatch.setattr(benchmarks, "RESULTS_MD", tmp_path / "RESULTS.md")
+    return tmp_path
+
+
+def test_finish_writes_json_and_only_its_section(bench_dirs, capsys):
+    md = bench_dirs / "RESULTS.md"
+    md.write_text("# Benchmark results\n\n## Hand-written lens notes\n\nrms 0.12 px, by hand.\n")
+    result = finish(
+        str(bench_dirs / "speed.py"),
+        "Speed per photo",
+        ["--quick"],
+        quick=True,
+        metrics=[
+            Metric("ours per photo", 0.25, "s", target="<= 0.5", met=True),
+            Metric("seed ratio", 7.5, "x", target=">= 10", met=False),
+            Metric("note only", float("nan"), "s"),
+        ],
+        tables=[Table("sizes", ["MP", "seconds"], [[4, 0.1], [24, 0.6]])],
+        notes=["a note"],
+        seconds=1.5,
+    )
+    saved = json.loads((bench_dirs / "results" / "speed.json").read_text())
+    assert saved == result
+    assert saved["name"] == "speed" and saved["command"] == "python -m benchmarks.speed --quick"
+    assert saved["metrics"][2]["value"] is None and saved["machine"]["cores"] >= 1
+    text = md.read_text()
+    assert "## Hand-written lens notes\n\nrms 0.12 px, by hand." in text
+    assert "## Speed per photo" in text and "| ours per photo | 0.25 | s | <= 0.5 | yes |" in text
+    assert "| seed ratio | 7.5 | x | >= 10 | **NO** |" in text
+    assert "1 of 2 targets met." in text  # the summary counts metrics with a target
+    assert "ours per photo" in capsys.readouterr().out
+
+    # a second run replaces the section in place, keeps the others and their order
+    finish(
+        str(bench_dirs / "speed.py"),
+        "Speed per photo",
+        [],
+        quick=False,
+        metrics=[Metric("ours per photo", 0.2, "s", target="<= 0.5", met=True)],
+        seconds=2.0,
+    )
+    text2 = md.read_text()
+    assert text2.count("## Speed per photo") == 1 and "| 0.25 |" not in text2
+    assert text2.index("Hand-written lens notes") < text2.index("## Speed per photo")
+    assert "1 of 1 targets met." in text2
+
+
+def test_render_only_regenerates_preamble_and_sections(bench_dirs):
+    (bench_dirs / "results").mkdir()
+    (bench_dirs / "results" / "x.json").write_text(
+        json.dumps(
+            {
+                "name": "x",
+                "section": "X bench",
+                "command": "python -m benchmarks.x",
+                "quick": False,
+                "date_utc": "2026-11-21T00:00:00+00:00",
+                "seconds": 3.0,
+                "machine": {"cores": 2},
+                "metrics": [{"name": "m", "value": 1, "unit": "", "target": None, "met": None}],
+                "tables": [],
+                "plots": [],
+                "notes": [],
+            }
+        )
+    )
+    (bench_dirs / "results" / "broken.json").write_text("{not json")
+    write_results_md(command="python -m benchmarks --quick")
+    text = (bench_dirs / "RESULTS.md").read_text()
+    assert text.startswith("# Benchmark results")
+    assert "Last full run: `python -m benchmarks --quick`" in text
+    assert "## X bench" in text and "## Targets at a glance" in text
+
+
+def test_discover_and_declared_section():
+    names = discover()
+    assert "batch" in names and "__main__" not in names and "__init__" not in names
+    assert _declared_section("batch") == "Batch throughput and resume (issue 9)"
+    assert _declared_section("no_such_benchmark") == "no_such_benchmark (benchmark)"
+
+
+def test_runner_cli_list_and_unknown():
+    out = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--list"], capture_output=True, text=True, check=False
+    )
+    assert out.returncode == 0 and "batch" in out.stdout.split()
+    bad = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "nope"], capture_output=True, text=True, check=False
+    )
+    assert bad.returncode == 2 and "unknown benchmark(s) nope" in bad.stderr
