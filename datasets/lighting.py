@@ -167,8 +167,8 @@ def develop(
 
     rng = np.random.default_rng([seed, 0x5E45])
     h, w = albedo_rgb.shape[:2]
-    gain = illuminant_rgb(lighting.cct_k) * (lighting.exposure / 1.0)
-    raw = albedo_rgb * gain.astype(np.float32)
+    gain = (illuminant_rgb(lighting.cct_k) * lighting.exposure).astype(np.float32)
+    raw = albedo_rgb * gain
     if lighting.vignetting:
         yy, xx = np.ogrid[0:h, 0:w]
         r2 = ((xx - (w - 1) / 2) ** 2 + (yy - (h - 1) / 2) ** 2) / (
@@ -179,18 +179,31 @@ def develop(
     if sigma > 0.05:
         raw = cv2.GaussianBlur(raw, (0, 0), sigmaX=sigma, sigmaY=sigma)
     if lighting.noise > 0:
-        fw = lighting.full_well_e
-        electrons = np.clip(raw, 0.0, None) * fw
-        # shot (Gaussian limit of Poisson, thousands of electrons) and read noise
-        sd_e = np.sqrt(electrons + lighting.read_noise_e**2)
-        raw = raw + (lighting.noise / fw) * sd_e * rng.standard_normal(raw.shape, dtype=np.float32)
-    raw = np.clip(raw, 0.0, 1.0)  # the sensor saturates before white balance
+        # shot (Gaussian limit of Poisson: thousands of electrons) and read noise, in place
+        fw = np.float32(lighting.full_well_e)
+        sd = np.maximum(raw, np.float32(0.0))
+        sd *= fw
+        sd += np.float32(lighting.read_noise_e**2)
+        np.sqrt(sd, out=sd)
+        sd *= np.float32(lighting.noise) / fw
+        # OpenCV's generator is 4x faster than numpy's at 14 MP; seeded from ``seed``
+        cv2.setRNGSeed(int(rng.integers(1, 2**31 - 1)))
+        gauss = np.empty(raw.shape, dtype=np.float32)
+        cv2.randn(gauss.reshape(h, -1), 0.0, 1.0)
+        sd *= gauss
+        raw += sd
+        del sd, gauss
+    np.clip(raw, 0.0, 1.0, out=raw)  # the sensor saturates before white balance
     wb = 1.0 / illuminant_rgb(lighting.camera_wb_cct_k)
     wb /= wb.min()  # cameras only amplify: the strongest channel keeps gain 1
-    out = np.clip(raw * wb.astype(np.float32), 0.0, 1.0)
-    code16 = np.round(out * 65535.0).astype(np.uint16)
-    rgb8 = _encode_lut()[code16]
-    bgr = np.ascontiguousarray(rgb8[..., ::-1])
+    raw *= wb.astype(np.float32)
+    np.clip(raw, 0.0, 1.0, out=raw)
+    raw *= np.float32(65535.0)
+    raw += np.float32(0.5)
+    code16 = np.empty(raw.shape, dtype=np.uint16)
+    np.copyto(code16, raw, casting="unsafe")  # truncation of x + 0.5: rounds
+    del raw
+    bgr = _encode_lut()[code16[..., ::-1]]
     linear = code16 if keep_linear else None
     jpeg = None
     if lighting.jpeg_quality is not None:

@@ -3,8 +3,8 @@
 A scene is a list of :class:`Layer` objects painted in order (painter's
 algorithm) onto a linear-RGB albedo image. Each layer has a bounding box in
 plane mm; only the pixels inside its projected box are evaluated. For those
-pixels the plane coordinates come from :func:`datasets.optics.plane_coords_mm`
-(exact undistortion + ray/plane intersection) and the layer returns a coverage
+pixels the plane coordinates come from :class:`datasets.optics.RayMap`
+(exact undistortion, spline-interpolated to ~1e-11 px, + ray/plane intersection) and the layer returns a coverage
 ``alpha`` in [0, 1]:
 
 * signed-distance layers (discs, capsules, rectangles): the exact box-filtered
@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 from cvmeasure.camera import CameraModel
-from datasets.optics import plane_coords_mm, project_frame_points
+from datasets.optics import RayMap, project_frame_points
 
 __all__ = [
     "Window",
@@ -78,9 +78,11 @@ def box_coverage(dist_px: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> np.ndar
     uniform variables of widths ``|nx|`` and ``|ny|`` (a trapezoid), whose
     CDF gives the covered fraction.
     """
-    norm = np.maximum(np.hypot(gx, gy), 1e-300)
-    a = np.abs(gx) / norm
-    b = np.abs(gy) / norm
+    norm = np.hypot(gx, gy)
+    flat = norm < 1e-12  # no direction (a constant field): treat as axis-aligned
+    norm = np.where(flat, 1.0, norm)
+    a = np.where(flat, 1.0, np.abs(gx) / norm)
+    b = np.where(flat, 0.0, np.abs(gy) / norm)
     a, b = np.maximum(a, b), np.minimum(a, b)
     x = -np.abs(dist_px)  # evaluate the lower tail, mirror afterwards
     lo = -(a + b) / 2
@@ -110,15 +112,43 @@ def sdf_circle(u: np.ndarray, v: np.ndarray, centre_mm: Sequence[float], radius_
 
 
 def sdf_capsules(u: np.ndarray, v: np.ndarray, polyline_mm: np.ndarray, radius_mm: float):
-    """Signed distance to the union of capsules of ``radius_mm`` around a polyline (N, 2)."""
+    """Signed distance to the union of capsules of ``radius_mm`` around a polyline (N, 2).
+
+    Exact within a band of a few pixels around the capsules; farther away the
+    value is capped (it only ever feeds an anti-aliased coverage). Each segment
+    is evaluated only on the pixels inside its own padded bounding box.
+    """
     pts = np.asarray(polyline_mm, dtype=np.float64)
-    best = np.full(np.shape(u), np.inf)
+    # the band: 4 pixels beyond the surface (pixel size from the window's extent)
+    steps = [np.abs(np.diff(a, axis=ax)).max() for a in (u, v) for ax in (0, 1) if a.shape[ax] > 1]
+    px_mm = max(steps) if steps else 1.0
+    cap = radius_mm + 4.0 * px_mm + 1e-6
+    best = np.full(np.shape(u), cap)
     for a, b in zip(pts[:-1], pts[1:], strict=True):
+        lo = np.minimum(a, b) - cap
+        hi = np.maximum(a, b) + cap
+        rows = np.nonzero(((u >= lo[0]) & (u <= hi[0]) & (v >= lo[1]) & (v <= hi[1])).any(axis=1))[
+            0
+        ]
+        if len(rows) == 0:
+            continue
+        r0, r1 = rows[0], rows[-1] + 1
+        cols = np.nonzero(
+            (
+                (u[r0:r1] >= lo[0])
+                & (u[r0:r1] <= hi[0])
+                & (v[r0:r1] >= lo[1])
+                & (v[r0:r1] <= hi[1])
+            ).any(axis=0)
+        )[0]
+        c0, c1 = cols[0], cols[-1] + 1
+        su, sv = u[r0:r1, c0:c1], v[r0:r1, c0:c1]
         d = b - a
         length2 = float(d @ d)
-        pu, pv = u - a[0], v - a[1]
+        pu, pv = su - a[0], sv - a[1]
         h = np.clip((pu * d[0] + pv * d[1]) / length2, 0.0, 1.0) if length2 > 0 else 0.0
-        np.minimum(best, np.hypot(pu - h * d[0], pv - h * d[1]), out=best)
+        sub = best[r0:r1, c0:c1]
+        np.minimum(sub, np.hypot(pu - h * d[0], pv - h * d[1]), out=sub)
     return best - radius_mm
 
 
@@ -221,6 +251,7 @@ def rasterise(
     w, h = camera.image_size_px
     img = np.zeros((h, w, 3), dtype=np.float32)
     boxes = [_bbox_px(layer.bbox_mm, camera, rot, t_mm) for layer in layers]
+    rays = RayMap(camera)
     for sy0 in range(0, h, rows_per_strip):
         sy1 = min(h, sy0 + rows_per_strip)
         active = [
@@ -235,8 +266,7 @@ def rasterise(
         # plane coordinates of the strip plus a one-pixel halo
         ys = np.arange(sy0 - 1, sy1 + 1, dtype=np.float64)
         xs = np.arange(cx0 - 1, cx1 + 1, dtype=np.float64)
-        gx, gy = np.meshgrid(xs, ys)
-        u, v = plane_coords_mm(camera, rot, t_mm, gx, gy)
+        u, v = rays.plane_grid_mm(rot, t_mm, xs, ys)
         for layer, (bx0, by0, bx1, by1) in active:
             y0, y1 = max(by0, sy0), min(by1, sy1)
             # window indices into the strip arrays (which start at (cx0 - 1, sy0 - 1))

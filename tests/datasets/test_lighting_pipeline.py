@@ -51,8 +51,12 @@ def test_correct_white_balance_gives_neutral_white(cct_k):
 
 def test_wb_error_tints_the_photo():
     base = dict(cct_k=4000.0, noise=0.0, vignetting=0.0, jpeg_quality=None)
-    too_warm = _ring_rgb(render_bender_photo(lighting=Lighting(wb_error_k=-800.0, **base), linear=True, **KW))
-    too_cool = _ring_rgb(render_bender_photo(lighting=Lighting(wb_error_k=800.0, **base), linear=True, **KW))
+    too_warm = _ring_rgb(
+        render_bender_photo(lighting=Lighting(wb_error_k=-800.0, **base), linear=True, **KW)
+    )
+    too_cool = _ring_rgb(
+        render_bender_photo(lighting=Lighting(wb_error_k=800.0, **base), linear=True, **KW)
+    )
     # the camera assumes a warmer light than there is -> it over-corrects -> bluish
     assert too_warm[2] > too_warm[0] and too_cool[0] > too_cool[2]
 
@@ -79,7 +83,9 @@ def test_shot_and_read_noise_have_the_stated_size():
 
 
 def test_vignetting_darkens_the_corners():
-    light = Lighting(cct_k=6504.0, wb_error_k=0.0, noise=0.0, blur_px=0.0, jpeg_quality=None, vignetting=0.3)
+    light = Lighting(
+        cct_k=6504.0, wb_error_k=0.0, noise=0.0, blur_px=0.0, jpeg_quality=None, vignetting=0.3
+    )
     photo = render_board_view(
         board=ChessboardSpec(3, 3, 60.0),
         pose=Pose(distance_mm=300.0, offset_mm=(120.0, 120.0)),  # paper fills the view
@@ -98,16 +104,21 @@ def test_jpeg_and_linear_outputs(tmp_path):
     raw = render_bender_photo(lighting=Lighting(jpeg_quality=None), seed=1, **KW)
     assert hi.jpeg_bytes[:2] == b"\xff\xd8" and raw.jpeg_bytes is None
     assert len(lo.jpeg_bytes) < len(hi.jpeg_bytes)
-    assert np.array_equal(cv2.imdecode(np.frombuffer(hi.jpeg_bytes, np.uint8), cv2.IMREAD_COLOR), hi.bgr)
+    assert np.array_equal(
+        cv2.imdecode(np.frombuffer(hi.jpeg_bytes, np.uint8), cv2.IMREAD_COLOR), hi.bgr
+    )
     # JPEG at 95 stays close to the uncompressed image
     assert np.abs(hi.bgr.astype(int) - raw.bgr.astype(int)).mean() < 2.0
     assert hi.linear_rgb16.dtype == np.uint16 and hi.linear_rgb16.shape == hi.bgr.shape
     assert raw.linear_rgb16 is None
     # the 8-bit image is the sRGB encoding of the linear one (before JPEG)
     lin = render_bender_photo(lighting=Lighting(jpeg_quality=None), linear=True, seed=1, **KW)
-    enc = np.round(255 * np.where(
-        (v := lin.linear_rgb16 / 65535) <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055
-    ))
+    enc = np.round(
+        255
+        * np.where(
+            (v := lin.linear_rgb16 / 65535) <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055
+        )
+    )
     assert np.abs(enc[..., ::-1] - lin.bgr).max() <= 1
     tif = lin.save_linear_tiff(tmp_path / "lin.tiff")
     back = cv2.imread(str(tif), cv2.IMREAD_UNCHANGED)

@@ -10,7 +10,9 @@ from datasets import Lighting, arc_part, polyline_part, render_part_photo, saddl
 from datasets.optics import project_frame_points
 
 
-@pytest.mark.parametrize(("radius", "angle", "n"), [(45.0, 70.0, 5), (85.0, 180.0, 12), (100.0, 120.0, 7)])
+@pytest.mark.parametrize(
+    ("radius", "angle", "n"), [(45.0, 70.0, 5), (85.0, 180.0, 12), (100.0, 120.0, 7)]
+)
 def test_arc_part_geometry(radius, angle, n):
     part = arc_part(radius, angle, n)
     v = part.vertices_mm
@@ -21,7 +23,9 @@ def test_arc_part_geometry(radius, angle, n):
     assert np.allclose(part.segment_bend_deg, angle / n)
     assert part.chord_width_mm == pytest.approx(2 * radius * np.sin(np.radians(angle / 2)))
     half = angle / 2 / n * (n % 2)  # odd n: no vertex at the arc's middle
-    assert part.height_mm == pytest.approx(radius * (np.cos(np.radians(half)) - np.cos(np.radians(angle / 2))))
+    assert part.height_mm == pytest.approx(
+        radius * (np.cos(np.radians(half)) - np.cos(np.radians(angle / 2)))
+    )
     with pytest.raises(ValueError):
         arc_part(-1.0, angle, n)
 
@@ -43,7 +47,9 @@ def test_saddle_has_equal_chords_and_changing_bend_sign():
 def test_rendered_wire_lies_on_the_truth_centreline():
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     part = arc_part(70.0, 120.0, 8)
-    photo = render_part_photo(part=part, board=board, sheet="dark", lighting=Lighting.clean(), seed=3, scale=0.25)
+    photo = render_part_photo(
+        part=part, board=board, sheet="dark", lighting=Lighting.clean(), seed=3, scale=0.25
+    )
     t = photo.truth
     assert t["radius_mm"] == 70.0 and t["divisions"] == 8 and t["arc_angle_deg"] == 120.0
     assert np.allclose(t["segment_bend_deg"], 15.0)
@@ -69,7 +75,9 @@ def test_rendered_wire_lies_on_the_truth_centreline():
 
 
 def test_light_sheet_and_polyline_parts():
-    photo = render_part_photo(part=np.array([[0, 0], [40, 0], [60, 30]]), sheet="light", scale=0.125)
+    photo = render_part_photo(
+        part=np.array([[0, 0], [40, 0], [60, 30]]), sheet="light", scale=0.125
+    )
     assert photo.truth["sheet"] == "light" and photo.truth["part"]["kind"] == "polyline"
     assert photo.truth["segment_bend_deg"] == pytest.approx([np.degrees(np.arctan2(30, 20))])
     assert polyline_part([[0, 0], [1, 0]]).divisions == 1
