@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--no-reject", action="store_true", help="keep every corner and view (no rejection loop)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument(
+        "-v", "--verbose", action="store_true", help="report each photo's corners on stderr"
+    )
     p.set_defaults(func=run)
 
 
@@ -49,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     board = load_board(args.board)
 
     def progress(msg: str) -> None:
-        if not args.json:
+        if args.verbose:
             print(msg, file=sys.stderr, flush=True)
 
     detections = detect_photos(args.photos, board, progress=progress)

@@ -1,0 +1,90 @@
+"""Real calibration sets (../shared/data/real): reproduce the published values."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from cvmeasure.board import board_from_dict
+from cvmeasure.calibration.detect import detect_board
+from cvmeasure.calibration.pipeline import calibrate_detections
+from cvmeasure.calibration.uncertainty import projection_diff
+from cvmeasure.camera import CameraModel
+
+
+def _detect(files, spec):
+    board = board_from_dict(spec)
+    return [
+        detect_board(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), board, source=f.name) for f in files
+    ]
+
+
+def test_opencv_left_set_reproduces_the_python_test_reference(shared_real):
+    """opencv/opencv modules/python/test/test_calibration.py: RMS 0.19633, fx 532.81 (13 views)."""
+    files = sorted((shared_real / "opencv-samples-chessboard-9x6" / "left").glob("*.jpg"))
+    dets = _detect(files, {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0})
+    report = calibrate_detections(dets, (640, 480))
+    res = report.result
+    assert len(res.views) == 13 and not res.rejected
+    assert res.rms_px == pytest.approx(0.19633, abs=0.01)  # the reference test's tolerance
+    cam = res.camera
+    assert cam.fx == pytest.approx(532.81, abs=1.0) and cam.fy == pytest.approx(532.93, abs=1.0)
+    # Compare projections, not single (correlated) coefficients: the reference lens.
+    ref = CameraModel(
+        (640, 480),
+        np.array([[532.80992189, 0, 342.4952186], [0, 532.93346422, 233.8879292], [0, 0, 1]]),
+        [-0.281325576, 0.0291130406, 0.00121234330, -0.000140825372, 0.154865844],
+    )
+    diff = projection_diff(ref, cam, fit_rotation=False)
+    assert diff.central_rms_px < 0.3
+    # The honest numbers: the halves agree in the centre, and the edges are extrapolated.
+    cv = report.cross_validation
+    assert cv.diff.central_rms_px < 0.3 and cv.diff.max_px > 3.0
+    assert any("left edge" in w for w in report.warnings)
+
+
+def test_charuco_tutorial_set_matches_its_yml(shared_real):
+    folder = shared_real / "opencv-contrib-aruco-charuco-5x7"
+    files = [folder / f"img_0{i}.jpg" for i in range(4)]
+    dets = _detect(
+        files,
+        {
+            "type": "charuco",
+            "squares_x": 5,
+            "squares_y": 7,
+            "square_mm": 40.0,
+            "marker_mm": 20.0,
+            "dictionary": "DICT_6X6_250",
+        },
+    )
+    report = calibrate_detections(dets, (640, 480), cross_check=False)
+    res = report.result
+    assert res.rms_px == pytest.approx(0.188, abs=0.02)  # reference 0.182 px (OpenCV 4.x)
+    sd = res.std_devs
+    # tutorial_camera_charuco.yml: within 2 of our formal sigmas.
+    assert abs(res.camera.fx - 452.51) < 2 * sd["fx"]
+    assert abs(res.camera.principal_point_px[1] - 277.75) < 2 * sd["cy"]
+    assert any("only 4 views" in w for w in report.warnings)
+
+
+def test_photonvision_cross_validation_exposes_what_rms_hides(shared_real):
+    """16 LifeCam frames: RMS 0.25 px, yet the even/odd halves differ by ~2.6 px (data README)."""
+    folder = shared_real / "photonvision-lifecam-charuco-8x8" / "2024-05-07_lifecam_1280"
+    dets = _detect(
+        sorted(folder.glob("*.jpg")),
+        {
+            "type": "charuco",
+            "squares_x": 8,
+            "squares_y": 8,
+            "square_mm": 25.4,
+            "marker_mm": 19.05,
+            "dictionary": "DICT_4X4_1000",
+        },
+    )
+    report = calibrate_detections(dets, (1280, 720))
+    assert report.result.rms_px == pytest.approx(0.25, abs=0.03)
+    assert report.camera.fx == pytest.approx(1127.5, abs=3 * report.result.std_devs["fx"])
+    cv = report.cross_validation
+    assert cv.diff.central_rms_px > 1.5 and cv.ratio > 3.0
+    assert "disagree" in report.warnings[0]

@@ -1,0 +1,129 @@
+"""Projection uncertainty (Monte-Carlo check), projection diff, cross-validation, coverage."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from _synth import random_poses, synthetic_detections
+
+from cvmeasure.calibration.coverage import image_coverage
+from cvmeasure.calibration.detect import BoardDetection
+from cvmeasure.calibration.solve import calibrate_views
+from cvmeasure.calibration.uncertainty import (
+    cross_validate,
+    parameter_covariance,
+    projection_diff,
+    projection_uncertainty,
+)
+from cvmeasure.camera import CameraModel
+
+
+def test_covariance_matches_opencv_sigmas(charuco_board, true_camera):
+    rng = np.random.default_rng(4)
+    dets = synthetic_detections(
+        charuco_board, true_camera, random_poses(charuco_board, 8, 4, distance_mm=380.0), 0.1, rng
+    )
+    res = calibrate_views(dets, true_camera.image_size_px, reject_outliers=False)
+    ours = parameter_covariance(res).std_devs()
+    for name, sd in res.std_devs.items():
+        assert ours[name] == pytest.approx(sd, rel=1e-3), name
+
+
+def test_projection_uncertainty_matches_monte_carlo(charuco_board, true_camera):
+    """Predicted sigma of a projected point vs its scatter over 60 noisy re-solves (mrcal's check)."""
+    poses = random_poses(charuco_board, 8, 31, distance_mm=380.0)
+    grid = (6, 4)
+    base = calibrate_views(
+        synthetic_detections(charuco_board, true_camera, poses, 0.1, np.random.default_rng(0)),
+        true_camera.image_size_px,
+        reject_outliers=False,
+    )
+    unc = projection_uncertainty(base, grid=grid, distance_mm=380.0)
+    # Fixed points: 380 mm along each grid pixel's true ray, carried through the TRUE poses.
+    rays = np.column_stack((true_camera.normalized(unc.grid_px), np.ones(len(unc.grid_px))))
+    p_cam = rays / np.linalg.norm(rays, axis=1, keepdims=True) * 380.0
+    board_pts = [(p_cam - t) @ cv2.Rodrigues(r)[0] for r, t in poses]
+    errors = []
+    for run in range(60):
+        dets = synthetic_detections(
+            charuco_board, true_camera, poses, 0.1, np.random.default_rng([run, 7])
+        )
+        res = calibrate_views(dets, true_camera.image_size_px, reject_outliers=False)
+        mean_cam = np.mean(
+            [
+                bp @ cv2.Rodrigues(v.rvec)[0].T + v.tvec_mm
+                for bp, v in zip(board_pts, res.views, strict=True)
+            ],
+            axis=0,
+        )
+        errors.append(res.camera.project(mean_cam) - true_camera.project(p_cam))
+    emp = np.sqrt(np.mean(np.sum(np.array(errors) ** 2, axis=2), axis=0))  # RMS 2-D error per point
+    ratio = emp / unc.sigma_px  # worst-direction sigma <= total RMS <= sqrt(2) x worst
+    assert 0.75 < np.median(ratio) < 1.6
+    assert unc.centre_px < unc.max_px
+
+
+def test_projection_diff_identity_and_pure_rotation(true_camera):
+    same = projection_diff(true_camera, true_camera)
+    assert same.max_px < 1e-6
+    # A principal point shift of 2 px is (almost) a rotation of the camera frame.
+    k = true_camera.camera_matrix.copy()
+    k[0, 2] += 2.0
+    shifted = CameraModel(true_camera.image_size_px, k, true_camera.dist_coeffs)
+    direct = projection_diff(true_camera, shifted, fit_rotation=False)
+    assert direct.central_rms_px == pytest.approx(2.0, abs=0.05)
+    refit = projection_diff(true_camera, shifted, fit_rotation=True)
+    assert refit.central_rms_px < 0.1  # not exact: the distortion centre moved too
+    assert refit.rotation_deg == pytest.approx(np.degrees(2.0 / 900.0), rel=0.05)
+
+
+def test_cross_validation_flags_model_error(charuco_board, true_camera):
+    poses = random_poses(charuco_board, 14, 41, distance_mm=380.0)
+    rng = np.random.default_rng(3)
+    clean = synthetic_detections(charuco_board, true_camera, poses, 0.05, rng)
+    cv = cross_validate(clean, true_camera.image_size_px)
+    assert cv is not None and cv.views == (7, 7)
+    assert cv.ratio < 3.0  # only noise: the halves agree within their uncertainty
+    # Model error: a different focal length in half of the photos (zoom moved).
+    zoomed = CameraModel(
+        true_camera.image_size_px,
+        true_camera.camera_matrix * [[1.01], [1.01], [1]],
+        true_camera.dist_coeffs,
+    )
+    mixed = synthetic_detections(charuco_board, zoomed, poses, 0.05, rng)
+    dets = [m if k % 2 else c for k, (c, m) in enumerate(zip(clean, mixed, strict=True))]
+    cv2_ = cross_validate(dets, true_camera.image_size_px)
+    assert cv2_.ratio > 10.0
+    assert abs(cv2_.focal_px[0] - cv2_.focal_px[1]) == pytest.approx(9.0, abs=1.5)
+    assert cross_validate(dets[:5], true_camera.image_size_px) is None  # 3 + 2 views
+
+
+def _det(points):
+    pts = np.asarray(points, dtype=np.float64)
+    return BoardDetection("v", (960, 640), pts, np.arange(len(pts)), np.zeros((len(pts), 3)))
+
+
+def test_coverage_warnings_name_the_missing_photos():
+    central = [_det(np.column_stack((np.linspace(300, 660, 50), np.linspace(200, 440, 50))))]
+    cov = image_coverage(central, (960, 640), [np.zeros(3)])
+    text = " | ".join(cov.warnings)
+    for edge in ("left", "right", "top", "bottom"):
+        assert f"the board reaching the {edge} edge" in text
+    assert "never tilted more than 0 deg" in text and "only 1 views" in text
+    assert cov.covered_fraction < 0.5
+    xs, ys = np.meshgrid(np.linspace(5, 955, 30), np.linspace(5, 635, 20))
+    full = [_det(np.column_stack((xs.ravel(), ys.ravel())))] * 12
+    tilted = [
+        cv2.Rodrigues(np.array([np.radians(35.0), 0, 0]))[0],
+        cv2.Rodrigues(np.array([0, np.radians(30.0), 0]))[0],
+    ]
+    rvecs = [cv2.Rodrigues(r)[0].ravel() for r in tilted] * 6
+    cov2 = image_coverage(full, (960, 640), rvecs)
+    assert cov2.warnings == () and cov2.covered_fraction == 1.0
+    d = cov2.to_dict()
+    assert d["tilt_deg"]["max"] == pytest.approx(35.0) and d["tilt_deg"][
+        "max_about_y"
+    ] == pytest.approx(30.0)
+    one_axis = image_coverage(full, (960, 640), [rvecs[0]] * 12)
+    assert any("tilted about the vertical axis" in w for w in one_axis.warnings)
