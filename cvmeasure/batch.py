@@ -29,7 +29,7 @@ import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -78,13 +78,16 @@ class MeasureContext:
     """What every measurement of a batch shares: the files it was given, and options.
 
     Only paths travel to the workers (small, picklable); each worker loads the
-    camera, kit and board once (cached).
+    camera, kit and board once (cached). ``measurers`` is the kind registry the
+    workers use (:func:`run_batch` fills it from :data:`MEASURERS`, so kinds
+    registered in the parent work in spawned and remote workers too).
     """
 
     camera_path: str | None = None
     kit_path: str | None = None
     board_path: str | None = None
     options: tuple[tuple[str, Any], ...] = ()
+    measurers: tuple[tuple[str, str], ...] = ()
 
     def camera(self) -> Any:
         """The :class:`~cvmeasure.camera.CameraModel`, or None when no camera was given."""
@@ -185,13 +188,19 @@ def register_measurer(kind: str, target: str) -> None:
     MEASURERS[kind] = target
 
 
-def resolve_measurer(kind: str) -> Callable[[Photo, MeasureContext], Mapping[str, Any]]:
-    """The measurement function of ``kind``; ValueError lists the valid kinds."""
+def resolve_measurer(
+    kind: str, registry: Mapping[str, str] | None = None
+) -> Callable[[Photo, MeasureContext], Mapping[str, Any]]:
+    """The measurement function of ``kind`` (in ``registry``, default :data:`MEASURERS`).
+
+    ValueError lists the valid kinds.
+    """
+    registry = MEASURERS if registry is None else registry
     try:
-        target = MEASURERS[kind]
+        target = registry[kind]
     except KeyError:
         raise ValueError(
-            f"unknown photo kind {kind!r}; valid: {', '.join(sorted(MEASURERS))}"
+            f"unknown photo kind {kind!r}; valid: {', '.join(sorted(registry))}"
         ) from None
     module_name, _, func_name = target.partition(":")
     return getattr(importlib.import_module(module_name), func_name)
@@ -406,7 +415,7 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
         if kind == "auto":
             kind = detect_kind(photo, context)
             record["kind"] = kind
-        result = resolve_measurer(kind)(photo, context)
+        result = resolve_measurer(kind, dict(context.measurers) or None)(photo, context)
         record.update(_as_record(result))
         record["ok"] = True
     except InputError as exc:
@@ -559,7 +568,7 @@ def run_batch(
     -------
     BatchSummary
     """
-    context = context or MeasureContext()
+    context = replace(context or MeasureContext(), measurers=tuple(sorted(MEASURERS.items())))
     if kind != "auto":
         resolve_measurer(kind)  # ValueError for an unknown kind, before any work
         if kind in _STAGES:

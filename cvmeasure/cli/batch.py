@@ -31,6 +31,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="auto",
         help="photo kind (default auto: 'part' when a ChArUco board is seen, else 'machine')",
     )
+    p.add_argument(
+        "--measure",
+        metavar="MODULE:FUNCTION",
+        help="measure every photo with this function(photo, context) -> dict instead (kind 'custom')",
+    )
     p.add_argument("--divisions", type=int, help="part photos: report segment_bend_deg for N")
     p.add_argument("-o", "--output", type=Path, required=True, help="results JSON Lines file")
     p.add_argument(
@@ -47,8 +52,23 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from cvmeasure.batch import MeasureContext, list_photos, run_batch
+    from cvmeasure.batch import (
+        MeasureContext,
+        list_photos,
+        register_measurer,
+        resolve_measurer,
+        run_batch,
+    )
     from cvmeasure.errors import InputError
+
+    kind = args.kind
+    if args.measure:
+        try:
+            register_measurer("custom", args.measure)
+            resolve_measurer("custom")
+        except (ValueError, ImportError, AttributeError) as exc:
+            raise InputError(args.measure, f"cannot use as a measurement: {exc}") from None
+        kind = "custom"
 
     if args.workers is not None and args.workers < 1:
         raise InputError("--workers", f"must be at least 1, got {args.workers}")
@@ -90,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         summary = run_batch(
             photos,
             args.output,
-            kind=args.kind,
+            kind=kind,
             context=context,
             workers=args.workers,
             scheduler=args.scheduler,

@@ -302,3 +302,16 @@ def test_linear_render_goes_through_the_machine_measurement_like_its_jpeg(tmp_pa
         assert rec["kind"] == "machine"
         assert abs(rec["bend_angle_deg"] - rendered.truth["bend_angle_deg"]) < 0.1
         assert abs(rec["pin_angle_deg"] - rendered.truth["pin_angle_deg"]) < 0.1
+
+
+def test_custom_measurement_runs_in_spawned_workers(tmp_path, capsys):
+    truth = disc_photos(tmp_path / "p", 4, seed=31)
+    out = tmp_path / "r.jsonl"
+    code = main(["batch", str(tmp_path / "p"), "--measure", "cvmeasure.batch:measure_disc",
+                 "-o", str(out), "--workers", "2", "--quiet"])  # fmt: skip
+    assert code == 0
+    records = read_jsonl(out)
+    assert {r["kind"] for r in records} == {"custom"}
+    check_against_truth(records, truth)
+    assert main(["batch", str(tmp_path / "p"), "--measure", "no.such:thing", "-o", str(out)]) == 2
+    assert "no.such:thing: cannot use as a measurement" in capsys.readouterr().err
