@@ -433,7 +433,12 @@ def _preamble(command: str | None) -> str:
     return "\n".join(lines)
 
 
-def write_results_md(*, sections: Sequence[str] | None = None, command: str | None = None) -> Path:
+def write_results_md(
+    *,
+    sections: Sequence[str] | None = None,
+    command: str | None = None,
+    refresh_preamble: bool = False,
+) -> Path:
     """Rewrite RESULTS.md from the result JSONs, keeping hand-written sections.
 
     Parameters
@@ -442,6 +447,9 @@ def write_results_md(*, sections: Sequence[str] | None = None, command: str | No
         Benchmark names whose sections to rewrite (None: every result JSON).
     command : str, optional
         The runner command; given, the preamble (machine, versions) is regenerated.
+    refresh_preamble : bool
+        Regenerate the machine/versions lines even without a command (keeping the
+        "Last full run" line).
     """
     from cvmeasure.fileio import atomic_write_text
 
@@ -450,7 +458,7 @@ def write_results_md(*, sections: Sequence[str] | None = None, command: str | No
         preamble, parts = _split_sections(text)
         results = load_results()
         wanted = results if sections is None else {k: results[k] for k in sections if k in results}
-        if command is not None or _PREAMBLE_MARK not in preamble:
+        if command is not None or refresh_preamble or _PREAMBLE_MARK not in preamble:
             old_run = [ln for ln in preamble.splitlines() if ln.startswith("- Last full run:")]
             preamble = _preamble(command)
             if command is None and old_run:

@@ -107,7 +107,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.names:
         command += " " + " ".join(args.names)
     if args.render_only:
-        path = write_results_md(command=None)
+        path = write_results_md(command=None, refresh_preamble=True)
         print(f"wrote {path}")
         return 0
     rows = []
