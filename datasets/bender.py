@@ -38,7 +38,7 @@ from datasets.raster import (
     sdf_rect,
 )
 
-__all__ = ["BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
+__all__ = ["RING_SRGB", "BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
 
 _TABLE = (62, 56, 50)
 _PLATE = (150, 152, 156)
@@ -47,7 +47,8 @@ _DIE = (120, 122, 128)
 _PIN = (185, 186, 190)
 _WIRE = (165, 166, 170)
 _HOLE = (30, 30, 32)
-_WHITE = (236, 236, 232)
+#: Printed white of the marker rings (sRGB 8-bit).
+RING_SRGB = (236, 236, 232)
 _OCCLUDER = (45, 40, 36)
 
 
@@ -257,7 +258,7 @@ def render_bender_photo(
     )
     for marker in kit.markers:
         c = tuple(centres[marker.role])
-        layers.append(_circle_layer(c, marker.ring_mm / 2, lin(_WHITE)))
+        layers.append(_circle_layer(c, marker.ring_mm / 2, lin(RING_SRGB)))
         layers.append(_circle_layer(c, marker.diameter_mm / 2, lin(marker.srgb)))
     occluders = {}
     for role, frac in sorted(occlude.items()):

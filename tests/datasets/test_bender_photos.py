@@ -4,36 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from skimage.measure import EllipseModel, find_contours
 
 from cvmeasure.kit import default_kit
 from datasets import Lighting, Pose, render_bender_photo
-from datasets.bender import _WHITE, bender_wire_polyline
-from datasets.lighting import srgb8_to_linear
-
-
-def _disc_fit(photo, role: str) -> tuple[np.ndarray, float]:
-    """Centre (px) and mean semi-axis of an ellipse fitted to a disc's sub-pixel edge.
-
-    Compositing is linear in linear RGB, so on a noise-free render every pixel
-    near the disc is ``alpha * disc + (1 - alpha) * white``; the 0.5 contour of
-    alpha is the disc's edge.
-    """
-    t = photo.truth["markers"][role]
-    srgb = default_kit().by_role(role).srgb
-    lin = photo.linear_rgb16.astype(np.float64) / 65535.0
-    cx, cy = t["centre_px"]
-    half = int(t["ring_r_px"] * 1.5) + 3
-    x0, y0 = int(cx) - half, int(cy) - half
-    patch = lin[y0 : y0 + 2 * half, x0 : x0 + 2 * half]
-    disc, white = srgb8_to_linear(srgb), srgb8_to_linear(_WHITE)
-    ch = int(np.argmax(np.abs(white - disc)))
-    alpha = (white[ch] - patch[..., ch]) / (white[ch] - disc[ch])
-    yy, xx = np.mgrid[y0 : y0 + 2 * half, x0 : x0 + 2 * half]
-    alpha[np.hypot(xx - cx, yy - cy) > 0.5 * (t["r_px"] + t["ring_r_px"])] = 0.0
-    edge = max(find_contours(alpha, 0.5), key=len)[:, ::-1] + [x0, y0]
-    model = EllipseModel.from_estimate(edge)
-    return np.asarray(model.center), float(np.mean(model.axis_lengths))
+from datasets.bender import bender_wire_polyline
+from datasets.checks import check_disc_centre
 
 
 @pytest.mark.parametrize(
@@ -95,13 +70,11 @@ def test_marker_centres_match_fitted_disc_edges_under_tilt():
     )
     gaps, errors = [], []
     for role in ("origin", "axis", "pin", "wire_a", "wire_b"):
-        t = photo.truth["markers"][role]
-        centre, radius = _disc_fit(photo, role)
-        err = np.linalg.norm(centre - t["ellipse_centre_px"])
-        assert err < 0.03, role
-        assert radius == pytest.approx(np.mean(t["ellipse_axes_px"]), abs=0.1)
-        errors.append(err)
-        gaps.append(np.linalg.norm(np.subtract(t["centre_px"], t["ellipse_centre_px"])))
+        check = check_disc_centre(photo, role)
+        assert check.error_px < 0.03, role
+        assert check.fitted_mean_axis_px == pytest.approx(check.true_mean_axis_px, abs=0.1)
+        errors.append(check.error_px)
+        gaps.append(check.perspective_shift_px)
     # the two centres really differ at this tilt, by more than the fit's error
     assert min(gaps) > 0.05 and max(errors) < 0.5 * min(gaps)
 

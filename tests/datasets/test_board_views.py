@@ -8,6 +8,7 @@ import pytest
 
 from cvmeasure.board import CharucoBoardSpec, ChessboardSpec
 from datasets import Lighting, Pose, default_camera, random_board_poses, render_board_view
+from datasets.checks import check_charuco_corners
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
 SIZE = (1152, 768)
@@ -15,11 +16,9 @@ SUBPIX = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
 
 
 def _detect(photo, board=BOARD):
-    gray = cv2.cvtColor(photo.bgr, cv2.COLOR_BGR2GRAY)
-    corners, ids, _, _ = cv2.aruco.CharucoDetector(board.cv_board()).detectBoard(gray)
-    assert ids is not None
-    refined = cv2.cornerSubPix(gray, corners.astype(np.float32), (5, 5), (-1, -1), SUBPIX)
-    return refined.reshape(-1, 2).astype(np.float64), ids.ravel()
+    check = check_charuco_corners(photo, board)
+    assert len(check.ids) > 0
+    return check.detected_px, check.ids
 
 
 @pytest.fixture(scope="module")

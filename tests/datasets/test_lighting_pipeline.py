@@ -10,13 +10,13 @@ import pytest
 
 from cvmeasure.board import ChessboardSpec
 from datasets import Lighting, Pose, render_bender_photo, render_board_view
-from datasets.bender import _WHITE
+from datasets.bender import RING_SRGB
 from datasets.lighting import illuminant_rgb, srgb8_to_linear
 
 # close up (2.5 px/mm at 576 x 384): the origin marker's white ring is ~5 px wide
 KW = dict(pin_angle_deg=-60.0, bend_angle_deg=35.0, scale=0.125, pose=Pose(distance_mm=350.0))
 #: linear albedo of the rings (printed white is slightly warm)
-RING = srgb8_to_linear(_WHITE)
+RING = srgb8_to_linear(RING_SRGB)
 
 
 def _ring_rgb(photo, role="origin") -> np.ndarray:
