@@ -14,9 +14,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "agreement",
         help="agreement of vision with manual readings (Bland-Altman, gauge R&R, tolerance)",
         description="Compare the bend angles of a vision results file with manual readings "
-        "(photos matched by file name): bias and 95 %% limits of agreement of vision - manual "
+        "(photos matched by file name): bias and 95 % limits of agreement of vision - manual "
         "with confidence intervals, a proportional-bias check, a gauge R&R split of repeated "
-        "manual readings, and a verdict against the accepted tolerance (the seed's 10 %% "
+        "manual readings, and a verdict against the accepted tolerance (the seed's 10 % "
         "relative and 1 degree absolute by default).",
     )
     p.add_argument(
