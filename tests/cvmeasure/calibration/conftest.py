@@ -9,7 +9,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from _synth import random_poses, render_view  # noqa: E402
+from _calib_synth import random_poses, render_view  # noqa: E402
 
 from cvmeasure.board import board_from_dict  # noqa: E402
 from cvmeasure.camera import CameraModel  # noqa: E402

@@ -7,7 +7,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from _synth import look_at_pose, render_view
+from _calib_synth import look_at_pose, render_view
 
 from cvmeasure.camera import load_camera, save_camera
 from cvmeasure.cli import main

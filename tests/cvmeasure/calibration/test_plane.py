@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _synth import look_at_pose, render_view
+from _calib_synth import look_at_pose, render_view
 
 from cvmeasure.calibration.detect import detect_board
 from cvmeasure.calibration.plane import (

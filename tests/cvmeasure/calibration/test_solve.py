@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _synth import random_poses, synthetic_detections
+from _calib_synth import random_poses, synthetic_detections
 
 from cvmeasure.calibration.detect import detect_board
 from cvmeasure.calibration.solve import DISTORTION_MODELS, calibrate_views, model_flags

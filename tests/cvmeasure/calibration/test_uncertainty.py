@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from _synth import random_poses, synthetic_detections
+from _calib_synth import random_poses, synthetic_detections
 
 from cvmeasure.calibration.coverage import image_coverage
 from cvmeasure.calibration.detect import BoardDetection
