@@ -25,6 +25,7 @@ __all__ = ["main", "console_main", "build_parser", "COMMAND_MODULES"]
 COMMAND_MODULES: tuple[str, ...] = (
     "demo",
     "targets",
+    "render",
     "calibrate",
     "plane",
     "markers",
