@@ -148,7 +148,13 @@ def test_cli_targets_charuco(tmp_path, capsys):
     assert not (tmp_path / "x.pdf").exists() and not (tmp_path / "y.pdf").exists()
 
 
-def test_cli_targets_markers_json(capsys):
+def test_cli_targets_markers(capsys, tmp_path):
     assert main(["targets", "markers", "--format", "json"]) == 0
     kit = json.loads(capsys.readouterr().out)
     assert {m["role"] for m in kit["markers"]} == {"origin", "axis", "pin", "wire_a", "wire_b"}
+    # The sheet itself comes from calib_targets.markers through the hook.
+    assert main(["targets", "markers", "-o", str(tmp_path / "kit.pdf")]) == 0
+    assert (tmp_path / "kit.pdf").read_bytes().startswith(b"%PDF")
+    capsys.readouterr()
+    assert main(["targets", "markers", "-o", str(tmp_path / "kit.gif")]) == 2
+    assert "kit.gif" in capsys.readouterr().err
