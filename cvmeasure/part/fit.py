@@ -267,7 +267,7 @@ class PolylineFit:
     bend_deg : ndarray (N-1,), signed bend at each interior vertex, from the
         fitted segment directions; counter-clockwise positive.
     segment_length_mm : ndarray (N,), vertex-to-vertex lengths, mm.
-    rms_residual_mm : RMS distance of the used points to their segment, mm.
+    rms_residual_mm : RMS distance of the inlier points to their segment, mm.
     """
 
     vertices_mm: np.ndarray
@@ -288,11 +288,25 @@ class PolylineFit:
         }
 
 
-def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Total-least-squares line: (point on it, unit direction)."""
-    mean = points.mean(axis=0)
-    _, _, vt = np.linalg.svd(points - mean, full_matrices=False)
-    return mean, vt[0]
+def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Robust total-least-squares line: (point on it, unit direction, inlier mask).
+
+    Two trimming passes drop points farther than 3 robust sigmas (1.4826 MAD)
+    from the line, so a stray centre (a shadow or a crossing) cannot tilt it.
+    """
+    keep = np.ones(len(points), dtype=bool)
+    mean, direction = points.mean(axis=0), np.array([1.0, 0.0])
+    for _ in range(3):
+        mean = points[keep].mean(axis=0)
+        _, _, vt = np.linalg.svd(points[keep] - mean, full_matrices=False)
+        direction = vt[0]
+        off = (points - mean) @ np.array([-direction[1], direction[0]])
+        sigma = 1.4826 * float(np.median(np.abs(off[keep])))
+        new = np.abs(off) <= max(3.0 * sigma, 1e-12)
+        if new.sum() < 2 or np.array_equal(new, keep):
+            break
+        keep = new
+    return mean, direction, keep
 
 
 def _intersect(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
@@ -312,7 +326,7 @@ def fit_polyline(
 ) -> PolylineFit:
     """Fit ``divisions`` straight segments to an ordered centreline.
 
-    Each segment is a total-least-squares line through the points between two
+    Each segment is a robust total-least-squares line through the points between two
     vertices, leaving out a ``corner_margin`` fraction of the segment length at
     both ends (where the wire is rounded around the bending pin). Inner vertices
     are the intersections of neighbouring lines; the end vertices are the first
@@ -350,14 +364,14 @@ def fit_polyline(
                 sel = (s >= a) & (s <= b)
             if sel.sum() < 2:
                 raise ValueError("too few centreline points for the number of divisions")
-            p0, d = _fit_line(pts[sel])
+            p0, d, inl = _fit_line(pts[sel])
             # orient along the traversal
             if np.dot(pts[sel][-1] - pts[sel][0], d) < 0:
                 d = -d
             lines.append((p0, d))
-            off = (pts[sel] - p0) @ np.array([-d[1], d[0]])
+            off = (pts[sel][inl] - p0) @ np.array([-d[1], d[0]])
             sq += float(off @ off)
-            count += int(sel.sum())
+            count += int(inl.sum())
         rms = math.sqrt(sq / max(count, 1))
         new = [lines[0][0] + np.dot(pts[0] - lines[0][0], lines[0][1]) * lines[0][1]]
         for i in range(divisions - 1):

@@ -1,0 +1,326 @@
+"""The wire's sub-pixel centreline: symmetric-profile centres across the wire.
+
+A round wire's brightness across it is symmetric about its axis (shading,
+specular crest and dark flanks alike), while what lies *beside* it is not: a
+cast shadow darkens one side only, which is why a threshold or edge midpoint
+is pulled towards the shadow on a light sheet. So each centre is the point
+about which the profile across the wire, *within* the wire, is most symmetric:
+the shift ``c`` minimising ``sum_u (I(c + u) - I(c - u))^2`` over
+``|u| <= rho``, ``rho`` a little less than the wire's half-width, on
+profiles sampled every 0.05 px along the normals (bilinear), refined by a
+parabola through the cost minimum. Two passes: normals from the skeleton, then
+from the first centres.
+
+Each end of the wire is found the same way along the axis: the wire's end is
+taken as a hemispherical cap (as a cut end rounded by handling, and as the
+renderer draws it), so the brightness beyond the end point along the axis
+repeats the half-profile across the wire; the end point is where the axial
+profile best matches the mean cross half-profile.
+
+Frames: input and output in image pixels (OpenCV: x right, y down, pixel
+centres at integers). :mod:`cvmeasure.part.measure` maps them to board mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Centreline", "measure_centreline", "symmetric_centres"]
+
+_STEP_PX = 0.05
+
+
+@dataclass(frozen=True)
+class Centreline:
+    """A wire centreline in image pixels.
+
+    Attributes
+    ----------
+    points_px : ndarray (M, 2); ordered centres from one end point to the
+        other, both end points included (x, y), pixels.
+    half_width_px : the wire's apparent half-width (flank at half contrast), pixels.
+    rho_px : the half-window the symmetric centres used, pixels.
+    ends_px : ndarray (2, 2); the two end points (also ``points_px[0]``, ``[-1]``).
+    rejected : profiles dropped (no symmetric centre near the first guess).
+    """
+
+    points_px: np.ndarray
+    half_width_px: float
+    rho_px: float
+    ends_px: np.ndarray
+    rejected: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "points": len(self.points_px),
+            "half_width_px": self.half_width_px,
+            "rho_px": self.rho_px,
+            "ends_px": self.ends_px.tolist(),
+            "rejected": self.rejected,
+        }
+
+
+def _resample(path: np.ndarray, step: float) -> np.ndarray:
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))))
+    n = max(2, int(s[-1] / step) + 1)
+    t = np.linspace(0.0, s[-1], n)
+    return np.column_stack((np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])))
+
+
+def _smooth(path: np.ndarray, sigma: float) -> np.ndarray:
+    from scipy.ndimage import gaussian_filter1d
+
+    if sigma <= 0 or len(path) < 3:
+        return path
+    return np.column_stack(
+        (
+            gaussian_filter1d(path[:, 0], sigma, mode="nearest"),
+            gaussian_filter1d(path[:, 1], sigma, mode="nearest"),
+        )
+    )
+
+
+def _normals(path: np.ndarray) -> np.ndarray:
+    t = np.gradient(path, axis=0)
+    t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
+    return np.column_stack((-t[:, 1], t[:, 0]))
+
+
+def _sample(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``gray`` at points (..., 2) x, y."""
+    from scipy.ndimage import map_coordinates
+
+    shape = points.shape[:-1]
+    flat = points.reshape(-1, 2)
+    vals = map_coordinates(gray, [flat[:, 1], flat[:, 0]], order=1, mode="nearest")
+    return vals.reshape(shape)
+
+
+def symmetric_centres(
+    profiles: np.ndarray, *, rho_px: float, search_px: float, step_px: float = _STEP_PX
+) -> tuple[np.ndarray, np.ndarray]:
+    """Shift (P,) about which each profile is most symmetric, and the cost there.
+
+    Parameters
+    ----------
+    profiles : ndarray (P, S); samples every ``step_px`` along the normal,
+        centred on the guess (sample ``S // 2`` is offset 0).
+    rho_px : half-window of the symmetry test.
+    search_px : largest shift tried either way.
+
+    Returns
+    -------
+    shift_px : ndarray (P,), NaN where the minimum is at the search boundary.
+    cost : ndarray (P,), mean squared asymmetry at the minimum.
+    """
+    p = np.asarray(profiles, dtype=np.float64)
+    mid = p.shape[1] // 2
+    ku = max(1, int(round(rho_px / step_px)))
+    kc = max(1, int(round(search_px / step_px)))
+    if mid - kc - ku < 0 or mid + kc + ku >= p.shape[1]:
+        raise ValueError("profiles too short for rho_px + search_px")
+    shifts = np.arange(-kc, kc + 1)
+    cost = np.empty((len(p), len(shifts)))
+    u = np.arange(1, ku + 1)
+    for j, c in enumerate(shifts):
+        a = p[:, mid + c + u]
+        b = p[:, mid + c - u]
+        cost[:, j] = np.mean((a - b) ** 2, axis=1)
+    k = np.argmin(cost, axis=1)
+    rows = np.arange(len(p))
+    inner = (k > 0) & (k < len(shifts) - 1)
+    kk = np.clip(k, 1, len(shifts) - 2)
+    c0, c1, c2 = cost[rows, kk - 1], cost[rows, kk], cost[rows, kk + 1]
+    denom = c0 - 2 * c1 + c2
+    frac = np.where(denom > 0, 0.5 * (c0 - c2) / np.where(denom > 0, denom, 1.0), 0.0)
+    shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
+    shift = np.where(inner, shift, np.nan)
+    return shift, cost[rows, k]
+
+
+def _half_width(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) -> np.ndarray:
+    """Per profile, the smaller distance from 0 to a flank at half contrast (P,).
+
+    The contrast is taken against the background on the side *farther* in
+    level from the wire's extreme (a shadow sits between the two); the
+    smaller of the two sides is the one a shadow did not widen.
+    """
+    p = profiles
+    n = p.shape[1]
+    outer = max(2, n // 10)
+    bg_l = np.median(p[:, :outer], axis=1)
+    bg_r = np.median(p[:, -outer:], axis=1)
+    core = np.abs(offsets) <= 1.5 * guess_px
+    bg = 0.5 * (bg_l + bg_r)
+    dev = p[:, core] - bg[:, None]
+    hi = dev.max(axis=1)
+    lo = dev.min(axis=1)
+    bright = hi >= -lo  # the wire stands out brighter than its background
+    extreme = np.where(bright, p[:, core].max(axis=1), p[:, core].min(axis=1))
+    ref = np.where(bright, np.minimum(bg_l, bg_r), np.maximum(bg_l, bg_r))
+    level = 0.5 * (ref + extreme)
+    sign = np.where(bright, 1.0, -1.0)
+    above = (p - level[:, None]) * sign[:, None] > 0
+    out = np.full(len(p), np.nan)
+    centre = n // 2
+    for i in range(len(p)):
+        row = above[i]
+        left = np.nonzero(row[:centre])[0]
+        right = np.nonzero(row[centre:])[0]
+        if len(left) == 0 or len(right) == 0:
+            continue
+        a = left[0]
+        b = centre + right[-1]
+        if a == 0 or b == n - 1:
+            continue
+        fa = (level[i] - p[i, a - 1]) / (p[i, a] - p[i, a - 1])
+        fb = (level[i] - p[i, b]) / (p[i, b + 1] - p[i, b])
+        xa = offsets[a - 1] + fa * (offsets[a] - offsets[a - 1])
+        xb = offsets[b] + fb * (offsets[b + 1] - offsets[b])
+        out[i] = min(-xa, xb)
+    return out
+
+
+def measure_centreline(
+    gray: np.ndarray,
+    path_px: np.ndarray,
+    *,
+    width_guess_px: float,
+    step_px: float = 1.0,
+) -> Centreline:
+    """Sub-pixel centreline of the wire along a rough path.
+
+    Parameters
+    ----------
+    gray : ndarray (H, W), float; the photo's grey levels.
+    path_px : ndarray (M, 2); an ordered rough centre path (the mask's
+        skeleton), end to end, pixels.
+    width_guess_px : the wire's rough width (from the mask), pixels.
+    step_px : spacing of the centres along the wire, pixels.
+
+    Raises
+    ------
+    ValueError
+        When too few profiles give a centre (no wire along the path).
+    """
+    g = np.asarray(gray, dtype=np.float32)
+    hw0 = max(1.0, 0.5 * width_guess_px)
+    path = _resample(np.asarray(path_px, dtype=np.float64), step_px)
+    path = _smooth(path, max(2.0, 2.0 * hw0) / step_px)
+    reach = 3.0 * hw0 + 4.0
+    offsets = np.arange(-round(reach / _STEP_PX), round(reach / _STEP_PX) + 1) * _STEP_PX
+
+    def profiles_at(centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        pts = centres[:, None, :] + offsets[None, :, None] * normals[:, None, :]
+        return _sample(g, pts)
+
+    normals = _normals(path)
+    prof = profiles_at(path, normals)
+    hws = _half_width(prof, offsets, hw0)
+    half_width = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    rho = max(0.6 * half_width, half_width - 1.2, 0.75)
+    search = min(1.5 * half_width + 1.0, reach - rho - 0.5)
+    rejected = 0
+    centres = path
+    for _ in range(2):
+        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+        ok = np.isfinite(shift)
+        rejected = int((~ok).sum())
+        if ok.sum() < 5:
+            raise ValueError("no symmetric wire profile along the path")
+        centres = (centres + shift[:, None] * normals)[ok]
+        # normals from the centres found, smoothed along the wire
+        smooth = _smooth(_resample(centres, step_px), max(2.0, 2.0 * half_width) / step_px)
+        centres = _resample(centres, step_px)
+        normals = _normals(smooth)
+        prof = profiles_at(centres, normals)
+    shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+    ok = np.isfinite(shift)
+    rejected = int((~ok).sum())
+    centres = (centres + shift[:, None] * normals)[ok]
+    if len(centres) < 5:
+        raise ValueError("no symmetric wire profile along the path")
+    ends = np.vstack(
+        (
+            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=True),
+            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=False),
+        )
+    )
+    # trim centres that lie beyond the end points (skeleton overshoot)
+    keep = np.ones(len(centres), dtype=bool)
+    k = min(5, len(centres) - 1)
+    near = max(k, int(round(4.0 * half_width / step_px)))  # only the last few centres
+    for end, inward, idx in (
+        (ends[0], centres[k] - centres[0], np.arange(min(near, len(centres)))),
+        (
+            ends[1],
+            centres[-1 - k] - centres[-1],
+            np.arange(max(0, len(centres) - near), len(centres)),
+        ),
+    ):
+        inward = inward / max(np.hypot(*inward), 1e-12)
+        keep[idx] &= ((centres[idx] - end) @ inward) >= 0.5 * half_width
+    inner = centres[keep]
+    return Centreline(
+        points_px=np.vstack((ends[:1], inner, ends[1:])),
+        half_width_px=half_width,
+        rho_px=rho,
+        ends_px=ends,
+        rejected=rejected,
+    )
+
+
+def _end_point(
+    gray: np.ndarray,
+    centres: np.ndarray,
+    profiles: np.ndarray,
+    offsets: np.ndarray,
+    rho: float,
+    half_width: float,
+    *,
+    head: bool,
+) -> np.ndarray:
+    """The centre of the hemispherical cap at one end of the wire, pixels."""
+    pts = centres if head else centres[::-1]
+    prof = profiles if head else profiles[::-1]
+    span = max(3, int(round(4.0 * half_width)))
+    take = slice(min(span, len(pts) - 2), min(span + 3 * span, len(pts)))
+    # mean cross half-profile near (not at) the end, symmetrised, on the flank
+    # u in [0.35, 0.9] half-widths: inside the wire (no shadow), away from the
+    # narrow specular crest (whose sampled height differs between a ridge and a cap)
+    mid = len(offsets) // 2
+    k0 = int(round(0.35 * half_width / _STEP_PX))
+    k1 = max(k0 + 2, int(round(max(rho, 0.9 * half_width) / _STEP_PX)))
+    block = prof[take] if len(prof[take]) else prof
+    right = block[:, mid + k0 : mid + k1 + 1]
+    left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
+    template = np.median(0.5 * (right + left), axis=0)
+    # axis direction at the end: fit over the last few centres
+    seg = pts[: max(3, 2 * span)]
+    d = seg[0] - seg[-1]
+    if len(seg) >= 3:
+        c = seg.mean(axis=0)
+        _, _, vt = np.linalg.svd(seg - c)
+        d = vt[0] * np.sign(vt[0] @ d or 1.0)
+    d /= max(np.hypot(*d), 1e-12)
+    # the cap centre lies near the first centre; search along the axis around it
+    start = pts[0]
+    search = np.arange(
+        -round((2 * half_width + 2) / _STEP_PX), round((3 * half_width + 3) / _STEP_PX) + 1
+    )
+    search = search * _STEP_PX
+    u = np.arange(k0, k1 + 1) * _STEP_PX
+    samples = _sample(gray, start[None, None, :] + (search[:, None, None] + u[None, :, None]) * d)
+    costs = np.mean((samples - template[None, :]) ** 2, axis=1)
+    k = int(np.argmin(costs))
+    if 0 < k < len(costs) - 1:
+        c0, c1, c2 = costs[k - 1], costs[k], costs[k + 1]
+        den = c0 - 2 * c1 + c2
+        frac = 0.5 * (c0 - c2) / den if den > 0 else 0.0
+        best = float(search[k] + np.clip(frac, -1, 1) * _STEP_PX)
+    else:
+        best = float(search[k])
+    return start + best * d

@@ -1,0 +1,412 @@
+"""One photo of a finished part -> its arc quantities, bends and deviation from the design.
+
+Pipeline: the ChArUco board fixes the plane (:func:`cvmeasure.calibration.plane.estimate_plane`:
+undistorted pixels -> board mm); the wire is segmented beside the board
+(:mod:`~cvmeasure.part.segment`); its sub-pixel centreline
+(:mod:`~cvmeasure.part.centreline`) is mapped to board mm; then
+
+* ``method="ours"`` (default): with ``divisions`` N, a polyline of N chords is
+  fitted (:func:`~cvmeasure.part.fit.fit_polyline`), its vertex bends are the
+  per-segment bends, and the circle through its vertices gives the radius and
+  the arc angle; without N, a robust geometric circle fit of the centreline;
+* ``"ellipse"`` / ``"sagitta"``: the seed paper's methods on the wire's outline
+  (:mod:`~cvmeasure.part.seed_methods`). All three are always computed and
+  reported under ``methods``; ``method`` chooses the headline values.
+
+Sign and frames: positions in the board frame (mm). Signed bends are
+counter-clockwise positive in the board frame's (x, y) -- the sense the
+renderer's truth uses; against a design (y up as drawn) the part is compared
+as the camera sees it, so ``mirrored`` means the part lies upside down.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.board import BoardSpec
+from cvmeasure.camera import CameraModel
+from cvmeasure.design import DesignPath
+from cvmeasure.errors import InputError
+from cvmeasure.part.centreline import Centreline, measure_centreline
+from cvmeasure.part.compare import (
+    BendComparison,
+    Deviation,
+    Registration,
+    compare_bends,
+    deviation_profile,
+    register_to_design,
+)
+from cvmeasure.part.fit import (
+    ArcGeometry,
+    CircleFit,
+    PolylineFit,
+    arc_geometry,
+    fit_circle,
+    fit_polyline,
+)
+from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
+from cvmeasure.part.segment import WireMask, gray_float, segment_wire
+
+__all__ = [
+    "Method",
+    "METHODS",
+    "ArcResult",
+    "DesignComparison",
+    "PartMeasurement",
+    "measure_part",
+    "measure_centreline_mm",
+    "compare_with_design",
+    "arc_from_points",
+    "chord_and_height_mm",
+]
+
+Method = Literal["ours", "ellipse", "sagitta"]
+METHODS: tuple[str, ...] = ("ours", "ellipse", "sagitta")
+
+#: Widest wire looked for (mm): 1/4 inch with margin; sets the filters' sizes.
+MAX_WIRE_MM = 7.0
+#: Shortest wire accepted as a part (mm).
+MIN_WIRE_MM = 15.0
+#: Margin around the board left out of the wire search (mm).
+BOARD_MARGIN_MM = 4.0
+
+
+@dataclass(frozen=True)
+class ArcResult:
+    """The spec's part quantities from one method.
+
+    ``segment_bend_deg`` is ``arc_angle_deg / divisions`` (None without divisions).
+    """
+
+    method: str
+    radius_mm: float
+    chord_width_mm: float
+    height_mm: float
+    arc_angle_deg: float
+    divisions: int | None
+
+    @property
+    def segment_bend_deg(self) -> float | None:
+        return None if not self.divisions else self.arc_angle_deg / self.divisions
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "radius_mm": self.radius_mm,
+            "chord_width_mm": self.chord_width_mm,
+            "height_mm": self.height_mm,
+            "arc_angle_deg": self.arc_angle_deg,
+            "segment_bend_deg": self.segment_bend_deg,
+        }
+
+
+@dataclass(frozen=True)
+class DesignComparison:
+    """The part registered to its design and how far it deviates.
+
+    ``bends`` only with divisions: per-vertex bends (design order and sense)
+    and the seed's absolute / relative errors of the bend per chord.
+    """
+
+    source: str
+    registration: Registration
+    deviation: Deviation
+    design_arc: ArcResult
+    bends: BendComparison | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "design": self.source,
+            "registration": self.registration.to_dict(),
+            "deviation": self.deviation.to_dict(),
+            "design_arc": self.design_arc.to_dict(),
+            "bends": None if self.bends is None else self.bends.to_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class PartMeasurement:
+    """Everything measured on one part photo.
+
+    Attributes
+    ----------
+    source : the photo.
+    result : the headline :class:`ArcResult` (from ``method``).
+    methods : the result of every method, by name.
+    vertex_bend_deg : ndarray (N-1,) signed bends at the fitted vertices (ours,
+        with divisions), counter-clockwise positive in the board frame; else None.
+    vertices_mm : ndarray (N+1, 2) fitted chord vertices, board mm; else None.
+    centreline_mm : ndarray (M, 2) the wire's centreline, board mm, end to end.
+    centreline_px : ndarray (M, 2) the same in photo pixels.
+    wire_width_mm : apparent wire width (flanks at half contrast), mm.
+    circle : the circle fit behind ``ours``.
+    plane : summary of the board plane (tilt, scale, reprojection RMS).
+    wire : summary of the segmentation.
+    comparison : against the design, when one was given.
+    warnings : things a user should know (e.g. arcs too short for a stable radius).
+    """
+
+    source: str
+    result: ArcResult
+    methods: dict[str, ArcResult]
+    vertex_bend_deg: np.ndarray | None
+    vertices_mm: np.ndarray | None
+    centreline_mm: np.ndarray
+    centreline_px: np.ndarray
+    wire_width_mm: float
+    circle: CircleFit
+    plane: dict[str, Any]
+    wire: dict[str, Any]
+    seed_arcs: dict[str, SeedArc] = field(default_factory=dict)
+    comparison: DesignComparison | None = None
+    warnings: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
+        out["divisions"] = self.result.divisions
+        out["vertex_bend_deg"] = (
+            None if self.vertex_bend_deg is None else self.vertex_bend_deg.tolist()
+        )
+        out["bend_sense"] = "counter-clockwise positive in the board frame (x, y)"
+        out["vertices_mm"] = None if self.vertices_mm is None else self.vertices_mm.tolist()
+        out["wire_width_mm"] = self.wire_width_mm
+        out["circle"] = self.circle.to_dict()
+        out["methods"] = {k: v.to_dict() for k, v in self.methods.items()}
+        out["seed_arcs"] = {k: v.to_dict() for k, v in self.seed_arcs.items()}
+        out["plane"] = self.plane
+        out["wire"] = self.wire
+        out["centreline_mm"] = self.centreline_mm.tolist()
+        out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
+        out["warnings"] = list(self.warnings)
+        return out
+
+
+def arc_from_points(
+    points_mm: np.ndarray, divisions: int | None
+) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
+    """Our arc quantities from an ordered centreline in mm (see the module notes)."""
+    pts = np.asarray(points_mm, dtype=np.float64)
+    poly = None
+    if divisions:
+        poly = fit_polyline(pts, divisions)
+        circle = fit_circle(poly.vertices_mm)
+        geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
+        chord, height = chord_and_height_mm(poly.vertices_mm)
+    else:
+        circle = fit_circle(pts)
+        geo = arc_geometry(circle, pts)
+        chord, height = geo.chord_width_mm, geo.height_mm
+    result = ArcResult("ours", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
+    return result, circle, poly
+
+
+def chord_and_height_mm(vertices_mm: np.ndarray) -> tuple[float, float]:
+    """End-to-end distance of a polyline and its largest vertex distance from that line, mm.
+
+    For vertices on a circular arc these are the seed's width d and height h
+    (exactly when a vertex sits at the arc's middle); they stay meaningful for
+    saddles and other shapes that have no single radius.
+    """
+    v = np.asarray(vertices_mm, dtype=np.float64)
+    a, b = v[0], v[-1]
+    chord = float(np.hypot(*(b - a)))
+    if chord == 0.0:
+        return 0.0, float(np.max(np.hypot(*(v - a).T)))
+    d = (b - a) / chord
+    rel = v - a
+    return chord, float(np.max(np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])))
+
+
+def _board_exclusion(board: BoardSpec, plane: Any, shape: tuple[int, int]) -> np.ndarray:
+    import cv2
+
+    w_mm, h_mm = board.size_mm
+    m = BOARD_MARGIN_MM
+    s = np.linspace(0.0, 1.0, 25)
+    x0, y0, x1, y1 = -m, -m, w_mm + m, h_mm + m
+    outline = np.vstack(
+        (
+            np.column_stack((x0 + (x1 - x0) * s, np.full_like(s, y0))),
+            np.column_stack((np.full_like(s, x1), y0 + (y1 - y0) * s)),
+            np.column_stack((x1 - (x1 - x0) * s, np.full_like(s, y1))),
+            np.column_stack((np.full_like(s, x0), y1 - (y1 - y0) * s)),
+        )
+    )
+    px = plane.plane_to_image_px(outline)
+    mask = np.zeros(shape, dtype=np.uint8)
+    cv2.fillPoly(mask, [np.round(px).astype(np.int32)], 1)
+    return mask.astype(bool)
+
+
+def measure_centreline_mm(
+    image: np.ndarray,
+    board: BoardSpec,
+    camera: CameraModel,
+    *,
+    source: str = "photo",
+) -> tuple[Any, WireMask, Centreline, np.ndarray]:
+    """Board plane, wire mask, pixel centreline and centreline in board mm of one photo.
+
+    Raises
+    ------
+    InputError
+        No board (named by the calibration stage), or no wire beside it.
+    """
+    from cvmeasure.calibration.plane import estimate_plane
+
+    plane = estimate_plane(image, board, camera, source=source)
+    mm_per_px = plane.mm_per_px
+    exclude = _board_exclusion(board, plane, image.shape[:2])
+    wire = segment_wire(
+        image,
+        exclude=exclude,
+        max_wire_width_px=MAX_WIRE_MM / mm_per_px,
+        min_length_px=MIN_WIRE_MM / mm_per_px,
+    )
+    if wire is None:
+        raise InputError(source, "no wire found beside the board")
+    try:
+        centre = measure_centreline(gray_float(image), wire.path_px, width_guess_px=wire.width_px)
+    except ValueError as exc:
+        raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
+    return plane, wire, centre, plane.image_to_plane_mm(centre.points_px)
+
+
+def _outline_mm(wire: WireMask, plane: Any) -> np.ndarray:
+    import cv2
+
+    contours, _ = cv2.findContours(
+        wire.mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    pts = np.vstack([c.reshape(-1, 2) for c in contours]).astype(np.float64)
+    return plane.image_to_plane_mm(pts)
+
+
+def compare_with_design(
+    centreline_mm: np.ndarray,
+    vertex_bend_deg: np.ndarray | None,
+    result: ArcResult,
+    design: DesignPath,
+    *,
+    design_source: str = "design",
+) -> DesignComparison:
+    """Register a board-frame centreline to a design and compare (see the module notes)."""
+    seen = np.asarray(centreline_mm, dtype=np.float64) * np.array([1.0, -1.0])
+    reg = register_to_design(seen, design.points_mm)
+    dev = deviation_profile(seen, design.points_mm, reg)
+    n = result.divisions
+    if n:
+        verts = design.chords(n)
+        d_circle = fit_circle(verts)
+        d_geo = arc_geometry(d_circle, verts)
+    else:
+        verts = design.points_mm
+        d_geo = arc_geometry(fit_circle(verts), verts)
+    design_arc = ArcResult(
+        "design", d_geo.radius_mm, d_geo.chord_width_mm, d_geo.height_mm, d_geo.arc_angle_deg, n
+    )
+    bends = None
+    if n and vertex_bend_deg is not None:
+        bends = compare_bends(
+            -np.asarray(vertex_bend_deg),  # board frame -> as seen (y up)
+            verts,
+            reg,
+            measured_segment_bend_deg=float(result.segment_bend_deg or 0.0),
+            design_segment_bend_deg=float(design_arc.segment_bend_deg or 0.0),
+        )
+    return DesignComparison(design_source, reg, dev, design_arc, bends)
+
+
+def measure_part(
+    image: np.ndarray,
+    board: BoardSpec,
+    camera: CameraModel,
+    *,
+    divisions: int | None = None,
+    design: DesignPath | None = None,
+    design_source: str = "design",
+    method: Method = "ours",
+    source: str = "photo",
+) -> PartMeasurement:
+    """Measure a finished part in a photo (see the module notes).
+
+    Parameters
+    ----------
+    image : ndarray (H, W, 3) BGR, uint8 or uint16, at the camera's calibrated size.
+    board : the board lying in the part's plane.
+    camera : the calibrated camera.
+    divisions : the number of chords N the part was bent in.
+    design : the design wire (:meth:`cvmeasure.design.Design.wire`), optional.
+    method : which method gives the headline values.
+    source : the photo's name, used in errors.
+
+    Raises
+    ------
+    InputError
+        No board, no wire, or a part that the given divisions cannot describe.
+    ValueError
+        An unknown ``method`` or ``divisions < 1``.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    if divisions is not None and divisions < 1:
+        raise ValueError(f"divisions must be >= 1, got {divisions}")
+    plane, wire, centre, centreline_mm = measure_centreline_mm(image, board, camera, source=source)
+    warnings: list[str] = []
+    try:
+        ours, circle, poly = arc_from_points(centreline_mm, divisions)
+    except ValueError as exc:
+        raise InputError(source, f"cannot fit the part ({exc})") from None
+    methods: dict[str, ArcResult] = {"ours": ours}
+    seed_arcs: dict[str, SeedArc] = {}
+    outline = _outline_mm(wire, plane)
+    for name, fn in (("ellipse", ellipse_method), ("sagitta", sagitta_method)):
+        try:
+            arc = fn(outline)
+        except ValueError as exc:
+            warnings.append(f"the seed's {name} method failed: {exc}")
+            continue
+        seed_arcs[name] = arc
+        methods[name] = ArcResult(
+            name, arc.radius_mm, arc.chord_width_mm, arc.height_mm, arc.arc_angle_deg, divisions
+        )
+    if method not in methods:
+        raise InputError(source, f"the {method} method failed on this part")
+    if ours.arc_angle_deg < 30.0:
+        warnings.append(
+            f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined"
+        )
+    if not plane.affine_ok:
+        warnings.append(
+            f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)"
+        )
+    vertex_bends = None if poly is None else poly.bend_deg
+    comparison = None
+    if design is not None:
+        comparison = compare_with_design(
+            centreline_mm, vertex_bends, methods[method], design, design_source=design_source
+        )
+    return PartMeasurement(
+        source=source,
+        result=methods[method],
+        methods=methods,
+        vertex_bend_deg=vertex_bends,
+        vertices_mm=None if poly is None else poly.vertices_mm,
+        centreline_mm=centreline_mm,
+        centreline_px=centre.points_px,
+        wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,
+        circle=circle,
+        plane={
+            "tilt_deg": plane.tilt_deg,
+            "mm_per_px": plane.mm_per_px,
+            "rms_px": plane.rms_px,
+            "corner_count": plane.corner_count,
+        },
+        wire={**wire.to_dict(), **centre.to_dict()},
+        seed_arcs=seed_arcs,
+        comparison=comparison,
+        warnings=tuple(warnings),
+    )

@@ -1,0 +1,239 @@
+"""The wire's mask in a photo of a part on a dark or light matte sheet.
+
+Steel wire is neither darker nor brighter than the sheet everywhere: on a
+light sheet its flanks are dark and its crest can be a specular highlight, on
+a dark sheet it is bright with darker flanks; the wire also casts a soft
+shadow. The mask therefore comes from the *absolute* difference between the
+photo and its local background, a median filter a few wire widths wide (a
+median keeps the sheet's and board's large step edges, so only thin structures
+stand out). The threshold sits well above the noise (a shadow joined to the
+wire does no harm: the mask is only a guide); the wire is the connected
+component with the longest skeleton outside the board. The mask only gives the wire's topology and a
+first centre line: :mod:`cvmeasure.part.centreline` measures it sub-pixel.
+
+Frame: image pixels (OpenCV: x right, y down, pixel centres at integers).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+
+__all__ = ["WireMask", "segment_wire", "gray_float", "longest_skeleton_path"]
+
+Sheet = Literal["dark", "light"]
+
+
+@dataclass(frozen=True)
+class WireMask:
+    """The wire found in a photo.
+
+    Attributes
+    ----------
+    mask : ndarray (H, W), bool; the wire's pixels (holes filled).
+    path_px : ndarray (M, 2), float64; the mask's skeleton as one ordered path
+        from one wire end to the other (x, y), pixels.
+    sheet : ``"dark"`` or ``"light"``: the background is darker or lighter than the wire.
+    background_level : median grey level of the background around the wire (0-255 scale).
+    contrast : median absolute difference wire - background inside the mask.
+    threshold : the difference level the mask was cut at.
+    width_px : rough wire width (mask area / path length), pixels.
+    """
+
+    mask: np.ndarray
+    path_px: np.ndarray
+    sheet: Sheet
+    background_level: float
+    contrast: float
+    threshold: float
+    width_px: float
+
+    @property
+    def length_px(self) -> float:
+        return float(np.sum(np.hypot(*np.diff(self.path_px, axis=0).T)))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "sheet": self.sheet,
+            "background_level": self.background_level,
+            "contrast": self.contrast,
+            "threshold": self.threshold,
+            "width_px": self.width_px,
+            "length_px": self.length_px,
+            "area_px": int(self.mask.sum()),
+        }
+
+
+def gray_float(image: np.ndarray) -> np.ndarray:
+    """A float32 grey image on a 0-255 scale from BGR/grey, uint8/uint16/float input."""
+    import cv2
+
+    img = np.asarray(image)
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.dtype != np.float64 else img.mean(axis=2)
+    out = img.astype(np.float32)
+    if image.dtype == np.uint16:
+        out *= 255.0 / 65535.0
+    return out
+
+
+def _odd(n: float) -> int:
+    k = max(3, int(math.ceil(n)))
+    return k if k % 2 else k + 1
+
+
+def longest_skeleton_path(skeleton: np.ndarray) -> np.ndarray:
+    """The longest shortest-path through a skeleton's 8-connected pixels, ordered (M, 2) x, y.
+
+    Two breadth-first sweeps (farthest pixel from any pixel, then farthest from
+    that) give the diameter of the skeleton graph, which drops spurs.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    ys, xs = np.nonzero(skeleton)
+    n = len(xs)
+    if n < 2:
+        return np.column_stack((xs, ys)).astype(np.float64)
+    index = -np.ones(skeleton.shape, dtype=np.int64)
+    index[ys, xs] = np.arange(n)
+    rows, cols, weights = [], [], []
+    h, w = skeleton.shape
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        y2, x2 = ys + dy, xs + dx
+        ok = (y2 >= 0) & (y2 < h) & (x2 >= 0) & (x2 < w)
+        j = np.full(n, -1)
+        j[ok] = index[y2[ok], x2[ok]]
+        ok &= j >= 0
+        rows.append(np.arange(n)[ok])
+        cols.append(j[ok])
+        weights.append(np.full(int(ok.sum()), math.hypot(dx, dy)))
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    wgt = np.concatenate(weights)
+    graph = coo_matrix((wgt, (r, c)), shape=(n, n)).tocsr()
+    d0 = dijkstra(graph, directed=False, indices=0)
+    a = int(np.argmax(np.where(np.isfinite(d0), d0, -1)))
+    da, pred = dijkstra(graph, directed=False, indices=a, return_predecessors=True)
+    b = int(np.argmax(np.where(np.isfinite(da), da, -1)))
+    order = [b]
+    while order[-1] != a:
+        order.append(int(pred[order[-1]]))
+    order.reverse()
+    return np.column_stack((xs[order], ys[order])).astype(np.float64)
+
+
+def segment_wire(
+    image: np.ndarray,
+    *,
+    exclude: np.ndarray | None = None,
+    max_wire_width_px: float,
+    min_length_px: float,
+) -> WireMask | None:
+    """Find the wire in a photo.
+
+    Parameters
+    ----------
+    image : ndarray (H, W, 3) BGR or (H, W) grey, uint8 or uint16.
+    exclude : ndarray (H, W) bool, optional; pixels that cannot be wire (the
+        board and its margin).
+    max_wire_width_px : the widest the wire can appear, pixels (sets the
+        background filter's size).
+    min_length_px : a wire shorter than this is "no wire".
+
+    Returns
+    -------
+    WireMask, or None when no wire-like structure is found.
+    """
+    import cv2
+    from skimage.morphology import skeletonize
+
+    gray = gray_float(image)
+    g8 = np.clip(gray + 0.5, 0, 255).astype(np.uint8)
+    # Work at a reduced size when the wire is wide: the mask is only a guide.
+    factor = min(1.0, 10.0 / max(max_wire_width_px, 1e-9))
+    small = (
+        cv2.resize(g8, None, fx=factor, fy=factor, interpolation=cv2.INTER_AREA)
+        if factor < 1.0
+        else g8
+    )
+    wide = max_wire_width_px * factor
+    background = cv2.medianBlur(small, _odd(2.0 * wide + 1))
+    diff = np.abs(small.astype(np.float32) - background.astype(np.float32))
+    valid = np.ones(small.shape, dtype=bool)
+    if exclude is not None:
+        ex = cv2.resize(
+            exclude.astype(np.uint8),
+            (small.shape[1], small.shape[0]),
+            interpolation=cv2.INTER_NEAREST,
+        ).astype(bool)
+        valid &= ~ex
+    # ignore a frame at the image border (filter edge effects)
+    border = _odd(2 * wide)
+    valid[:border] = valid[-border:] = False
+    valid[:, :border] = valid[:, -border:] = False
+    values = diff[valid]
+    if values.size == 0:
+        return None
+    noise = 1.4826 * float(np.median(np.abs(values - np.median(values)))) + 0.5
+    threshold = max(6.0 * noise, 10.0)
+    cand = (diff > threshold) & valid
+    close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(wide / 2),) * 2)
+    cand = cv2.morphologyEx(cand.astype(np.uint8), cv2.MORPH_CLOSE, close).astype(bool)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        cand.astype(np.uint8), connectivity=8
+    )
+    best: tuple[float, int, np.ndarray] | None = None
+    for lab in range(1, count):
+        x, y, w, h, area = stats[lab]
+        if max(w, h) < min_length_px * factor * 0.5:
+            continue
+        comp = labels[y : y + h, x : x + w] == lab
+        skel = skeletonize(comp)
+        length = float(skel.sum())
+        if area / max(length, 1.0) > wide:
+            continue  # wider than any wire: a strip of table, a sheet's edge
+        if best is None or length > best[0]:
+            best = (length, lab, np.array([x, y]))
+    if best is None:
+        return None
+    _, lab, _ = best
+    comp_small = (labels == lab).astype(np.uint8)
+    # fill holes (a specular crest can split the mask along the wire)
+    contours, _ = cv2.findContours(comp_small, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(comp_small)
+    cv2.drawContours(filled, contours, -1, 1, thickness=cv2.FILLED)
+    path_small = longest_skeleton_path(skeletonize(filled.astype(bool)))
+    path_len = float(np.sum(np.hypot(*np.diff(path_small, axis=0).T)))
+    if path_len / factor < min_length_px:
+        return None
+    # back to full size
+    if factor < 1.0:
+        mask = cv2.resize(filled, (g8.shape[1], g8.shape[0]), interpolation=cv2.INTER_NEAREST)
+        path = (path_small + 0.5) / factor - 0.5
+    else:
+        mask, path = filled, path_small
+    mask_b = mask.astype(bool)
+    inside = gray[mask_b]
+    ring = cv2.dilate(
+        mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(max_wire_width_px),) * 2)
+    )
+    around = ring.astype(bool) & ~mask_b
+    bg_level = float(np.median(gray[around])) if around.any() else float(np.median(gray))
+    # which way the wire stands out: compare its mean absolute deviation sides
+    dev = inside - bg_level
+    sheet: Sheet = (
+        "light" if np.mean(np.minimum(dev, 0) ** 2) > np.mean(np.maximum(dev, 0) ** 2) else "dark"
+    )
+    return WireMask(
+        mask=mask_b,
+        path_px=path,
+        sheet=sheet,
+        background_level=bg_level,
+        contrast=float(np.median(np.abs(dev))),
+        threshold=threshold,
+        width_px=float(mask_b.sum()) / max(path_len / factor, 1.0),
+    )
