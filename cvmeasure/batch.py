@@ -473,14 +473,15 @@ def _run_processes(
     ctx = multiprocessing.get_context("spawn")
     window = 4 * workers
     todo = iter(jobs)
+    pending: set[Future[dict[str, Any]]] = set()
     with _single_threaded_env():
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
-    try:
-        pending: set[Future[dict[str, Any]]] = set()
+        # the workers start on these first submits, inheriting the one-thread environment
         for path, key in todo:
             pending.add(pool.submit(measure_one, path, key, kind, context))
             if len(pending) >= window:
                 break
+    try:
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:

@@ -315,3 +315,21 @@ def test_custom_measurement_runs_in_spawned_workers(tmp_path, capsys):
     check_against_truth(records, truth)
     assert main(["batch", str(tmp_path / "p"), "--measure", "no.such:thing", "-o", str(out)]) == 2
     assert "no.such:thing: cannot use as a measurement" in capsys.readouterr().err
+
+
+def env_threads(photo, context):
+    """A measurement reporting the thread limits its worker runs under."""
+    return {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
+
+
+def test_spawned_workers_run_one_thread_each(tmp_path, monkeypatch):
+    from cvmeasure import batch
+
+    monkeypatch.setitem(batch.MEASURERS, "env", f"{__name__}:env_threads")
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    disc_photos(tmp_path / "p", 3)
+    summary = run_batch(list_photos(tmp_path / "p"), tmp_path / "r.jsonl", kind="env", workers=2)
+    assert summary.failed == 0, summary.failures
+    for rec in read_jsonl(tmp_path / "r.jsonl"):
+        assert rec["OMP_NUM_THREADS"] == "1" and rec["OPENBLAS_NUM_THREADS"] == "1"
+    assert "OMP_NUM_THREADS" not in os.environ  # the parent's environment is restored
