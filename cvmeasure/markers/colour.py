@@ -105,6 +105,10 @@ class WhiteEstimate:
 def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEstimate:
     """Estimate the light's white from the brightest unclipped pixels (the white rings).
 
+    Its colour comes from the brightest unclipped pixels; where the rings are
+    overexposed, its level is raised to that of the brightest pixels (so values
+    above 255 are possible: the white lies beyond the sensor's range).
+
     Parameters
     ----------
     bgr8 : ndarray of shape (H, W, 3), uint8
@@ -133,7 +137,26 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
     bright = gray >= level
     n_bright = int(np.count_nonzero(bright))
     clipped_fraction = 1.0 - n_sel / max(1, n_bright)
-    return WhiteEstimate((float(mr), float(mg), float(mb)), n_sel, float(clipped_fraction))
+    white = np.array([mr, mg, mb])
+    # Overexposed rings: their unclipped neighbours give the light's colour but not its
+    # level. Raise the white (in linear light) to the brightest pixels' grey, clipped or not.
+    hist_all = np.bincount(gray.ravel(), minlength=256)
+    above_all = np.cumsum(hist_all[::-1])[::-1]
+    level_all = int(np.flatnonzero(above_all >= k)[-1])
+    grey_all = cv2.mean(gray, mask=(gray >= level_all).astype(np.uint8))[0]
+    grey_white = float(white @ np.array([0.299, 0.587, 0.114]))
+    if grey_all > grey_white + 1.0:
+        gain = _srgb_decode(np.array(grey_all / 255.0)) / _srgb_decode(np.array(grey_white / 255.0))
+        white = 255.0 * _srgb_encode_unclipped(_srgb_decode(white / 255.0) * float(gain))
+    return WhiteEstimate(
+        (float(white[0]), float(white[1]), float(white[2])), n_sel, float(clipped_fraction)
+    )
+
+
+def _srgb_encode_unclipped(v: np.ndarray) -> np.ndarray:
+    """Linear -> gamma-encoded sRGB, allowing values above 1 (a white brighter than full scale)."""
+    v = np.maximum(v, 0.0)
+    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
 
 
 def adaptation_matrix(white: WhiteEstimate | None, adaptation: str = "rgb-gain") -> np.ndarray:

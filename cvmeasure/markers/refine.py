@@ -38,10 +38,10 @@ __all__ = [
 #: Variance inflation for neighbouring edge points that share noise (blur, JPEG
 #: blocks): the effective number of independent points is N / CORRELATION_FACTOR.
 #: Calibrated on rendered photos (benchmarks/markers.py).
-CORRELATION_FACTOR = 4.0
+CORRELATION_FACTOR = 2.5
 #: Standard uncertainty floor of a centre (px, per axis): what the residuals cannot
 #: see (colour fringes, print tolerance, JPEG chroma subsampling).
-CENTRE_FLOOR_PX = 0.01
+CENTRE_FLOOR_PX = 0.005
 
 
 @dataclass(frozen=True)
