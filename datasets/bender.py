@@ -203,7 +203,7 @@ def render_bender_photo(
     x0, y0, x1, y1 = geo.plate_mm
 
     layers: list[Layer] = [
-        Layer(None, lambda w: np.ones_like(w.u), lin(_TABLE)),
+        Layer(None, None, lin(_TABLE)),
         Layer(
             (x0 - 1, y0 - 1, x1 + 1, y1 + 1),
             lambda w: sdf_alpha(

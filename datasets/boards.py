@@ -158,7 +158,7 @@ def board_truth(
 
 
 def _table_layer() -> Layer:
-    return Layer(None, lambda w: np.ones_like(w.u), srgb8_to_linear(_TABLE))
+    return Layer(None, None, srgb8_to_linear(_TABLE))
 
 
 def render_board_view(

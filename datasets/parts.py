@@ -248,7 +248,7 @@ def render_part_photo(
     # board frame has z away from the camera; shadows fall away from the light
     shadow = verts - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
     layers = [
-        Layer(None, lambda w: np.ones_like(w.u), lin(_TABLE)),
+        Layer(None, None, lin(_TABLE)),
         *board_layers(board),
         Layer(
             (

@@ -103,7 +103,12 @@ def sdf_alpha(sdf_mm: np.ndarray, soft_mm: float = 0.0) -> np.ndarray:
     mm_per_px = np.maximum(np.hypot(gx, gy), 1e-12)
     if soft_mm > 0:
         return np.clip(0.5 - sdf_mm / (mm_per_px + soft_mm), 0.0, 1.0)
-    return box_coverage(sdf_mm / mm_per_px, gx, gy)
+    dist_px = sdf_mm / mm_per_px
+    alpha = (dist_px < 0).astype(np.float64)
+    # only pixels within a pixel of the edge are partly covered
+    edge = np.nonzero(np.abs(dist_px) < 0.75)
+    alpha[edge] = box_coverage(dist_px[edge], gx[edge], gy[edge])
+    return alpha
 
 
 def sdf_circle(u: np.ndarray, v: np.ndarray, centre_mm: Sequence[float], radius_mm: float):
@@ -190,7 +195,8 @@ class Layer:
     Attributes
     ----------
     bbox_mm : (xmin, ymin, xmax, ymax) in plane mm, or None for the whole image.
-    alpha : function Window -> coverage array (with the halo), in [0, 1].
+    alpha : function Window -> coverage array (with the halo), in [0, 1]; None
+        paints the whole box (a background fill).
     colour : linear RGB albedo (3,) or a function Window -> array (h, w, 3) (with halo).
     kind : "paint" (over-paint with ``colour``) or "shadow" (multiply by
         ``1 - strength * alpha``).
@@ -198,7 +204,7 @@ class Layer:
     """
 
     bbox_mm: BBox | None
-    alpha: Callable[[Window], np.ndarray]
+    alpha: Callable[[Window], np.ndarray] | None
     colour: Sequence[float] | Callable[[Window], np.ndarray] = (0.0, 0.0, 0.0)
     kind: Literal["paint", "shadow"] = "paint"
     strength: float = 0.0
@@ -250,6 +256,14 @@ def rasterise(
     """
     w, h = camera.image_size_px
     img = np.zeros((h, w, 3), dtype=np.float32)
+    if (
+        layers
+        and layers[0].alpha is None
+        and layers[0].bbox_mm is None
+        and not callable(layers[0].colour)
+    ):
+        img[...] = np.asarray(layers[0].colour, dtype=np.float32)  # a plain background
+        layers = layers[1:]
     boxes = [_bbox_px(layer.bbox_mm, camera, rot, t_mm) for layer in layers]
     rays = RayMap(camera)
     for sy0 in range(0, h, rows_per_strip):
@@ -273,8 +287,12 @@ def rasterise(
             r0, r1 = y0 - sy0, y1 - sy0 + 2
             c0, c1 = bx0 - cx0, bx1 - cx0 + 2
             win = Window(u[r0:r1, c0:c1], v[r0:r1, c0:c1])
-            alpha = Window.crop(layer.alpha(win)).astype(np.float32)[..., None]
             target = img[y0:y1, bx0:bx1]
+            if layer.alpha is None:
+                col = layer.colour(win) if callable(layer.colour) else layer.colour
+                target[...] = Window.crop(col) if callable(layer.colour) else col
+                continue
+            alpha = Window.crop(layer.alpha(win)).astype(np.float32)[..., None]
             if layer.kind == "shadow":
                 target *= 1.0 - layer.strength * alpha
                 continue
