@@ -306,6 +306,8 @@ def render_bender_photo(
             "y_mm": float(c[1]),
             "diameter_mm": marker.diameter_mm,
             "ring_mm": marker.ring_mm,
+            "x_px": disc["centre_px"][0],
+            "y_px": disc["centre_px"][1],
             **disc,
             "ring_r_px": ring["r_px"],
             "occluded_fraction": float(occlude.get(marker.role, 0.0)),

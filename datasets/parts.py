@@ -290,7 +290,11 @@ def render_part_photo(
         "height_mm": spec.height_mm,
         "arc_angle_deg": spec.arc_angle_deg,
         "divisions": spec.divisions,
+        "chord_mm": spec.chord_mm,
         "segment_bend_deg": placed.segment_bend_deg.tolist(),
+        "notes": "centreline_mm is in the board frame (x right, y down on the board); "
+        "segment_bend_deg is counter-clockwise positive in that frame's (x, y), which appears "
+        "clockwise in the photo. The wire is flat at z = 0 (its height is ignored).",
         **board_truth(board, cam, rot, t_mm),
     }
     return render_scene(

@@ -131,3 +131,20 @@ def test_anti_aliased_render_equals_a_supersampled_render():
     ]
     diff = np.linalg.norm(found[0] - found[1], axis=2).ravel()
     assert np.median(diff) < 0.01 and diff.max() < 0.05
+
+
+def test_legacy_charuco_board_renders_the_old_pattern():
+    """OpenCV < 4.6 boards with an even number of rows start with a white square."""
+    legacy = CharucoBoardSpec(6, 4, 30.0, 22.0, "DICT_4X4_50", legacy_pattern=True)
+    photo = render_board_view(board=legacy, lighting=Lighting.clean(), scale=0.25)
+    check = check_charuco_corners(photo, legacy)
+    assert len(check.ids) == legacy.corner_count
+    assert np.median(check.errors_px) < 0.08
+    # the outer top-left square is white on the legacy board, black on the new one
+    modern = render_board_view(
+        board=CharucoBoardSpec(6, 4, 30.0, 22.0, "DICT_4X4_50"),
+        lighting=Lighting.clean(),
+        scale=0.25,
+    )
+    x, y = np.round(np.asarray(photo.truth["corners_px"][0]) - [5, 5]).astype(int)
+    assert photo.bgr[y, x].mean() > 150 > modern.bgr[y, x].mean()
