@@ -33,7 +33,8 @@ seed=0, scale=1.0)`` with ``arc_part(radius_mm, arc_angle_deg, divisions)``,
     (with ``linear=True``), ``jpeg_bytes``; ``save(stem)`` writes ``<stem>.jpg``
     (``.png`` when uncompressed) and ``<stem>.truth.json``; ``save_linear_tiff(path)``.
 
-``scale`` resizes the camera (and the photo): 0.25 renders 1152 x 768 for tests.
+``scale`` resizes the camera (and the photo): 0.25 renders 1152 x 768 for tests;
+``image_size_px=(w, h)`` does the same by size.
 Every function is deterministic for a given ``seed``.
 """
 

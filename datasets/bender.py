@@ -26,7 +26,13 @@ from cvmeasure.geometry import direction_deg
 from cvmeasure.kit import MarkerKit, default_kit
 from datasets.lighting import Lighting, srgb8_to_linear
 from datasets.optics import Pose
-from datasets.photo import RenderedPhoto, circle_image_geometry, render_scene, resolve_camera
+from datasets.photo import (
+    RenderedPhoto,
+    circle_image_geometry,
+    px_per_mm_at,
+    render_scene,
+    resolve_camera,
+)
 from datasets.raster import (
     Layer,
     Window,
@@ -145,6 +151,7 @@ def render_bender_photo(
     lighting: Lighting | None = None,
     seed: int = 0,
     scale: float = 1.0,
+    image_size_px: tuple[int, int] | None = None,
     occlude: dict[str, float] | None = None,
     geometry: BenderGeometry | None = None,
     linear: bool = False,
@@ -157,7 +164,7 @@ def render_bender_photo(
     bend_angle_deg : angle of the bent leg from +x, degrees; 0 is straight.
     kit : marker kit (default :func:`cvmeasure.kit.default_kit`).
     camera : camera model at 4608 px width (default :func:`default_camera`); ``scale``
-        resizes it (and the photo).
+        resizes it (and the photo), or ``image_size_px`` (w, h) sets the size directly.
     pose : camera pose in the machine frame (default: straight down from 850 mm
         above (-10, 0), about 8 px/mm at full size).
     lighting : see :class:`Lighting` (default: a realistic workshop photo).
@@ -294,7 +301,7 @@ def render_bender_photo(
         "ellipse_centre_px is the centre of the disc's image ellipse, which differs under "
         "perspective. Shapes are flat at machine z = 0.",
     }
-    cam = resolve_camera(camera, scale)
+    cam = resolve_camera(camera, scale, image_size_px)
     rot, t_mm = pose.extrinsics("machine")
     markers = {}
     for marker in kit.markers:
@@ -313,6 +320,7 @@ def render_bender_photo(
             "occluded_fraction": float(occlude.get(marker.role, 0.0)),
         }
     truth["markers"] = markers
+    truth["px_per_mm_at_origin"] = px_per_mm_at(cam, rot, t_mm, (0.0, 0.0))
     return render_scene(
         layers,
         frame="machine",

@@ -169,6 +169,7 @@ def render_board_view(
     lighting: Lighting | None = None,
     seed: int = 0,
     scale: float = 1.0,
+    image_size_px: tuple[int, int] | None = None,
     linear: bool = False,
 ) -> RenderedPhoto:
     """Render a calibration view of ``board``.
@@ -178,7 +179,7 @@ def render_board_view(
     image position (``corners_px``, distorted, OpenCV id order) of every inner
     corner, with ``corners_in_image``.
     """
-    cam = resolve_camera(camera, scale)
+    cam = resolve_camera(camera, scale, image_size_px)
     sx, sy, s = _squares(board)
     if pose is None:
         dist = cam.fx * sx * s / (0.7 * cam.image_size_px[0])

@@ -18,7 +18,7 @@ from cvmeasure.geometry import wrap_deg
 from datasets.boards import board_layers, board_truth
 from datasets.lighting import Lighting, srgb8_to_linear
 from datasets.optics import Pose
-from datasets.photo import RenderedPhoto, render_scene, resolve_camera
+from datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
 from datasets.raster import Layer, Window, polyline_bbox, sdf_alpha, sdf_capsules, sdf_rect
 
 __all__ = [
@@ -206,6 +206,7 @@ def render_part_photo(
     lighting: Lighting | None = None,
     seed: int = 0,
     scale: float = 1.0,
+    image_size_px: tuple[int, int] | None = None,
     placement_deg: float | None = None,
     linear: bool = False,
 ) -> RenderedPhoto:
@@ -277,7 +278,7 @@ def render_part_photo(
             _wire_colour(verts, r, lin(_WIRE)),
         )
     )
-    cam = resolve_camera(camera, scale)
+    cam = resolve_camera(camera, scale, image_size_px)
     rot, t_mm = pose.extrinsics("board")
     placed = PartSpec(spec.kind, verts, spec.radius_mm, spec.arc_angle_deg, spec.wire_diameter_mm)
     truth = {
@@ -295,6 +296,7 @@ def render_part_photo(
         "notes": "centreline_mm is in the board frame (x right, y down on the board); "
         "segment_bend_deg is counter-clockwise positive in that frame's (x, y), which appears "
         "clockwise in the photo. The wire is flat at z = 0 (its height is ignored).",
+        "px_per_mm_at_part": px_per_mm_at(cam, rot, t_mm, tuple(verts.mean(axis=0))),
         **board_truth(board, cam, rot, t_mm),
     }
     return render_scene(

@@ -16,7 +16,13 @@ from datasets.lighting import Lighting, develop
 from datasets.optics import Frame, Pose, default_camera, project_frame_points
 from datasets.raster import Layer, rasterise
 
-__all__ = ["RenderedPhoto", "render_scene", "resolve_camera", "circle_image_geometry"]
+__all__ = [
+    "RenderedPhoto",
+    "render_scene",
+    "resolve_camera",
+    "circle_image_geometry",
+    "px_per_mm_at",
+]
 
 
 @dataclass(frozen=True)
@@ -113,9 +119,37 @@ def circle_image_geometry(
     }
 
 
-def resolve_camera(camera: CameraModel | None, scale: float) -> CameraModel:
-    """The camera a photo is rendered with: ``camera`` (default the seed camera) resized by ``scale``."""
+def px_per_mm_at(
+    camera: CameraModel, rot: np.ndarray, t_mm: np.ndarray, point_mm: Sequence[float]
+) -> float:
+    """Image scale at a plane point, px per mm (geometric mean of the two plane directions)."""
+    x, y = point_mm
+    px = project_frame_points(
+        camera, rot, t_mm, np.array([[x - 0.5, y], [x + 0.5, y], [x, y - 0.5], [x, y + 0.5]])
+    )
+    return float(np.sqrt(np.linalg.norm(px[1] - px[0]) * np.linalg.norm(px[3] - px[2])))
+
+
+def resolve_camera(
+    camera: CameraModel | None, scale: float, image_size_px: tuple[int, int] | None = None
+) -> CameraModel:
+    """The camera a photo is rendered with.
+
+    ``camera`` (default: the seed camera) resized by ``scale``, or to
+    ``image_size_px`` (same aspect ratio) when that is given.
+    """
     cam = camera if camera is not None else default_camera()
+    if image_size_px is not None:
+        w, h = (int(v) for v in image_size_px)
+        factor = w / cam.image_size_px[0]
+        if abs(h - cam.image_size_px[1] * factor) > 1.0:
+            raise ValueError(
+                f"image_size_px {image_size_px} does not keep the camera's aspect ratio "
+                f"{cam.image_size_px}"
+            )
+        return cam.scaled(factor) if (w, h) != cam.image_size_px else cam
+    if scale <= 0:
+        raise ValueError(f"scale must be positive, got {scale}")
     return cam.scaled(scale) if scale != 1.0 else cam
 
 

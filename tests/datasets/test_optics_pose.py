@@ -86,3 +86,20 @@ def test_pose_validates_and_round_trips():
         tilt_deg=10.0, tilt_direction_deg=5.0, yaw_deg=-3.0, distance_mm=700.0, offset_mm=(1, 2)
     )
     assert Pose.from_dict(pose.to_dict()) == pose
+
+
+def test_render_size_by_scale_or_image_size():
+    from datasets import render_bender_photo
+    from datasets.photo import resolve_camera
+
+    a = resolve_camera(None, 1.0, (576, 384))
+    assert a.image_size_px == (576, 384) and a.fx == pytest.approx(875.0)
+    assert resolve_camera(None, 0.125).camera_matrix == pytest.approx(a.camera_matrix)
+    with pytest.raises(ValueError):
+        resolve_camera(None, 1.0, (576, 576))
+    with pytest.raises(ValueError):
+        resolve_camera(None, 0.0)
+    photo = render_bender_photo(pin_angle_deg=0.0, bend_angle_deg=0.0, image_size_px=(288, 192))
+    assert photo.bgr.shape == (192, 288, 3)
+    # straight down from 850 mm: f / z px per mm
+    assert photo.truth["px_per_mm_at_origin"] == pytest.approx(437.5 / 850.0, rel=2e-3)
