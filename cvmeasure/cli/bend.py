@@ -24,6 +24,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("job", type=Path, help="G-code file (cvmeasure gcode)")
     p.add_argument("--port", required=True, help="serial device or URL (sim:// = the double)")
     p.add_argument("--resume", action="store_true", help="continue a stopped job")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="resume even though a corrupted line reached the machine (check the part first)",
+    )
     p.add_argument("--journal", type=Path, help="journal file (default: JOB.journal.jsonl)")
     p.add_argument("--no-xonxoff", action="store_true", help="switch software flow control off")
     p.add_argument("--stall-timeout-s", type=float, default=5.0, help="silence that is a stall")
@@ -63,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
                 config=config,
                 progress=progress,
                 source=str(args.job),
+                force=args.force,
             )
         finally:
             if not args.quiet:

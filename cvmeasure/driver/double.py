@@ -717,6 +717,7 @@ class FakeTinyG:
         self._planner.append(_Move(seq, block.line_number, text, target, duration, rate))
         if self._stat not in (MachineStat.HOLD,):
             self._set_stat(MachineStat.RUN, now)
+            self._advance(0.0, now)  # an idle machine starts the move at once
         return {}, 0
 
     # ------------------------------------------------------------------ executor

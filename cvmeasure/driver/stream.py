@@ -147,7 +147,10 @@ class StopInfo:
     ``reason`` is one of ``desync``, ``error``, ``malformed``, ``alarm``,
     ``stall``, ``port_gone``, ``reset``, ``interrupted``, ``aborted``; ``line_number`` is
     the ``N`` of the line that caused it (None when unknown); ``board`` is the
-    board's last known ``sr`` fields after the stop (None when unreachable).
+    board's last known ``sr`` fields after the stop (None when unreachable);
+    ``corrupt_line_ran`` says that a line the board received corrupted (a
+    ``desync``) had reached the machine before the feedhold: the part may be
+    damaged, and a resume needs ``force``.
     """
 
     reason: str
@@ -155,6 +158,7 @@ class StopInfo:
     line: str
     detail: str
     board: dict[str, Any] | None = None
+    corrupt_line_ran: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -279,9 +283,20 @@ def plan_resume(
     Raises
     ------
     DeviceError
-        ``board_line`` is not a line of this job.
+        ``board_line`` is not a line of this job, or the position disagrees
+        with the job there (an axis the line does not move is off, or the
+        relative feed is outside the line's move): something ran that was not
+        the job, and continuing would make a wrong part.
     """
     if board_line == 0:
+        off = [
+            a for a in AXES if abs(float(board_pos.get(a, 0.0)) - start_pos.get(a, 0.0)) > tolerance
+        ]
+        if off:
+            raise DeviceError(
+                f"the board has run none of the job but has moved ({', '.join(off)}) since it "
+                "started: check the part and start again"
+            )
         return ResumePlan(0, None, -1)
     index = {j.number: j.index for j in job}
     if board_line not in index:
@@ -301,8 +316,22 @@ def plan_resume(
     ]
     relative = bool(relative_modes) and relative_modes[-1] == "relative"
     moved = [a for a in AXES if a in line.block.axes]
-    if not moved:
-        raise DeviceError(f"line N{line.number} moved nothing but the position disagrees")
+    still = [a for a in AXES if a not in moved and abs(rest[a]) > tolerance]
+    if still or not moved:
+        raise DeviceError(
+            f"the board's position disagrees with the job at line N{line.number} "
+            f"({', '.join(f'{a} off by {-rest[a]:+.3f}' for a in still or AXES if abs(rest[a]) > tolerance)}): "
+            "a corrupted line may have run; check the part and start again"
+        )
+    if relative:
+        before = planned[k - 1] if k > 0 else {a: float(start_pos.get(a, 0.0)) for a in AXES}
+        for a in moved:
+            span = end[a] - before[a]
+            if rest[a] * span < -tolerance or abs(rest[a]) > abs(span) + tolerance:
+                raise DeviceError(
+                    f"the board's {a} position is outside line N{line.number}'s move: "
+                    "a corrupted line may have run; check the part and start again"
+                )
     distance = sum(rest[a] ** 2 for a in moved) ** 0.5
     rate = line.block.feed if line.block.motion == 1 and line.block.feed else fixup_rate
     rate = min(rate, max(distance, 1e-6) / min_move_s * 60.0)
@@ -524,6 +553,15 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         # an alarm names the line the machine was executing when it tripped
         number = state.get("line")
         line = _line_by_number(run.job, number)
+    corrupt_ran = False
+    if reason == "desync" and line is not None and state is not None:
+        # TinyG 440 has no input checksum: a corrupted line runs like any other
+        corrupt_ran = _index_of(run.job, state.get("line")) >= line.index
+        if corrupt_ran:
+            detail += (
+                f"; the machine had reached it (sr.line N{state.get('line')}): "
+                "check the part before resuming with --force"
+            )
     run.inflight.clear()
     stop = StopInfo(
         reason=reason,
@@ -531,6 +569,7 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         line=line.text if line is not None else "",
         detail=detail,
         board=state,
+        corrupt_line_ran=corrupt_ran,
     )
     run.log({"event": "stop", **stop.to_dict()})
     raise JobStopped(stop)
@@ -569,6 +608,12 @@ def _handle(run: _Run, msg: Message) -> None:
         pass
 
 
+def _index_of(job: Sequence[JobLine], number: Any) -> int:
+    """Index of the job line numbered ``number``; -1 for N0 or anything else."""
+    line = _line_by_number(job, number)
+    return line.index if line is not None else -1
+
+
 def _line_by_number(job: Sequence[JobLine], number: Any) -> JobLine | None:
     for j in job:
         if j.number == number:
@@ -593,6 +638,7 @@ def stream_job(
     progress: Callable[[int, int, int | None], None] | None = None,
     source: str = "job",
     control: StreamControl | None = None,
+    force: bool = False,
 ) -> StreamResult:
     """Stream a job to the board and wait until it has executed.
 
@@ -607,6 +653,7 @@ def stream_job(
     progress : called as ``progress(lines_sent, lines_total, executed_line)``.
     source : the job's name in messages.
     control : feedhold / cycle start / abort requests from another thread.
+    force : resume even after a stop whose corrupted line had reached the machine.
 
     Raises
     ------
@@ -629,7 +676,7 @@ def stream_job(
     board = BoardConnection(link)
     run = _Run(job, board, config, journal_path, progress, control)
     try:
-        return _stream(run, sha, resume, source, link.xonxoff, t0)
+        return _stream(run, sha, resume, source, link.xonxoff, t0, force)
     except KeyboardInterrupt:
         head = run.inflight[0] if run.inflight else None
         try:
@@ -642,12 +689,12 @@ def stream_job(
 
 
 def _stream(
-    run: _Run, sha: str, resume: bool, source: str, xonxoff: bool, t0: float
+    run: _Run, sha: str, resume: bool, source: str, xonxoff: bool, t0: float, force: bool
 ) -> StreamResult:
     board, config, job = run.board, run.config, run.job
     start_index, fixup, resumed_from = 0, None, None
     if resume:
-        start_pos = _journal_start(run.journal, sha, source)
+        start_pos = _journal_start(run.journal, sha, source, force=force)
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
         state = _setup(board, config, xonxoff)
@@ -699,13 +746,21 @@ def _stream(
     )
 
 
-def _journal_start(journal: Path | None, sha: str, source: str) -> dict[str, float]:
+def _journal_start(
+    journal: Path | None, sha: str, source: str, *, force: bool = False
+) -> dict[str, float]:
     if journal is None or not journal.is_file():
         raise InputError(journal or source, "no journal to resume from")
     records = read_jsonl(journal, skip_partial_last=True)
     starts = [r for r in records if r.get("event") == "start"]
     if not starts or starts[-1].get("sha256") != sha:
         raise InputError(journal, "the journal belongs to a different job")
+    last = [r for r in records if r.get("event") in ("start", "stop", "resume")][-1]
+    if last.get("event") == "stop" and last.get("corrupt_line_ran") and not force:
+        raise DeviceError(
+            f"{journal}: the job stopped after the corrupted line N{last.get('line_number')} "
+            "had reached the machine; check the part, then resume with --force"
+        )
     return {a: float(v) for a, v in starts[-1].get("start_pos", {}).items()}
 
 

@@ -170,6 +170,13 @@ def test_plan_resume_from_board_reports():
     assert 0.01 / rate * 60 >= 0.005 - 1e-9
     with pytest.raises(DeviceError, match="N99, which is not in this job"):
         plan_resume(job, start_pos=start, board_line=99, board_pos=start)
+    # positions that no line of the job explains are refused, never papered over
+    with pytest.raises(DeviceError, match=r"disagrees with the job at line N3 \(y off by -3.000\)"):
+        plan_resume(job, start_pos=start, board_line=3, board_pos={"x": 30.0, "y": 107.0})
+    with pytest.raises(DeviceError, match="outside line N2's move"):
+        plan_resume(job, start_pos=start, board_line=2, board_pos={"y": 111.0})
+    with pytest.raises(DeviceError, match="has run none of the job but has moved"):
+        plan_resume(job, start_pos=start, board_line=0, board_pos={"y": 104.0})
 
 
 def test_feedhold_and_cycle_start_from_another_thread(job, tmp_path):
@@ -290,3 +297,25 @@ def test_a_board_frozen_past_the_flush_timeout_is_reported_unresponsive(job, tmp
         link.close()
         completed, _ = board.executed_lines()
     assert completed == list(range(0, len(job.lines) + 1))
+
+
+def test_a_corrupted_line_that_ran_needs_force_to_resume(job, tmp_path):
+    """TinyG 440 has no input checksum: with an idle planner a corrupted line runs at once."""
+    from cvmeasure.driver.stream import SETUP_COMMANDS
+
+    target = job.lines[4]
+    assert target.startswith("N5 G90 G1 X-")
+    at_line = len(SETUP_COMMANDS) + 2 + 1 + 5  # + {"ex"}, {"sr":null}, the N0 marker, N1..N5
+    fault = Fault("drop_byte", at_line, byte_index=target.index("-"))
+    journal = tmp_path / "j.jsonl"
+    with FakeTinyG(speedup=1e6, faults=[fault]) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(link, job.lines, journal=journal, config=FAST)
+        stop = info.value.stop
+        assert stop.reason == "desync" and stop.line_number == 5 and stop.corrupt_line_ran
+        assert "check the part" in str(info.value)
+        with pytest.raises(DeviceError, match="resume with --force"):
+            stream_job(link, job.lines, journal=journal, config=FAST, resume=True)
+        stream_job(link, job.lines, journal=journal, config=FAST, resume=True, force=True)
+        link.close()
