@@ -21,7 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats
 
-from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.diagnose.trials import BLOCKS, TrialSet
+from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import simulate
 from cvmeasure.sim.params import SimParams
@@ -116,7 +117,7 @@ class ModelFit:
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """Held-out residuals of one model (one value per measured angle)."""
+    """Held-out residuals of one model, stacked by blocks (NaN = not measured)."""
 
     causes: Causes
     residual_deg: NDArray[np.float64]
@@ -152,15 +153,16 @@ def predict(
     causes: str | Sequence[str],
     strength_scale: float,
     values: Sequence[float] = (),
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Predicted (loaded, unloaded) bend angles (deg) of the trials under a model."""
+) -> NDArray[np.float64]:
+    """Predicted observations of the trials under a model, stacked like
+    :meth:`TrialSet.observations` (loaded, unloaded bend and pin angle, deg)."""
     res = simulate(
         trials.commanded_pin_deg,
         _scaled(params, strength_scale),
         _effects(base_effects, _as_causes(causes), values),
         bend_index=trials.bend_index,
     )
-    return res.loaded_bend_deg, res.unloaded_bend_deg
+    return np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
 
 
 def residuals(
@@ -171,9 +173,12 @@ def residuals(
     strength_scale: float,
     values: Sequence[float] = (),
 ) -> NDArray[np.float64]:
-    """Measured minus predicted, stacked ``[loaded..., unloaded...]``; NaN where not measured."""
-    loaded, unloaded = predict(trials, params, base_effects, causes, strength_scale, values)
-    return np.concatenate([trials.loaded_bend_deg - loaded, trials.unloaded_bend_deg - unloaded])
+    """Measured minus predicted, stacked by blocks (loaded, unloaded, pin); NaN = not measured."""
+    predicted = predict(trials, params, base_effects, causes, strength_scale, values)
+    r = trials.observations() - predicted
+    n = len(trials)
+    r[2 * n :] = wrap_deg(r[2 * n :])  # pin angles are directions
+    return r
 
 
 def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple[float, float]:
@@ -288,7 +293,8 @@ def cross_validate(
     """Held-out residuals: fit on all folds but one, predict the one, for every fold."""
     names = _as_causes(causes)
     n = len(trials)
-    out = np.full(2 * n, np.nan)
+    n_blocks = len(BLOCKS)
+    out = np.full(n_blocks * n, np.nan)
     start = (full_fit.strength_scale, full_fit.values) if full_fit is not None else None
     for held in folds:
         train = trials.subset(~held)
@@ -296,6 +302,6 @@ def cross_validate(
         test = trials.subset(held)
         r = residuals(test, params, base_effects, names, fit.strength_scale, fit.values)
         idx = np.flatnonzero(held)
-        out[idx] = r[: idx.size]
-        out[n + idx] = r[idx.size :]
+        for b in range(n_blocks):
+            out[b * n + idx] = r[b * idx.size : (b + 1) * idx.size]
     return CrossValidation(causes=names, residual_deg=out)

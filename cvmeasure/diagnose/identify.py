@@ -6,8 +6,8 @@ a typical size. After projecting out the nuisance direction (material
 strength), two causes whose signatures are (anti-)parallel cannot be told
 apart on that design, whatever the noise. The check computes the cosine
 similarity of signatures, and for each confounded pair tries the catalogue of
-experiments (add reverse bends, photograph the loaded angle, widen the range
-of angles, shuffle the bend order / re-home mid-part) on a modified design,
+experiments (add reverse bends, photograph the loaded angle, measure the pin
+angle, widen the range of angles, shuffle the bend order / re-home mid-part) on a modified design,
 naming the first that separates the pair.
 
 Reference: /work/shared/reference/springback-discrepancy.md, sections 3.1
@@ -46,14 +46,11 @@ def _mid_value(name: str) -> float:
     return 0.5 * (lo + hi)
 
 
-def _predict(
-    design: TrialSet, params: SimParams, effects: Sequence[Effect], loaded: bool
-) -> NDArray[np.float64]:
+def _predict(design: TrialSet, params: SimParams, effects: Sequence[Effect]) -> NDArray[np.float64]:
+    """Predicted observations at the design's measured entries (stacked by blocks)."""
     res = simulate(design.commanded_pin_deg, params, effects, bend_index=design.bend_index)
-    parts = [res.unloaded_bend_deg[np.isfinite(design.unloaded_bend_deg)]]
-    if loaded:
-        parts.insert(0, res.loaded_bend_deg[np.isfinite(design.loaded_bend_deg)])
-    return np.concatenate(parts)
+    pred = np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
+    return pred[np.isfinite(design.observations())]
 
 
 def signature(
@@ -65,18 +62,14 @@ def signature(
 ) -> NDArray[np.float64]:
     """Change of the measured angles (deg) when effect ``name`` is on at a typical size."""
     base = tuple(e for e in base_effects if e.name not in (name, "none"))
-    loaded = design.has_loaded
-    ref = _predict(design, params, base, loaded)
-    on = _predict(design, params, (*base, Effect(name, _mid_value(name))), loaded)
+    ref = _predict(design, params, base)
+    on = _predict(design, params, (*base, Effect(name, _mid_value(name))))
     return on - ref
 
 
 def _nuisance(design: TrialSet, params: SimParams, base_effects: Sequence[Effect]) -> np.ndarray:
     soft = params.replace(yield_mpa=params.yield_mpa * 1.1, uts_mpa=params.uts_mpa * 1.1)
-    loaded = design.has_loaded
-    return _predict(design, soft, base_effects, loaded) - _predict(
-        design, params, base_effects, loaded
-    )
+    return _predict(design, soft, base_effects) - _predict(design, params, base_effects)
 
 
 def similarity(a: NDArray[np.float64], b: NDArray[np.float64], nuisance: np.ndarray) -> float:
@@ -101,8 +94,19 @@ def _add_loaded(d: TrialSet) -> TrialSet:
     return TrialSet.from_arrays(
         d.commanded_pin_deg,
         np.zeros(len(d)),
-        np.where(np.isfinite(d.unloaded_bend_deg), 0.0, np.nan),
+        d.unloaded_bend_deg,
         bend_index=d.bend_index,
+        measured_pin_deg=d.measured_pin_deg,
+    )
+
+
+def _add_pin(d: TrialSet) -> TrialSet:
+    return TrialSet.from_arrays(
+        d.commanded_pin_deg,
+        d.loaded_bend_deg,
+        d.unloaded_bend_deg,
+        bend_index=d.bend_index,
+        measured_pin_deg=np.zeros(len(d)),
     )
 
 
@@ -121,17 +125,20 @@ def _shuffle(d: TrialSet) -> TrialSet:
         d.loaded_bend_deg,
         d.unloaded_bend_deg,
         bend_index=rng.permutation(len(d)).astype(float),
+        measured_pin_deg=d.measured_pin_deg,
     )
 
 
 def _concat(d: TrialSet, extra_cmd: NDArray[np.float64]) -> TrialSet:
     n = len(d)
     loaded_on = 0.0 if d.has_loaded else np.nan
+    pin_on = 0.0 if d.has_pin else np.nan
     return TrialSet.from_arrays(
         np.concatenate([d.commanded_pin_deg, extra_cmd]),
         np.concatenate([d.loaded_bend_deg, np.full(extra_cmd.size, loaded_on)]),
         np.concatenate([d.unloaded_bend_deg, np.zeros(extra_cmd.size)]),
         bend_index=np.concatenate([d.bend_index, n + np.arange(extra_cmd.size)]),
+        measured_pin_deg=np.concatenate([d.measured_pin_deg, np.full(extra_cmd.size, pin_on)]),
     )
 
 
@@ -139,6 +146,7 @@ def _concat(d: TrialSet, extra_cmd: NDArray[np.float64]) -> TrialSet:
 EXPERIMENTS: tuple[tuple[str, Callable[[TrialSet], TrialSet]], ...] = (
     ("add reverse bends (the same angles in the other direction)", _add_reverse),
     ("photograph the loaded angle (pin still engaged) as well as the released one", _add_loaded),
+    ("measure the pin angle on the loaded photos (measured_pin_deg)", _add_pin),
     ("widen the range of bend angles (about 5-150 deg, both directions)", _widen),
     ("shuffle the bend order or re-home mid-part (separates drift from angle)", _shuffle),
 )

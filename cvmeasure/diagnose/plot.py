@@ -7,25 +7,27 @@ import io
 import numpy as np
 
 from cvmeasure.diagnose.core import Diagnosis
-from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.diagnose.trials import BLOCKS, TrialSet
 
 __all__ = ["residual_plot_png"]
+
+_MARKERS = (("loaded", "o"), ("unloaded", "x"), ("pin", "^"))
 
 
 def residual_plot_png(diagnosis: Diagnosis, trials: TrialSet, *, dpi: int = 100) -> bytes:
     """A 2 x 2 figure: residuals vs commanded pin angle and vs bend index, before / after.
 
     Residuals are measured minus predicted (deg) of the full-data fits;
-    circles are loaded angles, crosses unloaded; blue counter-clockwise, red
-    clockwise.
+    circles are loaded angles, crosses unloaded, triangles pin angles; blue
+    counter-clockwise, red clockwise.
     """
     from matplotlib.figure import Figure  # no pyplot: no global backend state
 
-    n = len(trials)
-    cmd = np.concatenate([trials.commanded_pin_deg, trials.commanded_pin_deg])
-    idx = np.concatenate([trials.bend_index, trials.bend_index])
-    ccw = np.concatenate([trials.direction, trials.direction]) > 0
-    unloaded = np.arange(2 * n) >= n
+    k = len(BLOCKS)
+    cmd = np.tile(trials.commanded_pin_deg, k)
+    idx = np.tile(trials.bend_index, k)
+    ccw = np.tile(trials.direction, k) > 0
+    block = np.repeat(np.arange(k), len(trials))
     fig = Figure(figsize=(10, 6.5), dpi=dpi, layout="constrained")
     axes = fig.subplots(2, 2, sharey="row")
     rows = (
@@ -40,9 +42,11 @@ def residual_plot_png(diagnosis: Diagnosis, trials: TrialSet, *, dpi: int = 100)
         for col, (x, xlabel) in enumerate(((cmd, "commanded pin (deg)"), (idx, "bend index"))):
             ax = axes[row, col]
             for is_ccw, colour in ((True, "tab:blue"), (False, "tab:red")):
-                for is_unl, marker in ((False, "o"), (True, "x")):
-                    m = (ccw == is_ccw) & (unloaded == is_unl) & np.isfinite(res)
-                    label = f"{'ccw' if is_ccw else 'cw'} {'unloaded' if is_unl else 'loaded'}"
+                for b, (what, marker) in enumerate(_MARKERS):
+                    m = (ccw == is_ccw) & (block == b) & np.isfinite(res)
+                    if not m.any():
+                        continue
+                    label = f"{'ccw' if is_ccw else 'cw'} {what}"
                     ax.scatter(x[m], res[m], s=14, c=colour, marker=marker, label=label)
             ax.axhline(0.0, color="0.5", lw=0.8)
             ax.set_xlabel(xlabel)

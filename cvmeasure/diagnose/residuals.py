@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.diagnose.trials import BLOCKS, TrialSet
 
 __all__ = [
     "COVARIATES",
@@ -39,6 +39,7 @@ COVARIATES: dict[str, tuple[str, ...]] = {
     "signed_angle": ("offset", "axis_offset", "springback_asymmetry"),
     "unloaded_minus_loaded": ("springback_asymmetry",),
     "direction_x_unloaded": ("springback_asymmetry",),
+    "pin_vs_bend": ("axis_offset", "camera_tilt"),
 }
 
 
@@ -61,26 +62,31 @@ class ResidualTrend:
 
 
 def _features(trials: TrialSet) -> dict[str, NDArray[np.float64]]:
+    """Covariates of every stacked observation (blocks: loaded, unloaded, pin)."""
+    n = len(trials)
     s = trials.direction
     mag = np.abs(trials.commanded_pin_deg)
-    two = lambda v: np.concatenate([v, v])  # noqa: E731  (loaded rows, then unloaded rows)
-    unloaded = np.concatenate([np.zeros(len(trials)), np.ones(len(trials))])
+    k = len(BLOCKS)
+    tile = lambda v: np.tile(v, k)  # noqa: E731
+    block = np.repeat(np.arange(k), n)
+    unloaded = (block == 1).astype(float)
     return {
-        "direction": two(s),
-        "bend_index": two(trials.bend_index),
-        "commanded_angle": two(mag),
-        "signed_angle": two(s * mag),
-        "unloaded_minus_loaded": unloaded,
-        "direction_x_unloaded": two(s) * unloaded,
+        "direction": tile(s),
+        "bend_index": tile(trials.bend_index),
+        "commanded_angle": tile(mag),
+        "signed_angle": tile(s * mag),
+        "unloaded_minus_loaded": np.where(block == 2, np.nan, unloaded),
+        "direction_x_unloaded": np.where(block == 2, np.nan, tile(s) * unloaded),
+        "pin_vs_bend": (block == 2).astype(float),
     }
 
 
 def residual_trends(trials: TrialSet, residual_deg: NDArray[np.float64]) -> list[ResidualTrend]:
-    """Correlations of stacked residuals ``[loaded..., unloaded...]`` (NaN = not measured)."""
+    """Correlations of stacked residuals (blocks of :data:`BLOCKS`; NaN = not measured)."""
     r = np.asarray(residual_deg, dtype=np.float64)
-    ok = np.isfinite(r)
     out = []
     for name, feature in _features(trials).items():
+        ok = np.isfinite(r) & np.isfinite(feature)
         x = feature[ok]
         y = r[ok]
         if x.size < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
@@ -129,18 +135,18 @@ def leftover_structure(
 ) -> LeftoverCheck:
     """Held-out check for structure left in stacked residuals (see :class:`LeftoverCheck`)."""
     r = np.asarray(residual_deg, dtype=np.float64)
-    n = len(trials)
-    x = np.concatenate([np.abs(trials.commanded_pin_deg)] * 2) / 100.0
-    cell = np.concatenate([trials.direction > 0] * 2).astype(int) + 2 * (np.arange(2 * n) >= n)
-    held_trial = np.full(2 * n, -1)
+    n, k = len(trials), len(BLOCKS)
+    x = np.tile(np.abs(trials.commanded_pin_deg), k) / 100.0
+    cell = np.tile(trials.direction > 0, k).astype(int) + 2 * np.repeat(np.arange(k), n)
+    held_trial = np.full(k * n, -1)
     for f, mask in enumerate(folds):
-        held_trial[np.concatenate([mask, mask])] = f
-    smoothed = np.full(2 * n, np.nan)
+        held_trial[np.tile(mask, k)] = f
+    smoothed = np.full(k * n, np.nan)
     ok = np.isfinite(r)
     for f in range(len(folds)):
         test = ok & (held_trial == f)
         train = ok & (held_trial != f)
-        for c in range(4):
+        for c in range(2 * k):
             tr, te = train & (cell == c), test & (cell == c)
             if not te.any():
                 continue

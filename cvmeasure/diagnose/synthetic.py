@@ -86,15 +86,21 @@ def measure_trials(
     params: SimParams | None = None,
     *,
     loaded: bool = True,
+    pin: bool = False,
 ) -> TrialSet:
-    """Simulate the plan with the effects and add Gaussian noise (deg) to every angle."""
+    """Simulate the plan with the effects and add Gaussian noise (deg) to every angle.
+
+    ``loaded=False`` leaves the loaded angles unmeasured; ``pin=True`` adds the
+    pin angle of the loaded photo (machine frame) with the same noise.
+    """
     res = simulate(commands, params, effects)
     n = len(commands)
     noisy_loaded = res.loaded_bend_deg + rng.normal(0.0, noise_deg, n)
     noisy_unloaded = res.unloaded_bend_deg + rng.normal(0.0, noise_deg, n)
     if not loaded:
         noisy_loaded = np.full(n, np.nan)
-    return TrialSet.from_arrays(commands, noisy_loaded, noisy_unloaded)
+    noisy_pin = res.pin_angle_deg + rng.normal(0.0, noise_deg, n) if pin else None
+    return TrialSet.from_arrays(commands, noisy_loaded, noisy_unloaded, measured_pin_deg=noisy_pin)
 
 
 def hidden_case(
@@ -105,6 +111,7 @@ def hidden_case(
     noise_range_deg: tuple[float, float] = (0.03, 0.1),
     both_directions: bool = True,
     loaded: bool = True,
+    pin: bool = False,
     params: SimParams | None = None,
 ) -> HiddenCase:
     """One synthetic case drawn from ``seed`` (effect, magnitude, plan, noise)."""
@@ -112,5 +119,5 @@ def hidden_case(
     hidden = draw_effect(rng, effect)
     noise = float(rng.uniform(*noise_range_deg))
     commands = random_plan(rng, n_trials, params, both_directions=both_directions)
-    trials = measure_trials(commands, (hidden,), noise, rng, params, loaded=loaded)
+    trials = measure_trials(commands, (hidden,), noise, rng, params, loaded=loaded, pin=pin)
     return HiddenCase(trials=trials, effect=hidden, noise_deg=noise, seed=seed)

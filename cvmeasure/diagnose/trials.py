@@ -4,9 +4,13 @@ Trials CSV (spec): ``trial, commanded_pin_deg, loaded_bend_deg,
 unloaded_bend_deg`` in the order executed, optional columns after. An empty
 ``loaded_bend_deg`` cell means the loaded angle was not photographed (the
 diagnosis then works on unloaded angles only). Optional columns used here:
+``measured_pin_deg`` (pin angle on the loaded photo, machine frame),
 ``bend_index`` (bends executed before this one, for drift; default the row
 number from 0) and ``part`` (the group of grouped cross-validation; default
 each trial its own group).
+
+Observations are stacked in blocks, ``[loaded..., unloaded..., pin...]``
+(:data:`BLOCKS`), NaN where not measured.
 """
 
 from __future__ import annotations
@@ -22,7 +26,10 @@ from numpy.typing import NDArray
 
 from cvmeasure.errors import InputError
 
-__all__ = ["TRIALS_COLUMNS", "TrialSet", "trials_from_rows"]
+__all__ = ["TRIALS_COLUMNS", "BLOCKS", "TrialSet", "trials_from_rows"]
+
+#: The measured quantities of a trial, in the order they are stacked.
+BLOCKS: tuple[str, ...] = ("loaded_bend_deg", "unloaded_bend_deg", "measured_pin_deg")
 
 #: Required columns of a trials CSV (spec).
 TRIALS_COLUMNS: tuple[str, ...] = (
@@ -37,7 +44,8 @@ TRIALS_COLUMNS: tuple[str, ...] = (
 class TrialSet:
     """Measured bends, one entry per trial, in the order executed (degrees).
 
-    ``loaded_bend_deg`` / ``unloaded_bend_deg`` hold NaN where not measured.
+    ``loaded_bend_deg`` / ``unloaded_bend_deg`` / ``measured_pin_deg`` hold
+    NaN where not measured.
     """
 
     trial: tuple[str, ...]
@@ -46,9 +54,18 @@ class TrialSet:
     unloaded_bend_deg: NDArray[np.float64]
     bend_index: NDArray[np.float64]
     group: tuple[str, ...]
+    measured_pin_deg: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         n = len(self.trial)
+        if self.measured_pin_deg is None:
+            object.__setattr__(self, "measured_pin_deg", np.full(n, np.nan))
+        else:
+            object.__setattr__(
+                self, "measured_pin_deg", np.asarray(self.measured_pin_deg, dtype=np.float64)
+            )
+        if np.shape(self.measured_pin_deg) != (n,):
+            raise ValueError(f"measured_pin_deg must have shape ({n},)")
         for name in ("commanded_pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "bend_index"):
             if np.shape(getattr(self, name)) != (n,):
                 raise ValueError(f"{name} must have shape ({n},)")
@@ -65,6 +82,7 @@ class TrialSet:
         trial: Sequence[str] | None = None,
         bend_index: Sequence[float] | None = None,
         group: Sequence[str] | None = None,
+        measured_pin_deg: Sequence[float] | NDArray[np.float64] | None = None,
     ) -> TrialSet:
         cmd = np.asarray(commanded_pin_deg, dtype=np.float64)
         n = cmd.shape[0]
@@ -84,6 +102,7 @@ class TrialSet:
                 else np.arange(n, dtype=np.float64)
             ),
             group=tuple(str(g) for g in group) if group is not None else names,
+            measured_pin_deg=measured_pin_deg,
         )
 
     def __len__(self) -> int:
@@ -97,6 +116,14 @@ class TrialSet:
     @property
     def has_loaded(self) -> bool:
         return bool(np.any(np.isfinite(self.loaded_bend_deg)))
+
+    @property
+    def has_pin(self) -> bool:
+        return bool(np.any(np.isfinite(self.measured_pin_deg)))
+
+    def observations(self) -> NDArray[np.float64]:
+        """Every measured quantity stacked by :data:`BLOCKS` (shape (3 N,), NaN = not measured)."""
+        return np.concatenate([self.loaded_bend_deg, self.unloaded_bend_deg, self.measured_pin_deg])
 
     @property
     def both_directions(self) -> bool:
@@ -113,6 +140,7 @@ class TrialSet:
             unloaded_bend_deg=self.unloaded_bend_deg[idx],
             bend_index=self.bend_index[idx],
             group=tuple(self.group[i] for i in idx),
+            measured_pin_deg=self.measured_pin_deg[idx],
         )
 
     def rows(self) -> list[dict[str, Any]]:
@@ -127,6 +155,7 @@ class TrialSet:
                     "unloaded_bend_deg": _cell(self.unloaded_bend_deg[i]),
                     "bend_index": int(self.bend_index[i]),
                     "part": self.group[i],
+                    "measured_pin_deg": _cell(self.measured_pin_deg[i]),
                 }
             )
         return out
@@ -167,7 +196,7 @@ def trials_from_rows(
     missing = [c for c in TRIALS_COLUMNS if c not in rows[0]]
     if missing:
         raise InputError(source, f"missing column(s) {', '.join(missing)}")
-    cmd, loaded, unloaded, index, group = [], [], [], [], []
+    cmd, loaded, unloaded, index, group, pin = [], [], [], [], [], []
     for i, row in enumerate(rows):
         line = i + 2
         cmd.append(
@@ -188,6 +217,17 @@ def trials_from_rows(
         else:
             index.append(float(i))
         group.append(row.get("part") or row["trial"])
+        pin.append(
+            _number(
+                source, line, "measured_pin_deg", row.get("measured_pin_deg", ""), optional=True
+            )
+        )
     return TrialSet.from_arrays(
-        cmd, loaded, unloaded, trial=[r["trial"] for r in rows], bend_index=index, group=group
+        cmd,
+        loaded,
+        unloaded,
+        trial=[r["trial"] for r in rows],
+        bend_index=index,
+        group=group,
+        measured_pin_deg=pin,
     )

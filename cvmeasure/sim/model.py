@@ -12,7 +12,10 @@ One bend, vectorised over many::
 Signs (spec): a negative command bends the other way (clockwise); angles are
 signed like the command; ``springback_deg = sign(loaded) * (loaded - unloaded)``.
 ``pin_deg`` is the actual signed head rotation from home after the command
-effects (what the head really did), in the units of the command.
+effects (what the head really did), in the units of the command;
+``pin_angle_deg`` is the same pin position in the machine frame of the spec
+(angle of origin -> pin from +x, origin = head axis), as a photo of the loaded
+bend measures it: ``dir * (phi_contact - approach_deg + |r|)``.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import Effect
 from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, loaded_angle_and_lever
 from cvmeasure.sim.params import SimParams
@@ -54,6 +58,7 @@ class SimResult:
     unloaded_bend_deg: NDArray[np.float64]
     springback_deg: NDArray[np.float64]
     lever_mm: NDArray[np.float64]
+    pin_angle_deg: NDArray[np.float64]  # machine frame, as a photo of the loaded bend shows it
 
     def to_dict(self) -> dict[str, Any]:
         return {k: np.asarray(v).tolist() for k, v in self.__dict__.items()}
@@ -125,6 +130,7 @@ def _forward(
     geom = head_geometry(params, direction, axis_offset_mm=values.get("axis_offset", 0.0))
     phi = contact_angle_deg(nominal) - params.approach_deg + r
     theta_l, lever = loaded_angle_and_lever(geom, phi)
+    pin_machine = wrap_deg(direction * phi)
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])
@@ -134,6 +140,7 @@ def _forward(
     if measure and "camera_tilt" in values:
         loaded = apply_camera_tilt_deg(loaded, values["camera_tilt"])
         unloaded = apply_camera_tilt_deg(unloaded, values["camera_tilt"])
+        pin_machine = apply_camera_tilt_deg(pin_machine, values["camera_tilt"])
     springback = np.sign(loaded) * (loaded - unloaded)
     return SimResult(
         commanded_pin_deg=cmd,
@@ -142,6 +149,7 @@ def _forward(
         unloaded_bend_deg=unloaded,
         springback_deg=springback,
         lever_mm=lever,
+        pin_angle_deg=np.asarray(pin_machine, dtype=np.float64),
     )
 
 

@@ -50,6 +50,22 @@ def test_diagnose_json_plot_and_extended_params(offset_trials, tmp_path, capsys)
     assert again["cause"] == "none"
 
 
+def test_measured_pin_column_is_read(tmp_path, capsys):
+    rng = np.random.default_rng(45)
+    trials = measure_trials(random_plan(rng, 30), (Effect("scale", 0.03),), 0.05, rng, pin=True)
+    path = tmp_path / "t.csv"
+    write_csv_rows(path, trials.rows(), (*COLUMNS, "measured_pin_deg"))
+    assert main(["diagnose", str(path), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cause"] == "scale"
+    assert out["params"]["scale"] == pytest.approx(0.03, abs=0.002)
+    text = path.read_text().splitlines()
+    text[3] = text[3].rsplit(",", 1)[0] + ",north"
+    path.write_text("\n".join(text) + "\n")
+    assert main(["diagnose", str(path)]) == 2
+    assert "measured_pin_deg" in capsys.readouterr().err
+
+
 def test_diagnose_text_summary(offset_trials, capsys):
     assert main(["diagnose", str(offset_trials)]) == 0
     text = capsys.readouterr().out

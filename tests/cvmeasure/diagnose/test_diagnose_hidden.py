@@ -115,3 +115,21 @@ def test_single_cause_is_not_split_in_two():
     result = diagnose(case.trials)
     assert result.causes == ("axis_offset",)
     assert diagnose(case.trials, max_causes=1).causes == ("axis_offset",)
+
+
+def test_measured_pin_angles_are_used():
+    # released angles only: offset and springback asymmetry look alike (similarity 0.998);
+    # the pin angle on the loaded photo separates them (offset moves the pin, asymmetric
+    # springback does not)
+    without = diagnose(
+        hidden_case(17, effect="springback_asymmetry", n_trials=40, loaded=False).trials
+    )
+    assert any(not i.separable for i in without.identifiability)
+    case = hidden_case(17, effect="springback_asymmetry", n_trials=40, loaded=False, pin=True)
+    assert case.trials.has_pin
+    result = diagnose(case.trials)
+    assert result.cause == "springback_asymmetry"
+    assert all(i.separable for i in result.identifiability)
+    key = "asymmetry"
+    lo, hi = result.intervals[key]
+    assert abs(result.params[key] - case.effect.value) <= 1.7 * 0.5 * (hi - lo)

@@ -139,3 +139,20 @@ def test_inverse_ignores_camera_and_refuses_unreachable():
 def test_invalid_command():
     with pytest.raises(ValueError, match="finite"):
         simulate([np.nan])
+
+
+def test_pin_angle_in_machine_frame():
+    p = SimParams()
+    from cvmeasure.sim.kinematics import contact_angle_deg as contact
+
+    phi_c = contact(head_geometry(p))
+    res = simulate([p.approach_deg, -p.approach_deg, 0.0, 100.0], p)
+    # at first contact the pin sits at phi_c below the wire (ccw) or mirrored above it (cw)
+    np.testing.assert_allclose(res.pin_angle_deg[:2], [phi_c, -phi_c], atol=1e-9)
+    assert res.pin_angle_deg[2] == pytest.approx(phi_c - p.approach_deg)  # home
+    assert res.pin_angle_deg[3] == pytest.approx(phi_c - p.approach_deg + 100.0)
+    # backlash moves the pin, axis offset does not
+    moved = simulate([100.0], p, [Effect("backlash", 2.0)]).pin_angle_deg[0]
+    assert moved == pytest.approx(res.pin_angle_deg[3] - 2.0)
+    same = simulate([100.0], p, [Effect("axis_offset", 0.3)]).pin_angle_deg[0]
+    assert same == pytest.approx(res.pin_angle_deg[3])
