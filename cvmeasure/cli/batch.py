@@ -11,7 +11,7 @@ __all__ = ["register", "run"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from cvmeasure.batch import KINDS
+    from cvmeasure.batch import KINDS, START_METHODS
 
     p = sub.add_parser(
         "batch",
@@ -43,6 +43,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--scheduler", metavar="tcp://HOST:PORT", help="run on this Dask distributed scheduler"
+    )
+    p.add_argument(
+        "--start-method",
+        choices=START_METHODS,
+        default="spawn",
+        help="how worker processes start (default spawn; forkserver imports the pipeline once "
+        "and forks the workers from it: less start-up CPU)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar or per-photo messages")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -114,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
             context=context,
             workers=args.workers,
             scheduler=args.scheduler,
+            start_method=args.start_method,
             on_start=on_start,
             on_record=on_record,
         )

@@ -34,7 +34,7 @@ PREFERRED_COLUMNS: tuple[str, ...] = (
     "y_px",
     "r_px",
 )
-_HIDDEN = {"seconds", "worker_pid", "ok"}
+_HIDDEN = {"seconds", "cpu_s", "worker_pid", "ok"}
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1b1b1b;max-width:1400px}
 h1{font-size:1.5em;margin-bottom:4px}h2{font-size:1.2em;margin-top:28px;border-bottom:1px solid #ccc}

@@ -180,13 +180,15 @@ def test_linear_16_bit_photo_measures_like_the_jpeg(tmp_path):
     assert abs(recs[0]["r_px"] - recs[1]["r_px"]) < 0.05
 
 
-def test_real_raw_photo_goes_through_the_batch(shared_real, tmp_path):
+@pytest.mark.parametrize("start_method", ["spawn", "forkserver"])
+def test_real_raw_photo_goes_through_the_batch(shared_real, tmp_path, start_method):
+    """RAW decoding in pool workers (rawpy deadlocks in plainly forked ones)."""
     dng = shared_real / "raw" / "Blackmagic.dng"
     jpg = tmp_path / "Blackmagic.jpg"
     cv2.imwrite(str(jpg), read_photo(dng).bgr8(), [cv2.IMWRITE_JPEG_QUALITY, 95])
     out = tmp_path / "r.jsonl"
-    summary = run_batch([dng, jpg], out, kind="disc", workers=2)
-    assert summary.failed == 0
+    summary = run_batch([dng, jpg], out, kind="disc", workers=2, start_method=start_method)
+    assert summary.failed == 0 and summary.backend == f"{start_method}-pool"
     rec = {r["file_name"]: r for r in read_jsonl(out)}
     assert rec["Blackmagic.dng"]["image_size_px"] == [4128, 2176]
     # the same scene through RAW and through its JPEG: the same largest blob, within 1 px
