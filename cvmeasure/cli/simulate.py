@@ -40,15 +40,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="switch an effect on, e.g. backlash=1.2 (repeatable; names: backlash, offset, "
         "scale, drift, springback_asymmetry, camera_tilt, axis_offset)",
     )
+    p.add_argument(
+        "--noise-deg",
+        type=float,
+        default=0.0,
+        metavar="SIGMA",
+        help="add Gaussian noise of this standard deviation (deg) to the loaded and unloaded "
+        "angles, as a measurement would (default 0: exact)",
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed of the noise (default 0)")
     p.add_argument("-o", "--out", type=Path, required=True, help="output CSV")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import read_csv_rows, write_csv_rows
     from cvmeasure.sim import SimParams, params_from_json, parse_effect, simulate
+    from cvmeasure.sim.model import add_noise
 
     rows = read_csv_rows(args.plan, required=("trial", "commanded_pin_deg"))
     if not rows:
@@ -71,6 +83,10 @@ def run(args: argparse.Namespace) -> int:
         result = simulate(commands, params, effects)
     except ValueError as exc:
         raise InputError("--effect", str(exc)) from None
+    if not (math.isfinite(args.noise_deg) and args.noise_deg >= 0):
+        raise InputError("--noise-deg", f"must be a non-negative number, got {args.noise_deg}")
+    if args.noise_deg > 0:
+        result = add_noise(result, args.noise_deg, np.random.default_rng(args.seed))
     out_rows = result.rows([row["trial"] for row in rows])
     write_csv_rows(args.out, out_rows, SIMULATE_COLUMNS)
     if args.json:
@@ -78,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             "out": str(args.out),
             "bends": len(out_rows),
             "effects": [e.to_dict() for e in effects],
+            "noise_deg": args.noise_deg,
             "params": params.to_dict(),
         }
         print(json.dumps(summary, indent=2))

@@ -51,6 +51,7 @@ from cvmeasure.sim.params import SimParams
 __all__ = [
     "MIN_DELTA_BIC",
     "MIN_CV_GAIN",
+    "RESOLUTION_DEG",
     "CandidateResult",
     "Diagnosis",
     "diagnose",
@@ -64,6 +65,9 @@ MIN_CV_GAIN = 0.05
 #: residuals, or a residual trend has a p-value below SECOND_SCREEN_P.
 SECOND_SCREEN_GAIN = 0.1
 SECOND_SCREEN_P = 1e-4
+#: Angles are never known better than this (deg): residuals below it are not structure,
+#: so exact (noise-free) data cannot make a cause out of rounding error.
+RESOLUTION_DEG = 1e-3
 #: Fewest trials the diagnosis accepts.
 MIN_TRIALS = 8
 
@@ -190,11 +194,12 @@ class Diagnosis:
 
 
 def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
+    """BIC improvement of ``fit`` over ``base`` (residuals floored at the resolution)."""
     n = fit.n_obs
     extra = fit.n_params - base.n_params
-    if fit.rss_deg2 <= 0:
-        return math.inf
-    return float(n * math.log(base.rss_deg2 / fit.rss_deg2) - extra * math.log(n))
+    floor = n * RESOLUTION_DEG**2
+    rss0, rss1 = max(base.rss_deg2, floor), max(fit.rss_deg2, floor)
+    return float(n * math.log(rss0 / rss1) - extra * math.log(n))
 
 
 def _structure_left(
@@ -293,7 +298,10 @@ def diagnose(
                 trials, params, fit.causes, fold_masks, base_effects=base_effects, full_fit=fit
             )
             dbic = _delta_bic(named, fit)
-            ok = cv.rmse_deg <= (1.0 - min_cv_gain) * named_cv and dbic >= min_delta_bic
+            cv_gain_ok = max(cv.rmse_deg, RESOLUTION_DEG) <= (1.0 - min_cv_gain) * max(
+                named_cv, RESOLUTION_DEG
+            )
+            ok = cv_gain_ok and dbic >= min_delta_bic
             out.append(CandidateResult(name, cv.rmse_deg, fit, dbic, bool(ok)))
         out.sort(key=lambda c: c.cv_rmse_deg)
         return out

@@ -40,6 +40,7 @@ __all__ = [
     "effect_values",
     "apply_camera_tilt_deg",
     "max_reachable_deg",
+    "add_noise",
 ]
 
 #: Largest head rotation from home the inverse searches (deg).
@@ -78,6 +79,27 @@ class SimResult:
             }
             for i in range(n)
         ]
+
+
+def add_noise(result: SimResult, noise_deg: float, rng: np.random.Generator) -> SimResult:
+    """``result`` with Gaussian noise (deg) on the loaded, unloaded and pin angles, as measured.
+
+    Springback is recomputed from the noisy angles; the commands and the true
+    head rotation ``pin_deg`` are kept.
+    """
+    n = result.loaded_bend_deg.shape[0]
+    loaded = result.loaded_bend_deg + rng.normal(0.0, noise_deg, n)
+    unloaded = result.unloaded_bend_deg + rng.normal(0.0, noise_deg, n)
+    pin = wrap_deg(result.pin_angle_deg + rng.normal(0.0, noise_deg, n))
+    return SimResult(
+        commanded_pin_deg=result.commanded_pin_deg,
+        pin_deg=result.pin_deg,
+        loaded_bend_deg=loaded,
+        unloaded_bend_deg=unloaded,
+        springback_deg=np.sign(loaded) * (loaded - unloaded),
+        lever_mm=result.lever_mm,
+        pin_angle_deg=np.asarray(pin, dtype=np.float64),
+    )
 
 
 def effect_values(effects: Iterable[Effect]) -> dict[str, float]:

@@ -113,3 +113,35 @@ def test_missing_file_and_bad_params_exit_2(offset_trials, tmp_path, capsys):
     params.write_text('{"effects": [{"name": "wobble"}]}')
     assert main(["diagnose", str(offset_trials), "--params", str(params)]) == 2
     assert "unknown effect" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("noise", ["0", "0.05"])
+def test_simulate_then_diagnose_round_trip(tmp_path, capsys, noise):
+    rng = np.random.default_rng(47)
+    plan = tmp_path / "plan.csv"
+    cmds = random_plan(rng, 30)
+    write_csv_rows(
+        plan,
+        [{"trial": i + 1, "commanded_pin_deg": float(c)} for i, c in enumerate(cmds)],
+        ("trial", "commanded_pin_deg"),
+    )
+    trials = tmp_path / "trials.csv"
+    argv = ["simulate", str(plan), "--effect", "drift=0.04", "-o", str(trials)]
+    assert main([*argv, "--noise-deg", noise, "--seed", "3"]) == 0
+    assert main(["diagnose", str(trials), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["cause"] == "drift"
+    assert out["params"]["drift_deg_per_bend"] == pytest.approx(0.04, abs=0.002)
+    if noise == "0":  # exact data: recovered to the CSV's rounding
+        assert out["params"]["drift_deg_per_bend"] == pytest.approx(0.04, abs=1e-6)
+        # and exact null data names nothing (rounding error is not a cause)
+        assert main(["simulate", str(plan), "-o", str(trials)]) == 0
+        assert main(["diagnose", str(trials), "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["cause"] == "none"
+
+
+def test_simulate_bad_noise_exit_2(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,commanded_pin_deg\n1,30\n")
+    assert main(["simulate", str(plan), "--noise-deg", "-1", "-o", str(tmp_path / "o.csv")]) == 2
+    assert "--noise-deg" in capsys.readouterr().err
