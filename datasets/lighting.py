@@ -7,7 +7,8 @@ The pipeline, in order (all in linear light, RGB in the sRGB primaries):
    albedo is the colour seen under D65), normalised so its largest channel is 1;
 2. exposure and vignetting (``1 - vignetting * (r / r_corner)^2``);
 3. lens/sensor blur (Gaussian of ``blur_px``, in output pixels);
-4. sensor noise: shot noise (``full_well_e`` electrons at full scale)
+4. optionally an RGGB Bayer mosaic (``bayer``), demosaiced after the noise;
+   sensor noise: shot noise (``full_well_e`` electrons at full scale)
    plus Gaussian read noise (both drawn as Gaussians), scaled by ``noise`` (0 = none);
 5. white balance: the camera divides by the illuminant it *believes* in
    (``wb_cct_k`` if set, else ``cct_k + wb_error_k``), then clips to [0, 1];
@@ -44,6 +45,8 @@ class Lighting:
     shadow_strength : darkness of cast shadows (0 = none).
     light_azimuth_deg : direction the light comes from, in the scene frame (shadows
         fall the opposite way).
+    bayer : sample the light on an RGGB colour filter array (noise per photosite)
+        and demosaic it (OpenCV edge-aware), as a real sensor does; off by default.
     """
 
     cct_k: float = 5000.0
@@ -58,6 +61,7 @@ class Lighting:
     jpeg_quality: int | None = 92
     shadow_strength: float = 0.35
     light_azimuth_deg: float = 135.0
+    bayer: bool = False
 
     def __post_init__(self) -> None:
         if not 1667.0 <= self.cct_k <= 25000.0:
@@ -143,6 +147,16 @@ def _encode_lut() -> np.ndarray:
     return np.clip(np.round(enc * 255.0), 0, 255).astype(np.uint8)
 
 
+def _mosaic_rggb(rgb: np.ndarray) -> np.ndarray:
+    """Sample an RGB image (H, W, 3) on an RGGB Bayer colour filter array -> (H, W)."""
+    m = np.empty(rgb.shape[:2], dtype=rgb.dtype)
+    m[0::2, 0::2] = rgb[0::2, 0::2, 0]
+    m[0::2, 1::2] = rgb[0::2, 1::2, 1]
+    m[1::2, 0::2] = rgb[1::2, 0::2, 1]
+    m[1::2, 1::2] = rgb[1::2, 1::2, 2]
+    return m
+
+
 @dataclass(frozen=True)
 class Developed:
     """What the camera hands over: 8-bit BGR, optional 16-bit linear RGB and JPEG bytes."""
@@ -178,6 +192,8 @@ def develop(
     sigma = lighting.blur_px
     if sigma > 0.05:
         raw = cv2.GaussianBlur(raw, (0, 0), sigmaX=sigma, sigmaY=sigma)
+    if lighting.bayer:
+        raw = _mosaic_rggb(raw)
     if lighting.noise > 0:
         # shot (Gaussian limit of Poisson: thousands of electrons) and read noise, in place
         fw = np.float32(lighting.full_well_e)
@@ -194,6 +210,11 @@ def develop(
         raw += sd
         del sd, gauss
     np.clip(raw, 0.0, 1.0, out=raw)  # the sensor saturates before white balance
+    if lighting.bayer:
+        m16 = np.empty(raw.shape, dtype=np.uint16)
+        np.copyto(m16, raw * np.float32(65535.0) + np.float32(0.5), casting="unsafe")
+        raw = cv2.demosaicing(m16, cv2.COLOR_BayerRGGB2RGB_EA).astype(np.float32)
+        raw *= np.float32(1.0 / 65535.0)
     wb = 1.0 / illuminant_rgb(lighting.camera_wb_cct_k)
     wb /= wb.min()  # cameras only amplify: the strongest channel keeps gain 1
     raw *= wb.astype(np.float32)

@@ -12,6 +12,7 @@ from cvmeasure.board import ChessboardSpec
 from datasets import Lighting, Pose, render_bender_photo, render_board_view
 from datasets.bender import RING_SRGB
 from datasets.lighting import illuminant_rgb, srgb8_to_linear
+from datasets.optics import project_frame_points
 
 # close up (2.5 px/mm at 576 x 384): the origin marker's white ring is ~5 px wide
 KW = dict(pin_angle_deg=-60.0, bend_angle_deg=35.0, scale=0.125, pose=Pose(distance_mm=350.0))
@@ -148,3 +149,29 @@ def test_lighting_validates():
         Lighting(cct_k=1000.0)
     with pytest.raises(ValueError):
         Lighting(jpeg_quality=0)
+
+
+def test_bayer_mosaic_keeps_colours_and_edges():
+    """An RGGB mosaic + demosaic keeps flat colours and adds colour fringes only at edges."""
+    base = dict(cct_k=6504.0, wb_error_k=0.0, noise=0.0, vignetting=0.0, jpeg_quality=None)
+    plain = render_bender_photo(lighting=Lighting(**base), linear=True, **KW)
+    mosaic = render_bender_photo(lighting=Lighting(bayer=True, **base), linear=True, **KW)
+    # a flat patch of the plate keeps its colour
+    rot, t = (
+        np.asarray(plain.truth["pose"]["R_cam_frame"]),
+        np.asarray(plain.truth["pose"]["tvec_mm"]),
+    )
+    x, y = np.round(
+        project_frame_points(plain.camera, rot, t, np.array([[60.0, -50.0]]))[0]
+    ).astype(int)
+    patches = [
+        p.linear_rgb16[y - 3 : y + 4, x - 3 : x + 4].reshape(-1, 3).mean(axis=0)
+        for p in (mosaic, plain)
+    ]
+    assert np.allclose(patches[0], patches[1], rtol=0.01)
+    diff = np.abs(mosaic.bgr.astype(int) - plain.bgr.astype(int)).max(axis=2)
+    assert np.median(diff) <= 1 and diff.max() > 10  # flat areas equal, edges differ
+    x, y = np.round(plain.truth["markers"]["pin"]["centre_px"]).astype(int)
+    assert np.abs(mosaic.bgr[y, x].astype(int) - plain.bgr[y, x].astype(int)).max() <= 3
+    noisy = render_bender_photo(lighting=Lighting(bayer=True, **{**base, "noise": 1.0}), **KW)
+    assert noisy.bgr.shape == plain.bgr.shape

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from datasets import Pose, default_camera
 from datasets.optics import plane_coords_mm, project_frame_points
@@ -103,3 +105,25 @@ def test_render_size_by_scale_or_image_size():
     assert photo.bgr.shape == (192, 288, 3)
     # straight down from 850 mm: f / z px per mm
     assert photo.truth["px_per_mm_at_origin"] == pytest.approx(437.5 / 850.0, rel=2e-3)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    tilt=st.floats(0.0, 60.0),
+    direction=st.floats(-180.0, 180.0),
+    yaw=st.floats(-180.0, 180.0),
+    distance=st.floats(250.0, 1500.0),
+    frame=st.sampled_from(["board", "machine"]),
+    x=st.floats(-50.0, 50.0),
+    y=st.floats(-50.0, 50.0),
+)
+def test_plane_trace_round_trip_property(tilt, direction, yaw, distance, frame, x, y):
+    """Any in-view plane point projects to a pixel that traces back to it (< 1e-6 mm)."""
+    cam = default_camera((1152, 768))
+    rot, t = Pose(tilt, direction, yaw, distance, (x, y)).extrinsics(frame)
+    pts = np.array([[x, y], [x + 15.0, y - 10.0], [x - 20.0, y + 5.0]])
+    px = project_frame_points(cam, rot, t, pts)
+    keep = (px[:, 0] > 0) & (px[:, 0] < 1151) & (px[:, 1] > 0) & (px[:, 1] < 767)
+    u, v = plane_coords_mm(cam, rot, t, px[keep, 0], px[keep, 1])
+    assert keep[0]  # the target is always in view (at the principal point)
+    assert np.hypot(u - pts[keep, 0], v - pts[keep, 1]).max() < 1e-6
