@@ -13,19 +13,21 @@ API
     The seed camera: Nikon D3100 + 18-55 mm at ~35 mm, f = 7000 px, barrel distortion.
 ``Pose(tilt_deg, tilt_direction_deg, yaw_deg, distance_mm, offset_mm)``
     Camera pose relative to the scene plane (see :class:`datasets.optics.Pose`).
-``Lighting(cct_k, wb_error_k, wb_cct_k, exposure, vignetting, noise, blur_px, jpeg_quality, ...)``
+``Lighting(cct_k, wb_error_k, wb_cct_k, exposure, vignetting, noise, blur_px, jpeg_quality,
+bayer, ...)``
     ``Lighting.clean()`` (no noise/blur/JPEG/vignetting, perfect WB) and ``Lighting.random(seed)``.
 ``render_bender_photo(*, pin_angle_deg, bend_angle_deg, kit=None, camera=None, pose=None,
-lighting=None, seed=0, scale=1.0, occlude=None, geometry=None, linear=False)``
+lighting=None, seed=0, scale=1.0, image_size_px=None, occlude=None, geometry=None, linear=False)``
     The bender's top plate with die, pin, bent 3 mm wire and the kit's five markers,
     in the machine frame. Truth: ``pin_angle_deg``, ``bend_angle_deg`` (from the
     rendered marker centres), ``markers[role]`` with ``centre_px`` (projected disc
     centre), ``ellipse_centre_px``, ``r_px``.
 ``render_part_photo(*, part, board=None, sheet="dark", camera=None, pose=None, lighting=None,
-seed=0, scale=1.0)`` with ``arc_part(radius_mm, arc_angle_deg, divisions)``,
+seed=0, scale=1.0, image_size_px=None, placement_deg=None, linear=False)`` with ``arc_part(radius_mm, arc_angle_deg, divisions)``,
 ``saddle_part(width_mm, height_mm, divisions)``
     A wire part on a matte sheet beside a ChArUco board. Truth in the board frame.
-``render_board_view(*, board, camera=None, pose=None, lighting=None, seed=0, scale=1.0)``,
+``render_board_view(*, board, camera=None, pose=None, lighting=None, seed=0, scale=1.0,
+image_size_px=None, linear=False)``,
 ``random_board_poses(n, seed)``
     Calibration views; truth ``corners_px`` of every inner corner (OpenCV id order).
 ``RenderedPhoto``
@@ -36,6 +38,11 @@ seed=0, scale=1.0)`` with ``arc_part(radius_mm, arc_angle_deg, divisions)``,
 ``scale`` resizes the camera (and the photo): 0.25 renders 1152 x 768 for tests;
 ``image_size_px=(w, h)`` does the same by size.
 Every function is deterministic for a given ``seed``.
+
+Checks of the truth (``datasets.checks``): :func:`~datasets.checks.check_charuco_corners`
+and :func:`~datasets.checks.check_disc_centre` measure a rendered photo with
+standard methods and compare with its truth; ``benchmarks/renderer_fidelity.py``
+reports them. ``cvmeasure render bender|part|board`` is the command-line front end.
 """
 
 from datasets.bender import BenderGeometry, render_bender_photo

@@ -30,6 +30,9 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--clean", action="store_true", help="no noise, vignetting or JPEG; perfect white balance"
     )
     p.add_argument("--random-light", action="store_true", help="lighting drawn from the seed")
+    p.add_argument(
+        "--bayer", action="store_true", help="sample on an RGGB colour filter array and demosaic"
+    )
     p.add_argument("--linear", action="store_true", help="also write a 16-bit linear RGB TIFF")
     p.add_argument("--json", action="store_true", help="print what was written as JSON")
     p.set_defaults(func=run)
@@ -100,6 +103,8 @@ def _lighting(args: argparse.Namespace, seed: int):
         changes["wb_error_k"] = args.wb_error_k
     if args.jpeg_quality is not None:
         changes["jpeg_quality"] = args.jpeg_quality
+    if args.bayer:
+        changes["bayer"] = True
     try:
         return dataclasses.replace(light, **changes)
     except ValueError as exc:
