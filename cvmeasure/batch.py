@@ -340,7 +340,7 @@ class StageUnavailableError(CvmeasureError):
 #: kind -> (module, function) of the pipeline stage its measurement calls.
 _STAGES: dict[str, tuple[str, str]] = {
     "machine": ("cvmeasure.markers", "measure_machine_photo"),
-    "part": ("cvmeasure.part", "measure_part_photo"),
+    "part": ("cvmeasure.part.measure", "measure_part"),
 }
 
 
@@ -385,13 +385,15 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 
 
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
-    """A part photo through :func:`cvmeasure.part.measure_part_photo`."""
+    """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
     func = _stage_function("part")
-    kwargs: dict[str, Any] = {"camera": context.camera(), "board": context.board()}
-    divisions = context.option("divisions")
-    if divisions is not None:
-        kwargs["divisions"] = divisions
-    return _as_record(func(photo, **kwargs))
+    board, camera = context.board(), context.camera()
+    if board is None or camera is None:
+        raise InputError(photo.path, "a part photo needs the board (--board) and camera (--camera)")
+    result = func(
+        photo.bgr, board, camera, divisions=context.option("divisions"), source=photo.path
+    )
+    return _as_record(result)
 
 
 def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict[str, Any]:

@@ -335,3 +335,29 @@ def test_spawned_workers_run_one_thread_each(tmp_path, monkeypatch):
     for rec in read_jsonl(tmp_path / "r.jsonl"):
         assert rec["OMP_NUM_THREADS"] == "1" and rec["OPENBLAS_NUM_THREADS"] == "1"
     assert "OMP_NUM_THREADS" not in os.environ  # the parent's environment is restored
+
+
+@pytest.mark.slow
+def test_part_photo_detected_and_measured_with_board_and_camera(tmp_path):
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.camera import save_camera
+    from cvmeasure.fileio import atomic_write_json
+    from datasets.parts import arc_part, render_part_photo
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    rendered = render_part_photo(part=arc_part(70.0, 120.0, 8), board=board, seed=3, scale=0.25)
+    rendered.save(tmp_path / "p" / "part")
+    save_camera(tmp_path / "camera.json", rendered.camera)
+    atomic_write_json(tmp_path / "board.json", board.to_dict())
+    out = tmp_path / "r.jsonl"
+    args = ["batch", str(tmp_path / "p"), "-o", str(out), "--workers", "1", "--quiet"]
+    # without the board and camera the part cannot be measured: recorded, exit 2
+    assert main([*args]) == 2
+    assert "needs the board (--board) and camera (--camera)" in read_jsonl(out)[0]["error"]
+    out.unlink()
+    extra = ["--camera", str(tmp_path / "camera.json"), "--board", str(tmp_path / "board.json")]
+    assert main([*args, *extra, "--divisions", "8"]) == 0
+    (rec,) = read_jsonl(out)
+    assert rec["kind"] == "part"
+    assert abs(rec["radius_mm"] - 70.0) < 0.7 and abs(rec["arc_angle_deg"] - 120.0) < 1.0
+    assert abs(rec["segment_bend_deg"] - 15.0) < 0.2
