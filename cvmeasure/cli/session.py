@@ -75,8 +75,10 @@ def _angles(text: str) -> tuple[float, ...]:
         angles = tuple(float(a) for a in text.split(","))
     except ValueError:
         raise InputError("--angles", f"{text!r} is not a comma-separated list of numbers") from None
-    if not angles or any(not 0 < a < 180 for a in angles):
+    if any(not 0 < a < 180 for a in angles):
         raise InputError("--angles", "angles must be in (0, 180) deg")
+    if len(set(angles)) < 2:
+        raise InputError("--angles", "a calibration needs at least 2 different angles")
     return angles
 
 

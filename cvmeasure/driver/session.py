@@ -243,7 +243,8 @@ def session_gcode(
 
     ``kind``: ``"setup"`` (units, absolute mode, pin home, unducked),
     ``"feed"`` (fresh wire), ``"bend"`` (pin to ``pin_deg``; ducks across
-    when the direction changes), ``"release"`` (pin home).
+    when the direction changes or the pin's side is unknown, i.e.
+    ``previous_direction`` is None), ``"release"`` (pin home).
     Lines are plain ASCII without realtime characters.
     """
     if kind == "setup":
@@ -253,7 +254,7 @@ def session_gcode(
     if kind == "bend":
         lines = []
         direction = "cw" if pin_deg < 0 else "ccw"
-        if config.duck and previous_direction not in (None, direction):
+        if config.duck and previous_direction != direction:
             lines += ["G0 Z180", "G0 X0", "G0 Z0"]
         lines.append(f"G1 X{_fmt(pin_deg)} F{_fmt(config.bend_rate_deg_min)}")
         return lines
@@ -305,19 +306,26 @@ class StreamedBender:
 
 
 def simulated_bender(
-    *, params: Any = None, effects: Sequence[Any] = (), speedup: float = 200.0
+    *,
+    params: Any = None,
+    effects: Sequence[Any] = (),
+    speedup: float = 200.0,
+    faults: Sequence[Any] = (),
 ) -> StreamedBender:
     """The TinyG double on a fresh pseudo-terminal, behind the streamer.
 
     The double simulates the machine with :mod:`cvmeasure.sim` (``params``,
-    ``effects``); moves run ``speedup`` times faster than the real machine.
+    ``effects``); moves run ``speedup`` times faster than the real machine;
+    ``faults`` (:class:`~cvmeasure.driver.double.Fault`) are injected.
     ``bender.double`` is the :class:`~cvmeasure.driver.double.FakeTinyG`;
     ``bender.close()`` stops it.
     """
     from cvmeasure.driver.double import FakeTinyG
     from cvmeasure.driver.transport import open_link
 
-    double = FakeTinyG(speedup=speedup, sim_params=params, sim_effects=effects).start()
+    double = FakeTinyG(
+        speedup=speedup, sim_params=params, sim_effects=effects, faults=faults
+    ).start()
     try:
         link = open_link("sim://", double=double)
     except BaseException:
@@ -409,9 +417,7 @@ def run_session(
         A photo could not be measured (names the photo and the marker), or the
         log belongs to another plan.
     """
-    from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit
-    from cvmeasure.markers.measure import measure_machine_photo
 
     kit = kit or default_kit()
     out = Path(out_dir)
@@ -439,11 +445,10 @@ def run_session(
         )
     options = dict(measure_options or {})
     bent: list[int] = []
-    previous_direction: str | None = None
+    previous_direction: str | None = None  # unknown pin side: the first bend ducks across
     machine.run(session_gcode("setup", config))
     for step, (direction, angle) in enumerate(plan):
         if step in done:
-            previous_direction = direction
             continue
         if stop_after is not None and len(bent) >= stop_after:
             raise SessionInterrupted(f"stopped after {len(bent)} bends as asked")
@@ -460,64 +465,39 @@ def run_session(
             },
         )
         bent.append(step)
-        machine.run(session_gcode("feed", config))
-        machine.run(
-            session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction)
-        )
+        try:
+            record = _bend_and_measure(
+                machine,
+                camera,
+                out,
+                step,
+                direction,
+                angle,
+                pin,
+                previous_direction,
+                config=config,
+                kit=kit,
+                options=options,
+            )
+        except CvmeasureError as exc:
+            append_jsonl(log_path, {"event": "failed", "step": step, "error": str(exc)})
+            raise
         previous_direction = direction
-        shot_loaded = camera.capture(_photo_name(step, direction, angle, "loaded"))
-        machine.run(session_gcode("release", config))
-        shot_unloaded = camera.capture(_photo_name(step, direction, angle, "unloaded"))
-        results = []
-        for shot in (shot_loaded, shot_unloaded):
-            photo = read_photo(shot.path)
-            opts = dict(options)
-            if shot.camera is not None:
-                opts.setdefault("camera", shot.camera)
-            try:
-                res = measure_machine_photo(
-                    photo.bgr,
-                    kit,
-                    linear=photo.linear,
-                    source=str(shot.path),
-                    photo=str(shot.path),
-                    **opts,
-                )
-            except InputError as exc:
-                append_jsonl(log_path, {"event": "failed", "step": step, "error": str(exc)})
-                raise
-            results.append(res.to_dict())
-        truth = None
-        if shot_loaded.truth is not None and shot_unloaded.truth is not None:
-            truth = {
-                "loaded_bend_deg": shot_loaded.truth.get("bend_angle_deg"),
-                "unloaded_bend_deg": shot_unloaded.truth.get("bend_angle_deg"),
-                "pin_angle_deg": shot_loaded.truth.get("pin_angle_deg"),
-            }
-        record = SessionStep(
-            step=step,
-            direction=direction,
-            target_deg=angle,
-            commanded_pin_deg=pin,
-            loaded=results[0],
-            unloaded=results[1],
-            photo_loaded=os.path.relpath(shot_loaded.path, out),
-            photo_unloaded=os.path.relpath(shot_unloaded.path, out),
-            truth=truth,
-        )
-        _check_sign(record, shot_loaded.path)
         append_jsonl(log_path, record.to_dict())
         done[step] = record
         if progress is not None:
             progress(len(done), len(plan), record)
     steps = tuple(done[i] for i in sorted(done))
-    calibration = fit_calibration(
-        [s.sample() for s in steps],
-        model=model,  # type: ignore[arg-type]
-        name=name,
-        mode=config.mode,
-        angles_deg=config.angles_deg or tuple(sorted({a for _, a in plan})),
-    )
+    try:
+        calibration = fit_calibration(
+            [s.sample() for s in steps],
+            model=model,  # type: ignore[arg-type]
+            name=name,
+            mode=config.mode,
+            angles_deg=config.angles_deg or tuple(sorted({a for _, a in plan})),
+        )
+    except ValueError as exc:
+        raise InputError(log_path, f"cannot fit a calibration to this session: {exc}") from None
     return SessionResult(
         steps=steps,
         calibration=calibration,
@@ -525,6 +505,61 @@ def run_session(
         resumed=resumed,
         log_path=log_path,
     )
+
+
+def _bend_and_measure(
+    machine: Machine,
+    camera: Camera,
+    out: Path,
+    step: int,
+    direction: str,
+    angle: float,
+    pin: float,
+    previous_direction: str | None,
+    *,
+    config: SessionConfig,
+    kit: Any,
+    options: Mapping[str, Any],
+) -> SessionStep:
+    """Feed, bend, photograph loaded, release, photograph unloaded, measure both."""
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.markers.measure import measure_machine_photo
+
+    machine.run(session_gcode("feed", config))
+    machine.run(session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction))
+    shot_loaded = camera.capture(_photo_name(step, direction, angle, "loaded"))
+    machine.run(session_gcode("release", config))
+    shot_unloaded = camera.capture(_photo_name(step, direction, angle, "unloaded"))
+    results = []
+    for shot in (shot_loaded, shot_unloaded):
+        photo = read_photo(shot.path)
+        opts = dict(options)
+        if shot.camera is not None:
+            opts.setdefault("camera", shot.camera)
+        result = measure_machine_photo(
+            photo.bgr, kit, linear=photo.linear, source=str(shot.path), photo=str(shot.path), **opts
+        )
+        results.append(result.to_dict())
+    truth = None
+    if shot_loaded.truth is not None and shot_unloaded.truth is not None:
+        truth = {
+            "loaded_bend_deg": shot_loaded.truth.get("bend_angle_deg"),
+            "unloaded_bend_deg": shot_unloaded.truth.get("bend_angle_deg"),
+            "pin_angle_deg": shot_loaded.truth.get("pin_angle_deg"),
+        }
+    record = SessionStep(
+        step=step,
+        direction=direction,
+        target_deg=angle,
+        commanded_pin_deg=pin,
+        loaded=results[0],
+        unloaded=results[1],
+        photo_loaded=os.path.relpath(shot_loaded.path, out),
+        photo_unloaded=os.path.relpath(shot_unloaded.path, out),
+        truth=truth,
+    )
+    _check_sign(record, shot_loaded.path)
+    return record
 
 
 class SessionInterrupted(CvmeasureError):

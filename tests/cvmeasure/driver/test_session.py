@@ -106,6 +106,8 @@ def test_resume_refuses_another_plan(tmp_path, capsys):
     assert main([*args, "--angles", "20,50", "--quiet"]) == 2
     assert "session.jsonl: session log belongs to another plan" in capsys.readouterr().err
     assert main([*args, "--angles", "abc"]) == 2
+    assert main([*args, "--angles", "20"]) == 2
+    assert "at least 2 different angles" in capsys.readouterr().err
 
 
 def test_double_behind_the_streamer_shows_loaded_then_unloaded():
@@ -128,7 +130,7 @@ def test_double_behind_the_streamer_shows_loaded_then_unloaded():
         assert unloaded.bend_angle_deg == pytest.approx(truth.unloaded_bend_deg[0], abs=1e-9)
         bender.run(session_gcode("feed", config))
         assert double_photo_state(bender.double).bend_angle_deg == 0.0
-        assert bender.lines[0].startswith("N1 G21") and bender.lines[-1] == "N11 G90"
+        assert bender.lines[0].startswith("N1 G21") and bender.lines[-1] == "N14 G90"
     finally:
         bender.close()
     lines = session_gcode("bend", config, pin_deg=30.0, previous_direction="cw")
@@ -183,3 +185,43 @@ def test_real_session_needs_port_and_camera(tmp_path, capsys):
     port = str(tmp_path / "ttyNOPE")
     assert main(["session", "-o", out, "--port", port, "--camera", f"folder://{incoming}"]) == 2
     assert f"{port}: no such serial port" in capsys.readouterr().err
+
+
+def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
+    from cvmeasure.driver.camera import SimulatedCamera
+    from cvmeasure.driver.double import Fault
+    from cvmeasure.driver.session import run_session
+    from cvmeasure.errors import DeviceError
+
+    config = SessionConfig(mode="custom", angles_deg=(10.0, 30.0))
+    probe = simulated_bender(speedup=500.0)  # where does the first bend's G1 X line land?
+    try:
+        for kind in ("setup", "feed", "bend"):
+            probe.run(session_gcode(kind, config, pin_deg=20.0))
+        bend_line = probe.double.stats.lines_received
+    finally:
+        probe.close()
+
+    def session(faults):
+        bender = simulated_bender(speedup=500.0, faults=faults)
+        camera = SimulatedCamera(
+            tmp_path / "s" / "photos", lambda: double_photo_state(bender.double), scale=0.2
+        )
+        try:
+            return run_session(bender, camera, tmp_path / "s", config=config)
+        finally:
+            bender.close()
+
+    with pytest.raises(DeviceError, match="alarm"):
+        session([Fault("alarm", bend_line)])
+    log = tmp_path / "s" / "session.jsonl"
+    first = read_session_log(log)
+    assert [r["event"] for r in first] == ["start", "bend", "failed"]
+    assert "alarm" in first[-1]["error"]
+    result = session([])
+    assert result.resumed and result.bent_this_run == (0, 1, 2, 3)  # the cut bend is redone
+    records = read_session_log(log)
+    assert sorted(r["step"] for r in records if r["event"] == "sample") == [0, 1, 2, 3]
+    truth = simulate([s.commanded_pin_deg for s in result.calibration.samples]).springback_deg
+    measured = [s.springback_deg for s in result.calibration.samples]
+    assert np.max(np.abs(np.array(measured) - truth)) < 0.05
