@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=[],
         metavar="NAME=VALUE",
         help="switch an effect on, e.g. backlash=1.2 (repeatable; names: backlash, offset, "
-        "scale, drift, springback_asymmetry, camera_tilt, axis_offset)",
+        "scale, drift, springback_asymmetry, camera_tilt, axis_offset, compliance)",
     )
     p.add_argument(
         "--noise-deg",

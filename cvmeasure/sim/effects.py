@@ -18,6 +18,9 @@ name                     parameter                   enters the model as
                                                      feed axis: ``tan t' = tan t cos(tau)``
 ``axis_offset``          ``axis_offset_mm``          lateral head-axis offset e (tangent
                                                      construction), about ``+-(e/l) cos t``
+``compliance``           ``compliance_deg_per_nm``   drive wind-up: the head lags by
+                                                     ``k * (M / l) * R_p`` (grows as the
+                                                     lever l shortens)
 =======================  ==========================  =====================================
 
 ``r`` is the signed head rotation from home (the pin command); ``s_dir`` is the
@@ -149,6 +152,17 @@ EFFECTS: dict[str, EffectSpec] = {
             (0.15, 0.5),
             True,
             "head axis off the wire axis: cw and ccw differ, about +-(e/l) cos(theta)",
+        ),
+        EffectSpec(
+            "compliance",
+            "compliance_deg_per_nm",
+            "deg/(N m)",
+            0.0,
+            2.0,
+            "command",
+            (0.2, 0.6),
+            False,
+            "drive and frame wind up under the pin load: under-bend growing as the lever shortens",
         ),
     )
 }

@@ -4,6 +4,7 @@ One bend, vectorised over many::
 
     r       = command effects(commanded_pin_deg)      # backlash, offset, scale, drift
     phi     = phi_contact - approach_deg + |r|         # head angle, die frame of the bend
+    phi    -= compliance * (M / l(phi)) * R_p          # drive wind-up under the pin load
     theta_L = tangent construction(phi)                # loaded angle (>= 0), lever l
     sb      = min(theta_L, (b theta_L + a(l)) (1 + s alpha))
     theta_U = theta_L - sb
@@ -45,6 +46,8 @@ __all__ = [
 
 #: Largest head rotation from home the inverse searches (deg).
 _MAX_ROTATION_DEG = 200.0
+#: Fixed-point iterations of the compliance lag (converges to < 1e-4 deg in 4).
+_COMPLIANCE_ITERATIONS = 6
 #: Largest final bend the inverse accepts (deg): the tangent construction ends at 180.
 _MAX_BEND_DEG = 179.0
 
@@ -150,8 +153,18 @@ def _forward(
     direction, r = _rotation(cmd, values, bend_index)
     nominal = head_geometry(params, direction)
     geom = head_geometry(params, direction, axis_offset_mm=values.get("axis_offset", 0.0))
-    phi = contact_angle_deg(nominal) - params.approach_deg + r
+    phi0 = contact_angle_deg(nominal) - params.approach_deg
+    phi = phi0 + r
     theta_l, lever = loaded_angle_and_lever(geom, phi)
+    if values.get("compliance", 0.0) > 0.0:
+        # the drive winds up under the pin load: torque = (M / l) * R_p; the lag
+        # shortens the lever it depends on, so iterate to the fixed point
+        for _ in range(_COMPLIANCE_ITERATIONS):
+            torque_nm = law.moment_nmm / np.maximum(lever, 1e-3) * params.pin_orbit_mm / 1e3
+            lag = np.where(theta_l > 0, values["compliance"] * torque_nm, 0.0)
+            phi = phi0 + np.maximum(r - lag, 0.0)
+            theta_l, lever = loaded_angle_and_lever(geom, phi)
+        r = phi - phi0
     pin_machine = wrap_deg(direction * phi)
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:

@@ -156,3 +156,19 @@ def test_pin_angle_in_machine_frame():
     assert moved == pytest.approx(res.pin_angle_deg[3] - 2.0)
     same = simulate([100.0], p, [Effect("axis_offset", 0.3)]).pin_angle_deg[0]
     assert same == pytest.approx(res.pin_angle_deg[3])
+
+
+def test_compliance_lag_follows_the_load():
+    p = SimParams()
+    cmds = np.array([30.0, 60.0, 90.0, 120.0])
+    base = simulate(cmds, p)
+    eff = simulate(cmds, p, [Effect("compliance", 0.4)])
+    lag = base.pin_deg - eff.pin_deg
+    # lag = k * (M / l) * R_p at the lagged position (fixed point)
+    from cvmeasure.sim.springback import springback_law
+
+    torque_nm = springback_law(p).moment_nmm / eff.lever_mm * p.pin_orbit_mm / 1e3
+    np.testing.assert_allclose(lag, 0.4 * torque_nm, rtol=1e-4)
+    assert np.all(np.diff(lag) > 0)  # grows as the lever shortens
+    # no load before contact: no lag
+    assert simulate([5.0], p, [Effect("compliance", 0.4)]).pin_deg[0] == 5.0
