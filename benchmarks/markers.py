@@ -51,12 +51,13 @@ def _plane_h(photo, pose) -> np.ndarray:
     return np.linalg.inv(h)
 
 
-def _timed(fn, repeats: int) -> tuple[float, object]:
+def _timed(fn, repeats: int, clock=time.process_time) -> tuple[float, object]:
+    """Best of ``repeats`` runs, by ``clock`` (CPU time of this process by default)."""
     best, out = np.inf, None
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0 = clock()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, clock() - t0)
     return best, out
 
 
@@ -82,7 +83,7 @@ def main(argv: list[str] | None = None) -> dict:
     zs: dict[tuple[str, str], list[float]] = {v: [] for v in variants}
     failures: dict[tuple[str, str], int] = dict.fromkeys(variants, 0)
     per_photo_rows = []
-    ratios, decode_s, measure_s = [], [], []
+    ratios, decode_s, measure_s, wall_ratios = [], [], [], []
     tilt_errors = []
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -96,6 +97,9 @@ def main(argv: list[str] | None = None) -> dict:
                 return measure_machine_photo(cv2.imread(str(path)), kit, camera=camera, plane=plane)
 
             t_all, _ = _timed(run, 3)
+            wall_dec, _ = _timed(lambda path=path: cv2.imread(str(path)), 3, time.perf_counter)
+            wall_all, _ = _timed(run, 3, time.perf_counter)
+            wall_ratios.append(wall_all / wall_dec)
             decode_s.append(t_dec)
             measure_s.append(t_all - t_dec)
             ratios.append(t_all / t_dec)
@@ -169,8 +173,13 @@ def main(argv: list[str] | None = None) -> dict:
             target="<= 1.5",
             met=ratio_p50 <= 1.5,
         ),
-        Metric("measure time after decode (median)", 1000 * float(np.median(measure_s)), "ms"),
-        Metric("JPEG decode time (median)", 1000 * float(np.median(decode_s)), "ms"),
+        Metric(
+            "the same ratio in wall-clock time (median; machine shared)",
+            float(np.median(wall_ratios)),
+            "x",
+        ),
+        Metric("measure time after decode (median, CPU)", 1000 * float(np.median(measure_s)), "ms"),
+        Metric("JPEG decode time (median, CPU)", 1000 * float(np.median(decode_s)), "ms"),
     ]
     summary = []
     for method, space in variants:
@@ -231,8 +240,12 @@ def main(argv: list[str] | None = None) -> dict:
             "seed: the paper's fixed colour boxes (widths from its source code 12, centred on the "
             "kit's colours), medianBlur + HoughCircles, no white balance, no lens model.",
             "speed: cv2.setNumThreads(1); best of 3 of cv2.imread alone vs cv2.imread + "
-            "measure_machine_photo on the same JPEG. Rendered JPEGs are smoother than real "
-            "photos, so they decode faster: the ratio here is pessimistic.",
+            "measure_machine_photo on the same JPEG, in CPU time of the process "
+            "(time.process_time: the machine is shared with other jobs, which makes wall "
+            "time noisy; the wall-clock ratio is listed too). The photo is decoded once at "
+            "full size; the search runs on every 10th pixel, the refinement on small regions "
+            "around the markers. Rendered JPEGs are smoother than real photos, so they "
+            "decode faster: the ratio here is pessimistic.",
             f"total run {time.perf_counter() - t_start:.0f} s",
         ],
     )

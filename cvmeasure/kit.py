@@ -141,16 +141,22 @@ def _sigma(value: Any) -> tuple[float, float, float] | None:
 def default_kit() -> MarkerKit:
     """The project's kit ``seed-5``: the seed paper's five colours, made printable.
 
-    Colours are spaced far apart in CIELAB (pairwise Delta E 2000 > 20) and stay
-    inside the CMYK-printable gamut; sizes suit a 4608x3072 photo of the
-    DIWire top plate from about 0.5 m (a 10 mm disc is ~80 px across).
+    Colours are spaced far apart in CIELAB (pairwise Delta E 2000 > 30) and are
+    moderate-chroma, printable colours; sizes suit a 4608x3072 photo of the
+    DIWire top plate from about 0.85 m (a 10 mm disc is ~80 px across).
+
+    The pin's colour is a deeper, orange-yellow than the seed's pure yellow: on
+    its white ring pure yellow differs almost only in chroma, which JPEG
+    subsamples and quantises hardest, so its centre came out twice as noisy as
+    the other markers' (rendered photos, benchmarks/markers.py); the
+    orange-yellow doubles the luminance step and halves that noise.
     """
     return MarkerKit(
         "seed-5",
         (
             MarkerSpec("origin", "dark green", (0, 110, 70), 10.0, 14.0),
             MarkerSpec("axis", "yellow-green", (140, 190, 40), 10.0, 14.0),
-            MarkerSpec("pin", "yellow", (245, 200, 0), 8.0, 12.0),
+            MarkerSpec("pin", "orange-yellow", (240, 140, 0), 8.0, 12.0),
             MarkerSpec("wire_a", "blue", (20, 70, 180), 8.0, 12.0),
             MarkerSpec("wire_b", "magenta", (200, 30, 130), 8.0, 12.0),
         ),

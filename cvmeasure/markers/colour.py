@@ -186,14 +186,24 @@ def adaptation_matrix(white: WhiteEstimate | None, adaptation: str = "rgb-gain")
     return cat @ _SRGB_TO_XYZ * (RING_WHITE_Y / float(xyz_white[1]))
 
 
+def _xyz_to_lab_d65(xyz: np.ndarray) -> np.ndarray:
+    """CIE XYZ (Y = 1 white) -> CIE L*a*b* under D65 (CIE 15; equal to colour.XYZ_to_Lab)."""
+    t = xyz / _D65_XYZ
+    eps, kappa = 216 / 24389, 24389 / 27
+    f = np.where(t > eps, np.cbrt(t), (kappa * t + 16) / 116)
+    return np.stack(
+        (116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])),
+        axis=-1,
+    )
+
+
 def _rgb8_to_space(rgb8: np.ndarray, matrix: np.ndarray, space: str) -> np.ndarray:
     """(N, 3) R, G, B values 0..255 of the photo -> (N, 3) in ``space`` after adaptation."""
-    import colour
 
     lin = _srgb_decode(np.asarray(rgb8, dtype=np.float64) / 255.0)
     xyz = lin @ matrix.T
     if space == "lab":
-        return colour.XYZ_to_Lab(xyz, _D65_XY)
+        return _xyz_to_lab_d65(xyz)
     if space == "rgb":
         return _srgb_encode(xyz @ _XYZ_TO_SRGB.T) * 255.0
     raise ValueError(f"unknown colour space {space!r}; valid: {COLOUR_SPACES}")

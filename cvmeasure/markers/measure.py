@@ -307,8 +307,9 @@ def _colour_delta_e(kit: MarkerKit, edges: Mapping[str, Any]) -> dict[str, float
     white = WhiteEstimate((float(r), float(g), float(b)), len(rings), 0.0)
     discs = np.clip(np.array([e.disc_bgr for e in edges.values()], dtype=np.float64), 0, 255)
     lab = bgr8_to_space(discs, "lab", white)
+    model = kit_colour_model(kit, "lab")  # cached: the kit's CIELAB colours
     return {
-        role: float(np.linalg.norm(lab[i] - kit.by_role(role).lab_d65))
+        role: float(np.linalg.norm(lab[i] - model.means[model.roles.index(role)]))
         for i, role in enumerate(edges)
     }
 

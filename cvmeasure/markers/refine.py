@@ -145,37 +145,30 @@ def fit_circle_robust(
         raise ValueError(f"a robust circle fit needs at least 5 points, got {p.shape[0]}")
     cx, cy, r = init if init is not None else fit_circle_taubin(p)
     theta = np.array([cx, cy, r], dtype=np.float64)
-    x, y = p[:, 0], p[:, 1]
     w = np.ones(p.shape[0])
     scale = 0.0
+    jac = np.empty((p.shape[0], 3))
+    jac[:, 2] = 1.0
     for it in range(iterations):
-        dx, dy = x - theta[0], y - theta[1]
-        dist = np.maximum(np.sqrt(dx * dx + dy * dy), 1e-12)
+        d = p - theta[:2]
+        dist = np.maximum(np.sqrt(np.einsum("ij,ij->i", d, d)), 1e-12)
         res = dist - theta[2]
-        if it < 4:  # robust scale from the first iterations, then fixed (stable weights)
+        if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
             mad = 1.4826 * float(np.median(np.abs(res)))
             scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
         u = res / (tukey_c * scale)
         w = np.where(np.abs(u) < 1.0, (1 - u * u) ** 2, 0.0)
         if w.sum() < 5:
             w = np.ones_like(w)
-        ux, uy = dx / dist, dy / dist
-        # normal equations of J = [-ux, -uy, -1] with weights w, written out (3x3)
-        a = np.array(
-            [
-                [(w * ux * ux).sum(), (w * ux * uy).sum(), (w * ux).sum()],
-                [0.0, (w * uy * uy).sum(), (w * uy).sum()],
-                [0.0, 0.0, w.sum()],
-            ]
-        )
-        a[1, 0], a[2, 0], a[2, 1] = a[0, 1], a[0, 2], a[1, 2]
-        g = np.array([(w * ux * res).sum(), (w * uy * res).sum(), (w * res).sum()])
+        # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
+        jac[:, :2] = d / dist[:, None]
+        jw = jac * w[:, None]
         try:
-            step = np.linalg.solve(a, g)
+            step = np.linalg.solve(jw.T @ jac, jw.T @ res)
         except np.linalg.LinAlgError:
             break
         theta = theta + step
-        if it >= 4 and np.abs(step).max() < 1e-6:
+        if it >= 2 and np.abs(step).max() < 1e-5:
             break
     d = p - theta[:2]
     dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
@@ -269,10 +262,9 @@ def disc_edge_points(
         return empty
     top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
     raw = bgr[y0:y1, x0:x1]
-    clipped = raw.max(axis=2) >= top - 1
     # linear light: a blurred edge crosses half-way between its two sides at the edge
     if bgr.dtype == np.uint8:
-        roi = _SRGB8_TO_LINEAR[raw]
+        roi = cv2.LUT(raw, _SRGB8_TO_LINEAR)
     else:
         v = raw.astype(np.float32) / top
         roi = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
@@ -286,7 +278,7 @@ def disc_edge_points(
         return empty
     disc_c = np.median(roi[inner], axis=0)
     ring_c = np.median(roi[ring], axis=0)
-    clipped_fraction = float(clipped[ring].mean())
+    clipped_fraction = float((raw[ring].max(axis=1) >= top - 1).mean())
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
     disc_t = _linear_to_srgb8(disc_c)

@@ -129,7 +129,9 @@ def test_ambiguous_marker_names_both_places(render):
     img[y - r - 150 : y + r + 1 - 150, x - r + 100 : x + r + 1 + 100] = img[
         y - r : y + r + 1, x - r : x + r + 1
     ]
-    with pytest.raises(MarkerNotFoundError, match=r"marker 'pin' \(yellow\) ambiguous: 2 discs"):
+    with pytest.raises(
+        MarkerNotFoundError, match=r"marker 'pin' \(orange-yellow\) ambiguous: 2 discs"
+    ):
         measure_machine_photo(img, default_kit())
 
 
@@ -138,7 +140,7 @@ def test_wrong_kit_is_reported_not_measured(render):
     other = MarkerKit(
         "other",
         (
-            MarkerSpec("origin", "orange", (240, 120, 20), 10.0, 14.0),
+            MarkerSpec("origin", "pink", (250, 170, 190), 10.0, 14.0),
             MarkerSpec("axis", "cyan", (0, 170, 200), 10.0, 14.0),
             MarkerSpec("pin", "red", (200, 20, 30), 8.0, 12.0),
             MarkerSpec("wire_a", "purple", (110, 40, 150), 8.0, 12.0),
