@@ -633,6 +633,8 @@ class FakeTinyG:
             body, status = {}, int(Status.UNRECOGNIZED_NAME)
         else:
             body, status = self._gcode(text, count, now)
+        if self._settings["jv"] == 0:
+            return  # silent: no response at all (why hosts must never set it)
         reply = format_response(body, status, nbytes, style=self.footer_style)
         if self._fault("malformed_reply", count) is not None:
             reply = reply[: max(3, len(reply) // 2)] + b"\n"

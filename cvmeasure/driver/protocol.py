@@ -191,6 +191,8 @@ def encode_json(command: Mapping[str, Any]) -> bytes:
     TinyG reads ``n`` / ``null`` as "report this value"; Python's ``None``
     serialises to ``null``.
     """
+    if command.get("jv") == 0:
+        raise ValueError("jv=0 silences every response and breaks flow control; use jv >= 1")
     text = json.dumps(dict(command), separators=(",", ":"), allow_nan=False)
     if len(text) + 1 > INPUT_LINE_MAX:
         raise ValueError(f"JSON command longer than {INPUT_LINE_MAX - 1} characters")

@@ -234,3 +234,11 @@ def test_alarm_stall_and_vanish():
     assert host.responses()[0].body["sr"]["posy"] == pytest.approx(10.0)
     host.close()
     b.close()
+
+
+def test_silent_mode_answers_nothing(board):
+    host = Host(board.port)
+    host.send(b'{"jv":0}\nN1 G21\n')
+    host.collect(0.4)
+    assert host.responses() == []  # jv=0 silences even the reply to itself
+    host.close()

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cvmeasure.driver.protocol import (
     ExceptionReport,
@@ -46,6 +48,24 @@ def test_encode_line_refuses_long_lines():
 def test_encode_json_is_compact_and_null_means_query():
     assert encode_json({"sr": None}) == b'{"sr":null}\n'
     assert encode_json({"ej": 1}) == b'{"ej":1}\n'
+
+
+def test_encode_json_refuses_silent_mode():
+    with pytest.raises(ValueError, match="jv=0"):
+        encode_json({"jv": 0})
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(1, 40), min_size=1, max_size=20))
+def test_line_splitter_is_independent_of_chunking(cuts):
+    stream = b'{"r":{},"f":[1,0,11]}\n\x13{"sr":{"stat":5}}\r\n\x11{"qr":30}\n{"rx":254}\n'
+    expected = [b'{"r":{},"f":[1,0,11]}', b'{"sr":{"stat":5}}', b'{"qr":30}', b'{"rx":254}']
+    sp, got, pos = LineSplitter(), [], 0
+    for n in cuts:
+        got += sp.feed(stream[pos : pos + n])
+        pos += n
+    got += sp.feed(stream[pos:])
+    assert got == expected and sp.pending == b""
 
 
 @pytest.mark.parametrize(
