@@ -141,6 +141,29 @@ def symmetric_centres(
     return shift, cost[rows, k]
 
 
+def _despike(shift: np.ndarray, window: int) -> np.ndarray:
+    """NaN where a shift departs from the running median of its neighbours along the wire.
+
+    A centre moves smoothly along the wire; one that jumps (a false symmetric
+    point in a flank, a crossing shadow) is dropped: more than 3 robust sigmas
+    (and 0.25 px) from the running median over ``window`` profiles.
+    """
+    from scipy.ndimage import median_filter
+
+    out = shift.copy()
+    ok = np.isfinite(shift)
+    if ok.sum() < 5:
+        return out
+    vals = shift[ok]
+    med = median_filter(vals, size=max(3, window | 1), mode="nearest")
+    res = vals - med
+    sigma = 1.4826 * float(np.median(np.abs(res)))
+    bad = np.abs(res) > max(3.0 * sigma, 0.25)
+    idx = np.nonzero(ok)[0]
+    out[idx[bad]] = np.nan
+    return out
+
+
 def _half_width(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) -> np.ndarray:
     """Per profile, the smaller distance from 0 to a flank at half contrast (P,).
 
@@ -219,25 +242,37 @@ def measure_centreline(
 
     normals = _normals(path)
     prof = profiles_at(path, normals)
-    hws = _half_width(prof, offsets, hw0)
-    half_width = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
-    rho = max(0.6 * half_width, half_width - 1.2, 0.75)
-    search = min(1.5 * half_width + 1.0, reach - rho - 0.5)
-    rejected = 0
     centres = path
-    for _ in range(2):
+    # the rough path can sit off the axis (a shadow joined to the mask), which
+    # inflates half-widths measured from it: centre with a small window first
+    hws = _half_width(prof, offsets, hw0)
+    rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    # a window of most of the wire: a small one finds false centres in each
+    # dark flank (a local valley is symmetric too)
+    rho = max(0.85 * rough, 0.75)
+    search = min(1.0 * rough + 1.0, reach - rho - 0.5)
+    rejected = 0
+    window = int(round(6.0 * hw0 / step_px))
+    for final in (False, True, True):
         shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+        shift = _despike(shift, window)
         ok = np.isfinite(shift)
         rejected = int((~ok).sum())
         if ok.sum() < 5:
             raise ValueError("no symmetric wire profile along the path")
-        centres = (centres + shift[:, None] * normals)[ok]
+        centres = _resample((centres + shift[:, None] * normals)[ok], step_px)
         # normals from the centres found, smoothed along the wire
-        smooth = _smooth(_resample(centres, step_px), max(2.0, 2.0 * half_width) / step_px)
-        centres = _resample(centres, step_px)
+        smooth = _smooth(centres, max(2.0, 2.0 * rough) / step_px)
         normals = _normals(smooth)
         prof = profiles_at(centres, normals)
+        if not final:
+            hws = _half_width(prof, offsets, rough)
+            rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
+            rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), 0.75)
+            search = min(0.5 * rough + 1.0, reach - rho - 0.5)
+    half_width = rough
     shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+    shift = _despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())
     centres = (centres + shift[:, None] * normals)[ok]
@@ -283,33 +318,38 @@ def _end_point(
     *,
     head: bool,
 ) -> np.ndarray:
-    """The centre of the hemispherical cap at one end of the wire, pixels."""
+    """The centre of the hemispherical cap at one end of the wire, pixels.
+
+    The axis near the end is a robust line through the centres 1.5 to 4.5
+    half-widths from the last one (the last centres can be pulled by the
+    cap's shadow); the cap is searched along that line.
+    """
+    from cvmeasure.part.fit import _fit_line
+
     pts = centres if head else centres[::-1]
     prof = profiles if head else profiles[::-1]
-    span = max(3, int(round(4.0 * half_width)))
-    take = slice(min(span, len(pts) - 2), min(span + 3 * span, len(pts)))
-    # mean cross half-profile near (not at) the end, symmetrised, on the flank
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    sel = (s >= 1.5 * half_width) & (s <= 4.5 * half_width + 1.0)
+    if sel.sum() < 5:
+        sel = np.zeros(len(pts), dtype=bool)
+        sel[: min(len(pts), 10)] = True
+    p0, d, _ = _fit_line(pts[sel])
+    if d @ (pts[0] - pts[sel][-1]) < 0:
+        d = -d  # outward
+    first = pts[sel][0]
+    start = p0 + ((first - p0) @ d) * d
+    # mean cross half-profile in the window, symmetrised, on the flank
     # u in [0.35, 0.9] half-widths: inside the wire (no shadow), away from the
     # narrow specular crest (whose sampled height differs between a ridge and a cap)
     mid = len(offsets) // 2
     k0 = int(round(0.35 * half_width / _STEP_PX))
     k1 = max(k0 + 2, int(round(max(rho, 0.9 * half_width) / _STEP_PX)))
-    block = prof[take] if len(prof[take]) else prof
+    block = prof[sel]
     right = block[:, mid + k0 : mid + k1 + 1]
     left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
     template = np.median(0.5 * (right + left), axis=0)
-    # axis direction at the end: fit over the last few centres
-    seg = pts[: max(3, 2 * span)]
-    d = seg[0] - seg[-1]
-    if len(seg) >= 3:
-        c = seg.mean(axis=0)
-        _, _, vt = np.linalg.svd(seg - c)
-        d = vt[0] * np.sign(vt[0] @ d or 1.0)
-    d /= max(np.hypot(*d), 1e-12)
-    # the cap centre lies near the first centre; search along the axis around it
-    start = pts[0]
     search = np.arange(
-        -round((2 * half_width + 2) / _STEP_PX), round((3 * half_width + 3) / _STEP_PX) + 1
+        -round((1.0 * half_width) / _STEP_PX), round((8.0 * half_width + 4.0) / _STEP_PX) + 1
     )
     search = search * _STEP_PX
     u = np.arange(k0, k1 + 1) * _STEP_PX

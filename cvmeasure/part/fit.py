@@ -322,7 +322,7 @@ def fit_polyline(
     divisions: int,
     *,
     corner_margin: float = 0.2,
-    iterations: int = 4,
+    iterations: int = 3,
 ) -> PolylineFit:
     """Fit ``divisions`` straight segments to an ordered centreline.
 
@@ -332,7 +332,7 @@ def fit_polyline(
     are the intersections of neighbouring lines; the end vertices are the first
     and last points projected onto the end lines. The split points start at an
     equal-chord division of the centreline and follow the vertices for a few
-    ``iterations``.
+    ``iterations`` (at most a quarter chord away from the start).
 
     Parameters
     ----------
@@ -347,11 +347,16 @@ def fit_polyline(
     verts = divide_into_chords(pts, divisions)
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     rms = float("nan")
+    vs0: np.ndarray | None = None
     for _ in range(max(1, iterations)):
-        # arc-length positions of the vertices: nearest centreline point
+        # arc-length positions of the vertices: nearest centreline point, kept
+        # within a quarter chord of the equal-chord start (no run-away splits)
         vs = np.array([s[int(np.argmin(np.hypot(*(pts - v).T)))] for v in verts])
         vs[0], vs[-1] = 0.0, s[-1]
-        vs = np.maximum.accumulate(vs)
+        if vs0 is None:
+            vs0 = vs.copy()
+        quarter = 0.25 * s[-1] / divisions
+        vs = np.maximum.accumulate(np.clip(vs, vs0 - quarter, vs0 + quarter))
         lines = []
         sq, count = 0.0, 0
         for i in range(divisions):

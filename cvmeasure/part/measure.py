@@ -15,13 +15,14 @@ undistorted pixels -> board mm); the wire is segmented beside the board
 
 Sign and frames: positions in the board frame (mm). Signed bends are
 counter-clockwise positive in the board frame's (x, y) -- the sense the
-renderer's truth uses; against a design (y up as drawn) the part is compared
+renderer's truth uses -- and the centreline is ordered so that the part's net
+turn is counter-clockwise (positive bends on an arc); against a design (y up as drawn) the part is compared
 as the camera sees it, so ``mirrored`` means the part lies upside down.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -139,6 +140,7 @@ class PartMeasurement:
     vertex_bend_deg : ndarray (N-1,) signed bends at the fitted vertices (ours,
         with divisions), counter-clockwise positive in the board frame; else None.
     vertices_mm : ndarray (N+1, 2) fitted chord vertices, board mm; else None.
+    vertices_px : the same vertices in photo pixels.
     centreline_mm : ndarray (M, 2) the wire's centreline, board mm, end to end.
     centreline_px : ndarray (M, 2) the same in photo pixels.
     wire_width_mm : apparent wire width (flanks at half contrast), mm.
@@ -154,6 +156,7 @@ class PartMeasurement:
     methods: dict[str, ArcResult]
     vertex_bend_deg: np.ndarray | None
     vertices_mm: np.ndarray | None
+    vertices_px: np.ndarray | None
     centreline_mm: np.ndarray
     centreline_px: np.ndarray
     wire_width_mm: float
@@ -285,6 +288,15 @@ def _outline_mm(wire: WireMask, plane: Any) -> np.ndarray:
     return plane.image_to_plane_mm(pts)
 
 
+def _net_turn_deg(points_mm: np.ndarray) -> float:
+    """Total signed turning of an ordered centreline (board frame sense), degrees."""
+    pts = np.asarray(points_mm, dtype=np.float64)
+    step = max(1, len(pts) // 200)
+    d = np.diff(pts[::step], axis=0)
+    heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    return float(np.degrees(heading[-1] - heading[0])) if len(heading) else 0.0
+
+
 def compare_with_design(
     centreline_mm: np.ndarray,
     vertex_bend_deg: np.ndarray | None,
@@ -293,18 +305,18 @@ def compare_with_design(
     *,
     design_source: str = "design",
 ) -> DesignComparison:
-    """Register a board-frame centreline to a design and compare (see the module notes)."""
+    """Register a board-frame centreline to a design and compare (see the module notes).
+
+    With divisions N the reference is the design divided into N equal chords
+    (the polygon the machine is asked to bend), otherwise the design curve.
+    """
     seen = np.asarray(centreline_mm, dtype=np.float64) * np.array([1.0, -1.0])
-    reg = register_to_design(seen, design.points_mm)
-    dev = deviation_profile(seen, design.points_mm, reg)
     n = result.divisions
-    if n:
-        verts = design.chords(n)
-        d_circle = fit_circle(verts)
-        d_geo = arc_geometry(d_circle, verts)
-    else:
-        verts = design.points_mm
-        d_geo = arc_geometry(fit_circle(verts), verts)
+    # with N chords the shape meant is the design divided into N equal chords
+    verts = design.chords(n) if n else design.points_mm
+    reg = register_to_design(seen, verts)
+    dev = deviation_profile(seen, verts, reg)
+    d_geo = arc_geometry(fit_circle(verts), verts)
     design_arc = ArcResult(
         "design", d_geo.radius_mm, d_geo.chord_width_mm, d_geo.height_mm, d_geo.arc_angle_deg, n
     )
@@ -355,6 +367,9 @@ def measure_part(
     if divisions is not None and divisions < 1:
         raise ValueError(f"divisions must be >= 1, got {divisions}")
     plane, wire, centre, centreline_mm = measure_centreline_mm(image, board, camera, source=source)
+    if _net_turn_deg(centreline_mm) < 0:  # run so that the part turns counter-clockwise
+        centreline_mm = centreline_mm[::-1]
+        centre = replace(centre, points_px=centre.points_px[::-1], ends_px=centre.ends_px[::-1])
     warnings: list[str] = []
     try:
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
@@ -395,6 +410,7 @@ def measure_part(
         methods=methods,
         vertex_bend_deg=vertex_bends,
         vertices_mm=None if poly is None else poly.vertices_mm,
+        vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
         centreline_mm=centreline_mm,
         centreline_px=centre.points_px,
         wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,

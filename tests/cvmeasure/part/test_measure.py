@@ -1,0 +1,142 @@
+"""Part measurement end to end on rendered photos with exact truth (reduced size)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+import datasets
+from cvmeasure.board import CharucoBoardSpec
+from cvmeasure.design import arc_points_mm, load_design
+from cvmeasure.part.compare import point_to_polyline
+from cvmeasure.part.measure import measure_part
+
+BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
+SCALE = 0.45  # 2074 x 1382 px, 0.29 mm/px: the 2 mm wire is 7 px wide
+
+# tolerances at this size (the benchmark holds the full-size targets)
+RADIUS_REL = 0.003
+VERTEX_BEND_DEG = 0.15
+SEGMENT_BEND_DEG = 0.05
+
+
+@functools.cache
+def _photo(kind: str, sheet: str):
+    parts = {
+        "half": datasets.arc_part(60.0, 180.0, 10),
+        "short": datasets.arc_part(80.0, 70.0, 6),
+        "saddle": datasets.saddle_part(200.0, 20.0, 13),
+    }
+    pose = datasets.Pose(
+        tilt_deg=2.5, tilt_direction_deg=40.0, distance_mm=900.0, offset_mm=(280.0, 100.0)
+    )
+    return datasets.render_part_photo(
+        part=parts[kind], board=BOARD, sheet=sheet, pose=pose, seed=3, scale=SCALE
+    )
+
+
+def _aligned_bend_error(measured: np.ndarray, true: np.ndarray) -> float:
+    """Worst vertex-bend error; the truth's direction of travel is arbitrary."""
+    return min(float(np.max(np.abs(measured - true))), float(np.max(np.abs(measured + true[::-1]))))
+
+
+@pytest.mark.parametrize(
+    ("kind", "sheet"), [("half", "dark"), ("half", "light"), ("short", "light"), ("short", "dark")]
+)
+def test_arcs_on_both_sheets(kind, sheet):
+    photo = _photo(kind, sheet)
+    truth = photo.truth
+    n = truth["divisions"]
+    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=n, source=f"{kind}-{sheet}")
+    assert m.result.method == "ours"
+    assert m.result.radius_mm == pytest.approx(truth["radius_mm"], rel=RADIUS_REL)
+    assert m.result.segment_bend_deg == pytest.approx(
+        truth["arc_angle_deg"] / n, abs=SEGMENT_BEND_DEG
+    )
+    assert m.result.chord_width_mm == pytest.approx(truth["chord_width_mm"], abs=0.3)
+    assert m.result.height_mm == pytest.approx(truth["height_mm"], abs=0.3)
+    true_bends = np.asarray(truth["segment_bend_deg"])
+    assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
+    # an arc is ordered to turn counter-clockwise in the board frame
+    assert np.all(m.vertex_bend_deg > 0)
+    # the centreline lies on the true wire axis
+    _, dist, _ = point_to_polyline(m.centreline_mm, np.asarray(truth["part"]["centreline_mm"]))
+    assert np.sqrt(np.mean(dist**2)) < 0.05
+    # the seed's methods ran on the same photo, and were worse on the radius
+    assert set(m.methods) == {"ours", "ellipse", "sagitta"}
+    for name in ("ellipse", "sagitta"):
+        err = abs(m.methods[name].radius_mm / truth["radius_mm"] - 1)
+        assert err > abs(m.result.radius_mm / truth["radius_mm"] - 1)
+
+
+def test_headline_method_can_be_the_seeds():
+    photo = _photo("half", "dark")
+    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, method="sagitta")
+    assert m.result.method == "sagitta"
+    assert m.result.radius_mm == m.methods["sagitta"].radius_mm
+    with pytest.raises(ValueError, match="method must be one of"):
+        measure_part(photo.bgr, BOARD, photo.camera, method="hough")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("sheet", ["dark", "light"])
+def test_saddle_bends_change_sign(sheet):
+    photo = _photo("saddle", sheet)
+    truth = photo.truth
+    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=13)
+    true_bends = np.asarray(truth["segment_bend_deg"])
+    assert np.sign(true_bends).min() < 0 < np.sign(true_bends).max()
+    assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
+    assert m.result.chord_width_mm == pytest.approx(truth["chord_width_mm"], abs=0.3)
+    assert m.result.height_mm == pytest.approx(truth["height_mm"], abs=0.2)
+
+
+def test_without_divisions_the_circle_fits_the_centreline():
+    photo = _photo("short", "dark")
+    m = measure_part(photo.bgr, BOARD, photo.camera)
+    assert m.result.divisions is None and m.result.segment_bend_deg is None
+    assert m.vertex_bend_deg is None
+    # a circle through chords of 11.7 deg sits inside the vertices' circle by
+    # about a third of the chord's sagitta (0.42 mm)
+    sagitta = 80.0 * (1 - np.cos(np.radians(70.0 / 6 / 2)))
+    assert m.result.radius_mm == pytest.approx(80.0 - sagitta / 2, abs=0.25)
+
+
+def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
+    import ezdxf
+
+    photo = _photo("half", "light")
+    svg = tmp_path / "half.svg"
+    svg.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="100mm" '
+        'viewBox="0 0 200 100"><path d="M 20 80 A 60 60 0 0 1 140 80"/></svg>',
+        encoding="utf-8",
+    )
+    doc = ezdxf.new()
+    doc.header["$INSUNITS"] = 4
+    doc.modelspace().add_arc((0, 0), 60.0, 0.0, 180.0)
+    dxf = tmp_path / "half.dxf"
+    doc.saveas(dxf)
+    for path in (svg, dxf):
+        design = load_design(path).wire()
+        m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, design=design)
+        cmp = m.comparison
+        assert cmp is not None and cmp.bends is not None
+        assert cmp.design_arc.radius_mm == pytest.approx(60.0, abs=1e-6)
+        assert cmp.design_arc.segment_bend_deg == pytest.approx(18.0, abs=1e-6)
+        assert cmp.deviation.rms_mm < 0.05 and cmp.deviation.max_mm < 0.3
+        assert cmp.bends.max_abs_error_deg < VERTEX_BEND_DEG
+        assert abs(cmp.bends.seed_absolute_error_deg) < SEGMENT_BEND_DEG
+        assert cmp.bends.seed_relative_error_pct == pytest.approx(
+            100 * cmp.bends.seed_absolute_error_deg / 18.0
+        )
+    # a design of another radius shows up in the deviation and the seed errors
+    other = tmp_path / "r70.dxf"
+    doc2 = ezdxf.new()
+    doc2.modelspace().add_lwpolyline(arc_points_mm((0, 0), 70.0, 0.0, 180.0, chords=10))
+    doc2.saveas(other)
+    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, design=load_design(other).wire())
+    assert m.comparison.deviation.max_mm > 3.0
+    # the 70 mm polyline's chords turn by 18 deg as well: only the size differs
+    assert abs(m.comparison.bends.seed_absolute_error_deg) < SEGMENT_BEND_DEG
