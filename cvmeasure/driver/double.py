@@ -100,9 +100,11 @@ class Fault:
     at_line : the 1-based count of lines the board has received (JSON and
         G-code) at which it fires: ``drop_byte`` drops a byte of that line,
         ``malformed_reply`` garbles its reply, ``stall`` freezes the board when
-        it reads it, ``vanish`` closes the port after answering it, ``alarm``
+        it reads it, ``vanish`` closes the port right after answering it (the
+        answer may go with the port), ``alarm``
         trips the limit switch when its move starts executing.
-    byte_index : for ``drop_byte``, which byte of the line (taken modulo its length).
+    byte_index : for ``drop_byte``, which byte of the line (0 = the first); past its
+        end, the terminator is dropped and the line merges with the next.
     duration_s : for ``stall``, how long the board freezes (wall seconds).
     """
 
