@@ -670,8 +670,17 @@ def read_dxf(
     path = Path(path)
     try:
         doc = ezdxf.readfile(str(path))
-    except (OSError, ezdxf.DXFError) as exc:
-        raise InputError(path, f"unreadable DXF: {exc}") from None
+    except (
+        OSError,
+        ezdxf.DXFError,
+        ValueError,
+        StopIteration,
+        EOFError,
+        KeyError,
+        IndexError,
+    ) as exc:
+        # a truncated file makes ezdxf's reader run out of tags (StopIteration)
+        raise InputError(path, f"unreadable DXF: {exc or type(exc).__name__}") from None
     units = int(doc.header.get("$INSUNITS", 0) or 0)
     if units not in _DXF_UNIT_MM:
         raise InputError(path, f"unsupported DXF drawing units ($INSUNITS = {units})")

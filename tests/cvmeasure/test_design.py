@@ -126,9 +126,11 @@ def test_corrupt_and_unknown_files_are_input_errors(tmp_path):
     bad_svg.write_text("<svg><path d='M 0 0 L", encoding="utf-8")
     bad_dxf = tmp_path / "bad.dxf"
     bad_dxf.write_text("not a dxf\n", encoding="utf-8")
+    cut_dxf = tmp_path / "cut.dxf"
+    cut_dxf.write_text("0\nSECTION\n", encoding="utf-8")  # truncated after two tags
     other = tmp_path / "design.step"
     other.write_text("x", encoding="utf-8")
-    for path in (bad_svg, bad_dxf, other, tmp_path / "missing.svg"):
+    for path in (bad_svg, bad_dxf, cut_dxf, other, tmp_path / "missing.svg"):
         with pytest.raises(InputError) as err:
             load_design(path)
         assert str(path) in str(err.value)

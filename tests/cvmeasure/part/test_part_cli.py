@@ -1,0 +1,163 @@
+"""``cvmeasure part`` through cvmeasure.cli.main: real JPEG files, exit codes, outputs."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+import datasets
+from cvmeasure.board import CharucoBoardSpec
+from cvmeasure.camera import save_camera
+from cvmeasure.cli import main
+from cvmeasure.fileio import atomic_write_json
+
+BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("part_cli")
+    photo = datasets.render_part_photo(
+        part=datasets.arc_part(55.0, 150.0, 10), board=BOARD, sheet="dark", seed=4, scale=0.4
+    )
+    jpg, truth = photo.save(folder / "part")
+    camera = folder / "camera.json"
+    save_camera(camera, photo.camera)
+    board = atomic_write_json(folder / "board.json", BOARD.to_dict())
+    design = folder / "design.svg"
+    # the design: R55 arc over 150 deg, drawn as a path (x right, y down in SVG)
+    a0, a1 = np.radians(15.0), np.radians(165.0)
+    x0, y0 = 100 + 55 * np.cos(a0), 100 - 55 * np.sin(a0)
+    x1, y1 = 100 + 55 * np.cos(a1), 100 - 55 * np.sin(a1)
+    design.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" viewBox="0 0 200 200">'
+        f'<path d="M {x0} {y0} A 55 55 0 0 0 {x1} {y1}"/></svg>',
+        encoding="utf-8",
+    )
+    # the camera moved over the board: the part is out of view (no wire)
+    away = datasets.render_part_photo(
+        part=datasets.arc_part(55.0, 150.0, 10),
+        board=BOARD,
+        sheet="dark",
+        seed=4,
+        scale=0.4,
+        pose=datasets.Pose(distance_mm=600.0, offset_mm=(120.0, 100.0)),
+    )
+    no_wire = folder / "no_wire.png"
+    cv2.imwrite(str(no_wire), away.bgr)
+    # the photo with the board covered: no board
+    no_board_img = photo.bgr.copy()
+    no_board_img[:, : int(photo.bgr.shape[1] * 0.55)] = 90
+    no_board = folder / "no_board.png"
+    cv2.imwrite(str(no_board), no_board_img)
+    return {
+        "jpg": jpg,
+        "truth": json.loads(truth.read_text()),
+        "camera": camera,
+        "board": board,
+        "design": design,
+        "no_wire": no_wire,
+        "no_board": no_board,
+        "folder": folder,
+    }
+
+
+def test_part_json_overlay_and_plot(files, capsys):
+    out = files["folder"]
+    code = main(
+        [
+            "part",
+            str(files["jpg"]),
+            "--board",
+            str(files["board"]),
+            "--camera",
+            str(files["camera"]),
+            "--divisions",
+            "10",
+            "--design",
+            str(files["design"]),
+            "--overlay",
+            str(out / "overlay.png"),
+            "--plot",
+            str(out / "deviation.png"),
+            "-o",
+            str(out / "result.json"),
+            "--json",
+        ]
+    )
+    assert code == 0
+    result = json.loads(capsys.readouterr().out)
+    truth = files["truth"]
+    assert result["radius_mm"] == pytest.approx(truth["radius_mm"], rel=0.004)
+    assert result["arc_angle_deg"] == pytest.approx(150.0, abs=0.6)
+    assert result["segment_bend_deg"] == pytest.approx(15.0, abs=0.06)
+    assert len(result["vertex_bend_deg"]) == 9
+    for key in ("chord_width_mm", "height_mm"):
+        assert result[key] == pytest.approx(truth[key], abs=0.4)
+    assert set(result["methods"]) == {"ours", "ellipse", "sagitta"}
+    cmp = result["comparison"]
+    assert cmp["deviation"]["rms_mm"] < 0.1
+    assert cmp["bends"]["max_abs_error_deg"] < 0.25
+    assert "seed_relative_error_pct" in cmp["bends"]
+    assert json.loads((out / "result.json").read_text())["radius_mm"] == result["radius_mm"]
+    overlay = cv2.imread(str(out / "overlay.png"))
+    assert overlay.shape == cv2.imread(str(files["jpg"])).shape
+    plot = cv2.imread(str(out / "deviation.png"))
+    assert plot is not None and plot.shape[0] > 100
+
+
+def test_part_table_output(files, capsys):
+    code = main(
+        [
+            "part",
+            str(files["jpg"]),
+            "--board",
+            str(files["board"]),
+            "--camera",
+            str(files["camera"]),
+        ]
+    )
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "radius_mm" in text and "[ellipse]" in text and "[sagitta]" in text
+
+
+@pytest.mark.parametrize(
+    ("photo_key", "message"),
+    [("no_wire", "no wire found"), ("no_board", "")],
+)
+def test_photo_without_wire_or_board_exits_2_naming_it(files, capsys, photo_key, message):
+    photo = files[photo_key]
+    code = main(
+        ["part", str(photo), "--board", str(files["board"]), "--camera", str(files["camera"])]
+    )
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and str(photo) in err and message in err
+
+
+def test_bad_inputs_exit_2(files, capsys, tmp_path):
+    base = ["--board", str(files["board"]), "--camera", str(files["camera"])]
+    broken = tmp_path / "broken.dxf"
+    broken.write_text("0\nSECTION\n", encoding="utf-8")
+    cases = [
+        ([str(tmp_path / "missing.jpg"), *base], "missing.jpg"),
+        ([str(files["jpg"]), *base, "--design", str(broken)], "broken.dxf"),
+        ([str(files["jpg"]), *base, "--plot", str(tmp_path / "p.png")], "--plot"),
+        ([str(files["jpg"]), *base, "--divisions", "0"], "--divisions"),
+    ]
+    for argv, named in cases:
+        assert main(["part", *argv]) == 2
+        err = capsys.readouterr().err
+        assert named in err
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_part_help(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["part", "--help"])
+    assert exc.value.code == 0
+    assert "--divisions" in capsys.readouterr().out
