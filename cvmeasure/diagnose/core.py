@@ -65,6 +65,10 @@ MIN_CV_GAIN = 0.05
 #: residuals, or a residual trend has a p-value below SECOND_SCREEN_P.
 SECOND_SCREEN_GAIN = 0.1
 SECOND_SCREEN_P = 1e-4
+#: Single causes within this ratio of the best held-out RMSE each get a second round
+#: (at most BEAM_WIDTH of them): a greedy first pick can be the wrong one of a pair.
+BEAM_RATIO = 1.25
+BEAM_WIDTH = 3
 #: Angles are never known better than this (deg): residuals below it are not structure,
 #: so exact (noise-free) data cannot make a cause out of rounding error.
 RESOLUTION_DEG = 1e-3
@@ -202,6 +206,17 @@ def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
     return float(n * math.log(rss0 / rss1) - extra * math.log(n))
 
 
+def _leftover_of(
+    trials: TrialSet,
+    fit: ModelFit,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    folds: Sequence[NDArray[np.bool_]],
+) -> bool:
+    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    return leftover_structure(trials, res, list(folds)).unnamed
+
+
 def _structure_left(
     trials: TrialSet,
     fit: ModelFit,
@@ -284,7 +299,11 @@ def diagnose(
         trials, params, "none", fold_masks, base_effects=base_effects, full_fit=base_fit
     )
 
-    def round_of(named: ModelFit, named_cv: float, tried: Sequence[str]) -> list[CandidateResult]:
+    def round_of(
+        named: ModelFit, named_cv: float, tried: Sequence[str], *, cv_all: bool = True
+    ) -> list[CandidateResult]:
+        """Try each cause on top of ``named``; ``cv_all=False`` skips the held-out error
+        of causes that already fail the BIC test (they cannot be accepted)."""
         out = []
         for name in tried:
             fit = fit_model(
@@ -294,16 +313,20 @@ def diagnose(
                 base_effects=base_effects,
                 known=named.param_values_by_cause(),
             )
+            dbic = _delta_bic(named, fit)
+            if not cv_all and dbic < min_delta_bic:
+                out.append(CandidateResult(name, math.nan, fit, dbic, False))
+                continue
             cv = cross_validate(
                 trials, params, fit.causes, fold_masks, base_effects=base_effects, full_fit=fit
-            )
-            dbic = _delta_bic(named, fit)
-            cv_gain_ok = max(cv.rmse_deg, RESOLUTION_DEG) <= (1.0 - min_cv_gain) * max(
+            ).rmse_deg
+            cv_gain_ok = max(cv, RESOLUTION_DEG) <= (1.0 - min_cv_gain) * max(
                 named_cv, RESOLUTION_DEG
             )
-            ok = cv_gain_ok and dbic >= min_delta_bic
-            out.append(CandidateResult(name, cv.rmse_deg, fit, dbic, bool(ok)))
-        out.sort(key=lambda c: c.cv_rmse_deg)
+            out.append(
+                CandidateResult(name, cv, fit, dbic, bool(cv_gain_ok and dbic >= min_delta_bic))
+            )
+        out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
         return out
 
     results = round_of(base_fit, base_cv.rmse_deg, names)
@@ -313,18 +336,57 @@ def diagnose(
     ident: tuple[Identifiability, ...] = ()
     experiment = None
     if accepted:
-        best = accepted[0]
-        ext_fit, ext_cv = best.fit, best.cv_rmse_deg
-        ident = tuple(
-            check_identifiability(
-                trials,
-                params,
-                best.cause,
-                [c.cause for c in results if c.cause != best.cause],
-                base_effects=base_effects,
+
+        def extend(first: CandidateResult) -> tuple[Any, ...]:
+            """First cause -> (final fit, its CV, identifiability, second round, notes)."""
+            ident_f = tuple(
+                check_identifiability(
+                    trials,
+                    params,
+                    first.cause,
+                    [c.cause for c in results if c.cause != first.cause],
+                    base_effects=base_effects,
+                )
             )
-        )
-        close = [c.cause for c in accepted[1:] if c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg]
+            blocked = {first.cause, *(i.causes[1] for i in ident_f if not i.separable)}
+            fit_f, cv_f, round2, notes_f = first.fit, first.cv_rmse_deg, [], []
+            if max_causes > 1 and _structure_left(
+                trials, first.fit, params, base_effects, fold_masks
+            ):
+                round2 = round_of(
+                    first.fit,
+                    first.cv_rmse_deg,
+                    [n for n in names if n not in blocked],
+                    cv_all=False,
+                )
+                more = [c for c in round2 if c.accepted]
+                # two causes must explain the data down to the noise; if structure is still
+                # left, the second name would be forced onto an unnamed discrepancy
+                if more and _leftover_of(trials, more[0].fit, params, base_effects, fold_masks):
+                    notes_f.append(
+                        f"{more[0].cause} on top of {first.cause} lowers the held-out RMSE but "
+                        "leaves structure no pair of named causes explains; not named"
+                    )
+                    more = []
+                if more:
+                    fit_f, cv_f = more[0].fit, more[0].cv_rmse_deg
+                    notes_f.append(
+                        f"a second cause, {more[0].cause}, improves the held-out RMSE further "
+                        f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
+                    )
+            return fit_f, cv_f, ident_f, round2, notes_f
+
+        # greedy with a small beam: the best few single causes each get their second round
+        firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
+        outcomes = [(first, extend(first)) for first in firsts[:BEAM_WIDTH]]
+        best, (ext_fit, ext_cv, ident, round2, notes_best) = min(outcomes, key=lambda o: o[1][1])
+        second = list(round2)
+        single_cv = {c.cause: c.cv_rmse_deg for c in results}
+        if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
+            ext_fit = ext_fit.reordered(ext_fit.causes[::-1])
+        close = [
+            c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
+        ]
         if close:
             notes.append(
                 f"{', '.join(close)} explain the data almost as well as {best.cause} "
@@ -338,40 +400,8 @@ def diagnose(
                 f"(signature similarity {i.similarity:.3f}); {how}"
             )
         experiment = next((i.experiment for i in confounded if i.experiment), None)
-        # a second cause on top of the first (never one confounded with it)
-        blocked = {best.cause, *(i.causes[1] for i in confounded)}
-        if max_causes > 1 and _structure_left(trials, best.fit, params, base_effects, fold_masks):
-            second = round_of(best.fit, best.cv_rmse_deg, [n for n in names if n not in blocked])
-            more = [c for c in second if c.accepted]
-            # two causes must explain the data down to the noise; if structure is still
-            # left, the second name would be forced onto an unnamed discrepancy
-            if (
-                more
-                and leftover_structure(
-                    trials,
-                    residuals(
-                        trials,
-                        params,
-                        base_effects,
-                        more[0].fit.causes,
-                        more[0].fit.strength_scale,
-                        more[0].fit.values,
-                    ),
-                    fold_masks,
-                ).unnamed
-            ):
-                notes.append(
-                    f"{more[0].cause} on top of {best.cause} lowers the held-out RMSE but "
-                    "leaves structure no pair of named causes explains; not named"
-                )
-                more = []
-            if more:
-                ext_fit, ext_cv = more[0].fit, more[0].cv_rmse_deg
-                notes.append(
-                    f"a second cause, {more[0].cause}, improves the held-out RMSE further "
-                    f"({best.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
-                )
-        cause = best.cause
+        notes.extend(notes_best)
+        cause = ext_fit.causes[0]
     else:
         cause, ext_fit, ext_cv = "none", base_fit, base_cv.rmse_deg
         notes.append(

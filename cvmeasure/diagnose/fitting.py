@@ -12,6 +12,7 @@ cross-validation (a group is a part, or a trial).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -95,6 +96,16 @@ class ModelFit:
 
     def param_values(self) -> dict[str, float]:
         return {EFFECTS[c].param: v for c, v in zip(self.causes, self.values, strict=True)}
+
+    def reordered(self, causes: Sequence[str]) -> ModelFit:
+        """The same fit with its causes listed in another order."""
+        order = [self.causes.index(c) for c in causes]
+        return dataclasses.replace(
+            self,
+            causes=tuple(self.causes[i] for i in order),
+            values=tuple(self.values[i] for i in order),
+            intervals=tuple(self.intervals[i] for i in order),
+        )
 
     def param_values_by_cause(self) -> dict[str, float]:
         return dict(zip(self.causes, self.values, strict=True))
