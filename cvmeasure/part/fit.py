@@ -321,7 +321,7 @@ def fit_polyline(
     ordered_points_mm: np.ndarray,
     divisions: int,
     *,
-    corner_margin: float = 0.2,
+    corner_margin: float = 0.12,
     iterations: int = 3,
 ) -> PolylineFit:
     """Fit ``divisions`` straight segments to an ordered centreline.
