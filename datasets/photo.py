@@ -170,7 +170,7 @@ def render_scene(
     light = lighting if lighting is not None else Lighting()
     rot, t_mm = pose.extrinsics(frame)
     albedo = rasterise(layers, cam, rot, t_mm)
-    dev = develop(albedo, light, seed=seed, keep_linear=linear)
+    dev = develop(albedo, light, seed=seed, keep_linear=linear, centre_px=cam.principal_point_px)
     import cv2
 
     rvec, _ = cv2.Rodrigues(rot)

@@ -33,6 +33,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--bayer", action="store_true", help="sample on an RGGB colour filter array and demosaic"
     )
+    p.add_argument(
+        "--lateral-ca", type=float, help="lateral chromatic aberration (red 1+x, blue 1-x)"
+    )
     p.add_argument("--linear", action="store_true", help="also write a 16-bit linear RGB TIFF")
     p.add_argument("--json", action="store_true", help="print what was written as JSON")
     p.set_defaults(func=run)
@@ -105,6 +108,8 @@ def _lighting(args: argparse.Namespace, seed: int):
         changes["jpeg_quality"] = args.jpeg_quality
     if args.bayer:
         changes["bayer"] = True
+    if args.lateral_ca is not None:
+        changes["lateral_ca"] = args.lateral_ca
     try:
         return dataclasses.replace(light, **changes)
     except ValueError as exc:

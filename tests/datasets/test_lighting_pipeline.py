@@ -175,3 +175,31 @@ def test_bayer_mosaic_keeps_colours_and_edges():
     assert np.abs(mosaic.bgr[y, x].astype(int) - plain.bgr[y, x].astype(int)).max() <= 3
     noisy = render_bender_photo(lighting=Lighting(bayer=True, **{**base, "noise": 1.0}), **KW)
     assert noisy.bgr.shape == plain.bgr.shape
+
+
+def test_lateral_chromatic_aberration_shifts_red_out_and_blue_in():
+    """Corners found in the red and blue channels differ radially by 2 * ca * r."""
+    ca = 2e-3
+    board = ChessboardSpec(9, 6, 25.0)
+    pose = Pose(distance_mm=650.0, offset_mm=(125.0, 87.5))
+    photo = render_board_view(board=board, pose=pose, lighting=Lighting.clean(), scale=0.25)
+    fringed = render_board_view(
+        board=board,
+        pose=pose,
+        lighting=dataclasses.replace(Lighting.clean(), lateral_ca=ca),
+        scale=0.25,
+    )
+    truth = np.asarray(photo.truth["corners_px"], dtype=np.float32).reshape(-1, 1, 2)
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+    found = {
+        ch: cv2.cornerSubPix(
+            np.ascontiguousarray(fringed.bgr[..., i]), truth.copy(), (5, 5), (-1, -1), crit
+        ).reshape(-1, 2)
+        for ch, i in (("b", 0), ("g", 1), ("r", 2))
+    }
+    centre = np.asarray(photo.camera.principal_point_px)
+    radius = np.linalg.norm(truth.reshape(-1, 2) - centre, axis=1)
+    far = radius > 250
+    gap = np.linalg.norm(found["r"] - found["b"], axis=1)
+    assert np.allclose(gap[far] / radius[far], 2 * ca, rtol=0.15)
+    assert np.median(np.linalg.norm(found["g"] - truth.reshape(-1, 2), axis=1)) < 0.08

@@ -13,7 +13,7 @@ from cvmeasure.cli import main
 def test_render_bender_writes_photo_and_truth(tmp_path, capsys):
     code = main(
         ["render", "bender", "--pin-deg", "-40", "--bend-deg", "30", "--scale", "0.1",
-         "--occlude", "wire_b=0.3", "--tilt-deg", "10", "--bayer", "-o", str(tmp_path), "--json"]
+         "--occlude", "wire_b=0.3", "--tilt-deg", "10", "--bayer", "--lateral-ca", "5e-4", "-o", str(tmp_path), "--json"]
     )  # fmt: skip
     assert code == 0
     out = json.loads(capsys.readouterr().out)
@@ -23,6 +23,7 @@ def test_render_bender_writes_photo_and_truth(tmp_path, capsys):
     truth = json.loads((tmp_path / "bender.truth.json").read_text())
     assert truth["markers"]["wire_b"]["occluded_fraction"] == 0.3
     assert truth["pose"]["tilt_deg"] == 10.0 and truth["lighting"]["bayer"] is True
+    assert truth["lighting"]["lateral_ca"] == 5e-4
     assert cv2.imread(str(tmp_path / "bender.jpg")).shape == (307, 461, 3)
 
 
