@@ -177,6 +177,22 @@ class PlaneFit:
         )
         return img.reshape(-1, 2)
 
+    def lens_uncertainty_mm(self) -> dict[str, float | None]:
+        """The camera calibration's own uncertainty, in mm on this plane.
+
+        ``sigma_mm``: median 1-sigma projection uncertainty (corner noise only);
+        ``cross_validation_mm``: the even/odd halves' central disagreement, which
+        also holds model error -- the honest figure. None when the camera JSON
+        does not carry them (not written by ``cvmeasure calibrate``).
+        """
+        cal = self.camera.calibration or {}
+        unc = (cal.get("projection_uncertainty") or {}).get("median_px")
+        cv = (cal.get("cross_validation") or {}).get("central_60pct_rms_px")
+        return {
+            "sigma_mm": None if unc is None else float(unc) * self.mm_per_px,
+            "cross_validation_mm": None if cv is None else float(cv) * self.mm_per_px,
+        }
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "source": self.source,
@@ -192,6 +208,7 @@ class PlaneFit:
             "homography_frames": "undistorted image px -> board mm",
             "rvec": self.rvec.tolist(),
             "tvec_mm": self.tvec_mm.tolist(),
+            "lens_uncertainty_mm": self.lens_uncertainty_mm(),
         }
 
 

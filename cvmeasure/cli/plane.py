@@ -94,4 +94,10 @@ def run(args: argparse.Namespace) -> int:
         f"worst angle error from ignoring the tilt: {plane.worst_angle_error_deg:.4f} deg "
         f"(tolerance {plane.tolerance_deg:g}): {verdict}"
     )
+    lens = plane.lens_uncertainty_mm()
+    if lens["cross_validation_mm"] is not None:
+        print(
+            f"lens calibration on this plane: cross-validation {lens['cross_validation_mm']:.4f} mm, "
+            f"noise sigma {lens['sigma_mm']:.4f} mm"
+        )
     return 0

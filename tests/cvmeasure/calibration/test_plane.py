@@ -58,6 +58,19 @@ def test_image_to_plane_maps_corners_to_board_mm(charuco_board, true_camera):
     assert np.sqrt(np.mean(np.sum((back - det.corners_px) ** 2, axis=1))) < 0.15
     d = plane.to_dict()
     assert d["affine_ok"] is False and len(d["H_board_image"]) == 3
+    assert d["lens_uncertainty_mm"] == {"sigma_mm": None, "cross_validation_mm": None}
+    from cvmeasure.camera import CameraModel
+
+    cal = {
+        "projection_uncertainty": {"median_px": 0.1},
+        "cross_validation": {"central_60pct_rms_px": 0.5},
+    }
+    cam2 = CameraModel(
+        true_camera.image_size_px, true_camera.camera_matrix, true_camera.dist_coeffs, cal
+    )
+    lens = fit_plane(det, cam2).lens_uncertainty_mm()
+    assert lens["sigma_mm"] == pytest.approx(0.1 * plane.mm_per_px)
+    assert lens["cross_validation_mm"] == pytest.approx(0.5 * plane.mm_per_px)
 
 
 def test_worst_angle_error_of_known_maps():
