@@ -83,6 +83,7 @@ __all__ = [
     "plan_resume",
     "stream_job",
     "SETUP_COMMANDS",
+    "FIRMWARE_QUERIES",
 ]
 
 log = logging.getLogger(__name__)
@@ -99,6 +100,8 @@ SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
     {"qv": 0},
     {"sr": {"line": True, "posx": True, "posy": True, "posz": True, "vel": True, "stat": True}},
 )
+#: Identification asked for before every job and recorded in the journal.
+FIRMWARE_QUERIES: tuple[dict[str, Any], ...] = ({"fv": None}, {"fb": None})
 _IDLE = (MachineStat.READY, MachineStat.STOP, MachineStat.END)
 
 
@@ -398,6 +401,8 @@ class BoardConnection:
         self.unparsed: list[Unparsed] = []
         #: XOFF seen in the data (a link without tty flow control, e.g. socket://)
         self.paused = False
+        #: firmware version and build (``fv``, ``fb``) as the board reported them
+        self.firmware: dict[str, Any] = {}
         self._queue: queue.Queue[Message | None] = queue.Queue()
         self._stop = threading.Event()
         self._splitter = LineSplitter()
@@ -624,6 +629,9 @@ def _line_by_number(job: Sequence[JobLine], number: Any) -> JobLine | None:
 def _setup(board: BoardConnection, config: StreamConfig, xonxoff: bool) -> dict[str, Any]:
     for cmd in SETUP_COMMANDS:
         board.command(cmd, timeout_s=config.command_timeout_s)
+    for query in FIRMWARE_QUERIES:
+        reply = board.command(query, timeout_s=config.command_timeout_s)
+        board.firmware.update(reply.body)
     board.command({"ex": 1 if xonxoff else 0}, timeout_s=config.command_timeout_s)
     return board.query_status(timeout_s=config.command_timeout_s)
 
@@ -708,7 +716,15 @@ def _stream(
             board_pos=_position(state),
         )
         start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
-        run.log({"event": "resume", "sha256": sha, "board": state, **plan.to_dict()})
+        run.log(
+            {
+                "event": "resume",
+                "sha256": sha,
+                "board": state,
+                "firmware": board.firmware,
+                **plan.to_dict(),
+            }
+        )
     else:
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
@@ -726,6 +742,7 @@ def _stream(
                 "sha256": sha,
                 "lines": len(job),
                 "start_pos": _position(state),
+                "firmware": board.firmware,
             }
         )
     queue_lines: list[JobLine] = []

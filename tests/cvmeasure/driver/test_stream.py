@@ -67,8 +67,10 @@ def test_sim_url_and_progress(job, tmp_path):
         )
         assert link.double is not None and len(link.double.machine_state().bends) == 19
     assert seen[-1][:2] == (len(job.lines), len(job.lines))
-    events = [r["event"] for r in read_jsonl(tmp_path / "j.jsonl")]
+    records = read_jsonl(tmp_path / "j.jsonl")
+    events = [r["event"] for r in records]
     assert events[0] == "start" and events[-1] == "done"
+    assert records[0]["firmware"] == {"fv": 0.97, "fb": 440.21}
     assert result.executed_line == len(job.lines)
 
 
@@ -301,11 +303,12 @@ def test_a_board_frozen_past_the_flush_timeout_is_reported_unresponsive(job, tmp
 
 def test_a_corrupted_line_that_ran_needs_force_to_resume(job, tmp_path):
     """TinyG 440 has no input checksum: with an idle planner a corrupted line runs at once."""
-    from cvmeasure.driver.stream import SETUP_COMMANDS
+    from cvmeasure.driver.stream import FIRMWARE_QUERIES, SETUP_COMMANDS
 
     target = job.lines[4]
     assert target.startswith("N5 G90 G1 X-")
-    at_line = len(SETUP_COMMANDS) + 2 + 1 + 5  # + {"ex"}, {"sr":null}, the N0 marker, N1..N5
+    # lines the board reads: settings, identification, {"ex"}, {"sr":null}, the N0 marker, N1..N5
+    at_line = len(SETUP_COMMANDS) + len(FIRMWARE_QUERIES) + 2 + 1 + 5
     fault = Fault("drop_byte", at_line, byte_index=target.index("-"))
     journal = tmp_path / "j.jsonl"
     with FakeTinyG(speedup=1e6, faults=[fault]) as board:
