@@ -14,4 +14,26 @@ Stages, each a module with pure functions and frozen result types:
 
 from __future__ import annotations
 
-__all__: list[str] = []
+from cvmeasure.part.compare import deviation_profile, register_to_design
+from cvmeasure.part.fit import fit_circle, fit_polyline
+from cvmeasure.part.measure import ArcResult, PartMeasurement, measure_part
+from cvmeasure.part.seed_methods import (
+    circle_ellipse_intersections,
+    ellipse_method,
+    sagitta_method,
+    seed_bending_angle,
+)
+
+__all__ = [
+    "ArcResult",
+    "PartMeasurement",
+    "measure_part",
+    "fit_circle",
+    "fit_polyline",
+    "register_to_design",
+    "deviation_profile",
+    "seed_bending_angle",
+    "circle_ellipse_intersections",
+    "ellipse_method",
+    "sagitta_method",
+]

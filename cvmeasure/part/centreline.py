@@ -8,8 +8,11 @@ about which the profile across the wire, *within* the wire, is most symmetric:
 the shift ``c`` minimising ``sum_u (I(c + u) - I(c - u))^2`` over
 ``|u| <= rho``, ``rho`` a little less than the wire's half-width, on
 profiles sampled every 0.05 px along the normals (bilinear), refined by a
-parabola through the cost minimum. Two passes: normals from the skeleton, then
-from the first centres.
+parabola through the cost minimum. Four passes: normals from the skeleton
+with a window of most of the wire's rough width (a small window finds false
+centres in each dark flank: a local valley is symmetric too), then normals from
+the centres found with the window set from the half-width measured about
+them; centres that jump from the running median along the wire are dropped.
 
 Each end of the wire is found the same way along the axis: the wire's end is
 taken as a hemispherical cap (as a cut end rounded by handling, and as the

@@ -268,12 +268,16 @@ class PolylineFit:
         fitted segment directions; counter-clockwise positive.
     segment_length_mm : ndarray (N,), vertex-to-vertex lengths, mm.
     rms_residual_mm : RMS distance of the inlier points to their segment, mm.
+    bend_sigma_deg : ndarray (N-1,), one standard uncertainty of each bend from
+        the scatter of the centreline about its two lines (sampling only: not
+        calibration, not a systematic centreline bias).
     """
 
     vertices_mm: np.ndarray
     bend_deg: np.ndarray
     segment_length_mm: np.ndarray
     rms_residual_mm: float
+    bend_sigma_deg: np.ndarray | None = None
 
     @property
     def divisions(self) -> int:
@@ -285,6 +289,7 @@ class PolylineFit:
             "bend_deg": self.bend_deg.tolist(),
             "segment_length_mm": self.segment_length_mm.tolist(),
             "rms_residual_mm": self.rms_residual_mm,
+            "bend_sigma_deg": None if self.bend_sigma_deg is None else self.bend_sigma_deg.tolist(),
         }
 
 
@@ -358,6 +363,7 @@ def fit_polyline(
         quarter = 0.25 * s[-1] / divisions
         vs = np.maximum.accumulate(np.clip(vs, vs0 - quarter, vs0 + quarter))
         lines = []
+        dir_var: list[float] = []
         sq, count = 0.0, 0
         for i in range(divisions):
             a, b = vs[i], vs[i + 1]
@@ -377,6 +383,11 @@ def fit_polyline(
             off = (pts[sel][inl] - p0) @ np.array([-d[1], d[0]])
             sq += float(off @ off)
             count += int(inl.sum())
+            # direction variance of a TLS line: sigma^2 / sum (t - mean t)^2
+            along = (pts[sel][inl] - p0) @ d
+            spread = float(np.sum((along - along.mean()) ** 2))
+            dof = max(int(inl.sum()) - 2, 1)
+            dir_var.append(float(off @ off) / dof / spread if spread > 0 else math.inf)
         rms = math.sqrt(sq / max(count, 1))
         new = [lines[0][0] + np.dot(pts[0] - lines[0][0], lines[0][1]) * lines[0][1]]
         for i in range(divisions - 1):
@@ -388,9 +399,11 @@ def fit_polyline(
     cross = dirs[:-1, 0] * dirs[1:, 1] - dirs[:-1, 1] * dirs[1:, 0]
     dot = np.sum(dirs[:-1] * dirs[1:], axis=1)
     bends = np.asarray(wrap_deg(np.degrees(np.arctan2(cross, dot))), dtype=np.float64).reshape(-1)
+    var = np.asarray(dir_var)
     return PolylineFit(
         vertices_mm=verts,
         bend_deg=bends,
         segment_length_mm=np.hypot(*np.diff(verts, axis=0).T),
         rms_residual_mm=rms,
+        bend_sigma_deg=np.degrees(np.sqrt(var[:-1] + var[1:])),
     )

@@ -139,6 +139,7 @@ class PartMeasurement:
     methods : the result of every method, by name.
     vertex_bend_deg : ndarray (N-1,) signed bends at the fitted vertices (ours,
         with divisions), counter-clockwise positive in the board frame; else None.
+    vertex_bend_sigma_deg : their standard uncertainties (sampling only), degrees.
     vertices_mm : ndarray (N+1, 2) fitted chord vertices, board mm; else None.
     vertices_px : the same vertices in photo pixels.
     centreline_mm : ndarray (M, 2) the wire's centreline, board mm, end to end.
@@ -155,6 +156,7 @@ class PartMeasurement:
     result: ArcResult
     methods: dict[str, ArcResult]
     vertex_bend_deg: np.ndarray | None
+    vertex_bend_sigma_deg: np.ndarray | None
     vertices_mm: np.ndarray | None
     vertices_px: np.ndarray | None
     centreline_mm: np.ndarray
@@ -172,6 +174,9 @@ class PartMeasurement:
         out["divisions"] = self.result.divisions
         out["vertex_bend_deg"] = (
             None if self.vertex_bend_deg is None else self.vertex_bend_deg.tolist()
+        )
+        out["vertex_bend_sigma_deg"] = (
+            None if self.vertex_bend_sigma_deg is None else self.vertex_bend_sigma_deg.tolist()
         )
         out["bend_sense"] = "counter-clockwise positive in the board frame (x, y)"
         out["vertices_mm"] = None if self.vertices_mm is None else self.vertices_mm.tolist()
@@ -409,6 +414,7 @@ def measure_part(
         result=methods[method],
         methods=methods,
         vertex_bend_deg=vertex_bends,
+        vertex_bend_sigma_deg=None if poly is None else poly.bend_sigma_deg,
         vertices_mm=None if poly is None else poly.vertices_mm,
         vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
         centreline_mm=centreline_mm,

@@ -105,6 +105,22 @@ def test_polyline_fit_on_a_saddle_with_changing_bend_sign():
     assert fit.rms_residual_mm == pytest.approx(0.003, rel=0.2)
 
 
+def test_polyline_bend_sigmas_are_honest():
+    """Monte Carlo: the stated bend sigmas match the scatter of the bends."""
+    verts = arc_points_mm((0.0, 0.0), 60.0, 150.0, -120.0, chords=8)
+    clean = _dense_polygon(verts, 100)
+    rng = np.random.default_rng(21)
+    errors, sigmas = [], []
+    for _ in range(40):
+        fit = fit_polyline(clean + rng.normal(0, 0.01, clean.shape), 8)
+        errors.append(fit.bend_deg + 15.0)
+        sigmas.append(fit.bend_sigma_deg)
+    errors, sigmas = np.array(errors), np.array(sigmas)
+    ratio = errors.std(axis=0) / sigmas.mean(axis=0)
+    assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+    assert abs(errors.mean()) < 3 * sigmas.mean() / np.sqrt(errors.size)
+
+
 def test_polyline_fit_tolerates_rounded_corners():
     # corners rounded with a 6 mm bend radius (the wire wraps the pin)
     verts = arc_points_mm((0.0, 0.0), 60.0, 150.0, -120.0, chords=8)
