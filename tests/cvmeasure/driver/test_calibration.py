@@ -18,9 +18,24 @@ from cvmeasure.driver.calibration import (
     samples_from_trials,
     save_calibration,
 )
+from cvmeasure.driver.session import nominal_pin_for_loaded_deg
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import write_csv_rows
-from tests.cvmeasure.driver.test_compensation import final_of_loaded, loaded_of_pin, trials
+from cvmeasure.sim import simulate
+
+
+def trials(angles, noise_deg=0.0, seed=0):
+    """Calibration bends of the simulated bender (both directions) with seeded camera noise."""
+    rng = np.random.default_rng(seed)
+    pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]
+    bends = simulate(pins)
+    noise = rng.normal(0.0, noise_deg, (2, len(pins)))
+    return np.array(pins), bends.loaded_bend_deg + noise[0], bends.unloaded_bend_deg + noise[1]
+
+
+def final_deg(pin_deg):
+    """What the simulated bender really makes of a pin command (deg)."""
+    return float(simulate([pin_deg]).unloaded_bend_deg[0])
 
 
 def trial_rows(angles=MODES["standard"], noise_deg=0.01, seed=1):
@@ -67,7 +82,7 @@ def test_round_trip_keeps_samples_models_and_compensation(tmp_path):
     assert again.samples == cal.samples
     for target in (9.0, -9.0, 44.4, -101.0):
         assert again.compensate(target) == pytest.approx(cal.compensate(target), abs=1e-12)
-        final = float(final_of_loaded(loaded_of_pin(again.compensate(target))))
+        final = final_deg(again.compensate(target))
         assert final == pytest.approx(target, abs=0.1)
 
 
@@ -142,7 +157,7 @@ def test_fit_cli_writes_calibration_and_plot(tmp_path, capsys):
     assert summary["model"] == "pchip" and summary["bends"] == 22
     assert summary["scores"]["linear"]["ccw"]["loao_rmse_deg"] < 0.05
     cal = load_calibration(out)
-    final = float(final_of_loaded(loaded_of_pin(cal.compensate(-9.0))))
+    final = final_deg(cal.compensate(-9.0))
     assert final == pytest.approx(-9.0, abs=0.1)
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
