@@ -31,6 +31,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="ours",
         help="method of the headline values (default ours; all are reported under 'methods')",
     )
+    p.add_argument(
+        "--axis-height-mm",
+        type=float,
+        default=0.0,
+        help="height of the wire's axis above the board's plane, e.g. the wire's radius when "
+        "part and board lie on the same surface (default 0)",
+    )
     p.add_argument("--overlay", type=Path, help="write the photo with the found centreline (PNG)")
     p.add_argument("--plot", type=Path, help="write the deviation plot (PNG; needs --design)")
     p.add_argument("-o", "--out", type=Path, help="also write the result JSON here")
@@ -66,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         design=design,
         design_source=str(args.design) if args.design else "design",
         method=args.method,
+        axis_height_mm=args.axis_height_mm,
         source=str(args.photo),
     )
     result = {"provenance": provenance(), **m.to_dict()}

@@ -140,3 +140,26 @@ def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
     assert m.comparison.deviation.max_mm > 3.0
     # the 70 mm polyline's chords turn by 18 deg as well: only the size differs
     assert abs(m.comparison.bends.seed_absolute_error_deg) < SEGMENT_BEND_DEG
+
+
+def test_raised_plane_mapping_inverts_the_projection():
+    import cv2
+
+    from cvmeasure.calibration.plane import estimate_plane
+    from cvmeasure.part.measure import image_to_raised_plane_mm
+
+    photo = _photo("short", "dark")
+    plane = estimate_plane(photo.bgr, BOARD, photo.camera)
+    board_xy = np.array([[350.0, 60.0], [420.0, 150.0], [300.0, 100.0]])
+    height = 1.59  # a 1/8 inch wire's axis above the board
+    obj = np.column_stack((board_xy, np.full(3, -height)))  # board z points away from the camera
+    px, _ = cv2.projectPoints(
+        obj, plane.rvec, plane.tvec_mm, photo.camera.camera_matrix, photo.camera.dist_coeffs
+    )
+    px = px.reshape(-1, 2)
+    np.testing.assert_allclose(image_to_raised_plane_mm(plane, px, height), board_xy, atol=1e-6)
+    # read in the board's plane instead, the raised points spread out from the
+    # camera's foot point by about height / distance (0.18 % at 0.9 m)
+    flat = image_to_raised_plane_mm(plane, px, 0.0)
+    spread = np.hypot(*np.diff(flat, axis=0).T) / np.hypot(*np.diff(board_xy, axis=0).T)
+    np.testing.assert_allclose(spread, 1 + height / 900.0, rtol=3e-4)
