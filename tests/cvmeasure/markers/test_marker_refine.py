@@ -91,3 +91,17 @@ def test_clipped_ring_is_reported():
     assert edges.clipped_fraction > 0.9
     fit = fit_circle_robust(edges.points_px)
     assert math.hypot(fit.centre[0] - 40, fit.centre[1] - 40) < 0.03
+
+
+def test_green_edges_ignore_lateral_chromatic_aberration():
+    # red and blue drawn 1 px off (lateral CA far from the lens centre); green is the truth
+    c = (40.3, 39.8)
+    img_g = _disc_image(c, 15.0, colour=(0, 140, 240), size=80)  # orange-yellow disc, BGR
+    img_rb = _disc_image((c[0] + 1.0, c[1]), 15.0, colour=(0, 140, 240), size=80)
+    img = img_g.copy()
+    img[..., 0] = img_rb[..., 0]
+    img[..., 2] = img_rb[..., 2]
+    green = fit_circle_robust(disc_edge_points(img, c, 15.0, 1.4, edge="green").points_px)
+    colour = fit_circle_robust(disc_edge_points(img, c, 15.0, 1.4, edge="colour").points_px)
+    assert np.hypot(green.centre[0] - c[0], green.centre[1] - c[1]) < 0.03
+    assert colour.centre[0] - c[0] > 0.3  # the blue step dominates the colour difference
