@@ -65,7 +65,6 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--quick", action="store_true", help="one 7-angle session at 0.25 render scale")
     args = p.parse_args(argv)
 
-    from cvmeasure.driver.calibration import MODES
     from cvmeasure.driver.camera import SimulatedCamera
     from cvmeasure.driver.compensation import SPRINGBACK_MODELS
     from cvmeasure.driver.session import (
@@ -83,7 +82,7 @@ def main(argv: list[str] | None = None) -> dict:
         sessions = {
             "quick": SessionConfig(mode="quick"),
             "standard": SessionConfig(mode="standard"),
-            "standard+2.5": SessionConfig(mode="custom", angles_deg=(2.5, *MODES["standard"])),
+            "high": SessionConfig(mode="high"),
         }
     rows_sb, rows_parts, notes = [], [], []
     worst_sb, worst_part, seconds_per_bend = 0.0, {}, []
@@ -185,7 +184,8 @@ def main(argv: list[str] | None = None) -> dict:
             "cvmeasure.markers.measure_machine_photo with the render's lens model",
             "calibration angles are wanted loaded angles; the saddle's 3.48 deg segment lies "
             "below the final angle of the smallest standard bend (5 deg loaded -> ~4.05 deg "
-            "final), so it is refused unless a smaller angle (2.5 deg) is calibrated",
+            "final), so it is refused unless a smaller angle is calibrated (mode high adds 2.5 "
+            "and 7.5 deg)",
             *notes,
         ],
     )

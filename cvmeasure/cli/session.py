@@ -41,10 +41,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--mode",
-        choices=("quick", "standard"),
+        choices=("quick", "standard", "high"),
         default="quick",
-        help="quick: 10 20 45 75 110 deg; standard: 5 10 15 20 30 45 60 75 90 110 130 deg "
-        "(wanted loaded angles, both directions)",
+        help="quick: 10 20 45 75 110 deg; standard: 5 10 15 20 30 45 60 75 90 110 130 deg; "
+        "high: standard plus 2.5 and 7.5 deg, for shallow parts (wanted loaded angles, "
+        "both directions)",
     )
     p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")

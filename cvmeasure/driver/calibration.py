@@ -15,7 +15,7 @@ Format (JSON, all angles in degrees, signed angles counter-clockwise positive)::
       "created_utc": "2026-01-01T12:00:00+00:00",
       "wire": {"material": "low-carbon steel", "diameter_mm": 3.0},
       "machine": {"model": "DIWire v1", "controller": "TinyG v8"},
-      "mode": "standard",                      # quick | standard | custom
+      "mode": "standard",                      # quick | standard | high | custom
       "angles_deg": [5, 10, 15, 20, 30, 45, 60, 75, 90, 110, 130],
       "samples": {                             # raw bends, per direction
         "ccw": [{"target_deg": 45.0, "commanded_pin_deg": 58.1,
@@ -82,9 +82,14 @@ __all__ = [
 FORMAT = "diwire-material/1"
 
 #: Calibration angles (deg) of each mode; every angle is bent in both directions.
+#: ``quick`` and ``standard`` are the stock software's (seed paper); ``high`` is
+#: ours: standard plus 2.5 and 7.5 deg, so that shallow parts (the seed's saddle
+#: bends 3.48 deg per segment, below standard's smallest final angle) are inside
+#: the calibrated range.
 MODES: dict[str, tuple[float, ...]] = {
     "quick": (10.0, 20.0, 45.0, 75.0, 110.0),
     "standard": (5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0, 110.0, 130.0),
+    "high": (2.5, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0, 110.0, 130.0),
 }
 
 _UNCERTAINTY_KEYS = ("loaded_bend_deg", "unloaded_bend_deg", "springback_deg")
@@ -173,7 +178,7 @@ def calibration_plan(mode: str | Sequence[float]) -> list[tuple[str, float]]:
     Parameters
     ----------
     mode : str or sequence of float
-        ``"quick"``, ``"standard"`` or an explicit list of angles (deg, > 0).
+        ``"quick"``, ``"standard"``, ``"high"`` or an explicit list of angles (deg, > 0).
 
     Returns
     -------

@@ -85,7 +85,8 @@ class SessionConfig:
     Attributes
     ----------
     mode : str
-        ``"quick"``, ``"standard"`` or ``"custom"`` (then ``angles_deg`` is used).
+        ``"quick"``, ``"standard"``, ``"high"`` or ``"custom"`` (then ``angles_deg``
+        is used).
     angles_deg : tuple of float
         Calibration angles (wanted loaded bend angles, deg); from the mode
         unless ``mode == "custom"``.

@@ -58,6 +58,7 @@ def trial_rows(angles=MODES["standard"], noise_deg=0.01, seed=1):
 def test_modes_and_plan():
     assert MODES["quick"] == (10, 20, 45, 75, 110)
     assert len(MODES["standard"]) == 11
+    assert set(MODES["standard"]) < set(MODES["high"]) and min(MODES["high"]) == 2.5
     plan = calibration_plan("quick")
     assert len(plan) == 10
     assert plan[0] == ("ccw", 10.0) and plan[-1] == ("cw", 110.0)
