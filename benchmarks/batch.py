@@ -76,6 +76,14 @@ def _cli_batch(folder: Path, out: Path, *extra: str) -> dict:
     return summary
 
 
+def _autogroup() -> bool:
+    """Whether the kernel shares CPU per session (sched_autogroup) rather than per process."""
+    try:
+        return Path("/proc/sys/kernel/sched_autogroup_enabled").read_text().strip() == "1"
+    except OSError:
+        return False
+
+
 def _startup_cpu_s() -> float:
     """CPU seconds a fresh worker spends importing the pipeline (median of 3)."""
     import statistics
@@ -307,7 +315,14 @@ def main(argv: list[str] | None = None) -> dict:
         notes=[
             f"{cores} cores; load average {load_before:.1f} before and {load_after:.1f} after the "
             "run: the machine is shared with other jobs, so measured wall-clock speed-ups show the "
-            "share of the CPUs the batch got as much as the batch itself",
+            "share of the CPUs the batch got as much as the batch itself"
+            + (
+                "; the kernel's sched_autogroup is on, so all processes of one session (the batch "
+                "and all its workers) share one CPU share against the other sessions: a second "
+                "worker cannot get more CPU here, which caps the measured speed-up near 1"
+                if _autogroup()
+                else ""
+            ),
             f"each run is `cvmeasure batch --kind machine --json` in a fresh process; best of "
             f"{args.rounds} interleaved rounds; 'whole batch' includes the workers' start-up, "
             "'steady state' starts after every worker's first photo",
