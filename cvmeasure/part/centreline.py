@@ -47,7 +47,9 @@ class Centreline:
     half_width_px : the wire's apparent half-width (flank at half contrast), pixels.
     rho_px : the half-window the symmetric centres used, pixels.
     ends_px : ndarray (2, 2); the two end points (also ``points_px[0]``, ``[-1]``).
-    rejected : profiles dropped (no symmetric centre near the first guess).
+    rejected : profiles dropped in the last pass (no symmetric centre near the guess).
+    coverage : the smallest share of profiles, over the passes, that had a
+        symmetric centre: near 1 along a wire, low along other thin structures.
     """
 
     points_px: np.ndarray
@@ -55,6 +57,7 @@ class Centreline:
     rho_px: float
     ends_px: np.ndarray
     rejected: int
+    coverage: float = 1.0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -63,6 +66,7 @@ class Centreline:
             "rho_px": self.rho_px,
             "ends_px": self.ends_px.tolist(),
             "rejected": self.rejected,
+            "coverage": self.coverage,
         }
 
 
@@ -255,12 +259,14 @@ def measure_centreline(
     rho = max(0.85 * rough, 0.75)
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
     rejected = 0
+    coverage = 1.0
     window = int(round(6.0 * hw0 / step_px))
     for final in (False, True, True):
         shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         rejected = int((~ok).sum())
+        coverage = min(coverage, float(ok.mean()))
         if ok.sum() < 5:
             raise ValueError("no symmetric wire profile along the path")
         centres = _resample((centres + shift[:, None] * normals)[ok], step_px)
@@ -278,6 +284,7 @@ def measure_centreline(
     shift = _despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())
+    coverage = min(coverage, float(ok.mean()))
     centres = (centres + shift[:, None] * normals)[ok]
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
@@ -308,6 +315,7 @@ def measure_centreline(
         rho_px=rho,
         ends_px=ends,
         rejected=rejected,
+        coverage=coverage,
     )
 
 

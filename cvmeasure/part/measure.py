@@ -72,6 +72,9 @@ METHODS: tuple[str, ...] = ("ours", "ellipse", "sagitta")
 MAX_WIRE_MM = 7.0
 #: Shortest wire accepted as a part (mm).
 MIN_WIRE_MM = 15.0
+#: Least share of a candidate's cross-profiles that must be symmetric (a round
+#: wire); rendered wires give 0.85-1, thin lines in a cluttered real scene 0.55-0.67.
+MIN_COVERAGE = 0.7
 #: Margin around the board left out of the wire search (mm).
 BOARD_MARGIN_MM = 4.0
 
@@ -285,6 +288,12 @@ def measure_centreline_mm(
         centre = measure_centreline(gray_float(image), wire.path_px, width_guess_px=wire.width_px)
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
+    if centre.coverage < MIN_COVERAGE:
+        raise InputError(
+            source,
+            f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
+            f"looks like a round wire along only {100 * centre.coverage:.0f} % of it)",
+        )
     return plane, wire, centre, image_to_raised_plane_mm(plane, centre.points_px, axis_height_mm)
 
 

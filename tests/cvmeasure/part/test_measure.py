@@ -163,3 +163,24 @@ def test_raised_plane_mapping_inverts_the_projection():
     flat = image_to_raised_plane_mm(plane, px, 0.0)
     spread = np.hypot(*np.diff(flat, axis=0).T) / np.hypot(*np.diff(board_xy, axis=0).T)
     np.testing.assert_allclose(spread, 1 + height / 900.0, rtol=3e-4)
+
+
+def test_real_board_photos_without_a_wire_are_refused(shared_real):
+    """Real photos of a ChArUco board on a cluttered desk: thin lines, but no wire."""
+    from cvmeasure.camera import CameraModel
+    from cvmeasure.errors import InputError
+    from cvmeasure.imageio import read_photo
+
+    folder = shared_real / "opencv-contrib-aruco-charuco-5x7"
+    # OpenCV's reference calibration of these photos (tutorial_camera_charuco.yml)
+    camera = CameraModel(
+        (640, 480),
+        np.array([[452.5107, 0, 317.7030], [0, 456.7671, 277.7516], [0, 0, 1]]),
+        np.array([0.121369, -1.085466, 0.000117868, -0.000462407, 2.954259]),
+    )
+    board = CharucoBoardSpec(5, 7, 40.0, 20.0, "DICT_6X6_250")
+    for k in range(4):
+        path = folder / f"img_0{k}.jpg"
+        with pytest.raises(InputError, match="no wire found") as err:
+            measure_part(read_photo(path).bgr, board, camera, source=str(path))
+        assert str(path) in str(err.value)
