@@ -83,13 +83,17 @@ def _kv_table(rows: Sequence[tuple[str, Any]]) -> str:
     return f"<table>{body}</table>"
 
 
+def _tolerance_text(tolerance: Any) -> str:
+    rel = f"{100 * tolerance.relative:g} % relative and " if tolerance.relative else ""
+    return _e(f"{rel}{tolerance.absolute_deg:g} deg absolute")
+
+
 def _agreement_section(result: Any) -> list[str]:
     ba, tol = result.bland_altman, result.tolerance
     out = ["<h2 id=agreement>Agreement with manual readings</h2>"]
     out.append(
         f"<p>Difference = vision &minus; manual; {ba.n} photos, {ba.n_readings} manual readings. "
-        f"Verdict against the tolerance ({_e(tol.tolerance.relative or 0):s} relative, "
-        f"{_e(tol.tolerance.absolute_deg)} deg absolute): "
+        f"Verdict against the tolerance ({_tolerance_text(tol.tolerance)}): "
         f"<span class={'good' if tol.verdict == 'within tolerance' else 'bad'}>{_e(tol.verdict)}</span>"
         f" ({tol.n_within} of {tol.n_pairs} readings within).</p>"
     )

@@ -69,7 +69,12 @@ def bland_altman_png(result: Any) -> bytes:
         (ba.loa_high_deg, ba.loa_high_ci_deg, None),
     ):
         colour = "#222222" if name == "bias" else "#b03020"
-        ax.axhline(y, color=colour, lw=1.2, label=f"{name} {y:+.2f}" if name else None)
+        label = None
+        if name == "bias":
+            label = f"bias {y:+.2f}"
+        elif name:
+            label = f"{name} {ba.loa_low_deg:+.2f} / {ba.loa_high_deg:+.2f}"
+        ax.axhline(y, color=colour, lw=1.2, label=label)
         ax.axhspan(ci[0], ci[1], color=colour, alpha=0.12, lw=0)
     tol = result.tolerance.tolerance.absolute_deg
     ax.axhline(tol, color="#2a8a2a", ls=":", lw=1.2, label=f"tolerance +-{tol:g} deg")
@@ -83,7 +88,7 @@ def bland_altman_png(result: Any) -> bytes:
     ax.set_xlabel("mean of vision and manual (deg)")
     ax.set_ylabel("vision - manual (deg)")
     ax.set_title(f"Bland-Altman, n = {ba.n} photos")
-    ax.legend(fontsize=7, loc="best")
+    ax.legend(fontsize=7, loc="best", framealpha=0.85)
     ax.grid(alpha=0.3)
     return _png(fig)
 
