@@ -242,3 +242,21 @@ def test_silent_mode_answers_nothing(board):
     host.collect(0.4)
     assert host.responses() == []  # jv=0 silences even the reply to itself
     host.close()
+
+
+def test_queue_and_filtered_status_reports():
+    from cvmeasure.driver.protocol import QueueReport
+
+    with FakeTinyG(speedup=5.0) as b:
+        host = Host(b.port)
+        host.send(b'{"qv":1}\n{"si":100}\n')
+        host.send(b"N1 G91 G1 Y5 F600\nN2 G1 Y5\nN3 G1 Y5\n")  # 0.5 s each -> 0.1 s wall
+        host.collect(2.0, until=stat_is(3))
+        qr = [m.free_slots for m in host.messages if isinstance(m, QueueReport)]
+        assert min(qr) == 29 and qr[-1] == 32  # three queued, then drained one by one
+        assert qr == sorted(qr[: qr.index(29) + 1], reverse=True) + qr[qr.index(29) + 1 :]
+        sr = [m.fields for m in host.messages if isinstance(m, StatusReport)]
+        ys = [f["posy"] for f in sr if "posy" in f]
+        assert ys == sorted(ys) and ys[-1] == 15.0 and len(ys) >= 3  # reported while moving
+        assert all(len(f) < 7 for f in sr[1:])  # filtered: only what changed
+        host.close()
