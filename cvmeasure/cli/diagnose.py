@@ -14,10 +14,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "diagnose",
         help="find what the simulation gets wrong on measured trials and name the cause",
         description="Compare measured trials (trials CSV: trial, commanded_pin_deg, "
-        "loaded_bend_deg, unloaded_bend_deg; optional part, bend_index) with the "
-        "simulation, try every named effect with grouped cross-validation, and report "
-        "the cause, its parameter with a 95 %% interval, baseline and extended held-out "
-        "RMSE, every candidate's held-out error and an identifiability check.",
+        "loaded_bend_deg, unloaded_bend_deg; optional measured_pin_deg, part, bend_index) "
+        "with the simulation, try every named effect with grouped cross-validation, and "
+        "report the cause (and a second one if the data need it), its parameter with a "
+        "95 % interval, baseline and extended held-out RMSE, every candidate's held-out "
+        "error, an identifiability check and the experiment that would separate "
+        "confounded causes.",
     )
     p.add_argument("trials", type=Path, help="trials CSV")
     p.add_argument("--params", type=Path, help="params JSON of the simulation (default built in)")
@@ -30,6 +32,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write the extended model (params JSON with the fitted strength and the named effect)",
     )
     p.add_argument("--folds", type=int, default=5, help="K of grouped K-fold CV (default 5)")
+    p.add_argument(
+        "--max-causes",
+        type=int,
+        choices=(1, 2),
+        default=2,
+        help="name at most this many causes (default 2)",
+    )
     p.set_defaults(func=run)
 
 
@@ -71,7 +80,9 @@ def run(args: argparse.Namespace) -> int:
     trials = trials_from_rows(rows, source=args.trials)
     params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
     try:
-        result = diagnose(trials, params, base_effects=effects, folds=args.folds)
+        result = diagnose(
+            trials, params, base_effects=effects, folds=args.folds, max_causes=args.max_causes
+        )
     except ValueError as exc:
         raise InputError(args.trials, str(exc)) from None
     out = to_jsonable(result.to_dict())

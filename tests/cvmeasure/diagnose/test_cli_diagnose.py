@@ -145,3 +145,15 @@ def test_simulate_bad_noise_exit_2(tmp_path, capsys):
     plan.write_text("trial,commanded_pin_deg\n1,30\n")
     assert main(["simulate", str(plan), "--noise-deg", "-1", "-o", str(tmp_path / "o.csv")]) == 2
     assert "--noise-deg" in capsys.readouterr().err
+
+
+def test_max_causes_option(tmp_path, capsys):
+    rng = np.random.default_rng(49)
+    effects = (Effect("offset", 1.0), Effect("drift", 0.03))
+    trials = measure_trials(random_plan(rng, 40), effects, 0.05, rng)
+    path = tmp_path / "t.csv"
+    write_csv_rows(path, trials.rows(), COLUMNS)
+    assert main(["diagnose", str(path), "--json"]) == 0
+    assert set(json.loads(capsys.readouterr().out)["causes"]) == {"offset", "drift"}
+    assert main(["diagnose", str(path), "--json", "--max-causes", "1"]) == 0
+    assert len(json.loads(capsys.readouterr().out)["causes"]) == 1
