@@ -72,6 +72,8 @@ BEAM_WIDTH = 3
 #: Angles are never known better than this (deg): residuals below it are not structure,
 #: so exact (noise-free) data cannot make a cause out of rounding error.
 RESOLUTION_DEG = 1e-3
+#: Fewest CV groups (parts); with fewer, every trial is its own group.
+MIN_GROUPS = 3
 #: Fewest trials the diagnosis accepts.
 MIN_TRIALS = 8
 
@@ -292,7 +294,15 @@ def diagnose(
     for n in names:
         if n not in EFFECTS:
             raise ValueError(f"unknown candidate {n!r}")
-    fold_masks = group_folds(trials.group, folds)
+    groups = trials.group
+    group_note = None
+    if len(set(groups)) < MIN_GROUPS:
+        groups = tuple(str(i) for i in range(len(trials)))
+        group_note = (
+            f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
+            "effects shared within a part are not held out"
+        )
+    fold_masks = group_folds(groups, folds)
 
     base_fit = fit_model(trials, params, "none", base_effects=base_effects)
     base_cv = cross_validate(
@@ -331,6 +341,8 @@ def diagnose(
 
     results = round_of(base_fit, base_cv.rmse_deg, names)
     notes = _design_notes(trials)
+    if group_note:
+        notes.append(group_note)
     accepted = [c for c in results if c.accepted]
     second: list[CandidateResult] = []
     ident: tuple[Identifiability, ...] = ()

@@ -133,3 +133,15 @@ def test_measured_pin_angles_are_used():
     key = "asymmetry"
     lo, hi = result.intervals[key]
     assert abs(result.params[key] - case.effect.value) <= 1.7 * 0.5 * (hi - lo)
+
+
+def test_grouped_cv_by_part_and_single_part_fallback():
+    import dataclasses
+
+    case = hidden_case(19, effect="backlash", n_trials=40)
+    parts = tuple(f"part{i // 5}" for i in range(40))  # 8 parts of 5 bends
+    grouped = diagnose(dataclasses.replace(case.trials, group=parts))
+    assert grouped.cause == "backlash" and grouped.n_folds == 8  # leave one part out
+    one_part = diagnose(dataclasses.replace(case.trials, group=("p",) * 40))
+    assert one_part.cause == "backlash" and one_part.n_folds == 5
+    assert any("fewer than 3 parts" in note for note in one_part.notes)
