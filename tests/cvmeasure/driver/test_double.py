@@ -94,7 +94,7 @@ def test_timed_moves_follow_the_speedup():
         host.send(b"N7 G91 G1 Y10 F600\n")  # 1 s of machine time -> 0.1 s wall
         host.collect(2.0, until=stat_is(3))
         elapsed = time.monotonic() - t0
-        assert 0.09 <= elapsed <= 0.5
+        assert 0.09 <= elapsed <= 1.0
         state = b.machine_state()
         assert state.feed_mm == pytest.approx(10.0) and state.line == 7
         host.close()
@@ -111,7 +111,9 @@ def test_feedhold_resume_and_flush(board):
     assert board.machine_state().feed_mm == held and 0 < held < 100
     host.send(b"~")
     host.collect(1.0, until=stat_is(5))
-    time.sleep(0.05)
+    deadline = time.monotonic() + 2.0
+    while board.machine_state().feed_mm == held and time.monotonic() < deadline:
+        time.sleep(0.01)
     assert board.machine_state().feed_mm > held
     host.send(b"!%")
     host.collect(1.0, until=lambda m: isinstance(m, RxReport))

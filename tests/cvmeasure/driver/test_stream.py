@@ -24,7 +24,8 @@ from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import DeviceError, InputError
 from cvmeasure.fileio import read_jsonl
 
-FAST = StreamConfig(stall_timeout_s=0.3, flush_timeout_s=2.0)
+# a stall needs a full second of silence, so a loaded CI machine does not fake one
+FAST = StreamConfig(stall_timeout_s=1.0, flush_timeout_s=5.0)
 HALF = arc_points_mm((0.0, 0.0), 100.0, 90.0, 180.0, chords=20)
 
 
@@ -79,7 +80,7 @@ FAULTS = [
     (Fault("drop_byte", 31, byte_index=99), "desync"),  # the line terminator itself
     (Fault("malformed_reply", 30), "malformed"),
     (Fault("alarm", 30), "alarm"),
-    (Fault("stall", 30, duration_s=0.6), "stall"),
+    (Fault("stall", 30, duration_s=1.6), "stall"),
     (Fault("vanish", 30), "port_gone"),
 ]
 
@@ -286,8 +287,8 @@ def test_xoff_in_the_data_pauses_the_sender():
 
 def test_a_board_frozen_past_the_flush_timeout_is_reported_unresponsive(job, tmp_path):
     journal = tmp_path / "j.jsonl"
-    cfg = StreamConfig(stall_timeout_s=0.2, flush_timeout_s=0.3)
-    with FakeTinyG(speedup=50.0, faults=[Fault("stall", 30, duration_s=1.2)]) as board:
+    cfg = StreamConfig(stall_timeout_s=0.5, flush_timeout_s=0.5)
+    with FakeTinyG(speedup=50.0, faults=[Fault("stall", 30, duration_s=2.0)]) as board:
         link = open_link(board.port)
         with pytest.raises(JobStopped) as info:
             stream_job(link, job.lines, journal=journal, config=cfg)
