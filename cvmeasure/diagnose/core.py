@@ -399,7 +399,7 @@ def diagnose(
         close = [
             c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
         ]
-        if close:
+        if close and len(ext_fit.causes) == 1:
             notes.append(
                 f"{', '.join(close)} explain the data almost as well as {best.cause} "
                 "(held-out RMSE within 5 %)"
