@@ -105,3 +105,7 @@ def test_green_edges_ignore_lateral_chromatic_aberration():
     colour = fit_circle_robust(disc_edge_points(img, c, 15.0, 1.4, edge="colour").points_px)
     assert np.hypot(green.centre[0] - c[0], green.centre[1] - c[1]) < 0.03
     assert colour.centre[0] - c[0] > 0.3  # the blue step dominates the colour difference
+    luma = fit_circle_robust(disc_edge_points(img, c, 15.0, 1.4, edge="luma").points_px)
+    assert 0.0 < luma.centre[0] - c[0] < 0.25  # blue has 7 % of the luminance weight
+    with pytest.raises(ValueError, match="unknown edge mode"):
+        disc_edge_points(img, c, 15.0, 1.4, edge="hue")
