@@ -62,6 +62,24 @@ def test_simulated_session_matches_the_simulation(tmp_path, capsys):
     assert len(trials) == 7
 
 
+def test_session_calibrates_away_a_machine_error(tmp_path):
+    from cvmeasure.sim import parse_effect, pin_command_for_angle
+
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", ANGLES, "--quiet"]
+    assert main([*args, "--effect", "backlash=0.8", "--scale", "0.2"]) == 0
+    backlash = (parse_effect("backlash=0.8"),)
+    cal = load_calibration(out)
+    pins = [s.commanded_pin_deg for s in cal.samples]
+    truth = simulate(pins, effects=backlash).springback_deg
+    assert np.max(np.abs(np.array([s.springback_deg for s in cal.samples]) - truth)) < 0.05
+    for target in (9.0, -9.0):
+        nominal = simulate([pin_command_for_angle(target)], effects=backlash)
+        assert abs(nominal.unloaded_bend_deg[0] - target) > 0.5  # uncalibrated: off by backlash
+        final = simulate([cal.compensate(target)], effects=backlash).unloaded_bend_deg[0]
+        assert final == pytest.approx(target, abs=0.1)
+
+
 def test_killed_session_resumes_without_loss_or_repeat(tmp_path):
     out = tmp_path / "cal.json"
     session_dir = tmp_path / "cal_session"
