@@ -312,10 +312,12 @@ def test_a_corrupted_line_that_ran_needs_force_to_resume(job, tmp_path):
     at_line = len(SETUP_COMMANDS) + len(FIRMWARE_QUERIES) + 2 + 1 + 5
     fault = Fault("drop_byte", at_line, byte_index=target.index("-"))
     journal = tmp_path / "j.jsonl"
+    # one line in flight: N5 arrives after N4's ack, when the (1e6 x fast) N4 is done
+    one = StreamConfig(window_lines=1, stall_timeout_s=1.0, flush_timeout_s=5.0)
     with FakeTinyG(speedup=1e6, faults=[fault]) as board:
         link = open_link(board.port)
         with pytest.raises(JobStopped) as info:
-            stream_job(link, job.lines, journal=journal, config=FAST)
+            stream_job(link, job.lines, journal=journal, config=one)
         stop = info.value.stop
         assert stop.reason == "desync" and stop.line_number == 5 and stop.corrupt_line_ran
         assert "check the part" in str(info.value)
