@@ -194,6 +194,9 @@ def test_reply_and_byte_faults(kind):
     host.collect(
         0.5, until=lambda m: isinstance(m, Response) and m.nbytes == 7 and len(host.messages) > 2
     )
+    deadline = time.monotonic() + 2.0
+    while b.machine_state().planner_depth and time.monotonic() < deadline:
+        time.sleep(0.01)
     replies = [m for m in host.messages if not isinstance(m, StatusReport)]
     if kind == "malformed_reply":
         assert [type(m).__name__ for m in replies] == ["Response", "Unparsed", "Response"]
