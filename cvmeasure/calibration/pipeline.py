@@ -37,6 +37,9 @@ __all__ = [
     "CROSS_VALIDATION_RATIO_LIMIT",
 ]
 
+#: Relative 1-sigma focal-length uncertainty above which a warning is given.
+_FOCAL_SIGMA_WARN = 0.005
+
 #: Cross-validation diff above this many times what noise explains is reported as model error.
 CROSS_VALIDATION_RATIO_LIMIT = 3.0
 
@@ -164,6 +167,12 @@ def calibrate_detections(
             f"image centre, {cv.ratio:.1f}x what corner noise explains: model error (lens model "
             "too simple, board not flat, focus or zoom changed between photos); the reported "
             "standard deviations understate the real uncertainty"
+        )
+    rel_f = result.std_devs["fx"] / result.camera.fx
+    if rel_f > _FOCAL_SIGMA_WARN:
+        warnings.append(
+            f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
+            "photos with the board tilted 30-45 deg and closer to the camera"
         )
     warnings.extend(cov.warnings)
     if result.rejected:

@@ -290,6 +290,8 @@ def calibrate_views(
     -------
     CalibrationResult
     """
+    import cv2
+
     flags = model_flags(model)
     size = (int(image_size_px[0]), int(image_size_px[1]))
     rejected: list[RejectedView] = []
@@ -326,7 +328,7 @@ def calibrate_views(
         rounds += 1
         try:
             rms, camera, rvecs, tvecs, sd_intr, per_view = _solve(active, size, flags)
-        except Exception as exc:  # cv2.error: degenerate views
+        except cv2.error as exc:  # degenerate views (e.g. all boards parallel)
             raise InputError(source, f"the calibration solve failed: {exc}") from None
         if not reject_outliers or rounds >= max_rounds:
             break

@@ -127,3 +127,17 @@ def test_coverage_warnings_name_the_missing_photos():
     ] == pytest.approx(30.0)
     one_axis = image_coverage(full, (960, 640), [rvecs[0]] * 12)
     assert any("tilted about the vertical axis" in w for w in one_axis.warnings)
+
+
+def test_degenerate_fronto_parallel_set_is_flagged(charuco_board, true_camera):
+    from _calib_synth import look_at_pose
+
+    from cvmeasure.calibration.pipeline import calibrate_detections
+
+    # Three fronto-parallel views at one distance: focal length and distance trade off.
+    poses = [look_at_pose(charuco_board, 400.0, 0.0, 0.0, (d, 0.0)) for d in (0, 10, 20)]
+    dets = synthetic_detections(charuco_board, true_camera, poses, 0.05, np.random.default_rng(0))
+    report = calibrate_detections(dets, true_camera.image_size_px)
+    text = " | ".join(report.warnings)
+    assert "focal length is poorly determined" in text
+    assert "never tilted more than" in text
