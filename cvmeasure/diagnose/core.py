@@ -72,6 +72,9 @@ BEAM_WIDTH = 3
 #: Angles are never known better than this (deg): residuals below it are not structure,
 #: so exact (noise-free) data cannot make a cause out of rounding error.
 RESOLUTION_DEG = 1e-3
+#: An extended model still missing by more than this (deg rms) names nothing: the
+#: simulation does not describe the data (wrong signs, units, columns or params).
+GROSS_MISFIT_DEG = 5.0
 #: Fewest CV groups (parts); with fewer, every trial is its own group.
 MIN_GROUPS = 3
 #: Fewest trials the diagnosis accepts.
@@ -414,8 +417,31 @@ def diagnose(
         experiment = next((i.experiment for i in confounded if i.experiment), None)
         notes.extend(notes_best)
         cause = ext_fit.causes[0]
+        at_bound = [
+            f"{c} ({EFFECTS[c].param} = {v:.4g} {EFFECTS[c].unit})"
+            for c, v in zip(ext_fit.causes, ext_fit.values, strict=True)
+            if np.isclose(v, EFFECTS[c].lower) or np.isclose(v, EFFECTS[c].upper)
+        ]
+        if at_bound:
+            notes.append(
+                f"{', '.join(at_bound)} at its physical bound: the data want more than the "
+                "catalogue allows; treat the name with suspicion"
+            )
+    if accepted and ext_fit.sigma_deg > GROSS_MISFIT_DEG:
+        notes.append(
+            f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
+            "simulation does not describe these data (check signs, units and columns of the "
+            f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
+        )
+        accepted = []
+        second = []
+        ident, experiment = (), None
+        gross = True
     else:
+        gross = False
+    if not accepted:
         cause, ext_fit, ext_cv = "none", base_fit, base_cv.rmse_deg
+    if not accepted and not gross:
         notes.append(
             f"no candidate beats the noise floor (held-out RMSE {base_cv.rmse_deg:.3f} deg); "
             "nothing is named"

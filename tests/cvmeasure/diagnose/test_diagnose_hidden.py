@@ -145,3 +145,19 @@ def test_grouped_cv_by_part_and_single_part_fallback():
     one_part = diagnose(dataclasses.replace(case.trials, group=("p",) * 40))
     assert one_part.cause == "backlash" and one_part.n_folds == 5
     assert any("fewer than 3 parts" in note for note in one_part.notes)
+
+
+def test_garbage_data_name_nothing():
+    import numpy as np
+
+    from cvmeasure.diagnose import TrialSet
+
+    rng = np.random.default_rng(5)
+    cmd = np.linspace(20.0, 120.0, 12) * np.where(np.arange(12) % 2, 1.0, -1.0)
+    # angles in the wrong units (radians) and with a flipped sign: nothing fits
+    truth = diagnose(hidden_case(5, effect="none", n_trials=12).trials)
+    assert truth.cause == "none"
+    garbage = TrialSet.from_arrays(cmd, -np.radians(cmd), rng.normal(0.0, 30.0, 12))
+    result = diagnose(garbage)
+    assert result.cause == "none" and result.causes == ()
+    assert any("does not describe these data" in note for note in result.notes)
