@@ -14,10 +14,17 @@ Steps, on measured trials:
    candidate with the lowest held-out RMSE is the cause; when none is
    accepted, nothing is named (``cause = "none"``): the residuals are at the
    noise floor.
-4. The cause's parameter with a 95 % interval (Gauss-Newton covariance,
-   Student t), residual trends before and after, and an identifiability check
-   against the other candidates on this design, naming the experiment that
-   would separate any confounded pair.
+4. A second cause on top of the first when structure is left (same rule,
+   against the one-cause model; the best few first causes each get this
+   round and the lowest held-out model wins). It is refused when the pair
+   still leaves structure: that is reported as an unnamed discrepancy.
+5. The causes' parameters with 95 % intervals (Gauss-Newton covariance,
+   Student t), residual trends before and after, a leftover check, and an
+   identifiability check against the other candidates on this design,
+   naming the experiment that would separate any confounded pair.
+
+Residuals below ``RESOLUTION_DEG`` are not structure; an extended model
+still missing by more than ``GROSS_MISFIT_DEG`` names nothing.
 """
 
 from __future__ import annotations
@@ -52,6 +59,7 @@ __all__ = [
     "MIN_DELTA_BIC",
     "MIN_CV_GAIN",
     "RESOLUTION_DEG",
+    "GROSS_MISFIT_DEG",
     "CandidateResult",
     "Diagnosis",
     "diagnose",
