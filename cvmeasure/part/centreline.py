@@ -50,6 +50,9 @@ class Centreline:
     rejected : profiles dropped in the last pass (no symmetric centre near the guess).
     coverage : the smallest share of profiles, over the passes, that had a
         symmetric centre: near 1 along a wire, low along other thin structures.
+    asymmetry : median over the profiles of the remaining asymmetry at the centre
+        relative to the profile's own variance in the window (0 perfectly
+        symmetric, about 1 for no symmetry at all).
     """
 
     points_px: np.ndarray
@@ -58,6 +61,7 @@ class Centreline:
     ends_px: np.ndarray
     rejected: int
     coverage: float = 1.0
+    asymmetry: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -67,6 +71,7 @@ class Centreline:
             "ends_px": self.ends_px.tolist(),
             "rejected": self.rejected,
             "coverage": self.coverage,
+            "asymmetry": self.asymmetry,
         }
 
 
@@ -107,7 +112,12 @@ def _sample(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def symmetric_centres(
-    profiles: np.ndarray, *, rho_px: float, search_px: float, step_px: float = _STEP_PX
+    profiles: np.ndarray,
+    *,
+    rho_px: float,
+    search_px: float,
+    step_px: float = _STEP_PX,
+    max_slope_px: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift (P,) about which each profile is most symmetric, and the cost there.
 
@@ -117,6 +127,11 @@ def symmetric_centres(
         centred on the guess (sample ``S // 2`` is offset 0).
     rho_px : half-window of the symmetry test.
     search_px : largest shift tried either way.
+    max_slope_px : with it, the shifts of consecutive profiles (in order along
+        the wire) differ by at most this much: the path of least total cost
+        through the cost table (dynamic programming), so that isolated false
+        minima cannot pull single centres away. Without it, each profile's own
+        minimum.
 
     Returns
     -------
@@ -136,7 +151,11 @@ def symmetric_centres(
         a = p[:, mid + c + u]
         b = p[:, mid + c - u]
         cost[:, j] = np.mean((a - b) ** 2, axis=1)
-    k = np.argmin(cost, axis=1)
+    k = (
+        np.argmin(cost, axis=1)
+        if max_slope_px is None
+        else _least_cost_path(cost, max(1, int(np.ceil(max_slope_px / step_px))))
+    )
     rows = np.arange(len(p))
     inner = (k > 0) & (k < len(shifts) - 1)
     kk = np.clip(k, 1, len(shifts) - 2)
@@ -146,6 +165,46 @@ def symmetric_centres(
     shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
     shift = np.where(inner, shift, np.nan)
     return shift, cost[rows, k]
+
+
+def _asymmetry_ratio(
+    profiles: np.ndarray, shift_px: np.ndarray, asym: np.ndarray, rho_px: float
+) -> float:
+    """Median of (mean squared asymmetry) / (2 x variance in the window) over profiles."""
+    if len(profiles) == 0:
+        return 1.0
+    mid = profiles.shape[1] // 2
+    ku = max(1, int(round(rho_px / _STEP_PX)))
+    centre = mid + np.round(shift_px / _STEP_PX).astype(np.int64)
+    idx = centre[:, None] + np.arange(-ku, ku + 1)[None, :]
+    idx = np.clip(idx, 0, profiles.shape[1] - 1)
+    window = np.take_along_axis(profiles, idx, axis=1)
+    var = window.var(axis=1)
+    return float(np.median(asym / np.maximum(2.0 * var, 1e-9)))
+
+
+def _least_cost_path(cost: np.ndarray, reach: int) -> np.ndarray:
+    """Column per row (P,) minimising the summed cost with |k_i - k_(i-1)| <= reach."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    n_rows, n_cols = cost.shape
+    # scale each row to its own range so that no single profile dominates
+    lo = cost.min(axis=1, keepdims=True)
+    span = np.maximum(cost.max(axis=1, keepdims=True) - lo, 1e-12)
+    c = (cost - lo) / span
+    back = np.empty((n_rows, n_cols), dtype=np.int64)
+    total = c[0].copy()
+    cols = np.arange(n_cols)
+    for i in range(1, n_rows):
+        win = sliding_window_view(np.pad(total, reach, constant_values=np.inf), 2 * reach + 1)
+        j = np.argmin(win, axis=1)
+        back[i] = cols + j - reach
+        total = c[i] + win[cols, j]
+    path = np.empty(n_rows, dtype=np.int64)
+    path[-1] = int(np.argmin(total))
+    for i in range(n_rows - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    return path
 
 
 def _despike(shift: np.ndarray, window: int) -> np.ndarray:
@@ -262,7 +321,7 @@ def measure_centreline(
     coverage = 1.0
     window = int(round(6.0 * hw0 / step_px))
     for final in (False, True, True):
-        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         rejected = int((~ok).sum())
@@ -280,11 +339,12 @@ def measure_centreline(
             rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), 0.75)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     half_width = rough
-    shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search)
+    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
     shift = _despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())
     coverage = min(coverage, float(ok.mean()))
+    symmetry = _asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
     centres = (centres + shift[:, None] * normals)[ok]
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
@@ -316,6 +376,7 @@ def measure_centreline(
         ends_px=ends,
         rejected=rejected,
         coverage=coverage,
+        asymmetry=symmetry,
     )
 
 

@@ -72,9 +72,12 @@ METHODS: tuple[str, ...] = ("ours", "ellipse", "sagitta")
 MAX_WIRE_MM = 7.0
 #: Shortest wire accepted as a part (mm).
 MIN_WIRE_MM = 15.0
-#: Least share of a candidate's cross-profiles that must be symmetric (a round
-#: wire); rendered wires give 0.85-1, thin lines in a cluttered real scene 0.55-0.67.
-MIN_COVERAGE = 0.7
+#: Least share of a candidate's cross-profiles that must have a symmetric centre.
+MIN_COVERAGE = 0.5
+#: Largest remaining asymmetry (relative to the profile's variance) of a round
+#: wire's cross-profiles: rendered wires give 0.001-0.07 (0.25-1x size, both
+#: sheets), thin lines on a cluttered real desk 0.17-0.64.
+MAX_ASYMMETRY = 0.12
 #: Margin around the board left out of the wire search (mm).
 BOARD_MARGIN_MM = 4.0
 
@@ -288,11 +291,16 @@ def measure_centreline_mm(
         centre = measure_centreline(gray_float(image), wire.path_px, width_guess_px=wire.width_px)
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
-    if centre.coverage < MIN_COVERAGE:
+    if centre.coverage < MIN_COVERAGE or centre.asymmetry > MAX_ASYMMETRY:
         raise InputError(
             source,
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
-            f"looks like a round wire along only {100 * centre.coverage:.0f} % of it)",
+            f"has a round wire's symmetric profile along {100 * centre.coverage:.0f} % of it, "
+            f"asymmetry {centre.asymmetry:.2f} > {MAX_ASYMMETRY})"
+            if centre.asymmetry > MAX_ASYMMETRY
+            else f"no wire found beside the board (the longest thin line, "
+            f"{wire.length_px:.0f} px, looks like a round wire along only "
+            f"{100 * centre.coverage:.0f} % of it)",
         )
     return plane, wire, centre, image_to_raised_plane_mm(plane, centre.points_px, axis_height_mm)
 
