@@ -50,34 +50,29 @@ def _ca_rows(n: int, scale: float, seed0: int, ca: float) -> list[list]:
     from dataclasses import replace
 
     from cvmeasure.kit import default_kit
-    from cvmeasure.markers import measure_machine_photo, refine
+    from cvmeasure.markers import measure_machine_photo
     from datasets.bender import render_bender_photo
     from datasets.lighting import Lighting
     from datasets.optics import Pose
 
     rng = np.random.default_rng(seed0)
     errs: dict[str, list[float]] = {"luma": [], "green": [], "colour": []}
-    default = refine.EDGE_MODE
-    try:
-        for i in range(n):
-            photo = render_bender_photo(
-                pin_angle_deg=float(rng.uniform(-120, 120)),
-                bend_angle_deg=float(rng.uniform(-100, 100)),
-                lighting=replace(Lighting.random(seed0 + i), lateral_ca=ca),
-                pose=Pose(
-                    yaw_deg=float(rng.uniform(-180, 180)),
-                    offset_mm=(float(rng.uniform(-60, 60)), float(rng.uniform(-40, 40))),
-                ),
-                seed=seed0 + i,
-                scale=scale,
-            )
-            for mode in errs:
-                refine.EDGE_MODE = mode
-                res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera)
-                for key in ("pin_angle_deg", "bend_angle_deg"):
-                    errs[mode].append(abs(getattr(res, key) - photo.truth[key]))
-    finally:
-        refine.EDGE_MODE = default
+    for i in range(n):
+        photo = render_bender_photo(
+            pin_angle_deg=float(rng.uniform(-120, 120)),
+            bend_angle_deg=float(rng.uniform(-100, 100)),
+            lighting=replace(Lighting.random(seed0 + i), lateral_ca=ca),
+            pose=Pose(
+                yaw_deg=float(rng.uniform(-180, 180)),
+                offset_mm=(float(rng.uniform(-60, 60)), float(rng.uniform(-40, 40))),
+            ),
+            seed=seed0 + i,
+            scale=scale,
+        )
+        for mode in errs:
+            res = measure_machine_photo(photo.bgr, default_kit(), camera=photo.camera, edge=mode)
+            for key in ("pin_angle_deg", "bend_angle_deg"):
+                errs[mode].append(abs(getattr(res, key) - photo.truth[key]))
     return [
         [mode, len(v), float(np.median(v)), float(np.percentile(v, 95)), float(np.max(v))]
         for mode, v in errs.items()

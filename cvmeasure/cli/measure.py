@@ -61,6 +61,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--method", choices=("ours", "seed"), default="ours", help="default ours")
     p.add_argument("--space", choices=("lab", "rgb"), default="lab", help="default lab")
+    p.add_argument(
+        "--edge",
+        choices=("luma", "green", "colour"),
+        default="luma",
+        help="image the disc edges are found in (default luma; green for lenses with strong "
+        "lateral chromatic aberration)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON Lines (default: a table)")
     p.set_defaults(func=run)
 
@@ -150,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
                 plane=photo_plane,
                 method=args.method,
                 space=args.space,
+                edge=args.edge,
                 source=str(path),
                 photo=str(path),
             )

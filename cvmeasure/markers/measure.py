@@ -43,6 +43,7 @@ from cvmeasure.markers.colour import (
 from cvmeasure.markers.detect import MarkerCandidate, find_markers
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
+    EDGE_MODES,
     CircleFit,
     disc_edge_points,
     fit_circle_robust,
@@ -268,7 +269,7 @@ def _transform(
 
 
 def refine_candidate(
-    bgr: np.ndarray, cand: MarkerCandidate, ring_ratio: float
+    bgr: np.ndarray, cand: MarkerCandidate, ring_ratio: float, *, edge: str | None = None
 ) -> tuple[CircleFit, Any] | str:
     """Sub-pixel circle of one found disc (image px) and its edge points, or why there is none.
 
@@ -279,7 +280,7 @@ def refine_candidate(
     fit = None
     edges = None
     for _ in range(3):
-        edges = disc_edge_points(bgr, centre, radius, ring_ratio)
+        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge)
         if edges.points_px.shape[0] < MIN_EDGE_POINTS:
             return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
         try:
@@ -340,6 +341,7 @@ def _measure_ours(
     model: ColourModel,
     transform: _Transform,
     source: str,
+    edge: str | None = None,
 ) -> tuple[dict[str, MarkerMeasurement], dict[str, np.ndarray], dict[str, np.ndarray], list[str]]:
     search = find_markers(bgr8, kit, model)
     failures = dict(search.failures)
@@ -352,7 +354,7 @@ def _measure_ours(
         if role not in search.found:
             continue
         spec = kit.by_role(role)
-        got = refine_candidate(bgr, search.found[role], spec.ring_mm / spec.diameter_mm)
+        got = refine_candidate(bgr, search.found[role], spec.ring_mm / spec.diameter_mm, edge=edge)
         if isinstance(got, str):
             failures[role] = got
         else:
@@ -426,6 +428,7 @@ def measure_machine_photo(
     space: ColourSpace = "lab",
     colour_model: ColourModel | None = None,
     linear: bool = False,
+    edge: str | None = None,
     source: str = "photo",
     photo: str | None = None,
 ) -> MachinePhotoResult:
@@ -443,6 +446,9 @@ def measure_machine_photo(
     space : colour space of the segmentation, "lab" or "rgb".
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
     linear : the image holds linear (gamma 1) data, e.g. from RAW.
+    edge : where disc edges are found: "luma" (default), "green" (for lenses with strong
+        lateral chromatic aberration, e.g. RAW files without in-camera correction) or
+        "colour" (see :data:`cvmeasure.markers.refine.EDGE_MODE`).
     source : what error messages name (the file).
     photo : what the result's ``photo`` field says.
 
@@ -459,6 +465,8 @@ def measure_machine_photo(
         raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
     if space not in ("lab", "rgb"):
         raise ValueError(f"unknown colour space {space!r}; valid: ('lab', 'rgb')")
+    if edge is not None and edge not in EDGE_MODES:
+        raise ValueError(f"unknown edge mode {edge!r}; valid: {EDGE_MODES}")
     img = np.asarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
@@ -470,7 +478,9 @@ def measure_machine_photo(
         transform = _transform(camera, plane, img.shape, source)
         model = colour_model or kit_colour_model(kit, space)
         work = bgr8 if linear or img.dtype == np.uint8 else img
-        markers, centres, covs, warnings = _measure_ours(work, bgr8, kit, model, transform, source)
+        markers, centres, covs, warnings = _measure_ours(
+            work, bgr8, kit, model, transform, source, edge
+        )
     try:
         angles = machine_angles(centres, covs, y_down=transform.y_down)
     except ValueError as exc:

@@ -144,7 +144,17 @@ def test_overlay_is_written(files, tmp_path):
 
 def test_seed_method_and_rgb_space_from_the_cli(files, capsys):
     rc = main(
-        ["measure", str(files["loaded"]), "--kit", str(files["kit"]), "--space", "rgb", "--json"]
+        [
+            "measure",
+            str(files["loaded"]),
+            "--kit",
+            str(files["kit"]),
+            "--space",
+            "rgb",
+            "--edge",
+            "green",
+            "--json",
+        ]
     )
     assert rc == 0
     rec = _records(capsys.readouterr().out)[0]

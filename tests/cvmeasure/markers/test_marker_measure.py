@@ -187,3 +187,8 @@ def test_sixteen_bit_and_linear_input(render):
     assert b.bend_angle_deg == pytest.approx(a.bend_angle_deg, abs=1e-3)
     with pytest.raises(ValueError, match="unknown method"):
         measure_machine_photo(photo.bgr, kit, method="magic")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="unknown edge mode"):
+        measure_machine_photo(photo.bgr, kit, edge="hue")
+    for edge in ("green", "colour"):
+        c = measure_machine_photo(photo.bgr, kit, edge=edge)
+        assert c.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=BEND_TOL_DEG)
