@@ -116,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
 
     kit = load_kit(args.kit)
     camera = load_camera(args.camera) if args.camera else None
+    if args.plane is not None and camera is None:
+        raise InputError("--plane", "the plane's homography maps undistorted pixels: give --camera")
     plane = _load_plane(args.plane) if args.plane else None
     board = None
     if args.board is not None:

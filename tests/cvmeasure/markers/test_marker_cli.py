@@ -175,14 +175,15 @@ def test_seed_method_and_rgb_space_from_the_cli(files, capsys):
         (["--kit", "{bad_kit}"], "kit"),
         (["--kit", "{kit}", "--board", "{kit}"], "needs --camera"),
         (["--kit", "{kit}", "--camera", "{kit}"], "camera"),
-        (["--kit", "{kit}", "--plane", "{kit}"], "H_board_image"),
+        (["--kit", "{kit}", "--plane", "{kit}"], "give --camera"),
+        (["--kit", "{kit}", "--plane", "{kit}", "--camera", "{camera}"], "H_board_image"),
     ],
 )
 def test_bad_inputs_exit_2_with_one_line(files, tmp_path, capsys, args, message):
     bad_kit = tmp_path / "bad_kit.json"
     bad_kit.write_text('{"markers": [{"role": "origin"}]}')
     argv = ["measure", str(files["loaded"])] + [
-        a.format(bad_kit=bad_kit, kit=files["kit"]) for a in args
+        a.format(bad_kit=bad_kit, kit=files["kit"], camera=files["camera"]) for a in args
     ]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -217,3 +218,26 @@ def test_help(capsys):
             main(argv)
         assert exc.value.code == 0
     assert "springback" in capsys.readouterr().out
+
+
+def test_plane_json_rectifies_a_tilted_photo(render, tmp_path, capsys):
+    import numpy as np
+
+    from datasets.lighting import Lighting
+    from datasets.optics import Pose
+
+    pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
+    photo = render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
+    rot, t_mm = pose.extrinsics("machine")
+    h = np.linalg.inv(photo.camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm)))
+    plane = atomic_write_json(tmp_path / "plane.json", {"H_board_image": h.tolist()})
+    camera = save_camera(tmp_path / "camera.json", photo.camera)
+    kit = atomic_write_json(tmp_path / "kit.json", default_kit().to_dict())
+    jpg = photo.save(tmp_path / "tilted")[0]
+    argv = ["measure", str(jpg), "--kit", str(kit), "--camera", str(camera), "--json"]
+    assert main([*argv, "--plane", str(plane)]) == 0
+    rec = _records(capsys.readouterr().out)[0]
+    assert rec["bend_angle_deg"] == pytest.approx(photo.truth["bend_angle_deg"], abs=0.06)
+    assert main(argv) == 0  # without the plane the tilt foreshortens the angle
+    rec = _records(capsys.readouterr().out)[0]
+    assert abs(rec["bend_angle_deg"] - photo.truth["bend_angle_deg"]) > 0.3
