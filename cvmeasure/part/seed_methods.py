@@ -303,9 +303,10 @@ def ellipse_method(outline_mm: np.ndarray) -> SeedArc:
     """The seed's elliptical-arc method on a wire outline (N, 2), mm.
 
     Convex hull of the outline, ``cv2.fitEllipse`` through the hull points,
-    ``cv2.minEnclosingCircle`` of the hull; the arc's end points are the two
-    farthest-apart intersections of circle and ellipse (when the ellipse only
-    touches the circle, the points of closest approach). Width d is their
+    ``cv2.minEnclosingCircle`` of the hull; the arc's end points are the
+    circle-ellipse intersections nearest the two farthest-apart hull points on
+    the circle (when the ellipse only touches the circle, the points of closest
+    approach). Width d is their
     distance, height h the largest distance of the ellipse arc between them
     (on the wire's side) from their chord; r = d^2 / 8h + h / 2.
 
@@ -341,11 +342,21 @@ def ellipse_method(outline_mm: np.ndarray) -> SeedArc:
     if len(ts) < 2:
         raise ValueError("the enclosing circle and the ellipse have no usable contact points")
     cand = np.column_stack((cx + cr * np.cos(ts), cy + cr * np.sin(ts)))
-    i, j = max(
-        ((a, b) for a in range(len(cand)) for b in range(a + 1, len(cand))),
-        key=lambda ij: float(np.hypot(*(cand[ij[0]] - cand[ij[1]]))),
-    )
-    e1, e2 = cand[i], cand[j]
+    # the arc's ends are the hull points on the enclosing circle (the seed's
+    # reason for the circle); take the intersection nearest each of the two
+    # farthest-apart such points (as the seed's fsolve, started near them, would)
+    on_circle = hull[np.abs(np.hypot(hull[:, 0] - cx, hull[:, 1] - cy) - cr) <= 0.01 * cr]
+    touch = on_circle if len(on_circle) >= 2 else hull
+    far = np.hypot(*(touch[:, None, :] - touch[None, :, :]).transpose(2, 0, 1))
+    a_i, b_i = np.unravel_index(int(np.argmax(far)), far.shape)
+    e1 = cand[int(np.argmin(np.hypot(*(cand - touch[a_i]).T)))]
+    e2 = cand[int(np.argmin(np.hypot(*(cand - touch[b_i]).T)))]
+    if np.allclose(e1, e2):
+        i, j = max(
+            ((a, b) for a in range(len(cand)) for b in range(a + 1, len(cand))),
+            key=lambda ij: float(np.hypot(*(cand[ij[0]] - cand[ij[1]]))),
+        )
+        e1, e2 = cand[i], cand[j]
     d = float(np.hypot(*(e2 - e1)))
     # height: the ellipse arc between e1 and e2 on the side where the hull lies
     normal = np.array([-(e2 - e1)[1], (e2 - e1)[0]]) / max(d, 1e-300)
