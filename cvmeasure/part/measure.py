@@ -16,8 +16,9 @@ undistorted pixels -> board mm); the wire is segmented beside the board
 Sign and frames: positions in the board frame (mm). Signed bends are
 counter-clockwise positive in the board frame's (x, y) -- the sense the
 renderer's truth uses -- and the centreline is ordered so that the part's net
-turn is counter-clockwise (positive bends on an arc); against a design (y up as drawn) the part is compared
-as the camera sees it, so ``mirrored`` means the part lies upside down.
+turn is counter-clockwise (positive bends on an arc); against a design (y up
+as drawn) the part is compared as the camera sees it, so ``mirrored`` means
+the part lies upside down.
 """
 
 from __future__ import annotations
@@ -331,12 +332,30 @@ def image_to_raised_plane_mm(plane: Any, points_px: np.ndarray, height_mm: float
     return board[:, :2]
 
 
-def _outline_mm(wire: WireMask, plane: Any) -> np.ndarray:
+def _outline_mm(image: np.ndarray, wire: WireMask, plane: Any) -> np.ndarray:
+    """The wire's outer contour at full resolution, board mm (the seed's input).
+
+    Pixels near the mask that differ from the background by more than half the
+    wire's contrast (a seed-style binary threshold, so a dark shadow joins in
+    as it did in the paper); the largest such region's outer contour.
+    """
     import cv2
 
-    contours, _ = cv2.findContours(
-        wire.mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
-    )
+    gray = gray_float(image)
+    near = max(3, int(round(0.5 * wire.width_px)) | 1)
+    band = cv2.dilate(
+        wire.mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (near, near))
+    ).astype(bool)
+    level = max(wire.threshold, 0.5 * wire.contrast)
+    binary = (band & (np.abs(gray - wire.background_level) > level)).astype(np.uint8)
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if count > 1:
+        biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        binary = (labels == biggest).astype(np.uint8)
+    else:
+        binary = wire.mask.astype(np.uint8)
+    binary = cv2.morphologyEx(binary, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     pts = np.vstack([c.reshape(-1, 2) for c in contours]).astype(np.float64)
     return plane.image_to_plane_mm(pts)
 
@@ -438,7 +457,7 @@ def measure_part(
         raise InputError(source, f"cannot fit the part ({exc})") from None
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
-    outline = _outline_mm(wire, plane)
+    outline = _outline_mm(image, wire, plane)
     for name, fn in (("ellipse", ellipse_method), ("sagitta", sagitta_method)):
         try:
             arc = fn(outline)
