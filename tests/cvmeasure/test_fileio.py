@@ -20,6 +20,17 @@ def test_atomic_json_roundtrip_with_numpy(tmp_path):
     assert [p.name for p in path.parent.iterdir()] == ["x.json"]  # no temp file left
 
 
+def test_atomic_write_gives_the_umask_mode_not_a_private_file(tmp_path):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        path = atomic_write_json(tmp_path / "r.json", {"a": 1})
+    finally:
+        os.umask(old)
+    assert path.stat().st_mode & 0o777 == 0o644
+
+
 def test_corrupt_json_names_file(tmp_path):
     p = tmp_path / "cam.json"
     p.write_text("{not json")
