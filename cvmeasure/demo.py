@@ -77,6 +77,7 @@ DEMO_STAGES: tuple[tuple[str, str], ...] = (
     ("finished part", "cvmeasure.part.demo"),
     ("diagnosis", "cvmeasure.diagnose.demo"),
     ("bender streaming", "cvmeasure.driver.streaming_demo"),
+    ("calibration session", "cvmeasure.driver.session_demo"),
 )
 
 

@@ -243,3 +243,14 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
     truth = simulate([s.commanded_pin_deg for s in result.calibration.samples]).springback_deg
     measured = [s.springback_deg for s in result.calibration.samples]
     assert np.max(np.abs(np.array(measured) - truth)) < 0.05
+
+
+def test_demo_step_meets_its_tolerances(tmp_path):
+    from cvmeasure.demo import DEMO_STAGES
+    from cvmeasure.driver.session_demo import demo_step
+
+    assert ("calibration session", "cvmeasure.driver.session_demo") in DEMO_STAGES
+    section = demo_step(tmp_path, seed=3)
+    assert len(section.rows) == 3 and all(row.ok for row in section.rows)
+    assert all(Path(f).exists() for f in section.files)
+    assert "8." in section.notes[1]  # the uncalibrated half circle shows the backlash
