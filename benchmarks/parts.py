@@ -249,8 +249,9 @@ def main(argv: list[str] | None = None) -> dict:
         notes=[
             f"photos rendered at scale {scale} ({'2304x1536' if args.quick else '4608x3072'} px), "
             f"part parameters from seed {args.seed}; errors are measured - true",
-            "the seed's methods run on the wire's outline (both flanks), as in the paper, so "
-            "their radii include part of the wire's thickness",
+            "the seed's methods run on the wire's outline (both flanks, thresholded at half "
+            "the wire's contrast at full resolution; on a light sheet the shadow joins in), as "
+            "in the paper, so their radii include part of the wire's thickness",
             "bend per chord = arc angle / N (the spec's segment_bend_deg); vertex bends are "
             "measured directly at each fitted vertex",
             f"arcs get 6-20 chords of at least {MIN_CHORD_MM:.0f} mm (4 wire diameters); "
