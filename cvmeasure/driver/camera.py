@@ -398,10 +398,7 @@ class SimulatedCamera:
 
     def capture(self, name: str) -> CapturedPhoto:
         """Render the current state to ``<out_dir>/<name>.jpg`` (+ ``.truth.json``)."""
-        try:
-            from datasets import render_bender_photo
-        except ImportError:  # the package re-export may not exist yet
-            from datasets.bender import render_bender_photo
+        from datasets import render_bender_photo
 
         s = self.state()
         photo = render_bender_photo(
