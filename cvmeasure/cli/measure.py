@@ -64,9 +64,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--edge",
         choices=("luma", "green", "colour"),
-        default="luma",
-        help="image the disc edges are found in (default luma; green for lenses with strong "
-        "lateral chromatic aberration)",
+        help="image the disc edges are found in (default: luma for JPEG/8-bit photos, green "
+        "for RAW/16-bit ones; green also for any lens with strong lateral colour)",
     )
     p.add_argument("--json", action="store_true", help="print JSON Lines (default: a table)")
     p.set_defaults(func=run)
@@ -146,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     for path in photos:
         try:
             photo = read_photo(path)
-            bgr = photo.bgr8() if photo.linear else photo.bgr
+            bgr = photo.bgr
             photo_plane = plane
             if board is not None:
                 from cvmeasure.calibration.plane import estimate_plane
@@ -160,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
                 method=args.method,
                 space=args.space,
                 edge=args.edge,
+                linear=photo.linear,
                 source=str(path),
                 photo=str(path),
             )
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
             target = (
                 args.overlay if args.overlay.suffix else args.overlay / f"{path.stem}.overlay.png"
             )
-            ok, buf = cv2.imencode(".png", draw_overlay(bgr, res, kit))
+            ok, buf = cv2.imencode(".png", draw_overlay(photo.bgr8(), res, kit))
             if not ok:
                 raise InputError(target, "cannot encode the overlay PNG")
             atomic_write_bytes(target, buf.tobytes())

@@ -446,9 +446,10 @@ def measure_machine_photo(
     space : colour space of the segmentation, "lab" or "rgb".
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
     linear : the image holds linear (gamma 1) data, e.g. from RAW.
-    edge : where disc edges are found: "luma" (default), "green" (for lenses with strong
-        lateral chromatic aberration, e.g. RAW files without in-camera correction) or
-        "colour" (see :data:`cvmeasure.markers.refine.EDGE_MODE`).
+    edge : where disc edges are found: "luma" (JPEG's full-resolution component), "green"
+        (immune to lateral chromatic aberration) or "colour" (see
+        :data:`cvmeasure.markers.refine.EDGE_MODE`). Default: "luma" for 8-bit photos
+        (JPEGs, whose cameras correct lateral colour), "green" for RAW/linear or 16-bit data.
     source : what error messages name (the file).
     photo : what the result's ``photo`` field says.
 
@@ -478,6 +479,10 @@ def measure_machine_photo(
         transform = _transform(camera, plane, img.shape, source)
         model = colour_model or kit_colour_model(kit, space)
         work = bgr8 if linear or img.dtype == np.uint8 else img
+        if edge is None and (linear or img.dtype != np.uint8):
+            # RAW or 16-bit data: no chroma subsampling to avoid, and no in-camera
+            # lateral-colour correction either, so the green channel is the better edge
+            edge = "green"
         markers, centres, covs, warnings = _measure_ours(
             work, bgr8, kit, model, transform, source, edge
         )
@@ -506,9 +511,5 @@ def measure_photo_file(
 
     photo = read_photo(path)
     options.setdefault("photo", str(path))
-    return measure_machine_photo(
-        photo.bgr8() if photo.linear else photo.bgr,
-        kit,
-        source=str(path),
-        **options,
-    )
+    options.setdefault("linear", photo.linear)
+    return measure_machine_photo(photo.bgr, kit, source=str(path), **options)

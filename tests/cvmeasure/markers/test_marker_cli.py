@@ -241,3 +241,26 @@ def test_plane_json_rectifies_a_tilted_photo(render, tmp_path, capsys):
     assert main(argv) == 0  # without the plane the tilt foreshortens the angle
     rec = _records(capsys.readouterr().out)[0]
     assert abs(rec["bend_angle_deg"] - photo.truth["bend_angle_deg"]) > 0.3
+
+
+def test_linear_sixteen_bit_tiff_is_measured_with_green_edges(files, tmp_path, capsys):
+    from datasets.bender import render_bender_photo
+    from datasets.lighting import Lighting
+
+    photo = render_bender_photo(
+        pin_angle_deg=-35.0,
+        bend_angle_deg=-30.0,
+        lighting=Lighting(cct_k=3500.0, wb_error_k=300.0),
+        seed=12,
+        scale=0.3,
+        linear=True,
+    )
+    tiff = photo.save_linear_tiff(tmp_path / "raw_like.linear.tiff")
+    overlay = tmp_path / "raw_like.png"
+    argv = ["measure", str(tiff), "--kit", str(files["kit"]), "--json", "--overlay", str(overlay)]
+    assert main(argv) == 0
+    rec = _records(capsys.readouterr().out)[0]
+    assert rec["bend_angle_deg"] == pytest.approx(photo.truth["bend_angle_deg"], abs=TOL_DEG)
+    assert rec["pin_angle_deg"] == pytest.approx(photo.truth["pin_angle_deg"], abs=TOL_DEG)
+    img = cv2.imread(str(overlay))
+    assert img is not None and img.mean() > 60  # display-referred, not a dark linear image

@@ -182,9 +182,13 @@ def test_trial_springback_from_a_loaded_and_unloaded_pair(render):
 def test_sixteen_bit_and_linear_input(render):
     photo = render()
     kit = default_kit()
-    a = measure_machine_photo(photo.bgr, kit)
-    b = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit)
+    a = measure_machine_photo(photo.bgr, kit, edge="green")
+    b = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit)  # 16-bit: green edges
     assert b.bend_angle_deg == pytest.approx(a.bend_angle_deg, abs=1e-3)
+    c = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit, edge="luma")
+    assert c.bend_angle_deg == pytest.approx(
+        measure_machine_photo(photo.bgr, kit).bend_angle_deg, abs=1e-3
+    )
     with pytest.raises(ValueError, match="unknown method"):
         measure_machine_photo(photo.bgr, kit, method="magic")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="unknown edge mode"):
