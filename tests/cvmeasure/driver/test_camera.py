@@ -111,3 +111,19 @@ def test_trigger_and_bad_urls(tmp_path):
         WatchedFolderCamera(tmp_path / "missing", tmp_path)
     with pytest.raises(ValueError, match="unknown camera URL"):
         open_camera("ftp://x", tmp_path)
+
+
+def test_simulated_camera_renders_the_machine_state(tmp_path):
+    from cvmeasure.driver.camera import MachineState, SimulatedCamera
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.kit import default_kit
+    from cvmeasure.markers.measure import measure_machine_photo
+
+    state = MachineState(pin_angle_deg=-25.0, bend_angle_deg=-37.5)
+    cam = SimulatedCamera(tmp_path, lambda: state, scale=0.2, seed=5)
+    shot = cam.capture("loaded_001")
+    assert shot.path == tmp_path / "loaded_001.jpg" and shot.camera is not None
+    assert shot.truth["bend_angle_deg"] == pytest.approx(-37.5, abs=1e-9)
+    measured = measure_machine_photo(read_photo(shot.path).bgr, default_kit(), camera=shot.camera)
+    assert measured.bend_angle_deg == pytest.approx(-37.5, abs=0.05)
+    assert measured.pin_angle_deg == pytest.approx(-25.0, abs=0.2)
