@@ -174,11 +174,12 @@ def _candidates(
         stats[:, 0] += bx
         stats[:, 1] += by
         centroids = centroids + (bx, by)
-    for i in range(1, n):
+    if n > 1:
+        largest = int(stats[1:, 4].max())
+    for i in np.flatnonzero(stats[:, 4] >= MIN_AREA_PX):
+        if i == 0:
+            continue  # the background
         x, y, w, h, area = (int(v) for v in stats[i])
-        largest = max(largest, area)
-        if area < MIN_AREA_PX:
-            continue
         fill = area / float(w * h)
         aspect = w / float(h)
         if not (0.3 <= fill <= 0.97 and 0.4 <= aspect <= 2.5):
