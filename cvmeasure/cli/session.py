@@ -51,6 +51,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
     p.add_argument("--camera-model", type=Path, help="camera JSON (lens model) for measuring")
+    p.add_argument(
+        "--plane",
+        type=Path,
+        help="plane JSON (`cvmeasure plane -o`): measure angles on the rectified marker plane "
+        "(needs --camera-model)",
+    )
     p.add_argument("--params", type=Path, help="sim params JSON (nominal machine; --simulate)")
     p.add_argument(
         "--effect",
@@ -112,9 +118,17 @@ def run(args: argparse.Namespace) -> int:
         kit = load_kit(args.kit)
     options = {}
     if args.camera_model:
-        from cvmeasure.camera import CameraModel
+        from cvmeasure.camera import load_camera
 
-        options["camera"] = CameraModel.load(args.camera_model)
+        options["camera"] = load_camera(args.camera_model)
+    if args.plane:
+        from cvmeasure.cli.measure import _load_plane
+
+        if not args.camera_model:
+            raise InputError(
+                "--plane", "the plane's homography maps undistorted pixels: give --camera-model"
+            )
+        options["plane"] = _load_plane(args.plane)
     params, effects = None, ()
     if args.params or args.effect:
         from cvmeasure.sim import SimParams, params_from_json, parse_effect

@@ -254,3 +254,26 @@ def test_demo_step_meets_its_tolerances(tmp_path):
     assert len(section.rows) == 3 and all(row.ok for row in section.rows)
     assert all(Path(f).exists() for f in section.files)
     assert "8." in section.notes[1]  # the uncalibrated half circle shows the backlash
+
+
+def test_session_reads_kit_and_camera_files(tmp_path, capsys):
+    from cvmeasure.camera import save_camera
+    from cvmeasure.driver.camera import MachineState, SimulatedCamera
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.kit import default_kit
+
+    probe = SimulatedCamera(tmp_path / "probe", lambda: MachineState(0.0, 0.0), scale=0.2)
+    camera_json = save_camera(tmp_path / "camera.json", probe.capture("x").camera)
+    kit_json = atomic_write_json(tmp_path / "kit.json", default_kit().to_dict())
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", "10,30", "--scale", "0.2"]
+    args += ["--quiet", "--camera-model", str(camera_json), "--kit", str(kit_json), "--json"]
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["bends"] == 4
+    cal = load_calibration(out)
+    truth = sim_springback([s.commanded_pin_deg for s in cal.samples])
+    assert np.max(np.abs(np.array([s.springback_deg for s in cal.samples]) - truth)) < 0.05
+    broken = tmp_path / "broken_kit.json"
+    broken.write_text("{")
+    assert main([*args[:-5], "--kit", str(broken), "--dir", str(tmp_path / "s2")]) == 2
+    assert "broken_kit.json" in capsys.readouterr().err
