@@ -151,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
         if not (args.port and args.camera):
             raise InputError("--port", "a real session needs --port URL and --camera URL")
         options_cam = {}
+        if args.camera_setting and not args.camera.startswith("gphoto2:"):
+            raise InputError("--camera-setting", "settings apply to gphoto2:// cameras only")
         if args.camera_setting:
             pairs = [t.partition("=") for t in args.camera_setting]
             if any(not sep or not name for name, sep, _ in pairs):
