@@ -38,6 +38,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="height of the wire's axis above the board's plane, e.g. the wire's radius when "
         "part and board lie on the same surface (default 0)",
     )
+    p.add_argument(
+        "--ends",
+        choices=("round", "flat"),
+        default="round",
+        help="shape of the wire's ends: round (hemispherical, default) or flat (square-cut)",
+    )
     p.add_argument("--overlay", type=Path, help="write the photo with the found centreline (PNG)")
     p.add_argument("--plot", type=Path, help="write the deviation plot (PNG; needs --design)")
     p.add_argument("-o", "--out", type=Path, help="also write the result JSON here")
@@ -74,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         design_source=str(args.design) if args.design else "design",
         method=args.method,
         axis_height_mm=args.axis_height_mm,
+        end_shape=args.ends,
         source=str(args.photo),
     )
     result = {"provenance": provenance(), **m.to_dict()}

@@ -27,13 +27,15 @@ centres at integers). :mod:`cvmeasure.part.measure` maps them to board mm.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Centreline", "measure_centreline", "symmetric_centres"]
+__all__ = ["Centreline", "EndShape", "measure_centreline", "symmetric_centres"]
 
 _STEP_PX = 0.05
+
+EndShape = Literal["round", "flat"]
 
 
 @dataclass(frozen=True)
@@ -48,8 +50,8 @@ class Centreline:
     rho_px : the half-window the symmetric centres used, pixels.
     ends_px : ndarray (2, 2); the two end points (also ``points_px[0]``, ``[-1]``).
     rejected : profiles dropped in the last pass (no symmetric centre near the guess).
-    coverage : the smallest share of profiles, over the passes, that had a
-        symmetric centre: near 1 along a wire, low along other thin structures.
+    coverage : the share of the last pass's profiles that had a symmetric
+        centre: near 1 along a wire, lower along other thin structures.
     asymmetry : median over the profiles of the remaining asymmetry at the centre
         relative to the profile's own variance in the window (0 perfectly
         symmetric, about 1 for no symmetry at all).
@@ -151,12 +153,24 @@ def symmetric_centres(
         a = p[:, mid + c + u]
         b = p[:, mid + c - u]
         cost[:, j] = np.mean((a - b) ** 2, axis=1)
-    k = (
-        np.argmin(cost, axis=1)
-        if max_slope_px is None
-        else _least_cost_path(cost, max(1, int(np.ceil(max_slope_px / step_px))))
-    )
     rows = np.arange(len(p))
+    if max_slope_px is None:
+        k = np.argmin(cost, axis=1)
+    else:
+        # choose the basin by asymmetry relative to the window's variance, so a
+        # flat, soft shadow band (symmetric but featureless) loses to the wire
+        cs = np.cumsum(np.pad(p, ((0, 0), (1, 0))), axis=1)
+        cs2 = np.cumsum(np.pad(p * p, ((0, 0), (1, 0))), axis=1)
+        lo, hi = mid + shifts - ku, mid + shifts + ku + 1
+        n = 2 * ku + 1
+        mean = (cs[:, hi] - cs[:, lo]) / n
+        var = np.maximum((cs2[:, hi] - cs2[:, lo]) / n - mean**2, 0.0)
+        ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
+        k = _least_cost_path(ratio, max(1, int(np.ceil(max_slope_px / step_px))))
+        # then the raw asymmetry's own minimum within a few samples of it
+        near = 4
+        idx = np.clip(k[:, None] + np.arange(-near, near + 1)[None, :], 0, len(shifts) - 1)
+        k = idx[rows, np.argmin(cost[rows[:, None], idx], axis=1)]
     inner = (k > 0) & (k < len(shifts) - 1)
     kk = np.clip(k, 1, len(shifts) - 2)
     c0, c1, c2 = cost[rows, kk - 1], cost[rows, kk], cost[rows, kk + 1]
@@ -212,7 +226,7 @@ def _despike(shift: np.ndarray, window: int) -> np.ndarray:
 
     A centre moves smoothly along the wire; one that jumps (a false symmetric
     point in a flank, a crossing shadow) is dropped: more than 3 robust sigmas
-    (and 0.25 px) from the running median over ``window`` profiles.
+    (and 0.5 px) from the running median over ``window`` profiles.
     """
     from scipy.ndimage import median_filter
 
@@ -224,7 +238,7 @@ def _despike(shift: np.ndarray, window: int) -> np.ndarray:
     med = median_filter(vals, size=max(3, window | 1), mode="nearest")
     res = vals - med
     sigma = 1.4826 * float(np.median(np.abs(res)))
-    bad = np.abs(res) > max(3.0 * sigma, 0.25)
+    bad = np.abs(res) > max(3.0 * sigma, 0.5)
     idx = np.nonzero(ok)[0]
     out[idx[bad]] = np.nan
     return out
@@ -279,6 +293,7 @@ def measure_centreline(
     *,
     width_guess_px: float,
     step_px: float = 1.0,
+    end_shape: EndShape = "round",
 ) -> Centreline:
     """Sub-pixel centreline of the wire along a rough path.
 
@@ -289,12 +304,17 @@ def measure_centreline(
         skeleton), end to end, pixels.
     width_guess_px : the wire's rough width (from the mask), pixels.
     step_px : spacing of the centres along the wire, pixels.
+    end_shape : ``"round"`` (hemispherical caps, matched to the cross profile)
+        or ``"flat"`` (square-cut: the end face is where the brightness along
+        the axis falls half-way from the wire's crest to the background).
 
     Raises
     ------
     ValueError
         When too few profiles give a centre (no wire along the path).
     """
+    if end_shape not in ("round", "flat"):
+        raise ValueError(f"end_shape must be 'round' or 'flat', got {end_shape!r}")
     g = np.asarray(gray, dtype=np.float32)
     hw0 = max(1.0, 0.5 * width_guess_px)
     path = _resample(np.asarray(path_px, dtype=np.float64), step_px)
@@ -318,14 +338,12 @@ def measure_centreline(
     rho = max(0.85 * rough, 0.75)
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
     rejected = 0
-    coverage = 1.0
     window = int(round(6.0 * hw0 / step_px))
     for final in (False, True, True):
         shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         rejected = int((~ok).sum())
-        coverage = min(coverage, float(ok.mean()))
         if ok.sum() < 5:
             raise ValueError("no symmetric wire profile along the path")
         centres = _resample((centres + shift[:, None] * normals)[ok], step_px)
@@ -343,15 +361,15 @@ def measure_centreline(
     shift = _despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())
-    coverage = min(coverage, float(ok.mean()))
+    coverage = float(ok.mean())
     symmetry = _asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
     centres = (centres + shift[:, None] * normals)[ok]
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
     ends = np.vstack(
         (
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=True),
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=False),
+            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=True, shape=end_shape),
+            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=False, shape=end_shape),
         )
     )
     # trim centres that lie beyond the end points (skeleton overshoot)
@@ -389,8 +407,13 @@ def _end_point(
     half_width: float,
     *,
     head: bool,
+    shape: EndShape = "round",
 ) -> np.ndarray:
-    """The centre of the hemispherical cap at one end of the wire, pixels.
+    """The end point of the wire's axis at one end, pixels.
+
+    Round ends: the centre of the hemispherical cap. Flat ends: the end face,
+    where the brightness along the axis crosses half-way from the crest (the
+    median on the axis inside the wire) to the background beyond.
 
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
@@ -420,6 +443,8 @@ def _end_point(
     right = block[:, mid + k0 : mid + k1 + 1]
     left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
     template = np.median(0.5 * (right + left), axis=0)
+    if shape == "flat":
+        return _flat_end(gray, start, d, block, half_width)
     search = np.arange(
         -round((1.0 * half_width) / _STEP_PX), round((8.0 * half_width + 4.0) / _STEP_PX) + 1
     )
@@ -436,3 +461,27 @@ def _end_point(
     else:
         best = float(search[k])
     return start + best * d
+
+
+def _flat_end(
+    gray: np.ndarray, start: np.ndarray, d: np.ndarray, block: np.ndarray, half_width: float
+) -> np.ndarray:
+    """The end face of a square-cut wire along the axis ``start + t d``, pixels."""
+    mid = block.shape[1] // 2
+    crest = float(np.median(block[:, mid]))
+    outer = max(2, block.shape[1] // 10)
+    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    level = 0.5 * (crest + background)
+    t = np.arange(-round(half_width / _STEP_PX), round((8.0 * half_width + 4.0) / _STEP_PX) + 1)
+    t = t * _STEP_PX
+    axial = _sample(gray, start[None, :] + t[:, None] * d[None, :])
+    sign = 1.0 if crest > background else -1.0
+    inside = (axial - level) * sign > 0
+    k0 = int(np.argmax(inside))  # first sample inside the wire
+    beyond = np.nonzero(~inside[k0:])[0]
+    if not inside.any() or len(beyond) == 0:
+        return start
+    k = k0 + int(beyond[0])  # first sample past the end face
+    a, b = axial[k - 1], axial[k]
+    frac = (level - a) / (b - a) if b != a else 0.5
+    return start + (t[k - 1] + frac * (t[k] - t[k - 1])) * d

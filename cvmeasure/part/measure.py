@@ -32,7 +32,7 @@ from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
-from cvmeasure.part.centreline import Centreline, measure_centreline
+from cvmeasure.part.centreline import Centreline, EndShape, measure_centreline
 from cvmeasure.part.compare import (
     BendComparison,
     Deviation,
@@ -263,6 +263,7 @@ def measure_centreline_mm(
     camera: CameraModel,
     *,
     axis_height_mm: float = 0.0,
+    end_shape: EndShape = "round",
     source: str = "photo",
 ) -> tuple[Any, WireMask, Centreline, np.ndarray]:
     """Board plane, wire mask, pixel centreline and centreline in board mm of one photo.
@@ -289,7 +290,9 @@ def measure_centreline_mm(
     if wire is None:
         raise InputError(source, "no wire found beside the board")
     try:
-        centre = measure_centreline(gray_float(image), wire.path_px, width_guess_px=wire.width_px)
+        centre = measure_centreline(
+            gray_float(image), wire.path_px, width_guess_px=wire.width_px, end_shape=end_shape
+        )
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
     if centre.coverage < MIN_COVERAGE or centre.asymmetry > MAX_ASYMMETRY:
@@ -414,6 +417,7 @@ def measure_part(
     design_source: str = "design",
     method: Method = "ours",
     axis_height_mm: float = 0.0,
+    end_shape: EndShape = "round",
     source: str = "photo",
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
@@ -431,6 +435,8 @@ def measure_part(
         photos' convention); for a wire lying on the same surface as the board,
         pass its radius (e.g. 1.59 for 1/8 inch wire) to remove the ~0.1-0.2 %
         scale error of the raised axis.
+    end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
+        ``"flat"`` (square-cut); decides where the centreline's end points are.
     source : the photo's name, used in errors.
 
     Raises
@@ -445,7 +451,7 @@ def measure_part(
     if divisions is not None and divisions < 1:
         raise ValueError(f"divisions must be >= 1, got {divisions}")
     plane, wire, centre, centreline_mm = measure_centreline_mm(
-        image, board, camera, axis_height_mm=axis_height_mm, source=source
+        image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape, source=source
     )
     if _net_turn_deg(centreline_mm) < 0:  # run so that the part turns counter-clockwise
         centreline_mm = centreline_mm[::-1]

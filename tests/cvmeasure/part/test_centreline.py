@@ -1,0 +1,106 @@
+"""Sub-pixel centreline on synthetic images with an exact wire axis (pixels)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.design import arc_points_mm
+from cvmeasure.part.centreline import measure_centreline, symmetric_centres
+from cvmeasure.part.compare import point_to_polyline
+
+SIZE = (260, 320)  # rows, cols
+RADIUS_PX = 4.0  # wire half-width
+
+
+def _distance_to_axis(axis: np.ndarray, *, flat: bool) -> np.ndarray:
+    """Per pixel: distance to the axis polyline; with flat ends, inf beyond the end faces."""
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]].astype(np.float64)
+    pts = np.column_stack((xs.ravel(), ys.ravel()))
+    _, dist, along = point_to_polyline(pts, axis)
+    dist = np.abs(dist)
+    if flat:
+        total = float(np.sum(np.hypot(*np.diff(axis, axis=0).T)))
+        # beyond either end face (projection outside the axis): not wire
+        d0 = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+        d1 = (axis[-1] - axis[-2]) / np.hypot(*(axis[-1] - axis[-2]))
+        before = (pts - axis[0]) @ d0 < 0
+        after = (pts - axis[-1]) @ d1 > 0
+        dist = np.where(before | after | (along > total + 1e-9), np.inf, dist)
+    return dist.reshape(SIZE)
+
+
+def _wire_image(axis, *, sheet="light", shadow=True, flat=False, noise=1.0, seed=0):
+    """A round wire: shaded across (dark flanks, bright crest), 1 px anti-aliased edge,
+    a shadow band beside one flank, sensor noise."""
+    rng = np.random.default_rng(seed)
+    d = _distance_to_axis(axis, flat=flat)
+    t = np.clip(d / RADIUS_PX, 0.0, 1.0)
+    wire = 60.0 + 120.0 * np.sqrt(1.0 - t**2) + 80.0 * np.exp(-((t / 0.25) ** 2))
+    alpha = np.clip(RADIUS_PX + 0.5 - d, 0.0, 1.0)
+    bg = np.full(SIZE, 210.0 if sheet == "light" else 35.0)
+    if shadow:  # the axis moved by 1.5 radii to +x, +y, a soft darker band
+        ds = _distance_to_axis(axis + 1.5 * RADIUS_PX, flat=flat)
+        bg *= 1.0 - 0.35 * np.clip(RADIUS_PX + 1.0 - ds, 0.0, 1.0)
+    img = alpha * wire + (1 - alpha) * bg
+    return img + rng.normal(0.0, noise, SIZE)
+
+
+def _rough_path(axis: np.ndarray, offset_px: float) -> np.ndarray:
+    """A skeleton-like guide: the axis shifted sideways and shortened at both ends."""
+    dense = np.vstack(
+        [np.linspace(a, b, 50, endpoint=False) for a, b in zip(axis[:-1], axis[1:], strict=True)]
+    )
+    return dense[3:-3] + offset_px
+
+
+@pytest.mark.parametrize(("sheet", "shadow"), [("light", True), ("dark", True), ("light", False)])
+def test_centres_lie_on_the_axis_despite_a_shadow(sheet, shadow):
+    axis = arc_points_mm((160.0, 330.0), 200.0, 240.0, 60.0, chords=6)  # y from 130 to 157
+    img = _wire_image(axis, sheet=sheet, shadow=shadow)
+    cl = measure_centreline(img, _rough_path(axis, 1.5), width_guess_px=2.6 * RADIUS_PX)
+    _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
+    # away from the vertices (the capsule corners are not symmetric)
+    verts = axis[1:-1]
+    far = np.min(np.hypot(*(cl.points_px[1:-1, None, :] - verts[None]).transpose(2, 0, 1)), axis=1)
+    sel = far > 3 * RADIUS_PX
+    assert np.sqrt(np.mean(dist[sel] ** 2)) < 0.03
+    assert np.abs(np.mean(dist[sel])) < 0.02  # no pull towards the shadow
+    assert cl.coverage > 0.9 and cl.asymmetry < 0.05
+
+
+@pytest.mark.parametrize(("flat", "atol_px"), [(False, 0.25), (True, 0.7)])
+def test_end_points_for_round_and_flat_ends(flat, atol_px):
+    # the flat end face is drawn without anti-aliasing: +-0.5 px of its own
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    img = _wire_image(axis, flat=flat, shadow=False)
+    cl = measure_centreline(
+        img,
+        _rough_path(axis, 0.8),
+        width_guess_px=2.2 * RADIUS_PX,
+        end_shape="flat" if flat else "round",
+    )
+    ends = cl.ends_px
+    if np.hypot(*(ends[0] - axis[0])) > np.hypot(*(ends[0] - axis[-1])):
+        ends = ends[::-1]
+    np.testing.assert_allclose(ends, axis[[0, -1]], atol=atol_px)
+    # the ends lie on the axis: across it they are much better than along it
+    for end, nxt, true in ((ends[0], axis[1], axis[0]), (ends[1], axis[-2], axis[-1])):
+        d = (true - nxt) / np.hypot(*(true - nxt))
+        assert abs((end - true) @ np.array([-d[1], d[0]])) < 0.1
+
+
+def test_symmetric_centres_of_shifted_profiles():
+    offsets = np.arange(-200, 201) * 0.05
+    true_shift = np.array([-0.8, 0.0, 0.37, 1.2])
+    prof = np.exp(-(((offsets[None, :] - true_shift[:, None]) / 2.0) ** 2))
+    prof[:, offsets > 4.0] += 0.5  # asymmetric surroundings beyond the window
+    shift, cost = symmetric_centres(prof, rho_px=2.5, search_px=1.5)
+    np.testing.assert_allclose(shift, true_shift, atol=0.01)
+    assert np.all(cost < 1e-3)  # off-grid shifts leave a little
+    with pytest.raises(ValueError, match="too short"):
+        symmetric_centres(prof, rho_px=9.0, search_px=2.0)
+    with pytest.raises(ValueError, match="end_shape"):
+        measure_centreline(
+            np.zeros((10, 10)), np.zeros((3, 2)), width_guess_px=2, end_shape="pointed"
+        )  # type: ignore[arg-type]
