@@ -7,6 +7,8 @@ import math
 import ezdxf
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cvmeasure.design import (
     arc_points_mm,
@@ -229,3 +231,40 @@ def test_dxf_ellipse_spline_and_old_style_polyline(tmp_path):
     np.testing.assert_allclose(spline.points_mm[[0, -1]], [[0, 0], [30, 5]], atol=1e-9)
     np.testing.assert_allclose(poly.points_mm, [[0, 0], [10, 0], [10, 10]], atol=1e-12)
     np.testing.assert_allclose(bend_angles_deg(poly.points_mm), [90.0], atol=ATOL_DEG)
+
+
+# -- properties ---------------------------------------------------------------
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    radius=st.floats(20.0, 200.0),
+    start=st.floats(-180.0, 180.0),
+    sweep=st.floats(-300.0, 300.0).filter(lambda s: abs(s) > 10.0),
+    chords=st.integers(1, 30),
+)
+def test_arc_chords_turn_by_sweep_over_n(radius, start, sweep, chords):
+    verts = arc_points_mm((1.0, -2.0), radius, start, sweep, chords=chords)
+    np.testing.assert_allclose(bend_angles_deg(verts), sweep / chords, atol=1e-9)
+    assert np.ptp(chord_lengths_mm(verts)) < 1e-9 * radius
+    # reversing the travel reverses the order and the sign of the bends
+    np.testing.assert_allclose(
+        bend_angles_deg(verts[::-1]), -bend_angles_deg(verts)[::-1], atol=1e-9
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    amplitude=st.floats(0.0, 30.0),
+    divisions=st.integers(2, 25),
+)
+def test_divide_into_chords_gives_equal_chords_on_the_curve(amplitude, divisions):
+    x = np.linspace(0.0, 200.0, 2001)
+    curve = np.column_stack((x, amplitude * np.sin(x / 40.0)))
+    verts = divide_into_chords(curve, divisions)
+    assert verts.shape == (divisions + 1, 2)
+    lengths = chord_lengths_mm(verts)
+    assert np.ptp(lengths) < 1e-6 * lengths.mean()
+    # every vertex lies on the (densely sampled) curve
+    on = np.interp(verts[:, 0], x, curve[:, 1])
+    np.testing.assert_allclose(verts[:, 1], on, atol=2e-3)
