@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.design import DesignPath, bend_angles_deg, polyline_length_mm
+from cvmeasure.design import bend_angles_deg
 
 __all__ = [
     "Registration",
@@ -34,7 +34,6 @@ __all__ = [
     "compare_bends",
     "resample_by_length",
     "point_to_polyline",
-    "design_length_ratio",
 ]
 
 
@@ -317,8 +316,3 @@ def compare_bends(
         seed_absolute_error_deg=absolute,
         seed_relative_error_pct=relative,
     )
-
-
-def design_length_ratio(measured_mm: np.ndarray, design: DesignPath) -> float:
-    """Measured centreline length over the design wire's length."""
-    return polyline_length_mm(measured_mm) / design.length_mm
