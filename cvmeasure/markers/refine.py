@@ -45,7 +45,7 @@ __all__ = [
 CORRELATION_FACTOR = 2.5
 #: Standard uncertainty floor of a centre (px, per axis): what the residuals cannot
 #: see (colour fringes, print tolerance, JPEG chroma subsampling).
-CENTRE_FLOOR_PX = 0.005
+CENTRE_FLOOR_PX = 0.003
 #: Which image the edge is found in: "luma" (linear luminance Y, the default: the
 #: component JPEG keeps at full resolution, so chroma subsampling does not blur or
 #: bias it; p95 angle error 0.0022 deg vs 0.006 deg for "colour" on full-size
