@@ -17,7 +17,14 @@ Frames of the angle computation
 
 The reported ``markers`` are always centres in the photo's own pixels.
 Stated uncertainties are sampling errors of the edge fits (with a floor per
-centre); they do not include camera or plane calibration errors.
+centre); they do not include camera or plane calibration errors, print or
+mounting tolerances of the markers, or lateral chromatic aberration.
+
+Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
+resolution) and in the green channel for RAW/16-bit data (``edge=`` to choose):
+a lens's lateral chromatic aberration moves red and blue edges, so for JPEGs
+from a camera that does not correct it, pass ``edge="green"`` (benchmarks:
+p95 0.006 deg with green vs 0.024 deg with luminance at 5e-4 lateral colour).
 """
 
 from __future__ import annotations
