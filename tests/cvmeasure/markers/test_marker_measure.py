@@ -90,6 +90,16 @@ def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render):
     raw = measure_machine_photo(photo.bgr, kit)
     rect = measure_machine_photo(photo.bgr, kit, camera=photo.camera, plane=plane_h)
     assert rect.frame == "plane"
+
+    class Plane:  # what cvmeasure.calibration.plane.PlaneFit offers: photo px -> plane mm
+        def image_to_plane_mm(self, points_px):
+            und = photo.camera.undistort_px(points_px)
+            hom = np.column_stack((und, np.ones(len(und)))) @ plane_h.T
+            return hom[:, :2] / hom[:, 2:3]
+
+    fit = measure_machine_photo(photo.bgr, kit, plane=Plane())
+    assert fit.bend_angle_deg == pytest.approx(rect.bend_angle_deg, abs=1e-6)
+    assert fit.pin_angle_deg == pytest.approx(rect.pin_angle_deg, abs=1e-6)
     err_raw = abs(raw.bend_angle_deg - photo.truth["bend_angle_deg"])
     err_rect = abs(rect.bend_angle_deg - photo.truth["bend_angle_deg"])
     assert err_raw > 0.3  # a 12 degree tilt foreshortens angles
