@@ -363,6 +363,29 @@ def _outline_mm(image: np.ndarray, wire: WireMask, plane: Any) -> np.ndarray:
     return plane.image_to_plane_mm(pts)
 
 
+def _ends_at_a_boundary(
+    ends_px: np.ndarray, board: BoardSpec, plane: Any, shape: tuple[int, int], width_px: float
+) -> str:
+    """'the board' / 'the photo's edge' when an end point lies within 3 wire widths of it."""
+    import cv2
+
+    h, w = shape
+    reach = 3.0 * max(width_px, 1.0)
+    # the wire search leaves out a frame about two widest wires wide
+    edge = reach + 2.0 * MAX_WIRE_MM / plane.mm_per_px
+    for x, y in ends_px:
+        if min(x, y, w - 1 - x, h - 1 - y) < edge:
+            return "the photo's edge"
+    near_board = cv2.dilate(
+        _board_exclusion(board, plane, shape).astype(np.uint8),
+        cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(reach) + 1,) * 2),
+    )
+    for x, y in np.round(ends_px).astype(int):
+        if 0 <= y < h and 0 <= x < w and near_board[y, x]:
+            return "the board"
+    return ""
+
+
 def _net_turn_deg(points_mm: np.ndarray) -> float:
     """Total signed turning of an ordered centreline (board frame sense), degrees."""
     pts = np.asarray(points_mm, dtype=np.float64)
@@ -476,6 +499,12 @@ def measure_part(
         )
     if method not in methods:
         raise InputError(source, f"the {method} method failed on this part")
+    cut = _ends_at_a_boundary(centre.ends_px, board, plane, image.shape[:2], wire.width_px)
+    if cut:
+        warnings.append(
+            f"the wire ends next to {cut}: it may go on there, hidden (the part is measured "
+            "only as far as it is seen)"
+        )
     if ours.arc_angle_deg < 30.0:
         warnings.append(
             f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined"

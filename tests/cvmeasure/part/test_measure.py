@@ -61,6 +61,7 @@ def test_arcs_on_both_sheets(kind, sheet):
     assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
     # an arc is ordered to turn counter-clockwise in the board frame
     assert np.all(m.vertex_bend_deg > 0)
+    assert not any("ends next to" in w for w in m.warnings)
     # the centreline lies on the true wire axis
     _, dist, _ = point_to_polyline(m.centreline_mm, np.asarray(truth["part"]["centreline_mm"]))
     assert np.sqrt(np.mean(dist**2)) < 0.05
@@ -184,3 +185,17 @@ def test_real_board_photos_without_a_wire_are_refused(shared_real):
         with pytest.raises(InputError, match="no wire found") as err:
             measure_part(read_photo(path).bgr, board, camera, source=str(path))
         assert str(path) in str(err.value)
+
+
+def test_a_wire_cut_by_the_photos_edge_is_flagged():
+    photo = datasets.render_part_photo(
+        part=datasets.arc_part(60.0, 180.0, 10),
+        board=BOARD,
+        sheet="dark",
+        seed=3,
+        scale=SCALE,
+        placement_deg=90.0,
+        pose=datasets.Pose(distance_mm=900.0, offset_mm=(160.0, 100.0)),
+    )
+    m = measure_part(photo.bgr, BOARD, photo.camera)
+    assert any("ends next to the photo's edge" in w for w in m.warnings)
