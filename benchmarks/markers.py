@@ -204,8 +204,9 @@ def main(argv: list[str] | None = None) -> dict:
             "measure time / decode time, one core (median)",
             ratio_p50,
             "x",
-            target="<= 1.5",
-            met=ratio_p50 <= 1.5,
+            # the target is for 4608x3072 JPEGs; a half-size photo decodes 4x faster
+            target="<= 1.5 (4608x3072 only)" if args.quick else "<= 1.5",
+            met=None if args.quick else ratio_p50 <= 1.5,
         ),
         Metric(
             "the same ratio in wall-clock time (median; machine shared)",
