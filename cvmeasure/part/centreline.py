@@ -34,6 +34,9 @@ import numpy as np
 __all__ = ["Centreline", "EndShape", "measure_centreline", "symmetric_centres"]
 
 _STEP_PX = 0.05
+#: Smallest half-window of the symmetry test (px): below it a dark flank's own
+#: valley is symmetric enough to pass for a centre.
+_MIN_RHO_PX = 1.5
 
 EndShape = Literal["round", "flat"]
 
@@ -335,7 +338,7 @@ def measure_centreline(
     rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
     # a window of most of the wire: a small one finds false centres in each
     # dark flank (a local valley is symmetric too)
-    rho = max(0.85 * rough, 0.75)
+    rho = max(0.85 * rough, _MIN_RHO_PX)
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
     rejected = 0
     window = int(round(6.0 * hw0 / step_px))
@@ -354,7 +357,7 @@ def measure_centreline(
         if not final:
             hws = _half_width(prof, offsets, rough)
             rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
-            rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), 0.75)
+            rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     half_width = rough
     shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
