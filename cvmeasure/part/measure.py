@@ -76,8 +76,8 @@ MIN_WIRE_MM = 15.0
 #: Least share of a candidate's cross-profiles that must have a symmetric centre.
 MIN_COVERAGE = 0.5
 #: Largest remaining asymmetry (relative to the profile's variance) of a round
-#: wire's cross-profiles: rendered wires give 0.001-0.07 (0.25-1x size, both
-#: sheets), thin lines on a cluttered real desk 0.17-0.64.
+#: wire's cross-profiles: rendered wires give 0.001-0.08 (0.25-1x size, both
+#: sheets), thin lines on a cluttered real desk 0.27-0.84.
 MAX_ASYMMETRY = 0.12
 #: Margin around the board left out of the wire search (mm).
 BOARD_MARGIN_MM = 4.0
