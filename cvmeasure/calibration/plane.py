@@ -18,6 +18,7 @@ Frames
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,6 +36,7 @@ __all__ = [
     "fit_plane",
     "worst_angle_error_deg",
     "rectify_image",
+    "load_plane_homography",
 ]
 
 #: Default worst angle error (deg) an affine (tilt-ignoring) model may cause.
@@ -359,3 +361,21 @@ def rectify_image(
     map_x = src[:, 0].reshape(out_h, out_w)
     map_y = src[:, 1].reshape(out_h, out_w)
     return cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+
+
+def load_plane_homography(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read the homography ``H_board_image`` (undistorted px -> board mm) from a plane JSON.
+
+    The plane JSON is what ``cvmeasure plane --json`` prints (:meth:`PlaneFit.to_dict`).
+    Raises InputError naming the file when it is missing, corrupt or has no usable matrix.
+    """
+    from cvmeasure.fileio import read_json
+
+    data = read_json(path, what="plane JSON")
+    try:
+        h = np.asarray(data["H_board_image"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(path, "plane JSON lacks a 3x3 'H_board_image'") from None
+    if h.shape != (3, 3) or not np.all(np.isfinite(h)) or abs(np.linalg.det(h)) < 1e-15:
+        raise InputError(path, "'H_board_image' must be a finite, invertible 3x3 matrix")
+    return h

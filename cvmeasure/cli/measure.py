@@ -71,22 +71,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _load_plane(path: Path) -> Any:
-    import numpy as np
-
-    from cvmeasure.errors import InputError
-    from cvmeasure.fileio import read_json
-
-    data = read_json(path, what="plane JSON")
-    try:
-        h = np.asarray(data["H_board_image"], dtype=np.float64)
-    except (KeyError, TypeError, ValueError):
-        raise InputError(path, "plane JSON lacks a 3x3 'H_board_image'") from None
-    if h.shape != (3, 3) or not np.all(np.isfinite(h)) or abs(np.linalg.det(h)) < 1e-15:
-        raise InputError(path, "'H_board_image' must be a finite, invertible 3x3 matrix")
-    return h
-
-
 def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]:
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import read_csv_rows
@@ -105,6 +89,7 @@ def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]
 def run(args: argparse.Namespace) -> int:
     import cv2
 
+    from cvmeasure.calibration.plane import load_plane_homography
     from cvmeasure.camera import load_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_text, write_csv_rows
@@ -117,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     camera = load_camera(args.camera) if args.camera else None
     if args.plane is not None and camera is None:
         raise InputError("--plane", "the plane's homography maps undistorted pixels: give --camera")
-    plane = _load_plane(args.plane) if args.plane else None
+    plane = load_plane_homography(args.plane) if args.plane else None
     board = None
     if args.board is not None:
         from cvmeasure.board import load_board

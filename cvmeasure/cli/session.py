@@ -122,13 +122,13 @@ def run(args: argparse.Namespace) -> int:
 
         options["camera"] = load_camera(args.camera_model)
     if args.plane:
-        from cvmeasure.cli.measure import _load_plane
+        from cvmeasure.calibration.plane import load_plane_homography
 
         if not args.camera_model:
             raise InputError(
                 "--plane", "the plane's homography maps undistorted pixels: give --camera-model"
             )
-        options["plane"] = _load_plane(args.plane)
+        options["plane"] = load_plane_homography(args.plane)
     params, effects = None, ()
     if args.params or args.effect:
         from cvmeasure.sim import SimParams, params_from_json, parse_effect

@@ -134,3 +134,29 @@ def test_real_near_frontal_frames(shared_real):
         plane = estimate_plane(gray, board, camera, source=name)
         assert plane.tilt_deg == pytest.approx(tilt, abs=0.4), name
         assert not plane.affine_ok
+
+
+def test_load_plane_homography_reads_what_plane_writes_and_names_bad_files(tmp_path):
+    import json
+
+    import numpy as np
+
+    from cvmeasure.calibration.plane import load_plane_homography
+    from cvmeasure.errors import InputError
+
+    h = np.array([[0.1, 0.002, -3.0], [-0.001, 0.1, 4.0], [1e-6, 2e-6, 1.0]])
+    good = tmp_path / "plane.json"
+    good.write_text(json.dumps({"H_board_image": h.tolist(), "tilt_deg": 1.0}))
+    np.testing.assert_array_equal(load_plane_homography(good), h)
+    for name, payload, message in [
+        ("missing.json", None, "not found"),
+        ("corrupt.json", "{", "corrupt plane JSON"),
+        ("nomatrix.json", '{"tilt_deg": 1}', "lacks a 3x3"),
+        ("singular.json", json.dumps({"H_board_image": np.zeros((3, 3)).tolist()}), "invertible"),
+    ]:
+        path = tmp_path / name
+        if payload is not None:
+            path.write_text(payload)
+        with pytest.raises(InputError, match=message) as info:
+            load_plane_homography(path)
+        assert name in str(info.value)
