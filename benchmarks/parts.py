@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from benchmarks import Metric, Table, finish
+from cvmeasure.errors import InputError
 
 SECTION = "Finished parts: ours vs the seed's ellipse and sagitta methods"
 
@@ -136,6 +137,34 @@ def main(argv: list[str] | None = None) -> dict:
     cases = _cases(4 if args.quick else 8, args.seed)
     results = [_run_case(c, scale) for c in cases]
     arcs = [r for r in results if r["kind"] == "arc"]
+    # how the error grows at lower resolution (not part of the targets)
+    probe = {
+        "kind": "arc",
+        "radius_mm": 60.0,
+        "arc_angle_deg": 120.0,
+        "divisions": 10,
+        "tilt_deg": 2.0,
+        "tilt_direction_deg": 45.0,
+        "seed": 300,
+    }
+    resolution_rows = []
+    for res_scale in (0.25,) if args.quick else (0.25, 0.35, 0.5):
+        for sheet in ("dark", "light"):
+            try:
+                r = _run_case({**probe, "sheet": sheet}, res_scale)
+            except InputError:  # refused: say so in the table
+                resolution_rows.append([res_scale, sheet, 0.1286 / res_scale, "refused", "", ""])
+                continue
+            resolution_rows.append(
+                [
+                    res_scale,
+                    sheet,
+                    0.1286 / res_scale,
+                    r["ours_radius_err_pct"],
+                    r["ours_segment_bend_err_deg"],
+                    r["vertex_bend_err_deg"],
+                ]
+            )
 
     def worst(key: str, rows: list[dict]) -> float:
         return float(max(abs(r[key]) for r in rows))
@@ -244,6 +273,11 @@ def main(argv: list[str] | None = None) -> dict:
                 "saddles (bends change sign): worst vertex bend error, chord and height errors",
                 ["part", "sheet", "tilt_deg", "vertex_worst_deg", "chord_err_mm", "height_err_mm"],
                 saddle_rows,
+            ),
+            Table(
+                "resolution: R60 120deg N10 at reduced photo sizes (2 mm wire; not a target)",
+                ["scale", "sheet", "mm_per_px", "R_ours_%", "bend_ours_deg", "vertex_worst_deg"],
+                resolution_rows,
             ),
         ],
         notes=[
