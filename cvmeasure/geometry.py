@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["wrap_deg", "direction_deg"]
+__all__ = ["wrap_deg", "direction_deg", "fit_circle_taubin"]
 
 
 def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
@@ -25,3 +27,39 @@ def direction_deg(from_xy: ArrayLike, to_xy: ArrayLike) -> np.ndarray | float:
     t = np.asarray(to_xy, dtype=np.float64)
     d = t - f
     return wrap_deg(np.degrees(np.arctan2(d[..., 1], d[..., 0])))
+
+
+def fit_circle_taubin(points: ArrayLike) -> tuple[np.ndarray, float]:
+    """Taubin's algebraic circle fit of points (N, 2), N >= 3; any length unit.
+
+    Returns ``(centre (2,), radius)`` in the points' unit. Unbiased to first
+    order (unlike Kasa's fit); the stages use it to start their robust
+    geometric fits. Raises ValueError for fewer than 3, non-finite or collinear
+    points.
+
+    References: G. Taubin, "Estimation of planar curves, surfaces and nonplanar
+    space curves ...", IEEE PAMI 13(11), 1991, doi:10.1109/34.103273.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
+    if len(pts) < 3:
+        raise ValueError(f"a circle fit needs at least 3 points, got {len(pts)}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points must be finite")
+    mean = pts.mean(axis=0)
+    x, y = (pts - mean).T
+    z = x * x + y * y
+    zm = z.mean()
+    if zm <= 0:
+        raise ValueError("points are all the same: no circle")
+    z0 = (z - zm) / (2.0 * math.sqrt(zm))
+    _, _, vt = np.linalg.svd(np.column_stack((z0, x, y)), full_matrices=False)
+    a = vt[-1]
+    a0 = a[0] / (2.0 * math.sqrt(zm))
+    if abs(a0) < 1e-300 or abs(a0) * math.sqrt(zm) < 1e-12 * math.hypot(a[1], a[2]):
+        raise ValueError("points are collinear: no circle")
+    a3 = -zm * a0
+    cx, cy = -a[1] / (2 * a0), -a[2] / (2 * a0)
+    radius = math.sqrt(max(cx * cx + cy * cy - a3 / a0, 0.0))
+    return np.array([cx, cy]) + mean, radius

@@ -26,10 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.geometry import fit_circle_taubin
+
 __all__ = [
     "CircleFit",
     "EdgePoints",
-    "fit_circle_taubin",
     "fit_circle_robust",
     "disc_edge_points",
     "CORRELATION_FACTOR",
@@ -99,31 +100,6 @@ class CircleFit:
         }
 
 
-def fit_circle_taubin(points: np.ndarray) -> tuple[float, float, float]:
-    """Taubin's algebraic circle fit: (cx, cy, r) of points (N, 2), N >= 3."""
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    if p.shape[0] < 3:
-        raise ValueError("a circle fit needs at least 3 points")
-    mean = p.mean(axis=0)
-    x, y = (p - mean).T
-    z = x * x + y * y
-    zm = z.mean()
-    z0 = (z - zm) / (2.0 * math.sqrt(zm)) if zm > 0 else z
-    a = np.column_stack((z0, x, y))
-    _, _, vt = np.linalg.svd(a, full_matrices=False)
-    v = vt[-1]
-    a0 = v[0] / (2.0 * math.sqrt(zm)) if zm > 0 else v[0]
-    coef = np.array([a0, v[1], v[2], -zm * a0])
-    if abs(coef[0]) < 1e-15:
-        raise ValueError("points are collinear: no circle")
-    cx = -coef[1] / (2 * coef[0])
-    cy = -coef[2] / (2 * coef[0])
-    r = math.sqrt(max(0.0, (coef[1] ** 2 + coef[2] ** 2 - 4 * coef[0] * coef[3]))) / abs(
-        2 * coef[0]
-    )
-    return float(cx + mean[0]), float(cy + mean[1]), float(r)
-
-
 def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
     ang = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
     bins = np.unique(np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(int) % 36)
@@ -158,7 +134,10 @@ def fit_circle_robust(
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if p.shape[0] < 5:
         raise ValueError(f"a robust circle fit needs at least 5 points, got {p.shape[0]}")
-    cx, cy, r = init if init is not None else fit_circle_taubin(p)
+    if init is not None:
+        cx, cy, r = init
+    else:
+        (cx, cy), r = fit_circle_taubin(p)
     theta = np.array([cx, cy, r], dtype=np.float64)
     w = np.ones(p.shape[0])
     scale = 0.0

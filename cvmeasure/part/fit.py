@@ -28,14 +28,13 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.design import divide_into_chords
-from cvmeasure.geometry import wrap_deg
+from cvmeasure.geometry import fit_circle_taubin, wrap_deg
 
 __all__ = [
     "CircleFit",
     "PolylineFit",
     "ArcGeometry",
     "fit_circle",
-    "fit_circle_taubin",
     "fit_polyline",
     "arc_geometry",
     "arc_angle_from_chord_deg",
@@ -84,29 +83,6 @@ def _check_points(points: np.ndarray, minimum: int) -> np.ndarray:
     if not np.all(np.isfinite(pts)):
         raise ValueError("points must be finite")
     return pts
-
-
-def fit_circle_taubin(points_mm: np.ndarray) -> tuple[np.ndarray, float]:
-    """Taubin's algebraic circle fit; returns (centre (2,), radius).
-
-    Unbiased to first order (unlike Kåsa's), used to start the geometric fit.
-    """
-    pts = _check_points(points_mm, 3)
-    mean = pts.mean(axis=0)
-    x, y = (pts - mean).T
-    z = x * x + y * y
-    zm = z.mean()
-    z0 = (z - zm) / (2.0 * math.sqrt(zm)) if zm > 0 else z
-    m = np.column_stack((z0, x, y))
-    _, _, vt = np.linalg.svd(m, full_matrices=False)
-    a = vt[-1]
-    a0 = a[0] / (2.0 * math.sqrt(zm))
-    a3 = -zm * a0
-    if abs(a0) < 1e-300:
-        raise ValueError("points are collinear; no circle")
-    cx, cy = -a[1] / (2 * a0), -a[2] / (2 * a0)
-    radius = math.sqrt(max(cx * cx + cy * cy - a3 / a0, 0.0))
-    return np.array([cx, cy]) + mean, radius
 
 
 def fit_circle(points_mm: np.ndarray, *, f_scale_mm: float | None = None) -> CircleFit:

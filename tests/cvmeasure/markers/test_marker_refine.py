@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from cvmeasure.markers.refine import disc_edge_points, fit_circle_robust, fit_circle_taubin
+from cvmeasure.markers.refine import disc_edge_points, fit_circle_robust
 
 SS = 8  # supersampling of the drawn discs
 
@@ -30,10 +30,9 @@ def _disc_image(centre, r_px, *, ring_ratio=1.4, colour=(70, 110, 0), noise=0.0,
     return np.clip(np.round(small), 0, 255).astype(np.uint8)
 
 
-def test_taubin_and_robust_fit_exact_points():
+def test_robust_fit_exact_points():
     t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
     pts = np.column_stack((12.3 + 7.0 * np.cos(t), -4.5 + 7.0 * np.sin(t)))
-    assert fit_circle_taubin(pts) == pytest.approx((12.3, -4.5, 7.0), abs=1e-9)
     fit = fit_circle_robust(pts)
     assert fit.centre == pytest.approx((12.3, -4.5), abs=1e-9)
     assert fit.radius == pytest.approx(7.0, abs=1e-9)

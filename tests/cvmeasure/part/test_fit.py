@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm, bend_angles_deg
+from cvmeasure.geometry import fit_circle_taubin
 from cvmeasure.part.fit import (
     arc_angle_from_chord_deg,
     arc_geometry,
     fit_circle,
-    fit_circle_taubin,
     fit_polyline,
     sagitta_radius_mm,
 )
