@@ -10,15 +10,14 @@ page frame shifted by :attr:`SheetLayout.board_origin_mm`.
 
 from __future__ import annotations
 
-import io
 import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
+from calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 from cvmeasure.board import BoardSpec, CharucoBoardSpec, ChessboardSpec
 
 __all__ = [
@@ -31,7 +30,6 @@ __all__ = [
     "write_board_sheet",
 ]
 
-SheetFormat = Literal["pdf", "svg", "png"]
 
 #: Named paper sizes (portrait width, height) in mm.
 PAGE_SIZES_MM: dict[str, tuple[float, float]] = {
@@ -133,13 +131,6 @@ def sheet_layout(board: BoardSpec, *, page: str | tuple[float, float] | None = N
     return SheetLayout((pw, ph), (ox, oy), (bw, bh), ruler, _RULER_MM)
 
 
-def _format_of(path: Path, fmt: str | None) -> str:
-    f = (fmt or path.suffix.lstrip(".")).lower()
-    if f not in ("pdf", "svg", "png"):
-        raise ValueError(f"unsupported sheet format {f!r}: use .pdf, .svg or .png")
-    return f
-
-
 def render_board_sheet(
     board: BoardSpec,
     fmt: SheetFormat,
@@ -200,13 +191,7 @@ def render_board_sheet(
         fontsize=5.5,
         va="top",
     )
-    buf = io.BytesIO()
-    kwargs = {"format": fmt, "facecolor": "white"}
-    if fmt == "png":
-        kwargs["dpi"] = dpi
-        kwargs["pil_kwargs"] = {"dpi": (dpi, dpi)}
-    fig.savefig(buf, **kwargs)
-    return buf.getvalue()
+    return figure_bytes(fig, fmt, dpi=dpi)
 
 
 def write_board_sheet(
@@ -222,5 +207,5 @@ def write_board_sheet(
 
     path = Path(path)
     return atomic_write_bytes(
-        path, render_board_sheet(board, _format_of(path, fmt), dpi=dpi, page=page)
+        path, render_board_sheet(board, sheet_format(path, fmt), dpi=dpi, page=page)
     )  # type: ignore[arg-type]

@@ -16,14 +16,13 @@ Frames: the page in mm, origin top-left, y down.
 
 from __future__ import annotations
 
-import io
 import json
 import os
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 
+from calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 from cvmeasure.kit import MarkerKit
 
 __all__ = [
@@ -35,7 +34,6 @@ __all__ = [
     "write_kit_sheet",
 ]
 
-SheetFormat = Literal["pdf", "svg", "png"]
 
 #: A4 portrait, mm.
 KIT_PAGE_MM = (210.0, 297.0)
@@ -140,13 +138,7 @@ def render_kit_sheet(
     ax.text(
         rx, ry + 6.0, "kit JSON:\n" + "\n".join(lines), fontsize=4.5, va="top", family="monospace"
     )
-    buf = io.BytesIO()
-    kwargs: dict = {"format": fmt, "facecolor": "white"}
-    if fmt == "png":
-        kwargs["dpi"] = dpi
-        kwargs["pil_kwargs"] = {"dpi": (dpi, dpi)}
-    fig.savefig(buf, **kwargs)
-    return buf.getvalue()
+    return figure_bytes(fig, fmt, dpi=dpi)
 
 
 def write_kit_sheet(
@@ -161,7 +153,5 @@ def write_kit_sheet(
     from cvmeasure.fileio import atomic_write_bytes
 
     path = Path(path)
-    f = (fmt or path.suffix.lstrip(".")).lower()
-    if f not in ("pdf", "svg", "png"):
-        raise ValueError(f"unsupported sheet format {f!r}: use .pdf, .svg or .png")
-    return atomic_write_bytes(path, render_kit_sheet(kit, f, dpi=dpi, copies=copies))  # type: ignore[arg-type]
+    f = sheet_format(path, fmt)
+    return atomic_write_bytes(path, render_kit_sheet(kit, f, dpi=dpi, copies=copies))
