@@ -784,8 +784,15 @@ def _journal_start(
 def _check_board(run: _Run) -> None:
     board = run.board
     if board.error is not None:
+        # nothing in flight (e.g. the write of the next line failed): name the last
+        # line the board reported, so the user still learns where the job was
         head = run.inflight[0] if run.inflight else None
-        _stop(run, "port_gone", head, str(board.error))
+        _stop(
+            run,
+            "port_gone",
+            head or _line_by_number(run.job, board.state.get("line")),
+            str(board.error),
+        )
 
 
 def _watchdog(run: _Run, waiting_for: str) -> None:
