@@ -92,7 +92,7 @@ def _plot(parts: dict[str, dict], path) -> str:
     for ax, (name, part) in zip(axes, parts.items(), strict=True):
         x = np.arange(len(part["seed"]))
         ax.bar(x - 0.2, part["seed"], 0.4, label="seed Source code 1 (smooth arc, asin)")
-        ax.bar(x + 0.2, part["ours"], 0.4, label=f"ours: {part['n']} equal chords")
+        ax.bar(x + 0.2, part["ours"], 0.4, label="ours: N equal chords (polygon)")
         ax.axhline(part["seed"][0], color="k", lw=0.8, ls=":")
         ax.set_xticks(x, ["design", "part 1", "part 2", "part 3"])
         ax.set_ylabel("bend per segment, deg")
