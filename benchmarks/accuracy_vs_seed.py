@@ -163,6 +163,7 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.errors import InputError
     from cvmeasure.kit import default_kit
     from cvmeasure.markers import measure_machine_photo
+    from cvmeasure.markers.colour import estimate_white
     from datasets import Lighting
 
     cv2.setNumThreads(1)
@@ -196,6 +197,7 @@ def main(argv: list[str] | None = None) -> dict:
             except InputError as exc:
                 rec["ours"] = None
                 rec["ours_miss"] = str(exc)
+                rec["white_clipped_fraction"] = estimate_white(img).clipped_fraction
             for name, variant_kit in kits.items():
                 try:
                     res = measure_machine_photo(img, variant_kit, method="seed")
@@ -308,7 +310,9 @@ def main(argv: list[str] | None = None) -> dict:
             "seed-ref: the boxes centred on each marker's colour as a reference photo shows it "
             "(another scene under the same light, white balance and exposure, rendered at "
             f"scale {REFERENCE_SCALE:g}; median of each disc, read at its true centre), as a "
-            "user would tune the thresholds once per light and camera setting. seed-self: "
+            "user would tune the thresholds once per light and camera setting (not "
+            "cvmeasure.markers.learn.learn_kit: it learns white-balanced colours for our "
+            "pipeline, while the seed method thresholds the photo as it is). seed-self: "
             "centred on the photo's own colours (an oracle), so only the method's geometry "
             "(Hough centres, no lens model) is compared.",
             f"{LENS_VARIANT}: the seed-self Hough centres with lens distortion removed by the "
@@ -320,7 +324,9 @@ def main(argv: list[str] | None = None) -> dict:
             "photos a method missed are counted, not scored.",
             *[
                 f"ours missed the photo at {r['cct_k']:.0f} K with the camera's white balance at "
-                f"{r['camera_wb_k']:.0f} K (seed {r['render_seed']}): {r['ours_miss']}"
+                f"{r['camera_wb_k']:.0f} K (seed {r['render_seed']}; "
+                f"{100 * r['white_clipped_fraction']:.0f} % of the brightest pixels, the white "
+                f"the colour model adapts to, are clipped): {r['ours_miss']}"
                 for r in records
                 if r["ours"] is None
             ],
