@@ -45,6 +45,7 @@ __all__ = [
     "classify_bgr8",
     "DEFAULT_SIGMA",
     "RING_WHITE_Y",
+    "CLIPPED_WHITE_FRACTION",
 ]
 
 ColourSpace = Literal["lab", "rgb"]
@@ -69,11 +70,19 @@ _QUANT_SHIFT = 3  # 8-bit -> 5-bit per channel for the lookup table
 #: Luminance factor Y of the markers' white rings against a perfect white diffuser
 #: (white paper or white PLA: about L* 93); the measured white is mapped to it.
 RING_WHITE_Y = 0.84
+#: Share of the brightest pixels clipped above which the white's colour may be taken
+#: from neutral pixels well below clipping (see :func:`estimate_white`).
+CLIPPED_WHITE_FRACTION = 0.5
+_SAFE_LINEAR = 0.7  # linear level (of full scale) below which a pixel is safe from clipping
+_NEUTRAL_TOP_FRACTION = 0.005  # share of the safe pixels, the brightest, used for the colour
 
 
 def _srgb_decode(v: np.ndarray) -> np.ndarray:
     """Gamma-encoded sRGB in 0..1 -> linear."""
     return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
+
+
+_LINEAR_LUT = _srgb_decode(np.arange(256) / 255.0).astype(np.float32)
 
 
 def _srgb_encode(v: np.ndarray) -> np.ndarray:
@@ -102,12 +111,22 @@ class WhiteEstimate:
         }
 
 
-def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEstimate:
+def estimate_white(
+    bgr8: np.ndarray, *, top_fraction: float = 0.002, recover_clipped: bool = False
+) -> WhiteEstimate:
     """Estimate the light's white from the brightest unclipped pixels (the white rings).
 
     Its colour comes from the brightest unclipped pixels; where the rings are
     overexposed, its level is raised to that of the brightest pixels (so values
     above 255 are possible: the white lies beyond the sensor's range).
+
+    With ``recover_clipped`` and more than ``CLIPPED_WHITE_FRACTION`` of the
+    brightest pixels clipped (a strong cast drives one channel of the rings past
+    full scale), the colour comes instead from neutral pixels well below clipping
+    and the level from the rings' weakest channel (see ``_unclipped_white_colour``).
+    That white is the light's, but where the marker discs clip as well the
+    default (biased the same way as the discs) can classify them better, so the
+    marker search tries it only when the default misses a marker.
 
     Parameters
     ----------
@@ -115,6 +134,8 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
         The photo (any size; a reduced copy is enough).
     top_fraction : float
         Share of the unclipped pixels, by luminance, averaged into the white.
+    recover_clipped : bool
+        Recover the colour of a clipped white (see above).
     """
     import cv2
 
@@ -138,12 +159,27 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
     n_bright = int(np.count_nonzero(bright))
     clipped_fraction = 1.0 - n_sel / max(1, n_bright)
     white = np.array([mr, mg, mb])
-    # Overexposed rings: their unclipped neighbours give the light's colour but not its
-    # level. Raise the white (in linear light) to the brightest pixels' grey, clipped or not.
     hist_all = np.bincount(gray.ravel(), minlength=256)
     above_all = np.cumsum(hist_all[::-1])[::-1]
     level_all = int(np.flatnonzero(above_all >= k)[-1])
-    grey_all = cv2.mean(gray, mask=(gray >= level_all).astype(np.uint8))[0]
+    brightest = gray >= level_all
+    if recover_clipped and clipped_fraction > CLIPPED_WHITE_FRACTION:
+        colour = _unclipped_white_colour(img, maxc, white)
+        # its level: the brightest pixels (the rings) in the white's weakest channel,
+        # the one least likely clipped
+        weak = int(np.argmin(colour))
+        weak_px = img[..., 2 - weak][brightest]
+        weak_px = weak_px[weak_px < 250]
+        if weak_px.size >= 20:
+            lin_weak = float(np.median(_LINEAR_LUT[weak_px]))
+            lin_white = colour * (lin_weak / float(colour[weak]))
+            white = 255.0 * _srgb_encode_unclipped(lin_white)
+            return WhiteEstimate(
+                (float(white[0]), float(white[1]), float(white[2])), n_sel, float(clipped_fraction)
+            )
+    # Overexposed rings: their unclipped neighbours give the light's colour but not its
+    # level. Raise the white (in linear light) to the brightest pixels' grey, clipped or not.
+    grey_all = cv2.mean(gray, mask=brightest.astype(np.uint8))[0]
     grey_white = float(white @ np.array([0.299, 0.587, 0.114]))
     if grey_all > grey_white + 1.0:
         gain = _srgb_decode(np.array(grey_all / 255.0)) / _srgb_decode(np.array(grey_white / 255.0))
@@ -151,6 +187,45 @@ def estimate_white(bgr8: np.ndarray, *, top_fraction: float = 0.002) -> WhiteEst
     return WhiteEstimate(
         (float(white[0]), float(white[1]), float(white[2])), n_sel, float(clipped_fraction)
     )
+
+
+def _unclipped_white_colour(
+    bgr8: np.ndarray, maxc: np.ndarray, white_rgb8: np.ndarray, *, iterations: int = 2
+) -> np.ndarray:
+    """The white's colour where the whitest pixels are clipped: from neutral pixels well below it.
+
+    When a strong cast drives one channel of the rings (and of the lit plate) past
+    full scale, the brightest pixels left unclipped are exactly those whose clipped
+    channel happens to be low: a biased white. Instead take the brightest pixels that
+    a white of the current estimate's colour would show *well* below clipping (its
+    strongest channel at most ``_SAFE_LINEAR`` of full scale: shaded
+    or vignetted plate, wire, ring edges), re-estimate the colour from their median
+    chromaticity and repeat. Pixels are ranked by the white's two weakest channels,
+    so the selection does not depend on the channel that clips.
+
+    Returns the colour in linear RGB (R, G, B), its largest channel 1 (the caller sets
+    the level).
+    """
+    lin = _LINEAR_LUT[bgr8[..., ::-1].reshape(-1, 3)]
+    ok = maxc.reshape(-1) < 250
+    w_lin = np.maximum(_srgb_decode(white_rgb8 / 255.0), 1e-6)
+    colour = w_lin / w_lin.max()
+    for _ in range(iterations):
+        # brightness from the two channels the white is weakest in: selecting on the
+        # strongest channel (the one that clips) would bias the white away from it again
+        weak = np.argsort(colour)[:2]
+        k = lin[:, weak].sum(axis=1) / float(colour[weak].sum())
+        valid = ok & (k < _SAFE_LINEAR)
+        n_valid = int(np.count_nonzero(valid))
+        if n_valid < 20:
+            return colour
+        kv = k[valid]
+        n = max(20, int(_NEUTRAL_TOP_FRACTION * n_valid))
+        select = valid & (k >= np.partition(kv, -n)[-n])
+        chroma = lin[select] / np.maximum(lin[select].sum(axis=1, keepdims=True), 1e-6)
+        colour = np.maximum(np.median(chroma, axis=0).astype(np.float64), 1e-6)
+        colour = colour / colour.max()
+    return colour
 
 
 def _srgb_encode_unclipped(v: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ import numpy as np
 
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.colour import (
+    CLIPPED_WHITE_FRACTION,
     ColourModel,
     WhiteEstimate,
     classify_bgr8,
@@ -232,7 +233,9 @@ def find_markers(
     kit : the marker kit (sizes: ring to disc ratio).
     model : the colour model (see :func:`cvmeasure.markers.colour.kit_colour_model`).
     max_pixels : size of the reduced copy.
-    white : the photo's white; estimated from the brightest pixels when None.
+    white : the photo's white; estimated from the brightest pixels when None (and,
+        when that misses a marker on a photo whose whites are clipped, estimated
+        again from its unclipped neutral pixels: ``estimate_white(recover_clipped=True)``).
 
     Returns
     -------
@@ -242,8 +245,20 @@ def find_markers(
     """
     step = search_step(bgr8.shape, max_pixels)
     small = np.ascontiguousarray(bgr8[::step, ::step])
-    if white is None:
-        white = estimate_white(small)
+    if white is not None:
+        return _search(small, kit, model, white, step)
+    search = _search(small, kit, model, estimate_white(small), step)
+    if search.failures and search.white.clipped_fraction > CLIPPED_WHITE_FRACTION:
+        retry = _search(small, kit, model, estimate_white(small, recover_clipped=True), step)
+        if len(retry.failures) < len(search.failures):
+            return retry
+    return search
+
+
+def _search(
+    small: np.ndarray, kit: MarkerKit, model: ColourModel, white: WhiteEstimate, step: int
+) -> MarkerSearch:
+    """:func:`find_markers` on the reduced copy ``small`` with a given white."""
     labels = classify_bgr8(small, model, white)
     import cv2
 

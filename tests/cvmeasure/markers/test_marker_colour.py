@@ -119,3 +119,28 @@ def test_kit_sigmas_are_used():
     model = kit_colour_model(tight, "lab")
     assert np.allclose(np.diag(model.covariances[0]), 1.0)
     assert MarkerKit.from_dict(tight.to_dict()).markers[0].lab_sigma == (1.0, 1.0, 1.0)
+
+
+def test_white_colour_survives_clipped_rings_under_a_strong_cast(render):
+    pytest.importorskip("datasets.bender")
+    from datasets.lighting import Lighting
+
+    def white_ratios(exposure: float) -> tuple[np.ndarray, float]:
+        light = Lighting(cct_k=2700.0, wb_error_k=-600.0, exposure=exposure)
+        white = estimate_white(render(light=light, seed=1).bgr, recover_clipped=True)
+        v = np.asarray(white.srgb8) / 255
+        lin = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+        return lin / lin[1], white.clipped_fraction
+
+    truth, truth_clipped = white_ratios(0.12)  # the same scene dimmed: nothing clips
+    got, clipped = white_ratios(1.15)
+    assert truth_clipped < 0.05
+    assert clipped > 0.9  # the rings' blue is clipped
+    assert truth[2] > 3.0  # a strong blue cast: B/G of the white in linear light
+    np.testing.assert_allclose(got, truth, rtol=0.15)
+    default = estimate_white(
+        render(light=Lighting(cct_k=2700.0, wb_error_k=-600.0, exposure=1.15), seed=1).bgr
+    )
+    v = np.asarray(default.srgb8) / 255
+    lin = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+    assert lin[2] / lin[1] < 0.5 * truth[2]  # the bias recover_clipped removes
