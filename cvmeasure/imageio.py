@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cvmeasure.colorimetry import srgb_decode, srgb_encode
 from cvmeasure.errors import InputError
 
 __all__ = [
@@ -27,6 +28,7 @@ __all__ = [
     "read_photo",
     "is_raw",
     "is_linear_name",
+    "to_bgr8",
 ]
 
 RAW_SUFFIXES = frozenset(
@@ -88,27 +90,36 @@ class Photo:
         img = self.bgr.astype(np.float32) / float(np.iinfo(self.bgr.dtype).max)
         if self.linear:
             return img
-        return np.where(img <= 0.04045, img / 12.92, np.power((img + 0.055) / 1.055, 2.4)).astype(
-            np.float32
-        )
+        return srgb_decode(img).astype(np.float32)
 
     def bgr8(self) -> np.ndarray:
         """Display-referred 8-bit BGR (linear data sRGB-encoded first); the same array for JPEGs."""
-        img = self.bgr
-        if img.dtype == np.uint8 and not self.linear:
-            return img
-        scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
-        if self.linear:
-            scaled = np.where(
-                scaled <= 0.0031308, 12.92 * scaled, 1.055 * np.power(scaled, 1 / 2.4) - 0.055
-            )
-        return np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        return to_bgr8(self.bgr, linear=self.linear)
 
     def gray8(self) -> np.ndarray:
         """An 8-bit grey image (display-referred: linear data is gamma-encoded first)."""
         import cv2
 
         return cv2.cvtColor(self.bgr8(), cv2.COLOR_BGR2GRAY)
+
+
+def to_bgr8(image: np.ndarray, *, linear: bool = False) -> np.ndarray:
+    """Any (H, W, 3) uint8/uint16 BGR image -> display-referred uint8 BGR.
+
+    ``linear`` data (RAW, linear renders) is sRGB-encoded first; an 8-bit
+    gamma-encoded image is returned as it is (no copy).
+    """
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError("a colour (H, W, 3) BGR image is needed")
+    if img.dtype == np.uint8 and not linear:
+        return img
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"unsupported sample type {img.dtype}")
+    scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
+    if linear:
+        scaled = srgb_encode(scaled)
+    return np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 
 def is_raw(path: str | os.PathLike[str]) -> bool:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.colorimetry import srgb8_to_lab_d65
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_json
 
@@ -23,16 +24,6 @@ __all__ = ["ROLES", "MarkerSpec", "MarkerKit", "default_kit", "load_kit", "srgb8
 
 #: The five roles of the spec, in the kit's order.
 ROLES: tuple[str, ...] = ("origin", "axis", "pin", "wire_a", "wire_b")
-
-
-def srgb8_to_lab_d65(srgb8: Any) -> np.ndarray:
-    """8-bit gamma-encoded sRGB (..., 3) -> CIE L*a*b* under D65 (..., 3)."""
-    import colour
-
-    rgb = np.asarray(srgb8, dtype=np.float64) / 255.0
-    xyz = colour.sRGB_to_XYZ(rgb)
-    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    return colour.XYZ_to_Lab(xyz, d65)
 
 
 @dataclass(frozen=True)

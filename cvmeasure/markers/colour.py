@@ -29,6 +29,15 @@ from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure.colorimetry import (
+    D65_XYZ,
+    SRGB8_TO_LINEAR,
+    SRGB_TO_XYZ,
+    XYZ_TO_SRGB,
+    srgb_decode,
+    srgb_encode,
+    xyz_to_lab_d65,
+)
 from cvmeasure.kit import ROLES, MarkerKit
 
 __all__ = [
@@ -60,12 +69,6 @@ DEFAULT_SIGMA: dict[str, tuple[float, float, float]] = {
     "rgb": (18.0, 18.0, 18.0),
 }
 
-_SRGB_TO_XYZ = np.array(
-    [[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]]
-)
-_XYZ_TO_SRGB = np.linalg.inv(_SRGB_TO_XYZ)
-_D65_XY = np.array([0.3127, 0.3290])
-_D65_XYZ = np.array([_D65_XY[0] / _D65_XY[1], 1.0, (1 - _D65_XY.sum()) / _D65_XY[1]])
 _QUANT_SHIFT = 3  # 8-bit -> 5-bit per channel for the lookup table
 #: Luminance factor Y of the markers' white rings against a perfect white diffuser
 #: (white paper or white PLA: about L* 93); the measured white is mapped to it.
@@ -75,20 +78,6 @@ RING_WHITE_Y = 0.84
 CLIPPED_WHITE_FRACTION = 0.5
 _SAFE_LINEAR = 0.7  # linear level (of full scale) below which a pixel is safe from clipping
 _NEUTRAL_TOP_FRACTION = 0.005  # share of the safe pixels, the brightest, used for the colour
-
-
-def _srgb_decode(v: np.ndarray) -> np.ndarray:
-    """Gamma-encoded sRGB in 0..1 -> linear."""
-    return np.where(v <= 0.04045, v / 12.92, np.power((v + 0.055) / 1.055, 2.4))
-
-
-_LINEAR_LUT = _srgb_decode(np.arange(256) / 255.0).astype(np.float32)
-
-
-def _srgb_encode(v: np.ndarray) -> np.ndarray:
-    """Linear sRGB -> gamma-encoded in 0..1 (clipped)."""
-    v = np.clip(v, 0.0, 1.0)
-    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
 
 
 @dataclass(frozen=True)
@@ -171,9 +160,9 @@ def estimate_white(
         weak_px = img[..., 2 - weak][brightest]
         weak_px = weak_px[weak_px < 250]
         if weak_px.size >= 20:
-            lin_weak = float(np.median(_LINEAR_LUT[weak_px]))
+            lin_weak = float(np.median(SRGB8_TO_LINEAR[weak_px]))
             lin_white = colour * (lin_weak / float(colour[weak]))
-            white = 255.0 * _srgb_encode_unclipped(lin_white)
+            white = 255.0 * srgb_encode(lin_white, clip=False)
             return WhiteEstimate(
                 (float(white[0]), float(white[1]), float(white[2])), n_sel, float(clipped_fraction)
             )
@@ -182,8 +171,8 @@ def estimate_white(
     grey_all = cv2.mean(gray, mask=brightest.astype(np.uint8))[0]
     grey_white = float(white @ np.array([0.299, 0.587, 0.114]))
     if grey_all > grey_white + 1.0:
-        gain = _srgb_decode(np.array(grey_all / 255.0)) / _srgb_decode(np.array(grey_white / 255.0))
-        white = 255.0 * _srgb_encode_unclipped(_srgb_decode(white / 255.0) * float(gain))
+        gain = srgb_decode(np.array(grey_all / 255.0)) / srgb_decode(np.array(grey_white / 255.0))
+        white = 255.0 * srgb_encode(srgb_decode(white / 255.0) * float(gain), clip=False)
     return WhiteEstimate(
         (float(white[0]), float(white[1]), float(white[2])), n_sel, float(clipped_fraction)
     )
@@ -206,9 +195,9 @@ def _unclipped_white_colour(
     Returns the colour in linear RGB (R, G, B), its largest channel 1 (the caller sets
     the level).
     """
-    lin = _LINEAR_LUT[bgr8[..., ::-1].reshape(-1, 3)]
+    lin = SRGB8_TO_LINEAR[bgr8[..., ::-1].reshape(-1, 3)]
     ok = maxc.reshape(-1) < 250
-    w_lin = np.maximum(_srgb_decode(white_rgb8 / 255.0), 1e-6)
+    w_lin = np.maximum(srgb_decode(white_rgb8 / 255.0), 1e-6)
     colour = w_lin / w_lin.max()
     for _ in range(iterations):
         # brightness from the two channels the white is weakest in: selecting on the
@@ -228,12 +217,6 @@ def _unclipped_white_colour(
     return colour
 
 
-def _srgb_encode_unclipped(v: np.ndarray) -> np.ndarray:
-    """Linear -> gamma-encoded sRGB, allowing values above 1 (a white brighter than full scale)."""
-    v = np.maximum(v, 0.0)
-    return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
-
-
 def adaptation_matrix(white: WhiteEstimate | None, adaptation: str = "rgb-gain") -> np.ndarray:
     """3x3 matrix: the photo's linear sRGB -> XYZ under D65, the white at Y = RING_WHITE_Y.
 
@@ -248,39 +231,28 @@ def adaptation_matrix(white: WhiteEstimate | None, adaptation: str = "rgb-gain")
     if adaptation not in ADAPTATIONS:
         raise ValueError(f"unknown adaptation {adaptation!r}; valid: {ADAPTATIONS}")
     if white is None:
-        return _SRGB_TO_XYZ.copy()
-    lin_white = np.maximum(_srgb_decode(np.asarray(white.srgb8, dtype=np.float64) / 255.0), 1e-6)
+        return SRGB_TO_XYZ.copy()
+    lin_white = np.maximum(srgb_decode(np.asarray(white.srgb8, dtype=np.float64) / 255.0), 1e-6)
     if adaptation == "rgb-gain":
-        return _SRGB_TO_XYZ @ np.diag(RING_WHITE_Y / lin_white)
+        return SRGB_TO_XYZ @ np.diag(RING_WHITE_Y / lin_white)
     import colour
 
-    xyz_white = _SRGB_TO_XYZ @ lin_white
+    xyz_white = SRGB_TO_XYZ @ lin_white
     cat = colour.adaptation.matrix_chromatic_adaptation_VonKries(
-        xyz_white / xyz_white[1], _D65_XYZ, transform="CAT02"
+        xyz_white / xyz_white[1], D65_XYZ, transform="CAT02"
     )
-    return cat @ _SRGB_TO_XYZ * (RING_WHITE_Y / float(xyz_white[1]))
-
-
-def _xyz_to_lab_d65(xyz: np.ndarray) -> np.ndarray:
-    """CIE XYZ (Y = 1 white) -> CIE L*a*b* under D65 (CIE 15; equal to colour.XYZ_to_Lab)."""
-    t = xyz / _D65_XYZ
-    eps, kappa = 216 / 24389, 24389 / 27
-    f = np.where(t > eps, np.cbrt(t), (kappa * t + 16) / 116)
-    return np.stack(
-        (116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])),
-        axis=-1,
-    )
+    return cat @ SRGB_TO_XYZ * (RING_WHITE_Y / float(xyz_white[1]))
 
 
 def _rgb8_to_space(rgb8: np.ndarray, matrix: np.ndarray, space: str) -> np.ndarray:
     """(N, 3) R, G, B values 0..255 of the photo -> (N, 3) in ``space`` after adaptation."""
 
-    lin = _srgb_decode(np.asarray(rgb8, dtype=np.float64) / 255.0)
+    lin = srgb_decode(np.asarray(rgb8, dtype=np.float64) / 255.0)
     xyz = lin @ matrix.T
     if space == "lab":
-        return _xyz_to_lab_d65(xyz)
+        return xyz_to_lab_d65(xyz)
     if space == "rgb":
-        return _srgb_encode(xyz @ _XYZ_TO_SRGB.T) * 255.0
+        return srgb_encode(xyz @ XYZ_TO_SRGB.T) * 255.0
     raise ValueError(f"unknown colour space {space!r}; valid: {COLOUR_SPACES}")
 
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.imageio import to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.colour import (
     ColourSpace,
@@ -23,7 +24,7 @@ from cvmeasure.markers.colour import (
     kit_colour_model,
 )
 from cvmeasure.markers.detect import find_markers
-from cvmeasure.markers.measure import MarkerNotFoundError, refine_candidate, to_bgr8
+from cvmeasure.markers.measure import MarkerNotFoundError, refine_candidate
 
 __all__ = ["LearntKit", "learn_kit", "SIGMA_INFLATION", "SIGMA_FLOOR"]
 

@@ -39,6 +39,7 @@ import numpy as np
 
 from cvmeasure.camera import CameraModel
 from cvmeasure.errors import InputError
+from cvmeasure.imageio import to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles, springback_deg, springback_sigma_deg
 from cvmeasure.markers.colour import (
@@ -67,7 +68,6 @@ __all__ = [
     "measure_machine_photo",
     "measure_photo_file",
     "measure_trial",
-    "to_bgr8",
     "refine_candidate",
     "SEED_CENTRE_SIGMA_PX",
 ]
@@ -199,23 +199,6 @@ def measure_trial(
 ) -> TrialResult:
     """Pair a loaded and an unloaded measurement of one bend."""
     return TrialResult(loaded, unloaded, trial)
-
-
-def to_bgr8(image: np.ndarray, *, linear: bool = False) -> np.ndarray:
-    """Any (H, W, 3) uint8/uint16 BGR image -> display-referred uint8 BGR."""
-    img = np.asarray(image)
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError("a colour (H, W, 3) BGR image is needed")
-    if img.dtype == np.uint8 and not linear:
-        return img
-    if img.dtype not in (np.uint8, np.uint16):
-        raise ValueError(f"unsupported sample type {img.dtype}")
-    scaled = img.astype(np.float32) / float(np.iinfo(img.dtype).max)
-    if linear:
-        scaled = np.where(
-            scaled <= 0.0031308, 12.92 * scaled, 1.055 * np.power(scaled, 1 / 2.4) - 0.055
-        )
-    return np.clip(scaled * 255.0 + 0.5, 0, 255).astype(np.uint8)
 
 
 def _camera_for(camera: CameraModel, shape: tuple[int, ...], source: str) -> CameraModel:

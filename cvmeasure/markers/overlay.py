@@ -6,8 +6,9 @@ import math
 
 import numpy as np
 
+from cvmeasure.imageio import to_bgr8
 from cvmeasure.kit import MarkerKit
-from cvmeasure.markers.measure import MachinePhotoResult, to_bgr8
+from cvmeasure.markers.measure import MachinePhotoResult
 
 __all__ = ["draw_overlay", "OVERLAY_MAX_WIDTH_PX"]
 

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode, srgb_encode
 from cvmeasure.geometry import fit_circle_taubin
 
 __all__ = [
@@ -188,16 +189,8 @@ def fit_circle_robust(
     )
 
 
-_SRGB8_TO_LINEAR = np.where(
-    np.arange(256) / 255.0 <= 0.04045,
-    np.arange(256) / 255.0 / 12.92,
-    ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4,
-).astype(np.float32)
-
-
 def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
-    v = np.clip(np.asarray(lin, dtype=np.float64), 0.0, 1.0)
-    enc = np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055) * 255.0
+    enc = srgb_encode(np.asarray(lin, dtype=np.float64)) * 255.0
     return (float(enc[0]), float(enc[1]), float(enc[2]))
 
 
@@ -262,10 +255,10 @@ def disc_edge_points(
     raw = bgr[y0:y1, x0:x1]
     # linear light: a blurred edge crosses half-way between its two sides at the edge
     if bgr.dtype == np.uint8:
-        roi = cv2.LUT(raw, _SRGB8_TO_LINEAR)
+        roi = cv2.LUT(raw, SRGB8_TO_LINEAR)
     else:
         v = raw.astype(np.float32) / top
-        roi = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+        roi = srgb_decode(v).astype(np.float32)
     yy, xx = np.ogrid[y0:y1, x0:x1]
     dist = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
     inner = dist < 0.6 * radius_px
