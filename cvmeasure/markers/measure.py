@@ -83,6 +83,8 @@ MIN_EDGE_POINTS = 12
 HIDDEN_COVERAGE = 0.9
 OVEREXPOSED_FRACTION = 0.5
 FAR_DELTA_E = 25.0
+#: A ring median channel at or above this (8-bit) counts as clipped: no white to balance on.
+RING_CLIPPED_LEVEL = 250.0
 LOW_CONTRAST = 25.0
 
 
@@ -287,8 +289,14 @@ def refine_candidate(
     return fit, edges
 
 
-def _colour_delta_e(kit: MarkerKit, edges: Mapping[str, Any]) -> dict[str, float]:
-    """CIE76 difference between each disc's colour, balanced on the rings' white, and the kit's."""
+def _colour_delta_e(
+    kit: MarkerKit, edges: Mapping[str, Any], search_white: Any = None
+) -> dict[str, float]:
+    """CIE76 difference between each disc's colour, balanced on the rings' white, and the kit's.
+
+    Where the rings are clipped their median is no white (it loses the cast), so
+    the white the marker search used (``search_white``) is taken instead.
+    """
     from cvmeasure.markers.colour import WhiteEstimate
 
     rings = np.array([e.ring_bgr for e in edges.values()], dtype=np.float64)
@@ -296,6 +304,8 @@ def _colour_delta_e(kit: MarkerKit, edges: Mapping[str, Any]) -> dict[str, float
         return {}
     b, g, r = np.median(rings, axis=0)
     white = WhiteEstimate((float(r), float(g), float(b)), len(rings), 0.0)
+    if search_white is not None and max(r, g, b) >= RING_CLIPPED_LEVEL:
+        white = search_white
     discs = np.clip(np.array([e.disc_bgr for e in edges.values()], dtype=np.float64), 0, 255)
     lab = bgr8_to_space(discs, "lab", white)
     model = kit_colour_model(kit, "lab")  # cached: the kit's CIELAB colours
@@ -351,7 +361,7 @@ def _measure_ours(
             fits[role] = got
     if failures:
         raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
-    delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()})
+    delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
         markers[role] = MarkerMeasurement(
