@@ -89,6 +89,7 @@ class MeasureContext:
     camera_path: str | None = None
     kit_path: str | None = None
     board_path: str | None = None
+    plane_path: str | None = None
     options: tuple[tuple[str, Any], ...] = ()
     measurers: tuple[tuple[str, str], ...] = ()
 
@@ -104,6 +105,10 @@ class MeasureContext:
         """The board spec, or None when no board was given."""
         return None if self.board_path is None else _load_board(self.board_path)
 
+    def plane(self) -> Any:
+        """The plane homography (undistorted px -> plane mm), or None when no plane was given."""
+        return None if self.plane_path is None else _load_plane(self.plane_path)
+
     def option(self, name: str, default: Any = None) -> Any:
         return dict(self.options).get(name, default)
 
@@ -112,6 +117,9 @@ class MeasureContext:
         self.camera()
         self.kit()
         self.board()
+        self.plane()
+        if self.plane_path is not None and self.camera_path is None:
+            raise InputError(self.plane_path, "measuring on a plane needs the camera (--camera)")
 
 
 @lru_cache(maxsize=8)
@@ -126,6 +134,13 @@ def _load_kit(path: str | None) -> Any:
     from cvmeasure.kit import default_kit, load_kit
 
     return default_kit() if path is None else load_kit(path)
+
+
+@lru_cache(maxsize=8)
+def _load_plane(path: str) -> Any:
+    from cvmeasure.calibration.plane import load_plane_homography
+
+    return load_plane_homography(path)
 
 
 @lru_cache(maxsize=8)
@@ -377,6 +392,7 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
         photo.bgr,
         context.kit(),
         camera=context.camera(),
+        plane=context.plane(),
         linear=photo.linear,
         source=photo.path,
         photo=photo.path,

@@ -26,6 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
     p.add_argument("--board", type=Path, help="board JSON of part photos")
     p.add_argument(
+        "--plane",
+        type=Path,
+        help="plane JSON (cvmeasure plane --json): bender photos measured on that plane (needs --camera)",
+    )
+    p.add_argument(
         "--kind",
         choices=KINDS,
         default="auto",
@@ -86,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         camera_path=None if args.camera is None else str(args.camera),
         kit_path=None if args.kit is None else str(args.kit),
         board_path=None if args.board is None else str(args.board),
+        plane_path=None if args.plane is None else str(args.plane),
         options=options,
     )
     context.validate()

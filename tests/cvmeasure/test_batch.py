@@ -361,3 +361,42 @@ def test_part_photo_detected_and_measured_with_board_and_camera(tmp_path):
     assert rec["kind"] == "part"
     assert abs(rec["radius_mm"] - 70.0) < 0.7 and abs(rec["arc_angle_deg"] - 120.0) < 1.0
     assert abs(rec["segment_bend_deg"] - 15.0) < 0.2
+
+
+def test_machine_photos_measured_on_a_plane(tmp_path, capsys):
+    # a photo of a plate tilted 12 deg: with --plane the batch gives the true bend angle,
+    # without it the tilt foreshortens it (as `cvmeasure measure --plane` does)
+    from cvmeasure.camera import save_camera
+    from cvmeasure.fileio import atomic_write_json
+    from datasets.bender import render_bender_photo
+    from datasets.lighting import Lighting
+    from datasets.optics import Pose
+
+    pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
+    photo = render_bender_photo(
+        pin_angle_deg=40.0,
+        bend_angle_deg=70.0,
+        lighting=Lighting(cct_k=5000.0),
+        pose=pose,
+        seed=4,
+        scale=0.3,
+    )
+    rot, t_mm = pose.extrinsics("machine")
+    h = np.linalg.inv(photo.camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm)))
+    plane = atomic_write_json(tmp_path / "plane.json", {"H_board_image": h.tolist()})
+    camera = save_camera(tmp_path / "camera.json", photo.camera)
+    photos = tmp_path / "photos"
+    photo.save(photos / "tilted")
+    truth = photo.truth["bend_angle_deg"]
+    argv = ["batch", str(photos), "--kind", "machine", "--camera", str(camera), "--workers", "1"]
+    assert main([*argv, "--plane", str(plane), "-o", str(tmp_path / "on.jsonl"), "--quiet"]) == 0
+    assert main([*argv, "-o", str(tmp_path / "off.jsonl"), "--quiet"]) == 0
+    on = read_jsonl(tmp_path / "on.jsonl")[0]
+    off = read_jsonl(tmp_path / "off.jsonl")[0]
+    assert on["bend_angle_deg"] == pytest.approx(truth, abs=0.06)
+    assert abs(off["bend_angle_deg"] - truth) > 0.3
+    # a plane without a camera is refused before anything is measured
+    no_cam = ["batch", str(photos), "--plane", str(plane), "-o", str(tmp_path / "x.jsonl")]
+    assert main(no_cam) == 2
+    assert "needs the camera" in capsys.readouterr().err
+    assert not (tmp_path / "x.jsonl").exists()
