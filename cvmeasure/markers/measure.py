@@ -22,9 +22,11 @@ mounting tolerances of the markers, or lateral chromatic aberration.
 
 Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
 resolution) and in the green channel for RAW/16-bit data (``edge=`` to choose):
-a lens's lateral chromatic aberration moves red and blue edges, so for JPEGs
-from a camera that does not correct it, pass ``edge="green"`` (benchmarks:
-p95 0.006 deg with green vs 0.024 deg with luminance at 5e-4 lateral colour).
+a lens's lateral chromatic aberration moves red and blue edges. By default the
+red and blue edges of the discs farthest from the image centre are compared with
+green (a cheap probe of the regions already read); where they show lateral colour
+(:data:`LATERAL_CA_THRESHOLD`) the edges are taken in green and a warning says so
+(benchmarks: p95 0.006 deg with green vs 0.024 deg with luminance at 5e-4).
 """
 
 from __future__ import annotations
@@ -53,6 +55,7 @@ from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
     EDGE_MODES,
     CircleFit,
+    channel_shifts_px,
     disc_edge_points,
     fit_circle_robust,
 )
@@ -69,6 +72,8 @@ __all__ = [
     "measure_photo_file",
     "measure_trial",
     "refine_candidate",
+    "lateral_ca_estimate",
+    "LATERAL_CA_THRESHOLD",
     "SEED_CENTRE_SIGMA_PX",
 ]
 
@@ -86,6 +91,14 @@ FAR_DELTA_E = 25.0
 #: A ring median channel at or above this (8-bit) counts as clipped: no white to balance on.
 RING_CLIPPED_LEVEL = 250.0
 LOW_CONTRAST = 25.0
+#: Lateral chromatic aberration (red magnified by 1 + k, blue by 1 - k about the
+#: image centre) estimated at or above this ``|k|`` switches luminance edges to green
+#: ones (luminance edges: p95 0.024 deg at k = 5e-4 in benchmarks/markers.py). JPEG
+#: chroma subsampling makes the estimate read ~0.55-0.9 of the true k; photos
+#: without lateral colour read |k| < 1.3e-4 at 0.3 scale, < 2e-5 at full size.
+LATERAL_CA_THRESHOLD = 2e-4
+#: How many discs (the farthest from the image centre) the lateral-colour probe reads.
+LATERAL_CA_PROBES = 3
 
 
 class MarkerNotFoundError(InputError):
@@ -315,6 +328,29 @@ def _colour_delta_e(
     }
 
 
+def lateral_ca_estimate(
+    shifts: Mapping[str, Mapping[str, tuple[float, float]]],
+    centres_px: Mapping[str, tuple[float, float]],
+    shape: tuple[int, ...],
+) -> float | None:
+    """Lateral chromatic aberration ``k`` from the discs' red and blue edge shifts.
+
+    Red magnified by ``1 + k`` and blue by ``1 - k`` about the image centre shift a
+    disc at offset ``v`` (px) from the centre by ``+k v`` in red and ``-k v`` in blue;
+    ``k`` is their least-squares fit over all discs (dimensionless; None without data).
+    """
+    h, w = shape[:2]
+    centre = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    num = den = 0.0
+    for role, by_channel in shifts.items():
+        v = np.asarray(centres_px[role], dtype=np.float64) - centre
+        for name, sign in (("red", 1.0), ("blue", -1.0)):
+            if name in by_channel:
+                num += sign * float(np.dot(by_channel[name], v))
+                den += float(v @ v)
+    return num / den if den > 0 else None
+
+
 def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | None) -> list[str]:
     out = []
     if fit.coverage < HIDDEN_COVERAGE:
@@ -361,6 +397,31 @@ def _measure_ours(
             fits[role] = got
     if failures:
         raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
+    if edge is None:
+        # default luminance edges: probe the discs farthest from the image centre
+        # (ROIs only) for lateral colour and take the edges in green where it is strong
+        mid = ((bgr.shape[1] - 1) / 2.0, (bgr.shape[0] - 1) / 2.0)
+        far = sorted(fits, key=lambda r: -math.dist(fits[r][0].centre, mid))[:LATERAL_CA_PROBES]
+        shifts = {}
+        for role in far:
+            fit, edges = fits[role]
+            shifts[role] = channel_shifts_px(
+                bgr, fit.centre, fit.radius, edges.disc_bgr, edges.ring_bgr
+            )
+        k = lateral_ca_estimate(shifts, {r: f.centre for r, (f, _) in fits.items()}, bgr.shape)
+        if k is not None and abs(k) >= LATERAL_CA_THRESHOLD:
+            for role in list(fits):
+                spec = kit.by_role(role)
+                got = refine_candidate(
+                    bgr, search.found[role], spec.ring_mm / spec.diameter_mm, edge="green"
+                )
+                if not isinstance(got, str):
+                    fits[role] = got
+            corner_px = abs(k) * 0.5 * math.hypot(bgr.shape[1], bgr.shape[0])
+            warnings.append(
+                f"lateral chromatic aberration detected ({corner_px:.1f} px at the corners):"
+                " edges taken in green"
+            )
     delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
@@ -449,7 +510,8 @@ def measure_machine_photo(
     edge : where disc edges are found: "luma" (JPEG's full-resolution component), "green"
         (immune to lateral chromatic aberration) or "colour" (see
         :data:`cvmeasure.markers.refine.EDGE_MODE`). Default: "luma" for 8-bit photos
-        (JPEGs, whose cameras correct lateral colour), "green" for RAW/linear or 16-bit data.
+        (JPEGs), switched to "green" with a warning where the discs show lateral
+        chromatic aberration; "green" for RAW/linear or 16-bit data.
     source : what error messages name (the file).
     photo : what the result's ``photo`` field says.
 

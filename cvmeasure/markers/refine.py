@@ -34,6 +34,7 @@ __all__ = [
     "EdgePoints",
     "fit_circle_robust",
     "disc_edge_points",
+    "channel_shifts_px",
     "CORRELATION_FACTOR",
     "CENTRE_FLOOR_PX",
     "EDGE_MODE",
@@ -194,6 +195,16 @@ def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
     return (float(enc[0]), float(enc[1]), float(enc[2]))
 
 
+def _linear_roi(raw: np.ndarray) -> np.ndarray:
+    """A region in linear light (float32, 0..1): a blurred edge crosses half-way at the edge."""
+    import cv2
+
+    if raw.dtype == np.uint8:
+        return cv2.LUT(raw, SRGB8_TO_LINEAR)
+    top = float(np.iinfo(raw.dtype).max)
+    return srgb_decode(raw.astype(np.float32) / top).astype(np.float32)
+
+
 @dataclass(frozen=True)
 class EdgePoints:
     """Sub-pixel points on one disc's boundary (full-resolution image pixels).
@@ -253,12 +264,7 @@ def disc_edge_points(
         return empty
     top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
     raw = bgr[y0:y1, x0:x1]
-    # linear light: a blurred edge crosses half-way between its two sides at the edge
-    if bgr.dtype == np.uint8:
-        roi = cv2.LUT(raw, SRGB8_TO_LINEAR)
-    else:
-        v = raw.astype(np.float32) / top
-        roi = srgb_decode(v).astype(np.float32)
+    roi = _linear_roi(raw)
     yy, xx = np.ogrid[y0:y1, x0:x1]
     dist = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
     inner = dist < 0.6 * radius_px
@@ -312,3 +318,96 @@ def disc_edge_points(
     r_best = r_cross[rows, pick[rows]]
     points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction)
+
+
+def _ray_crossings(
+    v: np.ndarray, radii: np.ndarray, radius_px: float, step_px: float
+) -> np.ndarray:
+    """Per ray (last axis: samples), the 0.5 crossing radius nearest ``radius_px``; NaN if none."""
+    va, vb = v[..., :-1], v[..., 1:]
+    cross = ((va >= 0.5) != (vb >= 0.5)) & (va > -0.5) & (vb > -0.5)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_cross = radii[:-1] + np.where(cross, (0.5 - va) / (vb - va), np.nan) * step_px
+    dist = np.where(cross, np.abs(r_cross - radius_px), np.inf)
+    pick = np.argmin(dist, axis=-1)[..., None]
+    best = np.take_along_axis(r_cross, pick, axis=-1)[..., 0]
+    return np.where(np.isfinite(np.take_along_axis(dist, pick, axis=-1)[..., 0]), best, np.nan)
+
+
+def channel_shifts_px(
+    bgr: np.ndarray,
+    centre_px: tuple[float, float],
+    radius_px: float,
+    disc_bgr: tuple[float, float, float],
+    ring_bgr: tuple[float, float, float],
+    *,
+    n_rays: int = 64,
+    band: float = 0.2,
+    step_px: float = 0.25,
+    blur_px: float = 0.8,
+) -> dict[str, tuple[float, float]]:
+    """Shift of the red and blue edges of a disc relative to its green edge (image px).
+
+    A cheap probe for lateral chromatic aberration, on the small region around an
+    already fitted circle: each channel, in linear light, is scaled to 1 on the
+    disc and 0 on the ring, its 0.5 crossings found on ``n_rays`` rays, and the
+    per-ray radius differences to green fitted as ``dx cos + dy sin + dr``.
+
+    Parameters
+    ----------
+    bgr : ndarray (H, W, 3), uint8 or uint16, the full-resolution photo.
+    centre_px, radius_px : the disc's fitted circle (image px).
+    disc_bgr, ring_bgr : the disc's and ring's colours, 8-bit sRGB (:class:`EdgePoints`).
+
+    Returns
+    -------
+    dict
+        ``{"red": (dx, dy), "blue": (dx, dy)}`` in px, x right, y down; a channel
+        whose disc-to-ring step is under :data:`MIN_STEP_SHARE` of the colour
+        difference (or green's is) is left out.
+    """
+    import cv2
+
+    disc = srgb_decode(np.asarray(disc_bgr, dtype=np.float64) / 255.0)
+    ring = srgb_decode(np.asarray(ring_bgr, dtype=np.float64) / 255.0)
+    axis = disc - ring
+    norm = float(np.linalg.norm(axis))
+    use = np.abs(axis) >= MIN_STEP_SHARE * norm
+    if norm <= 0 or not use[1] or not (use[0] or use[2]):
+        return {}
+    h, w = bgr.shape[:2]
+    cx, cy = centre_px
+    half = int(math.ceil(radius_px * (1 + band) + 3 + 2 * blur_px))
+    x0, x1 = max(0, int(cx) - half), min(w, int(cx) + half + 1)
+    y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
+    if x1 - x0 < 5 or y1 - y0 < 5:
+        return {}
+    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
+    cos, sin = np.cos(phi), np.sin(phi)
+    map_x = (cx - x0 + radii[None, :] * cos[:, None]).astype(np.float32)
+    map_y = (cy - y0 + radii[None, :] * sin[:, None]).astype(np.float32)
+    roi = _linear_roi(bgr[y0:y1, x0:x1])
+    if blur_px > 0:
+        roi = cv2.GaussianBlur(roi, (0, 0), blur_px)
+    v = cv2.remap(roi, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    v = (v - ring.astype(np.float32)) / np.where(use, axis, 1.0).astype(np.float32)
+    r_edge = _ray_crossings(np.moveaxis(v, 2, 0), radii, radius_px, step_px)  # (3, n_rays)
+    basis = np.stack((cos, sin, np.ones(n_rays)))
+    out: dict[str, tuple[float, float]] = {}
+    for name, c in (("blue", 0), ("red", 2)):
+        if not use[c]:
+            continue
+        d = r_edge[c] - r_edge[1]
+        ok = np.isfinite(d)
+        if ok.sum() < 0.75 * n_rays:
+            continue
+        med = float(np.median(d[ok]))
+        ok &= np.abs(d - med) < 0.5  # rays crossing the wire or a neighbour
+        a = basis[:, ok]
+        try:
+            sol = np.linalg.solve(a @ a.T, a @ d[ok])
+        except np.linalg.LinAlgError:
+            continue
+        out[name] = (float(sol[0]), float(sol[1]))
+    return out
