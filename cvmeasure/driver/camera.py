@@ -25,7 +25,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
-import shutil
 import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -343,11 +342,9 @@ class WatchedFolderCamera:
                 elif size > 0 and now - last[1] >= self.settle_s:
                     self._seen.add(fname)
                     src = self.folder / fname
-                    dest = self.out_dir / f"{name}{src.suffix.lower()}"
-                    dest.parent.mkdir(parents=True, exist_ok=True)
-                    tmp = dest.with_name(f".{dest.name}.tmp")
-                    shutil.copyfile(src, tmp)
-                    os.replace(tmp, dest)
+                    dest = atomic_write_bytes(
+                        self.out_dir / f"{name}{src.suffix.lower()}", src.read_bytes()
+                    )
                     return CapturedPhoto(path=dest, camera_path=str(src))
             if now >= deadline:
                 raise DeviceTimeoutError(
