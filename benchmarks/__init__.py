@@ -18,7 +18,7 @@ import platform
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,7 @@ __all__ = [
     "RESULTS_MD",
     "Metric",
     "Table",
+    "best_times",
     "finish",
     "format_table",
     "machine_info",
@@ -477,3 +478,14 @@ def write_results_md(
         for heading in order:
             chunks.append(f"## {heading}\n\n{bodies[heading].strip()}\n")
         return atomic_write_text(RESULTS_MD, "\n".join(chunks))
+
+
+def best_times(fn: Callable[[], Any], repeats: int) -> tuple[float, float, Any]:
+    """Best CPU time and best wall time (s) of ``repeats`` runs of ``fn``, and its last result."""
+    cpu, wall, out = float("inf"), float("inf"), None
+    for _ in range(repeats):
+        c0, w0 = time.process_time(), time.perf_counter()
+        out = fn()
+        cpu = min(cpu, time.process_time() - c0)
+        wall = min(wall, time.perf_counter() - w0)
+    return cpu, wall, out

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks import Metric, Table, finish
+from benchmarks import Metric, Table, best_times, finish
 
 SECTION = "Marker angles: ours vs the seed method (issue 4)"
 
@@ -94,16 +94,6 @@ def _plane_h(photo, pose) -> np.ndarray:
     return np.linalg.inv(h)
 
 
-def _timed(fn, repeats: int, clock=time.process_time) -> tuple[float, object]:
-    """Best of ``repeats`` runs, by ``clock`` (CPU time of this process by default)."""
-    best, out = np.inf, None
-    for _ in range(repeats):
-        t0 = clock()
-        out = fn()
-        best = min(best, clock() - t0)
-    return best, out
-
-
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.markers", description=__doc__)
     p.add_argument("--quick", action="store_true", help="10 photos at half size (about a minute)")
@@ -134,14 +124,12 @@ def main(argv: list[str] | None = None) -> dict:
             path, _ = photo.save(Path(tmp) / f"p{k}")
             truth = photo.truth
             plane = _plane_h(photo, pose) if tilt else None
-            t_dec, img = _timed(lambda path=path: cv2.imread(str(path)), 3)
+            t_dec, wall_dec, img = best_times(lambda path=path: cv2.imread(str(path)), 3)
 
             def run(path=path, plane=plane, camera=photo.camera):
                 return measure_machine_photo(cv2.imread(str(path)), kit, camera=camera, plane=plane)
 
-            t_all, _ = _timed(run, 3)
-            wall_dec, _ = _timed(lambda path=path: cv2.imread(str(path)), 3, time.perf_counter)
-            wall_all, _ = _timed(run, 3, time.perf_counter)
+            t_all, wall_all, _ = best_times(run, 3)
             wall_ratios.append(wall_all / wall_dec)
             decode_s.append(t_dec)
             measure_s.append(t_all - t_dec)

@@ -11,11 +11,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUME
 import argparse  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
-from benchmarks import RESULTS_DIR, Metric, Table, finish, load_results  # noqa: E402
+from benchmarks import RESULTS_DIR, Metric, Table, best_times, finish, load_results  # noqa: E402
 
 SECTION = "Speed: ours vs the seed method vs JPEG decode, one core (issue 8)"
 
@@ -27,17 +26,6 @@ SIZES: tuple[tuple[str, int, int], ...] = (
 )
 #: Target of issue 8: the seed method's time per photo / ours.
 SPEEDUP_TARGET = 10.0
-
-
-def _best(fn: Callable[[], Any], repeats: int) -> tuple[float, float, Any]:
-    """Best CPU time and best wall time (s) of ``repeats`` runs of ``fn``, and its last result."""
-    cpu, wall, out = float("inf"), float("inf"), None
-    for _ in range(repeats):
-        c0, w0 = time.process_time(), time.perf_counter()
-        out = fn()
-        cpu = min(cpu, time.process_time() - c0)
-        wall = min(wall, time.perf_counter() - w0)
-    return cpu, wall, out
 
 
 def _photo(size: tuple[int, int], seed: int):
@@ -74,8 +62,8 @@ def _time_sizes(n_photos: int, repeats: int, seed0: int) -> list[dict[str, Any]]
                 seed = seed0 + i
                 photo = _photo((w, h), seed)
                 path, _ = photo.save(Path(tmp) / f"{w}_{i}")
-                dec_cpu, dec_wall, img = _best(lambda p=path: cv2.imread(str(p)), repeats)
-                ours_cpu, ours_wall, ours = _best(
+                dec_cpu, dec_wall, img = best_times(lambda p=path: cv2.imread(str(p)), repeats)
+                ours_cpu, ours_wall, ours = best_times(
                     lambda img=img, cam=photo.camera: measure_machine_photo(img, kit, camera=cam),
                     repeats,
                 )
@@ -86,7 +74,7 @@ def _time_sizes(n_photos: int, repeats: int, seed0: int) -> list[dict[str, Any]]
                     except InputError:
                         return None
 
-                seed_cpu, seed_wall, seed_res = _best(seed_run, repeats)
+                seed_cpu, seed_wall, seed_res = best_times(seed_run, repeats)
                 truth = photo.truth["bend_angle_deg"]
                 samples.append(
                     {
