@@ -157,7 +157,8 @@ def board_truth(
     }
 
 
-def _table_layer() -> Layer:
+def table_layer() -> Layer:
+    """The grey table every board-plane scene (board views, part photos) lies on."""
     return Layer(None, None, srgb8_to_linear(_TABLE))
 
 
@@ -187,7 +188,7 @@ def render_board_view(
     rot, t_mm = pose.extrinsics("board")
     truth = {"kind": "board_view", **board_truth(board, cam, rot, t_mm)}
     return render_scene(
-        [_table_layer(), *board_layers(board)],
+        [table_layer(), *board_layers(board)],
         frame="board",
         camera=cam,
         pose=pose,

@@ -15,7 +15,7 @@ import numpy as np
 from cvmeasure.board import BoardSpec, CharucoBoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.geometry import wrap_deg
-from datasets.boards import board_layers, board_truth
+from datasets.boards import board_layers, board_truth, table_layer
 from datasets.lighting import Lighting, srgb8_to_linear
 from datasets.optics import Pose
 from datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
@@ -32,7 +32,6 @@ __all__ = [
 
 _SHEETS = {"dark": (38, 38, 42), "light": (212, 212, 206)}
 _WIRE = (170, 171, 175)
-_TABLE = (92, 88, 84)
 
 
 def vertex_bend_angles_deg(vertices_mm: np.ndarray) -> np.ndarray:
@@ -249,7 +248,7 @@ def render_part_photo(
     # board frame has z away from the camera; shadows fall away from the light
     shadow = verts - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
     layers = [
-        Layer(None, None, lin(_TABLE)),
+        table_layer(),
         *board_layers(board),
         Layer(
             (
