@@ -57,7 +57,7 @@ def observed_kit(bgr8: np.ndarray, truth: dict[str, Any], kit: Any) -> Any:
 
 def _render(light: Any, seed: int, scale: float):
     """One photo under ``light`` with random pin and bend angles, yaw and place."""
-    from datasets import Pose, render_bender_photo
+    from cvmeasure_datasets import Pose, render_bender_photo
 
     rng = np.random.default_rng(seed)
     pin = float(rng.uniform(-120.0, 120.0))
@@ -164,7 +164,7 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.kit import default_kit
     from cvmeasure.markers import measure_machine_photo
     from cvmeasure.markers.colour import estimate_white
-    from datasets import Lighting
+    from cvmeasure_datasets import Lighting
 
     cv2.setNumThreads(1)
     n = args.n or (2 if args.quick else 6)
@@ -299,7 +299,7 @@ def main(argv: list[str] | None = None) -> dict:
         plots=[plot],
         notes=[
             f"{n} photos per light at {size} (render scale {scale:g}) by "
-            "datasets.render_bender_photo: Lighting.random (camera white balance off by up to "
+            "cvmeasure_datasets.render_bender_photo: Lighting.random (camera white balance off by up to "
             "+-600 K, exposure 0.7-1.15, vignetting, shot+read noise, blur 0.5-1 px, JPEG "
             "80-96) with the light's colour temperature set; random pin/bend angles, yaw, "
             f"800-900 mm, camera square to the plate; the seed camera's lens (seeds from {args.seed}).",

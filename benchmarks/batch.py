@@ -1,6 +1,6 @@
 """Batch throughput: photos per second on 1 and 2 workers (spawn pool, Dask), and kill/resume.
 
-Rendered bender photos (``datasets.render_bender_photo``, 4608x3072 JPEG at
+Rendered bender photos (``cvmeasure_datasets.render_bender_photo``, 4608x3072 JPEG at
 full size) are measured with the real machine-photo pipeline
 (``cvmeasure.batch``, kind ``machine``). A few distinct photos are rendered
 (rendering costs ~25 s per full-size photo) and copied to the batch size, so
@@ -30,7 +30,7 @@ SECTION = "Batch throughput and resume (issue 9)"
 
 def _photos(folder: Path, *, scale: float, distinct: int, total: int) -> list[Path]:
     """``total`` photo files in ``folder``: copies of ``distinct`` renders (cached across runs)."""
-    from datasets.bender import render_bender_photo
+    from cvmeasure_datasets.bender import render_bender_photo
 
     cache = Path(tempfile.gettempdir()) / f"cvmeasure-bench-batch-s{scale:g}"
     cache.mkdir(parents=True, exist_ok=True)

@@ -18,8 +18,8 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from cvmeasure.diagnose import diagnose
-from cvmeasure.diagnose.synthetic import draw_effect, hidden_case, measure_trials, random_plan
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS, Effect, SimParams, pin_command_for_angle
+from cvmeasure_datasets.trials import draw_effect, hidden_case, measure_trials, random_plan
 
 SECTION = "Diagnosis: hidden causes named, false discoveries, held-out gain"
 

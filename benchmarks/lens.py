@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from cvmeasure.calibration.demo import planned_poses
+from cvmeasure_datasets.demo.calibration import planned_poses
 
 SECTION = "Lens calibration, honest uncertainty, plane check"
 
@@ -23,7 +23,7 @@ def _true_values(camera) -> dict[str, float]:
 
 
 def _accuracy(scale: float, n_views: int, seed: int) -> tuple[list[Metric], list[list], dict]:
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
     from cvmeasure.calibration.plane import estimate_plane
@@ -31,13 +31,15 @@ def _accuracy(scale: float, n_views: int, seed: int) -> tuple[list[Metric], list
     from cvmeasure.imageio import read_photo
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    cam = datasets.default_camera().scaled(scale)
+    cam = cvmeasure_datasets.default_camera().scaled(scale)
     poses = planned_poses(n_views, seed, board, cam)
     with tempfile.TemporaryDirectory() as tmp:
         paths = []
         t0 = time.perf_counter()
         for i, pose in enumerate(poses):
-            photo = datasets.render_board_view(board=board, camera=cam, pose=pose, seed=seed + i)
+            photo = cvmeasure_datasets.render_board_view(
+                board=board, camera=cam, pose=pose, seed=seed + i
+            )
             paths.append(photo.save(Path(tmp) / f"view{i:02d}")[0])
         render_s = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -50,14 +52,16 @@ def _accuracy(scale: float, n_views: int, seed: int) -> tuple[list[Metric], list
         for k, (tilt, direction) in enumerate(
             ((0.0, 0.0), (2.0, 30.0), (5.0, 200.0), (12.0, 120.0))
         ):
-            pose = datasets.Pose(
+            pose = cvmeasure_datasets.Pose(
                 tilt_deg=tilt,
                 tilt_direction_deg=direction,
                 yaw_deg=7.0,
                 distance_mm=cam.fx * 280.0 / (0.75 * cam.image_size_px[0]),
                 offset_mm=(140.0, 100.0),
             )
-            ph = datasets.render_board_view(board=board, camera=cam, pose=pose, seed=900 + k)
+            ph = cvmeasure_datasets.render_board_view(
+                board=board, camera=cam, pose=pose, seed=900 + k
+            )
             path = ph.save(Path(tmp) / f"plane{k}")[0]
             gray = read_photo(path).gray8()
             fit = estimate_plane(gray, board, est, source=str(path))
@@ -139,18 +143,20 @@ def _accuracy(scale: float, n_views: int, seed: int) -> tuple[list[Metric], list
 def _one_run(scale: float, n_views: int, seed: int):
     import cv2
 
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.calibration.detect import detect_board
     from cvmeasure.calibration.solve import calibrate_views
     from cvmeasure.calibration.uncertainty import projection_uncertainty
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    cam = datasets.default_camera().scaled(scale)
+    cam = cvmeasure_datasets.default_camera().scaled(scale)
     poses = planned_poses(n_views, seed, board, cam)
     dets = []
     for i, pose in enumerate(poses):
-        photo = datasets.render_board_view(board=board, camera=cam, pose=pose, seed=seed * 100 + i)
+        photo = cvmeasure_datasets.render_board_view(
+            board=board, camera=cam, pose=pose, seed=seed * 100 + i
+        )
         dets.append(detect_board(photo.bgr, board, source=f"view{i}"))
     res = calibrate_views(dets, cam.image_size_px)
     truth = _true_values(cam)
@@ -302,7 +308,7 @@ def main(argv: list[str] | None = None) -> dict:
     metrics += hm
     tables = [
         Table(
-            "intrinsics, 15 views (truth = datasets.default_camera)",
+            "intrinsics, 15 views (truth = cvmeasure_datasets.default_camera)",
             ["param", "true", "estimated", "error", "reported sigma", "error / sigma"],
             param_rows,
         ),
@@ -351,7 +357,7 @@ def main(argv: list[str] | None = None) -> dict:
         metrics=metrics,
         tables=tables,
         notes=[
-            f"views rendered by datasets.render_board_view (default lighting: noise, blur 0.8 px, JPEG 92), "
+            f"views rendered by cvmeasure_datasets.render_board_view (default lighting: noise, blur 0.8 px, JPEG 92), "
             f"ChArUco 14x10 20/15 mm, planned_poses seed 7 (board pushed to every image region, tilts 25-40 deg); rendering took {extra['render_s']:.0f} s "
             "(not counted in the calibrate time)",
             "projection map error: every pixel of a 24x16 grid over the whole image (corners included) "

@@ -16,9 +16,9 @@ SECTION = "Marker angles: ours vs the seed method (issue 4)"
 
 def _photos(n: int, scale: float, seed0: int):
     """Rendered photos: random light (2700-6500 K, WB error, exposure, noise, blur, JPEG), yaw."""
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
-    from datasets.optics import Pose
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
+    from cvmeasure_datasets.optics import Pose
 
     rng = np.random.default_rng(seed0)
     for i in range(n):
@@ -51,9 +51,9 @@ def _ca_rows(n: int, scale: float, seed0: int, ca: float) -> list[list]:
 
     from cvmeasure.kit import default_kit
     from cvmeasure.markers import measure_machine_photo
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
-    from datasets.optics import Pose
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
+    from cvmeasure_datasets.optics import Pose
 
     rng = np.random.default_rng(seed0)
     errs: dict[str, list[float]] = {"auto": [], "luma": [], "green": [], "colour": []}
@@ -269,7 +269,7 @@ def main(argv: list[str] | None = None) -> dict:
             ),
         ],
         notes=[
-            f"{n} photos rendered by datasets.render_bender_photo at {size} (seed {args.seed}): "
+            f"{n} photos rendered by cvmeasure_datasets.render_bender_photo at {size} (seed {args.seed}): "
             "Lighting.random (2700-6500 K, camera white balance off by up to 600 K, exposure "
             "0.7-1.15, vignetting, shot+read noise, blur 0.4-1 px, JPEG quality 80-96), the seed "
             "camera's lens distortion, random yaw, 800-900 mm; the last fifth tilted 4-10 deg.",

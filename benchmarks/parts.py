@@ -1,6 +1,6 @@
 """Finished parts: radius and bend per chord, ours vs the seed's ellipse and sagitta methods (issue 5).
 
-Rendered parts (datasets.render_part_photo): chord arcs with R 45-85 mm, 6-20
+Rendered parts (cvmeasure_datasets.render_part_photo): chord arcs with R 45-85 mm, 6-20
 chords, 70-180 degrees, dark and light sheets, camera tilt up to 4 degrees,
 plus saddles whose bends change sign. Every photo is measured by
 cvmeasure.part.measure_part (our polyline + circle fit) and, on the same
@@ -83,23 +83,27 @@ def _cases(n_arcs: int, seed: int) -> list[dict]:
 
 
 def _run_case(case: dict, scale: float) -> dict:
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.part.measure import measure_part
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     if case["kind"] == "arc":
-        part = datasets.arc_part(case["radius_mm"], case["arc_angle_deg"], case["divisions"])
+        part = cvmeasure_datasets.arc_part(
+            case["radius_mm"], case["arc_angle_deg"], case["divisions"]
+        )
     else:
-        part = datasets.saddle_part(case["width_mm"], case["height_mm"], case["divisions"])
+        part = cvmeasure_datasets.saddle_part(
+            case["width_mm"], case["height_mm"], case["divisions"]
+        )
     bw, bh = board.size_mm
-    pose = datasets.Pose(
+    pose = cvmeasure_datasets.Pose(
         tilt_deg=case["tilt_deg"],
         tilt_direction_deg=case["tilt_direction_deg"],
         distance_mm=900.0,
         offset_mm=((bw + 10.0 + 250.0 - 20.0) / 2 + 10.0, bh / 2),
     )
-    photo = datasets.render_part_photo(
+    photo = cvmeasure_datasets.render_part_photo(
         part=part, board=board, sheet=case["sheet"], pose=pose, seed=case["seed"], scale=scale
     )
     t0 = time.perf_counter()

@@ -37,8 +37,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = p.parse_args(argv)
     from cvmeasure.batch import run_batch
     from cvmeasure.fileio import read_jsonl
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
 
     scale = 0.25 if args.quick else 0.5
     per = args.per_lighting or (1 if args.quick else 3)
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> dict:
         ],
         notes=[
             f"{summary.measured} files measured in {summary.seconds:.1f} s; renders from "
-            "datasets.render_bender_photo(linear=True), seeds 100*lighting+k",
+            "cvmeasure_datasets.render_bender_photo(linear=True), seeds 100*lighting+k",
         ],
         seconds=time.perf_counter() - t0,
     )

@@ -18,7 +18,7 @@ _ROLES = ("origin", "axis", "pin", "wire_a", "wire_b")
 def _render_time(repeats: int) -> tuple[float, float, float]:
     """Median wall and CPU seconds of a default (noise, blur, JPEG 92) 4608 x 3072 bender
     photo, and the wall seconds of one with the 16-bit linear output too."""
-    from datasets import render_bender_photo
+    from cvmeasure_datasets import render_bender_photo
 
     render_bender_photo(pin_angle_deg=-60.0, bend_angle_deg=35.0, scale=0.05)  # imports, caches
     wall, cpu = [], []
@@ -37,8 +37,8 @@ def _board_views(n: int, scale: float):
     import cv2
 
     from cvmeasure.board import CharucoBoardSpec
-    from datasets import Lighting, default_camera, random_board_poses, render_board_view
-    from datasets.checks import check_charuco_corners
+    from cvmeasure_datasets import Lighting, default_camera, random_board_poses, render_board_view
+    from cvmeasure_datasets.checks import check_charuco_corners
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
     cam = default_camera().scaled(scale)
@@ -67,8 +67,8 @@ def _board_views(n: int, scale: float):
 def _noisy_corners(n: int, scale: float) -> np.ndarray:
     """Corner errors on default photos (noise, blur, JPEG 92, warm light, vignetting)."""
     from cvmeasure.board import CharucoBoardSpec
-    from datasets import Lighting, default_camera, random_board_poses, render_board_view
-    from datasets.checks import check_charuco_corners
+    from cvmeasure_datasets import Lighting, default_camera, random_board_poses, render_board_view
+    from cvmeasure_datasets.checks import check_charuco_corners
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
     cam = default_camera().scaled(scale)
@@ -82,8 +82,8 @@ def _noisy_corners(n: int, scale: float) -> np.ndarray:
 
 
 def _disc_centres(scale: float, n_poses: int):
-    from datasets import Lighting, Pose, render_bender_photo
-    from datasets.checks import check_disc_centre
+    from cvmeasure_datasets import Lighting, Pose, render_bender_photo
+    from cvmeasure_datasets.checks import check_disc_centre
 
     rng = np.random.default_rng(5)
     rows, errors, shifts = [], [], []
@@ -123,7 +123,7 @@ def _supersampling(scale: float) -> tuple[float, float, float]:
     import cv2
 
     from cvmeasure.board import CharucoBoardSpec
-    from datasets import Lighting, random_board_poses, render_board_view
+    from cvmeasure_datasets import Lighting, random_board_poses, render_board_view
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
     bare = Lighting.clean(blur_px=0.0)
@@ -148,8 +148,8 @@ def _supersampling(scale: float) -> tuple[float, float, float]:
 
 def _raymap_error() -> float:
     """Largest gap between the spline ray map and exact per-pixel undistortion, px."""
-    from datasets import default_camera
-    from datasets.optics import RayMap, _undistort_normalized
+    from cvmeasure_datasets import default_camera
+    from cvmeasure_datasets.optics import RayMap, _undistort_normalized
 
     cam = default_camera()
     rays = RayMap(cam)
@@ -257,7 +257,7 @@ def main(argv: list[str] | None = None) -> dict:
         ],
         notes=[
             "corners: OpenCV CharucoDetector + cornerSubPix(5x5) on the 8-bit sRGB photo; calibration: "
-            "cv2.calibrateCamera (k1 k2 p1 p2 k3) on the same views; truth = datasets.default_camera",
+            "cv2.calibrateCamera (k1 k2 p1 p2 k3) on the same views; truth = cvmeasure_datasets.default_camera",
             "disc fits: 0.5 contour of the disc's coverage in the noise-free 16-bit linear render "
             "(skimage find_contours + EllipseModel), compared with the truth's ellipse_centre_px",
             "the machine is shared by several concurrent jobs: times are upper bounds",

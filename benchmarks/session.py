@@ -2,7 +2,7 @@
 
 Runs ``run_session`` against the TinyG double on a pty (its machine is
 cvmeasure.sim), driven through the streamer, with the
-simulated camera (datasets.render_bender_photo) and the marker measurement,
+simulated camera (cvmeasure_datasets.render_bender_photo) and the marker measurement,
 then checks (a) each measured springback against the simulation's, and (b)
 that the calibration's compensation bends the seed paper's half circle (R 100
 mm, 20 chords, 9 deg per segment) and saddle (200 x 20 mm, 13 chords, 3.48 deg
@@ -46,7 +46,7 @@ def _part_errors(calibration, target_deg: float, segments: int, outside: str, ef
     ``calibration`` is anything with ``compensate(target, outside=...)``; the
     pin commands are executed by the simulation with the machine's ``effects``.
     """
-    from cvmeasure.driver.compensation import CompensationRangeError
+    from cvmeasure.material.compensation import CompensationRangeError
     from cvmeasure.sim import simulate
 
     errors = []
@@ -78,15 +78,14 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--quick", action="store_true", help="one 7-angle session at 0.25 render scale")
     args = p.parse_args(argv)
 
-    from cvmeasure.driver.camera import SimulatedCamera
-    from cvmeasure.driver.compensation import SPRINGBACK_MODELS
     from cvmeasure.driver.session import (
         SessionConfig,
-        double_photo_state,
         run_session,
         simulated_bender,
     )
+    from cvmeasure.material.compensation import SPRINGBACK_MODELS
     from cvmeasure.sim import parse_effect, simulate
+    from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
     scale = 0.25 if args.quick else 0.5
     quick_config = SessionConfig(mode="custom", angles_deg=QUICK_ANGLES)
@@ -211,7 +210,7 @@ def main(argv: list[str] | None = None) -> dict:
         notes=[
             "bender = the TinyG double on a pty behind the streamer (speedup 200), its machine "
             "= cvmeasure.sim defaults (3 mm steel, DIWire-like head), no effects;"
-            " photos rendered by datasets.render_bender_photo and measured by "
+            " photos rendered by cvmeasure_datasets.render_bender_photo and measured by "
             "cvmeasure.markers.measure_machine_photo with the render's lens model",
             "backlash sessions: the double's machine loses 0.8 deg of pin travel per bend "
             "(cvmeasure.sim effect); the calibration absorbs it, the nominal inverse does not",

@@ -32,7 +32,7 @@ def _photo(size: tuple[int, int], seed: int):
     """One rendered bender photo at ``size`` (w, h): random light, angles and yaw."""
     import numpy as np
 
-    from datasets import Lighting, Pose, render_bender_photo
+    from cvmeasure_datasets import Lighting, Pose, render_bender_photo
 
     rng = np.random.default_rng(seed)
     pin = float(rng.uniform(-120.0, 120.0))
@@ -109,19 +109,19 @@ def _time_calibration(n_views: int, seed: int) -> dict[str, float]:
     poses, the 14x10 ChArUco board, ``detect_photos`` + ``calibrate_detections``
     with uncertainty and cross-validation); only the timing differs (one core, CPU time).
     """
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.demo import planned_poses
     from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure_datasets.demo.calibration import planned_poses
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    cam = datasets.default_camera()
+    cam = cvmeasure_datasets.default_camera()
     poses = planned_poses(n_views, seed, board, cam)
     with tempfile.TemporaryDirectory() as tmp:
         paths = [
-            datasets.render_board_view(board=board, camera=cam, pose=pose, seed=seed + i).save(
-                Path(tmp) / f"view{i:02d}"
-            )[0]
+            cvmeasure_datasets.render_board_view(
+                board=board, camera=cam, pose=pose, seed=seed + i
+            ).save(Path(tmp) / f"view{i:02d}")[0]
             for i, pose in enumerate(poses)
         ]
         c0, w0 = time.process_time(), time.perf_counter()
@@ -134,8 +134,8 @@ def _time_calibration(n_views: int, seed: int) -> dict[str, float]:
 def _time_diagnose(n_trials: int, seed0: int) -> list[float]:
     """CPU seconds of ``diagnose`` on ``n_trials`` simulated trials, one case per hidden effect."""
     from cvmeasure.diagnose import diagnose
-    from cvmeasure.diagnose.synthetic import hidden_case
     from cvmeasure.sim import EFFECT_NAMES
+    from cvmeasure_datasets.trials import hidden_case
 
     out = []
     for i, effect in enumerate(EFFECT_NAMES):
@@ -329,7 +329,7 @@ def main(argv: list[str] | None = None) -> dict:
         )
     plot = _plot(samples, RESULTS_DIR / "speed_scaling.png")
     notes[:0] = [
-        f"{n} photo(s) per size rendered by datasets.render_bender_photo (Lighting.random, random "
+        f"{n} photo(s) per size rendered by cvmeasure_datasets.render_bender_photo (Lighting.random, random "
         f"angles and yaw, seeds {args.seed}..{args.seed + n - 1}), saved as JPEG; one core "
         "(OMP/OPENBLAS/MKL threads 1, cv2.setNumThreads(1)); best of "
         f"{repeats} runs in CPU time of the process (time.process_time; the machine is shared, "

@@ -1,6 +1,6 @@
 """Printable calibration targets at exact physical scale: ChArUco boards and marker-kit sheets."""
 
-from calib_targets.charuco import (
+from cvmeasure_calib_targets.charuco import (
     PAGE_SIZES_MM,
     SheetLayout,
     board_black_rects_mm,

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 from cvmeasure.board import BoardSpec, CharucoBoardSpec, ChessboardSpec
+from cvmeasure_calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 
 __all__ = [
     "SheetFormat",

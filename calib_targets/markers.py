@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 from cvmeasure.kit import MarkerKit
+from cvmeasure_calib_targets.sheet import SheetFormat, figure_bytes, sheet_format
 
 __all__ = [
     "SheetFormat",

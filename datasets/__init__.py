@@ -12,7 +12,7 @@ API
 ``default_camera(image_size_px=(4608, 3072)) -> CameraModel``
     The seed camera: Nikon D3100 + 18-55 mm at ~35 mm, f = 7000 px, barrel distortion.
 ``Pose(tilt_deg, tilt_direction_deg, yaw_deg, distance_mm, offset_mm)``
-    Camera pose relative to the scene plane (see :class:`datasets.optics.Pose`).
+    Camera pose relative to the scene plane (see :class:`cvmeasure_datasets.optics.Pose`).
 ``Lighting(cct_k, wb_error_k, wb_cct_k, exposure, vignetting, noise, blur_px, jpeg_quality,
 bayer, ...)``
     ``Lighting.clean()`` (no noise/blur/JPEG/vignetting, perfect WB) and ``Lighting.random(seed)``.
@@ -39,18 +39,24 @@ image_size_px=None, linear=False)``,
 ``image_size_px=(w, h)`` does the same by size.
 Every function is deterministic for a given ``seed``.
 
-Checks of the truth (``datasets.checks``): :func:`~datasets.checks.check_charuco_corners`
-and :func:`~datasets.checks.check_disc_centre` measure a rendered photo with
+Checks of the truth (``cvmeasure_datasets.checks``): :func:`~cvmeasure_datasets.checks.check_charuco_corners`
+and :func:`~cvmeasure_datasets.checks.check_disc_centre` measure a rendered photo with
 standard methods and compare with its truth; ``benchmarks/renderer_fidelity.py``
 reports them. ``cvmeasure render bender|part|board`` is the command-line front end.
 """
 
-from datasets.bender import BenderGeometry, render_bender_photo
-from datasets.boards import random_board_poses, render_board_view
-from datasets.lighting import Lighting
-from datasets.optics import Pose, default_camera
-from datasets.parts import PartSpec, arc_part, polyline_part, render_part_photo, saddle_part
-from datasets.photo import RenderedPhoto
+from cvmeasure_datasets.bender import BenderGeometry, render_bender_photo
+from cvmeasure_datasets.boards import random_board_poses, render_board_view
+from cvmeasure_datasets.lighting import Lighting
+from cvmeasure_datasets.optics import Pose, default_camera
+from cvmeasure_datasets.parts import (
+    PartSpec,
+    arc_part,
+    polyline_part,
+    render_part_photo,
+    saddle_part,
+)
+from cvmeasure_datasets.photo import RenderedPhoto
 
 __all__ = [
     "BenderGeometry",

@@ -24,16 +24,16 @@ import numpy as np
 from cvmeasure.camera import CameraModel
 from cvmeasure.geometry import direction_deg
 from cvmeasure.kit import MarkerKit, default_kit
-from datasets.lighting import Lighting, srgb8_to_linear
-from datasets.optics import Pose
-from datasets.photo import (
+from cvmeasure_datasets.lighting import Lighting, srgb8_to_linear
+from cvmeasure_datasets.optics import Pose
+from cvmeasure_datasets.photo import (
     RenderedPhoto,
     circle_image_geometry,
     px_per_mm_at,
     render_scene,
     resolve_camera,
 )
-from datasets.raster import (
+from cvmeasure_datasets.raster import (
     Layer,
     Window,
     circle_bbox,

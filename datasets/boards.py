@@ -13,10 +13,10 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec, CharucoBoardSpec, ChessboardSpec
 from cvmeasure.camera import CameraModel
-from datasets.lighting import Lighting, srgb8_to_linear
-from datasets.optics import Pose, project_frame_points
-from datasets.photo import RenderedPhoto, render_scene, resolve_camera
-from datasets.raster import Layer, Window, box_coverage, sdf_alpha, sdf_rect
+from cvmeasure_datasets.lighting import Lighting, srgb8_to_linear
+from cvmeasure_datasets.optics import Pose, project_frame_points
+from cvmeasure_datasets.photo import RenderedPhoto, render_scene, resolve_camera
+from cvmeasure_datasets.raster import Layer, Window, box_coverage, sdf_alpha, sdf_rect
 
 __all__ = ["board_layers", "board_truth", "render_board_view", "random_board_poses"]
 

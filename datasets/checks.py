@@ -15,9 +15,9 @@ import numpy as np
 
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.kit import MarkerKit, default_kit
-from datasets.bender import RING_SRGB
-from datasets.lighting import srgb8_to_linear
-from datasets.photo import RenderedPhoto
+from cvmeasure_datasets.bender import RING_SRGB
+from cvmeasure_datasets.lighting import srgb8_to_linear
+from cvmeasure_datasets.photo import RenderedPhoto
 
 __all__ = ["CornerCheck", "DiscCheck", "check_charuco_corners", "check_disc_centre"]
 

@@ -15,11 +15,18 @@ import numpy as np
 from cvmeasure.board import BoardSpec, CharucoBoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.geometry import wrap_deg
-from datasets.boards import board_layers, board_truth, table_layer
-from datasets.lighting import Lighting, srgb8_to_linear
-from datasets.optics import Pose
-from datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
-from datasets.raster import Layer, Window, polyline_bbox, sdf_alpha, sdf_capsules, sdf_rect
+from cvmeasure_datasets.boards import board_layers, board_truth, table_layer
+from cvmeasure_datasets.lighting import Lighting, srgb8_to_linear
+from cvmeasure_datasets.optics import Pose
+from cvmeasure_datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
+from cvmeasure_datasets.raster import (
+    Layer,
+    Window,
+    polyline_bbox,
+    sdf_alpha,
+    sdf_capsules,
+    sdf_rect,
+)
 
 __all__ = [
     "PartSpec",

@@ -12,9 +12,9 @@ import numpy as np
 
 from cvmeasure.camera import CameraModel
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
-from datasets.lighting import Lighting, develop
-from datasets.optics import Frame, Pose, default_camera, project_frame_points
-from datasets.raster import Layer, rasterise
+from cvmeasure_datasets.lighting import Lighting, develop
+from cvmeasure_datasets.optics import Frame, Pose, default_camera, project_frame_points
+from cvmeasure_datasets.raster import Layer, rasterise
 
 __all__ = [
     "RenderedPhoto",

@@ -3,7 +3,7 @@
 A scene is a list of :class:`Layer` objects painted in order (painter's
 algorithm) onto a linear-RGB albedo image. Each layer has a bounding box in
 plane mm; only the pixels inside its projected box are evaluated. For those
-pixels the plane coordinates come from :class:`datasets.optics.RayMap`
+pixels the plane coordinates come from :class:`cvmeasure_datasets.optics.RayMap`
 (exact undistortion, spline-interpolated to ~1e-11 px, + ray/plane intersection) and the layer returns a coverage
 ``alpha`` in [0, 1]:
 
@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 from cvmeasure.camera import CameraModel
-from datasets.optics import RayMap, project_frame_points
+from cvmeasure_datasets.optics import RayMap, project_frame_points
 
 __all__ = [
     "Window",

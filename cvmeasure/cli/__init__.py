@@ -51,13 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"cvmeasure {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
-        try:
-            module = importlib.import_module(f"cvmeasure.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"cvmeasure.cli.{name}":
-                continue  # stage not built yet
-            raise
-        module.register(sub)
+        importlib.import_module(f"cvmeasure.cli.{name}").register(sub)
     return parser
 
 

@@ -30,9 +30,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvmeasure.demo import format_sections, run_demo
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.provenance import provenance
+    from cvmeasure_datasets.demo import format_sections, run_demo
 
     def progress(msg: str) -> None:
         if not args.json:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
             f"closed shape {path.element or path.kind}: a wire part needs two free ends",
         )
     if args.material is not None:
-        from cvmeasure.driver.calibration import load_calibration
+        from cvmeasure.material.calibration import load_calibration
 
         compensation = load_calibration(args.material)
     elif args.params is not None:

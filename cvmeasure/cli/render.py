@@ -90,7 +90,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _lighting(args: argparse.Namespace, seed: int):
     import dataclasses
 
-    from datasets import Lighting
+    from cvmeasure_datasets import Lighting
 
     light = (
         Lighting.clean()
@@ -135,7 +135,7 @@ def _pose(args: argparse.Namespace, default):
     if default is None:
         if not changes:
             return None
-        from datasets import Pose
+        from cvmeasure_datasets import Pose
 
         default = Pose()
     try:
@@ -166,7 +166,7 @@ def _occlusions(items: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec, load_board
     from cvmeasure.camera import load_camera
     from cvmeasure.errors import InputError
@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         board = load_board(args.board) if args.board else CharucoBoardSpec(14, 10, 20.0, 15.0)
     poses = None
     if args.kind == "board":
-        poses = datasets.random_board_poses(args.count, args.seed, board=board)
+        poses = cvmeasure_datasets.random_board_poses(args.count, args.seed, board=board)
     occlude = _occlusions(args.occlude) if args.kind == "bender" else {}
     kit = load_kit(args.kit) if args.kind == "bender" and args.kit else None
     for i in range(args.count):
@@ -192,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
             camera=camera, lighting=light, seed=seed, scale=args.scale, linear=args.linear
         )
         if args.kind == "bender":
-            photo = datasets.render_bender_photo(
+            photo = cvmeasure_datasets.render_bender_photo(
                 pin_angle_deg=args.pin_deg,
                 bend_angle_deg=args.bend_deg,
                 kit=kit,
@@ -203,16 +203,20 @@ def run(args: argparse.Namespace) -> int:
         elif args.kind == "part":
             try:
                 if args.arc:
-                    part = datasets.arc_part(args.arc[0], args.arc[1], int(args.arc[2]))
+                    part = cvmeasure_datasets.arc_part(args.arc[0], args.arc[1], int(args.arc[2]))
                 else:
-                    part = datasets.saddle_part(args.saddle[0], args.saddle[1], int(args.saddle[2]))
+                    part = cvmeasure_datasets.saddle_part(
+                        args.saddle[0], args.saddle[1], int(args.saddle[2])
+                    )
             except ValueError as exc:
                 raise InputError("command line", f"bad part: {exc}") from None
-            photo = datasets.render_part_photo(
+            photo = cvmeasure_datasets.render_part_photo(
                 part=part, board=board, sheet=args.sheet, pose=_pose(args, None), **common
             )
         else:
-            photo = datasets.render_board_view(board=board, pose=_pose(args, poses[i]), **common)
+            photo = cvmeasure_datasets.render_board_view(
+                board=board, pose=_pose(args, poses[i]), **common
+            )
         name = stem if args.count == 1 else f"{stem}_{i:03d}"
         photo_path, truth_path = photo.save(args.out / name)
         record = {"photo": str(photo_path), "truth": str(truth_path), "seed": seed}

@@ -90,13 +90,11 @@ def _angles(text: str) -> tuple[float, ...]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvmeasure.driver.calibration import save_calibration
-    from cvmeasure.driver.camera import SimulatedCamera, open_camera
+    from cvmeasure.driver.camera import open_camera
     from cvmeasure.driver.session import (
         SessionConfig,
         SessionInterrupted,
         StreamedBender,
-        double_photo_state,
         run_session,
         simulated_bender,
     )
@@ -104,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.driver.transport import open_link
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import write_csv_rows
+    from cvmeasure.material.calibration import save_calibration
     from cvmeasure.provenance import provenance
 
     session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
@@ -139,6 +138,8 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise InputError("--effect", str(exc)) from None
     if args.simulate:
+        from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
+
         machine = simulated_bender(params=params, effects=effects, speedup=args.speedup)
         double = machine.double
         camera = SimulatedCamera(

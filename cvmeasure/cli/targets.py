@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 from pathlib import Path
 
@@ -65,9 +64,9 @@ def _page(text: str | None):
 
 
 def run_charuco(args: argparse.Namespace) -> int:
-    from calib_targets.charuco import write_board_sheet
     from cvmeasure.board import load_board
     from cvmeasure.errors import InputError
+    from cvmeasure_calib_targets.charuco import write_board_sheet
 
     board = load_board(args.board)
     fmt = args.format or args.out.suffix.lstrip(".").lower()
@@ -85,7 +84,7 @@ def run_charuco(args: argparse.Namespace) -> int:
 
 
 def run_markers(args: argparse.Namespace) -> int:
-    from cvmeasure.errors import CvmeasureError, InputError
+    from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.kit import default_kit, load_kit
 
@@ -102,17 +101,8 @@ def run_markers(args: argparse.Namespace) -> int:
         raise InputError(args.out, "unknown sheet format: use .pdf, .svg, .png or --format json")
     if args.out is None:
         raise InputError("--out", "a sheet needs an output file (-o sheet.pdf)")
-    try:
-        markers = importlib.import_module("calib_targets.markers")
-    except ModuleNotFoundError as exc:
-        if exc.name != "calib_targets.markers":
-            raise
-        raise CvmeasureError("marker-kit sheets are not available in this build") from None
-    import inspect
+    from cvmeasure_calib_targets.markers import write_kit_sheet
 
-    kwargs = {}
-    if "dpi" in inspect.signature(markers.write_kit_sheet).parameters:
-        kwargs["dpi"] = args.dpi
-    path = markers.write_kit_sheet(kit, args.out, fmt, **kwargs)
+    path = write_kit_sheet(kit, args.out, fmt, dpi=args.dpi)
     print(f"wrote {path or args.out} (print at 100 % and check the ruler)")
     return 0

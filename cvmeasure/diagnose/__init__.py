@@ -3,7 +3,7 @@
 :func:`diagnose` fits the nuisance parameter, tries every named effect of
 :mod:`cvmeasure.sim.effects`, selects by grouped cross-validated error with a
 penalty, and reports the cause, its 95 % interval, the held-out gain and an
-identifiability check. :mod:`cvmeasure.diagnose.synthetic` hides effects in
+identifiability check. :mod:`cvmeasure_datasets.trials` hides effects in
 simulated trials for tests and benchmarks.
 """
 

@@ -1,11 +1,11 @@
-"""Driving the bender: calibration sessions, compensation, G-code, streaming, cameras.
+"""Talking to the bender: G-code, the TinyG protocol and streamer, cameras, the session.
 
-Modules: ``calibration`` (the ``diwire-material/1`` calibration JSON),
-``compensation`` (springback and motion curves), ``camera`` (gphoto2, watched
-folder, simulated), ``session`` (the automatic calibration session),
-``session_report`` (plots and the HTML report), ``session_demo`` (its demo
-stage), and the G-code / protocol / streaming / transport / double modules of
-the bender side.
+Modules: ``gcode`` (designs -> compensated G-code), ``protocol`` (TinyG's JSON
+protocol), ``transport`` (serial, ``socket://``, ``sim://``), ``stream`` (flow
+control, journal, resume), ``double`` (the TinyG double behind ``sim://``),
+``camera`` (gphoto2, watched folder), ``session`` (the automatic calibration
+session) and ``session_report`` (its plots and HTML report). The material
+calibration it fits and compensates with is :mod:`cvmeasure.material`.
 """
 
 __all__: list[str] = []

@@ -1,4 +1,4 @@
-"""Cameras for calibration sessions: a real DSLR (gphoto2), a watched folder, a simulation.
+"""Cameras for calibration sessions: a real DSLR (gphoto2) and a watched folder.
 
 Every backend implements :class:`Camera`: ``capture(name) -> CapturedPhoto``
 takes one photo and stores it as a file ``<out_dir>/<name><ext>``. Backends:
@@ -10,9 +10,8 @@ takes one photo and stores it as a file ``<out_dir>/<name><ext>``. Backends:
 :class:`WatchedFolderCamera`
     tethering software (or a person) writes the photos into a folder; capture
     waits for the next new, completely written file.
-:class:`SimulatedCamera`
-    renders the machine's current state (pin and bend angle, e.g. from the
-    TinyG double) with the synthetic photo lab :func:`datasets.render_bender_photo`.
+:class:`cvmeasure_datasets.simcamera.SimulatedCamera` (the photo lab, not this
+package) renders a simulated machine's state and implements the same protocol.
 
 :func:`open_camera` picks one by URL: ``gphoto2://`` (first camera found) or
 ``gphoto2://usb:001,004`` (a port), ``folder:///path/to/incoming``.
@@ -27,7 +26,7 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 from urllib.parse import unquote, urlparse
@@ -38,10 +37,8 @@ from cvmeasure.fileio import atomic_write_bytes
 __all__ = [
     "CapturedPhoto",
     "Camera",
-    "MachineState",
     "GPhoto2Camera",
     "WatchedFolderCamera",
-    "SimulatedCamera",
     "open_camera",
     "virtual_camera_env",
 ]
@@ -356,65 +353,6 @@ class WatchedFolderCamera:
         pass
 
 
-# ----------------------------------------------------------------------------- simulation
-
-
-@dataclass(frozen=True)
-class MachineState:
-    """What a simulated photo shows: the pin angle and the wire's bend angle (deg, signed)."""
-
-    pin_angle_deg: float
-    bend_angle_deg: float
-
-
-@dataclass
-class SimulatedCamera:
-    """Renders the machine's current state with the synthetic photo lab.
-
-    Parameters
-    ----------
-    out_dir : path
-        Where photos (``<name>.jpg``) and their truth (``<name>.truth.json``) go.
-    state : callable returning MachineState
-        Reads the machine's state at the moment of capture, e.g. the double's
-        pin angle and the simulated wire's bend angle.
-    scale : float
-        Render scale (1.0 = the seed camera's 4608 x 3072 px).
-    seed : int
-        Base seed; photo ``k`` uses ``seed + k`` (noise differs between photos).
-    render_options : mapping
-        Passed on to :func:`datasets.render_bender_photo` (kit, camera, pose, lighting, ...).
-    """
-
-    out_dir: Path
-    state: Callable[[], MachineState]
-    scale: float = 0.25
-    seed: int = 0
-    render_options: Mapping[str, Any] = field(default_factory=dict)
-    _count: int = 0
-
-    def capture(self, name: str) -> CapturedPhoto:
-        """Render the current state to ``<out_dir>/<name>.jpg`` (+ ``.truth.json``)."""
-        from datasets import render_bender_photo
-
-        s = self.state()
-        photo = render_bender_photo(
-            pin_angle_deg=s.pin_angle_deg,
-            bend_angle_deg=s.bend_angle_deg,
-            seed=self.seed + self._count,
-            scale=self.scale,
-            **dict(self.render_options),
-        )
-        self._count += 1
-        out_dir = Path(self.out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        photo_path, _ = photo.save(out_dir / name)
-        return CapturedPhoto(path=Path(photo_path), truth=photo.truth, camera=photo.camera)
-
-    def close(self) -> None:
-        pass
-
-
 # ----------------------------------------------------------------------------- by URL
 
 
@@ -423,7 +361,7 @@ def open_camera(url: str, out_dir: str | os.PathLike[str], **options: Any) -> Ca
 
     ``gphoto2://`` (first camera), ``gphoto2://usb:001,004`` (that port) or
     ``folder:///path`` (a watched folder). The simulated camera needs a
-    machine to render, so sessions build it directly (``--simulate``).
+    machine to render, so sessions build it from the photo lab (``--simulate``).
 
     Raises
     ------

@@ -12,7 +12,7 @@ Three pure steps:
 2. :func:`pin_commands` - each wanted final bend goes through the springback
    compensation and the inverse motion function to a pin command (X, degrees
    of head rotation from home). Any object with ``compensate(target_deg) ->
-   pin_deg`` works (:class:`cvmeasure.driver.compensation.Compensation` from a
+   pin_deg`` works (:class:`cvmeasure.material.compensation.Compensation` from a
    calibration); the default is the simulation's own inverse
    (:func:`cvmeasure.sim.pin_command_for_angle`).
 3. :func:`gcode_lines` - the bend list and pin commands become numbered

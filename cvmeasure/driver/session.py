@@ -1,6 +1,6 @@
 """The automatic calibration session: bend, photograph, release, photograph, measure.
 
-For each calibration angle and direction (:func:`~cvmeasure.driver.calibration.calibration_plan`)
+For each calibration angle and direction (:func:`~cvmeasure.material.calibration.calibration_plan`)
 a session:
 
 1. feeds fresh straight wire (``G91 G1 Y<feed>``),
@@ -16,13 +16,13 @@ a session:
 A session killed at any point resumes from its log: completed angles are never
 bent again; an angle that was bent but not completely recorded is bent again
 on fresh wire. At the end the samples are fitted
-(:func:`~cvmeasure.driver.calibration.fit_calibration`).
+(:func:`~cvmeasure.material.calibration.fit_calibration`).
 
 The machine is anything with ``run(lines)`` (send G-code lines and return once
 every move has finished): :class:`StreamedBender` drives a board through the
 streamer, a real one or the TinyG double (``sim://``), whose simulated machine
-state (:func:`double_photo_state`) the
-:class:`~cvmeasure.driver.camera.SimulatedCamera` renders.
+state the photo lab's simulated camera
+(:class:`cvmeasure_datasets.simcamera.SimulatedCamera`) renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
 "config": {...}}``, ``{"event": "bend", "step": i, ...}`` (written before
@@ -41,15 +41,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from cvmeasure.driver.calibration import (
+from cvmeasure.driver.camera import Camera
+from cvmeasure.errors import CvmeasureError, InputError
+from cvmeasure.fileio import append_jsonl, read_jsonl
+from cvmeasure.material.calibration import (
     Calibration,
     Sample,
     calibration_plan,
     fit_calibration,
 )
-from cvmeasure.driver.camera import Camera, MachineState
-from cvmeasure.errors import CvmeasureError, InputError
-from cvmeasure.fileio import append_jsonl, read_jsonl
 
 __all__ = [
     "Machine",
@@ -59,9 +59,7 @@ __all__ = [
     "SessionInterrupted",
     "StreamedBender",
     "simulated_bender",
-    "double_photo_state",
     "nominal_pin_for_loaded_deg",
-    "photo_state",
     "session_gcode",
     "run_session",
     "read_session_log",
@@ -333,30 +331,6 @@ def simulated_bender(
         double.close()
         raise
     return StreamedBender(link, double=double)
-
-
-def double_photo_state(double: Any, params: Any = None) -> MachineState:
-    """What a photo of the TinyG double's machine shows right now (see :func:`photo_state`)."""
-    state = double.machine_state()
-    return photo_state(state.pin_deg, state.bend_angle_deg, params)
-
-
-def photo_state(pin_deg: float, bend_angle_deg: float, params: Any = None) -> MachineState:
-    """What a photo of the machine shows, from the pin command and the wire's bend angle.
-
-    The pin's photo angle (origin -> pin from +x, deg) is its die-frame angle
-    in the simulation's kinematics: first contact minus the approach plus the
-    head rotation ``pin_deg``, mirrored for clockwise (negative) rotations;
-    at home the side is taken from the bend (counter-clockwise when straight).
-    """
-    from cvmeasure.sim import SimParams
-    from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry
-
-    params = params or SimParams()
-    side = -1.0 if (pin_deg or bend_angle_deg) < 0 else 1.0
-    geom = head_geometry(params, side)
-    phi = float(contact_angle_deg(geom)) - params.approach_deg + abs(pin_deg)
-    return MachineState(pin_angle_deg=side * phi, bend_angle_deg=float(bend_angle_deg))
 
 
 # ----------------------------------------------------------------------------- the session

@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.driver.calibration import Calibration
-from cvmeasure.driver.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
+from cvmeasure.material.calibration import Calibration
+from cvmeasure.material.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
 
 __all__ = ["plot_calibration", "write_session_report", "overlay_markers"]
 

@@ -21,8 +21,8 @@ import numpy as np
 from scipy import optimize
 
 from cvmeasure.diagnose import diagnose
-from cvmeasure.diagnose.synthetic import measure_trials
 from cvmeasure.sim import Effect, SimParams, pin_command_for_angle, simulate
+from cvmeasure_datasets.trials import measure_trials
 
 FEA = {5.0: 1.5, 130.0: 2.7}  # seed FEA: springback (deg) at bend angle (deg)
 STANDARD = (5, 10, 15, 20, 30, 45, 60, 75, 90, 110, 130)

@@ -19,13 +19,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-import datasets
+import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_part
 
 board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-photo = datasets.render_part_photo(
-    part=datasets.arc_part(100.0, 180.0, 20), board=board, sheet="light", seed=7, scale=0.5
+photo = cvmeasure_datasets.render_part_photo(
+    part=cvmeasure_datasets.arc_part(100.0, 180.0, 20),
+    board=board,
+    sheet="light",
+    seed=7,
+    scale=0.5,
 )
 m = measure_part(photo.bgr, board, photo.camera, divisions=20)
 print(f"{'method':<8} {'radius_mm':>10} {'bend/chord_deg':>15}   (truth 100 mm, 9 deg)")

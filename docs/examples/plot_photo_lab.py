@@ -17,9 +17,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-import datasets  # noqa: E402
+import cvmeasure_datasets  # noqa: E402
 from cvmeasure.board import CharucoBoardSpec  # noqa: E402
-from datasets.optics import project_frame_points  # noqa: E402
+from cvmeasure_datasets.optics import project_frame_points  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> Path:
@@ -28,21 +28,27 @@ def main(argv: list[str] | None = None) -> Path:
     p.add_argument("--seed", type=int, default=7)
     args = p.parse_args(argv)
 
-    pose = datasets.Pose(tilt_deg=15.0, tilt_direction_deg=230.0, yaw_deg=10.0, distance_mm=600.0)
-    bender = datasets.render_bender_photo(
+    pose = cvmeasure_datasets.Pose(tilt_deg=15.0, tilt_direction_deg=230.0, yaw_deg=10.0, distance_mm=600.0)
+    bender = cvmeasure_datasets.render_bender_photo(
         pin_angle_deg=-110.0,
         bend_angle_deg=55.0,
         pose=pose,
-        lighting=datasets.Lighting.random(args.seed),
+        lighting=cvmeasure_datasets.Lighting.random(args.seed),
         seed=args.seed,
         scale=0.25,
     )
-    part = datasets.render_part_photo(
-        part=datasets.saddle_part(200.0, 20.0, 13), sheet="dark", seed=args.seed, scale=0.25
+    part = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.saddle_part(200.0, 20.0, 13),
+        sheet="dark",
+        seed=args.seed,
+        scale=0.25,
     )
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    view = datasets.render_board_view(
-        board=board, pose=datasets.random_board_poses(3, args.seed)[2], seed=args.seed, scale=0.25
+    view = cvmeasure_datasets.render_board_view(
+        board=board,
+        pose=cvmeasure_datasets.random_board_poses(3, args.seed)[2],
+        seed=args.seed,
+        scale=0.25,
     )
 
     fig, axes = plt.subplots(1, 3, figsize=(18, 4.4))

@@ -9,15 +9,15 @@ import cv2
 import numpy as np
 import pytest
 
-from calib_targets.charuco import (
+from cvmeasure.board import board_from_dict
+from cvmeasure.calibration.detect import detect_board
+from cvmeasure.cli import main
+from cvmeasure_calib_targets.charuco import (
     board_black_rects_mm,
     render_board_sheet,
     sheet_layout,
     write_board_sheet,
 )
-from cvmeasure.board import board_from_dict
-from cvmeasure.calibration.detect import detect_board
-from cvmeasure.cli import main
 
 CORNER_ATOL_PX = 0.25  # rendered at 100-200 dpi; measured error ~0.1 px
 
@@ -152,7 +152,7 @@ def test_cli_targets_markers(capsys, tmp_path):
     assert main(["targets", "markers", "--format", "json"]) == 0
     kit = json.loads(capsys.readouterr().out)
     assert {m["role"] for m in kit["markers"]} == {"origin", "axis", "pin", "wire_a", "wire_b"}
-    # The sheet itself comes from calib_targets.markers through the hook.
+    # The sheet itself comes from cvmeasure_calib_targets.markers through the hook.
     assert main(["targets", "markers", "-o", str(tmp_path / "kit.pdf")]) == 0
     assert (tmp_path / "kit.pdf").read_bytes().startswith(b"%PDF")
     capsys.readouterr()

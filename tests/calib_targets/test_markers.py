@@ -9,15 +9,15 @@ import cv2
 import numpy as np
 import pytest
 
-from calib_targets.markers import (
+from cvmeasure.cli import main
+from cvmeasure.kit import default_kit
+from cvmeasure_calib_targets.markers import (
     KIT_PAGE_MM,
     kit_sheet_positions_mm,
     naive_cmyk,
     render_kit_sheet,
     write_kit_sheet,
 )
-from cvmeasure.cli import main
-from cvmeasure.kit import default_kit
 
 DPI = 200.0
 

@@ -288,7 +288,7 @@ def test_dask_local_cluster_on_loopback(tmp_path, capsys):
 @pytest.mark.slow
 def test_linear_render_goes_through_the_machine_measurement_like_its_jpeg(tmp_path):
     """The photo lab's 16-bit linear render (the RAW path) and its JPEG: same pipeline, same truth."""
-    from datasets.bender import render_bender_photo
+    from cvmeasure_datasets.bender import render_bender_photo
 
     rendered = render_bender_photo(
         pin_angle_deg=52.0, bend_angle_deg=41.0, seed=3, scale=0.3, linear=True
@@ -342,7 +342,7 @@ def test_part_photo_detected_and_measured_with_board_and_camera(tmp_path):
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.camera import save_camera
     from cvmeasure.fileio import atomic_write_json
-    from datasets.parts import arc_part, render_part_photo
+    from cvmeasure_datasets.parts import arc_part, render_part_photo
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     rendered = render_part_photo(part=arc_part(70.0, 120.0, 8), board=board, seed=3, scale=0.25)
@@ -368,9 +368,9 @@ def test_machine_photos_measured_on_a_plane(tmp_path, capsys):
     # without it the tilt foreshortens it (as `cvmeasure measure --plane` does)
     from cvmeasure.camera import save_camera
     from cvmeasure.fileio import atomic_write_json
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
-    from datasets.optics import Pose
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
+    from cvmeasure_datasets.optics import Pose
 
     pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
     photo = render_bender_photo(

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from cvmeasure.kit import default_kit
-from datasets import Lighting, Pose, render_bender_photo
-from datasets.bender import bender_wire_polyline
-from datasets.checks import check_disc_centre
+from cvmeasure_datasets import Lighting, Pose, render_bender_photo
+from cvmeasure_datasets.bender import bender_wire_polyline
+from cvmeasure_datasets.checks import check_disc_centre
 
 
 @pytest.mark.parametrize(

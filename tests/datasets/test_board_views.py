@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import CharucoBoardSpec, ChessboardSpec
-from datasets import Lighting, Pose, default_camera, random_board_poses, render_board_view
-from datasets.checks import check_charuco_corners
+from cvmeasure_datasets import Lighting, Pose, default_camera, random_board_poses, render_board_view
+from cvmeasure_datasets.checks import check_charuco_corners
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
 SIZE = (1152, 768)

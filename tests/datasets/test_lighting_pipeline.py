@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import ChessboardSpec
-from datasets import Lighting, Pose, render_bender_photo, render_board_view
-from datasets.bender import RING_SRGB
-from datasets.lighting import illuminant_rgb, srgb8_to_linear
-from datasets.optics import project_frame_points
+from cvmeasure_datasets import Lighting, Pose, render_bender_photo, render_board_view
+from cvmeasure_datasets.bender import RING_SRGB
+from cvmeasure_datasets.lighting import illuminant_rgb, srgb8_to_linear
+from cvmeasure_datasets.optics import project_frame_points
 
 # close up (2.5 px/mm at 576 x 384): the origin marker's white ring is ~5 px wide
 KW = dict(pin_angle_deg=-60.0, bend_angle_deg=35.0, scale=0.125, pose=Pose(distance_mm=350.0))

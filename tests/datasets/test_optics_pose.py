@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from datasets import Pose, default_camera
-from datasets.optics import plane_coords_mm, project_frame_points
+from cvmeasure_datasets import Pose, default_camera
+from cvmeasure_datasets.optics import plane_coords_mm, project_frame_points
 
 
 def test_default_camera_is_the_seed_camera():
@@ -91,8 +91,8 @@ def test_pose_validates_and_round_trips():
 
 
 def test_render_size_by_scale_or_image_size():
-    from datasets import render_bender_photo
-    from datasets.photo import resolve_camera
+    from cvmeasure_datasets import render_bender_photo
+    from cvmeasure_datasets.photo import resolve_camera
 
     a = resolve_camera(None, 1.0, (576, 384))
     assert a.image_size_px == (576, 384) and a.fx == pytest.approx(875.0)

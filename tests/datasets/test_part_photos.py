@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import CharucoBoardSpec
-from datasets import Lighting, arc_part, polyline_part, render_part_photo, saddle_part
-from datasets.optics import project_frame_points
+from cvmeasure_datasets import Lighting, arc_part, polyline_part, render_part_photo, saddle_part
+from cvmeasure_datasets.optics import project_frame_points
 
 
 @pytest.mark.parametrize(

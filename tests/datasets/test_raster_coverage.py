@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from datasets import Pose, default_camera
-from datasets.optics import project_frame_points
-from datasets.raster import Layer, box_coverage, rasterise, sdf_alpha, sdf_circle
+from cvmeasure_datasets import Pose, default_camera
+from cvmeasure_datasets.optics import project_frame_points
+from cvmeasure_datasets.raster import Layer, box_coverage, rasterise, sdf_alpha, sdf_circle
 
 
 def test_box_coverage_matches_supersampling():

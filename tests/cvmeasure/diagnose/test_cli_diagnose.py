@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from cvmeasure.cli import main
-from cvmeasure.diagnose.synthetic import measure_trials, random_plan
 from cvmeasure.fileio import write_csv_rows
 from cvmeasure.sim import Effect, params_from_json, simulate
+from cvmeasure_datasets.trials import measure_trials, random_plan
 
 COLUMNS = ("trial", "commanded_pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "part")
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from cvmeasure.diagnose import diagnose
-from cvmeasure.diagnose.synthetic import hidden_case
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS
+from cvmeasure_datasets.trials import hidden_case
 
 HIDDEN = [name for name in EFFECT_NAMES if name != "none"]
 
@@ -94,8 +94,8 @@ def test_discrepancy_outside_the_catalogue_is_reported_unnamed():
 def test_two_causes_at_once_are_both_named(hidden):
     import numpy as np
 
-    from cvmeasure.diagnose.synthetic import measure_trials, random_plan
     from cvmeasure.sim import Effect
+    from cvmeasure_datasets.trials import measure_trials, random_plan
 
     rng = np.random.default_rng(71)
     effects = tuple(Effect(n, v) for n, v in hidden)

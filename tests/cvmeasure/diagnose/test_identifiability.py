@@ -7,9 +7,9 @@ import pytest
 
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.identify import check_identifiability, signature, similarity
-from cvmeasure.diagnose.synthetic import hidden_case
 from cvmeasure.diagnose.trials import TrialSet
 from cvmeasure.sim import SimParams
+from cvmeasure_datasets.trials import hidden_case
 
 
 def test_one_direction_confounds_backlash_and_offset():

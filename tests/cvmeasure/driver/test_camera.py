@@ -114,12 +114,12 @@ def test_trigger_and_bad_urls(tmp_path):
 
 
 def test_simulated_camera_renders_the_machine_state(tmp_path):
-    from cvmeasure.driver.camera import MachineState, SimulatedCamera
     from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit
     from cvmeasure.markers.measure import measure_machine_photo
+    from cvmeasure_datasets.simcamera import PhotoState, SimulatedCamera
 
-    state = MachineState(pin_angle_deg=-25.0, bend_angle_deg=-37.5)
+    state = PhotoState(pin_angle_deg=-25.0, bend_angle_deg=-37.5)
     cam = SimulatedCamera(tmp_path, lambda: state, scale=0.2, seed=5)
     shot = cam.capture("loaded_001")
     assert shot.path == tmp_path / "loaded_001.jpg" and shot.camera is not None

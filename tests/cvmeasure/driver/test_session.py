@@ -14,16 +14,16 @@ import numpy as np
 import pytest
 
 from cvmeasure.cli import main
-from cvmeasure.driver.calibration import load_calibration
 from cvmeasure.driver.session import (
     SessionConfig,
-    double_photo_state,
     nominal_pin_for_loaded_deg,
     read_session_log,
     session_gcode,
     simulated_bender,
 )
+from cvmeasure.material.calibration import load_calibration
 from cvmeasure.sim import simulate
+from cvmeasure_datasets.simcamera import double_photo_state
 
 REPO = Path(__file__).resolve().parents[3]
 ANGLES = "5,20,60"  # 6 bends: small enough for a fast test, spans the seed's 9 deg
@@ -206,10 +206,10 @@ def test_real_session_needs_port_and_camera(tmp_path, capsys):
 
 
 def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
-    from cvmeasure.driver.camera import SimulatedCamera
     from cvmeasure.driver.double import Fault
     from cvmeasure.driver.session import run_session
     from cvmeasure.errors import DeviceError
+    from cvmeasure_datasets.simcamera import SimulatedCamera
 
     config = SessionConfig(mode="custom", angles_deg=(10.0, 30.0))
     probe = simulated_bender(speedup=500.0)  # where does the first bend's G1 X line land?
@@ -245,24 +245,13 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
     assert np.max(np.abs(np.array(measured) - truth)) < 0.05
 
 
-def test_demo_step_meets_its_tolerances(tmp_path):
-    from cvmeasure.demo import DEMO_STAGES
-    from cvmeasure.driver.session_demo import demo_step
-
-    assert ("calibration session", "cvmeasure.driver.session_demo") in DEMO_STAGES
-    section = demo_step(tmp_path, seed=3)
-    assert len(section.rows) == 3 and all(row.ok for row in section.rows)
-    assert all(Path(f).exists() for f in section.files)
-    assert "8." in section.notes[1]  # the uncalibrated half circle shows the backlash
-
-
 def test_session_reads_kit_and_camera_files(tmp_path, capsys):
     from cvmeasure.camera import save_camera
-    from cvmeasure.driver.camera import MachineState, SimulatedCamera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.kit import default_kit
+    from cvmeasure_datasets.simcamera import PhotoState, SimulatedCamera
 
-    probe = SimulatedCamera(tmp_path / "probe", lambda: MachineState(0.0, 0.0), scale=0.2)
+    probe = SimulatedCamera(tmp_path / "probe", lambda: PhotoState(0.0, 0.0), scale=0.2)
     camera_json = save_camera(tmp_path / "camera.json", probe.capture("x").camera)
     kit_json = atomic_write_json(tmp_path / "kit.json", default_kit().to_dict())
     out = tmp_path / "cal.json"

@@ -10,7 +10,7 @@ SCALE = 0.3  # 1382 x 922 px: fast, and still 19-24 px marker discs
 
 
 def _render(pin=30.0, bend=25.0, light=None, seed=1, pose=None, occlude=(), geometry=None):
-    from datasets.lighting import Lighting
+    from cvmeasure_datasets.lighting import Lighting
 
     light = light or Lighting(cct_k=2700.0, wb_error_k=600.0)
     return _cached(pin, bend, light, seed, pose, tuple(occlude), geometry)
@@ -18,7 +18,7 @@ def _render(pin=30.0, bend=25.0, light=None, seed=1, pose=None, occlude=(), geom
 
 @functools.cache
 def _cached(pin, bend, light, seed, pose, occlude, geometry):
-    from datasets.bender import render_bender_photo
+    from cvmeasure_datasets.bender import render_bender_photo
 
     return render_bender_photo(
         pin_angle_deg=pin,
@@ -35,5 +35,5 @@ def _cached(pin, bend, light, seed, pose, occlude, geometry):
 @pytest.fixture(scope="session")
 def render():
     """``render(pin=, bend=, light=, seed=, pose=, occlude=((role, frac),), geometry=)``, cached."""
-    pytest.importorskip("datasets.bender")
+    pytest.importorskip("cvmeasure_datasets.bender")
     return _render

@@ -223,8 +223,8 @@ def test_help(capsys):
 def test_plane_json_rectifies_a_tilted_photo(render, tmp_path, capsys):
     import numpy as np
 
-    from datasets.lighting import Lighting
-    from datasets.optics import Pose
+    from cvmeasure_datasets.lighting import Lighting
+    from cvmeasure_datasets.optics import Pose
 
     pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
     photo = render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
@@ -244,8 +244,8 @@ def test_plane_json_rectifies_a_tilted_photo(render, tmp_path, capsys):
 
 
 def test_linear_sixteen_bit_tiff_is_measured_with_green_edges(files, tmp_path, capsys):
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
 
     photo = render_bender_photo(
         pin_angle_deg=-35.0,

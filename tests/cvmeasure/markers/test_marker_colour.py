@@ -122,8 +122,8 @@ def test_kit_sigmas_are_used():
 
 
 def test_white_colour_survives_clipped_rings_under_a_strong_cast(render):
-    pytest.importorskip("datasets.bender")
-    from datasets.lighting import Lighting
+    pytest.importorskip("cvmeasure_datasets.bender")
+    from cvmeasure_datasets.lighting import Lighting
 
     def white_ratios(exposure: float) -> tuple[np.ndarray, float]:
         light = Lighting(cct_k=2700.0, wb_error_k=-600.0, exposure=exposure)

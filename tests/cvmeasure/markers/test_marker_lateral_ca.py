@@ -21,10 +21,10 @@ from cvmeasure.markers.measure import (
 )
 from cvmeasure.markers.refine import channel_shifts_px
 
-pytest.importorskip("datasets.bender")
-from datasets.bender import render_bender_photo  # noqa: E402
-from datasets.lighting import Lighting  # noqa: E402
-from datasets.optics import Pose  # noqa: E402
+pytest.importorskip("cvmeasure_datasets.bender")
+from cvmeasure_datasets.bender import render_bender_photo  # noqa: E402
+from cvmeasure_datasets.lighting import Lighting  # noqa: E402
+from cvmeasure_datasets.optics import Pose  # noqa: E402
 
 CA = 5e-4
 CENTRE_RMS_TOL_PX = 0.025  # half-size photo

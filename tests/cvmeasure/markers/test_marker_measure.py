@@ -17,10 +17,10 @@ from cvmeasure.markers import (
     springback_deg,
 )
 
-pytest.importorskip("datasets.bender")
-from datasets.bender import BenderGeometry  # noqa: E402
-from datasets.lighting import Lighting  # noqa: E402
-from datasets.optics import Pose  # noqa: E402
+pytest.importorskip("cvmeasure_datasets.bender")
+from cvmeasure_datasets.bender import BenderGeometry  # noqa: E402
+from cvmeasure_datasets.lighting import Lighting  # noqa: E402
+from cvmeasure_datasets.optics import Pose  # noqa: E402
 
 PIN_TOL_DEG = 0.15  # pin marker is 18 mm from the origin: ~43 px at this scale
 BEND_TOL_DEG = 0.06  # wire_a -> wire_b is 40 mm: ~96 px
@@ -113,7 +113,7 @@ def test_strong_cast_with_clipped_whites_is_measured():
     # and three markers were missed. Rendered at half size (at 0.3 the default white works).
     from dataclasses import replace
 
-    from datasets.bender import render_bender_photo
+    from cvmeasure_datasets.bender import render_bender_photo
 
     light = replace(Lighting.random(1200), cct_k=2700.0)
     rng = np.random.default_rng(1200)

@@ -7,7 +7,7 @@ import functools
 import numpy as np
 import pytest
 
-import datasets
+import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.design import arc_points_mm, load_design
 from cvmeasure.part.compare import point_to_polyline
@@ -25,14 +25,14 @@ SEGMENT_BEND_DEG = 0.05
 @functools.cache
 def _photo(kind: str, sheet: str):
     parts = {
-        "half": datasets.arc_part(60.0, 180.0, 10),
-        "short": datasets.arc_part(80.0, 70.0, 6),
-        "saddle": datasets.saddle_part(200.0, 20.0, 13),
+        "half": cvmeasure_datasets.arc_part(60.0, 180.0, 10),
+        "short": cvmeasure_datasets.arc_part(80.0, 70.0, 6),
+        "saddle": cvmeasure_datasets.saddle_part(200.0, 20.0, 13),
     }
-    pose = datasets.Pose(
+    pose = cvmeasure_datasets.Pose(
         tilt_deg=2.5, tilt_direction_deg=40.0, distance_mm=900.0, offset_mm=(280.0, 100.0)
     )
-    return datasets.render_part_photo(
+    return cvmeasure_datasets.render_part_photo(
         part=parts[kind], board=BOARD, sheet=sheet, pose=pose, seed=3, scale=SCALE
     )
 
@@ -188,14 +188,14 @@ def test_real_board_photos_without_a_wire_are_refused(shared_real):
 
 
 def test_a_wire_cut_by_the_photos_edge_is_flagged():
-    photo = datasets.render_part_photo(
-        part=datasets.arc_part(60.0, 180.0, 10),
+    photo = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.arc_part(60.0, 180.0, 10),
         board=BOARD,
         sheet="dark",
         seed=3,
         scale=SCALE,
         placement_deg=90.0,
-        pose=datasets.Pose(distance_mm=900.0, offset_mm=(160.0, 100.0)),
+        pose=cvmeasure_datasets.Pose(distance_mm=900.0, offset_mm=(160.0, 100.0)),
     )
     m = measure_part(photo.bgr, BOARD, photo.camera)
     assert any("ends next to the photo's edge" in w for w in m.warnings)

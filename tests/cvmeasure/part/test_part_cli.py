@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-import datasets
+import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.camera import save_camera
 from cvmeasure.cli import main
@@ -20,8 +20,12 @@ BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("part_cli")
-    photo = datasets.render_part_photo(
-        part=datasets.arc_part(55.0, 150.0, 10), board=BOARD, sheet="dark", seed=4, scale=0.4
+    photo = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.arc_part(55.0, 150.0, 10),
+        board=BOARD,
+        sheet="dark",
+        seed=4,
+        scale=0.4,
     )
     jpg, truth = photo.save(folder / "part")
     camera = folder / "camera.json"
@@ -38,13 +42,13 @@ def files(tmp_path_factory):
         encoding="utf-8",
     )
     # the camera moved over the board: the part is out of view (no wire)
-    away = datasets.render_part_photo(
-        part=datasets.arc_part(55.0, 150.0, 10),
+    away = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.arc_part(55.0, 150.0, 10),
         board=BOARD,
         sheet="dark",
         seed=4,
         scale=0.4,
-        pose=datasets.Pose(distance_mm=600.0, offset_mm=(120.0, 100.0)),
+        pose=cvmeasure_datasets.Pose(distance_mm=600.0, offset_mm=(120.0, 100.0)),
     )
     no_wire = folder / "no_wire.png"
     cv2.imwrite(str(no_wire), away.bgr)

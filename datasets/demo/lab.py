@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 
 from cvmeasure.board import CharucoBoardSpec
-from cvmeasure.demo import DemoRow, DemoSection
-from datasets.bender import render_bender_photo
-from datasets.boards import random_board_poses, render_board_view
-from datasets.checks import check_charuco_corners, check_disc_centre
-from datasets.lighting import Lighting
-from datasets.optics import Pose
-from datasets.parts import arc_part, render_part_photo
+from cvmeasure_datasets.bender import render_bender_photo
+from cvmeasure_datasets.boards import random_board_poses, render_board_view
+from cvmeasure_datasets.checks import check_charuco_corners, check_disc_centre
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
+from cvmeasure_datasets.lighting import Lighting
+from cvmeasure_datasets.optics import Pose
+from cvmeasure_datasets.parts import arc_part, render_part_photo
 
 __all__ = ["demo_step"]
 

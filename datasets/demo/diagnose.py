@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["demo_step"]
 
@@ -22,9 +22,9 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     """
     from cvmeasure.diagnose.core import diagnose
     from cvmeasure.diagnose.plot import residual_plot_png
-    from cvmeasure.diagnose.synthetic import measure_trials, random_plan
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, write_csv_rows
     from cvmeasure.sim import Effect, params_to_json
+    from cvmeasure_datasets.trials import measure_trials, random_plan
 
     rng = np.random.default_rng(seed)
     hidden = Effect("backlash", _HIDDEN_BACKLASH_DEG)

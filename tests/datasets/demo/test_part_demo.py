@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from cvmeasure.part.demo import demo_step
+from cvmeasure_datasets.demo.part import demo_step
 
 
 def test_demo_step_meets_its_tolerances(tmp_path):

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from cvmeasure.driver.compensation import (
+from cvmeasure.driver.session import nominal_pin_for_loaded_deg
+from cvmeasure.material.compensation import (
     SPRINGBACK_MODELS,
     Compensation,
     CompensationRangeError,
@@ -15,7 +16,6 @@ from cvmeasure.driver.compensation import (
     fit_motion,
     fit_springback,
 )
-from cvmeasure.driver.session import nominal_pin_for_loaded_deg
 
 DEAD_ZONE_DEG = 8.0
 SB_A_DEG, SB_B = 1.45, 0.0096  # the seed FEA's affine springback (1.5-2.7 deg over 5-130 deg)

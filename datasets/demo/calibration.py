@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["planned_poses", "demo_step"]
 
@@ -23,10 +23,10 @@ _SCALE = 0.2
 def planned_poses(n: int, seed: int, board, camera) -> list:
     """``n`` poses following mrcal's advice: the board pushed into every part of
     the image (corners, edges, centre), tilted 25-40 deg in varied directions.
-    ``datasets.random_board_poses`` keeps the board 15-18 % away from the image
+    ``cvmeasure_datasets.random_board_poses`` keeps the board 15-18 % away from the image
     edges, which leaves the lens corners to extrapolation."""
-    import datasets
-    from datasets.optics import project_frame_points
+    import cvmeasure_datasets
+    from cvmeasure_datasets.optics import project_frame_points
 
     rng = np.random.default_rng([seed, 0x1E45])
     w_mm, h_mm = board.size_mm
@@ -43,13 +43,13 @@ def planned_poses(n: int, seed: int, board, camera) -> list:
         for _ in range(5):  # Newton steps: put the board centre on the target pixel
 
             def proj(o):
-                rot, t = datasets.Pose(tilt, direction, yaw, dist, tuple(o)).extrinsics("board")
+                rot, t = cvmeasure_datasets.Pose(tilt, direction, yaw, dist, tuple(o)).extrinsics("board")
                 return project_frame_points(camera, rot, t, centre[None])[0]
 
             q0 = proj(offset)
             jac = np.column_stack([(proj(offset + d) - q0) for d in np.eye(2)])
             offset = offset + np.linalg.solve(jac, target - q0)
-        pose = datasets.Pose(tilt, direction, yaw, dist, tuple(offset))
+        pose = cvmeasure_datasets.Pose(tilt, direction, yaw, dist, tuple(offset))
         rot, t = pose.extrinsics("board")
         return pose, project_frame_points(camera, rot, t, outline)
 
@@ -91,7 +91,7 @@ def planned_poses(n: int, seed: int, board, camera) -> list:
 
 def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     """Calibrate from 8 rendered views (922 x 614), then check a plane tilted 3 degrees."""
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.calibration.detect import detect_board
     from cvmeasure.calibration.pipeline import calibrate_detections
@@ -102,25 +102,27 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
 
     t0 = time.perf_counter()
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    true_cam = datasets.default_camera().scaled(_SCALE)
+    true_cam = cvmeasure_datasets.default_camera().scaled(_SCALE)
     poses = planned_poses(8, seed, board, true_cam)
     dets = []
     for i, pose in enumerate(poses):
-        photo = datasets.render_board_view(board=board, camera=true_cam, pose=pose, seed=seed + i)
+        photo = cvmeasure_datasets.render_board_view(
+            board=board, camera=true_cam, pose=pose, seed=seed + i
+        )
         dets.append(detect_board(photo.bgr, board, source=f"view{i:02d}"))
     report = calibrate_detections(dets, true_cam.image_size_px)
     cam = report.camera
     folder = Path(out_dir) / "calibration"
     cam_path = save_camera(folder / "camera.json", report.camera_model(board))
     tilt_true = 3.0
-    plane_pose = datasets.Pose(
+    plane_pose = cvmeasure_datasets.Pose(
         tilt_deg=tilt_true,
         tilt_direction_deg=40.0,
         yaw_deg=5.0,
         distance_mm=true_cam.fx * 280.0 / (0.75 * true_cam.image_size_px[0]),
         offset_mm=(140.0, 100.0),
     )
-    plane_photo = datasets.render_board_view(
+    plane_photo = cvmeasure_datasets.render_board_view(
         board=board, camera=true_cam, pose=plane_pose, seed=seed + 99
     )
     plane = estimate_plane(plane_photo.bgr, board, cam, source="plane view")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["demo_step"]
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from cvmeasure.driver.streaming_demo import demo_step
+from cvmeasure_datasets.demo.streaming import demo_step
 
 
 def test_streaming_demo_rows_are_within_tolerance(tmp_path):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["demo_step"]
 
@@ -26,9 +26,9 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     from cvmeasure.markers.angles import springback_deg
     from cvmeasure.markers.measure import measure_machine_photo, measure_trial
     from cvmeasure.markers.overlay import draw_overlay
-    from datasets.bender import render_bender_photo
-    from datasets.lighting import Lighting
-    from datasets.optics import Pose
+    from cvmeasure_datasets.bender import render_bender_photo
+    from cvmeasure_datasets.lighting import Lighting
+    from cvmeasure_datasets.optics import Pose
 
     folder = Path(out_dir) / "markers"
     folder.mkdir(parents=True, exist_ok=True)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from cvmeasure.calibration.demo import demo_step
 from cvmeasure.camera import load_camera
+from cvmeasure_datasets.demo.calibration import demo_step
 
 
 def test_demo_step_meets_its_tolerances(tmp_path):

@@ -1,20 +1,11 @@
-"""The end-to-end demo: every stage that exists, on embedded (rendered) data.
-
-Each stage contributes a ``demo_step(out_dir, *, seed) -> DemoSection`` in the
-module listed in :data:`DEMO_STAGES`; the demo runs them in order and prints
-one table of measured against true values.
-"""
+"""What a demo step reports: measured quantities beside their truth, as a readable table."""
 
 from __future__ import annotations
 
-import importlib
-import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-__all__ = ["DemoRow", "DemoSection", "DEMO_STAGES", "run_demo", "format_sections"]
+__all__ = ["DemoRow", "DemoSection", "format_sections"]
 
 
 @dataclass(frozen=True)
@@ -67,51 +58,6 @@ class DemoSection:
             "notes": self.notes,
             "seconds": round(self.seconds, 3),
         }
-
-
-#: (title, module) of each stage, in the order the demo runs them.
-DEMO_STAGES: tuple[tuple[str, str], ...] = (
-    ("synthetic photo lab", "datasets.demo"),
-    ("lens calibration", "cvmeasure.calibration.demo"),
-    ("bender photos", "cvmeasure.markers.demo"),
-    ("finished part", "cvmeasure.part.demo"),
-    ("diagnosis", "cvmeasure.diagnose.demo"),
-    ("bender streaming", "cvmeasure.driver.streaming_demo"),
-    ("calibration session", "cvmeasure.driver.session_demo"),
-)
-
-
-def _load_step(module_name: str) -> Callable[..., DemoSection] | None:
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name is not None and module_name.startswith(exc.name):
-            return None
-        raise
-    return getattr(module, "demo_step", None)
-
-
-def run_demo(
-    out_dir: Path,
-    *,
-    seed: int = 7,
-    stages: tuple[tuple[str, str], ...] = DEMO_STAGES,
-    progress: Callable[[str], None] | None = None,
-) -> list[DemoSection]:
-    """Run every available stage; return their sections (stages not built are skipped)."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    sections = []
-    for title, module_name in stages:
-        step = _load_step(module_name)
-        if step is None:
-            continue
-        if progress:
-            progress(f"running {title} ...")
-        t0 = time.perf_counter()
-        section = step(out_dir, seed=seed)
-        section.seconds = time.perf_counter() - t0
-        sections.append(section)
-    return sections
 
 
 def _fmt(value: float | None) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from datasets.demo import demo_step
+from cvmeasure_datasets.demo.lab import demo_step
 
 
 def test_demo_step_checks_its_photos(tmp_path):

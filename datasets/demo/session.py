@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["demo_step"]
 
@@ -23,16 +23,15 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     Writes ``session_calibration.json``, ``session_report.html`` and the session
     folder ``session/`` (log, photos, trials CSV) into ``out_dir``.
     """
-    from cvmeasure.driver.calibration import save_calibration
-    from cvmeasure.driver.camera import SimulatedCamera
     from cvmeasure.driver.session import (
         SessionConfig,
-        double_photo_state,
         run_session,
         simulated_bender,
     )
     from cvmeasure.driver.session_report import write_session_report
+    from cvmeasure.material.calibration import save_calibration
     from cvmeasure.sim import Effect, pin_command_for_angle, simulate
+    from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
     effects = (Effect("backlash", _BACKLASH_DEG),)
     session_dir = Path(out_dir) / "session"

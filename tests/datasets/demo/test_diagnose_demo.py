@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from cvmeasure.diagnose.demo import demo_step
+from cvmeasure_datasets.demo.diagnose import demo_step
 
 
 def test_demo_step_finds_hidden_backlash(tmp_path):

@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("datasets.bender")
+pytest.importorskip("cvmeasure_datasets.bender")
 
 
 def test_demo_step_measures_the_pair_within_tolerance(tmp_path):
-    from cvmeasure.markers.demo import demo_step
+    from cvmeasure_datasets.demo.markers import demo_step
 
     section = demo_step(tmp_path, seed=7)
     assert [r.quantity for r in section.rows] == [

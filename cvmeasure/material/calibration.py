@@ -3,7 +3,7 @@
 A calibration records, for one wire on one machine, the calibration bends of
 both directions (loaded and unloaded bend angles measured by the camera, their
 uncertainties, the pin commands), the springback and motion curves fitted to
-them (:mod:`cvmeasure.driver.compensation`) and how every model scored.
+them (:mod:`cvmeasure.material.compensation`) and how every model scored.
 The raw samples are always kept, so any model can be refitted later
 (:meth:`Calibration.refit`).
 
@@ -34,8 +34,8 @@ Format (JSON, all angles in degrees, signed angles counter-clockwise positive)::
       "provenance": {...}
     }
 
-``springback`` and ``motion`` hold :class:`~cvmeasure.driver.compensation.SpringbackCurve`
-and :class:`~cvmeasure.driver.compensation.MotionCurve` dictionaries.
+``springback`` and ``motion`` hold :class:`~cvmeasure.material.compensation.SpringbackCurve`
+and :class:`~cvmeasure.material.compensation.MotionCurve` dictionaries.
 :func:`load_calibration` validates the whole file and raises
 :class:`~cvmeasure.errors.InputError` naming the file and the offending key.
 """
@@ -52,7 +52,9 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.driver.compensation import (
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_json, to_jsonable
+from cvmeasure.material.compensation import (
     DIRECTIONS,
     MOTION_MODELS,
     SPRINGBACK_MODELS,
@@ -61,8 +63,6 @@ from cvmeasure.driver.compensation import (
     SpringbackModel,
     fit_compensation,
 )
-from cvmeasure.errors import InputError
-from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_json, to_jsonable
 
 __all__ = [
     "FORMAT",

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.demo import DemoRow, DemoSection
+from cvmeasure_datasets.demo.report import DemoRow, DemoSection
 
 __all__ = ["demo_step", "HALF_CIRCLE_SVG"]
 
@@ -22,7 +22,7 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     """Render the half circle at half size, measure it, compare with its design."""
     import cv2
 
-    import datasets
+    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.design import load_design
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, atomic_write_text
@@ -33,8 +33,12 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     design_path = atomic_write_text(out / "half-circle.svg", HALF_CIRCLE_SVG)
     design = load_design(design_path).wire()
-    photo = datasets.render_part_photo(
-        part=datasets.arc_part(100.0, 180.0, 20), board=board, sheet="light", seed=seed, scale=0.5
+    photo = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.arc_part(100.0, 180.0, 20),
+        board=board,
+        sheet="light",
+        seed=seed,
+        scale=0.5,
     )
     m = measure_part(
         photo.bgr,

@@ -7,7 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from cvmeasure.driver.calibration import (
+from cvmeasure.driver.session import nominal_pin_for_loaded_deg
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import write_csv_rows
+from cvmeasure.material.calibration import (
     FORMAT,
     MODES,
     Calibration,
@@ -18,9 +21,6 @@ from cvmeasure.driver.calibration import (
     samples_from_trials,
     save_calibration,
 )
-from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-from cvmeasure.errors import InputError
-from cvmeasure.fileio import write_csv_rows
 from cvmeasure.sim import simulate
 
 
