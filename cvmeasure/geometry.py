@@ -11,7 +11,13 @@ __all__ = ["wrap_deg", "direction_deg", "fit_circle_taubin"]
 
 
 def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
-    """Wrap angles in degrees to (-180, 180] (spec: signed angles)."""
+    """Wrap angles in degrees to (-180, 180] (spec: signed angles).
+
+    >>> wrap_deg(190.0), wrap_deg(-180.0), wrap_deg(180.0)
+    (-170.0, 180.0, 180.0)
+    >>> wrap_deg([360.0, -270.0]).tolist()
+    [0.0, 90.0]
+    """
     a = np.asarray(angle_deg, dtype=np.float64)
     wrapped = 180.0 - np.mod(180.0 - a, 360.0)
     return float(wrapped) if wrapped.ndim == 0 else wrapped
@@ -22,6 +28,11 @@ def direction_deg(from_xy: ArrayLike, to_xy: ArrayLike) -> np.ndarray | float:
 
     Works in any right-handed (x, y) frame; for image pixels (y down) negate y
     first to get counter-clockwise-as-seen angles.
+
+    >>> direction_deg((0.0, 0.0), (0.0, 1.0))
+    90.0
+    >>> direction_deg((1.0, 1.0), (0.0, 1.0))
+    180.0
     """
     f = np.asarray(from_xy, dtype=np.float64)
     t = np.asarray(to_xy, dtype=np.float64)
@@ -39,6 +50,11 @@ def fit_circle_taubin(points: ArrayLike) -> tuple[np.ndarray, float]:
 
     References: G. Taubin, "Estimation of planar curves, surfaces and nonplanar
     space curves ...", IEEE PAMI 13(11), 1991, doi:10.1109/34.103273.
+
+    >>> t = np.linspace(0.0, np.pi, 7)
+    >>> centre, radius = fit_circle_taubin(np.column_stack((3 + 2 * np.cos(t), -1 + 2 * np.sin(t))))
+    >>> np.round(centre, 9).tolist(), round(radius, 9)
+    ([3.0, -1.0], 2.0)
     """
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:

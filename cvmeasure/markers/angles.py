@@ -142,6 +142,11 @@ def springback_deg(loaded_bend_deg: float, unloaded_bend_deg: float) -> float:
     """Springback of one trial (spec): ``sign(loaded) * (loaded - unloaded)``, degrees.
 
     Positive when the wire opens back towards straight after the pin releases it.
+
+    >>> springback_deg(47.5, 45.0)  # counter-clockwise bend opens by 2.5 deg
+    2.5
+    >>> springback_deg(-47.5, -45.0)  # clockwise: the same springback, same sign
+    2.5
     """
     loaded = float(loaded_bend_deg)
     return float(np.sign(loaded) * wrap_deg(loaded - float(unloaded_bend_deg)))

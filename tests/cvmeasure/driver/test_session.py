@@ -98,6 +98,7 @@ def test_killed_session_resumes_without_loss_or_repeat(tmp_path):
         proc.send_signal(signal.SIGKILL)
     finally:
         proc.wait(timeout=10)
+        proc.stderr.close()
     assert not out.exists()  # killed before the end: no calibration (and no half file)
     first = read_session_log(log)
     done_first = [r["step"] for r in first if r["event"] == "sample"]

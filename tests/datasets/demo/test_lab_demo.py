@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from cvmeasure_datasets.demo.lab import demo_step
 
@@ -14,4 +15,4 @@ def test_demo_step_checks_its_photos(tmp_path):
     truths = [f for f in section.files if f.endswith(".truth.json")]
     assert len(truths) == 3
     for f in truths:
-        assert "camera" in json.loads(open(f).read())
+        assert "camera" in json.loads(Path(f).read_text())
