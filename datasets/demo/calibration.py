@@ -43,7 +43,9 @@ def planned_poses(n: int, seed: int, board, camera) -> list:
         for _ in range(5):  # Newton steps: put the board centre on the target pixel
 
             def proj(o):
-                rot, t = cvmeasure_datasets.Pose(tilt, direction, yaw, dist, tuple(o)).extrinsics("board")
+                rot, t = cvmeasure_datasets.Pose(tilt, direction, yaw, dist, tuple(o)).extrinsics(
+                    "board"
+                )
                 return project_frame_points(camera, rot, t, centre[None])[0]
 
             q0 = proj(offset)

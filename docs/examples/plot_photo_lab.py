@@ -28,7 +28,9 @@ def main(argv: list[str] | None = None) -> Path:
     p.add_argument("--seed", type=int, default=7)
     args = p.parse_args(argv)
 
-    pose = cvmeasure_datasets.Pose(tilt_deg=15.0, tilt_direction_deg=230.0, yaw_deg=10.0, distance_mm=600.0)
+    pose = cvmeasure_datasets.Pose(
+        tilt_deg=15.0, tilt_direction_deg=230.0, yaw_deg=10.0, distance_mm=600.0
+    )
     bender = cvmeasure_datasets.render_bender_photo(
         pin_angle_deg=-110.0,
         bend_angle_deg=55.0,
