@@ -196,6 +196,17 @@ class ToleranceVerdict:
         ok = self.loa_within_absolute and self.n_within == self.n_pairs
         return "within tolerance" if ok else "outside tolerance"
 
+    @property
+    def reason(self) -> str:
+        """Why the verdict is what it is, in words (readings failing, limits outside)."""
+        failing = self.n_pairs - self.n_within
+        parts = []
+        if failing:
+            parts.append(f"{failing} of {self.n_pairs} readings fail the tolerance")
+        if not self.loa_within_absolute:
+            parts.append("the 95 % limits of agreement exceed the absolute tolerance")
+        return "; ".join(parts) or f"all {self.n_pairs} readings and the limits of agreement pass"
+
     def to_dict(self) -> dict[str, Any]:
         return {
             **self.tolerance.to_dict(),
@@ -205,6 +216,7 @@ class ToleranceVerdict:
             "worst_abs_diff_deg": self.worst_abs_diff_deg,
             "loa_within_absolute": self.loa_within_absolute,
             "verdict": self.verdict,
+            "reason": self.reason,
         }
 
 

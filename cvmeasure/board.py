@@ -15,7 +15,14 @@ import numpy as np
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_json
 
-__all__ = ["CharucoBoardSpec", "ChessboardSpec", "BoardSpec", "board_from_dict", "load_board"]
+__all__ = [
+    "CharucoBoardSpec",
+    "ChessboardSpec",
+    "BoardSpec",
+    "DEFAULT_BOARD",
+    "board_from_dict",
+    "load_board",
+]
 
 
 @dataclass(frozen=True)
@@ -147,3 +154,8 @@ def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
 def load_board(path: str | os.PathLike[str]) -> BoardSpec:
     """Read a board JSON file (spec)."""
     return board_from_dict(read_json(path, what="board JSON"), source=str(path))
+
+
+#: The spec's example board (14 x 10 squares of 20 mm, 15 mm markers, DICT_5X5_100;
+#: 280 x 200 mm, prints on A3): what ``cvmeasure targets charuco`` draws without ``--board``.
+DEFAULT_BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")

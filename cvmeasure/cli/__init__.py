@@ -6,13 +6,15 @@ Each subcommand lives in its own module ``cvmeasure.cli.<name>`` with a
 call library functions, write outputs (atomically) and print.
 
 Exit codes (spec): 0 success; 2 bad input (one line on stderr naming the file
-and the problem); 1 internal error.
+and the problem); 1 internal error; 130 interrupted; 141 the reader of standard
+output went away (``cvmeasure ... | head``), as a process killed by SIGPIPE.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
 
@@ -73,8 +75,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"cvmeasure {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        return _stdout_gone()
+
+
+def _stdout_gone() -> int:
+    """The pipe reader left: send the rest of stdout nowhere and exit as SIGPIPE would."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
+    return 141
 
 
 def console_main() -> None:
     """Entry point of the ``cvmeasure`` console script."""
-    sys.exit(main())
+    code = main()
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        code = _stdout_gone()
+    sys.exit(code)

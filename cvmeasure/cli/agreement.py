@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"tolerance ({rel}{tol.tolerance.absolute_deg:g} deg): {tol.n_within} of {tol.n_pairs} "
         f"readings within; limits of agreement {'within' if tol.loa_within_absolute else 'OUTSIDE'} "
-        f"+-{tol.tolerance.absolute_deg:g} deg -> {tol.verdict}"
+        f"+-{tol.tolerance.absolute_deg:g} deg -> {tol.verdict} ({tol.reason})"
     )
     for w in result.warnings:
         print(f"warning: {w}")

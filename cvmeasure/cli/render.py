@@ -222,8 +222,15 @@ def run(args: argparse.Namespace) -> int:
         record = {"photo": str(photo_path), "truth": str(truth_path), "seed": seed}
         if args.linear:
             record["linear_tiff"] = str(photo.save_linear_tiff(args.out / f"{name}.linear.tiff"))
-        for key in ("pin_angle_deg", "bend_angle_deg", "radius_mm", "arc_angle_deg"):
-            if key in photo.truth:
+        for key in (
+            "pin_angle_deg",
+            "bend_angle_deg",
+            "radius_mm",
+            "arc_angle_deg",
+            "chord_width_mm",
+            "height_mm",
+        ):
+            if photo.truth.get(key) is not None:  # a saddle has no radius
                 record[key] = photo.truth[key]
         written.append(record)
     if args.json:
@@ -232,8 +239,15 @@ def run(args: argparse.Namespace) -> int:
         for r in written:
             extra = "  ".join(
                 f"{k}={r[k]:.6g}"
-                for k in ("pin_angle_deg", "bend_angle_deg", "radius_mm")
-                if k in r
+                for k in (
+                    "pin_angle_deg",
+                    "bend_angle_deg",
+                    "radius_mm",
+                    "arc_angle_deg",
+                    "chord_width_mm",
+                    "height_mm",
+                )
+                if k in r and not (k == "arc_angle_deg" and "radius_mm" not in r)
             )
             print(f"wrote {r['photo']}  {extra}".rstrip())
     return 0

@@ -13,7 +13,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "targets",
         help="printable ChArUco boards and marker-kit sheets at exact scale",
-        description="Write printable targets at exact physical scale. Print at 100 %% "
+        description="Write printable targets at exact physical scale. Print at 100 % "
         "(actual size) and check the ruler on the sheet before use.",
     )
     tsub = p.add_subparsers(dest="target", metavar="TARGET")
@@ -23,10 +23,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "charuco",
         help="a ChArUco board (or chessboard) from a board JSON",
         description="Render the board of a board JSON at exact scale with the board JSON "
-        "text and a 100 mm print-check ruler on the sheet. The format follows the file "
-        "suffix (.pdf, .svg, .png) unless --format is given.",
+        "text and a 100 mm print-check ruler on the sheet, and write the board JSON beside "
+        "the sheet (<sheet>.board.json: what calibrate, plane and part take as --board). "
+        "The format follows the file suffix (.pdf, .svg, .png) unless --format is given. "
+        "Without --board: the spec's example board, 14 x 10 squares of 20 mm with 15 mm "
+        "markers (DICT_5X5_100), 280 x 200 mm, which fits A3 (--page a3).",
     )
-    c.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
+    c.add_argument(
+        "--board", type=Path, help="board JSON (spec); default: the 14 x 10 example board"
+    )
     c.add_argument("-o", "--out", type=Path, required=True, help="sheet to write (.pdf/.svg/.png)")
     c.add_argument("--format", choices=("pdf", "svg", "png"), help="override the file suffix")
     c.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
@@ -64,11 +69,15 @@ def _page(text: str | None):
 
 
 def run_charuco(args: argparse.Namespace) -> int:
-    from cvmeasure.board import load_board
+    from cvmeasure.board import DEFAULT_BOARD, load_board
     from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_json
     from cvmeasure_calib_targets.charuco import write_board_sheet
 
-    board = load_board(args.board)
+    board = load_board(args.board) if args.board else DEFAULT_BOARD
+    board_json = args.out.with_name(args.out.stem + ".board.json")
+    if args.board is not None and board_json.resolve() == args.board.resolve():
+        raise InputError(board_json, "the sheet's board JSON would overwrite the input --board")
     fmt = args.format or args.out.suffix.lstrip(".").lower()
     if fmt not in ("pdf", "svg", "png"):
         raise InputError(args.out, "unknown sheet format: use .pdf, .svg or .png (or --format)")
@@ -77,9 +86,11 @@ def run_charuco(args: argparse.Namespace) -> int:
     try:
         path = write_board_sheet(board, args.out, fmt, dpi=args.dpi, page=_page(args.page))
     except ValueError as exc:
-        raise InputError(args.board, str(exc)) from None
+        raise InputError(args.board or "--page", str(exc)) from None
+    atomic_write_json(board_json, board.to_dict())
     w, h = board.size_mm
     print(f"wrote {path} ({w:g} x {h:g} mm board; print at 100 % and check the 100 mm ruler)")
+    print(f"wrote {board_json} (the board JSON: give it as --board to calibrate, plane, part)")
     return 0
 
 

@@ -99,6 +99,13 @@ def test_tolerance_verdict_default_and_configured():
     loose = agreement(manual, vision, tolerance=Tolerance(relative=None, absolute_deg=3.0))
     assert loose.tolerance.n_within == loose.tolerance.n_pairs == 60
     assert loose.tolerance.verdict == "within tolerance"
+    assert loose.tolerance.reason == "all 60 readings and the limits of agreement pass"
+    failing = res.tolerance.n_pairs - res.tolerance.n_within
+    assert failing > 0  # with limits at ~1.36 deg some single readings exceed 1 deg
+    assert res.tolerance.reason == (
+        f"{failing} of 60 readings fail the tolerance; "
+        "the 95 % limits of agreement exceed the absolute tolerance"
+    )
     # 10 % relative on a 5 deg bend is 0.5 deg: a 0.8 deg difference fails only relatively
     tol = Tolerance()
     assert list(tol.within(np.array([0.8, 0.8]), np.array([5.0, 50.0]))) == [False, True]

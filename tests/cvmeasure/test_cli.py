@@ -12,3 +12,59 @@ def test_help_lists_demo(capsys):
 
 def test_no_command_is_usage_error(capsys):
     assert main([]) == 2
+
+
+def test_reader_gone_is_not_a_traceback(tmp_path):
+    """``cvmeasure ... | head``: the reader closes the pipe first; no traceback, exit 141."""
+    import os
+    import subprocess
+    import sys
+
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader is gone before anything is written
+    proc = subprocess.run(
+        [sys.executable, "-m", "cvmeasure", "targets", "markers", "--format", "json"],
+        stdout=write_end,
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=120,
+    )
+    os.close(write_end)
+    assert proc.returncode == 141
+    assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
+
+
+def test_targets_charuco_writes_its_board_json_and_the_default_board(tmp_path, capsys):
+    from cvmeasure.board import DEFAULT_BOARD, load_board
+
+    sheet = tmp_path / "board.svg"
+    assert main(["targets", "charuco", "-o", str(sheet), "--page", "a3"]) == 0
+    assert load_board(tmp_path / "board.board.json") == DEFAULT_BOARD
+    out = capsys.readouterr().out
+    assert "280 x 200 mm board" in out and "board.board.json" in out
+    # the board JSON beside the sheet must not overwrite the --board given
+    assert (
+        main(
+            ["targets", "charuco", "--board", str(tmp_path / "board.board.json"), "-o", str(sheet)]
+        )
+        == 2
+    )
+    assert "would overwrite the input --board" in capsys.readouterr().err
+
+
+def test_targets_help_says_100_percent(capsys):
+    with pytest.raises(SystemExit):
+        main(["targets", "--help"])
+    out = capsys.readouterr().out
+    assert "100 %" in out and "%%" not in out
+
+
+def test_render_saddle_prints_its_numbers(tmp_path, capsys):
+    assert (
+        main(
+            ["render", "part", "--saddle", "200", "20", "13", "--scale", "0.1", "-o", str(tmp_path)]
+        )
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "chord_width_mm=200" in out and "height_mm=19.69" in out and "radius" not in out
