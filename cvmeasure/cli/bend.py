@@ -54,9 +54,15 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(journal, "no journal to resume from")
     config = StreamConfig(stall_timeout_s=args.stall_timeout_s)
 
+    on_terminal = sys.stderr.isatty()
+
     def progress(sent: int, total: int, executed: int | None) -> None:
-        if not args.quiet and (sent == total or sent % 20 == 0):
+        if args.quiet:
+            return
+        if on_terminal and (sent == total or sent % 20 == 0):  # one line, redrawn
             print(f"\rsent {sent}/{total}, executing N{executed}", end="", file=sys.stderr)
+        elif not on_terminal and (sent == total or sent % 200 == 0):  # a log: whole lines
+            print(f"sent {sent}/{total}, executing N{executed}", file=sys.stderr)
 
     with open_link(args.port, xonxoff=not args.no_xonxoff) as link:
         try:
@@ -71,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                 force=args.force,
             )
         finally:
-            if not args.quiet:
+            if not args.quiet and on_terminal:
                 print(file=sys.stderr)
     if args.json:
         print(json.dumps({"journal": str(journal), **result.to_dict()}, indent=2))

@@ -95,6 +95,17 @@ def test_bend_to_the_sim_double(half_gcode, capsys):
     assert read_jsonl(out.with_name("half.gcode.journal.jsonl"))[-1]["event"] == "done"
 
 
+def test_bend_progress_piped_is_whole_lines(half_gcode, capsys):
+    """Piped (not a terminal), progress comes as whole lines, no carriage returns."""
+    out, _ = half_gcode
+    assert main(["bend", str(out), "--port", "sim://?speedup=300"]) == 0
+    err = capsys.readouterr().err
+    assert "\r" not in err
+    lines = err.splitlines()
+    assert lines and all(line.startswith("sent ") for line in lines)
+    assert lines[-1].startswith("sent 62/62, executing N")
+
+
 def test_bend_stops_on_a_vanished_port_and_resumes(half_gcode, capsys):
     out, _ = half_gcode
     with FakeTinyG(speedup=100.0, faults=[Fault("vanish", 40)]) as board:
