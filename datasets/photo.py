@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -153,6 +154,21 @@ def resolve_camera(
     return cam.scaled(scale) if scale != 1.0 else cam
 
 
+def image_tilt_direction_deg(rot_cam_frame: np.ndarray) -> float:
+    """The pose's tilt direction in the image frame, as ``cvmeasure plane`` reports it.
+
+    The image direction in which the plane recedes from the camera, degrees
+    counter-clockwise from +x as seen in the photo (0 when the plane is square to
+    the optical axis). :class:`~cvmeasure_datasets.optics.Pose` gives its tilt
+    direction in the scene frame instead; the two differ by the yaw and the frame's
+    handedness in the photo.
+    """
+    normal = rot_cam_frame[:, 2] * np.sign(rot_cam_frame[2, 2] or 1.0)
+    if math.hypot(normal[0], normal[1]) < 1e-12:
+        return 0.0
+    return float(np.degrees(np.arctan2(normal[1], -normal[0])))
+
+
 def render_scene(
     layers: Sequence[Layer],
     *,
@@ -182,6 +198,7 @@ def render_scene(
         "pose": {
             **pose.to_dict(),
             "R_cam_frame": rot.tolist(),
+            "tilt_direction_image_deg": image_tilt_direction_deg(rot),
             "rvec": rvec.ravel().tolist(),
             "tvec_mm": t_mm.tolist(),
         },

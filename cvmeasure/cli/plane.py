@@ -16,7 +16,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="From a photo of the board lying on the measurement plane: the plane's "
         "tilt against the image plane and its direction, the scale in mm per pixel, "
         "whether ignoring the tilt keeps angle errors within --tolerance-deg, and the "
-        "homography from undistorted image pixels to board millimetres.",
+        "homography from undistorted image pixels to board millimetres. The tilt direction "
+        "is in the image frame: where the plane recedes from the camera, degrees "
+        "counter-clockwise from +x as seen in the photo (a render's truth JSON gives the "
+        "same figure as pose.tilt_direction_image_deg).",
     )
     p.add_argument("photo", type=Path, help="photo of the board on the plane")
     p.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
@@ -87,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     verdict = "affine model OK" if plane.affine_ok else "affine model NOT enough"
     print(
-        f"tilt {plane.tilt_deg:.3f} deg towards {plane.tilt_direction_deg:.1f} deg, "
+        f"tilt {plane.tilt_deg:.3f} deg, receding towards {plane.tilt_direction_deg:.1f} deg "
+        "(image frame, counter-clockwise as seen), "
         f"{plane.mm_per_px:.5f} mm/px"
     )
     print(

@@ -20,7 +20,15 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--camera", type=Path, help="camera JSON at 4608 px (default: the seed camera)")
     p.add_argument("--tilt-deg", type=float, help="camera tilt from the plane normal")
-    p.add_argument("--tilt-direction-deg", type=float, default=0.0, help="direction of the tilt")
+    p.add_argument(
+        "--tilt-direction-deg",
+        type=float,
+        default=0.0,
+        help="direction the camera is moved to, in the scene frame (from its +x towards +y); "
+        "`cvmeasure plane` reports the tilt direction in the image frame instead (where the "
+        "plane recedes, counter-clockwise as seen in the photo): the truth JSON gives both "
+        "(pose.tilt_direction_deg, pose.tilt_direction_image_deg)",
+    )
     p.add_argument("--yaw-deg", type=float, help="camera rotation about its axis")
     p.add_argument("--distance-mm", type=float, help="camera distance to the plane")
     p.add_argument("--cct-k", type=float, help="light colour temperature (2700-6500 K)")

@@ -127,3 +127,32 @@ def test_plane_trace_round_trip_property(tilt, direction, yaw, distance, frame, 
     u, v = plane_coords_mm(cam, rot, t, px[keep, 0], px[keep, 1])
     assert keep[0]  # the target is always in view (at the principal point)
     assert np.hypot(u - pts[keep, 0], v - pts[keep, 1]).max() < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("tilt_direction_deg", "yaw_deg"), [(0.0, 0.0), (45.0, 3.5), (200.0, -8.0)]
+)
+def test_truth_gives_the_tilt_direction_plane_reports(tilt_direction_deg, yaw_deg):
+    """The render's scene-frame tilt direction and the plane check's image-frame one differ;
+    the truth's ``tilt_direction_image_deg`` is what ``cvmeasure plane`` measures."""
+    from cvmeasure.board import DEFAULT_BOARD
+    from cvmeasure.calibration.plane import estimate_plane
+    from cvmeasure.geometry import wrap_deg
+    from cvmeasure_datasets import Lighting, render_board_view
+
+    pose = Pose(
+        tilt_deg=20.0,
+        tilt_direction_deg=tilt_direction_deg,
+        yaw_deg=yaw_deg,
+        distance_mm=700.0,
+        offset_mm=(140.0, 100.0),
+    )
+    view = render_board_view(
+        board=DEFAULT_BOARD, pose=pose, lighting=Lighting.clean(), scale=0.25, seed=1
+    )
+    import cv2
+
+    plane = estimate_plane(cv2.cvtColor(view.bgr, cv2.COLOR_BGR2GRAY), DEFAULT_BOARD, view.camera)
+    expected = view.truth["pose"]["tilt_direction_image_deg"]
+    assert abs(wrap_deg(plane.tilt_direction_deg - expected)) < 0.5
+    assert plane.tilt_deg == pytest.approx(20.0, abs=0.1)
