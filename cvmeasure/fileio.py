@@ -20,6 +20,7 @@ from typing import Any
 from cvmeasure.errors import InputError
 
 __all__ = [
+    "check_outputs",
     "atomic_write_bytes",
     "atomic_write_text",
     "atomic_write_json",
@@ -190,3 +191,38 @@ def _csv_cell(value: Any) -> Any:
     if isinstance(value, float):
         return f"{value:.6f}"
     return "" if value is None else value
+
+
+def check_outputs(
+    outputs: Mapping[str, str | os.PathLike[str]],
+    inputs: Iterable[str | os.PathLike[str]],
+    *,
+    folders: Iterable[str] = (),
+) -> None:
+    """Check where a command will write before it reads or writes anything.
+
+    ``outputs`` maps a name (what the error says, e.g. ``--out``) to a path;
+    names in ``folders`` are output folders, the others files. Raises
+    :class:`InputError` naming the path when an output file is one of ``inputs``
+    (it would overwrite the input), is an existing folder, or an output folder is
+    an existing file. Paths are compared after resolving links.
+
+    >>> check_outputs({"--out": "a.csv"}, ["b.csv"])  # fine: nothing returned
+    """
+    folder_names = set(folders)
+    resolved_inputs = {}
+    for path in inputs:
+        try:
+            resolved_inputs[Path(path).resolve()] = Path(path)
+        except OSError:  # an unreadable input is the reader's to report
+            continue
+    for name, path in outputs.items():
+        target = Path(path)
+        if name in folder_names:
+            if target.exists() and not target.is_dir():
+                raise InputError(target, f"{name} must be a folder, but a file of that name exists")
+            continue
+        if target.is_dir():
+            raise InputError(target, f"{name} is a folder; give a file name")
+        if target.resolve() in resolved_inputs:
+            raise InputError(target, f"{name} is also an input: refusing to overwrite it")

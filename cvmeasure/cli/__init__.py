@@ -57,6 +57,38 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: Argument names (argparse ``dest``) that name files a command writes.
+OUTPUT_FILE_DESTS: frozenset[str] = frozenset(
+    {"out", "output", "plot", "overlay", "rectified", "save_params", "report", "gcode"}
+)
+#: Per command, output arguments that are folders, not files.
+OUTPUT_FOLDER_DESTS: dict[str, frozenset[str]] = {
+    "render": frozenset({"out"}),
+    "demo": frozenset({"out"}),
+    "session": frozenset({"dir"}),
+}
+
+
+def _check_paths(args: argparse.Namespace) -> None:
+    """Refuse, before anything runs, an output that is an input or a folder given as a file."""
+    from pathlib import Path
+
+    from cvmeasure.fileio import check_outputs
+
+    folders = OUTPUT_FOLDER_DESTS.get(args.command, frozenset())
+    outputs: dict[str, Path] = {}
+    inputs: list[Path] = []
+    for dest, value in vars(args).items():
+        paths = [v for v in (value if isinstance(value, list) else [value]) if isinstance(v, Path)]
+        if not paths:
+            continue
+        if dest in OUTPUT_FILE_DESTS or dest in folders:
+            outputs[f"--{dest.replace('_', '-')}"] = paths[0]
+        else:
+            inputs.extend(p for p in paths if p.is_file())
+    check_outputs(outputs, inputs, folders=[f"--{d.replace('_', '-')}" for d in folders])
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; return the exit code (tests call this directly)."""
     parser = build_parser()
@@ -65,6 +97,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _check_paths(args)
         return int(args.func(args) or 0)
     except InputError as exc:
         print(f"cvmeasure {args.command}: {exc}", file=sys.stderr)

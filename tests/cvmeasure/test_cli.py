@@ -68,3 +68,36 @@ def test_render_saddle_prints_its_numbers(tmp_path, capsys):
     )
     out = capsys.readouterr().out
     assert "chord_width_mm=200" in out and "height_mm=19.69" in out and "radius" not in out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["fit", "{f}", "-o", "{f}"],
+        ["report", "{f}", "-o", "{f}"],
+        ["gcode", "{f}", "-o", "{f}"],
+        ["simulate", "{f}", "-o", "{f}"],
+        ["agreement", "{f}", "{g}", "-o", "{f}"],
+        ["measure", "{f}", "--kit", "{g}", "-o", "{g}"],
+        ["diagnose", "{f}", "--plot", "{f}"],
+        ["part", "{f}", "--board", "{g}", "--camera", "{g}", "--overlay", "{f}"],
+    ],
+)
+def test_an_output_that_is_an_input_is_refused_and_the_input_kept(tmp_path, capsys, argv):
+    f, g = tmp_path / "input.csv", tmp_path / "other.json"
+    f.write_text("trial,commanded_pin_deg\n1,20\n")
+    g.write_text("{}")
+    before = (f.read_bytes(), g.read_bytes())
+    assert main([a.format(f=f, g=g) for a in argv]) == 2
+    err = capsys.readouterr().err
+    assert "is also an input: refusing to overwrite it" in err and err.count("\n") == 1
+    assert (f.read_bytes(), g.read_bytes()) == before
+
+
+def test_an_output_file_that_is_a_folder_is_refused(tmp_path, capsys):
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,commanded_pin_deg\n1,20\n2,-20\n")
+    assert main(["simulate", str(plan), "-o", str(tmp_path)]) == 2
+    assert "--out is a folder; give a file name" in capsys.readouterr().err
+    assert main(["render", "board", "--scale", "0.1", "-o", str(plan)]) == 2
+    assert "--out must be a folder" in capsys.readouterr().err
