@@ -20,7 +20,10 @@ from typing import Any
 from cvmeasure.errors import InputError
 
 __all__ = [
+    "MAX_CSV_ROWS",
+    "MAX_TEXT_BYTES",
     "check_outputs",
+    "read_text_file",
     "atomic_write_bytes",
     "atomic_write_text",
     "atomic_write_json",
@@ -108,68 +111,118 @@ def append_jsonl(path: str | os.PathLike[str], record: Any) -> None:
         os.fsync(fh.fileno())
 
 
-def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:
-    """Read a JSON file; raise InputError naming the file when it cannot be read."""
+#: Largest text file (JSON, JSON Lines, CSV) a reader accepts, bytes.
+MAX_TEXT_BYTES = 256 * 1024 * 1024
+#: Most rows a CSV reader accepts (a trials table or manual readings are far smaller).
+MAX_CSV_ROWS = 200_000
+
+
+def read_text_file(path: str | os.PathLike[str], *, what: str, encoding: str = "utf-8") -> str:
+    """The text of an input file; every way it can fail is an InputError naming the file.
+
+    Not found, a folder, unreadable, larger than :data:`MAX_TEXT_BYTES`, or not
+    text in ``encoding`` (a binary file) each get one line saying which.
+    """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        if path.is_dir():
+            raise InputError(path, f"is a folder, not a {what}")
+        size = path.stat().st_size
+        if size > MAX_TEXT_BYTES:
+            raise InputError(
+                path, f"{what} is {size / 1e6:.0f} MB; more than {MAX_TEXT_BYTES / 1e6:.0f} MB"
+            )
+        return path.read_text(encoding=encoding)
     except FileNotFoundError:
         raise InputError(path, f"{what} not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read {what}: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            path, f"not a {what}: byte {exc.start} is not {encoding} text (a binary file?)"
+        ) from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read {what}: {exc.strerror or exc}") from None
+
+
+def _loads(text: str, path: Path, where: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(
-            path, f"corrupt {what}: {exc.msg} at line {exc.lineno} column {exc.colno}"
+            path, f"corrupt {where}: {exc.msg} at line {exc.lineno} column {exc.colno}"
         ) from None
+    except RecursionError:
+        raise InputError(path, f"corrupt {where}: nested too deeply") from None
+
+
+def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:
+    """Read a JSON file; raise InputError naming the file when it cannot be read."""
+    path = Path(path)
+    return _loads(read_text_file(path, what=what), path, what)
 
 
 def read_jsonl(
     path: str | os.PathLike[str], *, skip_partial_last: bool = False
 ) -> list[dict[str, Any]]:
-    """Read a JSON Lines file into a list of dicts.
+    """Read a JSON Lines file into a list of dicts (one JSON object per line).
 
     With ``skip_partial_last`` a malformed *last* line (a write cut by a crash)
-    is dropped instead of raising; any other malformed line raises InputError.
+    is dropped instead of raising; any other malformed line, or a line that is
+    valid JSON but not an object, raises InputError naming the file and line.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise InputError(path, "JSON Lines file not found") from None
+    lines = read_text_file(path, what="JSON Lines file").splitlines()
     records: list[dict[str, Any]] = []
     for number, line in enumerate(lines, start=1):
         if not line.strip():
             continue
         try:
-            records.append(json.loads(line))
-        except json.JSONDecodeError as exc:
+            record = json.loads(line)
+        except (json.JSONDecodeError, RecursionError) as exc:
             if skip_partial_last and number == len(lines):
                 break
-            raise InputError(path, f"corrupt JSON on line {number}: {exc.msg}") from None
+            why = exc.msg if isinstance(exc, json.JSONDecodeError) else "nested too deeply"
+            raise InputError(path, f"corrupt JSON on line {number}: {why}") from None
+        if not isinstance(record, dict):
+            raise InputError(
+                path, f"line {number} is a JSON {type(record).__name__}, not an object"
+            )
+        records.append(record)
     return records
 
 
 def read_csv_rows(
-    path: str | os.PathLike[str], *, required: Sequence[str] = ()
+    path: str | os.PathLike[str],
+    *,
+    required: Sequence[str] = (),
+    max_rows: int = MAX_CSV_ROWS,
 ) -> list[dict[str, str]]:
-    """Read a CSV with a header row into dicts; check the required columns exist."""
+    """Read a CSV with a header row into dicts; check the required columns exist.
+
+    InputError (naming the file, and the line where it applies) for a file that
+    cannot be read, missing columns, a row with more cells than the header, a
+    cell over the csv module's field limit, or more than ``max_rows`` rows.
+    """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise InputError(path, "CSV file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, f"cannot read CSV: {exc}") from None
+    text = read_text_file(path, what="CSV file", encoding="utf-8-sig")
     reader = csv.DictReader(io.StringIO(text))
-    header = [h.strip() for h in (reader.fieldnames or [])]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise InputError(path, f"missing column(s) {', '.join(missing)}; has {', '.join(header)}")
-    rows = []
-    for row in reader:
-        rows.append({(k or "").strip(): (v or "").strip() for k, v in row.items()})
+    try:
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise InputError(
+                path, f"missing column(s) {', '.join(missing)}; has {', '.join(header)}"
+            )
+        rows = []
+        for row in reader:
+            if None in row:
+                raise InputError(
+                    path, f"line {reader.line_num}: more cells than the header's {len(header)}"
+                )
+            if len(rows) >= max_rows:
+                raise InputError(path, f"more than {max_rows} rows")
+            rows.append({(k or "").strip(): (v or "").strip() for k, v in row.items()})
+    except csv.Error as exc:
+        raise InputError(path, f"line {reader.line_num + 1}: not a valid CSV row: {exc}") from None
     return rows
 
 
