@@ -26,6 +26,8 @@ __all__ = [
     "LINEAR_SUFFIXES",
     "PHOTO_SUFFIXES",
     "read_photo",
+    "check_pixel_count",
+    "MAX_PHOTO_PIXELS",
     "is_raw",
     "is_linear_name",
     "to_bgr8",
@@ -133,6 +135,37 @@ def is_linear_name(path: str | os.PathLike[str]) -> bool:
     return len(suffixes) >= 2 and suffixes[-2] == ".linear" and suffixes[-1] in LINEAR_SUFFIXES
 
 
+#: Most pixels a photo may declare (150 MP: above any DSLR's 102 MP): a small file that
+#: declares 30000 x 30000 pixels would otherwise take gigabytes to decode.
+MAX_PHOTO_PIXELS = 150_000_000
+
+
+def check_pixel_count(path: str | os.PathLike[str], *, limit: int = MAX_PHOTO_PIXELS) -> None:
+    """Refuse (InputError naming the file) a photo whose header declares more than ``limit``
+    pixels, from the header alone (Pillow's lazy open), before anything is decoded."""
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    pillow_limit = Image.MAX_IMAGE_PIXELS
+    try:
+        Image.MAX_IMAGE_PIXELS = None  # our limit, our message; only the header is read
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as im:
+                w, h = im.size
+    except (UnidentifiedImageError, OSError, ValueError):
+        return  # not an image Pillow knows: the decoder reports it
+    finally:
+        Image.MAX_IMAGE_PIXELS = pillow_limit
+    if w * h > limit:
+        raise InputError(
+            path,
+            f"photo declares {w} x {h} pixels ({w * h / 1e6:.0f} MP); at most "
+            f"{limit / 1e6:.0f} MP are read",
+        )
+
+
 def read_photo(
     path: str | os.PathLike[str], *, half_size: bool = False, linear: bool | None = None
 ) -> Photo:
@@ -156,6 +189,7 @@ def read_photo(
         return Photo(str(path), _read_raw(path, half_size=half_size), linear=True)
     if linear is None:
         linear = is_linear_name(path)
+    check_pixel_count(path)
     import cv2
 
     data = np.fromfile(path, dtype=np.uint8)

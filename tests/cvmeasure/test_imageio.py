@@ -38,3 +38,35 @@ def test_real_dng_decodes_linear_with_camera_white_balance(shared_real):
 def test_real_nef_that_is_a_scan_decodes(shared_real):
     photo = read_photo(shared_real / "raw" / "Nikon_uncompressed.nef")
     assert photo.bgr.shape == (593, 869, 3)
+
+
+def _png_header_only(path, width, height):
+    """A valid PNG signature and IHDR declaring width x height, and no pixel data."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data))
+            + kind
+            + data
+            + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+        )
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b""))
+
+
+def test_a_photo_declaring_too_many_pixels_is_refused_before_decoding(tmp_path):
+    import resource
+
+    from cvmeasure.errors import InputError
+    from cvmeasure.imageio import read_photo
+
+    bomb = tmp_path / "bomb.png"
+    _png_header_only(bomb, 30000, 30000)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises(InputError, match=r"declares 30000 x 30000 pixels \(900 MP\)"):
+        read_photo(bomb)
+    grown_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    assert grown_kb < 200_000  # nothing near the 2.7 GB a decode would take
