@@ -6,6 +6,7 @@ chessboard corner, x along ``squares_x``, y along ``squares_y``, z = 0, in mm.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
@@ -106,6 +107,20 @@ class ChessboardSpec:
 
 BoardSpec = CharucoBoardSpec | ChessboardSpec
 
+#: Most squares along one side, and the largest square, a board JSON may describe (a
+#: 2 m board of 100 squares; more is a typo, and would take gigabytes to draw).
+MAX_SQUARES_PER_SIDE = 100
+MAX_SQUARE_MM = 500.0
+
+
+def _check_size(source: Any, squares: tuple[int, int], square_mm: float) -> None:
+    if max(squares) > MAX_SQUARES_PER_SIDE:
+        raise InputError(
+            source, f"{squares[0]} x {squares[1]} squares: at most {MAX_SQUARES_PER_SIDE} a side"
+        )
+    if not (0 < square_mm <= MAX_SQUARE_MM) or not math.isfinite(square_mm):
+        raise InputError(source, f"square_mm {square_mm:g} must be in (0, {MAX_SQUARE_MM:g}]")
+
 
 def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
     """Validate a board JSON object and build its spec; InputError on schema errors."""
@@ -128,6 +143,7 @@ def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
                 raise InputError(source, f"unknown ArUco dictionary {spec.dictionary!r}")
             if spec.squares_x < 2 or spec.squares_y < 2:
                 raise InputError(source, "a ChArUco board needs at least 2x2 squares")
+            _check_size(source, (spec.squares_x, spec.squares_y), spec.square_mm)
             if not 0 < spec.marker_mm < spec.square_mm:
                 raise InputError(source, "marker_mm must be positive and smaller than square_mm")
             return spec
@@ -141,6 +157,7 @@ def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
                 raise InputError(
                     source, "a chessboard needs >= 2x2 inner corners and square_mm > 0"
                 )
+            _check_size(source, (spec2.inner_x + 1, spec2.inner_y + 1), spec2.square_mm)
             return spec2
     except KeyError as exc:
         raise InputError(source, f"board JSON lacks {exc.args[0]!r}") from None

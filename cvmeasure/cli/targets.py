@@ -6,7 +6,12 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ["register", "run_charuco", "run_markers"]
+__all__ = ["register", "run_charuco", "run_markers", "MAX_DPI"]
+
+#: Finest resolution accepted, and the most pixels a PNG sheet may have (a 280 x 200 mm
+#: board at 1200 dpi is about 13000 x 9400 px, 0.5 GB while drawn).
+MAX_DPI = 1200.0
+MAX_SHEET_PIXELS = 150_000_000
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -81,8 +86,17 @@ def run_charuco(args: argparse.Namespace) -> int:
     fmt = args.format or args.out.suffix.lstrip(".").lower()
     if fmt not in ("pdf", "svg", "png"):
         raise InputError(args.out, "unknown sheet format: use .pdf, .svg or .png (or --format)")
-    if not args.dpi > 0:
-        raise InputError("--dpi", "must be positive")
+    if not 0 < args.dpi <= MAX_DPI:
+        raise InputError("--dpi", f"must be in (0, {MAX_DPI:g}]")
+    if fmt == "png":
+        w_mm, h_mm = board.size_mm
+        pixels = ((w_mm + 60.0) * args.dpi / 25.4) * ((h_mm + 80.0) * args.dpi / 25.4)
+        if pixels > MAX_SHEET_PIXELS:
+            raise InputError(
+                "--dpi",
+                f"a {w_mm:g} x {h_mm:g} mm board at {args.dpi:g} dpi is {pixels / 1e6:.0f} MP; "
+                f"at most {MAX_SHEET_PIXELS / 1e6:.0f} MP (lower --dpi, or write .pdf/.svg)",
+            )
     try:
         path = write_board_sheet(board, args.out, fmt, dpi=args.dpi, page=_page(args.page))
     except ValueError as exc:
@@ -99,6 +113,8 @@ def run_markers(args: argparse.Namespace) -> int:
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.kit import default_kit, load_kit
 
+    if not 0 < args.dpi <= MAX_DPI:
+        raise InputError("--dpi", f"must be in (0, {MAX_DPI:g}]")
     kit = load_kit(args.kit) if args.kit else default_kit()
     fmt = args.format or (args.out.suffix.lstrip(".").lower() if args.out else "json")
     if fmt == "json":

@@ -158,3 +158,26 @@ def test_cli_targets_markers(capsys, tmp_path):
     capsys.readouterr()
     assert main(["targets", "markers", "-o", str(tmp_path / "kit.gif")]) == 2
     assert "kit.gif" in capsys.readouterr().err
+
+
+def test_oversized_boards_and_resolutions_are_refused_before_drawing(tmp_path, capsys):
+    from cvmeasure.cli import main
+
+    huge = tmp_path / "huge.json"
+    huge.write_text(
+        '{"type": "charuco", "squares_x": 5000, "squares_y": 5000, "square_mm": 20,'
+        ' "marker_mm": 15, "dictionary": "DICT_5X5_100"}'
+    )
+    assert main(["targets", "charuco", "--board", str(huge), "-o", str(tmp_path / "b.pdf")]) == 2
+    assert "at most 100 a side" in capsys.readouterr().err
+    out = str(tmp_path / "b.png")
+    assert main(["targets", "charuco", "-o", out, "--dpi", "100000"]) == 2
+    assert "--dpi: must be in (0, 1200]" in capsys.readouterr().err
+    big = tmp_path / "big.json"
+    big.write_text(
+        '{"type": "charuco", "squares_x": 100, "squares_y": 70, "square_mm": 20,'
+        ' "marker_mm": 15, "dictionary": "DICT_6X6_1000"}'
+    )
+    assert main(["targets", "charuco", "--board", str(big), "-o", out, "--dpi", "1200"]) == 2
+    assert "MP; at most 150 MP" in capsys.readouterr().err
+    assert not (tmp_path / "b.png").exists()
