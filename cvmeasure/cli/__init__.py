@@ -46,12 +46,14 @@ COMMAND_MODULES: tuple[str, ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    from cvmeasure.cli.options import OneLineParser
+
+    parser = OneLineParser(
         prog="cvmeasure",
         description="Computer-vision metrology and calibration for CNC wire bending.",
     )
     parser.add_argument("--version", action="version", version=f"cvmeasure {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     for name in COMMAND_MODULES:
         importlib.import_module(f"cvmeasure.cli.{name}").register(sub)
     return parser

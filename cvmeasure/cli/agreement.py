@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.options import non_negative_float, positive_float
+
 __all__ = ["register", "run"]
 
 
@@ -25,10 +27,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("vision", type=Path, help="vision results JSON Lines (cvmeasure batch/measure)")
     p.add_argument("--plot", type=Path, help="write a Bland-Altman plot (PNG)")
     p.add_argument(
-        "--tol-deg", type=float, default=1.0, help="absolute tolerance, degrees (default 1)"
+        "--tol-deg",
+        type=positive_float,
+        default=1.0,
+        help="absolute tolerance, degrees (default 1)",
     )
     p.add_argument(
-        "--tol-rel", type=float, default=0.10, help="relative tolerance (default 0.10; 0 = none)"
+        "--tol-rel",
+        type=non_negative_float,
+        default=0.10,
+        help="relative tolerance (default 0.10; 0 = none)",
     )
     p.add_argument("-o", "--output", type=Path, help="also write the full result as JSON")
     p.add_argument("--json", action="store_true", help="print the result as JSON")

@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import positive_float
+
 __all__ = ["register", "run"]
 
 
@@ -31,7 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--journal", type=Path, help="journal file (default: JOB.journal.jsonl)")
     p.add_argument("--no-xonxoff", action="store_true", help="switch software flow control off")
-    p.add_argument("--stall-timeout-s", type=float, default=5.0, help="silence that is a stall")
+    p.add_argument(
+        "--stall-timeout-s", type=positive_float, default=5.0, help="silence that is a stall"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.options import positive_float, positive_int
+
 __all__ = ["register", "run"]
 
 
@@ -27,10 +29,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--params", type=Path, help="simulation params JSON, used when there is no --material"
     )
     p.add_argument(
-        "--divisions", type=int, help="chords per curve (default: as many as fit, each >= 12 mm)"
+        "--divisions",
+        type=positive_int,
+        help="chords per curve (default: as many as fit, each >= 12 mm)",
     )
-    p.add_argument("--min-segment-mm", type=float, default=12.0, help="shortest segment (mm)")
-    p.add_argument("--max-bend-deg", type=float, default=135.0, help="largest bend (deg)")
+    p.add_argument(
+        "--min-segment-mm", type=positive_float, default=12.0, help="shortest segment (mm)"
+    )
+    p.add_argument("--max-bend-deg", type=positive_float, default=135.0, help="largest bend (deg)")
     p.add_argument(
         "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
     )

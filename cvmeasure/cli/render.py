@@ -7,19 +7,23 @@ import json
 from pathlib import Path
 from typing import Any
 
+from cvmeasure.cli.options import int_in, non_negative_float, positive_float, positive_int
+
 __all__ = ["register", "run"]
 
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     p.add_argument("--name", help="file stem (default: the kind, numbered with --count)")
-    p.add_argument("--count", type=int, default=1, help="photos to render, seeds seed..seed+N-1")
+    p.add_argument(
+        "--count", type=positive_int, default=1, help="photos to render, seeds seed..seed+N-1"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument(
-        "--scale", type=float, default=1.0, help="size relative to 4608 x 3072 (default 1)"
+        "--scale", type=positive_float, default=1.0, help="size relative to 4608 x 3072 (default 1)"
     )
     p.add_argument("--camera", type=Path, help="camera JSON at 4608 px (default: the seed camera)")
-    p.add_argument("--tilt-deg", type=float, help="camera tilt from the plane normal")
+    p.add_argument("--tilt-deg", type=non_negative_float, help="camera tilt from the plane normal")
     p.add_argument(
         "--tilt-direction-deg",
         type=float,
@@ -30,10 +34,10 @@ def _common(p: argparse.ArgumentParser) -> None:
         "(pose.tilt_direction_deg, pose.tilt_direction_image_deg)",
     )
     p.add_argument("--yaw-deg", type=float, help="camera rotation about its axis")
-    p.add_argument("--distance-mm", type=float, help="camera distance to the plane")
-    p.add_argument("--cct-k", type=float, help="light colour temperature (2700-6500 K)")
+    p.add_argument("--distance-mm", type=positive_float, help="camera distance to the plane")
+    p.add_argument("--cct-k", type=positive_float, help="light colour temperature (2700-6500 K)")
     p.add_argument("--wb-error-k", type=float, help="error of the camera's white balance, K")
-    p.add_argument("--jpeg-quality", type=int, help="JPEG quality 1..100 (default 92)")
+    p.add_argument("--jpeg-quality", type=int_in(1, 100), help="JPEG quality 1..100 (default 92)")
     p.add_argument(
         "--clean", action="store_true", help="no noise, vignetting or JPEG; perfect white balance"
     )

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.options import positive_float
+
 __all__ = ["register", "run_charuco", "run_markers", "MAX_DPI"]
 
 #: Finest resolution accepted, and the most pixels a PNG sheet may have (a 280 x 200 mm
@@ -39,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     c.add_argument("-o", "--out", type=Path, required=True, help="sheet to write (.pdf/.svg/.png)")
     c.add_argument("--format", choices=("pdf", "svg", "png"), help="override the file suffix")
-    c.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
+    c.add_argument("--dpi", type=positive_float, default=300.0, help="PNG resolution (default 300)")
     c.add_argument(
         "--page",
         help="paper size: a4, a3, letter, tabloid or WxH in mm (default: just fits the board)",
@@ -55,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--kit", type=Path, help="kit JSON (default: the built-in kit)")
     m.add_argument("-o", "--out", type=Path, help="file to write (required unless --format json)")
     m.add_argument("--format", choices=("pdf", "svg", "png", "json"), help="output format")
-    m.add_argument("--dpi", type=float, default=300.0, help="PNG resolution (default 300)")
+    m.add_argument("--dpi", type=positive_float, default=300.0, help="PNG resolution (default 300)")
     m.set_defaults(func=run_markers)
 
 

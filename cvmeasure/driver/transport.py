@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import math
 from dataclasses import dataclass
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -102,6 +103,8 @@ def parse_sim_url(url: str) -> dict[str, Any]:
         for key, values in query.items():
             if key == "speedup":
                 kwargs["speedup"] = float(values[-1])
+                if not 0 < kwargs["speedup"] < math.inf:
+                    raise ValueError(f"speedup must be a finite number > 0, got {values[-1]!r}")
             elif key == "footer":
                 kwargs["footer_style"] = values[-1]
             elif key == "fault":

@@ -101,3 +101,47 @@ def test_an_output_file_that_is_a_folder_is_refused(tmp_path, capsys):
     assert "--out is a folder; give a file name" in capsys.readouterr().err
     assert main(["render", "board", "--scale", "0.1", "-o", str(plan)]) == 2
     assert "--out must be a folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["render", "board", "--scale", "0", "-o", "{t}"], "argument --scale: must be > 0"),
+        (["render", "board", "--count", "-2", "-o", "{t}"], "argument --count: must be a whole"),
+        (
+            [
+                "render",
+                "bender",
+                "--pin-deg",
+                "1",
+                "--bend-deg",
+                "2",
+                "--jpeg-quality",
+                "101",
+                "-o",
+                "{t}",
+            ],
+            "argument --jpeg-quality: must be a whole number in 1..100",
+        ),
+        (
+            ["bend", "{t}/j.gcode", "--port", "sim://", "--stall-timeout-s", "-1"],
+            "argument --stall-timeout-s: must be > 0",
+        ),
+        (["targets", "charuco", "-o", "{t}/b.png", "--dpi", "nan"], "argument --dpi: must be"),
+        (["agreement", "{t}/a", "{t}/b", "--tol-deg", "0"], "argument --tol-deg: must be > 0"),
+        (["gcode", "{t}/d.svg", "-o", "{t}/j.gcode", "--divisions", "0"], "--divisions: must be"),
+    ],
+)
+def test_bad_option_values_are_one_line_usage_errors(tmp_path, capsys, argv, message):
+    with pytest.raises(SystemExit) as exit_info:
+        main([a.format(t=tmp_path) for a in argv])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_sim_url_speedup_must_be_positive(tmp_path, capsys):
+    job = tmp_path / "j.gcode"
+    job.write_text("G90\n")
+    assert main(["bend", str(job), "--port", "sim://?speedup=0"]) == 2
+    assert "speedup must be a finite number > 0" in capsys.readouterr().err
