@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -474,10 +475,32 @@ def load_design(
     if not path.is_file():
         raise InputError(path, "design file not found")
     if suffix == ".svg":
-        return read_svg(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
-    if suffix == ".dxf":
-        return read_dxf(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
-    raise InputError(path, f"unknown design format {suffix or '(no suffix)'}; use .svg or .dxf")
+        design = read_svg(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
+    elif suffix == ".dxf":
+        design = read_dxf(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
+    else:
+        raise InputError(path, f"unknown design format {suffix or '(no suffix)'}; use .svg or .dxf")
+    check_design_coordinates(design)
+    return design
+
+
+#: Largest coordinate a design may have, mm (a 100 m drawing is a unit error, not a part).
+MAX_DESIGN_COORDINATE_MM = 100_000.0
+
+
+def check_design_coordinates(design: Design) -> None:
+    """InputError naming the file and element when a coordinate is NaN, infinite or beyond
+    :data:`MAX_DESIGN_COORDINATE_MM` (a NaN once went on to write a job of 0-degree bends)."""
+    for p in design.paths:
+        pts = np.asarray(p.points_mm, dtype=np.float64)
+        if not np.all(np.isfinite(pts)):
+            raise InputError(design.source, f"{p.element}: a coordinate is not a finite number")
+        if pts.size and np.max(np.abs(pts)) > MAX_DESIGN_COORDINATE_MM:
+            raise InputError(
+                design.source,
+                f"{p.element}: a coordinate of {np.max(np.abs(pts)):.3g} mm is beyond "
+                f"{MAX_DESIGN_COORDINATE_MM:g} mm (wrong units?)",
+            )
 
 
 def _flatten(
@@ -499,6 +522,46 @@ def _flatten(
         n *= 2
 
 
+#: SVG attributes that hold coordinates (svgelements drops a token it cannot read, such
+#: as ``nan``, silently: a polyline then loses a point and a bend).
+_SVG_GEOMETRY_ATTRIBUTES = (
+    "points",
+    "d",
+    "x",
+    "y",
+    "x1",
+    "y1",
+    "x2",
+    "y2",
+    "cx",
+    "cy",
+    "r",
+    "rx",
+    "ry",
+    "width",
+    "height",
+    "transform",
+    "viewBox",
+)
+_NON_NUMBER = re.compile(r"(?<![a-z])(nan|inf|infinity)(?![a-z])", re.IGNORECASE)
+
+
+def _refuse_non_numbers(path: Path) -> None:
+    """InputError naming the element when a geometry attribute holds nan or inf."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError, ValueError):
+        return  # the SVG parser says what is wrong
+    for element in root.iter():
+        for name in _SVG_GEOMETRY_ATTRIBUTES:
+            value = element.attrib.get(name)
+            if value and _NON_NUMBER.search(value):
+                tag = element.tag.rsplit("}", 1)[-1]
+                raise InputError(path, f"<{tag}> {name}={value[:60]!r}: not a finite number")
+
+
 def read_svg(
     path: str | os.PathLike[str],
     *,
@@ -509,6 +572,7 @@ def read_svg(
     import svgelements as se
 
     path = Path(path)
+    _refuse_non_numbers(path)
     try:
         svg = se.SVG.parse(str(path), reify=True)
     except Exception as exc:  # svgelements raises assorted parser errors

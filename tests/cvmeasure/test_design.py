@@ -268,3 +268,16 @@ def test_divide_into_chords_gives_equal_chords_on_the_curve(amplitude, divisions
     # every vertex lies on the (densely sampled) curve
     on = np.interp(verts[:, 0], x, curve[:, 1])
     np.testing.assert_allclose(verts[:, 1], on, atol=2e-3)
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "1e300"])
+def test_non_finite_or_absurd_coordinates_are_refused(tmp_path, bad):
+    from cvmeasure.errors import InputError
+
+    svg = tmp_path / "bad.svg"
+    svg.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="100mm" '
+        f'viewBox="0 0 100 100"><polyline points="0,0 50,0 {bad},30" fill="none"/></svg>'
+    )
+    with pytest.raises(InputError, match=r"bad\.svg: .*(not a finite number|beyond|unreadable)"):
+        load_design(svg)
