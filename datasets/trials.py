@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.contracts import TrialTable
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.model import pin_command_for_angle, simulate
 from cvmeasure.sim.params import SimParams
@@ -26,7 +26,7 @@ __all__ = ["HiddenCase", "draw_effect", "random_plan", "measure_trials", "hidden
 class HiddenCase:
     """Synthetic trials and the truth hidden in them."""
 
-    trials: TrialSet
+    trials: TrialTable
     effect: Effect
     noise_deg: float
     seed: int
@@ -87,7 +87,7 @@ def measure_trials(
     *,
     loaded: bool = True,
     pin: bool = False,
-) -> TrialSet:
+) -> TrialTable:
     """Simulate the plan with the effects and add Gaussian noise (deg) to every angle.
 
     ``loaded=False`` leaves the loaded angles unmeasured; ``pin=True`` adds the
@@ -100,7 +100,9 @@ def measure_trials(
     if not loaded:
         noisy_loaded = np.full(n, np.nan)
     noisy_pin = res.pin_angle_deg + rng.normal(0.0, noise_deg, n) if pin else None
-    return TrialSet.from_arrays(commands, noisy_loaded, noisy_unloaded, measured_pin_deg=noisy_pin)
+    return TrialTable.from_arrays(
+        commands, noisy_loaded, noisy_unloaded, measured_pin_deg=noisy_pin
+    )
 
 
 def hidden_case(

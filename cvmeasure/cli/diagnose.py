@@ -67,17 +67,16 @@ def _summary(result: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvmeasure.diagnose import diagnose, trials_from_rows
-    from cvmeasure.diagnose.trials import TRIALS_COLUMNS
+    from cvmeasure.contracts import TrialTable
+    from cvmeasure.diagnose import diagnose
     from cvmeasure.errors import InputError
-    from cvmeasure.fileio import atomic_write_bytes, read_csv_rows, to_jsonable
+    from cvmeasure.fileio import atomic_write_bytes, to_jsonable
     from cvmeasure.provenance import provenance
     from cvmeasure.sim import SimParams, params_from_json, params_to_json
 
     if args.folds < 2:
         raise InputError("--folds", "must be at least 2")
-    rows = read_csv_rows(args.trials, required=TRIALS_COLUMNS)
-    trials = trials_from_rows(rows, source=args.trials)
+    trials = TrialTable.read_csv(args.trials)
     params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
     try:
         result = diagnose(

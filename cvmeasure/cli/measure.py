@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -91,8 +92,9 @@ def run(args: argparse.Namespace) -> int:
 
     from cvmeasure.calibration.plane import load_plane_homography
     from cvmeasure.camera import load_camera
+    from cvmeasure.contracts import Trial, TrialTable
     from cvmeasure.errors import InputError
-    from cvmeasure.fileio import atomic_write_bytes, atomic_write_text, write_csv_rows
+    from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
     from cvmeasure.imageio import read_photo
     from cvmeasure.kit import load_kit
     from cvmeasure.markers.measure import measure_machine_photo, measure_trial
@@ -164,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(target, "cannot encode the overlay PNG")
             atomic_write_bytes(target, buf.tobytes())
 
-    trial_rows = []
+    measured_trials: list[Trial] = []
     for trial, loaded, unloaded, row in trials:
         if loaded not in results or unloaded not in results:
             print(
@@ -172,23 +174,20 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             continue
-        t = measure_trial(results[loaded], results[unloaded], trial)
+        commanded = row.get("commanded_pin_deg", "")
+        try:
+            commanded_deg = float(commanded) if commanded.strip() else math.nan
+        except ValueError:
+            raise InputError(
+                args.trials, f"trial {trial}: commanded_pin_deg {commanded!r}"
+            ) from None
+        t = measure_trial(
+            results[loaded], results[unloaded], trial, commanded_pin_deg=commanded_deg
+        )
         rec = t.to_dict()
         records.append(rec)
         _emit(rec, args.json)
-        trial_rows.append(
-            {
-                "trial": trial,
-                "commanded_pin_deg": row.get("commanded_pin_deg", ""),
-                "loaded_bend_deg": rec["loaded_bend_deg"],
-                "unloaded_bend_deg": rec["unloaded_bend_deg"],
-                "measured_pin_deg": rec["measured_pin_deg"],
-                "springback_deg": rec["springback_deg"],
-                "springback_sigma_deg": rec["uncertainty_deg"]["springback_deg"],
-                "photo_loaded": str(loaded),
-                "photo_unloaded": str(unloaded),
-            }
-        )
+        measured_trials.append(t)
 
     if args.out is not None:
         if args.out.suffix.lower() == ".csv":
@@ -196,23 +195,10 @@ def run(args: argparse.Namespace) -> int:
                 raise InputError(
                     args.out, "a .csv output is the trials CSV: give --pair or --trials"
                 )
-            write_csv_rows(args.out, trial_rows, columns=list(_TRIAL_COLUMNS))
+            TrialTable(tuple(measured_trials)).write_csv(args.out)
         else:
             atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
     return 2 if failed else 0
-
-
-_TRIAL_COLUMNS = (
-    "trial",
-    "commanded_pin_deg",
-    "loaded_bend_deg",
-    "unloaded_bend_deg",
-    "measured_pin_deg",
-    "springback_deg",
-    "springback_sigma_deg",
-    "photo_loaded",
-    "photo_unloaded",
-)
 
 
 def _emit(record: dict[str, Any], as_json: bool) -> None:

@@ -90,6 +90,7 @@ def _angles(text: str) -> tuple[float, ...]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from cvmeasure.contracts import TrialTable
     from cvmeasure.driver.camera import open_camera
     from cvmeasure.driver.session import (
         SessionConfig,
@@ -101,7 +102,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.driver.session_report import write_session_report
     from cvmeasure.driver.transport import open_link
     from cvmeasure.errors import InputError
-    from cvmeasure.fileio import write_csv_rows
     from cvmeasure.material.calibration import save_calibration
     from cvmeasure.provenance import provenance
 
@@ -198,31 +198,7 @@ def run(args: argparse.Namespace) -> int:
     calibration = replace(calibration, provenance=provenance())
     save_calibration(args.out, calibration)
     trials_path = session_dir / "trials.csv"
-    write_csv_rows(
-        trials_path,
-        [
-            {
-                **s.to_dict(),
-                "trial": s.trial,
-                "direction": s.direction,
-                "loaded_uncertainty_deg": s.uncertainty_deg.get("loaded_bend_deg"),
-                "unloaded_uncertainty_deg": s.uncertainty_deg.get("unloaded_bend_deg"),
-            }
-            for s in calibration.samples
-        ],
-        (
-            "trial",
-            "commanded_pin_deg",
-            "loaded_bend_deg",
-            "unloaded_bend_deg",
-            "target_deg",
-            "direction",
-            "measured_pin_deg",
-            "springback_deg",
-            "loaded_uncertainty_deg",
-            "unloaded_uncertainty_deg",
-        ),
-    )
+    TrialTable(calibration.samples).write_csv(trials_path)
     report = args.report or args.out.with_suffix(".html")
     write_session_report(report, calibration, result.steps, session_dir=session_dir)
     summary = {

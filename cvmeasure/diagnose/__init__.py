@@ -4,17 +4,14 @@
 :mod:`cvmeasure.sim.effects`, selects by grouped cross-validated error with a
 penalty, and reports the cause, its 95 % interval, the held-out gain and an
 identifiability check. :mod:`cvmeasure_datasets.trials` hides effects in
-simulated trials for tests and benchmarks.
+simulated trials for tests and benchmarks. Trials are
+:class:`cvmeasure.contracts.TrialTable`.
 """
 
 from cvmeasure.diagnose.core import CandidateResult, Diagnosis, diagnose
-from cvmeasure.diagnose.trials import TRIALS_COLUMNS, TrialSet, trials_from_rows
 
 __all__ = [
     "CandidateResult",
     "Diagnosis",
     "diagnose",
-    "TRIALS_COLUMNS",
-    "TrialSet",
-    "trials_from_rows",
 ]

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.fitting import (
     ModelFit,
     cross_validate,
@@ -51,7 +52,6 @@ from cvmeasure.diagnose.residuals import (
     leftover_structure,
     residual_trends,
 )
-from cvmeasure.diagnose.trials import TrialSet
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
 
@@ -220,7 +220,7 @@ def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
 
 
 def _leftover_of(
-    trials: TrialSet,
+    trials: TrialTable,
     fit: ModelFit,
     params: SimParams,
     base_effects: Sequence[Effect],
@@ -231,7 +231,7 @@ def _leftover_of(
 
 
 def _structure_left(
-    trials: TrialSet,
+    trials: TrialTable,
     fit: ModelFit,
     params: SimParams,
     base_effects: Sequence[Effect],
@@ -245,7 +245,7 @@ def _structure_left(
     return bool(p_values) and min(p_values) < SECOND_SCREEN_P
 
 
-def _design_notes(trials: TrialSet) -> list[str]:
+def _design_notes(trials: TrialTable) -> list[str]:
     notes = []
     if not trials.both_directions:
         notes.append(
@@ -262,7 +262,7 @@ def _design_notes(trials: TrialSet) -> list[str]:
 
 
 def diagnose(
-    trials: TrialSet,
+    trials: TrialTable,
     params: SimParams | None = None,
     *,
     base_effects: Sequence[Effect] = (),
@@ -276,7 +276,7 @@ def diagnose(
 
     Parameters
     ----------
-    trials : TrialSet
+    trials : TrialTable
         Measured bends (both directions and loaded angles give the best power).
     params : SimParams, optional
         Nominal simulation parameters (defaults built in).

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize, stats
 
-from cvmeasure.diagnose.trials import BLOCKS, TrialSet
+from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import simulate
@@ -158,7 +158,7 @@ def _effects(
 
 
 def predict(
-    trials: TrialSet,
+    trials: TrialTable,
     params: SimParams,
     base_effects: Sequence[Effect],
     causes: str | Sequence[str],
@@ -166,7 +166,7 @@ def predict(
     values: Sequence[float] = (),
 ) -> NDArray[np.float64]:
     """Predicted observations of the trials under a model, stacked like
-    :meth:`TrialSet.observations` (loaded, unloaded bend and pin angle, deg)."""
+    :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg)."""
     res = simulate(
         trials.commanded_pin_deg,
         _scaled(params, strength_scale),
@@ -177,7 +177,7 @@ def predict(
 
 
 def residuals(
-    trials: TrialSet,
+    trials: TrialTable,
     params: SimParams,
     base_effects: Sequence[Effect],
     causes: str | Sequence[str],
@@ -200,7 +200,7 @@ def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple
 
 
 def fit_model(
-    trials: TrialSet,
+    trials: TrialTable,
     params: SimParams,
     causes: str | Sequence[str] = "none",
     *,
@@ -212,7 +212,7 @@ def fit_model(
 
     Parameters
     ----------
-    trials : TrialSet
+    trials : TrialTable
         Measured bends.
     params : SimParams
         The simulation's nominal parameters.
@@ -293,7 +293,7 @@ def group_folds(groups: Sequence[str], k: int = 5, *, seed: int = 0) -> list[NDA
 
 
 def cross_validate(
-    trials: TrialSet,
+    trials: TrialTable,
     params: SimParams,
     causes: str | Sequence[str],
     folds: Sequence[NDArray[np.bool_]],

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cvmeasure.diagnose.trials import TrialSet
+from cvmeasure.contracts import TrialTable
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import simulate
 from cvmeasure.sim.params import SimParams
@@ -46,7 +46,9 @@ def _mid_value(name: str) -> float:
     return 0.5 * (lo + hi)
 
 
-def _predict(design: TrialSet, params: SimParams, effects: Sequence[Effect]) -> NDArray[np.float64]:
+def _predict(
+    design: TrialTable, params: SimParams, effects: Sequence[Effect]
+) -> NDArray[np.float64]:
     """Predicted observations at the design's measured entries (stacked by blocks)."""
     res = simulate(design.commanded_pin_deg, params, effects, bend_index=design.bend_index)
     pred = np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
@@ -54,7 +56,7 @@ def _predict(design: TrialSet, params: SimParams, effects: Sequence[Effect]) -> 
 
 
 def signature(
-    design: TrialSet,
+    design: TrialTable,
     params: SimParams,
     name: str,
     *,
@@ -67,7 +69,7 @@ def signature(
     return on - ref
 
 
-def _nuisance(design: TrialSet, params: SimParams, base_effects: Sequence[Effect]) -> np.ndarray:
+def _nuisance(design: TrialTable, params: SimParams, base_effects: Sequence[Effect]) -> np.ndarray:
     soft = params.replace(yield_mpa=params.yield_mpa * 1.1, uts_mpa=params.uts_mpa * 1.1)
     return _predict(design, soft, base_effects) - _predict(design, params, base_effects)
 
@@ -86,12 +88,12 @@ def similarity(a: NDArray[np.float64], b: NDArray[np.float64], nuisance: np.ndar
     return float(abs(pa @ pb) / (na * nb))
 
 
-def _add_reverse(d: TrialSet) -> TrialSet:
+def _add_reverse(d: TrialTable) -> TrialTable:
     return _concat(d, -d.commanded_pin_deg)
 
 
-def _add_loaded(d: TrialSet) -> TrialSet:
-    return TrialSet.from_arrays(
+def _add_loaded(d: TrialTable) -> TrialTable:
+    return TrialTable.from_arrays(
         d.commanded_pin_deg,
         np.zeros(len(d)),
         d.unloaded_bend_deg,
@@ -100,8 +102,8 @@ def _add_loaded(d: TrialSet) -> TrialSet:
     )
 
 
-def _add_pin(d: TrialSet) -> TrialSet:
-    return TrialSet.from_arrays(
+def _add_pin(d: TrialTable) -> TrialTable:
+    return TrialTable.from_arrays(
         d.commanded_pin_deg,
         d.loaded_bend_deg,
         d.unloaded_bend_deg,
@@ -110,17 +112,17 @@ def _add_pin(d: TrialSet) -> TrialSet:
     )
 
 
-def _widen(d: TrialSet) -> TrialSet:
+def _widen(d: TrialTable) -> TrialTable:
     if d.both_directions:
         sign = np.where(np.arange(len(d)) % 2 == 0, 1.0, -1.0)
     else:
-        sign = d.direction
+        sign = d.direction_sign
     return _concat(d, sign * np.linspace(20.0, 150.0, len(d)))
 
 
-def _shuffle(d: TrialSet) -> TrialSet:
+def _shuffle(d: TrialTable) -> TrialTable:
     rng = np.random.default_rng(0)
-    return TrialSet.from_arrays(
+    return TrialTable.from_arrays(
         d.commanded_pin_deg,
         d.loaded_bend_deg,
         d.unloaded_bend_deg,
@@ -129,11 +131,11 @@ def _shuffle(d: TrialSet) -> TrialSet:
     )
 
 
-def _concat(d: TrialSet, extra_cmd: NDArray[np.float64]) -> TrialSet:
+def _concat(d: TrialTable, extra_cmd: NDArray[np.float64]) -> TrialTable:
     n = len(d)
     loaded_on = 0.0 if d.has_loaded else np.nan
     pin_on = 0.0 if d.has_pin else np.nan
-    return TrialSet.from_arrays(
+    return TrialTable.from_arrays(
         np.concatenate([d.commanded_pin_deg, extra_cmd]),
         np.concatenate([d.loaded_bend_deg, np.full(extra_cmd.size, loaded_on)]),
         np.concatenate([d.unloaded_bend_deg, np.zeros(extra_cmd.size)]),
@@ -143,7 +145,7 @@ def _concat(d: TrialSet, extra_cmd: NDArray[np.float64]) -> TrialSet:
 
 
 #: The experiments the check may recommend, in the order tried.
-EXPERIMENTS: tuple[tuple[str, Callable[[TrialSet], TrialSet]], ...] = (
+EXPERIMENTS: tuple[tuple[str, Callable[[TrialTable], TrialTable]], ...] = (
     ("add reverse bends (the same angles in the other direction)", _add_reverse),
     ("photograph the loaded angle (pin still engaged) as well as the released one", _add_loaded),
     ("measure the pin angle on the loaded photos (measured_pin_deg)", _add_pin),
@@ -171,7 +173,7 @@ class Identifiability:
 
 
 def check_identifiability(
-    design: TrialSet,
+    design: TrialTable,
     params: SimParams,
     cause: str,
     others: Sequence[str],

@@ -6,15 +6,15 @@ import io
 
 import numpy as np
 
+from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.diagnose.core import Diagnosis
-from cvmeasure.diagnose.trials import BLOCKS, TrialSet
 
 __all__ = ["residual_plot_png"]
 
 _MARKERS = (("loaded", "o"), ("unloaded", "x"), ("pin", "^"))
 
 
-def residual_plot_png(diagnosis: Diagnosis, trials: TrialSet, *, dpi: int = 100) -> bytes:
+def residual_plot_png(diagnosis: Diagnosis, trials: TrialTable, *, dpi: int = 100) -> bytes:
     """A 2 x 2 figure: residuals vs commanded pin angle and vs bend index, before / after.
 
     Residuals are measured minus predicted (deg) of the full-data fits;
@@ -26,7 +26,7 @@ def residual_plot_png(diagnosis: Diagnosis, trials: TrialSet, *, dpi: int = 100)
     k = len(BLOCKS)
     cmd = np.tile(trials.commanded_pin_deg, k)
     idx = np.tile(trials.bend_index, k)
-    ccw = np.tile(trials.direction, k) > 0
+    ccw = np.tile(trials.direction_sign, k) > 0
     block = np.repeat(np.arange(k), len(trials))
     fig = Figure(figsize=(10, 6.5), dpi=dpi, layout="constrained")
     axes = fig.subplots(2, 2, sharey="row")

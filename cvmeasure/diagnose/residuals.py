@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from cvmeasure.diagnose.trials import BLOCKS, TrialSet
+from cvmeasure.contracts import BLOCKS, TrialTable
 
 __all__ = [
     "COVARIATES",
@@ -61,10 +61,10 @@ class ResidualTrend:
         }
 
 
-def _features(trials: TrialSet) -> dict[str, NDArray[np.float64]]:
+def _features(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
     """Covariates of every stacked observation (blocks: loaded, unloaded, pin)."""
     n = len(trials)
-    s = trials.direction
+    s = trials.direction_sign
     mag = np.abs(trials.commanded_pin_deg)
     k = len(BLOCKS)
     tile = lambda v: np.tile(v, k)  # noqa: E731
@@ -81,7 +81,7 @@ def _features(trials: TrialSet) -> dict[str, NDArray[np.float64]]:
     }
 
 
-def residual_trends(trials: TrialSet, residual_deg: NDArray[np.float64]) -> list[ResidualTrend]:
+def residual_trends(trials: TrialTable, residual_deg: NDArray[np.float64]) -> list[ResidualTrend]:
     """Correlations of stacked residuals (blocks of :data:`BLOCKS`; NaN = not measured)."""
     r = np.asarray(residual_deg, dtype=np.float64)
     out = []
@@ -127,7 +127,7 @@ class LeftoverCheck:
 
 
 def leftover_structure(
-    trials: TrialSet,
+    trials: TrialTable,
     residual_deg: NDArray[np.float64],
     folds: list[NDArray[np.bool_]],
     *,
@@ -137,7 +137,7 @@ def leftover_structure(
     r = np.asarray(residual_deg, dtype=np.float64)
     n, k = len(trials), len(BLOCKS)
     x = np.tile(np.abs(trials.commanded_pin_deg), k) / 100.0
-    cell = np.tile(trials.direction > 0, k).astype(int) + 2 * np.repeat(np.arange(k), n)
+    cell = np.tile(trials.direction_sign > 0, k).astype(int) + 2 * np.repeat(np.arange(k), n)
     held_trial = np.full(k * n, -1)
     for f, mask in enumerate(folds):
         held_trial[np.tile(mask, k)] = f

@@ -41,12 +41,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from cvmeasure.contracts import Trial
 from cvmeasure.driver.camera import Camera
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
 from cvmeasure.material.calibration import (
     Calibration,
-    Sample,
     calibration_plan,
     fit_calibration,
 )
@@ -136,7 +136,7 @@ class SessionStep:
         lo, un = self.loaded["bend_angle_deg"], self.unloaded["bend_angle_deg"]
         return math.copysign(1.0, lo) * (lo - un)
 
-    def sample(self) -> Sample:
+    def sample(self) -> Trial:
         u_lo = float(self.loaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
         u_un = float(self.unloaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
         unc = {}
@@ -146,15 +146,16 @@ class SessionStep:
                 "unloaded_bend_deg": u_un,
                 "springback_deg": math.hypot(u_lo, u_un),
             }
-        return Sample(
-            direction=self.direction,
+        return Trial(
+            trial=str(self.step + 1),
             target_deg=self.target_deg,
             commanded_pin_deg=self.commanded_pin_deg,
             loaded_bend_deg=float(self.loaded["bend_angle_deg"]),
             unloaded_bend_deg=float(self.unloaded["bend_angle_deg"]),
             uncertainty_deg=unc,
             measured_pin_deg=float(self.loaded["pin_angle_deg"]),
-            trial=self.step + 1,
+            photo_loaded=self.photo_loaded,
+            photo_unloaded=self.photo_unloaded,
             source="cv",
         )
 

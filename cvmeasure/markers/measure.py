@@ -40,10 +40,11 @@ from typing import Any, Literal
 import numpy as np
 
 from cvmeasure.camera import CameraModel
+from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, Trial
 from cvmeasure.errors import InputError
 from cvmeasure.imageio import to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
-from cvmeasure.markers.angles import machine_angles, springback_deg, springback_sigma_deg
+from cvmeasure.markers.angles import machine_angles
 from cvmeasure.markers.colour import (
     ColourModel,
     ColourSpace,
@@ -67,7 +68,6 @@ __all__ = [
     "MarkerMeasurement",
     "MachinePhotoResult",
     "MarkerNotFoundError",
-    "TrialResult",
     "measure_machine_photo",
     "measure_photo_file",
     "measure_trial",
@@ -115,105 +115,22 @@ class MarkerNotFoundError(InputError):
         super().__init__(source, "; ".join(parts))
 
 
-@dataclass(frozen=True)
-class MarkerMeasurement:
-    """One marker's centre and radius in the photo's pixels, with quality figures.
-
-    ``sigma_px`` is the centre's standard uncertainty (RMS of the two axes);
-    ``coverage`` the share of its boundary seen; ``delta_e`` the CIE76 colour
-    difference between the white-balanced disc and the kit's colour.
-    """
-
-    role: str
-    x_px: float
-    y_px: float
-    r_px: float
-    sigma_px: float
-    n_edge_points: int = 0
-    coverage: float = 1.0
-    contrast: float = 0.0
-    delta_e: float | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"x_px": self.x_px, "y_px": self.y_px, "r_px": self.r_px}
-
-
-@dataclass(frozen=True)
-class MachinePhotoResult:
-    """The measurement of one machine photo (spec ``Per-photo results``)."""
-
-    pin_angle_deg: float
-    bend_angle_deg: float
-    markers: Mapping[str, MarkerMeasurement]
-    uncertainty_deg: Mapping[str, float]
-    warnings: tuple[str, ...] = ()
-    photo: str | None = None
-    method: str = "ours"
-    space: str = "lab"
-    frame: str = "image"
-
-    def to_dict(self) -> dict[str, Any]:
-        """The spec's JSON Lines record (plus ``photo``)."""
-        out: dict[str, Any] = {}
-        if self.photo is not None:
-            out["photo"] = self.photo
-        out.update(
-            {
-                "pin_angle_deg": round(self.pin_angle_deg, 6),
-                "bend_angle_deg": round(self.bend_angle_deg, 6),
-                "markers": {
-                    r: {k: round(v, 4) for k, v in self.markers[r].to_dict().items()} for r in ROLES
-                },
-                "uncertainty_deg": {k: round(v, 6) for k, v in self.uncertainty_deg.items()},
-                "warnings": list(self.warnings),
-            }
-        )
-        return out
-
-
-@dataclass(frozen=True)
-class TrialResult:
-    """One trial: a loaded and an unloaded photo of one bend (spec ``springback_deg``)."""
-
-    loaded: MachinePhotoResult
-    unloaded: MachinePhotoResult
-    trial: int | str | None = None
-
-    @property
-    def springback_deg(self) -> float:
-        return springback_deg(self.loaded.bend_angle_deg, self.unloaded.bend_angle_deg)
-
-    @property
-    def springback_sigma_deg(self) -> float:
-        return springback_sigma_deg(
-            self.loaded.uncertainty_deg["bend_angle_deg"],
-            self.unloaded.uncertainty_deg["bend_angle_deg"],
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {}
-        if self.trial is not None:
-            out["trial"] = self.trial
-        out.update(
-            {
-                "photo_loaded": self.loaded.photo,
-                "photo_unloaded": self.unloaded.photo,
-                "measured_pin_deg": round(self.loaded.pin_angle_deg, 6),
-                "loaded_bend_deg": round(self.loaded.bend_angle_deg, 6),
-                "unloaded_bend_deg": round(self.unloaded.bend_angle_deg, 6),
-                "springback_deg": round(self.springback_deg, 6),
-                "uncertainty_deg": {"springback_deg": round(self.springback_sigma_deg, 6)},
-                "warnings": list(self.loaded.warnings) + list(self.unloaded.warnings),
-            }
-        )
-        return out
-
-
 def measure_trial(
-    loaded: MachinePhotoResult, unloaded: MachinePhotoResult, trial: int | str | None = None
-) -> TrialResult:
-    """Pair a loaded and an unloaded measurement of one bend."""
-    return TrialResult(loaded, unloaded, trial)
+    loaded: MachinePhotoResult,
+    unloaded: MachinePhotoResult,
+    trial: int | str | None = None,
+    *,
+    commanded_pin_deg: float = math.nan,
+    target_deg: float | None = None,
+) -> Trial:
+    """Pair a loaded and an unloaded measurement of one bend into a :class:`Trial`."""
+    return Trial.from_photos(
+        loaded,
+        unloaded,
+        trial=str(trial) if trial is not None else "",
+        commanded_pin_deg=commanded_pin_deg,
+        target_deg=target_deg,
+    )
 
 
 def _camera_for(camera: CameraModel, shape: tuple[int, ...], source: str) -> CameraModel:

@@ -52,8 +52,9 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.contracts import Trial, TrialTable
 from cvmeasure.errors import InputError
-from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_json, to_jsonable
+from cvmeasure.fileio import atomic_write_json, read_json, to_jsonable
 from cvmeasure.material.compensation import (
     DIRECTIONS,
     MOTION_MODELS,
@@ -67,11 +68,9 @@ from cvmeasure.material.compensation import (
 __all__ = [
     "FORMAT",
     "MODES",
-    "Sample",
     "Calibration",
     "calibration_plan",
     "fit_calibration",
-    "samples_from_trials",
     "read_trials_csv",
     "load_calibration",
     "save_calibration",
@@ -93,83 +92,6 @@ MODES: dict[str, tuple[float, ...]] = {
 }
 
 _UNCERTAINTY_KEYS = ("loaded_bend_deg", "unloaded_bend_deg", "springback_deg")
-
-
-@dataclass(frozen=True)
-class Sample:
-    """One calibration bend: loaded and unloaded bend angle for a pin command.
-
-    Attributes
-    ----------
-    direction : str
-        ``"ccw"`` (positive bend angles) or ``"cw"`` (negative).
-    target_deg : float or None
-        The calibration angle (magnitude, deg) the bend aimed at; None when
-        unknown (trials from a CSV without a ``target_deg`` column).
-    commanded_pin_deg : float
-        Signed pin command (deg).
-    loaded_bend_deg, unloaded_bend_deg : float
-        Signed bend angles (deg) with the pin holding the wire and released.
-    uncertainty_deg : dict of str to float
-        One standard uncertainty (deg) of the loaded and unloaded angles and
-        of the springback (missing keys: unknown).
-    measured_pin_deg : float or None
-        Pin angle measured on the loaded photo (deg), if any.
-    trial : int or None
-        The trial number in execution order.
-    source : str
-        ``"cv"`` (measured on photos), ``"csv"`` (read from a trials file) or
-        ``"sim"`` (simulated).
-    """
-
-    direction: str
-    target_deg: float | None
-    commanded_pin_deg: float
-    loaded_bend_deg: float
-    unloaded_bend_deg: float
-    uncertainty_deg: Mapping[str, float] = field(default_factory=dict)
-    measured_pin_deg: float | None = None
-    trial: int | None = None
-    source: str = "cv"
-
-    @property
-    def springback_deg(self) -> float:
-        """``sign(loaded) * (loaded - unloaded)`` (spec): positive when the wire opens."""
-        return math.copysign(1.0, self.loaded_bend_deg) * (
-            self.loaded_bend_deg - self.unloaded_bend_deg
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        d: dict[str, Any] = {
-            "target_deg": self.target_deg,
-            "commanded_pin_deg": self.commanded_pin_deg,
-            "loaded_bend_deg": self.loaded_bend_deg,
-            "unloaded_bend_deg": self.unloaded_bend_deg,
-            "springback_deg": self.springback_deg,
-            "uncertainty_deg": dict(self.uncertainty_deg),
-            "source": self.source,
-        }
-        if self.measured_pin_deg is not None:
-            d["measured_pin_deg"] = self.measured_pin_deg
-        if self.trial is not None:
-            d["trial"] = self.trial
-        return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any], direction: str) -> Sample:
-        return cls(
-            direction=direction,
-            target_deg=None if d.get("target_deg") is None else float(d["target_deg"]),
-            commanded_pin_deg=float(d["commanded_pin_deg"]),
-            loaded_bend_deg=float(d["loaded_bend_deg"]),
-            unloaded_bend_deg=float(d["unloaded_bend_deg"]),
-            uncertainty_deg={k: float(v) for k, v in d.get("uncertainty_deg", {}).items()},
-            measured_pin_deg=(
-                None if d.get("measured_pin_deg") is None else float(d["measured_pin_deg"])
-            ),
-            trial=None if d.get("trial") is None else int(d["trial"]),
-            source=str(d.get("source", "cv")),
-        )
 
 
 def calibration_plan(mode: str | Sequence[float]) -> list[tuple[str, float]]:
@@ -216,7 +138,7 @@ class Calibration:
     commands; :func:`save_calibration` / :func:`load_calibration` for files.
     """
 
-    samples: tuple[Sample, ...]
+    samples: tuple[Trial, ...]
     compensation: Compensation
     scores: Mapping[str, Mapping[str, Mapping[str, float | None]]]
     name: str = "calibration"
@@ -236,7 +158,7 @@ class Calibration:
         """Signed pin command (deg) for a wanted signed final angle; see :class:`Compensation`."""
         return self.compensation.compensate(target_final_deg, **kwargs)
 
-    def samples_of(self, direction: str) -> tuple[Sample, ...]:
+    def samples_of(self, direction: str) -> tuple[Trial, ...]:
         return tuple(s for s in self.samples if s.direction == direction)
 
     def refit(
@@ -277,9 +199,7 @@ class Calibration:
     def from_dict(cls, d: Mapping[str, Any]) -> Calibration:
         """Build from a dictionary already checked by :func:`validate_calibration_dict`."""
         samples = tuple(
-            Sample.from_dict(s, direction)
-            for direction in DIRECTIONS
-            for s in d["samples"].get(direction, [])
+            Trial.from_dict(s) for direction in DIRECTIONS for s in d["samples"].get(direction, [])
         )
         return cls(
             samples=samples,
@@ -297,7 +217,7 @@ class Calibration:
         )
 
 
-def _score_models(samples: Sequence[Sample]) -> dict[str, dict[str, dict[str, float | None]]]:
+def _score_models(samples: Sequence[Trial]) -> dict[str, dict[str, dict[str, float | None]]]:
     pin, loaded, unloaded = _columns(samples)
     scores: dict[str, dict[str, dict[str, float | None]]] = {}
     for model in SPRINGBACK_MODELS:
@@ -317,7 +237,7 @@ def _score_models(samples: Sequence[Sample]) -> dict[str, dict[str, dict[str, fl
     return scores
 
 
-def _columns(samples: Sequence[Sample]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _columns(samples: Sequence[Trial]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     pin = np.array([s.commanded_pin_deg for s in samples], dtype=np.float64)
     loaded = np.array([s.loaded_bend_deg for s in samples], dtype=np.float64)
     unloaded = np.array([s.unloaded_bend_deg for s in samples], dtype=np.float64)
@@ -325,7 +245,7 @@ def _columns(samples: Sequence[Sample]) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def fit_calibration(
-    samples: Sequence[Sample],
+    samples: Sequence[Trial],
     *,
     model: SpringbackModel = "linear",
     motion_model: MotionModel = "pchip",
@@ -340,8 +260,9 @@ def fit_calibration(
 
     Parameters
     ----------
-    samples : sequence of Sample
-        The calibration bends (both directions, any order).
+    samples : sequence of Trial (or a TrialTable)
+        The calibration bends (both directions, any order), each with both
+        bend angles; bends with a zero loaded angle (no direction) are left out.
     model, motion_model : str
         The springback and motion models the calibration uses for compensation.
     name, wire, machine, provenance : optional
@@ -355,8 +276,12 @@ def fit_calibration(
     ValueError
         Unknown model or too few angles for it.
     """
+    samples = [t for t in samples if t.loaded_bend_deg != 0]
     if not samples:
         raise ValueError("no calibration samples")
+    missing = [t.trial for t in samples if not t.has_pair]
+    if missing:
+        raise ValueError(f"trial(s) {', '.join(missing)} lack a loaded or an unloaded angle")
     comp = fit_compensation(*_columns(samples), model=model, motion_model=motion_model)
     if angles_deg is None:
         targets = sorted({s.target_deg for s in samples if s.target_deg is not None})
@@ -376,66 +301,12 @@ def fit_calibration(
     )
 
 
-def samples_from_trials(rows: Sequence[Mapping[str, Any]], *, source: str = "csv") -> list[Sample]:
-    """Samples from trial rows (spec trials CSV columns, numbers or strings).
+def read_trials_csv(path: str | os.PathLike[str]) -> TrialTable:
+    """Read a spec trials CSV for fitting: every trial needs both bend angles.
 
-    Rows with a zero loaded angle are skipped (no bend, no direction).
-    Optional columns used: ``target_deg``, ``measured_pin_deg``,
-    ``loaded_uncertainty_deg``, ``unloaded_uncertainty_deg``.
+    InputError names the file and the bad line or trial.
     """
-    samples = []
-    for row in rows:
-        loaded = float(row["loaded_bend_deg"])
-        unloaded = float(row["unloaded_bend_deg"])
-        if loaded == 0:
-            continue
-        unc = {}
-        for col, key in (
-            ("loaded_uncertainty_deg", "loaded_bend_deg"),
-            ("unloaded_uncertainty_deg", "unloaded_bend_deg"),
-        ):
-            if row.get(col) not in (None, ""):
-                unc[key] = float(row[col])
-        if len(unc) == 2:
-            unc["springback_deg"] = math.hypot(unc["loaded_bend_deg"], unc["unloaded_bend_deg"])
-        target = row.get("target_deg")
-        measured = row.get("measured_pin_deg")
-        trial = row.get("trial")
-        samples.append(
-            Sample(
-                direction="cw" if loaded < 0 else "ccw",
-                target_deg=None if target in (None, "") else abs(float(target)),
-                commanded_pin_deg=float(row["commanded_pin_deg"]),
-                loaded_bend_deg=loaded,
-                unloaded_bend_deg=unloaded,
-                uncertainty_deg=unc,
-                measured_pin_deg=None if measured in (None, "") else float(measured),
-                trial=None if trial in (None, "") else int(float(trial)),
-                source=source,
-            )
-        )
-    return samples
-
-
-_TRIAL_COLUMNS = ("trial", "commanded_pin_deg", "loaded_bend_deg", "unloaded_bend_deg")
-
-
-def read_trials_csv(path: str | os.PathLike[str]) -> list[Sample]:
-    """Read a spec trials CSV into samples; InputError names the file and the bad row."""
-    rows = read_csv_rows(path, required=_TRIAL_COLUMNS)
-    if not rows:
-        raise InputError(path, "trials CSV has no rows")
-    for number, row in enumerate(rows, start=2):
-        for col in _TRIAL_COLUMNS[1:]:
-            try:
-                value = float(row[col])
-            except ValueError:
-                raise InputError(
-                    path, f"line {number}: {col} is {row[col]!r}, not a number"
-                ) from None
-            if not math.isfinite(value):
-                raise InputError(path, f"line {number}: {col} is not finite")
-    return samples_from_trials(rows)
+    return TrialTable.read_csv(path).pairs(path)
 
 
 # ----------------------------------------------------------------------------- file I/O

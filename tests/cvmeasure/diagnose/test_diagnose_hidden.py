@@ -136,13 +136,11 @@ def test_measured_pin_angles_are_used():
 
 
 def test_grouped_cv_by_part_and_single_part_fallback():
-    import dataclasses
-
     case = hidden_case(19, effect="backlash", n_trials=40)
     parts = tuple(f"part{i // 5}" for i in range(40))  # 8 parts of 5 bends
-    grouped = diagnose(dataclasses.replace(case.trials, group=parts))
+    grouped = diagnose(case.trials.with_groups(parts))
     assert grouped.cause == "backlash" and grouped.n_folds == 8  # leave one part out
-    one_part = diagnose(dataclasses.replace(case.trials, group=("p",) * 40))
+    one_part = diagnose(case.trials.with_groups(("p",) * 40))
     assert one_part.cause == "backlash" and one_part.n_folds == 5
     assert any("fewer than 3 parts" in note for note in one_part.notes)
 
@@ -150,14 +148,14 @@ def test_grouped_cv_by_part_and_single_part_fallback():
 def test_garbage_data_name_nothing():
     import numpy as np
 
-    from cvmeasure.diagnose import TrialSet
+    from cvmeasure.contracts import TrialTable
 
     rng = np.random.default_rng(5)
     cmd = np.linspace(20.0, 120.0, 12) * np.where(np.arange(12) % 2, 1.0, -1.0)
     # angles in the wrong units (radians) and with a flipped sign: nothing fits
     truth = diagnose(hidden_case(5, effect="none", n_trials=12).trials)
     assert truth.cause == "none"
-    garbage = TrialSet.from_arrays(cmd, -np.radians(cmd), rng.normal(0.0, 30.0, 12))
+    garbage = TrialTable.from_arrays(cmd, -np.radians(cmd), rng.normal(0.0, 30.0, 12))
     result = diagnose(garbage)
     assert result.cause == "none" and result.causes == ()
     assert any("does not describe these data" in note for note in result.notes)

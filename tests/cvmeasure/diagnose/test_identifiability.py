@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.identify import check_identifiability, signature, similarity
-from cvmeasure.diagnose.trials import TrialSet
 from cvmeasure.sim import SimParams
 from cvmeasure_datasets.trials import hidden_case
 
@@ -34,7 +34,7 @@ def test_without_loaded_angles_springback_asymmetry_needs_the_loaded_photo():
 
 def test_both_directions_with_loaded_angles_separate_the_catalogue():
     cmd = np.linspace(15.0, 150.0, 24) * np.where(np.arange(24) % 2, 1.0, -1.0)
-    design = TrialSet.from_arrays(cmd, np.zeros(24), np.zeros(24))
+    design = TrialTable.from_arrays(cmd, np.zeros(24), np.zeros(24))
     for item in check_identifiability(
         design, SimParams(), "backlash", ["offset", "scale", "drift", "axis_offset"]
     ):
@@ -45,6 +45,6 @@ def test_similarity_is_scale_free_and_projects_nuisance():
     a = np.array([1.0, 2.0, 3.0])
     assert similarity(a, -2 * a, np.array([0.0, 0.0, 1.0])) == pytest.approx(1.0)
     assert similarity(a, np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0])) == pytest.approx(0.0)
-    design = TrialSet.from_arrays([40.0, -40.0], [0.0, 0.0], [0.0, 0.0])
+    design = TrialTable.from_arrays([40.0, -40.0], [0.0, 0.0], [0.0, 0.0])
     sig = signature(design, SimParams(), "offset")
     assert sig.shape == (4,) and sig[0] > 0 and sig[1] > 0  # +c turns both directions ccw

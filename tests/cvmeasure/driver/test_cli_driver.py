@@ -44,11 +44,8 @@ def test_gcode_from_svg_uses_the_simulation_inverse(half_gcode):
 
 
 def test_gcode_with_a_calibration_json(tmp_path, capsys):
-    from cvmeasure.material.calibration import (
-        fit_calibration,
-        samples_from_trials,
-        save_calibration,
-    )
+    from cvmeasure.contracts import TrialTable
+    from cvmeasure.material.calibration import fit_calibration, save_calibration
     from cvmeasure.sim import simulate
 
     angles = [5, 10, 15, 20, 30, 45, 60, 75, 90, 110, 130]
@@ -65,7 +62,7 @@ def test_gcode_with_a_calibration_json(tmp_path, capsys):
             zip(cmds, res.loaded_bend_deg, res.unloaded_bend_deg, strict=True)
         )
     ]
-    cal = fit_calibration(samples_from_trials(rows), model="linear")
+    cal = fit_calibration(TrialTable.from_rows(rows), model="linear")
     save_calibration(tmp_path / "cal.json", cal)
     svg = tmp_path / "half.svg"
     svg.write_text(HALF_SVG)

@@ -131,7 +131,7 @@ def test_trials_manifest(files, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "trial 8: no springback" in err
     rows = read_csv_rows(out)
-    assert [(r["trial"], r["commanded_pin_deg"]) for r in rows] == [("7", "40")]
+    assert [(r["trial"], float(r["commanded_pin_deg"])) for r in rows] == [("7", 40.0)]
 
 
 def test_overlay_is_written(files, tmp_path):

@@ -73,7 +73,7 @@ def test_record_is_the_spec_json_lines_object(render):
         "warnings",
     ]
     assert set(rec["markers"]) == set(ROLES)
-    assert set(rec["markers"]["pin"]) == {"x_px", "y_px", "r_px"}
+    assert set(rec["markers"]["pin"]) == {"x_px", "y_px", "r_px", "sigma_px"}
     assert set(rec["uncertainty_deg"]) == {"pin_angle_deg", "bend_angle_deg"}
     r_true = photo.truth["markers"]["pin"]["r_px"]
     assert rec["markers"]["pin"]["r_px"] == pytest.approx(r_true, rel=0.05)

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from cvmeasure.contracts import TrialTable
 from cvmeasure.driver.session import nominal_pin_for_loaded_deg
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import write_csv_rows
@@ -18,7 +19,6 @@ from cvmeasure.material.calibration import (
     fit_calibration,
     load_calibration,
     read_trials_csv,
-    samples_from_trials,
     save_calibration,
 )
 from cvmeasure.sim import simulate
@@ -67,7 +67,7 @@ def test_modes_and_plan():
 
 
 def test_round_trip_keeps_samples_models_and_compensation(tmp_path):
-    samples = samples_from_trials(trial_rows())
+    samples = TrialTable.from_rows(trial_rows())
     cal = fit_calibration(samples, model="pchip", name="steel-3mm")
     assert cal.mode == "standard"
     path = save_calibration(tmp_path / "cal.json", cal)
@@ -88,7 +88,7 @@ def test_round_trip_keeps_samples_models_and_compensation(tmp_path):
 
 
 def test_refit_changes_model_not_samples():
-    cal = fit_calibration(samples_from_trials(trial_rows()), model="linear")
+    cal = fit_calibration(TrialTable.from_rows(trial_rows()), model="linear")
     cubic = cal.refit("cubic")
     assert cubic.model == "cubic" and cubic.samples == cal.samples
     assert cubic.compensation.springback["ccw"].coef != ()
@@ -102,7 +102,9 @@ def test_read_trials_csv(tmp_path):
     assert samples[3].target_deg == 20.0
     bad = dict(rows[0], loaded_bend_deg="abc")
     path = write_csv_rows(tmp_path / "bad.csv", [bad], list(rows[0]))
-    with pytest.raises(InputError, match=r"bad\.csv: line 2: loaded_bend_deg is 'abc'"):
+    with pytest.raises(
+        InputError, match=r"bad\.csv: line 2: loaded_bend_deg 'abc' is not a number"
+    ):
         read_trials_csv(path)
 
 
@@ -127,7 +129,7 @@ def test_read_trials_csv(tmp_path):
     ],
 )
 def test_schema_errors_name_the_file_and_key(tmp_path, mutate, message):
-    d = fit_calibration(samples_from_trials(trial_rows())).to_dict()
+    d = fit_calibration(TrialTable.from_rows(trial_rows())).to_dict()
     mutate(d)
     path = tmp_path / "broken.json"
     path.write_text(json.dumps(d))
