@@ -33,7 +33,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,12 +42,17 @@ from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
 from cvmeasure.imageio import PHOTO_SUFFIXES, Photo, read_photo
 
+if TYPE_CHECKING:
+    from cvmeasure.board import BoardSpec
+    from cvmeasure.camera import CameraModel
+    from cvmeasure.contracts import PlaneModel
+    from cvmeasure.kit import MarkerKit
+
 __all__ = [
     "MEASURERS",
     "KINDS",
     "MeasureContext",
     "BatchSummary",
-    "StageUnavailableError",
     "register_measurer",
     "resolve_measurer",
     "list_photos",
@@ -93,21 +98,23 @@ class MeasureContext:
     options: tuple[tuple[str, Any], ...] = ()
     measurers: tuple[tuple[str, str], ...] = ()
 
-    def camera(self) -> Any:
-        """The :class:`~cvmeasure.camera.CameraModel`, or None when no camera was given."""
+    def camera(self) -> CameraModel | None:
+        """The camera, or None when no camera was given."""
         return None if self.camera_path is None else _load_camera(self.camera_path)
 
-    def kit(self) -> Any:
-        """The :class:`~cvmeasure.kit.MarkerKit` given, or the default kit."""
+    def kit(self) -> MarkerKit:
+        """The kit given, or the built-in kit."""
         return _load_kit(self.kit_path)
 
-    def board(self) -> Any:
+    def board(self) -> BoardSpec | None:
         """The board spec, or None when no board was given."""
         return None if self.board_path is None else _load_board(self.board_path)
 
-    def plane(self) -> Any:
-        """The plane homography (undistorted px -> plane mm), or None when no plane was given."""
-        return None if self.plane_path is None else _load_plane(self.plane_path)
+    def plane(self) -> PlaneModel | None:
+        """The measurement plane (with its camera), or None when no plane was given."""
+        if self.plane_path is None:
+            return None
+        return _load_plane(self.plane_path, self.camera_path)
 
     def option(self, name: str, default: Any = None) -> Any:
         return dict(self.options).get(name, default)
@@ -118,33 +125,32 @@ class MeasureContext:
         self.kit()
         self.board()
         self.plane()
-        if self.plane_path is not None and self.camera_path is None:
-            raise InputError(self.plane_path, "measuring on a plane needs the camera (--camera)")
 
 
 @lru_cache(maxsize=8)
-def _load_camera(path: str) -> Any:
+def _load_camera(path: str) -> CameraModel:
     from cvmeasure.camera import load_camera
 
     return load_camera(path)
 
 
 @lru_cache(maxsize=8)
-def _load_kit(path: str | None) -> Any:
+def _load_kit(path: str | None) -> MarkerKit:
     from cvmeasure.kit import default_kit, load_kit
 
     return default_kit() if path is None else load_kit(path)
 
 
 @lru_cache(maxsize=8)
-def _load_plane(path: str) -> Any:
-    from cvmeasure.calibration.plane import load_plane_homography
+def _load_plane(path: str, camera_path: str | None) -> PlaneModel:
+    from cvmeasure.contracts import PlaneModel
 
-    return load_plane_homography(path)
+    camera = None if camera_path is None else _load_camera(camera_path)
+    return PlaneModel.load(path, camera=camera)
 
 
 @lru_cache(maxsize=8)
-def _load_board(path: str) -> Any:
+def _load_board(path: str) -> BoardSpec:
     from cvmeasure.board import load_board
 
     return load_board(path)
@@ -348,34 +354,6 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     }
 
 
-class StageUnavailableError(CvmeasureError):
-    """The stage a photo kind needs is not in this build: the batch stops (exit 1)."""
-
-
-#: kind -> (module, function) of the pipeline stage its measurement calls.
-_STAGES: dict[str, tuple[str, str]] = {
-    "machine": ("cvmeasure.markers", "measure_machine_photo"),
-    "part": ("cvmeasure.part.measure", "measure_part"),
-}
-
-
-def _stage_function(kind: str) -> Callable[..., Any]:
-    module_name, func_name = _STAGES[kind]
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name and module_name.startswith(exc.name):
-            module = None
-        else:
-            raise
-    func = getattr(module, func_name, None) if module is not None else None
-    if func is None:
-        raise StageUnavailableError(
-            f"{kind} photos need {module_name}.{func_name}, which is not in this build"
-        )
-    return func
-
-
 def _as_record(result: Any) -> dict[str, Any]:
     from cvmeasure.fileio import to_jsonable
 
@@ -386,30 +364,26 @@ def _as_record(result: Any) -> dict[str, Any]:
 
 
 def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
-    """A bender photo through :func:`cvmeasure.markers.measure_machine_photo`."""
-    func = _stage_function("machine")
-    result = func(
-        photo.bgr,
-        context.kit(),
-        camera=context.camera(),
-        plane=context.plane(),
-        linear=photo.linear,
-        source=photo.path,
-        photo=photo.path,
+    """A bender photo through :func:`cvmeasure.markers.measure.measure_photo_file`."""
+    from cvmeasure.markers.measure import measure_photo_file
+
+    result = measure_photo_file(
+        photo, context.kit(), camera=context.camera(), plane=context.plane()
     )
-    return _as_record(result)
+    return result.to_dict()
 
 
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
-    func = _stage_function("part")
+    from cvmeasure.part.measure import measure_part as measure_part_photo
+
     board, camera = context.board(), context.camera()
     if board is None or camera is None:
         raise InputError(photo.path, "a part photo needs the board (--board) and camera (--camera)")
-    result = func(
+    result = measure_part_photo(
         photo.bgr, board, camera, divisions=context.option("divisions"), source=photo.path
     )
-    return _as_record(result)
+    return _as_record(result.to_dict())
 
 
 def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict[str, Any]:
@@ -417,10 +391,7 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
 
     Runs in the workers. Bad input (unreadable photo, markers not found) and
     other errors are recorded, not raised, so one photo never stops a batch
-    (other exceptions are recorded with their type name). Only a stage missing
-    from this build raises :class:`StageUnavailableError`: no photo of that kind
-    could be measured, and recording failures would stop a later resume from
-    measuring them.
+    (other exceptions are recorded with their type name).
     """
     t0 = time.perf_counter()
     cpu0 = time.process_time()
@@ -442,8 +413,6 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
         record["ok"] = True
     except InputError as exc:
         record["error"] = str(exc)
-    except StageUnavailableError:
-        raise
     except CvmeasureError as exc:
         record["error"] = f"{path}: {exc}"
     except Exception as exc:  # noqa: BLE001 - one photo must not stop a batch; recorded
@@ -646,8 +615,6 @@ def run_batch(
         )
     if kind != "auto":
         resolve_measurer(kind)  # ValueError for an unknown kind, before any work
-        if kind in _STAGES:
-            _stage_function(kind)  # StageUnavailableError before any work
     output = Path(output)
     done = done_keys(output)
     jobs: list[tuple[str, str]] = []

@@ -96,6 +96,42 @@ class CameraModel:
         w, h = self.image_size_px
         return CameraModel((round(w * factor), round(h * factor)), k, self.dist_coeffs.copy())
 
+    def for_image(self, size_px: tuple[int, int], source: str = "photo") -> CameraModel:
+        """This camera for a photo of ``size_px`` (width, height) px.
+
+        Itself at the calibrated size; rescaled (:meth:`scaled`) for a photo resized
+        by one factor (a reduced JPEG, a half-size RAW); InputError naming ``source``
+        for another aspect ratio.
+
+        >>> cam = CameraModel.ideal((4000, 3000), focal_px=3000.0)
+        >>> cam.for_image((2000, 1500)).camera_matrix[0, 0]
+        1500.0
+        """
+        w, h = (int(v) for v in size_px)
+        cw, ch = self.image_size_px
+        if (cw, ch) == (w, h):
+            return self
+        factor = w / cw
+        if abs(h / ch - factor) > 0.01 * factor:
+            raise InputError(
+                source, f"photo is {w}x{h} px but the camera model is for {cw}x{ch} (other aspect)"
+            )
+        return self.scaled(factor)
+
+    def same_lens(self, other: CameraModel) -> bool:
+        """Same intrinsics and distortion as ``other``, once brought to this image size."""
+        try:
+            other = other.for_image(self.image_size_px)
+        except InputError:
+            return False
+        n = max(self.dist_coeffs.size, other.dist_coeffs.size)
+        da = np.pad(self.dist_coeffs, (0, n - self.dist_coeffs.size))
+        db = np.pad(other.dist_coeffs, (0, n - other.dist_coeffs.size))
+        return bool(
+            np.allclose(self.camera_matrix, other.camera_matrix, rtol=1e-6, atol=1e-6)
+            and np.allclose(da, db, rtol=1e-6, atol=1e-9)
+        )
+
     # -- geometry ------------------------------------------------------------
     def project(self, points_cam_mm: np.ndarray) -> np.ndarray:
         """Project camera-frame points (N, 3) in mm to distorted pixels (N, 2)."""

@@ -18,7 +18,7 @@ Stages (each a module of pure functions returning frozen result dataclasses):
 from cvmeasure.calibration.coverage import Coverage, image_coverage
 from cvmeasure.calibration.detect import BoardDetection, detect_board
 from cvmeasure.calibration.pipeline import CalibrationReport, calibrate_detections, detect_photos
-from cvmeasure.calibration.plane import PlaneFit, estimate_plane, fit_plane, rectify_image
+from cvmeasure.calibration.plane import PlaneModel, estimate_plane, fit_plane, rectify_image
 from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
 from cvmeasure.calibration.uncertainty import (
     CrossValidation,
@@ -45,7 +45,7 @@ __all__ = [
     "projection_diff",
     "CrossValidation",
     "cross_validate",
-    "PlaneFit",
+    "PlaneModel",
     "estimate_plane",
     "fit_plane",
     "rectify_image",

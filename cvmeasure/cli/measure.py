@@ -23,13 +23,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and the exit code is 2.",
     )
     p.add_argument("photos", nargs="*", type=Path, metavar="PHOTO", help="photos to measure")
-    p.add_argument("--kit", type=Path, required=True, help="kit JSON (spec; see `targets markers`)")
+    p.add_argument(
+        "--kit",
+        type=Path,
+        help="kit JSON (spec; `targets markers --format json` prints the built-in one, "
+        "`markers learn` fits your print's colours); default the built-in kit",
+    )
     p.add_argument("--camera", type=Path, help="camera JSON: remove lens distortion")
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--plane",
         type=Path,
-        help="plane JSON (`cvmeasure plane -o`): compute angles on the rectified plane",
+        help="plane JSON (`cvmeasure plane -o`, which saves its camera): compute angles on "
+        "the rectified plane",
     )
     g.add_argument(
         "--board",
@@ -90,21 +96,23 @@ def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from cvmeasure.calibration.plane import load_plane_homography
     from cvmeasure.camera import load_camera
-    from cvmeasure.contracts import Trial, TrialTable
+    from cvmeasure.contracts import PlaneModel, Trial, TrialTable
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
     from cvmeasure.imageio import read_photo
-    from cvmeasure.kit import load_kit
-    from cvmeasure.markers.measure import measure_machine_photo, measure_trial
+    from cvmeasure.kit import default_kit, load_kit
+    from cvmeasure.markers.measure import measure_photo_file, measure_trial
     from cvmeasure.markers.overlay import draw_overlay
 
-    kit = load_kit(args.kit)
+    kit = load_kit(args.kit) if args.kit else default_kit()
     camera = load_camera(args.camera) if args.camera else None
-    if args.plane is not None and camera is None:
-        raise InputError("--plane", "the plane's homography maps undistorted pixels: give --camera")
-    plane = load_plane_homography(args.plane) if args.plane else None
+    if args.method == "seed" and (camera is not None or args.plane or args.board):
+        raise InputError(
+            "--method seed",
+            "the seed method measures in image pixels: it takes no --camera, --plane or --board",
+        )
+    plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
     board = None
     if args.board is not None:
         from cvmeasure.board import load_board
@@ -132,23 +140,15 @@ def run(args: argparse.Namespace) -> int:
     for path in photos:
         try:
             photo = read_photo(path)
-            bgr = photo.bgr
-            photo_plane = plane
-            if board is not None:
-                from cvmeasure.calibration.plane import estimate_plane
-
-                photo_plane = estimate_plane(photo.gray8(), board, camera, source=str(path))
-            res = measure_machine_photo(
-                bgr,
+            res = measure_photo_file(
+                photo,
                 kit,
                 camera=camera,
-                plane=photo_plane,
+                plane=plane,
+                board=board,
                 method=args.method,
                 space=args.space,
                 edge=args.edge,
-                linear=photo.linear,
-                source=str(path),
-                photo=str(path),
             )
         except InputError as exc:
             print(f"cvmeasure measure: {exc}", file=sys.stderr)

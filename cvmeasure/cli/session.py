@@ -121,13 +121,9 @@ def run(args: argparse.Namespace) -> int:
 
         options["camera"] = load_camera(args.camera_model)
     if args.plane:
-        from cvmeasure.calibration.plane import load_plane_homography
+        from cvmeasure.contracts import PlaneModel
 
-        if not args.camera_model:
-            raise InputError(
-                "--plane", "the plane's homography maps undistorted pixels: give --camera-model"
-            )
-        options["plane"] = load_plane_homography(args.plane)
+        options["plane"] = PlaneModel.load(args.plane, camera=options.get("camera"))
     params, effects = None, ()
     if args.params or args.effect:
         from cvmeasure.sim import SimParams, params_from_json, parse_effect
@@ -166,8 +162,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(
                 f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
-                f"loaded {step.loaded['bend_angle_deg']:8.3f}  unloaded "
-                f"{step.unloaded['bend_angle_deg']:8.3f}  springback {step.springback_deg:6.3f} deg",
+                f"loaded {step.loaded.bend_angle_deg:8.3f}  unloaded "
+                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg",
                 file=sys.stderr,
                 flush=True,
             )

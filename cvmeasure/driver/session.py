@@ -34,14 +34,13 @@ angle), ``{"event": "resume", "done": n}``, ``{"event": "failed", "step": i,
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
-from cvmeasure.contracts import Trial
+from cvmeasure.contracts import MachinePhotoResult, Trial
 from cvmeasure.driver.camera import Camera
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
@@ -125,38 +124,29 @@ class SessionStep:
     direction: str
     target_deg: float
     commanded_pin_deg: float
-    loaded: Mapping[str, Any]
-    unloaded: Mapping[str, Any]
+    loaded: MachinePhotoResult
+    unloaded: MachinePhotoResult
     photo_loaded: str
     photo_unloaded: str
     truth: Mapping[str, Any] | None = None
 
     @property
     def springback_deg(self) -> float:
-        lo, un = self.loaded["bend_angle_deg"], self.unloaded["bend_angle_deg"]
-        return math.copysign(1.0, lo) * (lo - un)
+        return self.sample().springback_deg
 
     def sample(self) -> Trial:
-        u_lo = float(self.loaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
-        u_un = float(self.unloaded.get("uncertainty_deg", {}).get("bend_angle_deg", math.nan))
-        unc = {}
-        if math.isfinite(u_lo) and math.isfinite(u_un):
-            unc = {
-                "loaded_bend_deg": u_lo,
-                "unloaded_bend_deg": u_un,
-                "springback_deg": math.hypot(u_lo, u_un),
-            }
-        return Trial(
-            trial=str(self.step + 1),
-            target_deg=self.target_deg,
-            commanded_pin_deg=self.commanded_pin_deg,
-            loaded_bend_deg=float(self.loaded["bend_angle_deg"]),
-            unloaded_bend_deg=float(self.unloaded["bend_angle_deg"]),
-            uncertainty_deg=unc,
-            measured_pin_deg=float(self.loaded["pin_angle_deg"]),
+        """This bend as a calibration trial (measured on its two photos)."""
+        return replace(
+            Trial.from_photos(
+                self.loaded,
+                self.unloaded,
+                trial=str(self.step + 1),
+                commanded_pin_deg=self.commanded_pin_deg,
+                target_deg=self.target_deg,
+            ),
             photo_loaded=self.photo_loaded,
             photo_unloaded=self.photo_unloaded,
-            source="cv",
+            warnings=(),
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -168,8 +158,8 @@ class SessionStep:
             "commanded_pin_deg": self.commanded_pin_deg,
             "photo_loaded": self.photo_loaded,
             "photo_unloaded": self.photo_unloaded,
-            "loaded": dict(self.loaded),
-            "unloaded": dict(self.unloaded),
+            "loaded": self.loaded.to_dict(),
+            "unloaded": self.unloaded.to_dict(),
             "springback_deg": self.springback_deg,
         }
         if self.truth is not None:
@@ -183,8 +173,8 @@ class SessionStep:
             direction=str(d["direction"]),
             target_deg=float(d["target_deg"]),
             commanded_pin_deg=float(d["commanded_pin_deg"]),
-            loaded=d["loaded"],
-            unloaded=d["unloaded"],
+            loaded=MachinePhotoResult.from_dict(d["loaded"], source="session log"),
+            unloaded=MachinePhotoResult.from_dict(d["unloaded"], source="session log"),
             photo_loaded=str(d["photo_loaded"]),
             photo_unloaded=str(d["photo_unloaded"]),
             truth=d.get("truth"),
@@ -498,8 +488,7 @@ def _bend_and_measure(
     options: Mapping[str, Any],
 ) -> SessionStep:
     """Feed, bend, photograph loaded, release, photograph unloaded, measure both."""
-    from cvmeasure.imageio import read_photo
-    from cvmeasure.markers.measure import measure_machine_photo
+    from cvmeasure.markers.measure import measure_photo_file
 
     machine.run(session_gcode("feed", config))
     machine.run(session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction))
@@ -508,14 +497,10 @@ def _bend_and_measure(
     shot_unloaded = camera.capture(_photo_name(step, direction, angle, "unloaded"))
     results = []
     for shot in (shot_loaded, shot_unloaded):
-        photo = read_photo(shot.path)
         opts = dict(options)
-        if shot.camera is not None:
+        if shot.camera is not None and opts.get("plane") is None:
             opts.setdefault("camera", shot.camera)
-        result = measure_machine_photo(
-            photo.bgr, kit, linear=photo.linear, source=str(shot.path), photo=str(shot.path), **opts
-        )
-        results.append(result.to_dict())
+        results.append(measure_photo_file(shot.path, kit, **opts))
     truth = None
     if shot_loaded.truth is not None and shot_unloaded.truth is not None:
         truth = {
@@ -544,10 +529,10 @@ class SessionInterrupted(CvmeasureError):
 
 def _check_sign(record: SessionStep, photo: Path) -> None:
     sign = -1.0 if record.direction == "cw" else 1.0
-    if sign * record.loaded["bend_angle_deg"] <= 0:
+    if sign * record.loaded.bend_angle_deg <= 0:
         raise InputError(
             photo,
-            f"measured loaded bend {record.loaded['bend_angle_deg']:.2f} deg has the wrong sign "
+            f"measured loaded bend {record.loaded.bend_angle_deg:.2f} deg has the wrong sign "
             f"for a {record.direction} bend (is the kit mirrored or a marker swapped?)",
         )
 

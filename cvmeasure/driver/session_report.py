@@ -24,7 +24,7 @@ from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
 from cvmeasure.material.calibration import Calibration
 from cvmeasure.material.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
 
-__all__ = ["plot_calibration", "write_session_report", "overlay_markers"]
+__all__ = ["plot_calibration", "write_session_report"]
 
 _COLOURS = {
     "linear": "tab:blue",
@@ -90,36 +90,9 @@ def plot_calibration(calibration: Calibration, path: str | os.PathLike[str]) -> 
     return atomic_write_bytes(path, _figure_png(calibration))
 
 
-def overlay_markers(bgr: np.ndarray, record: dict[str, Any], *, max_width_px: int = 480) -> bytes:
-    """A PNG of the photo with each measured marker's circle and centre drawn, downscaled."""
-    import cv2
-
-    img = bgr.copy()
-    for role, m in record.get("markers", {}).items():
-        centre = (int(round(m["x_px"])), int(round(m["y_px"])))
-        radius = max(int(round(m["r_px"])), 2)
-        cv2.circle(img, centre, radius, (0, 0, 255), 2, cv2.LINE_AA)
-        cv2.drawMarker(img, centre, (0, 0, 255), cv2.MARKER_CROSS, radius, 1)
-        cv2.putText(img, role, (centre[0] + radius, centre[1]), 0, 0.6, (0, 0, 255), 1)
-    markers = list(record.get("markers", {}).values())
-    if markers:  # crop to the markers (with a margin) so they are visible in a thumbnail
-        xs = [m["x_px"] for m in markers]
-        ys = [m["y_px"] for m in markers]
-        pad = 4 * max(m["r_px"] for m in markers)
-        x0, x1 = int(max(min(xs) - pad, 0)), int(min(max(xs) + pad, img.shape[1]))
-        y0, y1 = int(max(min(ys) - pad, 0)), int(min(max(ys) + pad, img.shape[0]))
-        if x1 > x0 and y1 > y0:
-            img = img[y0:y1, x0:x1]
-    scale = min(1.0, max_width_px / img.shape[1])
-    if scale < 1.0:
-        img = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-    ok, png = cv2.imencode(".png", img)
-    return png.tobytes() if ok else b""
-
-
-def _img(png: bytes, alt: str) -> str:
-    data = base64.b64encode(png).decode("ascii")
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+def _img(data: bytes, alt: str, *, mime: str = "image/png") -> str:
+    encoded = base64.b64encode(data).decode("ascii")
+    return f'<img alt="{html.escape(alt)}" src="data:{mime};base64,{encoded}">'
 
 
 def write_session_report(
@@ -144,7 +117,7 @@ def write_session_report(
     max_overlays : int
         How many steps get loaded/unloaded overlays (spread over the plan).
     """
-    from cvmeasure.imageio import read_photo
+    from cvmeasure.report.thumbnails import overlay_thumbnail
 
     e = html.escape
     parts = [
@@ -202,9 +175,9 @@ def write_session_report(
             ):
                 photo_path = Path(session_dir) / rel
                 if photo_path.exists():
-                    png = overlay_markers(read_photo(photo_path).bgr, dict(rec))
-                    parts.append(_img(png, f"{which} {rel}"))
-                    parts.append(f" {which}: bend {rec['bend_angle_deg']:.3f} deg ")
+                    jpeg = overlay_thumbnail(rec.to_dict(), photo_path, width_px=480)
+                    parts.append(_img(jpeg, f"{which} {rel}", mime="image/jpeg"))
+                    parts.append(f" {which}: bend {rec.bend_angle_deg:.3f} deg ")
             parts.append("</p>")
     parts.append("</body></html>\n")
     return atomic_write_text(path, "\n".join(parts))

@@ -39,10 +39,11 @@ from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
-from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, Trial
+from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
-from cvmeasure.imageio import to_bgr8
+from cvmeasure.imageio import Photo, to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles
 from cvmeasure.markers.colour import (
@@ -133,19 +134,6 @@ def measure_trial(
     )
 
 
-def _camera_for(camera: CameraModel, shape: tuple[int, ...], source: str) -> CameraModel:
-    h, w = shape[:2]
-    cw, ch = camera.image_size_px
-    if (cw, ch) == (w, h):
-        return camera
-    factor = w / cw
-    if abs(h / ch - factor) > 0.01 * factor:
-        raise InputError(
-            source, f"photo is {w}x{h} px but the camera model is for {cw}x{ch} (other aspect)"
-        )
-    return camera.scaled(factor)
-
-
 @dataclass(frozen=True)
 class _Transform:
     """Image pixels -> the measurement frame of the angles."""
@@ -167,26 +155,16 @@ class _Transform:
 
 
 def _transform(
-    camera: CameraModel | None, plane: Any, shape: tuple[int, ...], source: str
+    camera: CameraModel | None, plane: PlaneModel | None, shape: tuple[int, ...], source: str
 ) -> _Transform:
+    h, w = shape[:2]
     if plane is not None:
-        if hasattr(plane, "image_to_plane_mm"):
-            func = plane.image_to_plane_mm
-        else:
-            h_mat = np.asarray(plane, dtype=np.float64).reshape(3, 3)
-            cam = _camera_for(camera, shape, source) if camera is not None else None
-
-            def func(pts: np.ndarray) -> np.ndarray:
-                und = cam.undistort_px(pts) if cam is not None else np.asarray(pts)
-                hom = np.column_stack((und, np.ones(len(und)))) @ h_mat.T
-                return hom[:, :2] / hom[:, 2:3]
-
-        h, w = shape[:2]
+        func = plane.for_image((w, h), source).image_to_plane_mm
         t = _Transform("plane", func)
         det = float(np.linalg.det(t.jacobian(((w - 1) / 2, (h - 1) / 2))))
         return _Transform("plane", func, y_down=det > 0)
     if camera is not None:
-        return _Transform("undistorted", _camera_for(camera, shape, source).undistort_px)
+        return _Transform("undistorted", camera.for_image((w, h), source).undistort_px)
     return _Transform("image")
 
 
@@ -417,9 +395,9 @@ def measure_machine_photo(
     bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR).
     kit : the marker kit the photo shows.
     camera : lens model; with it, lens distortion is removed from the edge points.
-    plane : the marker plane: a :class:`cvmeasure.calibration.plane.PlaneFit` (or
-        anything with ``image_to_plane_mm(points_px)``), or a 3x3 homography
-        undistorted px -> plane mm; with it, angles are computed on the plane.
+    plane : the marker plane (:class:`cvmeasure.contracts.PlaneModel`, from ``cvmeasure
+        plane`` or a board in the photo); with it, angles are computed on the plane through
+        the plane's own camera (``camera`` must then be that camera or None).
     method : "ours" (colour model + sub-pixel fits) or "seed" (the paper's baseline).
     space : colour space of the segmentation, "lab" or "rgb".
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
@@ -451,7 +429,16 @@ def measure_machine_photo(
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
     bgr8 = to_bgr8(img, linear=linear)
+    if plane is not None and camera is not None and plane.camera is not camera:
+        if not plane.camera.same_lens(camera):
+            raise InputError(
+                source, "the plane was measured with another camera than the one given"
+            )
     if method == "seed":
+        if camera is not None or plane is not None:
+            raise ValueError(
+                "the seed method measures in image pixels: it takes no camera or plane"
+            )
         transform = _Transform("image")
         markers, centres, covs, warnings = _measure_seed(bgr8, kit, space, transform, source)
     else:
@@ -483,12 +470,37 @@ def measure_machine_photo(
 
 
 def measure_photo_file(
-    path: str | os.PathLike[str], kit: MarkerKit, **options: Any
+    photo: str | os.PathLike[str] | Photo,
+    kit: MarkerKit,
+    *,
+    camera: CameraModel | None = None,
+    plane: PlaneModel | None = None,
+    board: BoardSpec | None = None,
+    **options: Any,
 ) -> MachinePhotoResult:
-    """Read a photo file (JPEG, PNG, TIFF, RAW) and measure it; InputError names the file."""
+    """Measure one bender photo file: the one path from a file to a result.
+
+    ``photo`` is a path (JPEG, PNG, TIFF, RAW; read here) or a photo already read
+    (:class:`cvmeasure.imageio.Photo`). ``plane`` measures on a saved plane;
+    ``board`` finds that board in the photo and measures on its plane (needs
+    ``camera``). Other options go to :func:`measure_machine_photo`. InputError
+    names the file for an unreadable photo, a missing board or marker.
+    """
     from cvmeasure.imageio import read_photo
 
-    photo = read_photo(path)
-    options.setdefault("photo", str(path))
+    if not isinstance(photo, Photo):
+        photo = read_photo(photo)
+    source = str(photo.path)
+    if board is not None:
+        if plane is not None:
+            raise ValueError("give a plane or a board to find one in the photo, not both")
+        if camera is None:
+            raise InputError(source, "rectifying to a board's plane needs the camera")
+        from cvmeasure.calibration.plane import estimate_plane
+
+        plane = estimate_plane(photo.gray8(), board, camera, source=source)
+    options.setdefault("photo", source)
     options.setdefault("linear", photo.linear)
-    return measure_machine_photo(photo.bgr, kit, source=str(path), **options)
+    return measure_machine_photo(
+        photo.bgr, kit, camera=camera, plane=plane, source=source, **options
+    )

@@ -398,5 +398,5 @@ def test_machine_photos_measured_on_a_plane(tmp_path, capsys):
     # a plane without a camera is refused before anything is measured
     no_cam = ["batch", str(photos), "--plane", str(plane), "-o", str(tmp_path / "x.jsonl")]
     assert main(no_cam) == 2
-    assert "needs the camera" in capsys.readouterr().err
+    assert "plane JSON has no camera" in capsys.readouterr().err
     assert not (tmp_path / "x.jsonl").exists()

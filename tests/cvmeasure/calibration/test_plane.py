@@ -111,8 +111,8 @@ def test_bad_inputs_raise_input_error(charuco_board, true_camera):
         estimate_plane(blank, charuco_board, true_camera, source="blank.png")
     rvec, tvec = look_at_pose(charuco_board, 400.0, 5.0, 0.0)
     img = render_view(charuco_board, true_camera, rvec, tvec)
-    small = cv2.resize(img, (480, 320))
-    with pytest.raises(InputError, match="calibrated at 960x640"):
+    small = cv2.resize(img, (480, 480))  # another aspect: not the same camera
+    with pytest.raises(InputError, match="other aspect"):
         estimate_plane(small, charuco_board, true_camera, source="small.png")
 
 
@@ -136,18 +136,59 @@ def test_real_near_frontal_frames(shared_real):
         assert not plane.affine_ok
 
 
-def test_load_plane_homography_reads_what_plane_writes_and_names_bad_files(tmp_path):
+def test_plane_model_saves_and_loads_whole(tmp_path, charuco_board, true_camera):
+    from cvmeasure.camera import CameraModel
+    from cvmeasure.contracts import PlaneModel
+
+    rvec, tvec = look_at_pose(charuco_board, 380.0, 12.0, -7.0, (10.0, -5.0), 30.0)
+    img = render_view(charuco_board, true_camera, rvec, tvec)
+    plane = estimate_plane(img, charuco_board, true_camera, source="board.png")
+    path = plane.save(tmp_path / "plane.json")
+    back = PlaneModel.load(path)  # no camera needed: the plane carries its own
+    pts = np.array([[100.0, 80.0], [480.0, 320.0], [900.0, 600.0]])
+    np.testing.assert_allclose(back.image_to_plane_mm(pts), plane.image_to_plane_mm(pts), atol=1e-9)
+    np.testing.assert_allclose(back.plane_to_image_px(pts), plane.plane_to_image_px(pts), atol=1e-9)
+    assert back.camera.same_lens(true_camera) and back.tilt_deg == plane.tilt_deg
+    assert back.corner_count == plane.corner_count and back.source == "board.png"
+    assert PlaneModel.load(path, camera=true_camera).camera.same_lens(true_camera)
+    other = CameraModel.ideal(true_camera.image_size_px, focal_px=true_camera.fx * 1.01)
+    with pytest.raises(InputError, match="another camera model"):
+        PlaneModel.load(path, camera=other)
+
+
+def test_plane_model_rescales_with_the_photo(charuco_board, true_camera):
+    rvec, tvec = look_at_pose(charuco_board, 400.0, 9.0, 4.0)
+    img = render_view(charuco_board, true_camera, rvec, tvec)
+    plane = estimate_plane(img, charuco_board, true_camera)
+    w, h = true_camera.image_size_px
+    half = plane.for_image((w // 2, h // 2), "half.jpg")
+    assert half.camera.image_size_px == (w // 2, h // 2)
+    pts = np.array([[50.5, 40.5], [480.5, 320.5], [900.5, 600.5]])  # full-size pixel centres
+    pts_half = (pts + 0.5) / 2.0 - 0.5  # the same points in the half-size photo
+    np.testing.assert_allclose(
+        half.image_to_plane_mm(pts_half), plane.image_to_plane_mm(pts), atol=1e-9
+    )
+    assert half.mm_per_px == pytest.approx(2 * plane.mm_per_px)
+    assert plane.for_image((w, h)) is plane
+    with pytest.raises(InputError, match="other aspect"):
+        plane.for_image((w, w), "square.jpg")
+    # a photo reduced by half is measured on the plane rescaled, not refused
+    small = cv2.resize(img, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+    again = estimate_plane(small, charuco_board, true_camera)
+    assert again.tilt_deg == pytest.approx(plane.tilt_deg, abs=TILT_ATOL_DEG)
+
+
+def test_plane_json_bad_files_are_named(tmp_path, true_camera):
     import json
 
-    import numpy as np
-
-    from cvmeasure.calibration.plane import load_plane_homography
-    from cvmeasure.errors import InputError
+    from cvmeasure.contracts import PlaneModel
 
     h = np.array([[0.1, 0.002, -3.0], [-0.001, 0.1, 4.0], [1e-6, 2e-6, 1.0]])
-    good = tmp_path / "plane.json"
-    good.write_text(json.dumps({"H_board_image": h.tolist(), "tilt_deg": 1.0}))
-    np.testing.assert_array_equal(load_plane_homography(good), h)
+    legacy = tmp_path / "legacy.json"  # written before planes carried their camera
+    legacy.write_text(json.dumps({"H_board_image": h.tolist(), "tilt_deg": 1.0}))
+    np.testing.assert_allclose(PlaneModel.load(legacy, camera=true_camera).H_board_image, h)
+    with pytest.raises(InputError, match="legacy.json: plane JSON has no camera"):
+        PlaneModel.load(legacy)
     for name, payload, message in [
         ("missing.json", None, "not found"),
         ("corrupt.json", "{", "corrupt plane JSON"),
@@ -158,5 +199,5 @@ def test_load_plane_homography_reads_what_plane_writes_and_names_bad_files(tmp_p
         if payload is not None:
             path.write_text(payload)
         with pytest.raises(InputError, match=message) as info:
-            load_plane_homography(path)
+            PlaneModel.load(path, camera=true_camera)
         assert name in str(info.value)

@@ -6,9 +6,11 @@ tolerances below are for that size (the benchmark checks full size).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
+from cvmeasure.contracts import PlaneModel
 from cvmeasure.kit import ROLES, MarkerKit, MarkerSpec, default_kit
 from cvmeasure.markers import (
     MarkerNotFoundError,
@@ -88,18 +90,23 @@ def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render):
     h_image_plane = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
     plane_h = np.linalg.inv(h_image_plane)  # undistorted px -> machine mm
     raw = measure_machine_photo(photo.bgr, kit)
-    rect = measure_machine_photo(photo.bgr, kit, camera=photo.camera, plane=plane_h)
+    plane = PlaneModel(
+        camera=photo.camera,
+        H_board_image=plane_h,
+        rvec=cv2.Rodrigues(rot)[0],
+        tvec_mm=t_mm,
+        tilt_deg=12.0,
+        tilt_direction_deg=0.0,
+        mm_per_px=1.0,
+        worst_angle_error_deg=1.0,
+        tolerance_deg=0.05,
+        rms_px=0.0,
+        corner_count=0,
+    )
+    rect = measure_machine_photo(photo.bgr, kit, plane=plane)
     assert rect.frame == "plane"
-
-    class Plane:  # what cvmeasure.calibration.plane.PlaneFit offers: photo px -> plane mm
-        def image_to_plane_mm(self, points_px):
-            und = photo.camera.undistort_px(points_px)
-            hom = np.column_stack((und, np.ones(len(und)))) @ plane_h.T
-            return hom[:, :2] / hom[:, 2:3]
-
-    fit = measure_machine_photo(photo.bgr, kit, plane=Plane())
-    assert fit.bend_angle_deg == pytest.approx(rect.bend_angle_deg, abs=1e-6)
-    assert fit.pin_angle_deg == pytest.approx(rect.pin_angle_deg, abs=1e-6)
+    with pytest.raises(ValueError, match="seed method"):
+        measure_machine_photo(photo.bgr, kit, plane=plane, method="seed")
     err_raw = abs(raw.bend_angle_deg - photo.truth["bend_angle_deg"])
     err_rect = abs(rect.bend_angle_deg - photo.truth["bend_angle_deg"])
     assert err_raw > 0.3  # a 12 degree tilt foreshortens angles
