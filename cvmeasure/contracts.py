@@ -733,12 +733,31 @@ class PlaneModel:
         inv = np.linalg.inv(self.H_board_image)
         return inv / inv[2, 2]
 
-    def image_to_plane_mm(self, points_px: Any) -> NDArray[np.float64]:
-        """Photo pixels (N, 2), distorted as taken -> board-frame mm (N, 2) on the plane."""
+    def image_to_plane_mm(self, points_px: Any, *, height_mm: float = 0.0) -> NDArray[np.float64]:
+        """Photo pixels (N, 2), distorted as taken -> board-frame (x, y) mm (N, 2).
+
+        ``height_mm`` 0 is the board's plane (its homography). Otherwise each pixel's
+        undistorted ray meets the parallel plane ``height_mm`` above the board
+        (towards the camera; the board frame's z points away from it): a marker on
+        top of the pin, the axis of a wire lying on the plate. Mapping such a point
+        to the board plane instead moves it about the camera's foot point by about
+        height / distance of its offset (1 mm at 20 mm height, 25 mm off axis, 500 mm).
+        """
         pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
         if len(pts) == 0:
             return np.zeros((0, 2))
-        return apply_homography(self.H_board_image, self.camera.undistort_px(pts))
+        if height_mm == 0.0:
+            return apply_homography(self.H_board_image, self.camera.undistort_px(pts))
+        import cv2
+
+        rot, _ = cv2.Rodrigues(self.rvec)
+        rays = np.column_stack((self.camera.normalized(pts), np.ones(len(pts))))
+        # board point X = R^T (s ray - t); pick s so that its z is -height
+        rt_rays = rays @ rot  # rows: R^T ray
+        rt_t = rot.T @ self.tvec_mm
+        scale = (rt_t[2] - height_mm) / rt_rays[:, 2]
+        board = scale[:, None] * rt_rays - rt_t[None, :]
+        return board[:, :2]
 
     def plane_to_image_px(self, points_mm: Any) -> NDArray[np.float64]:
         """Board-frame mm (N, 2) on the plane -> photo pixels (N, 2), with distortion."""

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.geometry import fit_circle_robust
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.colour import (
     CLIPPED_WHITE_FRACTION,
@@ -26,7 +27,6 @@ from cvmeasure.markers.colour import (
     classify_bgr8,
     estimate_white,
 )
-from cvmeasure.markers.refine import fit_circle_robust
 
 __all__ = [
     "MarkerCandidate",

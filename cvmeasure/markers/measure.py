@@ -43,6 +43,7 @@ from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
+from cvmeasure.geometry import CircleFit, fit_circle_robust
 from cvmeasure.imageio import Photo, to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles
@@ -55,11 +56,10 @@ from cvmeasure.markers.colour import (
 from cvmeasure.markers.detect import MarkerCandidate, find_markers
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
+    CORRELATION_FACTOR,
     EDGE_MODES,
-    CircleFit,
     channel_shifts_px,
     disc_edge_points,
-    fit_circle_robust,
 )
 from cvmeasure.markers.seed_baseline import seed_find_circles
 
@@ -185,7 +185,9 @@ def refine_candidate(
             return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
         try:
             init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
-            fit = fit_circle_robust(edges.points_px, init=init)
+            fit = fit_circle_robust(
+                edges.points_px, init=init, correlation_factor=CORRELATION_FACTOR
+            )
         except (ValueError, np.linalg.LinAlgError):
             return "its edge points do not form a circle"
         moved = math.hypot(fit.centre[0] - centre[0], fit.centre[1] - centre[1])
@@ -338,7 +340,11 @@ def _measure_ours(
             jac = transform.jacobian(fit.centre)
             c_f = transform(np.array([fit.centre]))[0]
             r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
-            fit_f = fit_circle_robust(transform(edges.points_px), init=(c_f[0], c_f[1], r_f))
+            fit_f = fit_circle_robust(
+                transform(edges.points_px),
+                init=(c_f[0], c_f[1], r_f),
+                correlation_factor=CORRELATION_FACTOR,
+            )
             centres[role] = np.array(fit_f.centre)
             covs[role] = jac @ cov_img @ jac.T
         warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))

@@ -22,17 +22,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode, srgb_encode
-from cvmeasure.geometry import fit_circle_taubin
 
 __all__ = [
-    "CircleFit",
     "EdgePoints",
-    "fit_circle_robust",
     "disc_edge_points",
     "channel_shifts_px",
     "CORRELATION_FACTOR",
@@ -60,134 +56,6 @@ CENTRE_FLOOR_PX = 0.003
 EDGE_MODE = "luma"
 EDGE_MODES: tuple[str, ...] = ("luma", "green", "colour")
 MIN_STEP_SHARE = 0.25
-
-
-@dataclass(frozen=True)
-class CircleFit:
-    """A circle fitted to edge points, in the frame of the points.
-
-    Attributes
-    ----------
-    centre : (x, y).
-    radius : float.
-    covariance : ndarray (2, 2), the centre's covariance (same units squared).
-    rms_residual : float, weighted RMS distance of inliers to the circle.
-    n_points, n_inliers : int.
-    coverage : float, share of the circle's 10-degree sectors that hold inliers.
-    """
-
-    centre: tuple[float, float]
-    radius: float
-    covariance: np.ndarray
-    rms_residual: float
-    n_points: int
-    n_inliers: int
-    coverage: float
-
-    @property
-    def sigma(self) -> float:
-        """Standard uncertainty of the centre, RMS over the two axes."""
-        return float(math.sqrt(max(0.0, 0.5 * np.trace(self.covariance))))
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "x": self.centre[0],
-            "y": self.centre[1],
-            "r": self.radius,
-            "covariance": np.asarray(self.covariance).tolist(),
-            "rms_residual": self.rms_residual,
-            "n_points": self.n_points,
-            "n_inliers": self.n_inliers,
-            "coverage": self.coverage,
-        }
-
-
-def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
-    ang = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
-    bins = np.unique(np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(int) % 36)
-    return float(bins.size / 36.0)
-
-
-def fit_circle_robust(
-    points: np.ndarray,
-    *,
-    init: tuple[float, float, float] | None = None,
-    iterations: int = 12,
-    tukey_c: float = 4.685,
-    min_scale: float = 0.02,
-    correlation_factor: float = CORRELATION_FACTOR,
-) -> CircleFit:
-    """Geometric circle fit with Tukey biweights (IRLS Gauss-Newton).
-
-    Parameters
-    ----------
-    points : ndarray of shape (N, 2), float, edge points (any planar frame).
-    init : (cx, cy, r) start; Taubin's fit when None.
-    tukey_c : Tukey constant in units of the robust residual scale (1.4826 MAD).
-    min_scale : smallest residual scale, in the points' units.
-    correlation_factor : variance inflation for correlated neighbouring points.
-
-    Returns
-    -------
-    CircleFit
-        The covariance is ``s^2 (J^T W J)^-1 * correlation_factor`` with s the
-        weighted residual RMS: sampling error only, not model error.
-    """
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    if p.shape[0] < 5:
-        raise ValueError(f"a robust circle fit needs at least 5 points, got {p.shape[0]}")
-    if init is not None:
-        cx, cy, r = init
-    else:
-        (cx, cy), r = fit_circle_taubin(p)
-    theta = np.array([cx, cy, r], dtype=np.float64)
-    w = np.ones(p.shape[0])
-    scale = 0.0
-    jac = np.empty((p.shape[0], 3))
-    jac[:, 2] = 1.0
-    for it in range(iterations):
-        d = p - theta[:2]
-        dist = np.maximum(np.sqrt(np.einsum("ij,ij->i", d, d)), 1e-12)
-        res = dist - theta[2]
-        if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
-            mad = 1.4826 * float(np.median(np.abs(res)))
-            scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
-        u = res / (tukey_c * scale)
-        w = np.where(np.abs(u) < 1.0, (1 - u * u) ** 2, 0.0)
-        if w.sum() < 5:
-            w = np.ones_like(w)
-        # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
-        jac[:, :2] = d / dist[:, None]
-        jw = jac * w[:, None]
-        try:
-            step = np.linalg.solve(jw.T @ jac, jw.T @ res)
-        except np.linalg.LinAlgError:
-            break
-        theta = theta + step
-        if it >= 2 and np.abs(step).max() < 1e-5:
-            break
-    d = p - theta[:2]
-    dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
-    res = dist - theta[2]
-    inl = w > 0
-    n_in = int(inl.sum())
-    jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones_like(dist)))
-    jw = jac * w[:, None]
-    dof = max(1.0, float(w.sum()) - 3.0)
-    s2 = float((w * res * res).sum() / dof)
-    try:
-        cov = np.linalg.inv(jw.T @ jac) * s2 * correlation_factor
-    except np.linalg.LinAlgError:
-        cov = np.full((3, 3), np.inf)
-    return CircleFit(
-        (float(theta[0]), float(theta[1])),
-        float(theta[2]),
-        cov[:2, :2].copy(),
-        float(math.sqrt(s2)),
-        int(p.shape[0]),
-        n_in,
-        _coverage(p[inl], theta[:2]) if n_in else 0.0,
-    )
 
 
 def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:

@@ -15,7 +15,7 @@ Stages, each a module with pure functions and frozen result types:
 from __future__ import annotations
 
 from cvmeasure.part.compare import deviation_profile, register_to_design
-from cvmeasure.part.fit import fit_circle, fit_polyline
+from cvmeasure.part.fit import fit_polyline
 from cvmeasure.part.measure import ArcResult, PartMeasurement, measure_part
 from cvmeasure.part.seed_methods import (
     circle_ellipse_intersections,
@@ -28,7 +28,6 @@ __all__ = [
     "ArcResult",
     "PartMeasurement",
     "measure_part",
-    "fit_circle",
     "fit_polyline",
     "register_to_design",
     "deviation_profile",

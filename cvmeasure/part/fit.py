@@ -28,146 +28,16 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.design import divide_into_chords
-from cvmeasure.geometry import fit_circle_taubin, wrap_deg
+from cvmeasure.geometry import CircleFit, wrap_deg
 
 __all__ = [
-    "CircleFit",
     "PolylineFit",
     "ArcGeometry",
-    "fit_circle",
     "fit_polyline",
     "arc_geometry",
     "arc_angle_from_chord_deg",
     "sagitta_radius_mm",
 ]
-
-
-@dataclass(frozen=True)
-class CircleFit:
-    """A circle fitted to points.
-
-    Attributes
-    ----------
-    centre_mm : (x, y), mm.
-    radius_mm : float, mm.
-    rms_residual_mm : RMS orthogonal distance of the inliers to the circle, mm.
-    radius_sigma_mm : one standard uncertainty of the radius from the fit
-        residuals (sampling only; not model or calibration errors), mm.
-    n_points : points used; ``n_inliers`` those within 3 robust sigmas.
-    """
-
-    centre_mm: tuple[float, float]
-    radius_mm: float
-    rms_residual_mm: float
-    radius_sigma_mm: float
-    n_points: int
-    n_inliers: int
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "centre_mm": list(self.centre_mm),
-            "radius_mm": self.radius_mm,
-            "rms_residual_mm": self.rms_residual_mm,
-            "radius_sigma_mm": self.radius_sigma_mm,
-            "n_points": self.n_points,
-            "n_inliers": self.n_inliers,
-        }
-
-
-def _check_points(points: np.ndarray, minimum: int) -> np.ndarray:
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
-    if len(pts) < minimum:
-        raise ValueError(f"need at least {minimum} points, got {len(pts)}")
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("points must be finite")
-    return pts
-
-
-def fit_circle(points_mm: np.ndarray, *, f_scale_mm: float | None = None) -> CircleFit:
-    """Robust geometric circle fit (orthogonal distances, soft-L1 loss).
-
-    Parameters
-    ----------
-    points_mm : ndarray of shape (N, 2), N >= 3
-    f_scale_mm : soft-L1 scale (residuals beyond it count less); default the
-        robust spread (1.4826 MAD) of the previous pass's residuals.
-
-    Three passes, each on the points within 3 robust sigmas of the previous
-    circle (the first from Taubin's fit), so that shadow blobs and specular
-    spurs on the centreline do not pull the circle.
-
-    Examples
-    --------
-    >>> t = np.linspace(0, np.pi, 50)
-    >>> fit = fit_circle(np.column_stack((3 + 10 * np.cos(t), -2 + 10 * np.sin(t))))
-    >>> round(fit.radius_mm, 9), tuple(round(c, 9) for c in fit.centre_mm)
-    (10.0, (3.0, -2.0))
-    """
-    from scipy.optimize import least_squares
-
-    pts = _check_points(points_mm, 3)
-    centre0, r0 = fit_circle_taubin(pts)
-    # work in a centred, scaled frame for conditioning
-    shift = pts.mean(axis=0)
-    scale = max(r0, 1e-12)
-    p = (pts - shift) / scale
-    c0 = (centre0 - shift) / scale
-
-    def residuals(q: np.ndarray) -> np.ndarray:
-        return np.hypot(p[:, 0] - q[0], p[:, 1] - q[1]) - q[2]
-
-    q = np.array([c0[0], c0[1], 1.0])
-    keep = np.ones(len(p), dtype=bool)
-    # soft-L1 fits, each on the points within 3 robust sigmas of the previous one
-    for _ in range(3):
-        res_all = residuals(q)
-        spread = 1.4826 * float(np.median(np.abs(res_all[keep] - np.median(res_all[keep]))))
-        fs = (f_scale_mm / scale) if f_scale_mm else max(spread, 1e-9)
-        keep = np.abs(res_all - np.median(res_all[keep])) <= max(3.0 * spread, 1e-12)
-        if keep.sum() < 3:
-            keep[:] = True
-        pk = p[keep]
-        sol = least_squares(
-            lambda v, pk=pk: np.hypot(pk[:, 0] - v[0], pk[:, 1] - v[1]) - v[2],
-            q,
-            loss="soft_l1",
-            f_scale=fs,
-            method="trf",
-            x_scale="jac",
-            xtol=1e-14,
-            ftol=1e-14,
-            gtol=1e-14,
-        )
-        q = sol.x
-    cx, cy, r = q
-    res = residuals(q)
-    spread = 1.4826 * float(np.median(np.abs(res - np.median(res))))
-    inl = np.abs(res) <= max(3.0 * spread, 1e-12)
-    n_in = int(inl.sum())
-    rms = float(np.sqrt(np.mean(res[inl] ** 2))) * scale if n_in else float("nan")
-    # sampling uncertainty of r from the Gauss-Newton covariance on the inliers
-    sigma_r = float("nan")
-    if n_in > 3:
-        d = p[inl] - [cx, cy]
-        dist = np.hypot(*d.T)
-        jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones(n_in)))
-        s2 = float(np.sum(res[inl] ** 2)) / (n_in - 3)
-        try:
-            cov = np.linalg.inv(jac.T @ jac) * s2
-            sigma_r = float(math.sqrt(max(cov[2, 2], 0.0))) * scale
-        except np.linalg.LinAlgError:
-            pass
-    centre = np.array([cx, cy]) * scale + shift
-    return CircleFit(
-        (float(centre[0]), float(centre[1])),
-        float(abs(r) * scale),
-        rms,
-        sigma_r,
-        len(pts),
-        n_in,
-    )
 
 
 @dataclass(frozen=True)
@@ -212,6 +82,17 @@ def arc_angle_from_chord_deg(chord_width_mm: float, height_mm: float) -> float:
     return float(np.degrees(4.0 * math.atan2(2.0 * height_mm, chord_width_mm)))
 
 
+def _check_points(points: np.ndarray, minimum: int) -> np.ndarray:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
+    if len(pts) < minimum:
+        raise ValueError(f"need at least {minimum} points, got {len(pts)}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points must be finite")
+    return pts
+
+
 def arc_geometry(circle: CircleFit, ordered_points_mm: np.ndarray) -> ArcGeometry:
     """Arc quantities of ordered points (N, 2) lying along ``circle``.
 
@@ -220,10 +101,10 @@ def arc_geometry(circle: CircleFit, ordered_points_mm: np.ndarray) -> ArcGeometr
     degrees are measured as such).
     """
     pts = _check_points(ordered_points_mm, 2)
-    c = np.asarray(circle.centre_mm)
+    c = np.asarray(circle.centre)
     ang = np.unwrap(np.arctan2(pts[:, 1] - c[1], pts[:, 0] - c[0]))
     sweep = abs(float(ang[-1] - ang[0]))
-    r = circle.radius_mm
+    r = circle.radius
     return ArcGeometry(
         radius_mm=r,
         chord_width_mm=2.0 * r * math.sin(min(sweep, 2 * math.pi) / 2.0),

@@ -30,8 +30,10 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
+from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
+from cvmeasure.geometry import CircleFit, fit_circle_robust
 from cvmeasure.part.centreline import Centreline, EndShape, measure_centreline
 from cvmeasure.part.compare import (
     BendComparison,
@@ -43,10 +45,8 @@ from cvmeasure.part.compare import (
 )
 from cvmeasure.part.fit import (
     ArcGeometry,
-    CircleFit,
     PolylineFit,
     arc_geometry,
-    fit_circle,
     fit_polyline,
 )
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
@@ -63,7 +63,6 @@ __all__ = [
     "compare_with_design",
     "arc_from_points",
     "chord_and_height_mm",
-    "image_to_raised_plane_mm",
 ]
 
 Method = Literal["ours", "ellipse", "sagitta"]
@@ -189,7 +188,7 @@ class PartMeasurement:
         out["bend_sense"] = "counter-clockwise positive in the board frame (x, y)"
         out["vertices_mm"] = None if self.vertices_mm is None else self.vertices_mm.tolist()
         out["wire_width_mm"] = self.wire_width_mm
-        out["circle"] = self.circle.to_dict()
+        out["circle"] = self.circle.to_dict("mm")
         out["methods"] = {k: v.to_dict() for k, v in self.methods.items()}
         out["seed_arcs"] = {k: v.to_dict() for k, v in self.seed_arcs.items()}
         out["plane"] = self.plane
@@ -208,11 +207,11 @@ def arc_from_points(
     poly = None
     if divisions:
         poly = fit_polyline(pts, divisions)
-        circle = fit_circle(poly.vertices_mm)
+        circle = fit_circle_robust(poly.vertices_mm)
         geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
         chord, height = chord_and_height_mm(poly.vertices_mm)
     else:
-        circle = fit_circle(pts)
+        circle = fit_circle_robust(pts)
         geo = arc_geometry(circle, pts)
         chord, height = geo.chord_width_mm, geo.height_mm
     result = ArcResult("ours", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
@@ -236,7 +235,7 @@ def chord_and_height_mm(vertices_mm: np.ndarray) -> tuple[float, float]:
     return chord, float(np.max(np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])))
 
 
-def _board_exclusion(board: BoardSpec, plane: Any, shape: tuple[int, int]) -> np.ndarray:
+def _board_exclusion(board: BoardSpec, plane: PlaneModel, shape: tuple[int, int]) -> np.ndarray:
     import cv2
 
     w_mm, h_mm = board.size_mm
@@ -306,36 +305,10 @@ def measure_centreline_mm(
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)",
         )
-    return plane, wire, centre, image_to_raised_plane_mm(plane, centre.points_px, axis_height_mm)
+    return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=axis_height_mm)
 
 
-def image_to_raised_plane_mm(plane: Any, points_px: np.ndarray, height_mm: float) -> np.ndarray:
-    """Photo pixels -> board-frame (x, y) mm on the plane ``height_mm`` above the board.
-
-    Each pixel's ray (undistorted) meets the plane z = -height_mm of the board
-    frame (its z axis points away from the camera); ``height_mm = 0`` is the
-    board's homography. A wire of radius r lying on the board's surface has its
-    axis r above it: mapping it to the board plane instead scales the part
-    about the camera's foot point by about r / distance (0.1 % for r = 1 mm at
-    0.9 m).
-    """
-    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
-    if height_mm == 0.0 or len(pts) == 0:
-        return plane.image_to_plane_mm(pts)
-    import cv2
-
-    rot, _ = cv2.Rodrigues(np.asarray(plane.rvec, dtype=np.float64))
-    t = np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
-    rays = np.column_stack((plane.camera.normalized(pts), np.ones(len(pts))))
-    # board point X = R^T (s ray - t); pick s so that its z is -height
-    rt_rays = rays @ rot  # rows: R^T ray
-    rt_t = rot.T @ t
-    s_ = (rt_t[2] - height_mm) / rt_rays[:, 2]
-    board = s_[:, None] * rt_rays - rt_t[None, :]
-    return board[:, :2]
-
-
-def _outline_mm(image: np.ndarray, wire: WireMask, plane: Any) -> np.ndarray:
+def _outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarray:
     """The wire's outer contour at full resolution, board mm (the seed's input).
 
     Pixels near the mask that differ from the background by more than half the
@@ -364,7 +337,11 @@ def _outline_mm(image: np.ndarray, wire: WireMask, plane: Any) -> np.ndarray:
 
 
 def _ends_at_a_boundary(
-    ends_px: np.ndarray, board: BoardSpec, plane: Any, shape: tuple[int, int], width_px: float
+    ends_px: np.ndarray,
+    board: BoardSpec,
+    plane: PlaneModel,
+    shape: tuple[int, int],
+    width_px: float,
 ) -> str:
     """'the board' / 'the photo's edge' when an end point lies within 3 wire widths of it."""
     import cv2
@@ -414,7 +391,7 @@ def compare_with_design(
     verts = design.chords(n) if n else design.points_mm
     reg = register_to_design(seen, verts)
     dev = deviation_profile(seen, verts, reg)
-    d_geo = arc_geometry(fit_circle(verts), verts)
+    d_geo = arc_geometry(fit_circle_robust(verts), verts)
     design_arc = ArcResult(
         "design", d_geo.radius_mm, d_geo.chord_width_mm, d_geo.height_mm, d_geo.arc_angle_deg, n
     )

@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from cvmeasure.markers.refine import disc_edge_points, fit_circle_robust
+from cvmeasure.geometry import fit_circle_robust
+from cvmeasure.markers.refine import CORRELATION_FACTOR, disc_edge_points
 
 SS = 8  # supersampling of the drawn discs
 
@@ -50,7 +51,7 @@ def test_robust_fit_ignores_an_occluded_arc():
     assert fit.n_inliers < fit.n_points
     assert fit.coverage < 1.0
     with pytest.raises(ValueError):
-        fit_circle_robust(pts[:3])
+        fit_circle_robust(pts[:2])
 
 
 @pytest.mark.parametrize("r_px", [9.0, 20.0, 33.0])
@@ -64,7 +65,7 @@ def test_edge_points_give_centres_to_a_few_hundredths_of_a_pixel(r_px):
         img = _disc_image(c, r_px, noise=2.0, seed=k, size=img.shape[0])
         start = (c[0] + rng.uniform(-1, 1), c[1] + rng.uniform(-1, 1))
         edges = disc_edge_points(img, start, r_px * 1.05, 1.4)
-        fit = fit_circle_robust(edges.points_px)
+        fit = fit_circle_robust(edges.points_px, correlation_factor=CORRELATION_FACTOR)
         err = np.subtract(fit.centre, c)
         errs.append(np.hypot(*err))
         zs.extend(err / np.sqrt(np.diag(fit.covariance)))
@@ -88,7 +89,7 @@ def test_clipped_ring_is_reported():
     img[img > 225] = 255
     edges = disc_edge_points(img, (40.0, 40.0), 15.0, 1.4)
     assert edges.clipped_fraction > 0.9
-    fit = fit_circle_robust(edges.points_px)
+    fit = fit_circle_robust(edges.points_px, correlation_factor=CORRELATION_FACTOR)
     assert math.hypot(fit.centre[0] - 40, fit.centre[1] - 40) < 0.03
 
 

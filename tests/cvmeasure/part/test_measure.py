@@ -147,7 +147,6 @@ def test_raised_plane_mapping_inverts_the_projection():
     import cv2
 
     from cvmeasure.calibration.plane import estimate_plane
-    from cvmeasure.part.measure import image_to_raised_plane_mm
 
     photo = _photo("short", "dark")
     plane = estimate_plane(photo.bgr, BOARD, photo.camera)
@@ -158,10 +157,10 @@ def test_raised_plane_mapping_inverts_the_projection():
         obj, plane.rvec, plane.tvec_mm, photo.camera.camera_matrix, photo.camera.dist_coeffs
     )
     px = px.reshape(-1, 2)
-    np.testing.assert_allclose(image_to_raised_plane_mm(plane, px, height), board_xy, atol=1e-6)
+    np.testing.assert_allclose(plane.image_to_plane_mm(px, height_mm=height), board_xy, atol=1e-6)
     # read in the board's plane instead, the raised points spread out from the
     # camera's foot point by about height / distance (0.18 % at 0.9 m)
-    flat = image_to_raised_plane_mm(plane, px, 0.0)
+    flat = plane.image_to_plane_mm(px, height_mm=0.0)
     spread = np.hypot(*np.diff(flat, axis=0).T) / np.hypot(*np.diff(board_xy, axis=0).T)
     np.testing.assert_allclose(spread, 1 + height / 900.0, rtol=3e-4)
 
