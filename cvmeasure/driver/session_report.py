@@ -10,7 +10,6 @@ Matplotlib is imported only here.
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import os
@@ -90,11 +89,6 @@ def plot_calibration(calibration: Calibration, path: str | os.PathLike[str]) -> 
     return atomic_write_bytes(path, _figure_png(calibration))
 
 
-def _img(data: bytes, alt: str, *, mime: str = "image/png") -> str:
-    encoded = base64.b64encode(data).decode("ascii")
-    return f'<img alt="{html.escape(alt)}" src="data:{mime};base64,{encoded}">'
-
-
 def write_session_report(
     path: str | os.PathLike[str],
     calibration: Calibration,
@@ -117,21 +111,17 @@ def write_session_report(
     max_overlays : int
         How many steps get loaded/unloaded overlays (spread over the plan).
     """
+    from cvmeasure.report.html import html_img, html_page
     from cvmeasure.report.thumbnails import overlay_thumbnail
 
     e = html.escape
     parts = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
-        f"<title>Calibration {e(calibration.name)}</title>",
-        "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}"
-        "td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
-        "img{max-width:100%}</style></head><body>",
-        f"<h1>Calibration {e(calibration.name)}</h1>",
-        f"<p>mode {e(calibration.mode)}, angles {e(', '.join(f'{a:g}' for a in calibration.angles_deg))} deg, "
+        f"<p class=meta>mode {e(calibration.mode)}, angles "
+        f"{e(', '.join(f'{a:g}' for a in calibration.angles_deg))} deg, "
         f"{len(calibration.samples)} bends; compensation model <b>{e(calibration.model)}</b>; "
         f"created {e(calibration.created_utc)}.</p>",
         "<h2>Springback curves and residuals</h2>",
-        _img(_figure_png(calibration), "springback curves"),
+        html_img(_figure_png(calibration), "springback curves", css_class="figure"),
         "<h2>Model scores (leave-one-angle-out, deg)</h2><table><tr><th>model</th>",
     ]
     directions = [d for d in DIRECTIONS if calibration.samples_of(d)]
@@ -142,21 +132,22 @@ def write_session_report(
             s = by_dir.get(d, {}) if isinstance(by_dir, dict) else {}
             for key in ("loao_rmse_deg", "loao_max_deg"):
                 v = s.get(key) if isinstance(s, dict) else None
-                cells.append(f"<td>{'-' if v is None else f'{v:.4f}'}</td>")
+                cells.append(f"<td class=num>{'-' if v is None else f'{v:.4f}'}</td>")
         parts.append(f"<tr><th>{e(model)}</th>{''.join(cells)}</tr>")
     parts.append(
-        "</table><h2>Samples</h2><table><tr><th>trial</th><th>dir</th>"
-        "<th>target</th><th>pin cmd</th><th>loaded</th><th>unloaded</th>"
-        "<th>springback</th><th>u(springback)</th></tr>"
+        "</table><h2>Calibration bends (deg)</h2><table><tr><th>trial</th><th>direction</th>"
+        "<th>target</th><th>pin command</th><th>loaded bend</th><th>unloaded bend</th>"
+        "<th>springback</th><th>u(springback), 1 sigma</th></tr>"
     )
     for s in calibration.samples:
         u = s.uncertainty_deg.get("springback_deg")
         parts.append(
-            f"<tr><td>{s.trial if s.trial is not None else ''}</td><td>{s.direction}</td>"
-            f"<td>{'' if s.target_deg is None else f'{s.target_deg:g}'}</td>"
-            f"<td>{s.commanded_pin_deg:.3f}</td><td>{s.loaded_bend_deg:.3f}</td>"
-            f"<td>{s.unloaded_bend_deg:.3f}</td><td>{s.springback_deg:.4f}</td>"
-            f"<td>{'' if u is None else f'{u:.4f}'}</td></tr>"
+            f"<tr><td>{e(s.trial)}</td><td>{s.direction}</td>"
+            f"<td class=num>{'' if s.target_deg is None else f'{s.target_deg:g}'}</td>"
+            f"<td class=num>{s.commanded_pin_deg:.3f}</td>"
+            f"<td class=num>{s.loaded_bend_deg:.3f}</td>"
+            f"<td class=num>{s.unloaded_bend_deg:.3f}</td><td class=num>{s.springback_deg:.4f}</td>"
+            f"<td class=num>{'' if u is None else f'{u:.4f}'}</td></tr>"
         )
     parts.append("</table>")
     if steps and session_dir is not None:
@@ -176,8 +167,9 @@ def write_session_report(
                 photo_path = Path(session_dir) / rel
                 if photo_path.exists():
                     jpeg = overlay_thumbnail(rec.to_dict(), photo_path, width_px=480)
-                    parts.append(_img(jpeg, f"{which} {rel}", mime="image/jpeg"))
+                    parts.append(
+                        html_img(jpeg, f"{which} {rel}", mime="image/jpeg", css_class="overlay")
+                    )
                     parts.append(f" {which}: bend {rec.bend_angle_deg:.3f} deg ")
             parts.append("</p>")
-    parts.append("</body></html>\n")
-    return atomic_write_text(path, "\n".join(parts))
+    return atomic_write_text(path, html_page(f"Calibration {calibration.name}", parts))

@@ -43,7 +43,8 @@ table{border-collapse:collapse;font-size:.85em;margin:8px 0}
 th,td{border:1px solid #d0d0d0;padding:3px 7px;vertical-align:top}
 th{background:#f0f0f0;text-align:left}td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.fail td{background:#fff0f0}.bad{color:#a01010;font-weight:600}.good{color:#106010;font-weight:600}
-.plots img{max-width:640px;margin:6px 12px 6px 0;border:1px solid #ddd}
+.plots img,img.figure{max-width:640px;margin:6px 12px 6px 0;border:1px solid #ddd}
+img.overlay{max-width:480px;margin:4px 8px 4px 0}
 img.thumb{width:240px;height:auto;display:block}
 """
 
@@ -51,6 +52,27 @@ img.thumb{width:240px;height:auto;display:block}
 def data_uri(data: bytes, mime: str) -> str:
     """``data:<mime>;base64,...`` for embedding bytes in HTML."""
     return f"data:{mime};base64,{base64.b64encode(data).decode('ascii')}"
+
+
+def html_page(title: str, body: Sequence[str]) -> str:
+    """A whole self-contained HTML page: the reports' one page frame and style sheet.
+
+    ``body`` holds HTML fragments (already escaped); the title is escaped here.
+    """
+    head = [
+        "<!DOCTYPE html>",
+        "<html lang=en><head><meta charset=utf-8>",
+        "<meta name=viewport content='width=device-width, initial-scale=1'>",
+        f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{_e(title)}</h1>",
+    ]
+    return "\n".join([*head, *body, "</body></html>"]) + "\n"
+
+
+def html_img(data: bytes, alt: str, *, mime: str = "image/png", css_class: str = "") -> str:
+    """An ``<img>`` with ``data`` embedded (no file beside the page)."""
+    cls = f" class={css_class}" if css_class else ""
+    return f"<img{cls} alt='{_e(alt)}' src='{data_uri(data, mime)}'>"
 
 
 def _e(value: Any) -> str:
@@ -162,13 +184,7 @@ def build_report(
     ok = [r for r in records if r.get("ok", True)]
     failed = [r for r in records if r.get("ok") is False]
     kinds = Counter(str(r.get("kind", "-")) for r in records)
-    out = [
-        "<!DOCTYPE html>",
-        "<html lang=en><head><meta charset=utf-8>",
-        "<meta name=viewport content='width=device-width, initial-scale=1'>",
-        f"<title>{_e(title)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{_e(title)}</h1>",
-    ]
+    out: list[str] = []
     meta = [f"results: {_e(source)}"] if source else []
     for k, v in (stamp or {}).items():
         meta.append(f"{_e(k)}: {_e(v)}")
@@ -187,9 +203,7 @@ def build_report(
     figures = [(name, png) for name, png in figures if png is not None]
     if figures:
         out.append("<h2 id=plots>Plots</h2><div class=plots>")
-        out += [
-            f"<img alt='{_e(name)}' src='{data_uri(png, 'image/png')}'>" for name, png in figures
-        ]
+        out += [html_img(png, name) for name, png in figures]
         out.append("</div>")
     if agreement is not None:
         out += _agreement_section(agreement)
@@ -216,8 +230,7 @@ def build_report(
         cells.append(f"<td>{'<br>'.join(_e(n) for n in notes)}</td>")
         out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
     out.append("</tbody></table>")
-    out.append("</body></html>")
-    return "\n".join(out) + "\n"
+    return html_page(title, out)
 
 
 def _sort_key(record: Mapping[str, Any]) -> tuple[str, str]:
