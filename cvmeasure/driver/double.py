@@ -74,13 +74,33 @@ from cvmeasure.driver.protocol import (
     parse_block,
 )
 
-__all__ = ["FaultKind", "FAULT_KINDS", "Fault", "BendRecord", "MachineState", "FakeTinyG"]
+__all__ = [
+    "FaultKind",
+    "FAULT_KINDS",
+    "LINE_REPORTS",
+    "LineReport",
+    "Fault",
+    "BendRecord",
+    "MachineState",
+    "FakeTinyG",
+]
 
 log = logging.getLogger(__name__)
 
-FaultKind = Literal["drop_byte", "malformed_reply", "alarm", "stall", "vanish"]
+FaultKind = Literal["drop_byte", "malformed_reply", "alarm", "stall", "vanish", "error_status"]
 #: The faults the double can inject.
-FAULT_KINDS: tuple[str, ...] = ("drop_byte", "malformed_reply", "alarm", "stall", "vanish")
+FAULT_KINDS: tuple[str, ...] = (
+    "drop_byte",
+    "malformed_reply",
+    "alarm",
+    "stall",
+    "vanish",
+    "error_status",
+)
+#: How ``sr.line`` reads after a queue flush: ``"executing"`` (the line the machine was
+#: running) or ``"parsed"`` (TinyG firmware: the last line it parsed, flushed ones included).
+LineReport = Literal["executing", "parsed"]
+LINE_REPORTS: tuple[str, ...] = ("executing", "parsed")
 
 #: Shortest move TinyG plans (MIN_SEGMENT_USEC), machine seconds.
 MIN_MOVE_S = 0.0025
@@ -102,7 +122,9 @@ class Fault:
         ``malformed_reply`` garbles its reply, ``stall`` freezes the board when
         it reads it, ``vanish`` closes the port right after answering it (the
         answer may go with the port), ``alarm``
-        trips the limit switch when its move starts executing.
+        trips the limit switch when its move starts executing, ``error_status``
+        rejects that G-code line with status 130 (it is not run; the lines after
+        it are, as TinyG does).
     byte_index : for ``drop_byte``, which byte of the line (0 = the first); past its
         end, the terminator is dropped and the line merges with the next.
     duration_s : for ``stall``, how long the board freezes (wall seconds).
@@ -219,6 +241,9 @@ class FakeTinyG:
         (defaults: the simulation's). Measurement-only effects (camera tilt)
         are ignored: the double bends wire, it does not photograph it.
     max_rate : axis -> maximum rate (units/min) for G0.
+    line_report : what ``sr.line`` says after a queue flush: ``"executing"`` (the
+        line that was running) or ``"parsed"`` (TinyG firmware: the last line it
+        parsed, including the lines the flush dropped unexecuted).
 
     Examples
     --------
@@ -238,9 +263,13 @@ class FakeTinyG:
         sim_params: Any = None,
         sim_effects: Iterable[Any] = (),
         max_rate: dict[str, float] | None = None,
+        line_report: LineReport = "executing",
     ) -> None:
         if not speedup > 0:
             raise ValueError("speedup must be positive")
+        if line_report not in LINE_REPORTS:
+            raise ValueError(f"line_report must be one of {', '.join(LINE_REPORTS)}")
+        self.line_report: LineReport = line_report
         self.speedup = float(speedup)
         self.footer_style: FooterStyle = footer_style
         self.rx_size = int(rx_buffer_bytes)
@@ -342,6 +371,7 @@ class FakeTinyG:
         self._planner: deque[_Move] = deque()
         self._stat = MachineStat.READY
         self._line = 0
+        self._last_parsed_line: int | None = None
         self._hold_req = self._cycle_req = self._flush_req = self._reset_req = False
         self._flush_pending = False
         self._stall_until = 0.0
@@ -569,6 +599,8 @@ class FakeTinyG:
             self._queue_flush(now)
 
     def _queue_flush(self, now: float) -> None:
+        if self.line_report == "parsed" and self._last_parsed_line is not None:
+            self._line = self._last_parsed_line  # the firmware's gm.linenum: last parsed
         self._ring.clear()
         self._rx_byte_in_line = 0
         self._drop_planner()
@@ -686,6 +718,10 @@ class FakeTinyG:
             return {}, exc.status
         if self._stat in (MachineStat.ALARM, MachineStat.SHUTDOWN):
             return {}, int(Status.MACHINE_ALARMED)
+        if self._fault("error_status", seq) is not None:
+            return {}, int(Status.GCODE_GENERIC)
+        if block.line_number is not None:
+            self._last_parsed_line = block.line_number
         relative = self._relative
         mode = block.distance_mode
         if mode is not None:

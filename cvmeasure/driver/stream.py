@@ -46,6 +46,7 @@ from cvmeasure.driver.protocol import (
     CYCLE_START,
     FEEDHOLD,
     QUEUE_FLUSH,
+    STATUS_TEXT,
     XOFF,
     XON,
     ExceptionReport,
@@ -103,6 +104,7 @@ SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
 #: Identification asked for before every job and recorded in the journal.
 FIRMWARE_QUERIES: tuple[dict[str, Any], ...] = ({"fv": None}, {"fb": None})
 _IDLE = (MachineStat.READY, MachineStat.STOP, MachineStat.END)
+_MOVING = (MachineStat.RUN, MachineStat.CYCLE, MachineStat.JOG, MachineStat.HOMING)
 
 
 @dataclass(frozen=True)
@@ -115,6 +117,8 @@ class StreamConfig:
     flush_timeout_s : how long a safe stop waits for the board's flush report.
     command_timeout_s : how long a setup command waits for its reply.
     progress_interval_s : how often executed-line progress is journalled.
+    settle_timeout_s : how long a resume lets a board that is still running finish
+        the lines it already holds (its ``sr.line`` is then exact).
     """
 
     window_lines: int = 4
@@ -123,6 +127,7 @@ class StreamConfig:
     flush_timeout_s: float = 5.0
     command_timeout_s: float = 2.0
     progress_interval_s: float = 0.5
+    settle_timeout_s: float = 120.0
 
     def __post_init__(self) -> None:
         if self.window_lines < 1 or self.window_bytes < 2:
@@ -151,9 +156,13 @@ class StopInfo:
     ``stall``, ``port_gone``, ``reset``, ``interrupted``, ``aborted``; ``line_number`` is
     the ``N`` of the line that caused it (None when unknown); ``board`` is the
     board's last known ``sr`` fields after the stop (None when unreachable);
-    ``corrupt_line_ran`` says that a line the board received corrupted (a
-    ``desync``) had reached the machine before the feedhold: the part may be
-    damaged, and a resume needs ``force``.
+    ``held`` the fields when the feedhold had stopped the machine, before the queue
+    flush (its ``line`` is the line that was running: TinyG's ``sr.line`` after a
+    flush names the last line *parsed*, flushed ones included); ``corrupt_line_ran``
+    says that a line the board received corrupted (a ``desync``) had reached the
+    machine before the feedhold, and ``ran_past_rejected_line`` that the board ran
+    lines after the one it rejected (an ``error``): the part may be wrong, and a
+    resume needs ``force``.
     """
 
     reason: str
@@ -162,6 +171,8 @@ class StopInfo:
     detail: str
     board: dict[str, Any] | None = None
     corrupt_line_ran: bool = False
+    held: dict[str, Any] | None = None
+    ran_past_rejected_line: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -476,6 +487,52 @@ class BoardConnection:
                     f"{self.link.url}: no reply to {data.decode().strip()} in {timeout_s:g} s"
                 )
 
+    def hold(self, *, timeout_s: float) -> dict[str, Any] | None:
+        """Feedhold; the status fields once the machine has stopped moving, or None.
+
+        Read *before* any queue flush, ``line`` is the line the machine was running
+        (after a flush TinyG reports the last line it parsed). A machine that was not
+        moving answers at once with its last reported state.
+        """
+        self.write(FEEDHOLD)
+        if self.state.get("stat") not in _MOVING:
+            self.drain(0.02)
+            return dict(self.state)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if self.error is not None:
+                raise self.error
+            msg = self.next_message(deadline - time.monotonic())
+            if isinstance(msg, StatusReport) and self.state.get("stat") not in _MOVING:
+                return dict(self.state)
+        return None
+
+    def wait_idle(self, *, timeout_s: float, query_timeout_s: float) -> dict[str, Any]:
+        """Let a running machine finish what it holds; its full status once idle.
+
+        A board whose planner is full reads no command until a slot frees, so each
+        status query may wait for the machine. DeviceTimeoutError after ``timeout_s``.
+        """
+        deadline = time.monotonic() + timeout_s
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise DeviceTimeoutError(
+                    f"{self.link.url}: the board was still running after {timeout_s:g} s"
+                )
+            if self.error is not None:
+                raise self.error
+            try:
+                state = self.query_status(timeout_s=min(max(query_timeout_s, 0.1), remaining))
+            except DeviceError:
+                # its planner is full (the query is read when a slot frees), or a reply
+                # to a line of the dead connection arrived first: ask again
+                self.drain(0.05)
+                continue
+            if state.get("stat") not in _MOVING:
+                return state
+            self.next_message(min(0.1, remaining))
+
     def flush_board(self, *, timeout_s: float) -> bool:
         """Feedhold + queue flush; wait for the flush's rx report. True when it came."""
         self.write(FEEDHOLD)
@@ -545,8 +602,10 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     """Stop the board safely, journal where and why, raise JobStopped."""
     board = run.board
     state: dict[str, Any] | None = None
+    held: dict[str, Any] | None = None
     if board.error is None and reason != "port_gone":
         try:
+            held = board.hold(timeout_s=run.config.flush_timeout_s)
             flushed = board.flush_board(timeout_s=run.config.flush_timeout_s)
             if not flushed:
                 detail += "; the board did not confirm the flush (unresponsive)"
@@ -554,18 +613,29 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
                 state = board.query_status(timeout_s=run.config.command_timeout_s)
         except DeviceError as exc:
             detail += f"; stopping failed: {exc}"
-    if line is None and number is None and state is not None:
+    running = held if held is not None else state
+    if line is None and number is None and running is not None:
         # an alarm names the line the machine was executing when it tripped
-        number = state.get("line")
+        number = running.get("line")
         line = _line_by_number(run.job, number)
     corrupt_ran = False
-    if reason == "desync" and line is not None and state is not None:
+    if reason == "desync" and line is not None and running is not None:
         # TinyG 440 has no input checksum: a corrupted line runs like any other
-        corrupt_ran = _index_of(run.job, state.get("line")) >= line.index
+        corrupt_ran = _index_of(run.job, running.get("line")) >= line.index
         if corrupt_ran:
             detail += (
-                f"; the machine had reached it (sr.line N{state.get('line')}): "
+                f"; the machine had reached it (sr.line N{running.get('line')}): "
                 "check the part before resuming with --force"
+            )
+    ran_past = False
+    if reason == "error" and line is not None and running is not None:
+        # the board skips a line it rejects and runs the ones after it
+        ran_to = _index_of(run.job, running.get("line"))
+        ran_past = ran_to > line.index
+        if ran_past:
+            detail += (
+                f"; the board went on to run up to N{running.get('line')} without it: "
+                "the part is wrong; check it (resume needs --force)"
             )
     run.inflight.clear()
     stop = StopInfo(
@@ -575,6 +645,8 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         detail=detail,
         board=state,
         corrupt_line_ran=corrupt_ran,
+        held=held,
+        ran_past_rejected_line=ran_past,
     )
     run.log({"event": "stop", **stop.to_dict()})
     raise JobStopped(stop)
@@ -598,7 +670,14 @@ def _handle(run: _Run, msg: Message) -> None:
                 "(a byte was lost or garbled on the way)",
             )
         if msg.status != 0:
-            _stop(run, "error", head, f"the board answered status {msg.status}")
+            text = STATUS_TEXT.get(msg.status, "")
+            _stop(
+                run,
+                "error",
+                head,
+                f"the board rejected the line with status {msg.status}"
+                + (f" ({text})" if text else ""),
+            )
     elif isinstance(msg, ExceptionReport):
         if msg.status >= 200:
             _stop(run, "alarm", None, f"alarm {msg.status} ({msg.message})")
@@ -702,17 +781,36 @@ def _stream(
     board, config, job = run.board, run.config, run.job
     start_index, fixup, resumed_from = 0, None, None
     if resume:
-        start_pos = _journal_start(run.journal, sha, source, force=force)
+        start_pos, last = _journal_start(run.journal, sha, source, force=force)
+        # a board still running (the host died mid-job) finishes the lines it holds:
+        # flushing them would make TinyG report the last line it *parsed*, not run
+        held = board.wait_idle(
+            timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
+        )
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
         state = _setup(board, config, xonxoff)
         if state.get("stat") == MachineStat.ALARM:
             board.command({"clear": None}, timeout_s=config.command_timeout_s)
             state = board.query_status(timeout_s=config.command_timeout_s)
+        board_line, line_from = _executed_line(last, held, state)
+        if (
+            last.get("event") == "stop"
+            and last.get("reason") == "error"
+            and last.get("line_number") is not None
+            and not force
+            and _index_of(job, board_line) > _index_of(job, last["line_number"])
+        ):
+            raise DeviceError(
+                f"{run.journal}: line N{last['line_number']} was rejected by the board "
+                f"({last.get('detail', 'an error status')}) but the board went on to run up "
+                f"to N{board_line} without it: the part is wrong; check it, then start again "
+                "(or resume with --force to finish it as it is)"
+            )
         plan = plan_resume(
             job,
             start_pos=start_pos,
-            board_line=int(state.get("line", 0)),
+            board_line=board_line,
             board_pos=_position(state),
         )
         start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
@@ -721,6 +819,9 @@ def _stream(
                 "event": "resume",
                 "sha256": sha,
                 "board": state,
+                "held": held,
+                "executed_line": board_line,
+                "executed_line_from": line_from,
                 "firmware": board.firmware,
                 **plan.to_dict(),
             }
@@ -765,7 +866,8 @@ def _stream(
 
 def _journal_start(
     journal: Path | None, sha: str, source: str, *, force: bool = False
-) -> dict[str, float]:
+) -> tuple[dict[str, float], dict[str, Any]]:
+    """(start position, the journal's last start/stop/resume record) of this job."""
     if journal is None or not journal.is_file():
         raise InputError(journal or source, "no journal to resume from")
     records = read_jsonl(journal, skip_partial_last=True)
@@ -778,7 +880,30 @@ def _journal_start(
             f"{journal}: the job stopped after the corrupted line N{last.get('line_number')} "
             "had reached the machine; check the part, then resume with --force"
         )
-    return {a: float(v) for a, v in starts[-1].get("start_pos", {}).items()}
+    return {a: float(v) for a, v in starts[-1].get("start_pos", {}).items()}, last
+
+
+def _same_position(a: Mapping[str, Any] | None, b: Mapping[str, Any], tol: float = 2e-3) -> bool:
+    if a is None:
+        return False
+    pa, pb = _position(a), _position(b)
+    return all(abs(pa[k] - pb[k]) <= tol for k in AXES)
+
+
+def _executed_line(
+    last: Mapping[str, Any], settled: Mapping[str, Any], state: Mapping[str, Any]
+) -> tuple[int, str]:
+    """The job line the machine last ran (complete or cut short), and where that came from.
+
+    TinyG's ``sr.line`` after a queue flush names the last line *parsed*, which may be
+    a flushed line that never ran. So: the line held at the stop that flushed the
+    board (while the machine has not moved since), else the board's own report once
+    it ran out of lines by itself (``settled``: it has then run every line it parsed).
+    """
+    stop_held = last.get("held") if last.get("event") == "stop" else None
+    if stop_held is not None and "line" in stop_held and _same_position(stop_held, state):
+        return int(stop_held["line"]), "held at the stop"
+    return int(settled.get("line", state.get("line", 0))), "board report"
 
 
 def _check_board(run: _Run) -> None:

@@ -6,7 +6,7 @@ device path such as ``/dev/ttyUSB0`` or ``COM3``, ``loop://``, ``socket://host:p
 started on a fresh pseudo-terminal and opened through pyserial like a real
 port. ``sim://`` options are URL query parameters::
 
-    sim://?speedup=50&footer=440&fault=stall@40&fault=drop_byte@12:5
+    sim://?speedup=50&footer=440&line_report=parsed&fault=stall@40&fault=drop_byte@12:5
 
 (``fault=KIND@LINE[:BYTE_INDEX]``; see :class:`~cvmeasure.driver.double.Fault`).
 A port that does not exist raises :class:`~cvmeasure.errors.InputError` naming it.
@@ -28,7 +28,7 @@ try:  # POSIX: pyserial's flush() raises termios.error when the port has vanishe
 except ImportError:  # pragma: no cover - Windows
     _TermiosError = OSError  # type: ignore[misc,assignment]
 
-from cvmeasure.driver.double import FakeTinyG, Fault
+from cvmeasure.driver.double import LINE_REPORTS, FakeTinyG, Fault
 from cvmeasure.errors import DeviceError, InputError
 
 __all__ = ["Link", "open_link", "parse_sim_url", "DEFAULT_BAUD"]
@@ -107,6 +107,10 @@ def parse_sim_url(url: str) -> dict[str, Any]:
                     raise ValueError(f"speedup must be a finite number > 0, got {values[-1]!r}")
             elif key == "footer":
                 kwargs["footer_style"] = values[-1]
+            elif key == "line_report":
+                if values[-1] not in LINE_REPORTS:
+                    raise ValueError(f"line_report must be one of {', '.join(LINE_REPORTS)}")
+                kwargs["line_report"] = values[-1]
             elif key == "fault":
                 for v in values:
                     kind, _, rest = v.partition("@")
@@ -119,7 +123,7 @@ def parse_sim_url(url: str) -> dict[str, Any]:
                             f = Fault(kind, int(line), byte_index=int(extra))  # type: ignore[arg-type]
                     faults.append(f)
             else:
-                raise ValueError(f"unknown option {key!r} (speedup, footer, fault)")
+                raise ValueError(f"unknown option {key!r} (speedup, footer, line_report, fault)")
     except ValueError as exc:
         raise InputError(url, f"bad sim:// URL: {exc}") from None
     kwargs["faults"] = tuple(faults)

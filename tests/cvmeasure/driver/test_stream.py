@@ -88,10 +88,13 @@ FAULTS = [
 @pytest.mark.parametrize(
     ("fault", "reason"), FAULTS, ids=[f[0].kind + str(f[0].byte_index) for f in FAULTS]
 )
-def test_fault_stops_safely_and_the_job_resumes(job, tmp_path, fault, reason):
+@pytest.mark.parametrize("line_report", ["executing", "parsed"])
+def test_fault_stops_safely_and_the_job_resumes(job, tmp_path, fault, reason, line_report):
+    # "parsed": sr.line after the stop's queue flush names the last line the firmware
+    # parsed (flushed, never run), as TinyG does; resuming after it would lose lines
     _, clean_shape, _, _ = run_clean(job)
     journal = tmp_path / "job.journal.jsonl"
-    board = FakeTinyG(speedup=50.0, faults=[fault]).start()
+    board = FakeTinyG(speedup=50.0, faults=[fault], line_report=line_report).start()
     try:
         link = open_link(board.port)
         with pytest.raises(JobStopped) as info:
@@ -119,6 +122,46 @@ def test_fault_stops_safely_and_the_job_resumes(job, tmp_path, fault, reason):
         assert read_jsonl(journal)[-1]["event"] == "done"
     finally:
         board.close()
+
+
+def test_a_rejected_line_is_never_skipped_silently(job, tmp_path):
+    """A line answered with an error status did not run; the lines after it may have.
+
+    Either nothing after it ran (resume re-sends it and the part comes out right) or
+    something did (the part is wrong: the stop says so and resume refuses to go on).
+    """
+    _, clean_shape, _, _ = run_clean(job)
+    outcomes = set()
+    for at_line, speedup in ((22, 50.0), (40, 2000.0), (41, 5000.0), (60, 20000.0)):
+        journal = tmp_path / f"job{at_line}.journal.jsonl"
+        board = FakeTinyG(
+            speedup=speedup, faults=[Fault("error_status", at_line)], line_report="parsed"
+        ).start()
+        try:
+            link = open_link(board.port)
+            with pytest.raises(JobStopped) as info:
+                stream_job(link, job.lines, journal=journal, config=FAST)
+            link.close()
+            stop = info.value.stop
+            assert stop.reason == "error" and "status 130" in stop.detail
+            link = open_link(board.port)
+            try:
+                stream_job(link, job.lines, journal=journal, resume=True, config=FAST)
+            except DeviceError as exc:
+                assert stop.ran_past_rejected_line
+                assert f"N{stop.line_number} was rejected" in str(exc) and "--force" in str(exc)
+                outcomes.add("refused")
+            else:
+                assert not stop.ran_past_rejected_line
+                completed, _ = board.executed_lines()
+                assert completed == list(range(0, len(job.lines) + 1))
+                np.testing.assert_allclose(board.wire_shape_mm(), clean_shape, atol=2e-3)
+                outcomes.add("completed")
+            finally:
+                link.close()
+        finally:
+            board.close()
+    assert outcomes == {"refused", "completed"}  # both branches seen
 
 
 def test_resume_needs_the_journal_of_this_job(job, tmp_path):
