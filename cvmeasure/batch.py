@@ -39,7 +39,7 @@ import numpy as np
 
 from cvmeasure import __version__
 from cvmeasure.errors import CvmeasureError, InputError
-from cvmeasure.fileio import append_jsonl, read_jsonl
+from cvmeasure.fileio import append_jsonl, read_jsonl, repair_jsonl_tail
 from cvmeasure.imageio import PHOTO_SUFFIXES, Photo, read_photo
 
 if TYPE_CHECKING:
@@ -274,31 +274,12 @@ def photo_key(path: str | os.PathLike[str]) -> str:
     return f"{p}|{st.st_size}|{st.st_mtime_ns}"
 
 
-def _repair_tail(path: Path) -> None:
-    """Cut a partial last line (a write interrupted by a kill) so appends stay valid."""
-    with open(path, "rb+") as fh:
-        fh.seek(0, os.SEEK_END)
-        size = fh.tell()
-        if size == 0:
-            return
-        fh.seek(size - 1)
-        if fh.read(1) == b"\n":
-            return
-        block = min(size, 1 << 20)
-        fh.seek(size - block)
-        tail = fh.read(block)
-        cut = tail.rfind(b"\n")
-        fh.truncate(size - block + cut + 1 if cut >= 0 else size - block)
-        fh.flush()
-        os.fsync(fh.fileno())
-
-
 def done_keys(output: str | os.PathLike[str]) -> set[str]:
     """Keys of the photos already in a results file (repairs a cut last line first)."""
     path = Path(output)
     if not path.exists():
         return set()
-    _repair_tail(path)
+    repair_jsonl_tail(path)
     return {r["photo_key"] for r in read_jsonl(path) if isinstance(r, dict) and "photo_key" in r}
 
 
@@ -434,6 +415,28 @@ def _init_worker() -> None:
     cv2.setNumThreads(1)
 
 
+#: How often a pool worker checks that the batch that started it is alive (s).
+PARENT_POLL_S = 0.2
+
+
+def _pool_worker_init(parent_pid: int) -> None:
+    """A pool worker: one OpenCV thread, and it exits as soon as its batch is gone.
+
+    A batch killed with SIGKILL cannot stop its workers; without this they finish
+    their photo and idle until the pool's pipes time out (30 s seen).
+    """
+    import threading
+
+    _init_worker()
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
+
+
 @contextlib.contextmanager
 def _single_threaded_env() -> Iterator[None]:
     """Spawned workers inherit the environment: one BLAS/OpenMP thread each."""
@@ -510,7 +513,12 @@ def _run_processes(
     todo = iter(jobs)
     pending: set[Future[dict[str, Any]]] = set()
     with _single_threaded_env():
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
+        pool = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=ctx,
+            initializer=_pool_worker_init,
+            initargs=(os.getpid(),),
+        )
         # the workers start on these first submits, inheriting the one-thread environment
         for path, key in todo:
             pending.add(pool.submit(measure_one, path, key, kind, context))

@@ -28,6 +28,7 @@ __all__ = [
     "atomic_write_text",
     "atomic_write_json",
     "append_jsonl",
+    "repair_jsonl_tail",
     "read_json",
     "read_jsonl",
     "read_csv_rows",
@@ -100,15 +101,45 @@ def append_jsonl(path: str | os.PathLike[str], record: Any) -> None:
     """Append one JSON object as one line to ``path`` and fsync it.
 
     A crash can at worst leave a partial last line, which :func:`read_jsonl`
-    reports as such (``skip_partial_last=True`` ignores it when resuming).
+    reports as such (``skip_partial_last=True`` ignores it when resuming); the next
+    append cuts it first (:func:`repair_jsonl_tail`), so a log torn by a kill stays
+    readable after any number of resumes.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     line = json.dumps(to_jsonable(record), allow_nan=False, separators=(",", ":")) + "\n"
+    repair_jsonl_tail(path)
     with open(path, "a", encoding="utf-8") as fh:
         fh.write(line)
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def repair_jsonl_tail(path: str | os.PathLike[str]) -> bool:
+    """Cut a partial last line (a write interrupted by a kill); True when one was cut.
+
+    A missing or empty file, or one that ends with a newline, is left as it is.
+    """
+    try:
+        fh = open(path, "rb+")
+    except FileNotFoundError:
+        return False
+    with fh:
+        fh.seek(0, os.SEEK_END)
+        size = fh.tell()
+        if size == 0:
+            return False
+        fh.seek(size - 1)
+        if fh.read(1) == b"\n":
+            return False
+        block = min(size, 1 << 20)
+        fh.seek(size - block)
+        tail = fh.read(block)
+        cut = tail.rfind(b"\n")
+        fh.truncate(size - block + cut + 1 if cut >= 0 else size - block)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return True
 
 
 #: Largest text file (JSON, JSON Lines, CSV) a reader accepts, bytes.

@@ -211,5 +211,11 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
+        if result.resumed:
+            print(
+                f"resumed {session_dir} from its log: "
+                f"{len(result.steps) - len(result.bent_this_run)} bends already done, "
+                f"{len(result.bent_this_run)} bent this run"
+            )
         print(f"wrote {args.out}, {report} ({len(result.steps)} bends, model {calibration.model})")
     return 0

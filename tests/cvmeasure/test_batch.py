@@ -250,6 +250,36 @@ def test_killed_batch_resumes_and_measures_each_photo_exactly_once(tmp_path):
 
 
 @pytest.mark.slow
+def test_a_batch_killed_alone_leaves_no_worker_behind(tmp_path):
+    disc_photos(tmp_path / "p", 40, size=(640, 480), seed=21, ext=".png")
+    out = tmp_path / "r.jsonl"
+    cmd = [sys.executable, "-m", "cvmeasure", "batch", str(tmp_path / "p"), "--kind", "disc"]
+    cmd += ["-o", str(out), "--workers", "2", "--quiet"]
+    proc = subprocess.Popen(cmd, cwd=REPO, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if out.exists() and out.read_bytes().count(b"\n") >= 4:
+                break
+            time.sleep(0.005)
+        os.kill(proc.pid, signal.SIGKILL)  # the batch only, not its process group
+    finally:
+        proc.wait(timeout=30)
+    # its workers (same process group) notice within a fraction of a second
+    deadline = time.monotonic() + 5.0
+    alive = True
+    while alive and time.monotonic() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+            time.sleep(0.05)
+        except ProcessLookupError:
+            alive = False
+    if alive:
+        os.killpg(proc.pid, signal.SIGKILL)
+    assert not alive, "batch workers outlived the batch by 5 s"
+
+
+@pytest.mark.slow
 def test_dask_local_cluster_on_loopback(tmp_path, capsys):
     from distributed import LocalCluster
 

@@ -50,6 +50,10 @@ def test_jsonl_append_and_partial_last_line(tmp_path):
     with pytest.raises(InputError, match="line 3"):
         read_jsonl(p)
     assert json.loads(p.read_text().splitlines()[0]) == {"a": 1}
+    # the next append cuts the torn line first: the log stays readable after resumes
+    append_jsonl(p, {"a": 4})
+    append_jsonl(p, {"a": 5})
+    assert read_jsonl(p) == [{"a": 1}, {"a": 2}, {"a": 4}, {"a": 5}]
 
 
 def test_csv_roundtrip_and_missing_column(tmp_path):

@@ -118,6 +118,21 @@ def test_killed_session_resumes_without_loss_or_repeat(tmp_path):
     assert np.max(np.abs(np.array([s.springback_deg for s in cal.samples]) - truth)) < 0.05
 
 
+def test_a_log_torn_by_a_kill_survives_repeated_resumes(tmp_path, capsys):
+    out = tmp_path / "cal.json"
+    log = tmp_path / "cal_session" / "session.jsonl"
+    argv = ["session", "--simulate", "-o", str(out), "--angles", ANGLES, "--quiet"]
+    assert main([*argv, "--stop-after", "2"]) == 3
+    with open(log, "a") as fh:
+        fh.write('{"event":"sample","step":2,"direc')  # a kill mid-write
+    assert main([*argv, "--stop-after", "2"]) == 3  # first resume
+    assert main(argv) == 0  # second resume: the torn line must not break the log
+    out_text = capsys.readouterr().out
+    assert "resumed" in out_text
+    samples = [r["step"] for r in read_session_log(log) if r["event"] == "sample"]
+    assert sorted(samples) == list(range(6))
+
+
 def test_resume_refuses_another_plan(tmp_path, capsys):
     session_dir = tmp_path / "s"
     args = ["session", "--simulate", "-o", str(tmp_path / "c.json"), "--dir", str(session_dir)]
