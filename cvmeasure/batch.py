@@ -419,15 +419,17 @@ def _init_worker() -> None:
 PARENT_POLL_S = 0.2
 
 
-def _pool_worker_init(parent_pid: int) -> None:
-    """A pool worker: one OpenCV thread, and it exits as soon as its batch is gone.
+def _pool_worker_init() -> None:
+    """A pool worker: one OpenCV thread, and it exits as soon as its parent is gone.
 
+    The parent is the batch (spawn) or the fork server, which ends with the batch.
     A batch killed with SIGKILL cannot stop its workers; without this they finish
     their photo and idle until the pool's pipes time out (30 s seen).
     """
     import threading
 
     _init_worker()
+    parent_pid = os.getppid()
 
     def watch() -> None:
         while os.getppid() == parent_pid:
@@ -517,7 +519,6 @@ def _run_processes(
             max_workers=workers,
             mp_context=ctx,
             initializer=_pool_worker_init,
-            initargs=(os.getpid(),),
         )
         # the workers start on these first submits, inheriting the one-thread environment
         for path, key in todo:
