@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import int_in
+
 __all__ = ["register", "run"]
 
 
@@ -41,10 +43,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="MODULE:FUNCTION",
         help="measure every photo with this function(photo, context) -> dict instead (kind 'custom')",
     )
-    p.add_argument("--divisions", type=int, help="part photos: report segment_bend_deg for N")
+    p.add_argument(
+        "--divisions", type=int_in(1, 1000), help="part photos: report segment_bend_deg for N"
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="results JSON Lines file")
     p.add_argument(
-        "--workers", type=int, help="worker processes (default: every core; 1 = this process)"
+        "--workers",
+        type=int_in(1, 1024),
+        help="worker processes (default: every core; 1 = this process)",
     )
     p.add_argument(
         "--scheduler", metavar="tcp://HOST:PORT", help="run on this Dask distributed scheduler"

@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import non_negative_int
+
 __all__ = ["register", "run"]
 
 
@@ -21,7 +23,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "-o", "--out", type=Path, default=Path("demo-out"), help="output folder (default demo-out)"
     )
     p.add_argument(
-        "--seed", type=int, default=7, help="random seed of the rendered data (default 7)"
+        "--seed",
+        type=non_negative_int,
+        default=7,
+        help="random seed of the rendered data (default 7)",
     )
     p.add_argument(
         "--json", action="store_true", help="print the results as JSON instead of a table"

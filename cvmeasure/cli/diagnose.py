@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.options import int_in
+
 __all__ = ["register", "run"]
 
 
@@ -31,7 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="JSON",
         help="write the extended model (params JSON with the fitted strength and the named effect)",
     )
-    p.add_argument("--folds", type=int, default=5, help="K of grouped K-fold CV (default 5)")
+    p.add_argument(
+        "--folds", type=int_in(2, 100), default=5, help="K of grouped K-fold CV (default 5)"
+    )
     p.add_argument(
         "--max-causes",
         type=int,
@@ -74,8 +78,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.provenance import provenance
     from cvmeasure.sim import SimParams, params_from_json, params_to_json
 
-    if args.folds < 2:
-        raise InputError("--folds", "must be at least 2")
     trials = TrialTable.read_csv(args.trials)
     params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
     try:

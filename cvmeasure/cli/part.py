@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import int_in, non_negative_float
+
 __all__ = ["register", "run"]
 
 
@@ -23,7 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("photo", type=Path, help="photo of the part beside the board")
     p.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
     p.add_argument("--camera", type=Path, required=True, help="camera JSON (cvmeasure calibrate)")
-    p.add_argument("--divisions", type=int, help="number of chords the part was bent in")
+    p.add_argument(
+        "--divisions", type=int_in(1, 1000), help="number of chords the part was bent in"
+    )
     p.add_argument("--design", type=Path, help="the design the part was bent from (.svg or .dxf)")
     p.add_argument(
         "--method",
@@ -33,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--axis-height-mm",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         help="height of the wire's axis above the board's plane, e.g. the wire's radius when "
         "part and board lie on the same surface (default 0)",

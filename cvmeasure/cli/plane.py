@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.options import positive_float
+
 __all__ = ["register", "run"]
 
 
@@ -26,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--camera", type=Path, required=True, help="camera JSON (cvmeasure calibrate)")
     p.add_argument(
         "--tolerance-deg",
-        type=float,
+        type=positive_float,
         default=0.05,
         help="worst angle error (deg) an affine model may cause (default 0.05)",
     )
@@ -37,7 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="also write the photo rectified to the plane (top view, PNG/JPEG/TIFF)",
     )
     p.add_argument(
-        "--px-per-mm", type=float, default=4.0, help="resolution of --rectified (default 4)"
+        "--px-per-mm",
+        type=positive_float,
+        default=4.0,
+        help="resolution of --rectified (default 4)",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
@@ -52,8 +57,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.imageio import read_photo
     from cvmeasure.provenance import provenance
 
-    if not args.tolerance_deg > 0:
-        raise InputError("--tolerance-deg", "must be a positive number of degrees")
     board = load_board(args.board)
     camera = load_camera(args.camera)
     photo = read_photo(args.photo)

@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import non_negative_int
+
 __all__ = ["register", "run"]
 
 
@@ -31,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-thumbnails", action="store_true", help="leave out the photo overlays")
     p.add_argument(
         "--max-thumbnails",
-        type=int,
+        type=non_negative_int,
         default=500,
         help="overlays for the first N records (default 500)",
     )

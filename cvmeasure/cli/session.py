@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.options import non_negative_int, positive_float
+
 __all__ = ["register", "run"]
 
 
@@ -37,7 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="gphoto2 setting applied before the session, e.g. shutterspeed=1/125 (repeatable)",
     )
     p.add_argument(
-        "--speedup", type=float, default=200.0, help="time speed-up of the double (--simulate)"
+        "--speedup",
+        type=positive_float,
+        default=200.0,
+        help="time speed-up of the double (--simulate)",
     )
     p.add_argument(
         "--mode",
@@ -65,11 +70,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="NAME=VALUE",
         help="machine effect of the simulated bender, e.g. backlash=0.5 (repeatable)",
     )
-    p.add_argument("--scale", type=float, default=0.25, help="render scale (--simulate)")
-    p.add_argument("--seed", type=int, default=0, help="render seed (--simulate)")
-    p.add_argument("--feed-mm", type=float, default=40.0, help="wire fed before each bend")
+    p.add_argument("--scale", type=positive_float, default=0.25, help="render scale (--simulate)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="render seed (--simulate)")
+    p.add_argument("--feed-mm", type=positive_float, default=40.0, help="wire fed before each bend")
     p.add_argument("--report", type=Path, help="HTML report (default: <out stem>.html)")
-    p.add_argument("--stop-after", type=int, help=argparse.SUPPRESS)
+    p.add_argument("--stop-after", type=non_negative_int, help=argparse.SUPPRESS)
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)

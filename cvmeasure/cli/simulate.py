@@ -7,6 +7,8 @@ import json
 import math
 from pathlib import Path
 
+from cvmeasure.cli.options import non_negative_float, non_negative_int
+
 __all__ = ["register", "run", "SIMULATE_COLUMNS"]
 
 #: Columns of the simulate output CSV (spec).
@@ -42,13 +44,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--noise-deg",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         metavar="SIGMA",
         help="add Gaussian noise of this standard deviation (deg) to the loaded and unloaded "
         "angles, as a measurement would (default 0: exact)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed of the noise (default 0)")
+    p.add_argument(
+        "--seed", type=non_negative_int, default=0, help="random seed of the noise (default 0)"
+    )
     p.add_argument("-o", "--out", type=Path, required=True, help="output CSV")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.set_defaults(func=run)
@@ -83,8 +87,6 @@ def run(args: argparse.Namespace) -> int:
         result = simulate(commands, params, effects)
     except ValueError as exc:
         raise InputError("--effect", str(exc)) from None
-    if not (math.isfinite(args.noise_deg) and args.noise_deg >= 0):
-        raise InputError("--noise-deg", f"must be a non-negative number, got {args.noise_deg}")
     if args.noise_deg > 0:
         result = add_noise(result, args.noise_deg, np.random.default_rng(args.seed))
     out_rows = result.rows([row["trial"] for row in rows])

@@ -129,6 +129,13 @@ def test_an_output_file_that_is_a_folder_is_refused(tmp_path, capsys):
         ),
         (["targets", "charuco", "-o", "{t}/b.png", "--dpi", "nan"], "argument --dpi: must be"),
         (["agreement", "{t}/a", "{t}/b", "--tol-deg", "0"], "argument --tol-deg: must be > 0"),
+        (["plane", "{t}/p", "--board", "b", "--camera", "c", "--tolerance-deg", "0"], "> 0"),
+        (["part", "{t}/p", "--divisions", "0"], "argument --divisions: must be a whole number"),
+        (["batch", "{t}", "-o", "{t}/r.jsonl", "--workers", "0"], "argument --workers"),
+        (["diagnose", "{t}/t.csv", "--folds", "1"], "argument --folds: must be a whole number"),
+        (["simulate", "{t}/p.csv", "-o", "{t}/o", "--noise-deg", "-1"], "must be >= 0"),
+        (["session", "--simulate", "-o", "{t}/c.json", "--speedup", "0"], "argument --speedup"),
+        (["report", "{t}/r", "-o", "{t}/r.html", "--max-thumbnails", "-3"], ">= 0"),
         (["gcode", "{t}/d.svg", "-o", "{t}/j.gcode", "--divisions", "0"], "--divisions: must be"),
     ],
 )
