@@ -100,4 +100,12 @@ def run(args: argparse.Namespace) -> int:
             "params": params.to_dict(),
         }
         print(json.dumps(summary, indent=2))
+        return 0
+    spring = np.asarray(result.springback_deg, dtype=float)
+    named = ", ".join(f"{e.name}={e.value:g}" for e in effects) or "none"
+    print(
+        f"wrote {args.out}: {len(out_rows)} bends simulated (effects: {named}; "
+        f"noise {args.noise_deg:g} deg); springback {np.min(spring):.3f} to "
+        f"{np.max(spring):.3f} deg"
+    )
     return 0

@@ -33,10 +33,14 @@ def _read(path):
     return {c: np.array([float(r[c]) for r in rows]) for c in COLUMNS[1:]}, rows
 
 
-def test_simulate_writes_spec_columns(plan, tmp_path):
+def test_simulate_writes_spec_columns(plan, tmp_path, capsys):
     out = tmp_path / "out.csv"
     assert main(["simulate", str(plan), "-o", str(out)]) == 0
     data, rows = _read(out)
+    said = capsys.readouterr().out  # without --json, a one-line summary
+    sb = simulate([40, -40, 90, -120]).springback_deg
+    assert "4 bends simulated (effects: none" in said
+    assert f"springback {min(sb):.3f} to {max(sb):.3f} deg" in said
     assert list(rows[0]) == COLUMNS
     assert [r["trial"] for r in rows] == ["A", "B", "C", "D"]
     ref = simulate([40, -40, 90, -120])
