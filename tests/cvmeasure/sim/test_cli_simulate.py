@@ -51,6 +51,7 @@ def test_simulate_writes_spec_columns(plan, tmp_path, capsys):
 def test_effect_flag_and_params_file_agree(plan, tmp_path, capsys):
     out1, out2 = tmp_path / "o1.csv", tmp_path / "o2.csv"
     assert main(["simulate", str(plan), "--effect", "backlash=1.2", "-o", str(out1)]) == 0
+    assert "effects: backlash=1.2" in capsys.readouterr().out
     params = tmp_path / "p.json"
     params_to_json(params, SimParams(), (Effect("backlash", 1.2),))
     assert main(["simulate", str(plan), "--params", str(params), "-o", str(out2), "--json"]) == 0
