@@ -67,8 +67,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.part.measure import measure_part
     from cvmeasure.provenance import provenance
 
-    if args.divisions is not None and args.divisions < 1:
-        raise InputError("--divisions", "must be a whole number of chords >= 1")
     if args.plot and not args.design:
         raise InputError("--plot", "the deviation plot needs --design")
     board = load_board(args.board)

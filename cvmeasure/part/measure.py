@@ -194,6 +194,13 @@ class PartMeasurement:
         out["plane"] = self.plane
         out["wire"] = self.wire
         out["centreline_mm"] = self.centreline_mm.tolist()
+        # for overlays: the centreline in photo pixels, at most 400 points
+        step = max(1, len(self.centreline_px) // 400)
+        line_px = np.vstack((self.centreline_px[::step], self.centreline_px[-1:]))
+        out["centreline_px"] = np.round(line_px, 2).tolist()
+        out["vertices_px"] = (
+            None if self.vertices_px is None else np.round(self.vertices_px, 2).tolist()
+        )
         out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
         out["warnings"] = list(self.warnings)
         return out

@@ -40,7 +40,9 @@ body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;
 h1{font-size:1.5em;margin-bottom:4px}h2{font-size:1.2em;margin-top:28px;border-bottom:1px solid #ccc}
 .meta{color:#555;font-size:.9em}
 table{border-collapse:collapse;font-size:.85em;margin:8px 0}
-th,td{border:1px solid #d0d0d0;padding:3px 7px;vertical-align:top}
+th,td{border:1px solid #d0d0d0;padding:3px 7px;vertical-align:top;overflow-wrap:anywhere}
+td.name{max-width:22em}td.notes{max-width:36em}
+.wide{overflow-x:auto;max-width:100%}
 th{background:#f0f0f0;text-align:left}td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.fail td{background:#fff0f0}.bad{color:#a01010;font-weight:600}.good{color:#106010;font-weight:600}
 .plots img,img.figure{max-width:640px;margin:6px 12px 6px 0;border:1px solid #ddd}
@@ -209,7 +211,7 @@ def build_report(
         out += _agreement_section(agreement)
 
     columns = table_columns(records)
-    out.append("<h2 id=photos>Photos</h2><table><thead><tr>")
+    out.append("<h2 id=photos>Photos</h2><div class=wide><table><thead><tr>")
     head = (["overlay"] if thumbnails else []) + ["photo", "kind"] + columns + ["warnings / error"]
     out.append("".join(f"<th>{_e(h)}</th>" for h in head) + "</tr></thead><tbody>")
     n_thumbs = min(len(records), max_thumbnails) if thumbnails else 0
@@ -221,15 +223,15 @@ def build_report(
             if progress and i < n_thumbs:
                 progress(i + 1, n_thumbs)
         name = rec.get("file_name") or Path(str(rec.get("photo", ""))).name or rec.get("trial", "")
-        cells.append(f"<td title='{_e(rec.get('photo', ''))}'>{_e(name)}</td>")
+        cells.append(f"<td class=name title='{_e(rec.get('photo', ''))}'>{_e(name)}</td>")
         cells.append(f"<td>{_e(rec.get('kind', ''))}</td>")
         cells += [f"<td class=num>{_fmt(rec.get(c))}</td>" for c in columns]
         notes = [str(w) for w in rec.get("warnings") or []]
         if rec.get("error"):
             notes.insert(0, str(rec["error"]))
-        cells.append(f"<td>{'<br>'.join(_e(n) for n in notes)}</td>")
+        cells.append(f"<td class=notes>{'<br>'.join(_e(n) for n in notes)}</td>")
         out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
-    out.append("</tbody></table>")
+    out.append("</tbody></table></div>")
     return html_page(title, out)
 
 

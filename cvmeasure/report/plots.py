@@ -39,6 +39,13 @@ def _png(fig: Any) -> bytes:
     return buf.getvalue()
 
 
+def _integer_ticks(ax: Any) -> None:
+    """Whole-number ticks on the x axis (a photo index has no fractions)."""
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+
+
 def numeric(value: Any) -> float | None:
     """``value`` as a finite float, or None."""
     if isinstance(value, bool) or value is None:
@@ -121,6 +128,7 @@ def angles_png(records: Sequence[Mapping[str, Any]]) -> bytes | None:
         err = np.array([u if u is not None else 0.0 for u in unc])
         ax.errorbar(x, y, yerr=err, fmt="o", ms=3, lw=1, color=colour, label=key)
     ax.set_xlabel("photo (in results order)")
+    _integer_ticks(ax)
     ax.set_ylabel("angle (deg)")
     ax.set_title("Measured angles")
     ax.legend(fontsize=7)
@@ -150,33 +158,69 @@ def springback_png(records: Sequence[Mapping[str, Any]]) -> bytes | None:
     return _png(fig)
 
 
-def residuals_png(records: Sequence[Mapping[str, Any]]) -> bytes | None:
-    """Distribution of every per-photo residual / uncertainty field, one box per field.
+#: Residual / uncertainty groups of :func:`residuals_png`: (title, unit).
+_RESIDUAL_GROUPS = (
+    ("stated uncertainty, 1 sigma", "deg"),
+    ("fit residual RMS", "mm"),
+    ("marker centre uncertainty, 1 sigma", "px"),
+)
 
-    Fields: top-level numbers whose name contains ``residual`` or ``rms``, and
-    the entries of ``uncertainty_deg``.
-    """
-    series: dict[str, list[float]] = {}
+
+def _residual_series(records: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, list[float]]]:
+    """unit -> field -> values, from every measured record."""
+    out: dict[str, dict[str, list[float]]] = {unit: {} for _, unit in _RESIDUAL_GROUPS}
+
+    def add(unit: str, name: str, value: Any) -> None:
+        if numeric(value) is not None:
+            out[unit].setdefault(name, []).append(float(value))
+
     for r in records:
         if r.get("ok") is False:
             continue
-        for key, value in r.items():
-            if ("residual" in key or "rms" in key) and numeric(value) is not None:
-                series.setdefault(key, []).append(float(value))
         unc = r.get("uncertainty_deg")
         if isinstance(unc, Mapping):
             for key, value in unc.items():
-                if numeric(value) is not None:
-                    series.setdefault(f"u({key})", []).append(float(value))
+                add("deg", f"u({key})", value)
+        for key, value in r.items():
+            if key.startswith("rms_residual_") and key.endswith("_mm"):
+                add("mm", key, value)
+        for block in ("circle", "polyline"):
+            sub = r.get(block)
+            if isinstance(sub, Mapping):
+                add("mm", f"{block} rms_residual_mm", sub.get("rms_residual_mm"))
+        markers = r.get("markers")
+        if isinstance(markers, Mapping):
+            for role, m in markers.items():
+                if isinstance(m, Mapping):
+                    add("px", f"{role} sigma_px", m.get("sigma_px"))
+    return {unit: series for unit, series in out.items() if series}
+
+
+def residuals_png(records: Sequence[Mapping[str, Any]]) -> bytes | None:
+    """Per-photo fit residuals and stated uncertainties, one panel per unit.
+
+    Stated 1-sigma uncertainties of the angles (deg, ``uncertainty_deg``), RMS
+    residuals of the part fits (mm: the circle's and the chord polyline's), and
+    the 1-sigma centre uncertainty of every marker (px). Each box spans the
+    photos' values (median, quartiles, whiskers at 1.5 IQR, outliers as dots).
+    """
+    series = _residual_series(records)
     if not series:
         return None
-    fig, ax = _figure()
-    names = sorted(series)
-    ax.boxplot([series[n] for n in names], showfliers=True)
-    ax.set_xticks(range(1, len(names) + 1), names, rotation=20, fontsize=7)
-    ax.set_yscale("log" if min(min(v) for v in series.values()) > 0 else "linear")
-    ax.set_title("Residuals and stated uncertainties per photo")
-    ax.grid(alpha=0.3)
+    fig, _ = _figure(width_in=max(4.0, 3.3 * len(series)), height_in=3.6)
+    fig.clear()
+    axes = fig.subplots(1, len(series), squeeze=False)[0]
+    titles = dict((unit, title) for title, unit in _RESIDUAL_GROUPS)
+    for ax, (unit, by_name) in zip(axes, series.items(), strict=True):
+        names = sorted(by_name)
+        ax.boxplot([by_name[n] for n in names], showfliers=True)
+        ax.set_xticks(range(1, len(names) + 1), names, rotation=25, fontsize=7, ha="right")
+        values = [v for vs in by_name.values() for v in vs]
+        ax.set_yscale("log" if min(values) > 0 else "linear")
+        ax.set_ylabel(unit)
+        ax.set_title(f"{titles[unit]} ({unit})", fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"Fit residuals and stated uncertainties over {len(records)} records", fontsize=10)
     return _png(fig)
 
 
@@ -189,6 +233,7 @@ def part_png(records: Sequence[Mapping[str, Any]]) -> bytes | None:
     x = np.arange(len(rows))
     ax.plot(x, [float(r["radius_mm"]) for r in rows], "o", color="#1f5f9f", label="radius_mm")
     ax.set_xlabel("photo (in results order)")
+    _integer_ticks(ax)
     ax.set_ylabel("radius (mm)")
     arcs = [numeric(r.get("arc_angle_deg")) for r in rows]
     if any(a is not None for a in arcs):

@@ -107,6 +107,17 @@ def _read_crop(
     return np.ascontiguousarray(crop), float(x0), float(y0), f
 
 
+def _points(value: Any) -> np.ndarray | None:
+    """An (N, 2) array of finite points from a record field, or None."""
+    try:
+        pts = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        return None
+    return pts
+
+
 def overlay_thumbnail(
     record: Mapping[str, Any], path: Path, *, width_px: int = 360, quality: int = 82
 ) -> bytes:
@@ -116,13 +127,22 @@ def overlay_thumbnail(
     frame) the thumbnail shows the region around the markers (so they can be
     checked by eye), each circle in its role's colour, with the feed axis
     (axis -> origin), the pin direction (origin -> pin) and the bent leg
-    (wire_a -> wire_b). Otherwise it shows the whole photo; a record with
-    top-level ``x_px``, ``y_px``, ``r_px`` (a disc) gets its circle.
+    (wire_a -> wire_b). A part record (``centreline_px``) shows the region around
+    the part with its measured centreline (red) and chord vertices (green).
+    Otherwise it shows the whole photo; a record with top-level ``x_px``,
+    ``y_px``, ``r_px`` (a disc) gets its circle.
     """
     import cv2
 
     circles = _marker_circles(record)
-    if circles:
+    line_px = _points(record.get("centreline_px"))
+    vertices_px = _points(record.get("vertices_px"))
+    if line_px is not None and not circles:
+        lo, hi = line_px.min(axis=0), line_px.max(axis=0)
+        margin = 0.15 * float(max(hi - lo)) + 20.0
+        box = (lo[0] - margin, lo[1] - margin, hi[0] + margin, hi[1] + margin)
+        img, ox, oy, scale = _read_crop(path, box, width_px)
+    elif circles:
         xs = [c[0] for c in circles.values()]
         ys = [c[1] for c in circles.values()]
         rmax = max(c[2] for c in circles.values())
@@ -155,6 +175,12 @@ def overlay_thumbnail(
     ):
         if a in circles and b in circles:
             cv2.line(img, pt(*circles[a][:2]), pt(*circles[b][:2]), colour, 1, cv2.LINE_AA, _SHIFT)
+    if line_px is not None:  # a part: its measured centreline and chord vertices
+        pts = np.array([pt(x, y) for x, y in line_px], dtype=np.int32)
+        cv2.polylines(img, [pts], False, (255, 255, 255), 3, cv2.LINE_AA, _SHIFT)
+        cv2.polylines(img, [pts], False, (0, 0, 220), 1, cv2.LINE_AA, _SHIFT)
+        for x, y in vertices_px if vertices_px is not None else ():
+            cv2.circle(img, pt(x, y), 3 << _SHIFT, (0, 180, 0), 1, cv2.LINE_AA, _SHIFT)
     x, y, r = (numeric(record.get(k)) for k in ("x_px", "y_px", "r_px"))
     if x is not None and y is not None and r is not None:
         radius = int(round(r * scale * (1 << _SHIFT)))

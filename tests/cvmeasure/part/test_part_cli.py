@@ -151,12 +151,14 @@ def test_bad_inputs_exit_2(files, capsys, tmp_path):
         ([str(tmp_path / "missing.jpg"), *base], "missing.jpg"),
         ([str(files["jpg"]), *base, "--design", str(broken)], "broken.dxf"),
         ([str(files["jpg"]), *base, "--plot", str(tmp_path / "p.png")], "--plot"),
-        ([str(files["jpg"]), *base, "--divisions", "0"], "--divisions"),
     ]
     for argv, named in cases:
         assert main(["part", *argv]) == 2
         err = capsys.readouterr().err
         assert named in err
+    with pytest.raises(SystemExit) as info:  # refused by the parser
+        main(["part", str(files["jpg"]), *base, "--divisions", "0"])
+    assert info.value.code == 2 and "--divisions" in capsys.readouterr().err
     assert not (tmp_path / "p.png").exists()
 
 

@@ -123,7 +123,7 @@ def check_self_contained(text: str, n_rows: int) -> None:
                 "data:"
             ), (name, value[:80])
     assert doc.find(".//script") is None and doc.find(".//link") is None
-    assert len(doc.findall(".//table[last()]/tbody/tr")) == n_rows
+    assert len(doc.findall(".//div[@class='wide']/table/tbody/tr")) == n_rows
     assert "<b>bold</b>" not in text and "&lt;b&gt;bold&lt;/b&gt;" in text  # escaped
 
 
@@ -144,6 +144,11 @@ def test_report_is_valid_self_contained_html(tmp_path):
 
 def test_cli_report_and_chromium_renders_it(tmp_path):
     records = records_and_files(tmp_path)
+    long_name = "bender_" + "x" * 120 + ".jpg"  # one unbreakable token, as real paths are
+    records.append(
+        {"photo": f"/data/{long_name}", "file_name": long_name, "kind": "machine", "ok": False}
+        | {"error": f"/data/{'very_long_folder_' * 8}/{long_name}: marker 'pin' not found"}
+    )
     results = tmp_path / "results.jsonl"
     for r in records:
         append_jsonl(results, r)
@@ -184,6 +189,27 @@ def test_cli_report_and_chromium_renders_it(tmp_path):
     # and the thumbnails (mid-grey photos) too
     grey = np.all(np.abs(img.astype(int) - 128) < 12, axis=2)
     assert grey.sum() > 5000
+    # nothing runs off the side of a 1400 px window: a copy of the page that reports its
+    # width (the report itself has no script)
+    probe = tmp_path / "probe.html"
+    probe.write_text(
+        text.replace(
+            "</body>",
+            "<script>document.body.setAttribute('data-overflow-px', "
+            "document.documentElement.scrollWidth - window.innerWidth)</script></body>",
+        )
+    )
+    dom = subprocess.run(
+        [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--proxy-server=127.0.0.1:9"]
+        + ["--window-size=1400,900", "--dump-dom", probe.as_uri()],
+        capture_output=True,
+        text=True,
+        timeout=90,
+        check=False,
+    )
+    m = re.search(r'data-overflow-px="(-?\d+)"', dom.stdout)
+    assert m, dom.stderr[-300:]
+    assert int(m.group(1)) <= 0, f"the page is {m.group(1)} px wider than a 1400 px window"
 
 
 def test_cli_report_bad_input(tmp_path, capsys):
