@@ -109,13 +109,34 @@ def run(args: argparse.Namespace) -> int:
 
 def _print_summary(m, out) -> None:
     r = m.result
-    print(f"{m.source}  (method {r.method})", file=out)
-    print(f"  radius_mm       {r.radius_mm:10.3f}", file=out)
-    print(f"  chord_width_mm  {r.chord_width_mm:10.3f}", file=out)
-    print(f"  height_mm       {r.height_mm:10.3f}", file=out)
-    print(f"  arc_angle_deg   {r.arc_angle_deg:10.3f}", file=out)
-    if r.segment_bend_deg is not None:
-        print(f"  segment_bend_deg{r.segment_bend_deg:10.4f}", file=out)
+    chords = {
+        "--divisions": f"{r.divisions} chords (--divisions)",
+        "photo": f"{r.divisions} chords (vertices found in the photo)",
+        None: "no chord vertices found (a smooth curve)",
+    }[m.divisions_from]
+    print(f"{m.source}  (method {r.method}; {chords})", file=out)
+    if m.shape == "s-curve":
+        print("  an S-curve (saddle): its bends change sign along the wire", file=out)
+        print(f"  chord_width_mm  {r.chord_width_mm:10.3f}   end to end", file=out)
+        print(f"  height_mm       {r.height_mm:10.3f}   largest distance from that line", file=out)
+        print(
+            f"  (nearest circle: radius {r.radius_mm:.1f} mm over {r.arc_angle_deg:.1f} deg; "
+            "no real arc)",
+            file=out,
+        )
+    else:
+        print(
+            f"  radius_mm       {r.radius_mm:10.3f}   of the circle through the centreline",
+            file=out,
+        )
+        print(f"  chord_width_mm  {r.chord_width_mm:10.3f}   end to end", file=out)
+        print(f"  height_mm       {r.height_mm:10.3f}   sagitta", file=out)
+        print(f"  arc_angle_deg   {r.arc_angle_deg:10.3f}   subtended at the centre", file=out)
+        if r.segment_bend_deg is not None:
+            print(f"  segment_bend_deg{r.segment_bend_deg:10.4f}   arc / chords", file=out)
+    if m.vertex_bend_deg is not None and len(m.vertex_bend_deg):
+        bends = " ".join(f"{b:+.2f}" for b in m.vertex_bend_deg)
+        print(f"  bend at each vertex (deg, CCW +): {bends}", file=out)
     for name, other in m.methods.items():
         if name != r.method:
             print(

@@ -31,6 +31,8 @@ from cvmeasure.design import divide_into_chords
 from cvmeasure.geometry import CircleFit, wrap_deg
 
 __all__ = [
+    "ChordCount",
+    "count_chords",
     "PolylineFit",
     "ArcGeometry",
     "fit_polyline",
@@ -264,3 +266,120 @@ def fit_polyline(
         rms_residual_mm=rms,
         bend_sigma_deg=np.degrees(np.sqrt(var[:-1] + var[1:])),
     )
+
+
+@dataclass(frozen=True)
+class ChordCount:
+    """How many straight chords a centreline shows (vertices found from the photo).
+
+    Attributes
+    ----------
+    divisions : the number of chords N, or None when the wire shows no clear
+        vertices (a smooth curve, or a straight wire: N = 1 is reported as None).
+    vertex_arclength_mm : arc-length positions of the inner vertices found (mm from
+        the first end).
+    turn_deg : the direction change at each of them, over ``window_mm`` (deg).
+    polyline_rms_mm, circle_rms_mm : RMS residual of the N-chord polyline fit and of a
+        circle fit to the same centreline (mm): the chords must fit far better.
+    reason : why this count, in words.
+    """
+
+    divisions: int | None
+    vertex_arclength_mm: tuple[float, ...]
+    turn_deg: tuple[float, ...]
+    polyline_rms_mm: float | None
+    circle_rms_mm: float
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "divisions": self.divisions,
+            "vertex_arclength_mm": [round(v, 3) for v in self.vertex_arclength_mm],
+            "turn_deg": [round(v, 3) for v in self.turn_deg],
+            "polyline_rms_mm": self.polyline_rms_mm,
+            "circle_rms_mm": self.circle_rms_mm,
+            "reason": self.reason,
+        }
+
+
+def count_chords(
+    ordered_points_mm: np.ndarray,
+    *,
+    step_mm: float = 0.25,
+    window_mm: float = 3.0,
+    min_turn_deg: float = 0.5,
+    min_chord_mm: float = 6.0,
+) -> ChordCount:
+    """Find the vertices of a wire bent in straight chords from its centreline.
+
+    The direction of the centreline (resampled every ``step_mm``) is compared
+    across a ``window_mm`` window: on a straight chord it does not change, at a
+    vertex it turns by the bend. Peaks of that turn at least ``min_turn_deg``
+    above the wire's own noise and ``min_chord_mm`` apart are vertices. The count
+    is kept only when the N-chord polyline fits the centreline far better than a
+    circle does (a smooth arc turns evenly and has no peaks).
+    """
+    from scipy.signal import find_peaks
+
+    from cvmeasure.geometry import fit_circle_robust
+
+    pts = _check_points(ordered_points_mm, 8)
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s = np.concatenate(([0.0], np.cumsum(seg)))
+    circle_rms = float(fit_circle_robust(pts).rms_residual)
+    grid = np.arange(0.0, s[-1], step_mm)
+    half = max(1, round(window_mm / step_mm / 2))
+    k = max(1, round(1.0 / step_mm))  # direction from points 2 mm apart, smoothed over 1 mm
+    if len(grid) < 2 * half + 2 * k + 8:
+        return ChordCount(
+            None, (), (), None, circle_rms, "the wire is too short to look for vertices"
+        )
+    xy = np.column_stack((np.interp(grid, s, pts[:, 0]), np.interp(grid, s, pts[:, 1])))
+    box = np.ones(k) / k
+    xy = np.column_stack(
+        (np.convolve(xy[:, 0], box, mode="valid"), np.convolve(xy[:, 1], box, mode="valid"))
+    )
+    d = xy[2 * k :] - xy[: -2 * k]
+    heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    turn = np.degrees(heading[2 * half :] - heading[: -2 * half])  # turn across the window
+    baseline = float(np.median(turn))
+    dev = np.abs(turn - baseline)
+    # the wire's own noise, from the quietest quarter of the windows (straight chords or
+    # a smooth arc): |N(0, sigma)| has its 25th percentile at 0.32 sigma
+    sigma = float(np.percentile(dev, 25)) / 0.32 + 1e-9
+    height = max(min_turn_deg, 5.0 * sigma)
+    peaks, _ = find_peaks(dev, height=height, distance=max(1, round(min_chord_mm / step_mm)))
+    if len(peaks) == 0:
+        why = "no vertices: the wire turns evenly (a smooth curve) or not at all"
+        return ChordCount(None, (), (), None, circle_rms, why)
+    # weak peaks may be noise, and the weakest bends may hide in it: the count whose
+    # chords fit best wins (the fewest chords within 1.5x of the best fit)
+    weak = int(np.sum(dev[peaks] < 3.0 * height))
+    fits: dict[int, PolylineFit] = {}
+    for n in range(len(peaks) + 1 - min(weak, 3), len(peaks) + 4):
+        if n < 2:
+            continue
+        try:
+            fits[n] = fit_polyline(pts, n)
+        except ValueError:
+            continue
+    if not fits:
+        return ChordCount(None, (), (), None, circle_rms, "no chord fit")
+    best_rms = min(f.rms_residual_mm for f in fits.values())
+    divisions = min(n for n, f in fits.items() if f.rms_residual_mm <= 1.5 * best_rms)
+    poly = fits[divisions]
+    inner = poly.vertices_mm[1:-1]
+    positions = tuple(float(s[int(np.argmin(np.hypot(*(pts - v).T)))]) for v in inner)
+    turns = tuple(float(b) for b in poly.bend_deg)
+    if not poly.rms_residual_mm <= 0.5 * circle_rms:
+        why = (
+            f"{divisions - 1} direction changes found, but {divisions} chords fit no better than "
+            f"a circle (RMS {poly.rms_residual_mm:.4f} vs {circle_rms:.4f} mm)"
+        )
+        return ChordCount(None, positions, turns, poly.rms_residual_mm, circle_rms, why)
+    why = (
+        f"{divisions - 1} vertices (bends of {min(np.abs(turns)):.2f}-{max(np.abs(turns)):.2f} deg); "
+        f"{divisions} chords fit with RMS {poly.rms_residual_mm:.4f} mm vs {circle_rms:.4f} mm "
+        "for a circle"
+    )
+    return ChordCount(divisions, positions, turns, poly.rms_residual_mm, circle_rms, why)

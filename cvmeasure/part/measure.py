@@ -45,8 +45,10 @@ from cvmeasure.part.compare import (
 )
 from cvmeasure.part.fit import (
     ArcGeometry,
+    ChordCount,
     PolylineFit,
     arc_geometry,
+    count_chords,
     fit_polyline,
 )
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
@@ -157,6 +159,11 @@ class PartMeasurement:
     wire : summary of the segmentation.
     comparison : against the design, when one was given.
     warnings : things a user should know (e.g. arcs too short for a stable radius).
+    shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
+        sign, so radius and arc angle describe no real arc).
+    divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
+        (vertices found on the centreline) or None (none: a smooth curve).
+    chords_found : what the vertex search on the centreline found.
     """
 
     source: str
@@ -175,10 +182,16 @@ class PartMeasurement:
     seed_arcs: dict[str, SeedArc] = field(default_factory=dict)
     comparison: DesignComparison | None = None
     warnings: tuple[str, ...] = ()
+    shape: str = "arc"
+    divisions_from: str | None = None
+    chords_found: ChordCount | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
         out["divisions"] = self.result.divisions
+        out["divisions_from"] = self.divisions_from
+        out["shape"] = self.shape
+        out["chords_found"] = None if self.chords_found is None else self.chords_found.to_dict()
         out["vertex_bend_deg"] = (
             None if self.vertex_bend_deg is None else self.vertex_bend_deg.tolist()
         )
@@ -204,6 +217,22 @@ class PartMeasurement:
         out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
         out["warnings"] = list(self.warnings)
         return out
+
+
+#: A seed method's arc angle this far (deg) from the centreline's is warned about.
+ARC_DISAGREE_DEG = 10.0
+#: Vertex bends of both signs beyond this (deg) make a part an S-curve (saddle).
+S_CURVE_BEND_DEG = 0.2
+
+
+def _shape(poly: PolylineFit | None) -> str:
+    """``"s-curve"`` when the vertex bends change sign, else ``"arc"``."""
+    if poly is None:
+        return "arc"
+    bends = np.asarray(poly.bend_deg, dtype=float)
+    if np.any(bends > S_CURVE_BEND_DEG) and np.any(bends < -S_CURVE_BEND_DEG):
+        return "s-curve"
+    return "arc"
 
 
 def arc_from_points(
@@ -434,7 +463,9 @@ def measure_part(
     image : ndarray (H, W, 3) BGR, uint8 or uint16, at the camera's calibrated size.
     board : the board lying in the part's plane.
     camera : the calibrated camera.
-    divisions : the number of chords N the part was bent in.
+    divisions : the number of chords N the part was bent in; None finds the
+        vertices on the centreline (:func:`cvmeasure.part.fit.count_chords`). Given,
+        it is used, with a warning when the photo shows another count.
     design : the design wire (:meth:`cvmeasure.design.Design.wire`), optional.
     method : which method gives the headline values.
     axis_height_mm : height of the wire's axis above the board's plane (mm,
@@ -464,6 +495,20 @@ def measure_part(
         centreline_mm = centreline_mm[::-1]
         centre = replace(centre, points_px=centre.points_px[::-1], ends_px=centre.ends_px[::-1])
     warnings: list[str] = []
+    chords = count_chords(centreline_mm)
+    divisions_from = "--divisions" if divisions is not None else None
+    if divisions is None and chords.divisions is not None:
+        divisions, divisions_from = chords.divisions, "photo"
+    elif divisions is not None and chords.divisions not in (None, divisions):
+        warnings.append(
+            f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
+            f"({chords.reason}); measured with {divisions}"
+        )
+    elif divisions is not None and chords.divisions is None:
+        warnings.append(
+            f"--divisions {divisions}, but no chord vertices were found in the photo "
+            f"({chords.reason})"
+        )
     try:
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
@@ -483,6 +528,20 @@ def measure_part(
         )
     if method not in methods:
         raise InputError(source, f"the {method} method failed on this part")
+    for name, arc in methods.items():
+        if name != "ours" and abs(arc.arc_angle_deg - ours.arc_angle_deg) > ARC_DISAGREE_DEG:
+            warnings.append(
+                f"the seed's {name} method gives an arc of {arc.arc_angle_deg:.1f} deg where the "
+                f"centreline spans {ours.arc_angle_deg:.1f} deg: its figures do not describe "
+                "this part"
+            )
+    shape = _shape(poly)
+    if shape == "s-curve":
+        warnings.append(
+            "the bends change sign along the wire (a saddle / S-curve): radius_mm and "
+            "arc_angle_deg are of the one circle nearest to it and describe no real arc; read "
+            "chord_width_mm, height_mm and the bend at each vertex"
+        )
     cut = _ends_at_a_boundary(centre.ends_px, board, plane, image.shape[:2], wire.width_px)
     if cut:
         warnings.append(
@@ -506,6 +565,9 @@ def measure_part(
     return PartMeasurement(
         source=source,
         result=methods[method],
+        shape=shape,
+        divisions_from=divisions_from,
+        chords_found=chords,
         methods=methods,
         vertex_bend_deg=vertex_bends,
         vertex_bend_sigma_deg=None if poly is None else poly.bend_sigma_deg,

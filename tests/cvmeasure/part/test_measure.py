@@ -91,17 +91,49 @@ def test_saddle_bends_change_sign(sheet):
     assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
     assert m.result.chord_width_mm == pytest.approx(truth["chord_width_mm"], abs=0.3)
     assert m.result.height_mm == pytest.approx(truth["height_mm"], abs=0.2)
+    # a saddle says what its numbers are: no arc, bends of both signs
+    assert m.shape == "s-curve" and any("S-curve" in w for w in m.warnings)
+    assert measure_part(photo.bgr, BOARD, photo.camera).result.divisions == 13  # found
 
 
-def test_without_divisions_the_circle_fits_the_centreline():
+def test_without_divisions_the_vertices_are_found_in_the_photo():
     photo = _photo("short", "dark")
     m = measure_part(photo.bgr, BOARD, photo.camera)
-    assert m.result.divisions is None and m.result.segment_bend_deg is None
-    assert m.vertex_bend_deg is None
-    # a circle through chords of 11.7 deg sits inside the vertices' circle by
-    # about a third of the chord's sagitta (0.42 mm)
-    sagitta = 80.0 * (1 - np.cos(np.radians(70.0 / 6 / 2)))
-    assert m.result.radius_mm == pytest.approx(80.0 - sagitta / 2, abs=0.25)
+    assert m.divisions_from == "photo" and m.result.divisions == 6  # 5 vertices found
+    given = measure_part(photo.bgr, BOARD, photo.camera, divisions=6)
+    assert m.result.radius_mm == pytest.approx(given.result.radius_mm, abs=1e-9)
+    assert m.result.radius_mm == pytest.approx(80.0, rel=3e-3)  # the vertices' circle
+    assert len(m.chords_found.vertex_arclength_mm) == 5
+    assert not any("divisions" in w for w in m.warnings)
+    # a wrong --divisions is used as given, and said
+    wrong = measure_part(photo.bgr, BOARD, photo.camera, divisions=5)
+    assert any("--divisions 5, but the photo shows 6 chords" in w for w in wrong.warnings)
+
+
+@pytest.mark.parametrize("kind", ["half", "short"])
+def test_a_seed_method_far_from_the_centreline_is_warned_about(kind):
+    photo = _photo(kind, "light")
+    m = measure_part(photo.bgr, BOARD, photo.camera, method="ellipse")
+    ours = m.methods["ours"].arc_angle_deg
+    for name in ("ellipse", "sagitta"):
+        if name not in m.methods:
+            continue
+        far = abs(m.methods[name].arc_angle_deg - ours) > 10.0
+        said = any(f"the seed's {name} method gives an arc" in w for w in m.warnings)
+        assert far == said, (name, m.methods[name].arc_angle_deg, ours)
+
+
+def test_a_smooth_arc_has_no_vertices_and_is_fitted_as_a_circle():
+    part = cvmeasure_datasets.arc_part(80.0, 120.0, 400)  # chords of 0.4 mm: a smooth arc
+    pose = cvmeasure_datasets.Pose(distance_mm=900.0, offset_mm=(280.0, 100.0))
+    photo = cvmeasure_datasets.render_part_photo(
+        part=part, board=BOARD, sheet="dark", pose=pose, seed=4, scale=SCALE
+    )
+    m = measure_part(photo.bgr, BOARD, photo.camera)
+    assert m.divisions_from is None and m.result.divisions is None
+    assert m.vertex_bend_deg is None and m.shape == "arc"
+    assert m.result.radius_mm == pytest.approx(80.0, rel=3e-3)
+    assert m.result.arc_angle_deg == pytest.approx(120.0, abs=0.5)
 
 
 def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
