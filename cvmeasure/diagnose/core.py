@@ -40,9 +40,9 @@ from numpy.typing import NDArray
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.fitting import (
     ModelFit,
-    cross_validate,
     fit_model,
     group_folds,
+    grouped_kfold_cv,
     residuals,
 )
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
@@ -301,169 +301,45 @@ def diagnose(
     params = params or SimParams()
     if len(trials) < MIN_TRIALS:
         raise ValueError(f"need at least {MIN_TRIALS} trials to diagnose, got {len(trials)}")
-    names = [n for n in (candidates or EFFECT_NAMES) if n != "none"]
+    names = tuple(n for n in (candidates or EFFECT_NAMES) if n != "none")
     for n in names:
         if n not in EFFECTS:
             raise ValueError(f"unknown candidate {n!r}")
     groups = trials.group
-    group_note = None
+    notes = _design_notes(trials)
     if len(set(groups)) < MIN_GROUPS:
         groups = tuple(str(i) for i in range(len(trials)))
-        group_note = (
+        notes.append(
             f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
             "effects shared within a part are not held out"
         )
-    fold_masks = group_folds(groups, folds)
-
-    base_fit = fit_model(trials, params, "none", base_effects=base_effects)
-    base_cv = cross_validate(
-        trials, params, "none", fold_masks, base_effects=base_effects, full_fit=base_fit
+    ctx = _Context(
+        trials=trials,
+        params=params,
+        base_effects=tuple(base_effects),
+        fold_masks=tuple(group_folds(groups, folds)),
+        names=names,
+        min_cv_gain=min_cv_gain,
+        min_delta_bic=min_delta_bic,
     )
-
-    def round_of(
-        named: ModelFit, named_cv: float, tried: Sequence[str], *, cv_all: bool = True
-    ) -> list[CandidateResult]:
-        """Try each cause on top of ``named``; ``cv_all=False`` skips the held-out error
-        of causes that already fail the BIC test (they cannot be accepted)."""
-        out = []
-        for name in tried:
-            fit = fit_model(
-                trials,
-                params,
-                (*named.causes, name),
-                base_effects=base_effects,
-                known=named.param_values_by_cause(),
-            )
-            dbic = _delta_bic(named, fit)
-            if not cv_all and dbic < min_delta_bic:
-                out.append(CandidateResult(name, math.nan, fit, dbic, False))
-                continue
-            cv = cross_validate(
-                trials, params, fit.causes, fold_masks, base_effects=base_effects, full_fit=fit
-            ).rmse_deg
-            cv_gain_ok = max(cv, RESOLUTION_DEG) <= (1.0 - min_cv_gain) * max(
-                named_cv, RESOLUTION_DEG
-            )
-            out.append(
-                CandidateResult(name, cv, fit, dbic, bool(cv_gain_ok and dbic >= min_delta_bic))
-            )
-        out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
-        return out
-
-    results = round_of(base_fit, base_cv.rmse_deg, names)
-    notes = _design_notes(trials)
-    if group_note:
-        notes.append(group_note)
-    accepted = [c for c in results if c.accepted]
-    second: list[CandidateResult] = []
-    ident: tuple[Identifiability, ...] = ()
-    experiment = None
-    if accepted:
-
-        def extend(first: CandidateResult) -> tuple[Any, ...]:
-            """First cause -> (final fit, its CV, identifiability, second round, notes)."""
-            ident_f = tuple(
-                check_identifiability(
-                    trials,
-                    params,
-                    first.cause,
-                    [c.cause for c in results if c.cause != first.cause],
-                    base_effects=base_effects,
-                )
-            )
-            blocked = {first.cause, *(i.causes[1] for i in ident_f if not i.separable)}
-            fit_f, cv_f, round2, notes_f = first.fit, first.cv_rmse_deg, [], []
-            if max_causes > 1 and _structure_left(
-                trials, first.fit, params, base_effects, fold_masks
-            ):
-                round2 = round_of(
-                    first.fit,
-                    first.cv_rmse_deg,
-                    [n for n in names if n not in blocked],
-                    cv_all=False,
-                )
-                more = [c for c in round2 if c.accepted]
-                # two causes must explain the data down to the noise; if structure is still
-                # left, the second name would be forced onto an unnamed discrepancy
-                if more and _leftover_of(trials, more[0].fit, params, base_effects, fold_masks):
-                    notes_f.append(
-                        f"{more[0].cause} on top of {first.cause} lowers the held-out RMSE but "
-                        "leaves structure no pair of named causes explains; not named"
-                    )
-                    more = []
-                if more:
-                    fit_f, cv_f = more[0].fit, more[0].cv_rmse_deg
-                    notes_f.append(
-                        f"a second cause, {more[0].cause}, improves the held-out RMSE further "
-                        f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
-                    )
-            return fit_f, cv_f, ident_f, round2, notes_f
-
-        # greedy with a small beam: the best few single causes each get their second round
-        firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
-        outcomes = [(first, extend(first)) for first in firsts[:BEAM_WIDTH]]
-        best, (ext_fit, ext_cv, ident, round2, notes_best) = min(outcomes, key=lambda o: o[1][1])
-        second = list(round2)
-        single_cv = {c.cause: c.cv_rmse_deg for c in results}
-        if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
-            ext_fit = ext_fit.reordered(ext_fit.causes[::-1])
-        close = [
-            c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
-        ]
-        if close and len(ext_fit.causes) == 1:
-            notes.append(
-                f"{', '.join(close)} explain the data almost as well as {best.cause} "
-                "(held-out RMSE within 5 %)"
-            )
-        confounded = [i for i in ident if not i.separable]
-        for i in confounded:
-            how = i.experiment or "no experiment in the catalogue separates them"
-            notes.append(
-                f"{i.causes[0]} and {i.causes[1]} cannot be told apart on this data "
-                f"(signature similarity {i.similarity:.3f}); {how}"
-            )
-        experiment = next((i.experiment for i in confounded if i.experiment), None)
-        notes.extend(notes_best)
-        cause = ext_fit.causes[0]
-        at_bound = [
-            f"{c} ({EFFECTS[c].param} = {v:.4g} {EFFECTS[c].unit})"
-            for c, v in zip(ext_fit.causes, ext_fit.values, strict=True)
-            if np.isclose(v, EFFECTS[c].lower) or np.isclose(v, EFFECTS[c].upper)
-        ]
-        if at_bound:
-            notes.append(
-                f"{', '.join(at_bound)} at its physical bound: the data want more than the "
-                "catalogue allows; treat the name with suspicion"
-            )
-    if accepted and ext_fit.sigma_deg > GROSS_MISFIT_DEG:
-        notes.append(
-            f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
-            "simulation does not describe these data (check signs, units and columns of the "
-            f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
-        )
-        accepted = []
-        second = []
-        ident, experiment = (), None
-        gross = True
-    else:
-        gross = False
-    if not accepted:
-        cause, ext_fit, ext_cv = "none", base_fit, base_cv.rmse_deg
-    if not accepted and not gross:
-        notes.append(
-            f"no candidate beats the noise floor (held-out RMSE {base_cv.rmse_deg:.3f} deg); "
-            "nothing is named"
-        )
+    base_fit = fit_model(trials, params, "none", base_effects=ctx.base_effects)
+    base_cv = grouped_kfold_cv(
+        trials, params, "none", ctx.fold_masks, base_effects=ctx.base_effects, full_fit=base_fit
+    ).rmse_deg
+    results = _try_causes(ctx, base_fit, base_cv, names)
+    naming = _name_causes(ctx, results, base_fit, base_cv, max_causes)
+    notes.extend(naming.notes)
+    experiment = naming.experiment
     if experiment is None and not trials.both_directions:
         experiment = "add reverse bends (the same angles in the other direction)"
     elif experiment is None and not trials.has_loaded:
         experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
-
-    base_res = residuals(trials, params, base_effects, (), base_fit.strength_scale)
+    ext_fit = naming.fit
+    base_res = residuals(trials, params, ctx.base_effects, (), base_fit.strength_scale)
     ext_res = residuals(
-        trials, params, base_effects, ext_fit.causes, ext_fit.strength_scale, ext_fit.values
+        trials, params, ctx.base_effects, ext_fit.causes, ext_fit.strength_scale, ext_fit.values
     )
-    leftover = leftover_structure(trials, ext_res, fold_masks)
+    leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
             f"a discrepancy remains that no named cause explains (a smoother along the "
@@ -472,24 +348,214 @@ def diagnose(
             "or look for two causes at once"
         )
     return Diagnosis(
-        cause=cause,
+        cause=naming.cause,
         params=ext_fit.param_values(),
         intervals=ext_fit.param_intervals(),
-        baseline_rmse_deg=base_cv.rmse_deg,
-        extended_rmse_deg=ext_cv,
+        baseline_rmse_deg=base_cv,
+        extended_rmse_deg=naming.cv_rmse_deg,
         candidates=tuple(results),
-        second_candidates=tuple(second),
+        second_candidates=naming.second_round,
         baseline_fit=base_fit,
         extended_fit=ext_fit,
         baseline_residual_deg=base_res,
         extended_residual_deg=ext_res,
         trends_before=tuple(residual_trends(trials, base_res)),
         trends_after=tuple(residual_trends(trials, ext_res)),
-        identifiability=ident,
+        identifiability=naming.identifiability,
         recommended_experiment=experiment,
         leftover=leftover,
         nominal_params=params,
         n_trials=len(trials),
-        n_folds=len(fold_masks),
+        n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
+    )
+
+
+@dataclass(frozen=True)
+class _Context:
+    """What every step of one diagnosis works on."""
+
+    trials: TrialTable
+    params: SimParams
+    base_effects: tuple[Effect, ...]
+    fold_masks: tuple[NDArray[np.bool_], ...]
+    names: tuple[str, ...]
+    min_cv_gain: float
+    min_delta_bic: float
+
+
+@dataclass(frozen=True)
+class _Extension:
+    """A first cause, extended: the final fit (one or two causes) and what was learnt."""
+
+    fit: ModelFit
+    cv_rmse_deg: float
+    identifiability: tuple[Identifiability, ...]
+    second_round: tuple[CandidateResult, ...]
+    notes: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class _Naming:
+    """The causes named (or none), the model that names them and the notes on why."""
+
+    cause: str
+    fit: ModelFit
+    cv_rmse_deg: float
+    identifiability: tuple[Identifiability, ...]
+    second_round: tuple[CandidateResult, ...]
+    experiment: str | None
+    notes: tuple[str, ...]
+
+
+def _try_causes(
+    ctx: _Context,
+    named: ModelFit,
+    named_cv: float,
+    tried: Sequence[str],
+    *,
+    cv_all: bool = True,
+) -> list[CandidateResult]:
+    """Each cause on top of ``named``, best held-out first; ``cv_all=False`` skips the
+    held-out error of causes that already fail the BIC test (they cannot be accepted)."""
+    out = []
+    for name in tried:
+        fit = fit_model(
+            ctx.trials,
+            ctx.params,
+            (*named.causes, name),
+            base_effects=ctx.base_effects,
+            known=named.param_values_by_cause(),
+        )
+        dbic = _delta_bic(named, fit)
+        if not cv_all and dbic < ctx.min_delta_bic:
+            out.append(CandidateResult(name, math.nan, fit, dbic, False))
+            continue
+        cv = grouped_kfold_cv(
+            ctx.trials,
+            ctx.params,
+            fit.causes,
+            ctx.fold_masks,
+            base_effects=ctx.base_effects,
+            full_fit=fit,
+        ).rmse_deg
+        cv_gain_ok = max(cv, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
+            named_cv, RESOLUTION_DEG
+        )
+        accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
+        out.append(CandidateResult(name, cv, fit, dbic, accepted))
+    out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
+    return out
+
+
+def _extend(
+    ctx: _Context, first: CandidateResult, results: Sequence[CandidateResult], max_causes: int
+) -> _Extension:
+    """Identifiability of a first cause, and a second cause on top when structure is left."""
+    masks = list(ctx.fold_masks)
+    ident = tuple(
+        check_identifiability(
+            ctx.trials,
+            ctx.params,
+            first.cause,
+            [c.cause for c in results if c.cause != first.cause],
+            base_effects=ctx.base_effects,
+        )
+    )
+    blocked = {first.cause, *(i.causes[1] for i in ident if not i.separable)}
+    fit, cv, round2, notes = first.fit, first.cv_rmse_deg, [], []
+    if max_causes > 1 and _structure_left(
+        ctx.trials, first.fit, ctx.params, ctx.base_effects, masks
+    ):
+        round2 = _try_causes(
+            ctx,
+            first.fit,
+            first.cv_rmse_deg,
+            [n for n in ctx.names if n not in blocked],
+            cv_all=False,
+        )
+        more = [c for c in round2 if c.accepted]
+        # two causes must explain the data down to the noise; if structure is still
+        # left, the second name would be forced onto an unnamed discrepancy
+        if more and _leftover_of(ctx.trials, more[0].fit, ctx.params, ctx.base_effects, masks):
+            notes.append(
+                f"{more[0].cause} on top of {first.cause} lowers the held-out RMSE but "
+                "leaves structure no pair of named causes explains; not named"
+            )
+            more = []
+        if more:
+            fit, cv = more[0].fit, more[0].cv_rmse_deg
+            notes.append(
+                f"a second cause, {more[0].cause}, improves the held-out RMSE further "
+                f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
+            )
+    return _Extension(fit, cv, ident, tuple(round2), tuple(notes))
+
+
+def _name_causes(
+    ctx: _Context,
+    results: Sequence[CandidateResult],
+    base_fit: ModelFit,
+    base_cv: float,
+    max_causes: int,
+) -> _Naming:
+    """Pick the cause(s) among the accepted candidates, or name none, with the notes why."""
+    accepted = [c for c in results if c.accepted]
+    notes: list[str] = []
+    if not accepted:
+        notes.append(
+            f"no candidate beats the noise floor (held-out RMSE {base_cv:.3f} deg); "
+            "nothing is named"
+        )
+        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+    # greedy with a small beam: the best few single causes each get their second round
+    firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
+    outcomes = [(first, _extend(ctx, first, results, max_causes)) for first in firsts[:BEAM_WIDTH]]
+    best, ext = min(outcomes, key=lambda o: o[1].cv_rmse_deg)
+    ext_fit = ext.fit
+    single_cv = {c.cause: c.cv_rmse_deg for c in results}
+    if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
+        ext_fit = ext_fit.reordered(ext_fit.causes[::-1])
+    close = [
+        c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
+    ]
+    if close and len(ext_fit.causes) == 1:
+        notes.append(
+            f"{', '.join(close)} explain the data almost as well as {best.cause} "
+            "(held-out RMSE within 5 %)"
+        )
+    confounded = [i for i in ext.identifiability if not i.separable]
+    for i in confounded:
+        how = i.experiment or "no experiment in the catalogue separates them"
+        notes.append(
+            f"{i.causes[0]} and {i.causes[1]} cannot be told apart on this data "
+            f"(signature similarity {i.similarity:.3f}); {how}"
+        )
+    experiment = next((i.experiment for i in confounded if i.experiment), None)
+    notes.extend(ext.notes)
+    at_bound = [
+        f"{c} ({EFFECTS[c].param} = {v:.4g} {EFFECTS[c].unit})"
+        for c, v in zip(ext_fit.causes, ext_fit.values, strict=True)
+        if np.isclose(v, EFFECTS[c].lower) or np.isclose(v, EFFECTS[c].upper)
+    ]
+    if at_bound:
+        notes.append(
+            f"{', '.join(at_bound)} at its physical bound: the data want more than the "
+            "catalogue allows; treat the name with suspicion"
+        )
+    if ext_fit.sigma_deg > GROSS_MISFIT_DEG:
+        notes.append(
+            f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
+            "simulation does not describe these data (check signs, units and columns of the "
+            f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
+        )
+        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+    return _Naming(
+        ext_fit.causes[0],
+        ext_fit,
+        ext.cv_rmse_deg,
+        ext.identifiability,
+        ext.second_round,
+        experiment,
+        tuple(notes),
     )

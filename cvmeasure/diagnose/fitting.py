@@ -35,7 +35,7 @@ __all__ = [
     "residuals",
     "fit_model",
     "group_folds",
-    "cross_validate",
+    "grouped_kfold_cv",
 ]
 
 _STRENGTH_BOUNDS = (0.2, 5.0)
@@ -292,7 +292,7 @@ def group_folds(groups: Sequence[str], k: int = 5, *, seed: int = 0) -> list[NDA
     return [np.isin(labels, order[i::n_folds]) for i in range(n_folds)]
 
 
-def cross_validate(
+def grouped_kfold_cv(
     trials: TrialTable,
     params: SimParams,
     causes: str | Sequence[str],

@@ -128,6 +128,7 @@ def test_simulate_then_diagnose_round_trip(tmp_path, capsys, noise):
     trials = tmp_path / "trials.csv"
     argv = ["simulate", str(plan), "--effect", "drift=0.04", "-o", str(trials)]
     assert main([*argv, "--noise-deg", noise, "--seed", "3"]) == 0
+    assert "30 bends simulated" in capsys.readouterr().out
     assert main(["diagnose", str(trials), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["cause"] == "drift"
@@ -136,6 +137,7 @@ def test_simulate_then_diagnose_round_trip(tmp_path, capsys, noise):
         assert out["params"]["drift_deg_per_bend"] == pytest.approx(0.04, abs=1e-6)
         # and exact null data names nothing (rounding error is not a cause)
         assert main(["simulate", str(plan), "-o", str(trials)]) == 0
+        capsys.readouterr()
         assert main(["diagnose", str(trials), "--json"]) == 0
         assert json.loads(capsys.readouterr().out)["cause"] == "none"
 
