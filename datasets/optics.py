@@ -111,6 +111,32 @@ class Pose:
         rot = np.vstack((x_c, y_c, z_c))
         return rot, -rot @ centre
 
+    @classmethod
+    def from_extrinsics(cls, rot: np.ndarray, t_mm: np.ndarray, frame: Frame = "board") -> Pose:
+        """The pose whose :meth:`extrinsics` in ``frame`` are ``(rot, t_mm)`` (camera <- frame).
+
+        The camera must look at the plane (its optical axis meets z = 0 in front of it).
+        """
+        rot = np.asarray(rot, dtype=np.float64).reshape(3, 3)
+        centre = -rot.T @ np.asarray(t_mm, dtype=np.float64).reshape(3)
+        z_c = rot[2]
+        if abs(z_c[2]) < 1e-9:
+            raise ValueError("the optical axis is parallel to the plane")
+        s = -centre[2] / z_c[2]
+        if s <= 0:
+            raise ValueError("the camera looks away from the plane")
+        target = centre + s * z_c
+        up = 1.0 if frame == "machine" else -1.0
+        away = (centre - target) / s
+        tilt = float(np.degrees(np.arccos(np.clip(away[2] * up, -1.0, 1.0))))
+        direction = float(np.degrees(np.arctan2(away[1], away[0]))) if tilt > 1e-9 else 0.0
+        ex = np.array([1.0, 0.0, 0.0])
+        x0 = ex - ex.dot(z_c) * z_c
+        x0 /= np.linalg.norm(x0)
+        y0 = np.cross(z_c, x0)
+        yaw = float(np.degrees(np.arctan2(rot[0].dot(y0), rot[0].dot(x0))))
+        return cls(tilt, direction % 360.0, yaw, float(s), (float(target[0]), float(target[1])))
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "tilt_deg": self.tilt_deg,

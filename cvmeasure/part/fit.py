@@ -344,25 +344,42 @@ def count_chords(
     turn = np.degrees(heading[2 * half :] - heading[: -2 * half])  # turn across the window
     baseline = float(np.median(turn))
     dev = np.abs(turn - baseline)
-    # the wire's own noise, from the quietest quarter of the windows (straight chords or
-    # a smooth arc): |N(0, sigma)| has its 25th percentile at 0.32 sigma
-    sigma = float(np.percentile(dev, 25)) / 0.32 + 1e-9
+    # the wire's own noise from the quietest windows (straight chords or a smooth arc;
+    # short chords leave few): |N(0, sigma)| has its 10th percentile at 0.126 sigma. Then
+    # once more from the windows away from the peaks found
+    distance = max(1, round(min_chord_mm / step_mm))
+    sigma = float(np.percentile(dev, 10)) / 0.126 + 1e-9
+    peaks, _ = find_peaks(dev, height=max(min_turn_deg, 5.0 * sigma), distance=distance)
+    quiet = np.ones(len(dev), dtype=bool)
+    for p in peaks:
+        quiet[max(0, p - 2 * half - k) : p + 2 * half + k + 1] = False
+    if quiet.sum() >= 20:
+        sigma = 1.4826 * float(np.median(dev[quiet])) / 0.6745 + 1e-9
     height = max(min_turn_deg, 5.0 * sigma)
-    peaks, _ = find_peaks(dev, height=height, distance=max(1, round(min_chord_mm / step_mm)))
-    if len(peaks) == 0:
-        why = "no vertices: the wire turns evenly (a smooth curve) or not at all"
-        return ChordCount(None, (), (), None, circle_rms, why)
-    # weak peaks may be noise, and the weakest bends may hide in it: the count whose
-    # chords fit best wins (the fewest chords within 1.5x of the best fit)
-    weak = int(np.sum(dev[peaks] < 3.0 * height))
+    peaks, _ = find_peaks(dev, height=height, distance=distance)
     fits: dict[int, PolylineFit] = {}
-    for n in range(len(peaks) + 1 - min(weak, 3), len(peaks) + 4):
-        if n < 2:
-            continue
-        try:
-            fits[n] = fit_polyline(pts, n)
-        except ValueError:
-            continue
+    if len(peaks) == 0:
+        # chords so short that no window is quiet hide their peaks: try every count
+        for n in range(2, int(min(60, s[-1] // min_chord_mm)) + 1):
+            try:
+                fits[n] = fit_polyline(pts, n)
+            except ValueError:
+                break
+        best0 = min((f.rms_residual_mm for f in fits.values()), default=math.inf)
+        if not best0 <= 0.2 * circle_rms:
+            why = "no vertices: the wire turns evenly (a smooth curve) or not at all"
+            return ChordCount(None, (), (), None, circle_rms, why)
+    else:
+        # weak peaks may be noise, and the weakest bends may hide in it: the count whose
+        # chords fit best wins (the fewest chords within 1.5x of the best fit)
+        weak = int(np.sum(dev[peaks] < 3.0 * height))
+        for n in range(len(peaks) + 1 - min(weak, 3), len(peaks) + 4):
+            if n < 2:
+                continue
+            try:
+                fits[n] = fit_polyline(pts, n)
+            except ValueError:
+                continue
     if not fits:
         return ChordCount(None, (), (), None, circle_rms, "no chord fit")
     best_rms = min(f.rms_residual_mm for f in fits.values())

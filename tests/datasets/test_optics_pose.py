@@ -156,3 +156,22 @@ def test_truth_gives_the_tilt_direction_plane_reports(tilt_direction_deg, yaw_de
     expected = view.truth["pose"]["tilt_direction_image_deg"]
     assert abs(wrap_deg(plane.tilt_direction_deg - expected)) < 0.5
     assert plane.tilt_deg == pytest.approx(20.0, abs=0.1)
+
+
+@pytest.mark.parametrize("frame", ["board", "machine"])
+@pytest.mark.parametrize(
+    "pose",
+    [
+        (7.0, 123.0, 33.0, 812.0, (12.0, -40.0)),
+        (0.0, 0.0, -20.0, 900.0, (5.0, 5.0)),
+        (25.0, 300.0, 170.0, 500.0, (0.0, 0.0)),
+    ],
+)
+def test_pose_from_extrinsics_round_trips(frame, pose):
+    from cvmeasure_datasets.optics import Pose
+
+    rot, t_mm = Pose(*pose).extrinsics(frame)
+    again = Pose.from_extrinsics(rot, t_mm, frame)
+    rot2, t2 = again.extrinsics(frame)
+    np.testing.assert_allclose(rot2, rot, atol=1e-9)
+    np.testing.assert_allclose(t2, t_mm, atol=1e-6)
