@@ -87,6 +87,9 @@ GROSS_MISFIT_DEG = 5.0
 MIN_GROUPS = 3
 #: Fewest trials the diagnosis accepts.
 MIN_TRIALS = 8
+#: More trials than this are diagnosed on a random subset of this size (whole CV groups,
+#: order kept), said in the notes: the intervals are then those of the subset (wider).
+MAX_TRIALS = 20_000
 
 
 @dataclass(frozen=True)
@@ -305,8 +308,16 @@ def diagnose(
     for n in names:
         if n not in EFFECTS:
             raise ValueError(f"unknown candidate {n!r}")
+    notes: list[str] = []
+    if len(trials) > MAX_TRIALS:
+        n_all = len(trials)
+        trials = _subset_by_group(trials, MAX_TRIALS)
+        notes.append(
+            f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
+            "parts, order kept) to bound the time; intervals are those of the subset"
+        )
     groups = trials.group
-    notes = _design_notes(trials)
+    notes.extend(_design_notes(trials))
     if len(set(groups)) < MIN_GROUPS:
         groups = tuple(str(i) for i in range(len(trials)))
         notes.append(
@@ -369,6 +380,19 @@ def diagnose(
         n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
     )
+
+
+def _subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable:
+    """About ``size`` trials: whole CV groups drawn at random, in their original order."""
+    groups = np.asarray(trials.group)
+    unique, counts = np.unique(groups, return_counts=True)
+    order = np.random.default_rng(seed).permutation(len(unique))
+    keep = unique[order[np.cumsum(counts[order]) <= size]]
+    if keep.size == 0:  # one huge group: single trials instead
+        mask = np.zeros(len(trials), dtype=bool)
+        mask[np.random.default_rng(seed).choice(len(trials), size, replace=False)] = True
+        return trials.subset(mask)
+    return trials.subset(np.isin(groups, keep))
 
 
 @dataclass(frozen=True)
