@@ -98,6 +98,14 @@ LOW_CONTRAST = 25.0
 #: chroma subsampling makes the estimate read ~0.55-0.9 of the true k; photos
 #: without lateral colour read |k| < 1.3e-4 at 0.3 scale, < 2e-5 at full size.
 LATERAL_CA_THRESHOLD = 2e-4
+#: Markers measured on a plane whose size differs from the kit's by more than this
+#: (median over the discs) mean the plane is from another camera pose or distance.
+PLANE_SCALE_TOLERANCE = 0.02
+#: Discs that come out elliptic on the plane by more than this, all in one direction,
+#: mean the plane's tilt is not the photo's. A coarse check: JPEG edges already make
+#: round discs read ~0.2 % elliptic, and a plane tilted 3 deg off (0.04 deg of angle
+#: error) reads only ~0.3 % (benchmarks: the scale check catches another distance).
+PLANE_SHAPE_TOLERANCE = 0.005
 #: How many discs (the farthest from the image centre) the lateral-colour probe reads.
 LATERAL_CA_PROBES = 3
 
@@ -248,6 +256,16 @@ def lateral_ca_estimate(
     return num / den if den > 0 else None
 
 
+def _anisotropy(offsets: np.ndarray) -> np.ndarray:
+    """(cos 2t, sin 2t) components of a closed outline's ellipticity, from its second moments.
+
+    0 for a circle; about (e, 0) for an ellipse with axes a (1 + e) along x and a along y.
+    """
+    m = offsets.T @ offsets / max(len(offsets), 1)
+    trace = float(m[0, 0] + m[1, 1]) or 1.0
+    return np.array([(m[0, 0] - m[1, 1]) / trace, 2.0 * m[0, 1] / trace])
+
+
 def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | None) -> list[str]:
     out = []
     if fit.coverage < HIDDEN_COVERAGE:
@@ -320,6 +338,8 @@ def _measure_ours(
                 " edges taken in green"
             )
     delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
+    plane_scale: list[float] = []
+    plane_shape: list[np.ndarray] = []
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
         markers[role] = MarkerMeasurement(
@@ -340,14 +360,35 @@ def _measure_ours(
             jac = transform.jacobian(fit.centre)
             c_f = transform(np.array([fit.centre]))[0]
             r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
+            pts_f = transform(edges.points_px)
             fit_f = fit_circle_robust(
-                transform(edges.points_px),
-                init=(c_f[0], c_f[1], r_f),
-                correlation_factor=CORRELATION_FACTOR,
+                pts_f, init=(c_f[0], c_f[1], r_f), correlation_factor=CORRELATION_FACTOR
             )
             centres[role] = np.array(fit_f.centre)
             covs[role] = jac @ cov_img @ jac.T
+            if transform.name == "plane":
+                plane_scale.append(fit_f.radius / (0.5 * kit.by_role(role).diameter_mm))
+                if fit.coverage >= HIDDEN_COVERAGE:
+                    plane_shape.append(_anisotropy(pts_f - np.asarray(fit_f.centre)))
         warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
+    if plane_scale:
+        ratio = float(np.median(plane_scale))
+        if abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
+            warnings.append(
+                f"the markers measure {100 * (ratio - 1):+.1f} % in size on the plane against "
+                "the kit's diameters: the plane is probably from another camera pose or "
+                "distance (measure the plane again from this pose)"
+            )
+    if len(plane_shape) >= 3:
+        shape = np.asarray(plane_shape)
+        mean = shape.mean(axis=0)
+        se = shape.std(axis=0, ddof=1) / math.sqrt(len(shape))
+        size = float(np.hypot(*mean))
+        if size > PLANE_SHAPE_TOLERANCE and size > 3.0 * float(np.hypot(*se)):
+            warnings.append(
+                f"the discs come out {100 * size:.1f} % elliptic on the plane, all alike: the "
+                "plane's tilt is not this photo's (measure the plane again from this pose)"
+            )
     if search.white.clipped_fraction > 0.5:
         warnings.append("photo overexposed (the brightest pixels are clipped)")
     return markers, centres, covs, warnings

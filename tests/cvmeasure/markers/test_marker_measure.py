@@ -248,3 +248,30 @@ def test_sixteen_bit_and_linear_input(render):
     for edge in ("green", "colour"):
         c = measure_machine_photo(photo.bgr, kit, edge=edge)
         assert c.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=BEND_TOL_DEG)
+
+
+def test_a_plane_from_another_distance_is_warned_about(render):
+    """The kit's disc diameters are known: on a plane from another pose they measure wrong."""
+    pose = Pose(tilt_deg=6.0, tilt_direction_deg=40.0, yaw_deg=30.0, offset_mm=(-10.0, 5.0))
+    photo = render(pin=40.0, bend=35.0, light=Lighting(cct_k=5000.0), pose=pose, seed=11)
+    kit = default_kit()
+
+    def plane_at(distance_mm):
+        p = Pose(tilt_deg=6.0, tilt_direction_deg=40.0, yaw_deg=30.0, offset_mm=(-10.0, 5.0))
+        p = Pose(p.tilt_deg, p.tilt_direction_deg, p.yaw_deg, distance_mm, p.offset_mm)
+        rot, t_mm = p.extrinsics("machine")
+        h = photo.camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
+        nan = float("nan")
+        return PlaneModel(
+            photo.camera, np.linalg.inv(h), cv2.Rodrigues(rot)[0], t_mm, 6.0, nan, nan, nan,
+            nan, nan, 0,
+        )  # fmt: skip
+
+    same = measure_machine_photo(photo.bgr, kit, plane=plane_at(pose.distance_mm))
+    assert not any("in size on the plane" in w for w in same.warnings)
+    other = measure_machine_photo(photo.bgr, kit, plane=plane_at(pose.distance_mm * 1.08))
+    import re
+
+    said = [w for w in other.warnings if "in size on the plane" in w]
+    assert said, other.warnings
+    assert 6.0 < float(re.search(r"([+-][\d.]+) %", said[0]).group(1)) < 10.0  # 8 % farther
