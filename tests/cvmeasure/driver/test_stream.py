@@ -131,12 +131,16 @@ def test_a_rejected_line_is_never_skipped_silently(job, tmp_path):
     something did (the part is wrong: the stop says so and resume refuses to go on).
     """
     _, clean_shape, _, _ = run_clean(job)
-    outcomes = set()
-    for at_line, speedup in ((22, 50.0), (40, 2000.0), (41, 5000.0), (60, 20000.0)):
-        journal = tmp_path / f"job{at_line}.journal.jsonl"
-        board = FakeTinyG(
-            speedup=speedup, faults=[Fault("error_status", at_line)], line_report="parsed"
-        ).start()
+    outcomes = {}
+    # (a) a slow machine: the lines after the rejected one wait in the planner, the stop
+    # flushes them; (b) a fast one that was reading slowly: the host had sent the next
+    # lines, which run at once after the rejected one (deterministic: the stall holds them)
+    for label, speedup, faults in (
+        ("slow", 50.0, [Fault("error_status", 22)]),
+        ("fast", 20000.0, [Fault("stall", 40, duration_s=0.3), Fault("error_status", 40)]),
+    ):
+        journal = tmp_path / f"{label}.journal.jsonl"
+        board = FakeTinyG(speedup=speedup, faults=faults, line_report="parsed").start()
         try:
             link = open_link(board.port)
             with pytest.raises(JobStopped) as info:
@@ -150,18 +154,18 @@ def test_a_rejected_line_is_never_skipped_silently(job, tmp_path):
             except DeviceError as exc:
                 assert stop.ran_past_rejected_line
                 assert f"N{stop.line_number} was rejected" in str(exc) and "--force" in str(exc)
-                outcomes.add("refused")
+                outcomes[label] = "refused"
             else:
                 assert not stop.ran_past_rejected_line
                 completed, _ = board.executed_lines()
                 assert completed == list(range(0, len(job.lines) + 1))
                 np.testing.assert_allclose(board.wire_shape_mm(), clean_shape, atol=2e-3)
-                outcomes.add("completed")
+                outcomes[label] = "completed"
             finally:
                 link.close()
         finally:
             board.close()
-    assert outcomes == {"refused", "completed"}  # both branches seen
+    assert outcomes == {"slow": "completed", "fast": "refused"}
 
 
 def test_resume_needs_the_journal_of_this_job(job, tmp_path):
