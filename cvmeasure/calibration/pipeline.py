@@ -128,8 +128,19 @@ class CalibrationReport:
             "projection_uncertainty_p95_px": self.uncertainty.p95_px,
             "views_used": len(self.result.views),
             "views_rejected": [r.to_dict() for r in self.result.rejected],
+            "corners_used": self.result.corner_count,
+            "corners_rejected": self.result.corners_rejected,
             "warnings": list(self.warnings),
         }
+
+
+#: A distortion coefficient beyond this magnitude means the model is not determined by
+#: the views (a rational fit on clean renders reached k3 = -156).
+ILL_CONDITIONED_COEFF = 10.0
+#: A projection uncertainty beyond this many image sizes means nothing.
+ILL_CONDITIONED_UNCERTAINTY = 10.0
+#: OpenCV's distortion coefficient order.
+DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty")
 
 
 def calibrate_detections(
@@ -175,6 +186,30 @@ def calibrate_detections(
             "photos with the board tilted 30-45 deg and closer to the camera"
         )
     warnings.extend(cov.warnings)
+    big = {
+        name: float(v)
+        for name, v in zip(DIST_NAMES, result.camera.dist_coeffs, strict=False)
+        if abs(float(v)) > ILL_CONDITIONED_COEFF
+    }
+    size = float(max(result.image_size_px))
+    if big or not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size:
+        coeffs = ", ".join(f"{k} {v:+.3g}" for k, v in big.items())
+        warnings.append(
+            f"the {result.model} distortion model is ill-conditioned on these views"
+            + (f" (coefficients {coeffs})" if coeffs else "")
+            + (
+                f"; its projection uncertainty exceeds {ILL_CONDITIONED_UNCERTAINTY:g}x the "
+                "image size and means nothing"
+                if not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size
+                else ""
+            )
+            + ": use a simpler model (--model 5) or add photos with the board in the corners"
+        )
+    if result.corners_rejected:
+        warnings.append(
+            f"{result.corners_rejected} outlier corner(s) dropped from the views used "
+            "(residual beyond 4 robust sigmas)"
+        )
     if result.rejected:
         warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
     return CalibrationReport(result, unc, cov, cv, tuple(warnings))

@@ -166,6 +166,11 @@ class CalibrationResult:
     def corner_count(self) -> int:
         return int(sum(v.corner_count for v in self.views))
 
+    @property
+    def corners_rejected(self) -> int:
+        """Outlier corners dropped from the views used (views skipped not counted)."""
+        return int(sum(v.corners_rejected for v in self.views))
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "model": self.model,
@@ -175,6 +180,7 @@ class CalibrationResult:
             "views_used": [v.to_dict() for v in self.views],
             "views_rejected": [r.to_dict() for r in self.rejected],
             "corner_count": self.corner_count,
+            "corners_rejected": self.corners_rejected,
             "rounds": self.rounds,
         }
 

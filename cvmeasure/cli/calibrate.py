@@ -99,17 +99,25 @@ def run(args: argparse.Namespace) -> int:
     cam = report.camera
     print(
         f"RMS {report.result.rms_px:.4f} px over {report.result.corner_count} corners, "
-        f"{len(report.result.views)} views"
+        f"{len(report.result.views)} views; dropped {report.result.corners_rejected} outlier "
+        f"corners and {len(report.result.rejected)} photos"
     )
     print(
         f"fx {cam.fx:.3f} +- {sd['fx']:.3f}  fy {cam.fy:.3f} +- {sd['fy']:.3f}  "
         f"cx {cam.principal_point_px[0]:.3f} +- {sd['cx']:.3f}  "
         f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px (1 sigma, noise only)"
     )
-    print(
-        f"projection uncertainty (1 sigma): centre {report.uncertainty.centre_px:.3f} px, "
-        f"p95 {report.uncertainty.p95_px:.3f} px, max {report.uncertainty.max_px:.3f} px"
-    )
+    limit = 10.0 * max(cam.image_size_px)
+    if report.uncertainty.max_px <= limit:
+        print(
+            f"projection uncertainty (1 sigma): centre {report.uncertainty.centre_px:.3f} px, "
+            f"p95 {report.uncertainty.p95_px:.3f} px, max {report.uncertainty.max_px:.3f} px"
+        )
+    else:
+        print(
+            "projection uncertainty: more than 10x the image size (the model is not "
+            "determined by these views; see the warning)"
+        )
     for r in report.result.rejected:
         print(f"skipped {r.source}: {r.reason}")
     for w in report.warnings:

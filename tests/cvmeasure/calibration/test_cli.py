@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -93,7 +94,14 @@ def test_calibrate_human_output_and_models(photo_dir, tmp_path, capsys):
     )
     text = capsys.readouterr().out
     assert "cross-validation" in text and "skipped" in text and "blank.png" in text
-    assert len(load_camera(out).dist_coeffs) == 8
+    cam = load_camera(out)
+    assert len(cam.dist_coeffs) == 8
+    # the summary says what was dropped, and an undetermined model is said to be one
+    assert re.search(r"dropped \d+ outlier corners and 1 photos", text), text
+    unc_max = cam.calibration.get("projection_uncertainty", {}).get("max_px", 0.0)
+    ill = bool(np.any(np.abs(cam.dist_coeffs) > 10.0)) or unc_max > 10 * max(cam.image_size_px)
+    assert ("ill-conditioned" in text) == ill
+    assert ("more than 10x the image size" in text) == (unc_max > 10 * max(cam.image_size_px))
 
 
 def test_calibrate_bad_inputs_exit_2(photo_dir, tmp_path, capsys):
