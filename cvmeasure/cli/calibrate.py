@@ -89,11 +89,13 @@ def run(args: argparse.Namespace) -> int:
         return 0
     cv = report.cross_validation
     print(f"camera JSON: {path}")
+    determined = report.uncertainty.max_px <= 10.0 * max(report.camera.image_size_px)
     if cv is not None:
+        ratio = f"{cv.ratio:.1f}x what noise explains" if determined else "noise undetermined"
         print(
             f"cross-validation (halves {cv.views[0]}+{cv.views[1]} views): "
             f"{cv.diff.central_rms_px:.3f} px RMS in the central 60 %, "
-            f"{cv.diff.rms_px:.3f} px over the image ({cv.ratio:.1f}x what noise explains)"
+            f"{cv.diff.rms_px:.3f} px over the image ({ratio})"
         )
     sd = report.result.std_devs
     cam = report.camera
@@ -107,8 +109,7 @@ def run(args: argparse.Namespace) -> int:
         f"cx {cam.principal_point_px[0]:.3f} +- {sd['cx']:.3f}  "
         f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px (1 sigma, noise only)"
     )
-    limit = 10.0 * max(cam.image_size_px)
-    if report.uncertainty.max_px <= limit:
+    if determined:
         print(
             f"projection uncertainty (1 sigma): centre {report.uncertainty.centre_px:.3f} px, "
             f"p95 {report.uncertainty.p95_px:.3f} px, max {report.uncertainty.max_px:.3f} px"
