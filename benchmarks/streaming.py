@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from cvmeasure.driver.double import FakeTinyG, Fault
+from cvmeasure.driver.double import FAULT_KINDS, FakeTinyG, Fault
 from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import JobStopped, StreamConfig, stream_job
 from cvmeasure.driver.transport import open_link
@@ -31,16 +31,7 @@ from cvmeasure.errors import DeviceError
 SECTION = "Streaming to the TinyG double: 2,000-line jobs under injected faults"
 
 JOB_LINES = 2000
-SCENARIOS = (
-    "none",
-    "drop_byte",
-    "malformed_reply",
-    "alarm",
-    "stall",
-    "vanish",
-    "error_status",
-    "all",
-)
+SCENARIOS = ("none", *FAULT_KINDS, "all")
 CONFIG = StreamConfig(stall_timeout_s=0.4, flush_timeout_s=3.0)
 #: Planner-starved stress: the machine runs far faster than lines arrive.
 STRESS_SPEEDUP = 20000.0
@@ -88,7 +79,7 @@ def faults_for(scenario: str, rng: np.random.Generator) -> list[Fault]:
     if scenario == "none":
         return []
     if scenario == "all":
-        kinds = ["drop_byte", "malformed_reply", "alarm", "stall", "vanish", "error_status"]
+        kinds = list(FAULT_KINDS)
         return [one(k) for k in kinds]
     return [one(scenario)]
 
