@@ -155,7 +155,8 @@ class ProjectionUncertainty:
     sigma_px : ndarray (M,)
         Worst-direction standard deviation of the projected pixel, px.
     distance_mm : float
-        Range of the 3-D points (the median board distance by default).
+        Range of the 3-D points (by default the median distance to the middle of the
+        corners each view saw: independent of where the board's origin is).
     """
 
     grid_px: np.ndarray
@@ -229,7 +230,14 @@ def projection_uncertainty(
     n_i = cov.n_intrinsics
     n_v = len(result.views)
     if distance_mm is None:
-        distance_mm = float(np.median([np.linalg.norm(v.tvec_mm) for v in result.views]))
+        # the distance to the middle of the corners each view saw, not to the board's
+        # origin corner: the same physical board described transposed gives the same range
+        centres = []
+        for view, det in zip(result.views, result.detections, strict=True):
+            rot, _ = cv2.Rodrigues(view.rvec)
+            middle = np.asarray(det.object_mm, dtype=np.float64).reshape(-1, 3).mean(axis=0)
+            centres.append(float(np.linalg.norm(rot @ middle + view.tvec_mm)))
+        distance_mm = float(np.median(centres))
     pts_px = image_grid_px(cam.image_size_px, grid)
     rays = np.column_stack((cam.normalized(pts_px), np.ones(len(pts_px))))
     rays /= np.linalg.norm(rays, axis=1, keepdims=True)

@@ -141,3 +141,25 @@ def test_degenerate_fronto_parallel_set_is_flagged(charuco_board, true_camera):
     text = " | ".join(report.warnings)
     assert "focal length is poorly determined" in text
     assert "never tilted more than" in text
+
+
+def test_projection_uncertainty_does_not_depend_on_how_the_board_is_described(
+    charuco_board, true_camera
+):
+    """The same corners with the board's x and y swapped (its origin elsewhere on it)."""
+    from dataclasses import replace
+
+    rng = np.random.default_rng(8)
+    dets = synthetic_detections(
+        charuco_board, true_camera, random_poses(charuco_board, 8, 12, distance_mm=380.0), 0.1, rng
+    )
+    # the same physical points described from the board's opposite corner, axes swapped
+    far = np.max(np.concatenate([d.object_mm for d in dets]), axis=0)
+    swapped = [
+        replace(d, object_mm=np.column_stack((far[1] - d.object_mm[:, 1], far[0] - d.object_mm[:, 0], d.object_mm[:, 2])))
+        for d in dets
+    ]  # fmt: skip
+    a = projection_uncertainty(calibrate_views(dets, true_camera.image_size_px), grid=(6, 4))
+    b = projection_uncertainty(calibrate_views(swapped, true_camera.image_size_px), grid=(6, 4))
+    assert b.distance_mm == pytest.approx(a.distance_mm, rel=1e-6)
+    np.testing.assert_allclose(b.sigma_px, a.sigma_px, rtol=1e-3)
