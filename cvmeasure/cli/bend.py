@@ -86,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"journal": str(journal), **result.to_dict()}, indent=2))
     else:
+        for note in result.notes:
+            print(f"warning: {note}", file=sys.stderr)
         where = f" (resumed at line {result.resumed_from + 1})" if args.resume else ""
         print(
             f"done: {result.lines_total} lines, N{result.executed_line} executed{where}, "

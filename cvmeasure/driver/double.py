@@ -648,6 +648,8 @@ class FakeTinyG:
             self.stats.lines_received += 1
             count = self.stats.lines_received
             stall = self._fault("stall", count)
+            if stall is not None and raw.lstrip().startswith(b"{"):
+                self.stats.faults_fired[-1] += " (on a JSON command)"
             if stall is not None:
                 self._stall_until = now + stall.duration_s
                 self._pending_stall_line = (raw, len(raw) + 1)

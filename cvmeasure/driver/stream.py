@@ -188,6 +188,7 @@ class StreamResult:
     executed_line: int | None
     seconds: float
     fixup: str | None = None
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -780,6 +781,7 @@ def _stream(
 ) -> StreamResult:
     board, config, job = run.board, run.config, run.job
     start_index, fixup, resumed_from = 0, None, None
+    notes: list[str] = []
     if resume:
         start_pos, last = _journal_start(run.journal, sha, source, force=force)
         # a board still running (the host died mid-job) finishes the lines it holds:
@@ -791,8 +793,17 @@ def _stream(
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
         state = _setup(board, config, xonxoff)
         if state.get("stat") == MachineStat.ALARM:
+            # an alarm tripped while no host was there to see it (e.g. the port was gone):
+            # cleared to go on, and said, so that the part gets checked
+            alarmed = dict(state)
             board.command({"clear": None}, timeout_s=config.command_timeout_s)
             state = board.query_status(timeout_s=config.command_timeout_s)
+            if not (last.get("event") == "stop" and last.get("reason") == "alarm"):
+                notes.append(
+                    f"the board was in alarm at line N{alarmed.get('line')} when resumed (it "
+                    "tripped while the host was away: check the machine and the part); cleared"
+                )
+                run.log({"event": "alarm_cleared", "board": alarmed})
         board_line, line_from = _executed_line(last, held, state)
         if (
             last.get("event") == "stop"
@@ -861,6 +872,7 @@ def _stream(
         executed_line=executed,
         seconds=time.perf_counter() - t0,
         fixup=fixup,
+        notes=tuple(notes),
     )
 
 

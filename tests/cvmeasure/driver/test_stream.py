@@ -372,3 +372,27 @@ def test_a_corrupted_line_that_ran_needs_force_to_resume(job, tmp_path):
             stream_job(link, job.lines, journal=journal, config=FAST, resume=True)
         stream_job(link, job.lines, journal=journal, config=FAST, resume=True, force=True)
         link.close()
+
+
+def test_an_alarm_that_tripped_while_the_host_was_away_is_said_at_resume(job, tmp_path):
+    journal = tmp_path / "job.journal.jsonl"
+    # the port goes at line 30; the board runs on through what it holds and trips at 28..29
+    board = FakeTinyG(speedup=5.0, faults=[Fault("vanish", 30), Fault("alarm", 29)]).start()
+    try:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(link, job.lines, journal=journal, config=FAST)
+        link.close()
+        assert info.value.stop.reason == "port_gone"
+        deadline = time.monotonic() + 10
+        while "alarm@29" not in board.stats.faults_fired and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert "alarm@29" in board.stats.faults_fired  # tripped with no host connected
+        board.reconnect()
+        link = open_link(board.port)
+        result = stream_job(link, job.lines, journal=journal, resume=True, config=FAST)
+        link.close()
+        assert any("in alarm" in n and "check the machine" in n for n in result.notes)
+        assert any(r["event"] == "alarm_cleared" for r in read_jsonl(journal))
+    finally:
+        board.close()
