@@ -1,7 +1,7 @@
 """Camera calibration from board detections: model choice and iterative rejection.
 
 The solve is OpenCV 5's ``calibrateCameraExtended`` (Zhang's method followed by
-Levenberg-Marquardt) with one of four distortion models, wrapped in a loop that
+Levenberg-Marquardt) with one of six distortion models (k1 only up to thin prism), wrapped in a loop that
 drops outlier corners (residual beyond 4 robust sigmas) and bad views (RMS above
 3x the median view RMS, or too few corners left) and solves again.
 
@@ -37,10 +37,12 @@ __all__ = [
     "MIN_VIEWS",
 ]
 
-DistortionModel = Literal["5", "8", "rational", "thin-prism"]
+DistortionModel = Literal["1", "2", "5", "8", "rational", "thin-prism"]
 
-#: Model name -> (OpenCV flags, number of distortion coefficients).
+#: Model name -> (description, number of free distortion coefficients), simplest first.
 DISTORTION_MODELS: dict[str, tuple[str, int]] = {
+    "1": ("k1 (radial, one term)", 1),
+    "2": ("k1 k2 (radial, two terms)", 2),
     "5": ("k1 k2 p1 p2 k3", 5),
     "8": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
     "rational": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
@@ -74,6 +76,10 @@ def model_flags(model: str) -> int:
         raise ValueError(
             f"unknown distortion model {model!r}; choose one of {list(DISTORTION_MODELS)}"
         )
+    if model == "1":
+        return cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
+    if model == "2":
+        return cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     if model == "5":
         return 0
     if model in ("8", "rational"):

@@ -46,3 +46,40 @@ def test_a_board_described_transposed_prints_the_same_numbers(true_camera):
     b = calibrate_detections(swapped, true_camera.image_size_px)
     assert _printed(b) == _printed(a)
     assert b.uncertainty.distance_mm == pytest.approx(a.uncertainty.distance_mm, rel=1e-9)
+
+
+def _lens(true_camera, dist):
+    from cvmeasure.camera import CameraModel
+
+    return CameraModel.ideal(
+        true_camera.image_size_px, 900.0, dist, principal_point_px=(486.0, 316.0)
+    )
+
+
+def test_auto_model_picks_the_simplest_model_the_data_support(charuco_board, true_camera):
+    """A k1 lens gets model 1, a strong k1 k2 lens 2 (1 leaves model error, 5 adds
+    nothing), a lens with tangential distortion 5. The evidence is recorded."""
+    poses = random_poses(charuco_board, 16, 21, distance_mm=380.0)
+    size = true_camera.image_size_px
+    k1_only = _lens(true_camera, (-0.1, 0.0, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, k1_only, poses, 0.1, np.random.default_rng(2))
+    assert calibrate_detections(dets, size, model="auto").result.model == "1"
+    radial = _lens(true_camera, (-0.25, 0.4, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, radial, poses, 0.1, np.random.default_rng(2))
+    report = calibrate_detections(dets, size, model="auto")
+    assert report.result.model == "2"
+    assert [e["model"] for e in report.model_choice["candidates"]] == ["1", "2", "5", "rational"]
+    assert report.summary()["model_choice"]["chosen"] == "2"
+    tangential = _lens(true_camera, (-0.12, 0.08, 0.004, -0.003, 0.0))
+    dets = synthetic_detections(charuco_board, tangential, poses, 0.1, np.random.default_rng(2))
+    assert calibrate_detections(dets, size, model="auto").result.model == "5"
+
+
+def test_k1_model_fixes_the_other_coefficients(charuco_board, true_camera):
+    poses = random_poses(charuco_board, 10, 22, distance_mm=380.0)
+    lens = _lens(true_camera, (-0.1, 0.0, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, lens, poses, 0.1, np.random.default_rng(3))
+    res = calibrate_detections(dets, true_camera.image_size_px, model="1").result
+    assert list(res.std_devs) == ["fx", "fy", "cx", "cy", "k1"]
+    assert res.camera.dist_coeffs[1:].tolist() == [0.0, 0.0, 0.0, 0.0]
+    assert res.camera.dist_coeffs[0] == pytest.approx(-0.1, abs=3 * res.std_devs["k1"] + 1e-4)
