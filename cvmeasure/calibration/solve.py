@@ -278,7 +278,7 @@ def calibrate_views(
     *,
     model: DistortionModel = "5",
     reject_outliers: bool = True,
-    max_rounds: int = 5,
+    max_rounds: int = 8,
     min_views: int = MIN_VIEWS,
     source: str = "calibration photos",
 ) -> CalibrationResult:
@@ -294,7 +294,8 @@ def calibrate_views(
         Distortion model (see :data:`DISTORTION_MODELS`).
     reject_outliers : bool
         Run the rejection loop (corners beyond 4 robust sigmas, views above 3x
-        the median view RMS), at most ``max_rounds`` solves.
+        the median view RMS), at most ``max_rounds`` solves. A round that drops a
+        view drops no corners and re-admits every corner of the remaining views.
     min_views : int
         Fewer usable views raise :class:`InputError` naming ``source``.
 
@@ -324,6 +325,7 @@ def calibrate_views(
         else:
             active.append(det)
     n_rejected_corners = {id(d): 0 for d in active}
+    original = {id(d): d for d in active}  # each corner set as detected, before rejection
 
     def check_count() -> None:
         if len(active) < min_views:
@@ -376,11 +378,17 @@ def calibrate_views(
             if k in bad_views:
                 rejected.append(RejectedView(det.source, bad_views[k]))
                 continue
+            if bad_views:
+                # a dropped view distorted the solve: corners judged against it get
+                # another chance, every corner of the remaining views is re-admitted
+                det = original[id(det)]
+                n_rejected_corners[id(det)] = 0
             keep = np.linalg.norm(res, axis=1) <= limit
             if not bad_views and not keep.all():
                 changed = True
                 sub = det.subset(keep)
                 n_rejected_corners[id(sub)] = n_rejected_corners[id(det)] + int((~keep).sum())
+                original[id(sub)] = original[id(det)]
                 if sub.corner_count < MIN_CORNERS:
                     rejected.append(
                         RejectedView(

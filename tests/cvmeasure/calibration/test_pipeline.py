@@ -83,3 +83,25 @@ def test_k1_model_fixes_the_other_coefficients(charuco_board, true_camera):
     assert list(res.std_devs) == ["fx", "fy", "cx", "cy", "k1"]
     assert res.camera.dist_coeffs[1:].tolist() == [0.0, 0.0, 0.0, 0.0]
     assert res.camera.dist_coeffs[0] == pytest.approx(-0.1, abs=3 * res.std_devs["k1"] + 1e-4)
+
+
+def test_a_dropped_view_leaves_no_trace(charuco_board, true_camera):
+    """A foreign view (another lens) first costs good corners, then is dropped: every
+    corner of the remaining views is re-admitted, so the result is that of the good
+    views alone."""
+    from cvmeasure.calibration.solve import calibrate_views
+
+    size = true_camera.image_size_px
+    poses = random_poses(charuco_board, 10, 41, distance_mm=380.0)
+    good = synthetic_detections(charuco_board, true_camera, poses, 0.1, np.random.default_rng(5))
+    other = _lens(true_camera, (0.25, -0.3, 0.01, 0.0, 0.0))
+    foreign = synthetic_detections(
+        charuco_board, other, random_poses(charuco_board, 2, 42, distance_mm=300.0), 0.1,
+        np.random.default_rng(6),
+    )  # fmt: skip
+    foreign = [replace(d, source=f"foreign{k}") for k, d in enumerate(foreign)]
+    alone = calibrate_views(good, size)
+    mixed = calibrate_views([*good[:5], *foreign, *good[5:]], size)
+    assert {r.source for r in mixed.rejected} == {"foreign0", "foreign1"}
+    assert mixed.corner_count == alone.corner_count
+    assert mixed.camera.fx == pytest.approx(alone.camera.fx, rel=1e-9)
