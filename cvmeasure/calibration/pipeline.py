@@ -21,6 +21,7 @@ from cvmeasure.calibration.solve import (
     CalibrationResult,
     DistortionModel,
     calibrate_views,
+    view_residuals_px,
 )
 from cvmeasure.calibration.uncertainty import (
     CrossValidation,
@@ -35,6 +36,8 @@ __all__ = [
     "calibrate_detections",
     "detect_photos",
     "CROSS_VALIDATION_RATIO_LIMIT",
+    "AUTO_MODELS",
+    "choose_model",
 ]
 
 #: Relative 1-sigma focal-length uncertainty above which a warning is given.
@@ -53,6 +56,7 @@ class CalibrationReport:
     coverage: Coverage
     cross_validation: CrossValidation | None
     warnings: tuple[str, ...]
+    model_choice: dict[str, Any] | None = None
 
     @property
     def camera(self) -> CameraModel:
@@ -84,6 +88,7 @@ class CalibrationReport:
             "projection_uncertainty": self.uncertainty.to_dict(),
             "coverage": self.coverage.to_dict(),
             "warnings": list(self.warnings),
+            "model_choice": self.model_choice,
             "board": board.to_dict(),
             "observations": [
                 {
@@ -130,6 +135,8 @@ class CalibrationReport:
             "views_rejected": [r.to_dict() for r in self.result.rejected],
             "corners_used": self.result.corner_count,
             "corners_rejected": self.result.corners_rejected,
+            "model": self.result.model,
+            "model_choice": self.model_choice,
             "warnings": list(self.warnings),
         }
 
@@ -143,11 +150,97 @@ ILL_CONDITIONED_UNCERTAINTY = 10.0
 DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", "s4", "tx", "ty")
 
 
+#: Models ``auto`` tries, simplest first.
+AUTO_MODELS = ("1", "2", "5", "rational")
+
+
+def _held_out_rms_px(
+    detections: Sequence[BoardDetection], image_size_px: tuple[int, int], model: str
+) -> tuple[float, int] | None:
+    """RMS residual of corners in views left out of the fit (even fits odd and back), px.
+
+    Each left-out view's pose is solved (PnP) with the other half's intrinsics fixed, so
+    the residual holds model error as well as noise. Returns (rms, residual count).
+    """
+    import cv2
+
+    from cvmeasure.errors import InputError
+
+    halves = (list(detections[0::2]), list(detections[1::2]))
+    if min(len(h) for h in halves) < 3:
+        return None
+    sq = 0.0
+    n = 0
+    for fit, test in ((halves[0], halves[1]), (halves[1], halves[0])):
+        try:
+            cam = calibrate_views(fit, image_size_px, model=model).camera  # type: ignore[arg-type]
+        except InputError:
+            return None
+        for det in test:
+            ok, rvec, tvec = cv2.solvePnP(
+                det.object_mm.reshape(-1, 1, 3),
+                det.corners_px.reshape(-1, 1, 2),
+                cam.camera_matrix,
+                cam.dist_coeffs,
+            )
+            if not ok:
+                continue
+            rvec, tvec = cv2.solvePnPRefineLM(
+                det.object_mm.reshape(-1, 1, 3),
+                det.corners_px.reshape(-1, 1, 2),
+                cam.camera_matrix,
+                cam.dist_coeffs,
+                rvec,
+                tvec,
+            )
+            res = view_residuals_px(cam, det, rvec.ravel(), tvec.ravel())
+            sq += float(np.sum(res**2))
+            n += res.size
+    return (float(np.sqrt(sq / n)), n) if n else None
+
+
+def choose_model(
+    detections: Sequence[BoardDetection], image_size_px: tuple[int, int]
+) -> tuple[str, dict[str, Any]]:
+    """The simplest model whose held-out error is within noise of the best one's.
+
+    Each candidate of :data:`AUTO_MODELS` is fitted on the even views and tested on the
+    odd ones' corners, and back (:func:`_held_out_rms_px`). A model is within noise of
+    the best when its held-out mean square exceeds the smallest by less than 3 standard
+    deviations of a mean square of that many residuals (factor ``1 + 3 sqrt(2 / n)``).
+    Returns the model name and the evidence (JSON-ready). With too few views to
+    cross-validate, ``"5"`` is returned and the evidence says why.
+    """
+    evidence: list[dict[str, Any]] = []
+    for m in AUTO_MODELS:
+        held = _held_out_rms_px(detections, image_size_px, m)
+        if held is not None:
+            evidence.append({"model": m, "held_out_rms_px": held[0], "residuals": held[1]})
+    if not evidence:
+        return "5", {
+            "rule": "too few views to cross-validate (need 6 or more); model 5 is used",
+            "candidates": evidence,
+        }
+    best = min(e["held_out_rms_px"] for e in evidence)
+    for e in evidence:
+        e["within_noise_of_best"] = bool(
+            e["held_out_rms_px"] ** 2 <= best**2 * (1.0 + 3.0 * np.sqrt(2.0 / e["residuals"]))
+        )
+    chosen = next(e for e in evidence if e["within_noise_of_best"])
+    return chosen["model"], {
+        "rule": "simplest model whose held-out RMS (fit on even views, tested on odd, and "
+        "back) is within noise of the best: mean square within 1 + 3 sqrt(2/n) of it",
+        "chosen": chosen["model"],
+        "best_held_out_rms_px": best,
+        "candidates": evidence,
+    }
+
+
 def calibrate_detections(
     detections: Sequence[BoardDetection],
     image_size_px: tuple[int, int],
     *,
-    model: DistortionModel = "5",
+    model: DistortionModel | str = "5",
     reject_outliers: bool = True,
     cross_check: bool = True,
     source: str = "calibration photos",
@@ -155,8 +248,12 @@ def calibrate_detections(
     """Solve, then measure projection uncertainty, coverage and the cross-validation diff.
 
     Raises :class:`~cvmeasure.errors.InputError` (naming ``source``) when too
-    few views are usable.
+    few views are usable. ``model="auto"`` picks it with :func:`choose_model`.
     """
+    choice = None
+    if model == "auto":
+        usable = [d for d in detections if d.ok]
+        model, choice = choose_model(usable, image_size_px)
     result = calibrate_views(
         detections, image_size_px, model=model, reject_outliers=reject_outliers, source=source
     )
@@ -212,7 +309,7 @@ def calibrate_detections(
         )
     if result.rejected:
         warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
-    return CalibrationReport(result, unc, cov, cv, tuple(warnings))
+    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice)
 
 
 def detect_photos(

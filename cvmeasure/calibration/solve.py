@@ -1,7 +1,7 @@
 """Camera calibration from board detections: model choice and iterative rejection.
 
 The solve is OpenCV 5's ``calibrateCameraExtended`` (Zhang's method followed by
-Levenberg-Marquardt) with one of four distortion models, wrapped in a loop that
+Levenberg-Marquardt) with one of six distortion models (k1 only up to thin prism), wrapped in a loop that
 drops outlier corners (residual beyond 4 robust sigmas) and bad views (RMS above
 3x the median view RMS, or too few corners left) and solves again.
 
@@ -37,10 +37,12 @@ __all__ = [
     "MIN_VIEWS",
 ]
 
-DistortionModel = Literal["5", "8", "rational", "thin-prism"]
+DistortionModel = Literal["1", "2", "5", "8", "rational", "thin-prism"]
 
-#: Model name -> (OpenCV flags, number of distortion coefficients).
+#: Model name -> (description, number of free distortion coefficients), simplest first.
 DISTORTION_MODELS: dict[str, tuple[str, int]] = {
+    "1": ("k1 (radial, one term)", 1),
+    "2": ("k1 k2 (radial, two terms)", 2),
     "5": ("k1 k2 p1 p2 k3", 5),
     "8": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
     "rational": ("rational: k1 k2 p1 p2 k3 k4 k5 k6", 8),
@@ -74,6 +76,10 @@ def model_flags(model: str) -> int:
         raise ValueError(
             f"unknown distortion model {model!r}; choose one of {list(DISTORTION_MODELS)}"
         )
+    if model == "1":
+        return cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
+    if model == "2":
+        return cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     if model == "5":
         return 0
     if model in ("8", "rational"):
@@ -272,7 +278,7 @@ def calibrate_views(
     *,
     model: DistortionModel = "5",
     reject_outliers: bool = True,
-    max_rounds: int = 5,
+    max_rounds: int = 8,
     min_views: int = MIN_VIEWS,
     source: str = "calibration photos",
 ) -> CalibrationResult:
@@ -288,7 +294,8 @@ def calibrate_views(
         Distortion model (see :data:`DISTORTION_MODELS`).
     reject_outliers : bool
         Run the rejection loop (corners beyond 4 robust sigmas, views above 3x
-        the median view RMS), at most ``max_rounds`` solves.
+        the median view RMS), at most ``max_rounds`` solves. A round that drops a
+        view drops no corners and re-admits every corner of the remaining views.
     min_views : int
         Fewer usable views raise :class:`InputError` naming ``source``.
 
@@ -318,6 +325,7 @@ def calibrate_views(
         else:
             active.append(det)
     n_rejected_corners = {id(d): 0 for d in active}
+    original = {id(d): d for d in active}  # each corner set as detected, before rejection
 
     def check_count() -> None:
         if len(active) < min_views:
@@ -370,11 +378,17 @@ def calibrate_views(
             if k in bad_views:
                 rejected.append(RejectedView(det.source, bad_views[k]))
                 continue
+            if bad_views:
+                # a dropped view distorted the solve: corners judged against it get
+                # another chance, every corner of the remaining views is re-admitted
+                det = original[id(det)]
+                n_rejected_corners[id(det)] = 0
             keep = np.linalg.norm(res, axis=1) <= limit
             if not bad_views and not keep.all():
                 changed = True
                 sub = det.subset(keep)
                 n_rejected_corners[id(sub)] = n_rejected_corners[id(det)] + int((~keep).sum())
+                original[id(sub)] = original[id(det)]
                 if sub.corner_count < MIN_CORNERS:
                     rejected.append(
                         RejectedView(

@@ -26,10 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="camera JSON to write")
     p.add_argument(
         "--model",
-        choices=("5", "8", "rational", "thin-prism"),
-        default="5",
-        help="distortion model: 5 (k1 k2 p1 p2 k3, default), 8 / rational (k1..k6), "
-        "thin-prism (k1..k6, s1..s4)",
+        choices=("auto", "1", "2", "5", "8", "rational", "thin-prism"),
+        default="auto",
+        help="distortion model: auto (default: the simplest of 1, 2, 5, rational whose "
+        "held-out error is within noise of the best), 1 (k1), 2 (k1 k2), "
+        "5 (k1 k2 p1 p2 k3), 8 / rational (k1..k6), thin-prism (k1..k6, s1..s4)",
     )
     p.add_argument(
         "--no-reject", action="store_true", help="keep every corner and view (no rejection loop)"
@@ -89,6 +90,14 @@ def run(args: argparse.Namespace) -> int:
         return 0
     cv = report.cross_validation
     print(f"camera JSON: {path}")
+    if report.model_choice is not None:
+        ev = ", ".join(
+            f"{e['model']}: {e['held_out_rms_px']:.4f} px"
+            for e in report.model_choice["candidates"]
+        )
+        print(
+            f"model {report.result.model} chosen: simplest within noise of the best held-out RMS ({ev})"
+        )
     determined = report.uncertainty.max_px <= 10.0 * max(report.camera.image_size_px)
     if cv is not None:
         ratio = f"{cv.ratio:.1f}x what noise explains" if determined else "noise undetermined"

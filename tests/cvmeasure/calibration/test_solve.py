@@ -86,7 +86,7 @@ def test_models(charuco_board, model, n_dist):
     assert model_flags(model) & 0x40000 == 0  # never CALIB_DISABLE_SCHUR_COMPLEMENT (= TILTED)
     # Every model contains the true (5-coefficient) one: near-exact over the observed region.
     assert projection_diff(true, res.camera, fit_rotation=True).central_rms_px < 0.05
-    assert set(DISTORTION_MODELS) == {"5", "8", "rational", "thin-prism"}
+    assert set(DISTORTION_MODELS) == {"1", "2", "5", "8", "rational", "thin-prism"}
 
 
 def test_unknown_model():

@@ -1,0 +1,107 @@
+"""The whole calibration from corner sets: invariance, model choice, rejection."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from _calib_synth import random_poses, synthetic_detections
+
+from cvmeasure.board import board_from_dict
+from cvmeasure.calibration.pipeline import calibrate_detections
+
+
+def _printed(report) -> list[str]:
+    """The numbers ``cvmeasure calibrate`` prints, at the precision it prints them."""
+    s = report.summary()
+    cv = report.cross_validation
+    out = [f"{s['rms_px']:.4f}", f"{s['corners_used']}", f"{s['views_used']}"]
+    out += [f"{s[k]:.3f}" for k in ("fx", "fy", "cx", "cy")]
+    out += [f"{v:.3f}" for v in s["std_devs"].values()]
+    out += [f"{report.uncertainty.centre_px:.3f}", f"{report.uncertainty.p95_px:.3f}"]
+    out += [f"{report.uncertainty.max_px:.3f}", f"{cv.diff.central_rms_px:.3f}", f"{cv.ratio:.1f}"]
+    return out
+
+
+def test_a_board_described_transposed_prints_the_same_numbers(true_camera):
+    """inner_x/inner_y swapped: every corner's board coordinates swap and the detector
+    lists them in another order; the printed results must not change in any digit."""
+    board = board_from_dict({"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0})
+    rng = np.random.default_rng(3)
+    dets = synthetic_detections(
+        board, true_camera, random_poses(board, 12, 5, distance_mm=500.0), 0.15, rng
+    )
+    order = np.random.default_rng(1).permutation(dets[0].corner_count)
+    swapped = [
+        replace(
+            d,
+            object_mm=d.object_mm[order][:, [1, 0, 2]],
+            corners_px=d.corners_px[order],
+            ids=d.ids[order],
+        )
+        for d in dets
+    ]
+    a = calibrate_detections(dets, true_camera.image_size_px)
+    b = calibrate_detections(swapped, true_camera.image_size_px)
+    assert _printed(b) == _printed(a)
+    assert b.uncertainty.distance_mm == pytest.approx(a.uncertainty.distance_mm, rel=1e-9)
+
+
+def _lens(true_camera, dist):
+    from cvmeasure.camera import CameraModel
+
+    return CameraModel.ideal(
+        true_camera.image_size_px, 900.0, dist, principal_point_px=(486.0, 316.0)
+    )
+
+
+def test_auto_model_picks_the_simplest_model_the_data_support(charuco_board, true_camera):
+    """A k1 lens gets model 1, a strong k1 k2 lens 2 (1 leaves model error, 5 adds
+    nothing), a lens with tangential distortion 5. The evidence is recorded."""
+    poses = random_poses(charuco_board, 16, 21, distance_mm=380.0)
+    size = true_camera.image_size_px
+    k1_only = _lens(true_camera, (-0.1, 0.0, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, k1_only, poses, 0.1, np.random.default_rng(2))
+    assert calibrate_detections(dets, size, model="auto").result.model == "1"
+    radial = _lens(true_camera, (-0.25, 0.4, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, radial, poses, 0.1, np.random.default_rng(2))
+    report = calibrate_detections(dets, size, model="auto")
+    assert report.result.model == "2"
+    assert [e["model"] for e in report.model_choice["candidates"]] == ["1", "2", "5", "rational"]
+    assert report.summary()["model_choice"]["chosen"] == "2"
+    tangential = _lens(true_camera, (-0.12, 0.08, 0.004, -0.003, 0.0))
+    dets = synthetic_detections(charuco_board, tangential, poses, 0.1, np.random.default_rng(2))
+    assert calibrate_detections(dets, size, model="auto").result.model == "5"
+
+
+def test_k1_model_fixes_the_other_coefficients(charuco_board, true_camera):
+    poses = random_poses(charuco_board, 10, 22, distance_mm=380.0)
+    lens = _lens(true_camera, (-0.1, 0.0, 0.0, 0.0, 0.0))
+    dets = synthetic_detections(charuco_board, lens, poses, 0.1, np.random.default_rng(3))
+    res = calibrate_detections(dets, true_camera.image_size_px, model="1").result
+    assert list(res.std_devs) == ["fx", "fy", "cx", "cy", "k1"]
+    assert res.camera.dist_coeffs[1:].tolist() == [0.0, 0.0, 0.0, 0.0]
+    assert res.camera.dist_coeffs[0] == pytest.approx(-0.1, abs=3 * res.std_devs["k1"] + 1e-4)
+
+
+def test_a_dropped_view_leaves_no_trace(charuco_board, true_camera):
+    """A foreign view (another lens) first costs good corners, then is dropped: every
+    corner of the remaining views is re-admitted, so the result is that of the good
+    views alone."""
+    from cvmeasure.calibration.solve import calibrate_views
+
+    size = true_camera.image_size_px
+    poses = random_poses(charuco_board, 10, 41, distance_mm=380.0)
+    good = synthetic_detections(charuco_board, true_camera, poses, 0.1, np.random.default_rng(5))
+    other = _lens(true_camera, (0.25, -0.3, 0.01, 0.0, 0.0))
+    foreign = synthetic_detections(
+        charuco_board, other, random_poses(charuco_board, 2, 42, distance_mm=300.0), 0.1,
+        np.random.default_rng(6),
+    )  # fmt: skip
+    foreign = [replace(d, source=f"foreign{k}") for k, d in enumerate(foreign)]
+    alone = calibrate_views(good, size)
+    mixed = calibrate_views([*good[:5], *foreign, *good[5:]], size)
+    assert {r.source for r in mixed.rejected} == {"foreign0", "foreign1"}
+    assert mixed.corner_count == alone.corner_count
+    assert mixed.camera.fx == pytest.approx(alone.camera.fx, rel=1e-9)
