@@ -37,6 +37,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "diagnose",
     "fit",
     "gcode",
+    "correct",
     "bend",
     "session",
     "agreement",
