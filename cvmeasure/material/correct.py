@@ -512,7 +512,7 @@ def correct_from_part(
     sigma = measurement.vertex_bend_sigma_deg
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
-    chords = design.chords(len(target) + 1)
+    chords = design.chords(len(target) + 1)  # the count measured (given or found)
     bends = bend_list(chords, source=design_name)
     if len(bends.bends_deg) != len(target):
         raise InputError(

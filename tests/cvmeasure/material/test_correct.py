@@ -182,8 +182,12 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     new_pins = corr["pin_deg"]
     assert all(abs(n) > abs(p) for n, p in zip(new_pins, pins, strict=True))
     assert (tmp_path / "job2.gcode").read_text().count("G90 G1 X") == 9
-    # a job that is not this part's: exit 2, naming the job
-    (tmp_path / "other.gcode").write_text("N1 G90 G1 X10 F6000\n")
+    # the job the part was bent with sets the chord count; a file that is no job: exit 2
+    (tmp_path / "job.gcode").write_text(
+        "".join(f"N{i} G90 G1 X{p:.3f} F6000\n" for i, p in enumerate(pins))
+    )
+    assert main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "job.gcode")]) == 0
+    (tmp_path / "other.gcode").write_text("N1 G0 Z0\n")
     code = main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "other.gcode")])
     assert code == 2
     assert "other.gcode" in capsys.readouterr().err
