@@ -34,6 +34,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the G-code the part was bent with: its bend count sets the chords measured "
         "(default: the count found in the photo)",
     )
+    p.add_argument(
+        "--flipped",
+        action="store_true",
+        help="the part may lie upside down (default: it lies as it left the machine, so a "
+        "design symmetric end to end is matched vertex for vertex)",
+    )
     p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
     p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")
     p.add_argument(
@@ -84,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
         design=design,
         design_source=str(args.design),
         source=str(args.photo),
+        allow_mirror=args.flipped,
     )
     if divisions is not None and m.chords_found is not None:
         found = m.chords_found.divisions

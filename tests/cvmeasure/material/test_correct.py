@@ -164,7 +164,10 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     pts = np.vstack(
         [[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)]
     )
-    photo = cvmeasure_datasets.render_part_photo(part=pts, board=board, seed=3, scale=0.4)
+    # lying design face up (the board frame has y down, the design y up)
+    photo = cvmeasure_datasets.render_part_photo(
+        part=pts * np.array([1.0, -1.0]), board=board, seed=3, scale=0.5
+    )
     jpg, _ = photo.save(tmp_path / "part")
     save_camera(tmp_path / "camera.json", photo.camera)
     atomic_write_json(tmp_path / "board.json", board.to_dict())
