@@ -37,11 +37,13 @@ COMMAND_MODULES: tuple[str, ...] = (
     "diagnose",
     "fit",
     "gcode",
+    "correct",
     "bend",
     "session",
     "agreement",
     "batch",
     "report",
+    "track",
 )
 
 

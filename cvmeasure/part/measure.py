@@ -415,17 +415,20 @@ def compare_with_design(
     design: DesignPath,
     *,
     design_source: str = "design",
+    allow_mirror: bool = True,
 ) -> DesignComparison:
     """Register a board-frame centreline to a design and compare (see the module notes).
 
     With divisions N the reference is the design divided into N equal chords
     (the polygon the machine is asked to bend), otherwise the design curve.
+    ``allow_mirror=False`` refuses the mirror image (the part lies as it left the
+    machine): a design symmetric end to end is then matched vertex for vertex.
     """
     seen = np.asarray(centreline_mm, dtype=np.float64) * np.array([1.0, -1.0])
     n = result.divisions
     # with N chords the shape meant is the design divided into N equal chords
     verts = design.chords(n) if n else design.points_mm
-    reg = register_to_design(seen, verts)
+    reg = register_to_design(seen, verts, allow_mirror=allow_mirror)
     dev = deviation_profile(seen, verts, reg)
     d_geo = arc_geometry(fit_circle_robust(verts), verts)
     design_arc = ArcResult(
@@ -455,6 +458,7 @@ def measure_part(
     axis_height_mm: float = 0.0,
     end_shape: EndShape = "round",
     source: str = "photo",
+    allow_mirror: bool = True,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -476,6 +480,8 @@ def measure_part(
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
         ``"flat"`` (square-cut); decides where the centreline's end points are.
     source : the photo's name, used in errors.
+    allow_mirror : the part may lie upside down (the design comparison tries the
+        mirror image); False when it lies as it left the machine.
 
     Raises
     ------
@@ -560,7 +566,12 @@ def measure_part(
     comparison = None
     if design is not None:
         comparison = compare_with_design(
-            centreline_mm, vertex_bends, methods[method], design, design_source=design_source
+            centreline_mm,
+            vertex_bends,
+            methods[method],
+            design,
+            design_source=design_source,
+            allow_mirror=allow_mirror,
         )
     return PartMeasurement(
         source=source,

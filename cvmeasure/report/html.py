@@ -209,6 +209,7 @@ def build_report(
         out.append("</div>")
     if agreement is not None:
         out += _agreement_section(agreement)
+    out += _tracking_section(records)
 
     columns = table_columns(records)
     out.append("<h2 id=photos>Photos</h2><div class=wide><table><thead><tr>")
@@ -233,6 +234,31 @@ def build_report(
         out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
     out.append("</tbody></table></div>")
     return html_page(title, out)
+
+
+def _tracking_section(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Control charts per vertex when at least 3 records carry bends against one design."""
+    from cvmeasure.part.track import bends_from_records, track_bends, tracking_png
+
+    try:
+        names, design_deg, measured = bends_from_records(records)
+        result = track_bends(measured, design_deg, parts=names)
+    except ValueError:
+        return []
+    d = result.to_dict()
+    rows = [
+        ("parts", len(names)),
+        ("vertices", d["vertices"]),
+        ("drift alarm", "yes" if result.alarm else "no"),
+        ("alarmed vertices", ", ".join(str(v) for v in d["alarmed_vertices"]) or "-"),
+        ("first alarm at part", d["first_alarm_part"]),
+        ("worst Cpk", d["worst_cpk"]),
+    ]
+    return [
+        "<h2 id=tracking>Production tracking</h2>",
+        _kv_table(rows),
+        html_img(tracking_png(result), "control charts per vertex"),
+    ]
 
 
 def _sort_key(record: Mapping[str, Any]) -> tuple[str, str]:

@@ -1,0 +1,127 @@
+"""``cvmeasure correct``: a finished part's bend errors correct the calibration and the job."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+from cvmeasure.cli.options import non_negative_float, positive_float
+
+__all__ = ["register", "run"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "correct",
+        help="correct the calibration and the job from a finished part's per-vertex bends",
+        description="Measure a finished part against its design (as `cvmeasure part`), then "
+        "feed its per-vertex bend errors back, damped: per direction and angle through the "
+        "calibration's springback curve, and per vertex for this job (drift, backlash). "
+        "Writes the corrected calibration (its provenance.corrections keeps the history) and "
+        "the corrected G-code of the next part.",
+    )
+    p.add_argument("photo", type=Path, help="photo of the finished part beside the board")
+    p.add_argument("--design", type=Path, required=True, help="the part's design (.svg/.dxf)")
+    p.add_argument("--material", type=Path, required=True, help="calibration JSON it was bent with")
+    p.add_argument("--board", type=Path, required=True, help="board JSON")
+    p.add_argument("--camera", type=Path, required=True, help="camera JSON")
+    p.add_argument(
+        "--job",
+        type=Path,
+        help="the G-code the part was bent with: its bend count sets the chords measured "
+        "(default: the count found in the photo)",
+    )
+    p.add_argument(
+        "--flipped",
+        action="store_true",
+        help="the part may lie upside down (default: it lies as it left the machine, so a "
+        "design symmetric end to end is matched vertex for vertex)",
+    )
+    p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
+    p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")
+    p.add_argument(
+        "--gain", type=positive_float, default=0.8, help="damping gain (0, 1], default 0.8"
+    )
+    p.add_argument(
+        "--deadband-sigma",
+        type=non_negative_float,
+        default=2.5,
+        help="pooled errors within this many measurement sigmas are left alone (default 2.5)",
+    )
+    p.add_argument("--json", action="store_true", help="print the correction as JSON")
+    p.set_defaults(func=run)
+
+
+_STROKE = re.compile(r"G90\s+G1\s+X(-?[\d.]+)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.board import load_board
+    from cvmeasure.camera import load_camera
+    from cvmeasure.design import load_design
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_text, to_jsonable
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.material.calibration import load_calibration, save_calibration
+    from cvmeasure.material.correct import correct_from_part
+    from cvmeasure.part.measure import measure_part
+
+    if args.gain > 1:
+        raise InputError("--gain", f"must be in (0, 1], got {args.gain}")
+    cal = load_calibration(args.material)
+    design = load_design(args.design).wire()
+    divisions = None
+    if args.job is not None:
+        try:
+            strokes = _STROKE.findall(args.job.read_text(encoding="utf-8", errors="replace"))
+        except OSError as exc:
+            raise InputError(args.job, f"cannot read: {exc.strerror or exc}") from None
+        if not strokes:
+            raise InputError(args.job, "no bend strokes (G90 G1 X...) in the job")
+        divisions = len(strokes) + 1
+    m = measure_part(
+        read_photo(args.photo).bgr,
+        load_board(args.board),
+        load_camera(args.camera),
+        divisions=divisions,
+        design=design,
+        design_source=str(args.design),
+        source=str(args.photo),
+        allow_mirror=args.flipped,
+    )
+    if divisions is not None and m.chords_found is not None:
+        found = m.chords_found.divisions
+        if found is not None and found != divisions:
+            print(
+                f"warning: {args.photo}: the photo shows {found} chords, the job bends "
+                f"{divisions}; measured with {divisions}",
+                file=sys.stderr,
+            )
+    try:
+        cal2, corr, job = correct_from_part(
+            cal,
+            m,
+            design,
+            design_name=args.design.name,
+            gain=args.gain,
+            deadband_sigma=args.deadband_sigma,
+        )
+    except ValueError as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(args.material, str(exc)) from None
+    save_calibration(args.out, cal2)
+    header = f"; cvmeasure correct: {args.design.name} after {args.photo.name}, gain {args.gain:g}"
+    header = "".join(c for c in header if c.isprintable() and c not in "!~%$?")
+    atomic_write_text(args.gcode, header + "\n" + job.text())
+    if args.json:
+        print(json.dumps(to_jsonable(corr.to_dict()), indent=2, allow_nan=False))
+    else:
+        print(
+            f"{corr.bends} vertices, worst error {corr.max_abs_error_deg:.3f} deg; "
+            f"{len(corr.curve_updates)} curve knot(s) moved; wrote {args.out} and {args.gcode}"
+        )
+    return 0

@@ -1,0 +1,535 @@
+"""Closed loop: a finished part's per-vertex bend errors correct the compensation.
+
+A part bent from a design is photographed and measured
+(:func:`cvmeasure.part.measure.measure_part` with the design gives the bend at
+every vertex, in the design's order). Its errors flow back in two layers, both
+in *aim* space (the final angle the compensation is asked for; the pin command
+is ``compensate(aim)``):
+
+1. **per direction and angle, through the compensation curve**: the vertices
+   of one direction are grouped by wanted final angle (groups closer than
+   :data:`GROUP_GAP_DEG`); a group whose mean error ``e`` exceeds its noise
+   dead band moves the springback curve so that the wanted angle ``T`` is
+   reached with the loaded angle that used to give ``T - gain * e``: a knot
+   ``(T, loaded(T - gain * e))`` replaces the knots within the gap of ``T``
+   (linear and PCHIP curves; any job bending ``T`` afterwards benefits);
+2. **per vertex, for a repeated job**: what is left at each vertex after its
+   group's mean (drift along the job, backlash after a change of side) goes
+   into a per-vertex pin offset (deg of pin, through the slope of the
+   uncorrected compensation), kept in the calibration's history for that
+   design and bend count.
+
+The correction is damped (``gain`` < 1, default 0.8): with the true
+response slope ``s = d final / d aim`` near 1, each error is multiplied by
+``1 - gain * s``, which converges without sign changes for ``0 < gain * s < 1``
+(a springback or scale 25 % off the model still does not oscillate). From the
+second part of a job on, the machine's response is measured (the pooled ratio
+of bend change to pin change between its last two parts, over the model's) and
+the step becomes ``informed_gain / ratio`` (default 0.9). The dead band: an error
+seen once is corrected only beyond ``first_look_sigma`` (4) measurement sigmas;
+while a vertex's pin stays the same its errors are pooled over the job's parts
+and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas over
+``sqrt(k)``, so a converged job is not kicked about by measurement noise.
+
+The calibration keeps every correction in ``provenance["corrections"]`` (a list,
+oldest first; :meth:`Correction.to_dict`): which part photo, which design,
+the errors, the curve knots moved and the per-vertex offsets. A correction
+edits the fitted curve, not the raw samples: :meth:`Calibration.refit` starts
+again from the samples (and so drops the corrections' knots).
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cvmeasure.material.calibration import Calibration
+from cvmeasure.material.compensation import (
+    Compensation,
+    CompensationRangeWarning,
+    SpringbackCurve,
+    direction_of,
+    fit_compensation,
+)
+
+__all__ = [
+    "GROUP_GAP_DEG",
+    "DEFAULT_GAIN",
+    "DEFAULT_INFORMED_GAIN",
+    "Correction",
+    "machine_bends_from_comparison",
+    "correct_calibration",
+    "job_vertex_offsets",
+    "corrected_pin_commands",
+    "corrections_of",
+    "correct_from_part",
+    "target_bends_deg",
+]
+
+#: Wanted final angles closer than this (deg) share one curve correction.
+GROUP_GAP_DEG = 0.5
+#: Default damping gain of a correction.
+DEFAULT_GAIN = 0.8
+#: Damping gain once the machine's response has been measured (see :func:`correct_calibration`).
+DEFAULT_INFORMED_GAIN = 0.9
+_CURVE_MODELS = ("linear", "pchip")
+
+
+@dataclass(frozen=True)
+class Correction:
+    """One correction from one measured part (all angles machine frame, signed, deg).
+
+    Attributes
+    ----------
+    part : the part photo's name.
+    design : the design's name; ``bends`` its bend count (the job's key).
+    gain, deadband_sigma, min_deadband_deg : the damping used.
+    target_deg, measured_deg : wanted and measured final bend per vertex (job order).
+    error_deg : measured - wanted.
+    curve_updates : per moved knot: direction, final_deg (magnitude), error_deg
+        (group mean, magnitude sense), aim_shift_deg, loaded_before_deg, loaded_after_deg,
+        vertices (job indices, from 0).
+    vertex_offset_deg : the per-vertex pin offsets after this correction (cumulative).
+    pin_deg : the pin commands of the corrected job.
+    bent_pin_deg : the pin commands the measured part was bent with.
+    model_final_per_pin : d final / d pin per vertex of the uncorrected compensation.
+    response_ratio : the machine's observed d final / d pin over the model's, from
+        this part and the job's previous one (None: first part, or too little change);
+        the step is ``gain / response_ratio``.
+    notes : what was not corrected and why.
+    """
+
+    part: str
+    design: str
+    bends: int
+    gain: float
+    deadband_sigma: float
+    first_look_sigma: float
+    min_deadband_deg: float
+    target_deg: tuple[float, ...]
+    measured_deg: tuple[float, ...]
+    error_deg: tuple[float, ...]
+    curve_updates: tuple[Mapping[str, Any], ...]
+    vertex_offset_deg: tuple[float, ...]
+    pin_deg: tuple[float, ...]
+    bent_pin_deg: tuple[float, ...] = ()
+    model_final_per_pin: tuple[float, ...] = ()
+    response_ratio: float | None = None
+    notes: tuple[str, ...] = ()
+
+    @property
+    def max_abs_error_deg(self) -> float:
+        return float(np.max(np.abs(self.error_deg))) if self.error_deg else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "part": self.part,
+            "design": self.design,
+            "bends": self.bends,
+            "gain": self.gain,
+            "deadband_sigma": self.deadband_sigma,
+            "first_look_sigma": self.first_look_sigma,
+            "min_deadband_deg": self.min_deadband_deg,
+            "target_deg": list(self.target_deg),
+            "measured_deg": list(self.measured_deg),
+            "error_deg": list(self.error_deg),
+            "measured_error_deg": list(self.error_deg),
+            "max_abs_error_deg": self.max_abs_error_deg,
+            "curve_updates": [dict(u) for u in self.curve_updates],
+            "vertex_offset_deg": list(self.vertex_offset_deg),
+            "pin_deg": list(self.pin_deg),
+            "bent_pin_deg": list(self.bent_pin_deg),
+            "model_final_per_pin": list(self.model_final_per_pin),
+            "response_ratio": self.response_ratio,
+            "notes": list(self.notes),
+        }
+
+
+def machine_bends_from_comparison(comparison: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(wanted, measured) machine-frame final bends per vertex from a :class:`BendComparison`.
+
+    The comparison's bends are turns of the design polyline (counter-clockwise
+    positive walking from the first, fed-first point); the machine bend is
+    minus the turn (:func:`cvmeasure.driver.gcode.bend_list`).
+    """
+    return -np.asarray(comparison.design_bend_deg, float), -np.asarray(
+        comparison.measured_bend_deg, float
+    )
+
+
+def corrections_of(calibration: Calibration) -> list[dict[str, Any]]:
+    """The calibration's correction history (oldest first; empty when none)."""
+    return list(calibration.provenance.get("corrections", []))
+
+
+def _last_of_job(calibration: Calibration, design: str, bends: int) -> dict[str, Any] | None:
+    for c in reversed(corrections_of(calibration)):
+        if c.get("design") == design and int(c.get("bends", -1)) == bends:
+            return c
+    return None
+
+
+def job_vertex_offsets(calibration: Calibration, design: str, bends: int) -> np.ndarray:
+    """The latest per-vertex pin offsets (deg) for this design and bend count, else zeros."""
+    last = _last_of_job(calibration, design, bends)
+    return np.zeros(bends) if last is None else np.asarray(last["vertex_offset_deg"], float)
+
+
+#: The observed response may differ from the model's by this factor at most.
+RESPONSE_RATIO_RANGE = (0.5, 2.0)
+
+
+def _response_ratio(
+    prev: Mapping[str, Any] | None, bent_pin: np.ndarray, measured: np.ndarray, noise_deg: float
+) -> float | None:
+    """Observed d final / d pin over the model's, pooled over the job's vertices.
+
+    From the last two parts of the job (their pins and measured bends); None when
+    the pins moved too little to tell the slope from the noise.
+    """
+    if prev is None or "bent_pin_deg" not in prev or "model_final_per_pin" not in prev:
+        return None
+    dp = bent_pin - np.asarray(prev["bent_pin_deg"], float)
+    dm = measured - np.asarray(prev["measured_deg"], float)
+    model = np.asarray(prev["model_final_per_pin"], float)
+    if dp.shape != bent_pin.shape or np.sqrt(np.mean(dp**2)) < 10.0 * max(noise_deg, 0.005):
+        return None
+    observed = float(np.sum(dp * dm) / np.sum(dp * dp))
+    expected = float(np.sum(dp * dp * model) / np.sum(dp * dp))
+    return float(np.clip(observed / expected, *RESPONSE_RATIO_RANGE))
+
+
+def corrected_pin_commands(
+    calibration: Calibration, target_deg: ArrayLike, vertex_offset_deg: ArrayLike | None = None
+) -> tuple[float, ...]:
+    """Pin commands (deg): the calibration's for the wanted bends plus per-vertex pin offsets.
+
+    A wanted bend a little outside the calibrated range is extrapolated.
+    """
+    t = np.asarray(target_deg, dtype=np.float64)
+    off = np.zeros_like(t) if vertex_offset_deg is None else np.asarray(vertex_offset_deg, float)
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CompensationRangeWarning)
+        for target, o in zip(t, off, strict=True):
+            out.append(0.0 if target == 0 else calibration.compensate(target, outside="warn") + o)
+    return tuple(float(p) for p in out)
+
+
+def _base_compensation(calibration: Calibration) -> Compensation:
+    """The compensation fitted to the raw samples alone (no correction knots): its slopes."""
+    pin = [s.commanded_pin_deg for s in calibration.samples]
+    loaded = [s.loaded_bend_deg for s in calibration.samples]
+    unloaded = [s.unloaded_bend_deg for s in calibration.samples]
+    return fit_compensation(pin, loaded, unloaded, model=calibration.model)  # type: ignore[arg-type]
+
+
+def _slope(fn: Any, x: float, h: float = 0.5) -> float:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CompensationRangeWarning)
+        return float((fn(x + h) - fn(x - h)) / (2.0 * h))
+
+
+def _pooled_errors(
+    calibration: Calibration, design: str, bent_pin: np.ndarray, error: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per vertex: how many consecutive parts (this one included) had this pin, their mean error."""
+    total = error.copy()
+    k = np.ones(error.size)
+    open_ = np.ones(error.size, bool)
+    for c in reversed(corrections_of(calibration)):
+        if c.get("design") != design or int(c.get("bends", -1)) != error.size:
+            continue
+        pins = np.asarray(c.get("bent_pin_deg", ()), float)
+        if pins.shape != bent_pin.shape:
+            break
+        open_ &= np.abs(pins - bent_pin) < 1e-9
+        if not open_.any():
+            break
+        total += np.where(open_, np.asarray(c["measured_error_deg"], float), 0.0)
+        k += open_
+    return k, total / k
+
+
+def _groups(magnitudes: np.ndarray) -> list[np.ndarray]:
+    order = np.argsort(magnitudes, kind="stable")
+    groups: list[list[int]] = []
+    for i in order:
+        if groups and magnitudes[i] - magnitudes[groups[-1][-1]] <= GROUP_GAP_DEG:
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    return [np.asarray(g) for g in groups]
+
+
+def _loaded_at(curve: SpringbackCurve, final_deg: float) -> float:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CompensationRangeWarning)
+        return float(curve.loaded_for_final_deg(final_deg, outside="warn"))
+
+
+def _with_knot(curve: SpringbackCurve, final_deg: float, loaded_deg: float) -> SpringbackCurve:
+    f = np.asarray(curve.final_deg)
+    ld = np.asarray(curve.loaded_deg)
+    keep = np.abs(f - final_deg) > GROUP_GAP_DEG
+    f = np.append(f[keep], final_deg)
+    ld = np.append(ld[keep], loaded_deg)
+    order = np.argsort(f)
+    f, ld = f[order], ld[order]
+    lo, hi = min(curve.domain_deg[0], float(f[0])), max(curve.domain_deg[1], float(f[-1]))
+    return replace(
+        curve,
+        final_deg=tuple(float(v) for v in f),
+        loaded_deg=tuple(float(v) for v in ld),
+        domain_deg=(lo, hi),
+    )
+
+
+def correct_calibration(
+    calibration: Calibration,
+    target_deg: ArrayLike,
+    measured_deg: ArrayLike,
+    *,
+    sigma_deg: ArrayLike | None = None,
+    part: str = "part",
+    design: str = "design",
+    gain: float = DEFAULT_GAIN,
+    deadband_sigma: float = 2.5,
+    first_look_sigma: float = 4.0,
+    min_deadband_deg: float = 0.02,
+    informed_gain: float = DEFAULT_INFORMED_GAIN,
+    vertex_offset_deg: ArrayLike | None = None,
+) -> tuple[Calibration, Correction]:
+    """Correct a calibration from one part's per-vertex final bends (see the module notes).
+
+    Parameters
+    ----------
+    calibration : the calibration the part was bent with.
+    target_deg, measured_deg : ndarray (N,), wanted and measured final bends per
+        vertex in job order, machine frame, signed, deg.
+    sigma_deg : standard uncertainty of each measured bend (deg); None = 0 (only
+        ``min_deadband_deg`` then).
+    part, design : names for the history; ``design`` with N keys the per-vertex offsets.
+    gain : damping in (0, 1] while the machine's response is assumed to be the model's.
+    informed_gain : damping once the response has been measured from two parts of the
+        job (their pin and bend changes); the larger of the two is used.
+    deadband_sigma, first_look_sigma, min_deadband_deg : the dead band: an error
+        seen once is corrected beyond ``first_look_sigma`` sigmas; the mean of k
+        parts bent with the same pin beyond ``deadband_sigma * sigma / sqrt(k)``;
+        sigma is at least ``min_deadband_deg / deadband_sigma``.
+    vertex_offset_deg : the offsets the part was bent with; None = the latest in
+        the calibration's history for this design and N.
+
+    Returns
+    -------
+    (Calibration, Correction)
+        The corrected calibration (history appended) and the correction.
+
+    Raises
+    ------
+    ValueError
+        Mismatched lengths, a gain outside (0, 1], or a curve model the
+        correction cannot move (cubic / physical: refit as linear first).
+    """
+    if not 0.0 < gain <= 1.0:
+        raise ValueError(f"gain must be in (0, 1], got {gain}")
+    t = np.asarray(target_deg, dtype=np.float64).ravel()
+    m = np.asarray(measured_deg, dtype=np.float64).ravel()
+    if t.shape != m.shape or t.size == 0:
+        raise ValueError(f"{t.size} wanted bends but {m.size} measured")
+    sig = np.zeros_like(t) if sigma_deg is None else np.asarray(sigma_deg, float).ravel()
+    if sig.shape != t.shape:
+        raise ValueError("sigma_deg must have one value per vertex")
+    if calibration.model not in _CURVE_MODELS:
+        raise ValueError(
+            f"a {calibration.model} springback curve cannot be corrected knot by knot; "
+            "refit the calibration as linear or pchip first"
+        )
+    offsets = (
+        job_vertex_offsets(calibration, design, t.size)
+        if vertex_offset_deg is None
+        else np.asarray(vertex_offset_deg, dtype=np.float64).copy()
+    )
+    if offsets.shape != t.shape:
+        raise ValueError("vertex_offset_deg must have one value per vertex")
+    error = m - t
+    sign = np.where(t < 0, -1.0, 1.0)
+    prev = _last_of_job(calibration, design, t.size)
+    bent_pin = np.asarray(corrected_pin_commands(calibration, t, offsets))
+    base = _base_compensation(calibration)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CompensationRangeWarning)
+        pin_per_final = np.array(
+            [
+                _slope(lambda x: base.compensate(x, outside="warn"), float(tt)) if tt else 1.0
+                for tt in t
+            ]
+        )
+    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)))
+    # once the machine's own response has been measured (ratio), the step is known to a
+    # few per cent and the damping can be lighter: still < 1, so never an overshoot
+    step = gain / ratio * max(gain, informed_gain) / gain if ratio else gain
+    # Evidence accumulates while a vertex's pin stays the same: its error is the mean
+    # over the job's consecutive parts bent with this very pin (k of them), whose noise is
+    # sigma / sqrt(k). A first look (k = 1) acts only on errors beyond ``first_look_sigma``
+    # sigmas (large errors are corrected at once); later looks beyond ``deadband_sigma``
+    # sigmas of the mean. A converged job is thus not kicked about by noise.
+    k, mean_error = _pooled_errors(calibration, design, bent_pin, error)
+    sig_eff = np.maximum(sig, min_deadband_deg / max(deadband_sigma, 1e-9))
+    band = np.where(k == 1, first_look_sigma, deadband_sigma) * sig_eff / np.sqrt(k)
+    error = mean_error
+    curves = dict(calibration.compensation.springback)
+    updates: list[dict[str, Any]] = []
+    notes: list[str] = []
+    residual = error.copy()
+    whole = np.zeros(t.size, bool)  # vertices of a significant group the curve could not take
+    for direction in ("ccw", "cw"):
+        idx = np.flatnonzero([(tt != 0 and direction_of(tt) == direction) for tt in t])
+        if idx.size == 0:
+            continue
+        if direction not in curves:
+            notes.append(f"no {direction} curve: {idx.size} vertices left uncorrected")
+            continue
+        mags = np.abs(t[idx])
+        for group in _groups(mags):
+            members = idx[group]
+            e_mag = float(np.mean(sign[members] * error[members]))
+            group_band = float(np.sqrt(np.mean(band[members] ** 2)) / np.sqrt(group.size))
+            residual[members] = error[members] - sign[members] * e_mag
+            if abs(e_mag) <= group_band:
+                residual[members] = error[members]  # the vertices may still correct alone
+                continue
+            final = float(np.mean(mags[group]))
+            curve = curves[direction]
+            shift = -step * e_mag
+            before = _loaded_at(curve, final)
+            base_curve = base.springback[direction]
+            slope = _slope(lambda x, c=base_curve: _loaded_at(c, x), final)
+            after = before + shift * slope
+            moved = _with_knot(curve, final, after)
+            if np.any(np.diff(moved.loaded_deg) <= 0):
+                notes.append(
+                    f"{direction} {final:.2f} deg: moving the knot would make the curve "
+                    "non-monotone; corrected per vertex instead"
+                )
+                residual[members] = error[members]
+                whole[members] = True
+                continue
+            curves[direction] = moved
+            updates.append(
+                {
+                    "direction": direction,
+                    "final_deg": final,
+                    "error_deg": e_mag,
+                    "aim_shift_deg": shift,
+                    "loaded_before_deg": before,
+                    "loaded_after_deg": after,
+                    "vertices": [int(i) for i in members],
+                }
+            )
+    # a vertex whose own error is beyond its band is corrected whole (its group's share
+    # through the curve, the rest here), however small the rest
+    vertex = (np.abs(error) > band) | whole
+    offsets = offsets - np.where(vertex, step * residual * pin_per_final, 0.0)
+    comp = replace(calibration.compensation, springback=curves)
+    history = corrections_of(calibration)
+    new_cal = replace(calibration, compensation=comp)
+    pins = corrected_pin_commands(new_cal, t, offsets)
+    correction = Correction(
+        part=part,
+        design=design,
+        bends=int(t.size),
+        gain=float(gain),
+        deadband_sigma=float(deadband_sigma),
+        first_look_sigma=float(first_look_sigma),
+        min_deadband_deg=float(min_deadband_deg),
+        target_deg=tuple(float(v) for v in t),
+        measured_deg=tuple(float(v) for v in m),
+        error_deg=tuple(float(v) for v in m - t),
+        curve_updates=tuple(updates),
+        vertex_offset_deg=tuple(float(v) for v in offsets),
+        pin_deg=pins,
+        bent_pin_deg=tuple(float(v) for v in bent_pin),
+        model_final_per_pin=tuple(float(1.0 / v) for v in pin_per_final),
+        response_ratio=ratio,
+        notes=tuple(notes),
+    )
+    provenance = {**calibration.provenance, "corrections": [*history, correction.to_dict()]}
+    return replace(new_cal, provenance=provenance), correction
+
+
+def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarray:
+    """Machine-frame wanted bends (deg) of a chord polyline, fed from its first point."""
+    from cvmeasure.design import bend_angles_deg
+
+    return -bend_angles_deg(np.asarray(chord_vertices_mm, dtype=np.float64))
+
+
+def correct_from_part(
+    calibration: Calibration,
+    measurement: Any,
+    design: Any,
+    *,
+    design_name: str = "design",
+    gain: float = DEFAULT_GAIN,
+    deadband_sigma: float = 2.0,
+    min_deadband_deg: float = 0.02,
+) -> tuple[Calibration, Correction, Any]:
+    """Correct from a measured part; return (calibration, correction, the next job).
+
+    Parameters
+    ----------
+    measurement : a :class:`~cvmeasure.part.measure.PartMeasurement` measured with
+        ``design`` (its ``comparison.bends`` are used; the chord count N is the one
+        found in the photo).
+    design : the design wire (:class:`cvmeasure.design.DesignPath`); the job bends
+        its N equal chords, fed from its first point.
+
+    Returns
+    -------
+    (Calibration, Correction, GcodeJob)
+
+    Raises
+    ------
+    InputError
+        The part has no per-vertex bends (no chords found, no design comparison).
+    """
+    from cvmeasure.driver.gcode import GcodeJob, bend_list, gcode_lines
+    from cvmeasure.errors import InputError
+
+    comp = measurement.comparison
+    if comp is None or comp.bends is None:
+        raise InputError(
+            measurement.source,
+            "no per-vertex bends against the design (no chord vertices found in the photo)",
+        )
+    target, measured = machine_bends_from_comparison(comp.bends)
+    sigma = measurement.vertex_bend_sigma_deg
+    if sigma is not None:
+        sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
+    chords = design.chords(len(target) + 1)  # the count measured (given or found)
+    bends = bend_list(chords, source=design_name)
+    if len(bends.bends_deg) != len(target):
+        raise InputError(
+            design_name,
+            f"{len(target)} vertices measured but the job has {len(bends.bends_deg)} bends "
+            "(straight vertices merged)",
+        )
+    cal, corr = correct_calibration(
+        calibration,
+        bends.bends_deg,
+        measured,
+        sigma_deg=sigma,
+        part=measurement.source,
+        design=design_name,
+        gain=gain,
+        deadband_sigma=deadband_sigma,
+        min_deadband_deg=min_deadband_deg,
+    )
+    lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
+    return cal, corr, GcodeJob(lines, bends, corr.pin_deg)

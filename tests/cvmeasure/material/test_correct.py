@@ -1,0 +1,196 @@
+"""Closed-loop correction: repeated parts converge, without oscillation, with a history."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.contracts import Trial
+from cvmeasure.driver.session import nominal_pin_for_loaded_deg
+from cvmeasure.material.calibration import (
+    MODES,
+    fit_calibration,
+    load_calibration,
+    save_calibration,
+)
+from cvmeasure.material.correct import (
+    correct_calibration,
+    corrected_pin_commands,
+    corrections_of,
+    job_vertex_offsets,
+)
+from cvmeasure.sim import Effect, SimParams, simulate
+
+
+def default_calibration(model="linear"):
+    """Calibration of the nominal simulated bender (no hidden effects), high mode, no noise."""
+    pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in MODES["high"]]
+    r = simulate(pins)
+    samples = [
+        Trial(
+            trial=str(i),
+            commanded_pin_deg=float(p),
+            loaded_bend_deg=float(r.loaded_bend_deg[i]),
+            unloaded_bend_deg=float(r.unloaded_bend_deg[i]),
+            target_deg=float(MODES["high"][i % len(MODES["high"])]),
+        )
+        for i, p in enumerate(pins)
+    ]
+    return fit_calibration(samples, model=model)
+
+
+# a machine the calibration does not know: harder wire, gear play, home error, lost steps
+HIDDEN = SimParams(yield_mpa=330.0)
+EFFECTS = (Effect("backlash", 1.2), Effect("offset", 0.7), Effect("drift", 0.03))
+NOISE_DEG = 0.03
+
+
+def run_loop(cal, target, parts, *, seed=0, design="job"):
+    """Bend ``parts`` parts, correcting after each; true bends of every part (parts, N)."""
+    rng = np.random.default_rng(seed)
+    made = []
+    for _ in range(parts):
+        pins = corrected_pin_commands(cal, target, job_vertex_offsets(cal, design, len(target)))
+        true = simulate(pins, HIDDEN, EFFECTS).unloaded_bend_deg
+        made.append(true)
+        measured = true + rng.normal(0.0, NOISE_DEG, len(target))
+        cal, _ = correct_calibration(
+            cal, target, measured, sigma_deg=np.full(len(target), NOISE_DEG), design=design
+        )
+    return cal, np.array(made)
+
+
+def test_half_circle_converges_within_two_corrections_and_stays():
+    target = np.full(20, 9.0)
+    _, made = run_loop(default_calibration(), target, 27)
+    err = np.abs(made - target)
+    assert err[0].max() > 0.8  # the hidden machine is really off
+    assert err[2].max() < 0.1  # after 2 corrections
+    assert err[6].max() < 0.06  # converged
+    # stable: 20 further corrections move no vertex by more than the noise's 95 % range
+    assert np.abs(made[7:] - made[6]).max() < 2 * NOISE_DEG
+
+
+def test_saddle_both_directions_and_mixed_angles():
+    rng = np.random.default_rng(3)
+    target = np.concatenate([np.full(6, 3.48), np.full(7, -3.48)])
+    target = np.concatenate([target, rng.uniform(4, 40, 6) * rng.choice([-1, 1], 6)])
+    _, made = run_loop(default_calibration(), target, 4, seed=1)
+    assert np.abs(made[2] - target).max() < 0.1
+
+
+def test_no_oscillation_error_shrinks_monotonically():
+    target = np.full(12, 20.0)
+    _, made = run_loop(default_calibration(), target, 4, seed=2)
+    err = made - target
+    big = np.abs(err[0]) > 5 * NOISE_DEG
+    # every vertex approaches its target from the same side (no sign change beyond noise)
+    assert np.all(np.sign(err[1][big]) * np.sign(err[0][big]) >= 0) or np.all(
+        np.abs(err[1][big]) < 3 * NOISE_DEG
+    )
+    assert np.all(np.abs(err[1]) < np.abs(err[0]) + 3 * NOISE_DEG)
+
+
+def test_history_round_trips_through_the_file(tmp_path):
+    target = np.full(5, 30.0)
+    cal, _ = run_loop(default_calibration(), target, 2, design="bracket.svg")
+    history = corrections_of(cal)
+    assert [c["design"] for c in history] == ["bracket.svg", "bracket.svg"]
+    assert history[0]["curve_updates"][0]["direction"] == "ccw"
+    assert history[0]["max_abs_error_deg"] > 0.5
+    save_calibration(tmp_path / "cal2.json", cal)
+    again = load_calibration(tmp_path / "cal2.json")
+    assert corrections_of(again) == history
+    np.testing.assert_allclose(
+        job_vertex_offsets(again, "bracket.svg", 5), history[-1]["vertex_offset_deg"]
+    )
+    assert corrected_pin_commands(again, target, job_vertex_offsets(again, "bracket.svg", 5)) == (
+        pytest.approx(
+            corrected_pin_commands(cal, target, job_vertex_offsets(cal, "bracket.svg", 5))
+        )
+    )
+
+
+def test_noise_only_errors_are_left_alone():
+    cal = default_calibration()
+    target = np.full(8, 15.0)
+    measured = target + np.array([0.01, -0.02, 0.015, 0.0, -0.01, 0.02, -0.015, 0.005])
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=np.full(8, 0.02))
+    assert corr.curve_updates == ()
+    assert np.all(np.asarray(corr.vertex_offset_deg) == 0)
+    assert corrected_pin_commands(cal2, target) == corrected_pin_commands(cal, target)
+
+
+def test_bad_arguments():
+    cal = default_calibration()
+    with pytest.raises(ValueError, match="gain"):
+        correct_calibration(cal, [10.0], [10.5], gain=1.5)
+    with pytest.raises(ValueError, match="measured"):
+        correct_calibration(cal, [10.0, 12.0], [10.5])
+    with pytest.raises(ValueError, match="refit"):
+        correct_calibration(default_calibration("cubic"), [10.0], [10.5])
+
+
+def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
+    """`cvmeasure correct` on a JPEG of a part the hidden machine bent: errors seen, job moved."""
+    import json
+
+    import cvmeasure_datasets
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.camera import save_camera
+    from cvmeasure.cli import main
+    from cvmeasure.design import load_design
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.material.correct import target_bends_deg
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    a0, a1 = np.radians(15.0), np.radians(165.0)
+    x0, y0 = 100 + 55 * np.cos(a0), 100 - 55 * np.sin(a0)
+    x1, y1 = 100 + 55 * np.cos(a1), 100 - 55 * np.sin(a1)
+    design = tmp_path / "arc.svg"
+    design.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
+        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A 55 55 0 0 0 {x1} {y1}"/></svg>',
+        encoding="utf-8",
+    )
+    chords = load_design(design).wire().chords(10)
+    target = target_bends_deg(chords)
+    cal = default_calibration()
+    pins = corrected_pin_commands(cal, target)
+    made = simulate(pins, HIDDEN, EFFECTS).unloaded_bend_deg
+    # the bent wire: fed from the first point, turning by minus each machine bend
+    lengths = np.hypot(*np.diff(chords, axis=0).T)
+    heading = np.concatenate([[0.0], np.cumsum(-np.radians(made))])
+    pts = np.vstack(
+        [[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)]
+    )
+    # lying design face up (the board frame has y down, the design y up)
+    photo = cvmeasure_datasets.render_part_photo(
+        part=pts * np.array([1.0, -1.0]), board=board, seed=3, scale=0.5
+    )
+    jpg, _ = photo.save(tmp_path / "part")
+    save_camera(tmp_path / "camera.json", photo.camera)
+    atomic_write_json(tmp_path / "board.json", board.to_dict())
+    save_calibration(tmp_path / "cal.json", cal)
+    common = ["--design", str(design), "--material", str(tmp_path / "cal.json")]
+    common += ["--board", str(tmp_path / "board.json"), "--camera", str(tmp_path / "camera.json")]
+    out = ["-o", str(tmp_path / "cal2.json"), "--gcode", str(tmp_path / "job2.gcode")]
+    assert main(["correct", str(jpg), *common, *out, "--json"]) == 0
+    corr = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(corr["error_deg"], made - target, atol=0.1)
+    assert max(abs(e) for e in corr["error_deg"]) > 0.5
+    cal2 = load_calibration(tmp_path / "cal2.json")
+    assert corrections_of(cal2)[-1]["part"] == str(jpg)
+    # the machine under-bends: every corrected pin goes further
+    new_pins = corr["pin_deg"]
+    assert all(abs(n) > abs(p) for n, p in zip(new_pins, pins, strict=True))
+    assert (tmp_path / "job2.gcode").read_text().count("G90 G1 X") == 9
+    # the job the part was bent with sets the chord count; a file that is no job: exit 2
+    (tmp_path / "job.gcode").write_text(
+        "".join(f"N{i} G90 G1 X{p:.3f} F6000\n" for i, p in enumerate(pins))
+    )
+    assert main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "job.gcode")]) == 0
+    (tmp_path / "other.gcode").write_text("N1 G0 Z0\n")
+    code = main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "other.gcode")])
+    assert code == 2
+    assert "other.gcode" in capsys.readouterr().err
