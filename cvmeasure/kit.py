@@ -34,6 +34,12 @@ class MarkerSpec:
     per channel in CIE L*a*b* and in 8-bit sRGB under D65, as learnt from a
     reference photo (``cvmeasure markers learn``); without them a measurement
     uses the defaults of :mod:`cvmeasure.markers.colour`.
+
+    ``height_mm`` is the height of the disc's printed face above the bender's top
+    plate (the measurement plane, where the board lies for ``cvmeasure plane``), mm,
+    measured along the plate's normal towards the camera. ``None`` means the kit
+    JSON did not say (a kit written before heights existed): such a kit is taken as
+    flat, all discs on the plate, and a measurement says so.
     """
 
     role: str
@@ -43,6 +49,7 @@ class MarkerSpec:
     ring_mm: float
     lab_sigma: tuple[float, float, float] | None = None
     rgb_sigma: tuple[float, float, float] | None = None
+    height_mm: float | None = None
 
     @property
     def lab_d65(self) -> np.ndarray:
@@ -65,20 +72,39 @@ class MarkerSpec:
             out["lab_sigma"] = [round(float(v), 2) for v in self.lab_sigma]
         if self.rgb_sigma is not None:
             out["rgb_sigma"] = [round(float(v), 2) for v in self.rgb_sigma]
+        if self.height_mm is not None:
+            out["height_mm"] = self.height_mm
         return out
 
 
 @dataclass(frozen=True)
 class MarkerKit:
-    """A named set of markers, one per role."""
+    """A named set of markers, one per role, and the wire they measure.
+
+    ``wire_diameter_mm`` is the wire's diameter; ``wire_axis_height_mm`` the height
+    of the wire's axis above the top plate (where the guides hold it), mm. ``None``
+    means the kit JSON did not say (a flat kit, see :class:`MarkerSpec`).
+    """
 
     name: str
     markers: tuple[MarkerSpec, ...]
+    wire_diameter_mm: float | None = None
+    wire_axis_height_mm: float | None = None
 
     def __post_init__(self) -> None:
         roles = [m.role for m in self.markers]
         if sorted(roles) != sorted(ROLES):
             raise ValueError(f"a kit needs exactly one marker per role {ROLES}, got {roles}")
+
+    @property
+    def has_heights(self) -> bool:
+        """True when every marker's height above the plate is known."""
+        return all(m.height_mm is not None for m in self.markers)
+
+    def height_mm(self, role: str) -> float:
+        """The height of ``role``'s disc above the top plate, mm (0 for a flat kit)."""
+        height = self.by_role(role).height_mm
+        return 0.0 if height is None else float(height)
 
     def by_role(self, role: str) -> MarkerSpec:
         for marker in self.markers:
@@ -87,7 +113,12 @@ class MarkerKit:
         raise KeyError(role)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "markers": [m.to_dict() for m in self.markers]}
+        out: dict[str, Any] = {"name": self.name, "markers": [m.to_dict() for m in self.markers]}
+        if self.wire_diameter_mm is not None:
+            out["wire_diameter_mm"] = self.wire_diameter_mm
+        if self.wire_axis_height_mm is not None:
+            out["wire_axis_height_mm"] = self.wire_axis_height_mm
+        return out
 
     @classmethod
     def from_dict(cls, data: Any, *, source: str = "kit JSON") -> MarkerKit:
@@ -108,6 +139,7 @@ class MarkerKit:
                     ring_mm=float(m["ring_mm"]),
                     lab_sigma=_sigma(m.get("lab_sigma")),
                     rgb_sigma=_sigma(m.get("rgb_sigma")),
+                    height_mm=_length(m.get("height_mm"), "height_mm", minimum=0.0),
                 )
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(source, f"marker #{i} is malformed: {exc}") from None
@@ -115,9 +147,23 @@ class MarkerKit:
                 raise InputError(source, f"marker {spec.role!r}: need 0 < diameter_mm < ring_mm")
             markers.append(spec)
         try:
-            return cls(str(data.get("name", "kit")), tuple(markers))
+            wire_d = _length(data.get("wire_diameter_mm"), "wire_diameter_mm", minimum=1e-6)
+            wire_h = _length(data.get("wire_axis_height_mm"), "wire_axis_height_mm", minimum=0.0)
+            return cls(str(data.get("name", "kit")), tuple(markers), wire_d, wire_h)
         except ValueError as exc:
             raise InputError(source, str(exc)) from None
+
+
+def _length(value: Any, name: str, *, minimum: float) -> float | None:
+    """An optional length in mm: None stays None; otherwise a finite number >= minimum."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} must be a number of millimetres, got {value!r}")
+    length = float(value)
+    if not np.isfinite(length) or length < minimum:
+        raise ValueError(f"{name} must be a finite length >= {minimum:g} mm, got {value!r}")
+    return length
 
 
 def _sigma(value: Any) -> tuple[float, float, float] | None:
@@ -141,16 +187,24 @@ def default_kit() -> MarkerKit:
     subsamples and quantises hardest, so its centre came out twice as noisy as
     the other markers' (rendered photos, benchmarks/markers.py); the
     orange-yellow doubles the luminance step and halves that noise.
+
+    Heights above the top plate (mm, the printed face) are those of the printable
+    kit on a DIWire-class head: the 3 mm wire's axis 5 mm above the plate (the
+    guides' height), the wire clips' faces 2 mm above the wire's top (8.5 mm), the
+    die cap and the upstream guide's cap at 12 mm, the pin cap at 18 mm. Measure
+    your own with calipers and put them in your kit JSON.
     """
     return MarkerKit(
         "seed-5",
         (
-            MarkerSpec("origin", "dark green", (0, 110, 70), 10.0, 14.0),
-            MarkerSpec("axis", "yellow-green", (140, 190, 40), 10.0, 14.0),
-            MarkerSpec("pin", "orange-yellow", (240, 140, 0), 8.0, 12.0),
-            MarkerSpec("wire_a", "blue", (20, 70, 180), 8.0, 12.0),
-            MarkerSpec("wire_b", "magenta", (200, 30, 130), 8.0, 12.0),
+            MarkerSpec("origin", "dark green", (0, 110, 70), 10.0, 14.0, height_mm=12.0),
+            MarkerSpec("axis", "yellow-green", (140, 190, 40), 10.0, 14.0, height_mm=12.0),
+            MarkerSpec("pin", "orange-yellow", (240, 140, 0), 8.0, 12.0, height_mm=18.0),
+            MarkerSpec("wire_a", "blue", (20, 70, 180), 8.0, 12.0, height_mm=8.5),
+            MarkerSpec("wire_b", "magenta", (200, 30, 130), 8.0, 12.0, height_mm=8.5),
         ),
+        wire_diameter_mm=3.0,
+        wire_axis_height_mm=5.0,
     )
 
 

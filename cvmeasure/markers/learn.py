@@ -118,5 +118,5 @@ def learn_kit(
         markers.append(learnt)
         delta_e[spec.role] = float(np.linalg.norm(learnt.lab_d65 - spec.lab_d65))
         n_pixels[spec.role] = int(inside.sum())
-    new_kit = MarkerKit(name or f"{kit.name}-learnt", tuple(markers))
+    new_kit = replace(kit, name=name or f"{kit.name}-learnt", markers=tuple(markers))
     return LearntKit(new_kit, delta_e, n_pixels, white.srgb8)
