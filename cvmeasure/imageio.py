@@ -10,7 +10,7 @@ An unreadable file raises :class:`~cvmeasure.errors.InputError` naming it.
 
 JPEGs are decoded by libjpeg-turbo through simplejpeg (accurate integer IDCT and
 fancy chroma upsampling: the same pixels as ``cv2.imdecode``, bit for bit, in
-0.4-0.9x its time on one core; :func:`decode_jpeg`); what simplejpeg refuses
+0.45-0.93x its time on one core; :func:`decode_jpeg`); what simplejpeg refuses
 (CMYK, 12-bit, damaged files) goes to OpenCV as before.
 """
 
@@ -235,7 +235,7 @@ def decode_jpeg(
 
     libjpeg-turbo (simplejpeg's wheel bundles it) with the accurate integer IDCT and
     fancy upsampling, strict about damaged data: the pixels ``cv2.imdecode`` gives,
-    bit for bit, in 0.4-0.9x its time on one core (benchmarks/decode_speed.py).
+    bit for bit, in 0.45-0.93x its time on one core (benchmarks/decode_speed.py).
     None (CMYK, 12-bit, truncated or otherwise damaged, simplejpeg missing) lets the
     caller fall back to OpenCV. A header declaring more than ``limit`` pixels raises
     InputError naming ``path`` before anything is decoded.
