@@ -113,6 +113,7 @@ def main(argv: list[str] | None = None) -> dict:
 
     from benchmarks._calibrated import calibrated_camera, plane_for_pose
     from cvmeasure.errors import InputError
+    from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit
     from cvmeasure.markers import measure_machine_photo
 
@@ -142,7 +143,8 @@ def main(argv: list[str] | None = None) -> dict:
                 else None
             )
             lens = camera if plane is None else None
-            t_dec, wall_dec, img = best_times(lambda path=path: cv2.imread(str(path)), 3)
+            t_dec, wall_dec, _ = best_times(lambda path=path: cv2.imread(str(path)), 3)
+            img = read_photo(path).bgr  # the library's decode (libjpeg-turbo via simplejpeg)
 
             def run(path=path, plane=plane, lens=lens):
                 return measure_machine_photo(cv2.imread(str(path)), kit, camera=lens, plane=plane)

@@ -29,23 +29,22 @@ import importlib.util
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from cvmeasure import __version__
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl, repair_jsonl_tail
-from cvmeasure.imageio import PHOTO_SUFFIXES, Photo, read_photo
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used, not on import
+    from concurrent.futures import Future
+
     from cvmeasure.board import BoardSpec
     from cvmeasure.camera import CameraModel
     from cvmeasure.contracts import PlaneModel
+    from cvmeasure.imageio import Photo
     from cvmeasure.kit import MarkerKit
 
 __all__ = [
@@ -240,6 +239,8 @@ def list_photos(spec: str | os.PathLike[str] | Sequence[str | os.PathLike[str]])
     (:data:`~cvmeasure.imageio.PHOTO_SUFFIXES`); a glob may use ``**``. Raises
     InputError naming the spec when nothing matches.
     """
+    from cvmeasure.imageio import PHOTO_SUFFIXES
+
     if isinstance(spec, (str, os.PathLike)):
         specs = [spec]
     else:
@@ -315,6 +316,7 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     ``r_px``. A real, simple measurement for testing and benchmarking batches.
     """
     import cv2
+    import numpy as np
 
     gray = cv2.GaussianBlur(photo.gray8(), (5, 5), 0)
     _t, mask = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
@@ -385,6 +387,8 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
         "error": None,
     }
     try:
+        from cvmeasure.imageio import read_photo
+
         photo = read_photo(path)
         if kind == "auto":
             kind = detect_kind(photo, context)
@@ -510,6 +514,8 @@ def _run_processes(
     workers: int,
     start_method: str = "spawn",
 ) -> Iterator[dict[str, Any]]:
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     ctx = _pool_context(start_method)
     window = 4 * workers
     todo = iter(jobs)

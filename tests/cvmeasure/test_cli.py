@@ -152,3 +152,17 @@ def test_sim_url_speedup_must_be_positive(tmp_path, capsys):
     job.write_text("G90\n")
     assert main(["bend", str(job), "--port", "sim://?speedup=0"]) == 2
     assert "speedup must be a finite number > 0" in capsys.readouterr().err
+
+
+def test_the_parser_loads_no_numerical_library():
+    """``cvmeasure --help`` and argument errors start fast: building the parser of every
+    command imports neither numpy nor OpenCV (each command imports what it uses when run)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from cvmeasure.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('numpy', 'cv2', 'scipy', 'matplotlib') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

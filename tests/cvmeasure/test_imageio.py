@@ -70,3 +70,73 @@ def test_a_photo_declaring_too_many_pixels_is_refused_before_decoding(tmp_path):
         read_photo(bomb)
     grown_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
     assert grown_kb < 200_000  # nothing near the 2.7 GB a decode would take
+
+
+def _textured(seed: int, shape=(120, 184)) -> np.ndarray:
+    """A colour image with edges, gradients and noise: what chroma upsampling and IDCT see."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = np.dstack((xx * 255 // w, yy * 255 // h, 128 + 0 * xx)).astype(np.float64)
+    disc = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (h / 4) ** 2
+    img[disc] = (30, 140, 230)
+    img += rng.normal(0, 6, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize(
+    "params",
+    [
+        [cv2.IMWRITE_JPEG_QUALITY, 80],
+        [cv2.IMWRITE_JPEG_QUALITY, 98],
+        [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, 0x111111],
+        [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_PROGRESSIVE, 1],
+        [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_RST_INTERVAL, 4],
+    ],
+)
+def test_jpeg_decode_gives_opencvs_pixels_bit_for_bit(tmp_path, params):
+    from cvmeasure.imageio import decode_jpeg
+
+    p = tmp_path / "x.jpg"
+    cv2.imwrite(str(p), _textured(5), params)
+    data = np.fromfile(p, dtype=np.uint8)
+    fast = decode_jpeg(data, p)
+    assert fast is not None  # simplejpeg decoded it (not the fallback)
+    np.testing.assert_array_equal(fast, cv2.imdecode(data, cv2.IMREAD_UNCHANGED))
+    np.testing.assert_array_equal(read_photo(p).bgr, fast)
+
+
+def test_grey_jpeg_reads_as_three_equal_channels(tmp_path):
+    p = tmp_path / "grey.jpg"
+    grey = cv2.cvtColor(_textured(6), cv2.COLOR_BGR2GRAY)
+    cv2.imwrite(str(p), grey, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    bgr = read_photo(p).bgr
+    assert bgr.shape == grey.shape + (3,)
+    np.testing.assert_array_equal(bgr[..., 0], cv2.imread(str(p), cv2.IMREAD_GRAYSCALE))
+    np.testing.assert_array_equal(bgr[..., 0], bgr[..., 2])
+
+
+def test_truncated_jpeg_goes_to_opencv_as_before(tmp_path):
+    from cvmeasure.imageio import decode_jpeg
+
+    p = tmp_path / "cut.jpg"
+    cv2.imwrite(str(p), _textured(7), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    data = np.fromfile(p, dtype=np.uint8)[:-400]
+    data.tofile(p)
+    assert decode_jpeg(data, p) is None  # strict: damaged data is not guessed at here
+    assert cv2.imdecode(data, cv2.IMREAD_UNCHANGED) is None  # nor by OpenCV: refused as before
+    with pytest.raises(InputError, match="cut.jpg: unreadable photo"):
+        read_photo(p)
+
+
+def test_a_jpeg_declaring_too_many_pixels_is_refused_before_decoding(tmp_path):
+    import struct
+
+    p = tmp_path / "bomb.jpg"
+    cv2.imwrite(str(p), _textured(8, (16, 16)), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    data = bytearray(p.read_bytes())
+    sof = data.index(b"\xff\xc0")
+    data[sof + 5 : sof + 9] = struct.pack(">HH", 30000, 30000)  # height, width
+    p.write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"bomb.jpg: photo declares 30000 x 30000 pixels"):
+        read_photo(p)
