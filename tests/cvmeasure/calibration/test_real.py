@@ -88,3 +88,34 @@ def test_photonvision_cross_validation_exposes_what_rms_hides(shared_real):
     cv = report.cross_validation
     assert cv.diff.central_rms_px > 1.5 and cv.ratio > 3.0
     assert "disagree" in report.warnings[0]
+
+
+def test_a_foreign_photo_leaves_the_good_views_unchanged(shared_real, charuco_board, monkeypatch):
+    """A ChArUco board of 10x7 squares holds a 9x6 grid of corners: a photo of it among 9x6
+    chessboard photos is refused by the detector's check and leaves the result unchanged;
+    with the check disabled it is taken as a board and the result moves."""
+    from _calib_synth import look_at_pose, render_view
+
+    import cvmeasure.calibration.detect as detect_module
+
+    spec = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0}
+    files = sorted((shared_real / "opencv-samples-chessboard-9x6" / "left").glob("*.jpg"))
+    good = _detect(files, spec)
+    lens = CameraModel.ideal((640, 480), 530.0, (-0.25, 0.05, 0.0, 0.0, 0.0))
+    rvec, tvec = look_at_pose(charuco_board, 330.0, 25.0, -15.0, roll_deg=4.0)
+    foreign = render_view(charuco_board, lens, rvec, tvec, noise_sigma=1.0, seed=5)
+    board = board_from_dict(spec)
+    det = detect_board(foreign, board, source="foreign.png")
+    assert not det.ok and "not a plain chessboard" in det.reason
+
+    def fx_of(dets):
+        return calibrate_detections(dets, (640, 480), cross_check=False).camera.fx
+
+    alone = fx_of(good)
+    # OpenCV's parallel solve differs between identical runs by ~1e-10 px
+    assert fx_of([*good, det]) == pytest.approx(alone, abs=1e-6)
+    monkeypatch.setattr(detect_module, "verify_chessboard", lambda *a: "")
+    unchecked = detect_board(foreign, board, source="foreign.png")
+    assert unchecked.ok and unchecked.corner_count == 54  # what the check stops
+    moved = fx_of([*good, unchecked]) - alone
+    assert abs(moved) > 0.05, moved  # printed to show how far
