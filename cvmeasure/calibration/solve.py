@@ -268,9 +268,17 @@ def _solve(
     objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in dets]
     imgs = [d.corners_px.astype(np.float32).reshape(-1, 1, 2) for d in dets]
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
-        objs, imgs, image_size, None, None, flags=flags, criteria=crit
-    )
+    # one thread: OpenCV's parallel sums make identical runs differ (1e-10 px in f on
+    # OpenCV's sample set, amplified to other printed digits by an ill-conditioned model);
+    # on one thread they are bit-identical, and no slower at these sizes
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
+            objs, imgs, image_size, None, None, flags=flags, criteria=crit
+        )
+    finally:
+        cv2.setNumThreads(threads)
     dist = np.asarray(dist, dtype=np.float64).ravel()
     n_dist = (
         12 if flags & cv2.CALIB_THIN_PRISM_MODEL else (8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
