@@ -32,6 +32,7 @@ __all__ = [
     "detect_charuco",
     "detect_chessboard",
     "subpix_half_window_px",
+    "verify_chessboard",
 ]
 
 #: Fewest corners a view needs to be used (a homography needs 4; 6 leaves slack).
@@ -152,6 +153,101 @@ def subpix_half_window_px(corners_px: np.ndarray, grid_shape: tuple[int, int]) -
     return int(np.clip(np.floor(0.15 * spacing), 2, 10))
 
 
+#: A chessboard's squares must alternate dark/light in at least this share of squares.
+_MIN_PARITY_SHARE = 0.9
+#: A plain square's grey levels (10th to 90th percentile of its middle half) span less
+#: than this share of the dark/light contrast (a ChArUco marker spans most of it).
+_MAX_SQUARE_SPREAD = 0.35
+#: Largest departure of a corner from the homography of its 4x4 neighbourhood, as a share
+#: of the smallest spacing there (lens distortion bends a grid only slowly: on the
+#: real sets at most 0.16, 45 deg tilts included; two corners swapped: 1.1).
+_MAX_GRID_BEND = 0.35
+
+
+def _grid_bend(grid: np.ndarray) -> float:
+    """Worst corner offset from the homography of its 4x4 window of a (rows, cols, 2) grid,
+    over that window's smallest corner spacing."""
+    import cv2
+
+    ny, nx = grid.shape[:2]
+    wy, wx = min(4, ny), min(4, nx)
+    if wy * wx < 5:
+        return 0.0
+    ideal = np.array([[i, j] for j in range(wy) for i in range(wx)], dtype=np.float64)
+    worst = 0.0
+    for y0 in range(ny - wy + 1):
+        for x0 in range(nx - wx + 1):
+            win = grid[y0 : y0 + wy, x0 : x0 + wx]
+            pts = win.reshape(-1, 2)
+            hom, _ = cv2.findHomography(ideal, pts, 0)
+            if hom is None:
+                return float("inf")
+            fit = cv2.perspectiveTransform(ideal.reshape(-1, 1, 2), hom).reshape(-1, 2)
+            step = min(
+                float(np.min(np.linalg.norm(np.diff(win, axis=a), axis=2)))
+                if win.shape[a] > 1
+                else np.inf
+                for a in (0, 1)
+            )
+            worst = max(worst, float(np.max(np.linalg.norm(fit - pts, axis=1))) / max(step, 1e-9))
+    return worst
+
+
+def verify_chessboard(gray: np.ndarray, corners_px: np.ndarray, grid_shape: tuple[int, int]) -> str:
+    """Why these corners are not a plain chessboard's, or "" when they are.
+
+    Checks the geometry (every corner of the row-major (N, 2) ``corners_px`` within
+    35 % of the local spacing of the homography of its 4x4 neighbourhood) and the
+    squares between the corners (the middle half of each square is plain and the
+    squares alternate dark/light, at least 90 % of them plain, so a ChArUco board or a
+    pattern with markers in its light squares is not taken for a chessboard).
+    ``grid_shape`` is (columns, rows) of inner corners.
+    """
+    nx, ny = grid_shape
+    grid = np.asarray(corners_px, dtype=np.float64).reshape(ny, nx, 2)
+    spacing = [np.linalg.norm(np.diff(grid, axis=axis), axis=2) for axis in (0, 1)]
+    if _grid_bend(grid) > _MAX_GRID_BEND:
+        return "the corners found do not form a regular grid (not this chessboard)"
+    if min(float(np.min(s)) for s in spacing) < 2.0:
+        return "the corners found are closer than 2 px (not this chessboard)"
+    if nx < 2 or ny < 2:
+        return ""
+    # the middle half of each square between four corners, 5x5 bilinear samples
+    uv = np.linspace(0.25, 0.75, 5)
+    u, v = np.meshgrid(uv, uv)
+    u, v = u.ravel()[None, None, :, None], v.ravel()[None, None, :, None]
+    c00, c10 = grid[:-1, :-1, None, :], grid[:-1, 1:, None, :]
+    c01, c11 = grid[1:, :-1, None, :], grid[1:, 1:, None, :]
+    pts = (1 - u) * (1 - v) * c00 + u * (1 - v) * c10 + (1 - u) * v * c01 + u * v * c11
+    h, w = gray.shape
+    xs = np.clip(np.rint(pts[..., 0]).astype(int), 0, w - 1)
+    ys = np.clip(np.rint(pts[..., 1]).astype(int), 0, h - 1)
+    samples = gray[ys, xs].astype(np.float64)  # (ny-1, nx-1, 25)
+    means = np.median(samples, axis=2)
+    threshold = float(np.median(means))
+    parity = (np.add.outer(np.arange(ny - 1), np.arange(nx - 1)) % 2).astype(bool)
+    light = means > threshold
+    share = max(float(np.mean(light == parity)), float(np.mean(light != parity)))
+    contrast = (
+        float(np.median(means[light])) - float(np.median(means[~light]))
+        if (light.any() and (~light).any())
+        else 0.0
+    )
+    if share < _MIN_PARITY_SHARE or contrast < 10.0:
+        return (
+            f"the squares between the corners do not alternate dark/light ({100 * share:.0f} % "
+            "do): not a plain chessboard"
+        )
+    spread = np.percentile(samples, 90, axis=2) - np.percentile(samples, 10, axis=2)
+    plain = float(np.mean(spread < _MAX_SQUARE_SPREAD * contrast))
+    if plain < _MIN_PARITY_SHARE:
+        return (
+            f"only {100 * plain:.0f} % of the squares between the corners are plain: not a "
+            "plain chessboard (a ChArUco board, or another pattern with marks in its squares?)"
+        )
+    return ""
+
+
 def detect_chessboard(
     image: np.ndarray, board: ChessboardSpec, *, source: str = "image"
 ) -> BoardDetection:
@@ -179,12 +275,19 @@ def detect_chessboard(
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     found, corners = cv2.findChessboardCorners(search, pattern, flags=flags)
     if not found:
+        # the fallback finds boards where the classic detector gives up, and also false
+        # ones (in a ChArUco board, a pattern of tiles): used only when verified
         found, corners = cv2.findChessboardCornersSB(search, pattern)
     if not found or corners is None:
         return _empty(
             source,
             size,
             f"no {board.inner_x}x{board.inner_y} chessboard found (wrong board, board cut off, or blurred)",
+        )
+    problem = verify_chessboard(search, corners.reshape(-1, 2), pattern)
+    if problem:
+        return _empty(
+            source, size, f"{board.inner_x}x{board.inner_y} chessboard rejected: {problem}"
         )
     corners = corners.reshape(-1, 2).astype(np.float64)
     if scale != 1.0:

@@ -305,7 +305,7 @@ def calibrate_detections(
     if result.corners_rejected:
         warnings.append(
             f"{result.corners_rejected} outlier corner(s) dropped from the views used "
-            "(residual beyond 4 robust sigmas)"
+            "(residual more than 4 robust sigmas off its board neighbours' median)"
         )
     if result.rejected:
         warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")

@@ -2,7 +2,9 @@
 
 The solve is OpenCV 5's ``calibrateCameraExtended`` (Zhang's method followed by
 Levenberg-Marquardt) with one of six distortion models (k1 only up to thin prism), wrapped in a loop that
-drops outlier corners (residual beyond 4 robust sigmas) and bad views (RMS above
+drops outlier corners (residual beyond 4 robust sigmas from the median residual
+of the corner's board neighbours, so smooth model error is not mistaken for bad
+corners) and bad views (RMS above
 3x the median view RMS, or too few corners left) and solves again.
 
 References
@@ -239,6 +241,25 @@ def _robust_residuals(
     return res
 
 
+def _neighbour_relative(det: BoardDetection, res: np.ndarray) -> np.ndarray:
+    """Each corner's residual minus the median residual of its board neighbours, px (N, 2).
+
+    Neighbours are the corners of the same view within 1.5 board spacings. Lens-model
+    or pose error moves neighbouring corners together and cancels here; a mis-detected
+    corner stands out. A corner with fewer than 2 neighbours keeps its own residual.
+    """
+    obj = np.asarray(det.object_mm, dtype=np.float64)[:, :2]
+    dist = np.linalg.norm(obj[:, None, :] - obj[None, :, :], axis=2)
+    np.fill_diagonal(dist, np.inf)
+    spacing = float(np.median(np.min(dist, axis=1)))
+    out = res.copy()
+    for i, row in enumerate(dist):
+        near = np.flatnonzero(row <= 1.5 * spacing)
+        if near.size >= 2:
+            out[i] = res[i] - np.median(res[near], axis=0)
+    return out
+
+
 def _solve(
     dets: Sequence[BoardDetection], image_size: tuple[int, int], flags: int
 ) -> tuple[float, CameraModel, list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
@@ -247,9 +268,17 @@ def _solve(
     objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in dets]
     imgs = [d.corners_px.astype(np.float32).reshape(-1, 1, 2) for d in dets]
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
-        objs, imgs, image_size, None, None, flags=flags, criteria=crit
-    )
+    # one thread: OpenCV's parallel sums make identical runs differ (1e-10 px in f on
+    # OpenCV's sample set, amplified to other printed digits by an ill-conditioned model);
+    # on one thread they are bit-identical, and no slower at these sizes
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rms, k, dist, rvecs, tvecs, sd_intr, _sd_extr, per_view = cv2.calibrateCameraExtended(
+            objs, imgs, image_size, None, None, flags=flags, criteria=crit
+        )
+    finally:
+        cv2.setNumThreads(threads)
     dist = np.asarray(dist, dtype=np.float64).ravel()
     n_dist = (
         12 if flags & cv2.CALIB_THIN_PRISM_MODEL else (8 if flags & cv2.CALIB_RATIONAL_MODEL else 5)
@@ -293,7 +322,8 @@ def calibrate_views(
     model : {"5", "8", "rational", "thin-prism"}
         Distortion model (see :data:`DISTORTION_MODELS`).
     reject_outliers : bool
-        Run the rejection loop (corners beyond 4 robust sigmas, views above 3x
+        Run the rejection loop (corners off their neighbours' residual by more than
+        4 robust sigmas, views above 3x
         the median view RMS), at most ``max_rounds`` solves. A round that drops a
         view drops no corners and re-admits every corner of the remaining views.
     min_views : int
@@ -349,7 +379,10 @@ def calibrate_views(
         residuals = [
             _robust_residuals(camera, d, r, t) for d, r, t in zip(active, rvecs, tvecs, strict=True)
         ]
-        allres = np.concatenate(residuals).ravel()
+        # a corner is judged against its neighbours: model error is smooth over the board
+        # (rejecting it biased SimpleSLAM's focal length by 3 sigma), a bad corner is not
+        local = [_neighbour_relative(d, res) for d, res in zip(active, residuals, strict=True)]
+        allres = np.concatenate(local).ravel()
         sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
         limit = max(_OUTLIER_SIGMAS * sigma, _OUTLIER_FLOOR_PX)
         view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
@@ -357,15 +390,16 @@ def calibrate_views(
         # not the view); corners only in a round where no view went, because a bad
         # view distorts the solve and with it every other view's residuals.
         bad_views: dict[int, str] = {}
+        outlier = [np.linalg.norm(loc, axis=1) > limit for loc in local]
         for k, res in enumerate(residuals):
             norms = np.linalg.norm(res, axis=1)
-            n_out = int(np.sum(norms > limit))
-            inliers = norms[norms <= limit]
+            n_out = int(np.sum(outlier[k]))
+            inliers = norms[~outlier[k]]
             vrms = float(np.sqrt(np.mean(inliers**2))) if inliers.size else float("inf")
             if n_out > 0.5 * len(norms):
                 bad_views[k] = (
-                    f"{n_out} of {len(norms)} corners are off by more than {limit:.3f} px "
-                    "(blurred or moved photo, or a different lens setting?)"
+                    f"{n_out} of {len(norms)} corners are off their neighbours by more than "
+                    f"{limit:.3f} px (blurred or moved photo, or a different lens setting?)"
                 )
             elif vrms > view_limit:
                 bad_views[k] = (
@@ -374,7 +408,7 @@ def calibrate_views(
                 )
         changed = bool(bad_views)
         new_active: list[BoardDetection] = []
-        for k, (det, res) in enumerate(zip(active, residuals, strict=True)):
+        for k, det in enumerate(active):
             if k in bad_views:
                 rejected.append(RejectedView(det.source, bad_views[k]))
                 continue
@@ -383,7 +417,7 @@ def calibrate_views(
                 # another chance, every corner of the remaining views is re-admitted
                 det = original[id(det)]
                 n_rejected_corners[id(det)] = 0
-            keep = np.linalg.norm(res, axis=1) <= limit
+            keep = ~outlier[k]
             if not bad_views and not keep.all():
                 changed = True
                 sub = det.subset(keep)

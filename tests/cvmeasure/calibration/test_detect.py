@@ -148,3 +148,34 @@ def test_real_charuco_tutorial_photos(shared_real):
     assert counts == [24, 24, 24, 24]  # data README: all 24 corners in every view
     occluded = detect_board(cv2.imread(str(folder / "chocclusion_original.jpg")), board)
     assert occluded.corner_count == 16
+
+
+@pytest.mark.parametrize("pattern", [(4, 6), (6, 4), (3, 3)])
+def test_a_charuco_photo_is_not_taken_for_a_chessboard(shared_real, pattern):
+    """findChessboardCornersSB finds these grids in the real ChArUco photo (4x6: its inner
+    corners, squares with markers; 3x3: corners that are not a grid): refused, saying why."""
+    img = cv2.imread(str(shared_real / "opencv-contrib-aruco-charuco-5x7" / "img_00.jpg"))
+    found, _ = cv2.findChessboardCornersSB(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), pattern)
+    assert found  # what the check has to stop
+    spec = {"type": "chessboard", "inner_x": pattern[0], "inner_y": pattern[1], "square_mm": 40.0}
+    det = detect_board(img, board_from_dict(spec), source="img_00.jpg")
+    assert not det.ok and "chessboard rejected: " in det.reason
+    assert ("not a plain chessboard" in det.reason) == (pattern != (3, 3))
+
+
+def test_real_chessboard_photos_pass_the_check(shared_real):
+    """Every photo of OpenCV's left/right sets where either detector finds the 9x6 board."""
+    from cvmeasure.calibration.detect import verify_chessboard
+
+    files = sorted((shared_real / "opencv-samples-chessboard-9x6").glob("*/*.jpg"))
+    checked = 0
+    for f in files:
+        gray = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+        for found, corners in (
+            cv2.findChessboardCorners(gray, (9, 6), flags=cv2.CALIB_CB_ADAPTIVE_THRESH),
+            cv2.findChessboardCornersSB(gray, (9, 6)),
+        ):
+            if found:
+                checked += 1
+                assert verify_chessboard(gray, corners.reshape(-1, 2), (9, 6)) == "", f.name
+    assert checked >= 40

@@ -48,7 +48,7 @@ def test_rejects_outlier_corners_and_a_bad_view(charuco_board, true_camera):
     dets[5].corners_px[:] += rng.normal(0.0, 2.0, dets[5].corners_px.shape)  # a shaken photo
     res = calibrate_views(dets, true_camera.image_size_px)
     assert [r.source for r in res.rejected] == ["view05"]
-    assert "corners are off by more than" in res.rejected[0].reason
+    assert "corners are off their neighbours by more than" in res.rejected[0].reason
     assert {v.source: v.corners_rejected for v in res.views}["view02"] == 3
     assert sum(v.corners_rejected for v in res.views) == 3
     assert res.rms_px < 0.1

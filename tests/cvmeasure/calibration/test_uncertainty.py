@@ -99,6 +99,22 @@ def test_cross_validation_flags_model_error(charuco_board, true_camera):
     assert cross_validate(dets[:5], true_camera.image_size_px) is None  # 3 + 2 views
 
 
+def test_cross_validation_reads_about_1x_on_exact_model_data(charuco_board, true_camera):
+    """Corner noise only, lens exactly the fitted model, 12 seeds: the halves' diff over its
+    expectation (at infinity after the fitted rotation) averages ~1 in square and no seed
+    reaches the model-error limit (at the boards' range the expectation was ~5x too small)."""
+    ratios = []
+    for seed in range(12):
+        poses = random_poses(charuco_board, 12, 100 + seed, distance_mm=380.0)
+        dets = synthetic_detections(
+            charuco_board, true_camera, poses, 0.1, np.random.default_rng(seed)
+        )
+        ratios.append(cross_validate(dets, true_camera.image_size_px).ratio)
+    mean_square = float(np.mean(np.square(ratios)))
+    assert 0.4 < mean_square < 1.8, ratios
+    assert max(ratios) < 3.0, ratios
+
+
 def _det(points):
     pts = np.asarray(points, dtype=np.float64)
     return BoardDetection("v", (960, 640), pts, np.arange(len(pts)), np.zeros((len(pts), 3)))

@@ -1,0 +1,773 @@
+"""Lens calibration that holds on real data: published values, model choice, honest warnings and intervals, mrcal (issue 16)."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks import Metric, Table, finish
+
+SECTION = "Lens calibration on real sets and exact-model renders (issue 16)"
+
+REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+
+_CHESS_LEFT = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0}
+_CHESS_SLAM = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 20.0}
+_CHARUCO_5X7 = {
+    "type": "charuco",
+    "squares_x": 5,
+    "squares_y": 7,
+    "square_mm": 40.0,
+    "marker_mm": 20.0,
+    "dictionary": "DICT_6X6_250",
+}
+_LIFECAM = {
+    "type": "charuco",
+    "squares_x": 8,
+    "squares_y": 8,
+    "square_mm": 25.4,
+    "marker_mm": 19.05,
+    "dictionary": "DICT_4X4_1000",
+}
+_DIST5 = ("k1", "k2", "p1", "p2", "k3")
+_DIST8 = (*_DIST5, "k4", "k5", "k6")
+
+
+def _published(k: list[float], dist: list[float], names: tuple[str, ...]) -> dict[str, float]:
+    return dict(zip(("fx", "fy", "cx", "cy", *names), [*k, *dist], strict=True))
+
+
+#: name, photos (glob under REAL) or None, board, model, published values, source of the values
+_PUBLISHED_SETS = [
+    (
+        "OpenCV left 9x6 (13 views)",
+        "opencv-samples-chessboard-9x6/left/*.jpg",
+        _CHESS_LEFT,
+        "5",
+        _published(
+            [532.80992189, 532.93346422, 342.4952186, 233.8879292],
+            [-0.281325576, 0.0291130406, 0.00121234330, -0.000140825372, 0.154865844],
+            _DIST5,
+        ),
+        "opencv/opencv modules/python/test/test_calibration.py (calibrateCamera, flags 0)",
+    ),
+    (
+        "SimpleSLAM 9x6 (31 views)",
+        "opencv-contrib-simpleslam-chessboard-9x6/images/*.png",
+        _CHESS_SLAM,
+        "5",
+        _published(
+            [1171.4968127, 1166.9979600, 357.34246905, 626.54877426],
+            [0.21741776374, -1.9219980694, -0.0018427425547, -0.0020393118406, 5.5805684710],
+            _DIST5,
+        ),
+        "opencv_contrib PR #3974 calibration.pkl (calibrateCamera, flags 0)",
+    ),
+    (
+        "ChArUco 5x7 tutorial (4 views)",
+        "opencv-contrib-aruco-charuco-5x7/img_0*.jpg",
+        _CHARUCO_5X7,
+        "5",
+        _published(
+            [452.5107, 456.7671, 317.7030, 277.7516],
+            [0.121369, -1.085466, 0.000117868, -0.000462407, 2.954259],
+            _DIST5,
+        ),
+        "opencv_contrib tutorial_camera_charuco.yml (calibrateCameraCharuco, flags 0)",
+    ),
+    (
+        "LifeCam 123 frames, PhotonVision's corners",
+        None,
+        _LIFECAM,
+        "8",
+        _published(
+            [1144.02658, 1142.18747, 604.85834, 343.69883],
+            [0.164426, -0.986624, 0.0034725, -0.0027724, 1.890953, 0.041090, 0.063744, -0.067946],
+            _DIST8,
+        ),
+        "PhotonVision calibration_data.json, mrcal LENSMODEL_OPENCV8 with board warp",
+    ),
+]
+
+#: Sets with no published intrinsics: only the model choice is reported.
+_UNPUBLISHED_SETS = [
+    ("OpenCV right 9x6", "opencv-samples-chessboard-9x6/right/*.jpg", _CHESS_LEFT),
+    (
+        "LifeCam 1280 JPG",
+        "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_1280/*.jpg",
+        _LIFECAM,
+    ),
+    ("LifeCam 480 JPG", "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_480/*.jpg", _LIFECAM),
+    (
+        "LifeCam 1280 legacy JPG",
+        "photonvision-lifecam-charuco-8x8/2024-06-19_lifecam_1280_Old_Pattern/*.jpg",
+        {**_LIFECAM, "legacy_pattern": True},
+    ),
+    (
+        "LifeCam 480 legacy JPG",
+        "photonvision-lifecam-charuco-8x8/2024-06-19_lifecam_480_Old_Pattern/*.jpg",
+        {**_LIFECAM, "legacy_pattern": True},
+    ),
+]
+
+
+def _detect_glob(pattern: str, spec: dict) -> list:
+    import cv2
+
+    from cvmeasure.board import board_from_dict
+    from cvmeasure.calibration.detect import detect_board
+
+    board = board_from_dict(spec)
+    return [
+        detect_board(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), board, source=f.name)
+        for f in sorted(REAL.glob(pattern))
+    ]
+
+
+def _photonvision_detections() -> list:
+    """PhotonVision's own corners of its 123-frame session (every corner it found, not only
+    the ones its mrcal solve kept), as our detections; 7x7 inner corners, 25.4 mm."""
+    from cvmeasure.calibration.detect import BoardDetection
+
+    path = REAL / "photonvision-lifecam-charuco-8x8" / "reference_mrcal_123png"
+    data = json.loads((path / "calibration_data.json").read_text())
+    dets = []
+    for obs in data["observations"]:
+        img = np.array([[p["x"], p["y"]] for p in obs["locationInImageSpace"]])
+        ids = np.arange(len(img))
+        ok = (img[:, 0] >= 0) & (img[:, 1] >= 0)
+        obj = np.column_stack((ids % 7 * 25.4, ids // 7 * 25.4, np.zeros(len(ids))))
+        dets.append(BoardDetection(obs["snapshotName"], (1280, 720), img[ok], ids[ok], obj[ok]))
+    return dets
+
+
+def _values(camera, names) -> dict[str, float]:
+    k, d = camera.camera_matrix, camera.dist_coeffs
+    vals = {"fx": k[0, 0], "fy": k[1, 1], "cx": k[0, 2], "cy": k[1, 2]}
+    vals.update({n: float(v) for n, v in zip(_DIST8, d, strict=False)})
+    return {n: float(vals[n]) for n in names}
+
+
+def _choice_text(choice: dict) -> str:
+    ev = ", ".join(f"{e['model']} {e['held_out_rms_px']:.4f}" for e in choice.get("candidates", []))
+    return f"{choice.get('chosen', '5')} (held-out RMS px: {ev or choice['rule']})"
+
+
+def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
+    from cvmeasure.calibration.pipeline import calibrate_detections
+
+    rows, choice_rows, metrics = [], [], []
+    if not REAL.is_dir():
+        return [], [], [f"real sets skipped: {REAL} is absent"]
+    for name, pattern, spec, model, pub, source in _PUBLISHED_SETS:
+        dets = _photonvision_detections() if pattern is None else _detect_glob(pattern, spec)
+        size = next(d.image_size_px for d in dets if d.ok)
+        rep = calibrate_detections(dets, size, model=model, cross_check=False)
+        ours = _values(rep.camera, pub)
+        zs = []
+        for p, v in pub.items():
+            sd = rep.result.std_devs[p]
+            z = (ours[p] - v) / sd
+            zs.append(abs(z))
+            rows.append([name, p, v, round(ours[p], 6), round(sd, 6), round(z, 2)])
+        worst = float(max(zs))
+        metrics.append(
+            Metric(
+                f"{name}: worst |ours - published| / our sigma, model {model}, {len(pub)} params",
+                worst,
+                "sigma",
+                target="<= 2",
+                met=worst <= 2.0,
+            )
+        )
+        auto = calibrate_detections(dets, size, model="auto", cross_check=False)
+        choice_rows.append(
+            [
+                name,
+                len(rep.result.views),
+                rep.result.corners_rejected,
+                _choice_text(auto.model_choice),
+                source,
+            ]
+        )
+    for name, pattern, spec in _UNPUBLISHED_SETS:
+        dets = _detect_glob(pattern, spec)
+        size = next(d.image_size_px for d in dets if d.ok)
+        auto = calibrate_detections(dets, size, model="auto", cross_check=False)
+        choice_rows.append(
+            [
+                name,
+                len(auto.result.views),
+                auto.result.corners_rejected,
+                _choice_text(auto.model_choice),
+                "none published",
+            ]
+        )
+    tables = [
+        Table(
+            "real sets: published values with the published model (z = (ours - published) / our sigma)",
+            ["set", "param", "published", "ours", "our sigma", "z"],
+            rows,
+        ),
+        Table(
+            "real sets: the model --model auto picks, and its evidence",
+            [
+                "set",
+                "views used",
+                "corners dropped",
+                "auto: chosen (held-out RMS per model)",
+                "published by",
+            ],
+            choice_rows,
+        ),
+    ]
+    return metrics, tables, []
+
+
+# --------------------------------------------------------------------------- renders
+
+
+def _render_set(scale: float, n_views: int, seed: int, folder: Path | None = None):
+    """Views of the 14x10 ChArUco board rendered with the seed lens (exactly model 5),
+    detected; with ``folder`` the JPEGs are kept there. Returns (camera, detections)."""
+    import cvmeasure_datasets
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.calibration.detect import detect_board
+    from cvmeasure_datasets.demo.calibration import planned_poses
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    cam = cvmeasure_datasets.default_camera().scaled(scale)
+    dets = []
+    for i, pose in enumerate(planned_poses(n_views, seed, board, cam)):
+        photo = cvmeasure_datasets.render_board_view(
+            board=board, camera=cam, pose=pose, seed=seed * 100 + i
+        )
+        if folder is not None:
+            photo.save(folder / f"view{i:02d}")
+        dets.append(detect_board(photo.bgr, board, source=f"view{i:02d}"))
+    return cam, dets
+
+
+_Z_PARAMS = ("fx", "fy", "cx", "cy", *_DIST5)
+
+
+def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[Table], list[str]]:
+    from cvmeasure.calibration.pipeline import CROSS_VALIDATION_RATIO_LIMIT, calibrate_detections
+    from cvmeasure.calibration.uncertainty import projection_diff
+
+    rows, zs, fired, ratios, autos, truth_p95 = [], [], [], [], [], []
+    for r in range(runs):
+        seed = 1600 + r
+        cam, dets = _render_set(scale, n_views, seed)
+        rep = calibrate_detections(dets, cam.image_size_px, model="5")
+        truth, got = _values(cam, _Z_PARAMS), _values(rep.camera, _Z_PARAMS)
+        z = [(got[p] - truth[p]) / rep.result.std_devs[p] for p in _Z_PARAMS]
+        zs.append(z)
+        cv = rep.cross_validation
+        warned = any("the two halves of the views disagree" in w for w in rep.warnings)
+        fired.append(warned)
+        ratios.append(cv.ratio if cv else float("nan"))
+        auto = calibrate_detections(dets, cam.image_size_px, model="auto", cross_check=False)
+        autos.append(auto.result.model)
+        # each model against the true lens (after the implied rotation): p95 over the image
+        p95_5 = projection_diff(cam, rep.camera).p95_px
+        p95_auto = projection_diff(cam, auto.camera).p95_px
+        truth_p95.append((p95_5, p95_auto))
+        rows.append(
+            [
+                seed,
+                len(rep.result.views),
+                round(rep.result.rms_px, 4),
+                round(cv.ratio, 2) if cv else None,
+                warned,
+                round(float(np.max(np.abs(z))), 2),
+                auto.result.model,
+                round(p95_5, 3),
+                round(p95_auto, 3),
+            ]
+        )
+    zs_arr = np.array(zs)
+    inside = float(np.mean(np.abs(zs_arr) <= 1.96))
+    false_alarm = float(np.mean(fired))
+    w, h = cam.image_size_px
+    metrics = [
+        Metric(
+            f"model-error warning on exact-model renders (cross-validation ratio > "
+            f"{CROSS_VALIDATION_RATIO_LIMIT:g}), {runs} seeds",
+            100 * false_alarm,
+            "%",
+            target="<= 5",
+            met=false_alarm <= 0.05,
+        ),
+        Metric(
+            "cross-validation ratio on exact-model renders, median (about 1 = calibrated)",
+            float(np.nanmedian(ratios)),
+            "x",
+        ),
+        Metric("same, 95th percentile", float(np.nanpercentile(ratios, 95)), "x"),
+        Metric(
+            f"true intrinsic inside the stated 95 % interval ({runs} seeds x 9 params)",
+            100 * inside,
+            "%",
+            target="90-98",
+            met=0.90 <= inside <= 0.98,
+        ),
+        Metric(
+            "std of z = (estimate - truth) / stated sigma (1 = honest)", float(np.std(zs_arr)), "x"
+        ),
+        Metric(
+            "--model auto on exact-model (model 5) renders: share choosing 5",
+            100 * float(np.mean([a == "5" for a in autos])),
+            "%",
+        ),
+        Metric(
+            "projection error vs the true lens, p95 over the image, median over seeds: model 5",
+            float(np.median([a for a, _ in truth_p95])),
+            "px",
+        ),
+        Metric(
+            "same, the model --model auto picks",
+            float(np.median([b for _, b in truth_p95])),
+            "px",
+        ),
+    ]
+    tables = [
+        Table(
+            f"exact-model renders ({runs} seeds, {n_views} views, {w}x{h}, model 5 = the renderer's lens)",
+            [
+                "seed",
+                "views used",
+                "RMS px",
+                "cross-val ratio",
+                "warned",
+                "worst |z|",
+                "auto picks",
+                "model 5 vs truth p95 px",
+                "auto's model vs truth p95 px",
+            ],
+            rows,
+        )
+    ]
+    return metrics, tables, []
+
+
+# --------------------------------------------------------------------------- printed output
+
+
+def _cli(argv: list[str]) -> list[str]:
+    """``cvmeasure`` run in this process; its stdout lines without the file path line."""
+    from cvmeasure.cli import main as cli_main
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli_main(argv)
+    if code != 0:
+        raise RuntimeError(f"cvmeasure {' '.join(argv)} exited {code}")
+    return [ln for ln in buf.getvalue().splitlines() if not ln.startswith("camera JSON:")]
+
+
+def _printed_uncertainties_px(lines: list[str]) -> list[float]:
+    """Every uncertainty the human output prints: the +- sigmas of fx..cy and the
+    projection uncertainty and cross-validation figures, px."""
+    vals = []
+    for ln in lines:
+        vals += [float(v) for v in re.findall(r"\+- ([-+0-9.eE]+)", ln)]
+        if ln.startswith(("projection uncertainty", "cross-validation")):
+            vals += [float(v) for v in re.findall(r"([-+0-9.eE]+) px", ln)]
+    return vals
+
+
+def _ill_conditioned(scale: float, n_views: int) -> tuple[list[Metric], list[Table]]:
+    rows, worst_ratio, stable = [], 0.0, True
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        cam, _dets = _render_set(scale, n_views, 1600, folder)
+        board = folder / "board.json"
+        from cvmeasure.board import CharucoBoardSpec
+
+        board.write_text(json.dumps(CharucoBoardSpec(14, 10, 20.0, 15.0).to_dict()))
+        photos = sorted(str(p) for p in folder.glob("view*.jpg"))
+        size = max(cam.image_size_px)
+        for model in ("5", "8", "rational", "thin-prism"):
+            argv = [
+                "calibrate",
+                *photos,
+                "--board",
+                str(board),
+                "-o",
+                str(folder / "cam.json"),
+                "--model",
+                model,
+            ]
+            first, second = _cli(argv), _cli(argv)
+            vals = _printed_uncertainties_px(first)
+            biggest = max(vals) if vals else 0.0
+            worst_ratio = max(worst_ratio, biggest / size)
+            same = first == second
+            stable &= same
+            warned = any("ill-conditioned" in ln for ln in first)
+            rows.append([model, len(vals), biggest, round(biggest / size, 4), warned, same])
+    metrics = [
+        Metric(
+            "largest printed uncertainty / image size, models 5, 8, rational, thin-prism "
+            f"({n_views} renders)",
+            worst_ratio,
+            "x",
+            target="<= 10",
+            met=worst_ratio <= 10.0,
+        ),
+        Metric(
+            "two identical runs print the same lines (every model)",
+            float(stable),
+            "bool",
+            target="1",
+            met=stable,
+        ),
+    ]
+    table = Table(
+        f"printed uncertainties per model ({n_views} renders of {cam.image_size_px[0]}x"
+        f"{cam.image_size_px[1]})",
+        [
+            "model",
+            "numbers printed",
+            "largest px",
+            "/ image size",
+            "ill-conditioned warned",
+            "identical reruns",
+        ],
+        rows,
+    )
+    return metrics, [table]
+
+
+def _transposed() -> tuple[list[Metric], list[Table], list[str]]:
+    """OpenCV's 13 left photos through ``cvmeasure calibrate`` with the board JSON as 9x6 and
+    as 6x9: the printed lines must be the same."""
+    files = sorted(str(p) for p in REAL.glob("opencv-samples-chessboard-9x6/left/*.jpg"))
+    if not files:
+        return [], [], [f"transposed board skipped: {REAL} is absent"]
+    outs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for nx, ny in ((9, 6), (6, 9)):
+            board = Path(tmp) / f"board{nx}x{ny}.json"
+            board.write_text(json.dumps({**_CHESS_LEFT, "inner_x": nx, "inner_y": ny}))
+            outs.append(
+                _cli(
+                    ["calibrate", *files, "--board", str(board), "-o", str(Path(tmp) / "cam.json")]
+                )
+            )
+    differing = [(a, b) for a, b in zip(*outs, strict=False) if a != b]
+    differing += [("(line count)", f"{len(outs[0])} vs {len(outs[1])}")] * (
+        len(outs[0]) != len(outs[1])
+    )
+    metrics = [
+        Metric(
+            "printed lines that differ, 9x6 vs 6x9 board JSON (OpenCV left set, real photos)",
+            len(differing),
+            "lines",
+            target="0",
+            met=not differing,
+        )
+    ]
+    rows = [[a, b] for a, b in differing] or [["(none)", "(none)"]]
+    return metrics, [Table("transposed board: differing printed lines", ["9x6", "6x9"], rows)], []
+
+
+# --------------------------------------------------------------------------- mrcal
+
+#: Debian's python3-mrcal is built for the system Python.
+_MRCAL_PYTHON = "/usr/bin/python3"
+
+_MRCAL_SCRIPT = r"""
+import json, sys
+import numpy as np
+import mrcal
+
+d = json.load(open(sys.argv[1]))
+nx, ny = d["grid"]
+n = len(d["views"])
+obs = np.zeros((n, ny, nx, 3))
+obs[..., 2] = -1.0  # missing corners
+for i, view in enumerate(d["views"]):
+    for cid, x, y in view:
+        obs[i, int(cid) // nx, int(cid) % nx] = (x, y, 1.0)
+oi = dict(
+    intrinsics=np.array([[d["fx"], d["fy"], d["cx"], d["cy"], *d["dist"]]]),
+    extrinsics_rt_fromref=np.zeros((0, 6)),
+    frames_rt_toref=np.array([np.r_[r, t] for r, t in zip(d["rvecs"], d["tvecs"])]),
+    points=None,
+    observations_board=obs,
+    indices_frame_camintrinsics_camextrinsics=np.array([[i, 0, -1] for i in range(n)], dtype=np.int32),
+    observations_point=None,
+    indices_point_camintrinsics_camextrinsics=None,
+    lensmodel=d["lensmodel"],
+    imagersizes=np.array([d["size"]], dtype=np.int32),
+    calobject_warp=np.zeros(2) if d["warp"] else None,
+    do_optimize_intrinsics_core=True,
+    do_optimize_intrinsics_distortions=True,
+    do_optimize_extrinsics=True,  # no extrinsics here (one camera at the reference)
+    do_optimize_frames=True,
+    do_optimize_calobject_warp=bool(d["warp"]),
+    calibration_object_spacing=d["spacing"],
+    do_apply_outlier_rejection=False,
+    do_apply_regularization=False,
+    verbose=False,
+)
+stats = mrcal.optimize(**oi)
+model = mrcal.cameramodel(optimization_inputs=oi, icam_intrinsics=0)
+lensmodel, intr = model.intrinsics()
+q = np.array(d["grid_px"], dtype=float)
+v = mrcal.unproject(q, lensmodel, intr, normalize=True)
+sigma = mrcal.projection_uncertainty(v * d["distance"], model=model, what="worstdirection-stdev")
+model.write(d["cameramodel"])
+print(json.dumps({"intrinsics": intr.tolist(), "warp": np.asarray(oi["calobject_warp"]).tolist(), "rms_px": float(stats["rms_reproj_error__pixels"]),
+                  "sigma_px": np.asarray(sigma).tolist(), "version": getattr(mrcal, "__version__", "")}))
+"""
+
+
+def _mrcal_available() -> str:
+    """Why mrcal cannot be run, or "" when it can."""
+    if not shutil.which(_MRCAL_PYTHON):
+        return f"{_MRCAL_PYTHON} not found"
+    probe = subprocess.run([_MRCAL_PYTHON, "-c", "import mrcal"], capture_output=True, text=True)
+    if probe.returncode:
+        return "mrcal is not installed (Debian: apt-get install python3-mrcal)"
+    return ""
+
+
+def _mrcal_version() -> str:
+    out = subprocess.run(
+        ["dpkg-query", "-W", "-f", "${Version}", "python3-mrcal"], capture_output=True, text=True
+    )
+    return out.stdout.strip() or "(version unknown)"
+
+
+def _mrcal_side_by_side(
+    rep, grid_shape: tuple[int, int], lensmodel: str, tmp: Path, *, warp: bool = False
+) -> dict:
+    """mrcal on the corners our solve used, seeded with our solution, no outlier rejection,
+    no regularization, a board warp only with ``warp``: its intrinsics and projection
+    uncertainty on our grid (and the .cameramodel it writes, in ``tmp``)."""
+    res = rep.result
+    cam = res.camera
+    spacing = float(
+        np.min(np.linalg.norm(np.diff(res.detections[0].object_mm[:2], axis=0), axis=1))
+    )
+    n_dist = {"LENSMODEL_OPENCV5": 5, "LENSMODEL_OPENCV8": 8}[lensmodel]
+    payload = {
+        "grid": list(grid_shape),
+        "views": [
+            [[int(i), float(x), float(y)] for i, (x, y) in zip(d.ids, d.corners_px, strict=True)]
+            for d in res.detections
+        ],
+        "fx": cam.fx,
+        "fy": cam.fy,
+        "cx": float(cam.principal_point_px[0]),
+        "cy": float(cam.principal_point_px[1]),
+        "dist": [float(v) for v in np.pad(cam.dist_coeffs, (0, 8))[:n_dist]],
+        "rvecs": [v.rvec.tolist() for v in res.views],
+        "tvecs": [v.tvec_mm.tolist() for v in res.views],
+        "lensmodel": lensmodel,
+        "size": list(cam.image_size_px),
+        "spacing": spacing,
+        "grid_px": rep.uncertainty.grid_px.tolist(),
+        "distance": rep.uncertainty.distance_mm,
+        "cameramodel": str(tmp / "mrcal.cameramodel"),
+        "warp": warp,
+    }
+    inp = tmp / "mrcal_in.json"
+    inp.write_text(json.dumps(payload))
+    script = tmp / "mrcal_solve.py"
+    script.write_text(_MRCAL_SCRIPT)
+    out = subprocess.run([_MRCAL_PYTHON, str(script), str(inp)], capture_output=True, text=True)
+    if out.returncode:
+        raise RuntimeError(f"mrcal failed: {out.stderr.strip().splitlines()[-1]}")
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
+    from cvmeasure.calibration.pipeline import calibrate_detections
+
+    why = _mrcal_available()
+    if why:
+        return [], [], [f"mrcal side by side skipped: {why}"]
+    if not REAL.is_dir():
+        return [], [], [f"mrcal side by side skipped: {REAL} is absent"]
+    cases = [
+        (
+            "OpenCV left 9x6",
+            _detect_glob("opencv-samples-chessboard-9x6/left/*.jpg", _CHESS_LEFT),
+            (9, 6),
+            "5",
+            "LENSMODEL_OPENCV5",
+            None,
+        ),
+        (
+            "SimpleSLAM 9x6",
+            _detect_glob("opencv-contrib-simpleslam-chessboard-9x6/images/*.png", _CHESS_SLAM),
+            (9, 6),
+            "5",
+            "LENSMODEL_OPENCV5",
+            None,
+        ),
+        (
+            "LifeCam 123, PhotonVision's corners",
+            _photonvision_detections(),
+            (7, 7),
+            "8",
+            "LENSMODEL_OPENCV8",
+            _PUBLISHED_SETS[3][4],
+        ),
+    ]
+    rows, unc_rows, warp_rows, metrics, notes = [], [], [], [], []
+    worst_z, worst_unc = 0.0, 0.0
+    for name, dets, grid_shape, model, lensmodel, published in cases:
+        size = next(d.image_size_px for d in dets if d.ok)
+        rep = calibrate_detections(dets, size, model=model, cross_check=False)
+        with tempfile.TemporaryDirectory() as tmp:
+            mr = _mrcal_side_by_side(rep, grid_shape, lensmodel, Path(tmp))
+            if published is not None:
+                # what the published solve has and ours lacks: mrcal's board warp
+                warped = _mrcal_side_by_side(rep, grid_shape, lensmodel, Path(tmp), warp=True)
+                k = warped["intrinsics"]
+                warp_rows.append(
+                    [
+                        name,
+                        *(round(v, 3) for v in k[:4]),
+                        *(round(published[q], 3) for q in ("fx", "fy", "cx", "cy")),
+                        str(np.round(np.asarray(warped["warp"]) * 1e3, 1)),
+                    ]
+                )
+        names = ("fx", "fy", "cx", "cy", *(_DIST8 if model == "8" else _DIST5))
+        ours = _values(rep.camera, names)
+        for p, m in zip(names, mr["intrinsics"], strict=False):
+            sd = rep.result.std_devs[p]
+            z = (m - ours[p]) / sd
+            if p in ("fx", "fy", "cx", "cy"):
+                worst_z = max(worst_z, abs(z))
+            row = [name, p, round(ours[p], 6), round(m, 6), round(sd, 6), round(z, 3)]
+            if published is not None:
+                row.append(published[p])
+            rows.append(row + [None] * (7 - len(row)))
+        ours_sigma = rep.uncertainty.sigma_px
+        theirs = np.asarray(mr["sigma_px"], dtype=float)
+        ratio = ours_sigma / np.maximum(theirs, 1e-12)
+        mask = np.isfinite(ratio)
+        worst_unc = max(worst_unc, float(np.max(np.abs(np.log(ratio[mask])))))
+        unc_rows.append(
+            [
+                name,
+                lensmodel,
+                round(rep.result.rms_px, 4),
+                round(mr["rms_px"], 4),
+                round(float(np.median(ours_sigma)), 4),
+                round(float(np.median(theirs)), 4),
+                round(float(np.median(ratio[mask])), 3),
+                round(float(np.min(ratio[mask])), 3),
+                round(float(np.max(ratio[mask])), 3),
+            ]
+        )
+        notes.append(f"mrcal {_mrcal_version()} (Debian python3-mrcal) via {_MRCAL_PYTHON}")
+    metrics += [
+        Metric(
+            "mrcal vs ours on the same corners: worst |fx fy cx cy difference| / our sigma",
+            worst_z,
+            "sigma",
+            target="<= 0.5 (same cost function)",
+            met=worst_z <= 0.5,
+        ),
+        Metric(
+            "mrcal vs ours: projection uncertainty ratio, worst over the grid (exp |log|)",
+            float(np.exp(worst_unc)),
+            "x",
+        ),
+    ]
+    tables = [
+        Table(
+            "mrcal side by side: same corners, same model (no warp, no regularization)",
+            [
+                "set",
+                "param",
+                "ours",
+                "mrcal",
+                "our sigma",
+                "(mrcal - ours) / sigma",
+                "published (mrcal with warp)",
+            ],
+            rows,
+        ),
+        Table(
+            "projection uncertainty (1 sigma, worst direction) on our 24x16 grid at our range",
+            [
+                "set",
+                "mrcal model",
+                "our RMS px",
+                "mrcal RMS px",
+                "ours median px",
+                "mrcal median px",
+                "ours/mrcal median",
+                "min",
+                "max",
+            ],
+            unc_rows,
+        ),
+        Table(
+            "mrcal with a board warp on the same corners vs the published mrcal solve",
+            ["set", "fx", "fy", "cx", "cy", "published fx", "fy", "cx", "cy", "warp (um)"],
+            warp_rows,
+        ),
+    ]
+    return metrics, tables, sorted(set(notes))
+
+
+def main(argv: list[str] | None = None) -> dict:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.lens_real", description=__doc__)
+    p.add_argument("--quick", action="store_true", help="reduced sizes (well under a minute)")
+    args = p.parse_args(argv)
+    scale, n_views, runs = (0.12, 8, 4) if args.quick else (0.2, 12, 30)
+    metrics, tables, notes = [], [], []
+    parts = [lambda: _renders(scale, n_views, runs)]
+    if not args.quick:
+        parts = [_real_sets, _transposed, _mrcal, *parts]
+    for part in parts:
+        m, t, n = part()
+        metrics += m
+        tables += t
+        notes += n
+    m, t = _ill_conditioned(scale, n_views)
+    metrics += m
+    tables += t
+    notes += [
+        "published values: each set calibrated with the model its reference used (OpenCV's "
+        "5-coefficient model, mrcal's LENSMODEL_OPENCV8 = our model 8), sigma = our stated "
+        "1-sigma (noise only); the provenance of every value is in the set's README under "
+        "../shared/data/real",
+        "the LifeCam reference is mrcal's solve with a board warp (0.07 mm bow) and mrcal's own "
+        "outlier rejection; we fit its own corners (every corner it found) without a warp. "
+        "mrcal on the same corners without the warp agrees with us (table 'mrcal side by side'); "
+        "with the warp it lands near the published values (table 'mrcal with a board warp'): "
+        "the gap is the board warp our model lacks",
+        "exact-model renders: cvmeasure_datasets.render_board_view (noise, blur, JPEG; a "
+        "renderer the solver does not assume) with the seed lens, which is exactly model 5; "
+        "ChArUco 14x10 20/15 mm, planned_poses; fresh poses and noise per seed",
+        "printed uncertainties: `cvmeasure calibrate` run twice per model on the first render "
+        "set; every +- sigma and every px figure of the projection-uncertainty and "
+        "cross-validation lines",
+        "the issue's BoofCV and PhotonVision Pi sets are not in ../shared: not measured here",
+    ]
+    return finish(
+        __file__, SECTION, argv, quick=args.quick, metrics=metrics, tables=tables, notes=notes
+    )
+
+
+if __name__ == "__main__":
+    main()
