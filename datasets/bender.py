@@ -53,11 +53,11 @@ from cvmeasure_datasets.raster import (
     sdf_rect,
 )
 from cvmeasure_datasets.solids import (
+    dense_polyline,
     lamp_direction,
     post_sdf,
-    shade_metal,
     shadow_on_plane,
-    tube_hits,
+    tube_layer,
 )
 
 __all__ = ["RING_SRGB", "BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
@@ -457,7 +457,7 @@ def _render_3d(
         clear = [
             (float(c[0]), float(c[1]), kit.by_role(r).ring_mm / 2 + 8.0) for r, c in centres.items()
         ]
-        clear += [(float(p[0]), float(p[1]), wire_r + 6.0) for p in _dense(polyline, 4.0)]
+        clear += [(float(p[0]), float(p[1]), wire_r + 6.0) for p in dense_polyline(polyline, 4.0)]
         clear.append((0.0, 0.0, geo.pin_radius_mm + 10.0))  # the pin sweeps around the die
         area = (x0 - 60.0, y0 - 40.0, x1 + 60.0, y1 + 40.0)
         strays = stray_objects(seed, fx.clutter, kit, clear, area)
@@ -513,7 +513,7 @@ def _render_3d(
                     )
                 )
     if fx.wire_3d:
-        layers.append(_tube_layer(wire3, wire_r, lin(_WIRE), lamp))
+        layers.append(tube_layer(wire3, wire_r, lin(_WIRE), lamp))
     else:
         layers.append(
             Layer(
@@ -570,7 +570,7 @@ def _render_3d(
                 break
         z = heights[role] + 2.0 + wire_r
         loose = np.column_stack((ends, np.full(2, z)))
-        layers.append(_tube_layer(loose, wire_r, lin(_WIRE), lamp))
+        layers.append(tube_layer(loose, wire_r, lin(_WIRE), lamp))
         extra["wire_across"][role] = {"axis_mm": loose.tolist(), "direction_deg": ang}
     for role in fx.tool_shadow:
         c = centres[role]
@@ -672,35 +672,3 @@ def _closest(segment: np.ndarray, point: np.ndarray) -> np.ndarray:
     d = b - a
     t = float(np.clip((point - a) @ d / (d @ d), 0.0, 1.0))
     return a + t * d
-
-
-def _dense(polyline: np.ndarray, step_mm: float) -> np.ndarray:
-    """Points along a polyline (N, 2) at most ``step_mm`` apart."""
-    out = [polyline[0]]
-    for a, b in zip(polyline[:-1], polyline[1:], strict=True):
-        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step_mm)))
-        out.extend(a + (b - a) * k / n for k in range(1, n + 1))
-    return np.array(out)
-
-
-def _tube_layer(axis_mm: np.ndarray, radius_mm: float, base: np.ndarray, lamp: np.ndarray) -> Layer:
-    """A shiny round wire around the 3D polyline ``axis_mm`` (N, 3), ray traced."""
-    z_mid = float(np.mean(axis_mm[:, 2]))
-
-    def alpha(w: Window) -> np.ndarray:
-        return sdf_alpha(tube_hits(w, axis_mm, radius_mm)["sdf"])
-
-    def colour(w: Window) -> np.ndarray:
-        hit = tube_hits(w, axis_mm, radius_mm)
-        return shade_metal(hit["normal"], hit["view"], lamp, base)
-
-    return Layer(
-        polyline_bbox(axis_mm[:, :2], radius_mm * 2 + 2.0),
-        alpha,
-        colour,
-        z_mm=z_mid,
-        z_extent_mm=(
-            float(axis_mm[:, 2].min() - radius_mm),
-            float(axis_mm[:, 2].max() + radius_mm),
-        ),
-    )

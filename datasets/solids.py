@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvmeasure_datasets.raster import Window
+from cvmeasure_datasets.raster import Layer, Window, polyline_bbox, sdf_alpha
 
 __all__ = [
     "LAMP_ELEVATION_DEG",
+    "dense_polyline",
+    "tube_layer",
     "lamp_direction",
     "post_sdf",
     "shade_metal",
@@ -161,3 +163,35 @@ def post_sdf(
     length2 = du * du + dv * dv
     h = np.clip((pu * du + pv * dv) / np.maximum(length2, 1e-18), 0.0, 1.0)
     return np.hypot(pu - h * du, pv - h * dv) - radius_mm
+
+
+def dense_polyline(polyline: np.ndarray, step_mm: float) -> np.ndarray:
+    """Points along a polyline (N, 2) at most ``step_mm`` apart."""
+    out = [polyline[0]]
+    for a, b in zip(polyline[:-1], polyline[1:], strict=True):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / step_mm)))
+        out.extend(a + (b - a) * k / n for k in range(1, n + 1))
+    return np.array(out)
+
+
+def tube_layer(axis_mm: np.ndarray, radius_mm: float, base: np.ndarray, lamp: np.ndarray) -> Layer:
+    """A shiny round wire around the 3D polyline ``axis_mm`` (N, 3), ray traced."""
+    z_mid = float(np.mean(axis_mm[:, 2]))
+
+    def alpha(w: Window) -> np.ndarray:
+        return sdf_alpha(tube_hits(w, axis_mm, radius_mm)["sdf"])
+
+    def colour(w: Window) -> np.ndarray:
+        hit = tube_hits(w, axis_mm, radius_mm)
+        return shade_metal(hit["normal"], hit["view"], lamp, base)
+
+    return Layer(
+        polyline_bbox(axis_mm[:, :2], radius_mm * 2 + 2.0),
+        alpha,
+        colour,
+        z_mm=z_mid,
+        z_extent_mm=(
+            float(axis_mm[:, 2].min() - radius_mm),
+            float(axis_mm[:, 2].max() + radius_mm),
+        ),
+    )

@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 
 from cvmeasure.kit import default_kit
-from cvmeasure_datasets import Lighting, Pose, render_bender_photo
+from cvmeasure_datasets import Lighting, Pose, arc_part, render_bender_photo, render_part_photo
 from cvmeasure_datasets.blur import defocus_diameter_px, depth_of_field, motion_kernel
 from cvmeasure_datasets.checks import check_disc_centre
 from cvmeasure_datasets.effects import EFFECT_NAMES, SceneEffects
+from cvmeasure_datasets.parts import lifted_centreline
 
 ROLES = ("origin", "axis", "pin", "wire_a", "wire_b")
 TILTED = Pose(tilt_deg=25.0, tilt_direction_deg=200.0, yaw_deg=15.0, distance_mm=550.0)
@@ -268,3 +269,67 @@ def test_wire_across_and_tool_shadow_cover_part_of_the_marker():
         assert not diff[ring].any(), role
     assert hidden.truth["markers"]["wire_b"]["wire_across"] is True
     assert hidden.truth["markers"]["pin"]["tool_shadow"] is True
+
+
+def test_lifted_part_is_rigid_and_lifts_one_end():
+    part = arc_part(80.0, 120.0, 6, wire_diameter_mm=3.0)
+    flat = part.placed(30.0, (400.0, 100.0))
+    axis3, info = lifted_centreline(flat, 1.5, 3.0)
+    heights = -axis3[:, 2]
+    assert heights.min() == pytest.approx(1.5, abs=1e-12)
+    assert heights.max() == pytest.approx(4.5, abs=1e-12)
+    # rigid: every distance between vertices is the flat part's (the design)
+    d3 = np.linalg.norm(axis3[:, None] - axis3[None], axis=2)
+    d2 = np.linalg.norm(flat[:, None] - flat[None], axis=2)
+    assert np.abs(d3 - d2).max() < 1e-9
+    assert info["tilt_deg"] == pytest.approx(np.degrees(np.arcsin(3.0 / part.chord_width_mm)))
+
+
+def _wire_mask_centroid(photo, centre_px, normal_px, half_len=6, half_w=14):
+    """Centroid offset (px, along ``normal_px``) of the bright wire pixels near a point."""
+    g = photo.bgr[..., 1].astype(float)
+    t = np.array([-normal_px[1], normal_px[0]])
+    offs = []
+    for s in range(-half_len, half_len + 1):
+        ws = np.arange(-half_w, half_w + 1)
+        pts = np.asarray(centre_px) + s * t + np.outer(ws, normal_px)
+        vals = g[np.round(pts[:, 1]).astype(int), np.round(pts[:, 0]).astype(int)]
+        mask = vals > 80
+        offs.append(ws[mask].mean())
+    return float(np.mean(offs))
+
+
+def test_lifted_part_appears_where_its_3d_axis_projects():
+    """The lifted end moves in the photo by what the 3D axis predicts (< 0.2 px)."""
+    part = arc_part(80.0, 120.0, 6, wire_diameter_mm=3.0)
+    light = replace(Lighting.clean(), shadow_strength=0.0)
+    kw = dict(part=part, lighting=light, scale=0.5, seed=4, placement_deg=15.0)
+    low = render_part_photo(effects=SceneEffects(wire_3d=True), **kw)
+    high = render_part_photo(effects=SceneEffects(wire_3d=True, part_lift_mm=3.0), **kw)
+    assert high.truth["lift_mm"] == 3.0
+    assert high.truth["segment_bend_deg"] == pytest.approx(low.truth["segment_bend_deg"])
+    pose = high.truth["pose"]
+    cam = high.camera
+
+    def project(p3):
+        px, _ = cv2.projectPoints(
+            np.asarray(p3, dtype=np.float64).reshape(-1, 3),
+            np.array(pose["rvec"]),
+            np.array(pose["tvec_mm"]),
+            cam.camera_matrix,
+            cam.dist_coeffs,
+        )
+        return px.reshape(-1, 2)
+
+    a_low = np.array(low.truth["part"]["centreline_3d_mm"])
+    a_high = np.array(high.truth["part"]["centreline_3d_mm"])
+    mid_low = project((a_low[-2] + a_low[-1]) / 2)[0]
+    mid_high = project((a_high[-2] + a_high[-1]) / 2)[0]
+    seg = project(a_low[-2:])
+    direction = (seg[1] - seg[0]) / np.linalg.norm(seg[1] - seg[0])
+    normal = np.array([-direction[1], direction[0]])
+    predicted = float((mid_high - mid_low) @ normal)
+    assert abs(predicted) > 0.5  # the lift moves the wire in this photo
+    c_low = _wire_mask_centroid(low, mid_low, normal)
+    c_high = _wire_mask_centroid(high, mid_low, normal)
+    assert (c_high - c_low) == pytest.approx(predicted, abs=0.2)
