@@ -93,6 +93,46 @@ class SceneEffects:
         kw.update(overrides)
         return cls(**kw)
 
+    @classmethod
+    def parse(cls, text: str) -> SceneEffects:
+        """Effects from text: ``"all"`` or names, comma-separated, optionally ``NAME=VALUE``.
+
+        ``"marker_heights,wire_3d"``; ``"all,clutter=12"``; ``"part_lift_mm=2"``;
+        ``"wire_across=wire_b+pin"`` (roles joined by ``+``). A bare name switches the
+        effect on at its :meth:`all_on` magnitude. Raises ValueError naming the problem.
+        """
+        items = [t.strip() for t in text.split(",") if t.strip()]
+        kw: dict[str, Any] = {}
+        if items and items[0] == "all":
+            kw = SceneEffects.all_on().to_dict()
+            items = items[1:]
+        names = {f.name for f in fields(cls)}
+        on = cls.all_on()
+        for item in items:
+            name, eq, value = item.partition("=")
+            if name not in names:
+                raise ValueError(f"unknown effect {name!r}; known: all, {', '.join(sorted(names))}")
+            current = getattr(cls(), name)
+            if isinstance(current, tuple):
+                if not value:
+                    raise ValueError(f"{name} needs roles, e.g. {name}=wire_b+pin")
+                kw[name] = tuple(v for v in value.split("+") if v)
+            elif isinstance(current, bool):
+                if not eq or value.lower() in ("1", "true", "on", "yes"):
+                    kw[name] = True
+                elif value.lower() in ("0", "false", "off", "no"):
+                    kw[name] = False
+                else:
+                    raise ValueError(f"{name} is on or off, got {value!r}")
+            elif not eq:
+                kw[name] = getattr(on, name)
+            else:
+                try:
+                    kw[name] = type(current)(value)
+                except ValueError:
+                    raise ValueError(f"{name} needs a number, got {value!r}") from None
+        return cls.from_dict(kw)
+
     @property
     def flat(self) -> bool:
         """True when nothing is on (today's flat scene)."""
@@ -112,7 +152,9 @@ class SceneEffects:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> SceneEffects:
         known = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in data.items() if k in known})
+        return cls(
+            **{k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items() if k in known}
+        )
 
 
 #: The switchable effects (the benchmark's rows), in rendering order.

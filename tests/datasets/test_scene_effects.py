@@ -333,3 +333,15 @@ def test_lifted_part_appears_where_its_3d_axis_projects():
     c_low = _wire_mask_centroid(low, mid_low, normal)
     c_high = _wire_mask_centroid(high, mid_low, normal)
     assert (c_high - c_low) == pytest.approx(predicted, abs=0.2)
+
+
+def test_effects_parse_from_text():
+    assert SceneEffects.parse("") == SceneEffects()
+    assert SceneEffects.parse("all") == SceneEffects.all_on()
+    fx = SceneEffects.parse("all,clutter=12,bayer=off,tool_shadow=pin+axis")
+    assert fx.clutter == 12 and not fx.bayer and fx.tool_shadow == ("pin", "axis")
+    assert SceneEffects.parse("part_lift_mm").part_lift_mm == SceneEffects.all_on().part_lift_mm
+    assert SceneEffects.from_dict(fx.to_dict()) == fx
+    for bad in ("fog", "clutter=many", "wire_across", "bayer=maybe"):
+        with pytest.raises(ValueError):
+            SceneEffects.parse(bad)
