@@ -110,12 +110,22 @@ def _within2(z):
     return float(100.0 * np.mean(np.asarray(z) < 2.0)) if len(z) else None
 
 
-def _bender_rows(args, scale, camera, kit, rows_n):
+_PLANES: dict[tuple[int, float], object] = {}
+
+
+def _plane(i: int, pose, camera, scale: float, seed0: int):
+    """The plate's plane for scene ``i``, measured once from a photo of the board on it."""
     from benchmarks._calibrated import plane_for_pose
+
+    if (i, scale) not in _PLANES:
+        _PLANES[(i, scale)] = plane_for_pose(pose, camera, scale=scale, seed=seed0 + 5000 + i)
+    return _PLANES[(i, scale)]
+
+
+def _bender_rows(args, scale, camera, kit, rows_n):
     from cvmeasure_datasets import render_bender_photo
 
     flat = flat_kit(kit)
-    planes: dict[int, object] = {}
     out = {}
     for row, n in rows_n:
         fx = _effects(row)
@@ -124,8 +134,7 @@ def _bender_rows(args, scale, camera, kit, rows_n):
         t_render = []
         for i in range(n):
             pin, bend, pose, light = _scene(i, args.seed)
-            if i not in planes:
-                planes[i] = plane_for_pose(pose, camera, scale=scale, seed=args.seed + 5000 + i)
+            plane = _plane(i, pose, camera, scale, args.seed)
             t0 = time.process_time()
             photo = render_bender_photo(
                 pin_angle_deg=pin,
@@ -138,7 +147,7 @@ def _bender_rows(args, scale, camera, kit, rows_n):
             )
             t_render.append(time.process_time() - t0)
             for name, k in (("heights", kit), ("flat kit", flat)):
-                s = _score(_measure(photo.bgr, k, planes[i]), photo.truth)
+                s = _score(_measure(photo.bgr, k, plane), photo.truth)
                 a = acc[name]
                 a["refused"] += s["refused"] is not None
                 a["warned"] += bool(s["warnings"])
@@ -155,8 +164,10 @@ def _bender_rows(args, scale, camera, kit, rows_n):
 
 
 def _occlusion_rows(args, scale, camera, kit, n):
-    """Clutter + occlusion: each photo is refused, warned about, right, or silently wrong."""
-    from benchmarks._calibrated import plane_for_pose
+    """Clutter + occlusion: each photo is refused, warned about, right, or silently wrong.
+
+    The scenes (angles, pose, light) are those of the effect rows, with other seeds.
+    """
     from cvmeasure.kit import ROLES
     from cvmeasure_datasets import render_bender_photo
     from cvmeasure_datasets.effects import SceneEffects
@@ -166,14 +177,14 @@ def _occlusion_rows(args, scale, camera, kit, n):
     for kind in ("stray objects (clutter 12)", "wire across a ring edge", "tool's shadow"):
         c = {"refused": 0, "warned": 0, "right": 0, "silently wrong": 0}
         for i in range(n):
-            pin, bend, pose, light = _scene(100 + i, args.seed)
-            role = ROLES[i % len(ROLES)]
+            pin, bend, pose, light = _scene(i, args.seed)
+            role = ROLES[(i + len(counts)) % len(ROLES)]
             fx = SceneEffects.all_on(clutter=12)
             if kind.startswith("wire"):
                 fx = replace(fx, wire_across=(role,))
             elif kind.startswith("tool"):
                 fx = replace(fx, tool_shadow=(role,))
-            plane = plane_for_pose(pose, camera, scale=scale, seed=args.seed + 6000 + i)
+            plane = _plane(i, pose, camera, scale, args.seed)
             photo = render_bender_photo(
                 pin_angle_deg=pin,
                 bend_angle_deg=bend,
@@ -282,7 +293,7 @@ def main(argv: list[str] | None = None) -> dict:
     cv2.setNumThreads(1)
     t_start = time.perf_counter()
     scale = 0.25 if args.quick else 1.0
-    n_alone, n_all, n_occ, n_part = (1, 2, 1, 1) if args.quick else (3, 10, 5, 3)
+    n_alone, n_all, n_occ, n_part = (1, 2, 1, 1) if args.quick else (2, 8, 3, 2)
     camera, calibration = calibrated_camera(scale)
     kit = default_kit()
     rows_n = [("none (flat scene)", n_alone)] + [(r, n_alone) for r in ALONE]
