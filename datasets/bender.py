@@ -573,16 +573,25 @@ def _render_3d(
         layers.append(tube_layer(loose, wire_r, lin(_WIRE), lamp))
         extra["wire_across"][role] = {"axis_mm": loose.tolist(), "direction_deg": ang}
     for role in fx.tool_shadow:
+        # a tool's shadow: a band 8 mm wide across the marker (off its centre), 50 mm long,
+        # kept clear of the other markers
         c = centres[role]
-        ang = float(rng.uniform(0.0, 180.0))
         ring_r = kit.by_role(role).ring_mm / 2
-        n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
-        mid = c + n * ring_r * 0.5
-        layers.append(tool_shadow_layer(mid, ang, 8.0, 0.55))
+        others = [centres[r] for r in centres if r != role]
+        for _ in range(50):
+            ang = float(rng.uniform(0.0, 180.0))
+            n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
+            d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
+            mid = c + n * ring_r * 0.5
+            ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
+            if all(np.hypot(*(o - _closest(ends, o))) > 16.0 for o in others):
+                break
+        layers.append(tool_shadow_layer(mid, ang, 8.0, 0.55, length_mm=50.0))
         extra["tool_shadow"][role] = {
             "centre_mm": mid.tolist(),
             "direction_deg": ang,
             "width_mm": 8.0,
+            "length_mm": 50.0,
         }
     occluders = {}
     for role, frac in sorted(occlude.items()):

@@ -170,11 +170,17 @@ def stray_layers(objects: list[dict[str, Any]]) -> list[Layer]:
 
 
 def tool_shadow_layer(
-    centre_mm: Sequence[float], angle_deg: float, width_mm: float, strength: float
+    centre_mm: Sequence[float],
+    angle_deg: float,
+    width_mm: float,
+    strength: float,
+    *,
+    length_mm: float = 120.0,
 ) -> Layer:
-    """A tool's soft shadow: a long band ``width_mm`` wide across ``centre_mm``."""
+    """A tool's soft shadow: a band ``width_mm`` wide and ``length_mm`` long across ``centre_mm``."""
     d = np.array([np.cos(np.radians(angle_deg)), np.sin(np.radians(angle_deg))])
-    line = np.array([np.asarray(centre_mm) - 60.0 * d, np.asarray(centre_mm) + 60.0 * d])
+    half = length_mm / 2
+    line = np.array([np.asarray(centre_mm) - half * d, np.asarray(centre_mm) + half * d])
     return Layer(
         polyline_bbox(line, width_mm / 2 + 5.0),
         lambda w: sdf_alpha(sdf_capsules(w.u, w.v, line, width_mm / 2, 4.0), 2.5),
