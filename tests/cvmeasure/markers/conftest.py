@@ -37,3 +37,14 @@ def render():
     """``render(pin=, bend=, light=, seed=, pose=, occlude=((role, frac),), geometry=)``, cached."""
     pytest.importorskip("cvmeasure_datasets.bender")
     return _render
+
+
+@pytest.fixture(scope="session")
+def flat_kit():
+    """The built-in kit without heights: what the flat renders of ``render`` show."""
+    from dataclasses import replace
+
+    from cvmeasure.kit import default_kit
+
+    kit = default_kit()
+    return replace(kit, markers=tuple(replace(m, height_mm=None) for m in kit.markers))
