@@ -68,6 +68,7 @@ from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
     CORRELATION_FACTOR,
     EDGE_MODES,
+    UNEVEN_RING_SPREAD,
     channel_shifts_px,
     disc_edge_points,
 )
@@ -207,14 +208,23 @@ def refine_candidate(
     """Sub-pixel circle of one found disc (image px) and its edge points, or why there is none.
 
     Edge points are re-extracted around the refined circle until it stops moving
-    (at most three passes).
+    (at most three passes); where its ring is unevenly lit (a shadow across the
+    marker), a last pass takes each ray's edge against that ray's own levels.
     """
     centre, radius = cand.centre_px, cand.radius_px
     fit = None
     edges = None
-    for _ in range(3):
-        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge)
-        if edges.points_px.shape[0] < MIN_EDGE_POINTS:
+    local = False  # the last pass, when the ring is unevenly lit: each ray's own levels
+    passes = 0
+    while True:
+        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge, local_levels=local)
+        n_points = edges.points_px.shape[0]
+        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * 2 * math.pi * radius):
+            return (
+                "too little of its edge is clear of the shadow or cover across it "
+                f"({n_points} edge points)"
+            )
+        if n_points < MIN_EDGE_POINTS:
             return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
         try:
             init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
@@ -227,8 +237,13 @@ def refine_candidate(
         if not (0.5 * cand.radius_px < fit.radius < 1.6 * cand.radius_px):
             return f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
         centre, radius = fit.centre, fit.radius
-        if moved < 0.05 * radius:
+        passes += 1
+        if local:
             break
+        if moved < 0.05 * radius or passes >= 3:
+            if edges.ring_spread < UNEVEN_RING_SPREAD:
+                break
+            local = True  # settled on a circle: its ring samples now fall on the ring
     return fit, edges
 
 
@@ -299,6 +314,39 @@ def _anisotropy(offsets: np.ndarray) -> np.ndarray:
     return 2.0 * sol[1:] / (sol[0] or 1.0)
 
 
+def _split_half_cov(points_px: np.ndarray, fit: CircleFit) -> np.ndarray:
+    """Centre covariance (px^2) from how fits to halves of the edge disagree with the whole.
+
+    The inlier edge points are split in two halves round the centre, four ways (the
+    split line every 45 deg); each half's circle, fitted with the radius free,
+    differs from the whole's centre by ``d``; returns the mean of ``d d^T`` over the
+    eight halves. For a whole, clean edge this is a few times the sampling
+    covariance; for an edge bent by a cover or a shadow's edge, its systematic part.
+    """
+    pts = np.asarray(points_px, dtype=np.float64)
+    c = np.asarray(fit.centre)
+    off = pts - c
+    resid = np.abs(np.hypot(off[:, 0], off[:, 1]) - fit.radius)
+    keep = resid < 3.0 * max(fit.rms_residual, 0.05)
+    pts, off = pts[keep], off[keep]
+    theta = np.arctan2(off[:, 1], off[:, 0])
+    diffs = []
+    for split in np.radians([0.0, 45.0, 90.0, 135.0]):
+        side = np.mod(theta - split, 2 * math.pi) < math.pi
+        for half in (side, ~side):
+            if half.sum() < MIN_EDGE_POINTS:
+                continue
+            try:
+                part = fit_circle_robust(pts[half], init=(c[0], c[1], fit.radius))
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            diffs.append(np.asarray(part.centre) - c)
+    if not diffs:
+        return np.zeros((2, 2))
+    d = np.asarray(diffs)
+    return d.T @ d / len(d)
+
+
 def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | None) -> list[str]:
     out = []
     if fit.coverage < HIDDEN_COVERAGE:
@@ -308,6 +356,12 @@ def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | Non
     if edges.clipped_fraction > OVEREXPOSED_FRACTION:
         out.append(
             f"marker {role!r} overexposed ({100 * edges.clipped_fraction:.0f} % of its ring clipped)"
+        )
+    if edges.ring_spread >= UNEVEN_RING_SPREAD:
+        out.append(
+            f"marker {role!r} unevenly lit (its ring's level varies by {100 * edges.ring_spread:.0f}"
+            " % of the disc-to-ring step: a shadow or an object across it?); edges taken "
+            "against each ray's own levels"
         )
     if edges.contrast < LOW_CONTRAST:
         out.append(f"marker {role!r} has low contrast ({edges.contrast:.0f}/255)")
@@ -375,6 +429,9 @@ def _measure_ours(
     plane_shape: list[np.ndarray] = []
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
+        if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
+            # partly hidden or in a shadow: what the edge's two halves disagree on, too
+            cov_img = cov_img + _split_half_cov(edges.points_px, fit)
         markers[role] = MarkerMeasurement(
             role,
             fit.centre[0],
