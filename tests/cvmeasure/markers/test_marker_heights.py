@@ -189,3 +189,28 @@ def test_cli_heights_parallel_and_the_record(tmp_path, capsys):
     assert abs(rec["pin_angle_deg"] - truth["pin_angle_deg"]) < TOL_DEG
     back = MachinePhotoResult.from_dict(rec)
     assert back.heights == "parallel" and back.height_bound_deg == rec["height_bound_deg"]
+
+
+def test_stated_uncertainty_holds_at_heights():
+    """Random poses (500-600 mm, tilted 0-8 deg, die up to 40 mm off axis), heights applied."""
+    kit, camera = default_kit(), _camera()
+    z, errs = [], []
+    for i in range(8):
+        rng = np.random.default_rng([14, i])
+        pin = float(rng.uniform(-110, 110))
+        bend = float(np.clip(pin * rng.uniform(0.8, 0.95), -100, 100))
+        pose = Pose(
+            yaw_deg=float(rng.uniform(-180, 180)),
+            tilt_deg=float(rng.uniform(0, 8)),
+            tilt_direction_deg=float(rng.uniform(0, 360)),
+            distance_mm=float(rng.uniform(500, 600)),
+            offset_mm=(float(rng.uniform(-40, 10)), float(rng.uniform(-20, 20))),
+        )
+        bgr, truth = render_discs_at_heights(DiscScene(pin, bend, pose=pose), camera=camera, seed=i)
+        res = measure_machine_photo(bgr, kit, plane=true_plane(camera, pose))
+        for key in ("pin_angle_deg", "bend_angle_deg"):
+            err = getattr(res, key) - truth[key]
+            errs.append(err)
+            z.append(abs(err) / res.uncertainty_deg[key])
+    assert np.percentile(np.abs(errs), 95) < TOL_DEG
+    assert np.mean(np.asarray(z) < 2.0) >= 0.9 and max(z) < 3.0, z
