@@ -75,9 +75,7 @@ def _scene(i: int, seed0: int):
 
 def flat_kit(kit):
     """The same kit with its heights removed: what a flat-plane pipeline measures with."""
-    from cvmeasure.kit import MarkerKit
-
-    return MarkerKit(kit.name, tuple(replace(m, height_mm=None) for m in kit.markers))
+    return kit.flat()
 
 
 def _measure(img, kit, plane):

@@ -42,9 +42,6 @@ def render():
 @pytest.fixture(scope="session")
 def flat_kit():
     """The built-in kit without heights: what the flat renders of ``render`` show."""
-    from dataclasses import replace
-
     from cvmeasure.kit import default_kit
 
-    kit = default_kit()
-    return replace(kit, markers=tuple(replace(m, height_mm=None) for m in kit.markers))
+    return default_kit().flat()

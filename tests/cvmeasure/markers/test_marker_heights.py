@@ -10,7 +10,6 @@ from __future__ import annotations
 import functools
 import json
 import math
-from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -45,10 +44,6 @@ def _photo(pin, bend, pose, seed=0, flat=False):
     )
 
 
-def _flat(kit):
-    return replace(kit, markers=tuple(replace(m, height_mm=None) for m in kit.markers))
-
-
 def true_plane(camera, pose) -> PlaneModel:
     """The plate's plane from the renderer's own pose, in a board frame (z away from the camera)."""
     rot, t_mm = pose.extrinsics("machine")
@@ -78,7 +73,7 @@ def test_heights_applied_through_the_plane_pose(pose):
     # each disc measured at its own height has the kit's size and is round on the plate
     assert not any("in size on the plane" in w or "elliptic" in w for w in res.warnings)
     # the same photo measured flat: the pin (6 mm above the origin disc) is off, and said so
-    flat = measure_machine_photo(bgr, _flat(default_kit()), plane=plane)
+    flat = measure_machine_photo(bgr, default_kit().flat(), plane=plane)
     assert flat.heights == "flat"
     assert abs(_err(flat, truth)[0]) > 0.1
     assert any("no marker heights" in w for w in flat.warnings)
@@ -103,7 +98,7 @@ def test_a_plane_json_without_its_pose_gets_it_from_the_homography():
 
 def test_a_flat_scene_measured_flat_agrees():
     bgr, truth = _photo(35.0, 30.0, TILTED, flat=True)
-    res = measure_machine_photo(bgr, _flat(default_kit()), plane=true_plane(_camera(), TILTED))
+    res = measure_machine_photo(bgr, default_kit().flat(), plane=true_plane(_camera(), TILTED))
     assert max(abs(e) for e in _err(res, truth)) < TOL_DEG
 
 
