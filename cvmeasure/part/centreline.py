@@ -20,6 +20,19 @@ renderer draws it), so the brightness beyond the end point along the axis
 repeats the half-profile across the wire; the end point is where the axial
 profile best matches the mean cross half-profile.
 
+With the wire's expected width in pixels (from its diameter through the
+calibrated plane, :func:`cvmeasure.part.measure.measure_centreline_mm`), the
+centres are instead taken between the wire's two **silhouette edges**
+(:func:`silhouette_edges`): the symmetry above holds only for light from
+straight above; a light from one side puts the specular highlight on the lit
+flank and the symmetric centre follows it (1.4-2.9 px off the axis on a
+ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
+the profile's gradient; per profile, the pair of peaks whose distance is within
+15 % of the expected width and whose summed strength is largest is the wire
+(the highlight's own edges are closer together, the shadow's outer edge
+farther out). The edges' distance is the wire's apparent width, which
+:mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
+
 Frames: input and output in image pixels (OpenCV: x right, y down, pixel
 centres at integers). :mod:`cvmeasure.part.measure` maps them to board mm.
 """
@@ -31,7 +44,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Centreline", "EndShape", "measure_centreline", "symmetric_centres"]
+__all__ = [
+    "Centreline",
+    "EndShape",
+    "measure_centreline",
+    "silhouette_edges",
+    "symmetric_centres",
+]
 
 _STEP_PX = 0.05
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
@@ -58,6 +77,9 @@ class Centreline:
     asymmetry : median over the profiles of the remaining asymmetry at the centre
         relative to the profile's own variance in the window (0 perfectly
         symmetric, about 1 for no symmetry at all).
+    centre_from : ``"symmetry"`` or ``"silhouette"`` (between the two silhouette edges).
+    edge_width_px : with silhouette edges, ndarray (M,): the distance between the
+        two edges at each point (NaN at the end points), pixels; else None.
     """
 
     points_px: np.ndarray
@@ -67,9 +89,14 @@ class Centreline:
     rejected: int
     coverage: float = 1.0
     asymmetry: float = 0.0
+    centre_from: str = "symmetry"
+    edge_width_px: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        widths = self.edge_width_px
         return {
+            "centre_from": self.centre_from,
+            "edge_width_px": None if widths is None else float(np.nanmedian(widths)),
             "points": len(self.points_px),
             "half_width_px": self.half_width_px,
             "rho_px": self.rho_px,
@@ -182,6 +209,66 @@ def symmetric_centres(
     shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
     shift = np.where(inner, shift, np.nan)
     return shift, cost[rows, k]
+
+
+def silhouette_edges(
+    profiles: np.ndarray,
+    offsets_px: np.ndarray,
+    width_px: np.ndarray | float,
+    *,
+    tolerance: float = 0.05,
+    centre_tolerance: float = 0.2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wire's two silhouette edges on each profile across it, pixels along the normal.
+
+    Parameters
+    ----------
+    profiles : ndarray (P, S); grey levels at ``offsets_px`` (S,) along each normal.
+    width_px : the expected apparent width (scalar or (P,)), pixels.
+    tolerance : relative range of widths accepted about ``width_px``.
+    centre_tolerance : largest distance of the pair's midpoint from offset 0 (the
+        current centre), relative to ``width_px``.
+
+    Returns
+    -------
+    left, right : ndarray (P,) each, offsets of the two edges (NaN where no pair of
+        gradient peaks has a width within the tolerance), pixels.
+
+    Each edge is a local maximum of the profile's gradient magnitude (smoothed over
+    0.5 px), refined by a parabola; of every pair of peaks whose distance is within
+    ``tolerance`` of the width and whose midpoint is near the current centre, the one
+    with the largest summed gradient wins (a shadow's outer edge paired with a
+    highlight's edge can have the wire's width, but not about its centre).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    p = np.asarray(profiles, dtype=np.float64)
+    step = float(offsets_px[1] - offsets_px[0])
+    grad = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1))
+    n_p = len(p)
+    width = np.broadcast_to(np.asarray(width_px, dtype=np.float64), (n_p,))
+    left = np.full(n_p, np.nan)
+    right = np.full(n_p, np.nan)
+    inner = grad[:, 1:-1]
+    is_peak = (inner >= grad[:, :-2]) & (inner > grad[:, 2:])
+    is_peak &= inner >= 0.15 * inner.max(axis=1, keepdims=True)
+    for i in range(n_p):
+        k = np.nonzero(is_peak[i])[0] + 1
+        if len(k) < 2:
+            continue
+        g0, g1, g2 = grad[i, k - 1], grad[i, k], grad[i, k + 1]
+        den = g0 - 2 * g1 + g2
+        frac = np.where(den < 0, 0.5 * (g0 - g2) / np.where(den < 0, den, -1.0), 0.0)
+        pos = offsets_px[k] + np.clip(frac, -0.5, 0.5) * step
+        gap = pos[None, :] - pos[:, None]
+        score = g1[None, :] + g1[:, None]
+        ok = np.abs(gap / width[i] - 1.0) <= tolerance
+        ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * centre_tolerance * width[i]
+        if not ok.any():
+            continue
+        a, b = np.unravel_index(np.argmax(np.where(ok, score, -np.inf)), gap.shape)
+        left[i], right[i] = pos[a], pos[b]
+    return left, right
 
 
 def _asymmetry_ratio(
@@ -297,6 +384,7 @@ def measure_centreline(
     width_guess_px: float,
     step_px: float = 1.0,
     end_shape: EndShape = "round",
+    wire_width_px: float | None = None,
 ) -> Centreline:
     """Sub-pixel centreline of the wire along a rough path.
 
@@ -310,6 +398,9 @@ def measure_centreline(
     end_shape : ``"round"`` (hemispherical caps, matched to the cross profile)
         or ``"flat"`` (square-cut: the end face is where the brightness along
         the axis falls half-way from the wire's crest to the background).
+    wire_width_px : the wire's expected apparent width (its diameter seen from the
+        camera), pixels. With it the centres lie between the two silhouette edges
+        (see the module notes); without it, at the profiles' centre of symmetry.
 
     Raises
     ------
@@ -323,6 +414,8 @@ def measure_centreline(
     path = _resample(np.asarray(path_px, dtype=np.float64), step_px)
     path = _smooth(path, max(2.0, 2.0 * hw0) / step_px)
     reach = 3.0 * hw0 + 4.0
+    if wire_width_px is not None:
+        reach = max(reach, 0.8 * wire_width_px + 5.0)
     offsets = np.arange(-round(reach / _STEP_PX), round(reach / _STEP_PX) + 1) * _STEP_PX
 
     def profiles_at(centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -369,10 +462,19 @@ def measure_centreline(
     centres = (centres + shift[:, None] * normals)[ok]
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
+    prof_ok = prof[ok]
+    centre_from = "symmetry"
+    widths = None
+    if wire_width_px is not None:
+        centres, prof_ok, widths, coverage = _silhouette_centres(
+            profiles_at, centres, offsets, float(wire_width_px), step_px, rough, window
+        )
+        centre_from = "silhouette"
+        half_width = 0.5 * float(np.median(widths))
     ends = np.vstack(
         (
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=True, shape=end_shape),
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=False, shape=end_shape),
+            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=True, shape=end_shape),
+            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=False, shape=end_shape),
         )
     )
     # trim centres that lie beyond the end points (skeleton overshoot)
@@ -390,6 +492,9 @@ def measure_centreline(
         inward = inward / max(np.hypot(*inward), 1e-12)
         keep[idx] &= ((centres[idx] - end) @ inward) >= 0.5 * half_width
     inner = centres[keep]
+    edge_width = None
+    if widths is not None:
+        edge_width = np.concatenate(([np.nan], widths[keep], [np.nan]))
     return Centreline(
         points_px=np.vstack((ends[:1], inner, ends[1:])),
         half_width_px=half_width,
@@ -398,7 +503,44 @@ def measure_centreline(
         rejected=rejected,
         coverage=coverage,
         asymmetry=symmetry,
+        centre_from=centre_from,
+        edge_width_px=edge_width,
     )
+
+
+def _silhouette_centres(
+    profiles_at: Any,
+    centres: np.ndarray,
+    offsets: np.ndarray,
+    width_px: float,
+    step_px: float,
+    smooth_px: float,
+    window: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Centres between the silhouette edges, two passes from ``centres`` (M, 2).
+
+    Returns the centres, their profiles, the edge widths (px) and the share of
+    profiles where a pair of edges was found.
+    """
+    coverage = 1.0
+    widths = np.zeros(0)
+    prof = np.zeros((0, len(offsets)))
+    for final in (False, True):
+        normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
+        prof = profiles_at(centres, normals)
+        left, right = silhouette_edges(prof, offsets, width_px)
+        shift = _despike(0.5 * (left + right), window)
+        ok = np.isfinite(shift)
+        coverage = float(ok.mean())
+        if ok.sum() < 5:
+            raise ValueError("no pair of silhouette edges of the wire's width along the path")
+        centres = (centres + shift[:, None] * normals)[ok]
+        widths = (right - left)[ok]
+        if not final:
+            centres = _resample(centres, step_px)
+    # the last profiles, re-centred on the edges' midpoints (for the end points)
+    normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
+    return centres, profiles_at(centres, normals), widths, coverage
 
 
 def _end_point(
