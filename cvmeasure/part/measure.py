@@ -359,13 +359,16 @@ def measure_centreline_mm(
         )
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
-    if centre.coverage < MIN_COVERAGE or centre.asymmetry > MAX_ASYMMETRY:
+    # a side-lit round wire is not symmetric across; between silhouette edges a wire
+    # wide along most of its length is the test instead
+    asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from == "symmetry"
+    if centre.coverage < MIN_COVERAGE or asymmetric:
         raise InputError(
             source,
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
             f"has a round wire's symmetric profile along {100 * centre.coverage:.0f} % of it, "
             f"asymmetry {centre.asymmetry:.2f} > {MAX_ASYMMETRY})"
-            if centre.asymmetry > MAX_ASYMMETRY
+            if asymmetric
             else f"no wire found beside the board (the longest thin line, "
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)",

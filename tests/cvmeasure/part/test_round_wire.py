@@ -16,7 +16,7 @@ from cvmeasure.part.measure import measure_part
 from cvmeasure.part.segment import gray_float, segment_wire
 from cvmeasure_datasets.optics import Pose
 
-from .round_wire import render_round_wire
+from cvmeasure_datasets.round_wire import render_round_wire
 
 SCALE = 0.5  # 2304 x 1536 px, 0.157 mm/px at 550 mm: a 3 mm wire is 19 px wide
 POSE = Pose(tilt_deg=2.0, tilt_direction_deg=30.0, distance_mm=550.0, offset_mm=(-60.0, 20.0))

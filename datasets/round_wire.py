@@ -1,6 +1,8 @@
-"""Test helper: a round wire part ray-traced as 3D cylinders through a known camera.
+"""A finished part as a round wire, ray-traced as 3D cylinders through a known camera.
 
-Independent of the measuring code and of the photo lab's flat stripes: each pixel's
+part14's stop-gap until the photo lab's 3D scenes (branch rend14) render parts:
+only the part on a uniform plate (no board; the plane comes from a separate board
+photo, as benchmarks/_calibrated.py does). Independent of the measuring code and of the photo lab's flat stripes: each pixel's
 ray (the camera's exact undistortion) is intersected with the wire's cylinders and
 joint spheres (radius r, axis at r above the plate plus the part's lift) and with
 the plate; the wire is shaded Lambert + Blinn-Phong from a light at ``light_elev_deg``
