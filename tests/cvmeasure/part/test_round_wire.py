@@ -15,7 +15,6 @@ from cvmeasure.part.lift import expected_width_px, points_at_heights_mm
 from cvmeasure.part.measure import measure_part
 from cvmeasure.part.segment import gray_float, segment_wire
 from cvmeasure_datasets.optics import Pose
-
 from cvmeasure_datasets.round_wire import render_round_wire
 
 SCALE = 0.5  # 2304 x 1536 px, 0.157 mm/px at 550 mm: a 3 mm wire is 19 px wide
@@ -101,3 +100,24 @@ def test_a_lifted_part_is_refused_warned_about_or_right(sheet, lift_mm):
     warned = any(w.startswith("part_lifted") for w in m.warnings)
     assert m.lift is not None and m.lift["used"] == "bound"
     assert warned or (radius_err_pct <= 0.3 and bend_err <= 0.03), (m.warnings, radius_err_pct)
+
+
+def test_the_lift_is_recovered_from_exact_widths():
+    """The estimator's geometry alone: widths of a rigidly tilted part, as the camera sees them."""
+    from cvmeasure.part.lift import estimate_lift
+    from cvmeasure_datasets.round_wire import lifted_vertices
+
+    plane = _photo("light", 0.0).plane
+    theta = np.radians(np.linspace(-165.0, -15.0, 300))
+    plate = 60.0 * np.column_stack((np.cos(theta), np.sin(theta)))
+    axis = lifted_vertices(plate, WIRE_MM / 2, 2.0, 30.0)  # 2 mm lift along 30 deg
+    rot, t_mm = POSE.extrinsics("board")
+    px = plane.camera.project(axis @ rot.T + t_mm)
+    heights = -axis[:, 2]
+    seen = points_at_heights_mm(plane, px, heights)
+    widths = expected_width_px(plane, seen, heights, WIRE_MM) * 1.02  # a 2 % edge bias
+    lift = estimate_lift(plane, px, widths, wire_diameter_mm=WIRE_MM, axis_height_mm=WIRE_MM / 2)
+    assert lift is not None
+    assert abs(lift.lift_mm - (heights.max() - heights.min())) < 0.05
+    np.testing.assert_allclose(lift.height_mm, heights - heights.min(), atol=0.05)
+    assert abs(lift.width_scale - 1.02) < 0.002
