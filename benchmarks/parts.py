@@ -234,7 +234,7 @@ def main(argv: list[str] | None = None) -> dict:
     results = [_run_case(c, scale, camera) for c in cases]
     arcs = [r for r in results if r["kind"] == "arc"]
     round_results = [
-        _run_round_case(c, scale, camera) for c in _round_cases(6 if args.quick else 12, args.seed)
+        _run_round_case(c, scale, camera) for c in _round_cases(6, args.seed)
     ]
     # how the error grows at lower resolution (not part of the targets)
     probe = {
@@ -404,7 +404,7 @@ def main(argv: list[str] | None = None) -> dict:
             "measured directly at each fitted vertex",
             f"arcs get 6-20 chords of at least {MIN_CHORD_MM:.0f} mm (4 wire diameters); "
             "shorter chords make the per-vertex bends meaningless for a 2 mm wire",
-            "round wires: cvmeasure_datasets.round_wire (part14's ray tracer, not yet the photo "
+            "round wires (6 photos): cvmeasure_datasets.round_wire (part14's ray tracer, not yet the photo "
             "lab's 3D scenes of rend14): 3 mm arcs of 6-12 chords from 550 mm, light from a "
             "random azimuth at 40-70 deg elevation (highlight off the top, soft shadow), lifted "
             "0 / 1.5 / 3 mm at one end (a rigid tilt; the truth is the part's own shape), "

@@ -352,6 +352,17 @@ def _edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) 
     return np.where(ok, g[np.arange(len(g)), k], 0.0)
 
 
+def _majority(labels: np.ndarray, window: int) -> np.ndarray:
+    """The most frequent non-negative label (0, 1, 2) in a window along the wire; -1 where none."""
+    from scipy.ndimage import uniform_filter1d
+
+    counts = np.stack(
+        [uniform_filter1d((labels == k).astype(float), window, mode="nearest") for k in range(3)]
+    )
+    out = np.argmax(counts, axis=0)
+    return np.where(counts.max(axis=0) > 0, out, -1)
+
+
 def _peak(g: np.ndarray, lo: int, hi: int, offsets: np.ndarray) -> float:
     """Sub-sample position of the maximum of ``g[lo:hi]`` (parabola), in offset units."""
     k = lo + int(np.argmax(g[lo:hi]))
@@ -661,12 +672,11 @@ def _silhouette_centres(
     cut the wire, so the centre is one edge moved by half the width (the median
     width of the clean pairs): the lit side's, where the shadow's side is known
     (:func:`_shadow_side`, from the whole wire) and the wire runs across the light;
-    else the sharper one (a penumbra joined to the silhouette softens its edge). An
-    edge's shading
+    else the sharper one. One rule holds along two widths of wire (the majority):
+    an edge's shading
     bias is alike along a straight chord: a parallel shift, which leaves its
     direction, and so the bends, unchanged; a chord measured partly by pairs and
-    partly by one edge is not (the remaining bend errors, 0.03-0.15 deg on
-    ray-traced 19 px wires).
+    partly by one edge would not be.
 
     Returns the centres, their profiles, the edge widths (px, NaN where only one
     edge was used) and the share of profiles with a centre.
@@ -693,9 +703,17 @@ def _silhouette_centres(
         if shadow is not None:
             towards = normals @ shadow  # > 0: the shadow lies on the + (right) side
             use_left = np.where(np.abs(towards) > 0.05, towards > 0, use_left)
-        one = np.where(use_left, from_left, from_right)
-        one_ok = ~pair & np.isfinite(one) & (np.abs(np.nan_to_num(one)) <= 0.25 * width_px)
-        shift = np.where(one_ok, one, shift)
+        # one rule along a stretch of wire (the majority over two widths), so that a
+        # chord is not measured partly by pairs and partly by one edge
+        rule = np.where(pair, 0, np.where(use_left & near_l, 1, np.where(near_r, 2, -1)))
+        rule = _majority(rule, max(3, int(round(2.0 * width_px / step_px))))
+        shift = np.where(
+            (rule == 0) & pair,
+            0.5 * (left + right),
+            np.where(
+                (rule == 1) & near_l, from_left, np.where((rule == 2) & near_r, from_right, np.nan)
+            ),
+        )
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         coverage = float(ok.mean())
