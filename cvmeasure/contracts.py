@@ -594,7 +594,16 @@ class MarkerMeasurement:
 
 @dataclass(frozen=True)
 class MachinePhotoResult:
-    """The measurement of one machine photo (spec ``Per-photo results``)."""
+    """The measurement of one machine photo (spec ``Per-photo results``).
+
+    ``heights`` says how the markers' heights above the plate were treated (project
+    addition, docs/conventions.md): "plane" (each disc's edge mapped to its own
+    height through the plane pose), "parallel" (camera only: corrected assuming the
+    optical axis is normal to the plate), "flat" (the kit gives no heights), "none"
+    (not applied: no plane pose). ``height_bound_deg`` is, beside (not inside)
+    ``uncertainty_deg``, the worst angle error the heights can still cause when they
+    were not applied exactly (None when they were, or the kit is flat).
+    """
 
     pin_angle_deg: float
     bend_angle_deg: float
@@ -605,6 +614,8 @@ class MachinePhotoResult:
     method: str = "ours"
     space: str = "lab"
     frame: str = "image"
+    heights: str | None = None
+    height_bound_deg: Mapping[str, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The spec's JSON Lines record (plus ``photo``)."""
@@ -628,6 +639,10 @@ class MachinePhotoResult:
             out["frame"] = self.frame
         if self.method != "ours":
             out["method"] = self.method
+        if self.heights is not None:
+            out["heights"] = self.heights
+        if self.height_bound_deg is not None:
+            out["height_bound_deg"] = {k: round(v, 6) for k, v in self.height_bound_deg.items()}
         return out
 
     @classmethod
@@ -646,6 +661,10 @@ class MachinePhotoResult:
                 photo=d.get("photo"),
                 method=str(d.get("method", "ours")),
                 frame=str(d.get("frame", "image")),
+                heights=None if d.get("heights") is None else str(d["heights"]),
+                height_bound_deg=None
+                if d.get("height_bound_deg") is None
+                else {k: float(v) for k, v in dict(d["height_bound_deg"]).items()},
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(source, f"not a machine photo measurement: {exc!r}") from None
@@ -655,6 +674,29 @@ class MachinePhotoResult:
 
 #: Format tag of a saved plane (``cvmeasure plane --json`` / ``-o plane.json``).
 PLANE_FORMAT = "cvmeasure-plane/1"
+
+
+def _pose_from_homography(
+    camera: CameraModel, h_board_image: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(rvec, tvec_mm), camera <- plane, from an undistorted px -> plane mm homography.
+
+    ``K^-1 H_image_board = s [r1 r2 t]``: the scale from the first two columns, the
+    rotation completed and made orthonormal (nearest rotation, SVD), the sign chosen
+    so that the plane lies in front of the camera.
+    """
+    import cv2
+
+    m = np.linalg.inv(camera.camera_matrix) @ np.linalg.inv(h_board_image)
+    m = m / math.sqrt(np.linalg.norm(m[:, 0]) * np.linalg.norm(m[:, 1]))
+    if m[2, 2] < 0:
+        m = -m
+    r = np.column_stack((m[:, 0], m[:, 1], np.cross(m[:, 0], m[:, 1])))
+    u, _, vt = np.linalg.svd(r)
+    rot = u @ vt
+    if np.linalg.det(rot) < 0:
+        rot = u @ np.diag([1.0, 1.0, -1.0]) @ vt
+    return cv2.Rodrigues(rot)[0].reshape(3), m[:, 2].copy()
 
 
 def apply_homography(h: NDArray[np.float64], points: Any) -> NDArray[np.float64]:
@@ -738,7 +780,7 @@ class PlaneModel:
 
         ``height_mm`` 0 is the board's plane (its homography). Otherwise each pixel's
         undistorted ray meets the parallel plane ``height_mm`` above the board
-        (towards the camera; the board frame's z points away from it): a marker on
+        (towards the camera, whichever way the frame's z points): a marker on
         top of the pin, the axis of a wire lying on the plate. Mapping such a point
         to the board plane instead moves it about the camera's foot point by about
         height / distance of its offset (1 mm at 20 mm height, 25 mm off axis, 500 mm).
@@ -755,7 +797,9 @@ class PlaneModel:
         # board point X = R^T (s ray - t); pick s so that its z is -height
         rt_rays = rays @ rot  # rows: R^T ray
         rt_t = rot.T @ self.tvec_mm
-        scale = (rt_t[2] - height_mm) / rt_rays[:, 2]
+        # the camera is at z = -rt_t[2]: a board frame's z points away from it (rt_t[2] > 0)
+        towards = height_mm if rt_t[2] >= 0 else -height_mm
+        scale = (rt_t[2] - towards) / rt_rays[:, 2]
         board = scale[:, None] * rt_rays - rt_t[None, :]
         return board[:, :2]
 
@@ -874,8 +918,11 @@ class PlaneModel:
                 source, "plane JSON has no camera (written by an older cvmeasure): give --camera"
             )
         try:
-            rvec = np.asarray(d.get("rvec", (0.0, 0.0, 0.0)), dtype=np.float64).reshape(3)
-            tvec = np.asarray(d.get("tvec_mm", (0.0, 0.0, 0.0)), dtype=np.float64).reshape(3)
+            if "rvec" in d and "tvec_mm" in d:
+                rvec = np.asarray(d["rvec"], dtype=np.float64).reshape(3)
+                tvec = np.asarray(d["tvec_mm"], dtype=np.float64).reshape(3)
+            else:  # an older plane JSON: the pose is in the homography and the camera
+                rvec, tvec = _pose_from_homography(camera, h)
             numbers = {
                 k: float(d.get(k, default))
                 for k, default in (

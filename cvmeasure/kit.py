@@ -11,7 +11,7 @@ colour-science.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -105,6 +105,14 @@ class MarkerKit:
         """The height of ``role``'s disc above the top plate, mm (0 for a flat kit)."""
         height = self.by_role(role).height_mm
         return 0.0 if height is None else float(height)
+
+    def flat(self) -> MarkerKit:
+        """The same kit without heights: every disc on the plate (a flat-plane measurement)."""
+        return replace(
+            self,
+            markers=tuple(replace(m, height_mm=None) for m in self.markers),
+            wire_axis_height_mm=None,
+        )
 
     def by_role(self, role: str) -> MarkerSpec:
         for marker in self.markers:

@@ -30,6 +30,15 @@ seed=0, scale=1.0, image_size_px=None, placement_deg=None, linear=False)`` with 
 image_size_px=None, linear=False)``,
 ``random_board_poses(n, seed)``
     Calibration views; truth ``corners_px`` of every inner corner (OpenCV id order).
+``SceneEffects(marker_heights, supports, wire_3d, part_lift_mm, depth_of_field, motion_blur_px,
+bayer, textured_background, clutter, wire_across, tool_shadow, ...)``
+    Real-scene effects, each switchable (``effects=`` of ``render_bender_photo`` and
+    ``render_part_photo``): discs at their kit heights with printed supports, the wire
+    as a ray-traced shiny cylinder with a cast shadow, a part rocked so that one end
+    lifts, thin-lens depth of field, motion blur, Bayer mosaic, textured backgrounds,
+    stray coloured objects, a wire across a ring edge, a tool's shadow.
+    ``SceneEffects()`` is the flat scene (renders bit-identical to before);
+    ``SceneEffects.all_on()``, ``SceneEffects.only(name)``.
 ``RenderedPhoto``
     ``bgr`` (uint8), ``camera``, ``truth`` (JSON-able dict), ``linear_rgb16``
     (with ``linear=True``), ``jpeg_bytes``; ``save(stem)`` writes ``<stem>.jpg``
@@ -47,6 +56,7 @@ reports them. ``cvmeasure render bender|part|board`` is the command-line front e
 
 from cvmeasure_datasets.bender import BenderGeometry, render_bender_photo
 from cvmeasure_datasets.boards import random_board_poses, render_board_view
+from cvmeasure_datasets.effects import SceneEffects
 from cvmeasure_datasets.lighting import Lighting
 from cvmeasure_datasets.optics import Pose, default_camera
 from cvmeasure_datasets.parts import (
@@ -64,6 +74,7 @@ __all__ = [
     "PartSpec",
     "Pose",
     "RenderedPhoto",
+    "SceneEffects",
     "arc_part",
     "default_camera",
     "polyline_part",

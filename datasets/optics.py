@@ -238,6 +238,21 @@ class RayMap:
         self._sx = RectBivariateSpline(gy, gx, norm[:, 0].reshape(mx.shape), kx=5, ky=5)
         self._sy = RectBivariateSpline(gy, gx, norm[:, 1].reshape(mx.shape), kx=5, ky=5)
 
+    def direction_grid(
+        self, rot: np.ndarray, xs_px: np.ndarray, ys_px: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ray directions ``R^T (xn, yn, 1)`` in the frame (len(ys), len(xs)) each.
+
+        Scaled so that ``centre + s * d`` lies at camera depth ``s``; the same
+        arithmetic as :meth:`plane_grid_mm`.
+        """
+        xn = self._sx(ys_px, xs_px, grid=True)
+        yn = self._sy(ys_px, xs_px, grid=True)
+        dx = rot[0, 0] * xn + rot[1, 0] * yn + rot[2, 0]
+        dy = rot[0, 1] * xn + rot[1, 1] * yn + rot[2, 1]
+        dz = rot[0, 2] * xn + rot[1, 2] * yn + rot[2, 2]
+        return dx, dy, dz
+
     def plane_grid_mm(
         self, rot: np.ndarray, t_mm: np.ndarray, xs_px: np.ndarray, ys_px: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:

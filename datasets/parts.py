@@ -15,7 +15,10 @@ import numpy as np
 from cvmeasure.board import BoardSpec, CharucoBoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.geometry import wrap_deg
+from cvmeasure.kit import default_kit
 from cvmeasure_datasets.boards import board_layers, board_truth, table_layer
+from cvmeasure_datasets.clutter import stray_layers, stray_objects, textured
+from cvmeasure_datasets.effects import SceneEffects
 from cvmeasure_datasets.lighting import Lighting, srgb8_to_linear
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
@@ -27,6 +30,7 @@ from cvmeasure_datasets.raster import (
     sdf_capsules,
     sdf_rect,
 )
+from cvmeasure_datasets.solids import dense_polyline, lamp_direction, shadow_on_plane, tube_layer
 
 __all__ = [
     "PartSpec",
@@ -34,6 +38,7 @@ __all__ = [
     "saddle_part",
     "polyline_part",
     "vertex_bend_angles_deg",
+    "lifted_centreline",
     "render_part_photo",
 ]
 
@@ -215,6 +220,7 @@ def render_part_photo(
     image_size_px: tuple[int, int] | None = None,
     placement_deg: float | None = None,
     linear: bool = False,
+    effects: SceneEffects | None = None,
 ) -> RenderedPhoto:
     """Render a finished part on a matte sheet to the right of a ChArUco board.
 
@@ -226,14 +232,25 @@ def render_part_photo(
     pose : camera pose in the board frame (default: straight down from 900 mm,
         centred between board and sheet).
     placement_deg : rotation of the part on the sheet (default: drawn from ``seed``).
+    effects : real-scene effects (:class:`SceneEffects`): ``wire_3d`` renders the wire
+        as a ray-traced cylinder lying on the sheet (axis one radius above it) with a
+        highlight and a soft cast shadow; ``part_lift_mm`` rocks the part (a rigid tilt
+        about a line on the sheet through its lowest end) so that its other end lifts
+        that much; the camera effects, a textured sheet and stray objects on the sheet
+        as for the bender. Default: all off, the flat render.
 
     Returns
     -------
     RenderedPhoto whose truth holds ``part`` (design values and
     ``centreline_mm``: the wire's vertices in the board frame), ``radius_mm``,
     ``chord_width_mm``, ``height_mm``, ``arc_angle_deg``, ``segment_bend_deg``,
-    the board's corners and the pose.
+    the board's corners and the pose. With effects, ``part.centreline_3d_mm`` (the
+    wire's axis in 3D, board frame: z is away from the camera, so heights are
+    negative z), ``lift_mm``, ``tilt_deg`` and ``projected_segment_bend_deg`` (the
+    bends of the centreline's projection onto the sheet: what ignoring the lift gives);
+    ``radius_mm`` and ``segment_bend_deg`` stay the part's own (a rigid part).
     """
+    fx = effects or SceneEffects()
     if sheet not in _SHEETS:
         raise ValueError(f"sheet must be one of {sorted(_SHEETS)}, got {sheet!r}")
     spec = part if isinstance(part, PartSpec) else polyline_part(part)
@@ -268,22 +285,28 @@ def render_part_photo(
             lin(_SHEETS[sheet]),
         ),
     ]
-    if light.shadow_strength > 0:
+    extra: dict[str, Any] = {}
+    if fx.flat:
+        if light.shadow_strength > 0:
+            layers.append(
+                Layer(
+                    polyline_bbox(shadow, r + 3.0),
+                    lambda w: sdf_alpha(sdf_capsules(w.u, w.v, shadow, r), 1.0),
+                    kind="shadow",
+                    strength=light.shadow_strength,
+                )
+            )
         layers.append(
             Layer(
-                polyline_bbox(shadow, r + 3.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, shadow, r), 1.0),
-                kind="shadow",
-                strength=light.shadow_strength,
+                polyline_bbox(verts, r + 1.0),
+                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, verts, r)),
+                _wire_colour(verts, r, lin(_WIRE)),
             )
         )
-    layers.append(
-        Layer(
-            polyline_bbox(verts, r + 1.0),
-            lambda w: sdf_alpha(sdf_capsules(w.u, w.v, verts, r)),
-            _wire_colour(verts, r, lin(_WIRE)),
+    else:
+        layers, extra = _effect_layers(
+            layers, verts, r, spec, fx, light, seed, sheet, sheet_c, sheet_mm
         )
-    )
     cam = resolve_camera(camera, scale, image_size_px)
     rot, t_mm = pose.extrinsics("board")
     placed = PartSpec(spec.kind, verts, spec.radius_mm, spec.arc_angle_deg, spec.wire_diameter_mm)
@@ -304,7 +327,19 @@ def render_part_photo(
         "clockwise in the photo. The wire is flat at z = 0 (its height is ignored).",
         "px_per_mm_at_part": px_per_mm_at(cam, rot, t_mm, tuple(verts.mean(axis=0))),
         **board_truth(board, cam, rot, t_mm),
+        "effects": fx.to_dict(),
     }
+    if extra:
+        truth["part"].update(extra.pop("part"))
+        truth.update(extra)
+        truth["notes"] = (
+            "centreline_mm is in the board frame (x right, y down on the board): the wire's "
+            "axis projected along the sheet's normal onto the sheet; centreline_3d_mm is the "
+            "axis in 3D (board frame, z away from the camera: heights above the sheet are -z). "
+            "radius_mm and segment_bend_deg are the rigid part's own (counter-clockwise "
+            "positive in the board's (x, y)); projected_segment_bend_deg those of the "
+            "projection."
+        )
     return render_scene(
         layers,
         frame="board",
@@ -315,4 +350,105 @@ def render_part_photo(
         scale=1.0,
         linear=linear,
         truth=truth,
+        effects=fx,
     )
+
+
+def lifted_centreline(
+    verts_mm: np.ndarray, radius_mm: float, lift_mm: float
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """A part lying on the sheet, rocked so that one end lifts ``lift_mm``: its 3D axis.
+
+    The part (vertices (N + 1, 2) on the sheet, board frame) tilts rigidly about the
+    line on the sheet perpendicular to its end-to-end chord through its lowest point
+    (the vertex least far along the chord); the vertex farthest along rises by
+    ``lift_mm``. Returns the axis (N + 1, 3) with z = -height (board frame: z away from
+    the camera; the axis lies one wire radius above the sheet) and a description.
+    """
+    v = np.asarray(verts_mm, dtype=np.float64)
+    chord = v[-1] - v[0]
+    c_hat = chord / np.linalg.norm(chord)
+    proj = (v - v[0]) @ c_hat
+    pivot = float(proj.min())
+    span = float(proj.max() - pivot)
+    sin_t = lift_mm / span if span > 0 else 0.0
+    cos_t = float(np.sqrt(1.0 - sin_t**2))
+    along = proj - pivot
+    xy = v + np.outer(along * (cos_t - 1.0), c_hat)
+    height = radius_mm + along * sin_t
+    axis3 = np.column_stack((xy, -height))
+    info = {
+        "lift_mm": float(lift_mm),
+        "tilt_deg": float(np.degrees(np.arcsin(sin_t))),
+        "tilt_axis_point_mm": (v[0] + pivot * c_hat).tolist(),
+        "tilt_axis_direction": [float(-c_hat[1]), float(c_hat[0])],
+    }
+    return axis3, info
+
+
+def _effect_layers(
+    layers: list[Layer],
+    verts: np.ndarray,
+    r: float,
+    spec: PartSpec,
+    fx: SceneEffects,
+    light: Lighting,
+    seed: int,
+    sheet: str,
+    sheet_c: tuple[float, float],
+    sheet_mm: float,
+) -> tuple[list[Layer], dict[str, Any]]:
+    """The part scene's layers with effects (textured sheet, strays, 3D wire, lift)."""
+    lin = srgb8_to_linear
+    half = sheet_mm / 2
+    box = (sheet_c[0] - half, sheet_c[1] - half, sheet_c[0] + half, sheet_c[1] + half)
+    if fx.textured_background:
+        layers = list(layers)
+        layers[-1] = Layer(
+            layers[-1].bbox_mm,
+            layers[-1].alpha,
+            textured(seed + 3, _SHEETS[sheet], "plate", box),
+        )
+    strays: list[dict[str, Any]] = []
+    if fx.clutter:
+        clear = [(float(p[0]), float(p[1]), r + 15.0) for p in dense_polyline(verts, 4.0)]
+        strays = stray_objects(seed, fx.clutter, default_kit(), clear, box)
+        layers = [*layers, *stray_layers(strays)]
+    lift = fx.part_lift_mm
+    if fx.wire_3d or lift > 0:
+        axis3, info = lifted_centreline(verts, r, lift)
+    else:
+        axis3, info = np.column_stack((verts, np.zeros(len(verts)))), {"lift_mm": 0.0}
+    xy = axis3[:, :2]
+    lamp = lamp_direction(light.light_azimuth_deg, up=-1.0)
+    if light.shadow_strength > 0:
+        if fx.wire_3d:
+            shadow = shadow_on_plane(axis3, lamp)
+        else:
+            az = np.radians(light.light_azimuth_deg)
+            shadow = xy - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
+        layers.append(
+            Layer(
+                polyline_bbox(shadow, r + 3.0),
+                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, shadow, r, 3.0), 1.0),
+                kind="shadow",
+                strength=light.shadow_strength,
+            )
+        )
+    if fx.wire_3d:
+        layers.append(tube_layer(axis3, r, lin(_WIRE), lamp))
+    else:
+        layers.append(
+            Layer(
+                polyline_bbox(xy, r + 1.0),
+                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, xy, r)),
+                _wire_colour(xy, r, lin(_WIRE)),
+            )
+        )
+    extra = {
+        "part": {"centreline_3d_mm": axis3.tolist(), "projected_centreline_mm": xy.tolist()},
+        **info,
+        "projected_segment_bend_deg": vertex_bend_angles_deg(xy).tolist(),
+        "stray_objects": [{k: v for k, v in o.items() if k != "reach_mm"} for o in strays],
+    }
+    return layers, extra

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +13,8 @@ import numpy as np
 
 from cvmeasure.camera import CameraModel
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
+from cvmeasure_datasets.blur import defocus_diameter_px, depth_of_field, motion_blur
+from cvmeasure_datasets.effects import SceneEffects
 from cvmeasure_datasets.lighting import Lighting, develop
 from cvmeasure_datasets.optics import Frame, Pose, default_camera, project_frame_points
 from cvmeasure_datasets.raster import Layer, rasterise
@@ -85,8 +87,11 @@ def circle_image_geometry(
     t_mm: np.ndarray,
     centre_mm: Sequence[float],
     radius_mm: float,
+    z_mm: float = 0.0,
 ) -> dict[str, Any]:
     """Where a plane circle lands in the photo.
+
+    The circle lies in the plane z = ``z_mm`` of the frame (a disc above the plate).
 
     Returns ``centre_px`` (the projection of the circle's centre, distorted:
     the truth for "where is the marker"), ``ellipse_centre_px`` (the centre of
@@ -95,7 +100,8 @@ def circle_image_geometry(
     ``ellipse_axes_px`` (semi-axes, pinhole) and ``r_px`` (sqrt of their product).
     """
     k = camera.camera_matrix
-    hom = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))  # plane (x, y, 1) -> pinhole px
+    # plane (x, y, 1) -> pinhole px
+    hom = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm + z_mm * rot[:, 2]))
     cx, cy = centre_mm
     conic = np.array(
         [[1.0, 0.0, -cx], [0.0, 1.0, -cy], [-cx, -cy, cx * cx + cy * cy - radius_mm**2]]
@@ -111,7 +117,7 @@ def circle_image_geometry(
     # push the pinhole ellipse centre through the distortion
     norm = (centre_ideal - k[:2, 2]) / np.diag(k)[:2]
     ell_px = camera.project(np.array([[norm[0], norm[1], 1.0]]))[0]
-    centre_px = project_frame_points(camera, rot, t_mm, np.array([[cx, cy]]))[0]
+    centre_px = project_frame_points(camera, rot, t_mm, np.array([[cx, cy, z_mm]]))[0]
     return {
         "centre_px": [float(centre_px[0]), float(centre_px[1])],
         "ellipse_centre_px": [float(ell_px[0]), float(ell_px[1])],
@@ -169,6 +175,14 @@ def image_tilt_direction_deg(rot_cam_frame: np.ndarray) -> float:
     return float(np.degrees(np.arctan2(normal[1], -normal[0])))
 
 
+def _focus_depth_mm(rot: np.ndarray, t_mm: np.ndarray, frame: Frame, height_mm: float) -> float:
+    """Camera depth where the optical axis meets the plane ``height_mm`` above the scene plane."""
+    z = height_mm if frame == "machine" else -height_mm
+    centre = -rot.T @ t_mm
+    axis = rot[2]  # the optical axis in the frame (unit; depth = distance along it)
+    return float((z - centre[2]) / axis[2])
+
+
 def render_scene(
     layers: Sequence[Layer],
     *,
@@ -180,12 +194,37 @@ def render_scene(
     scale: float,
     linear: bool,
     truth: dict[str, Any],
+    effects: SceneEffects | None = None,
 ) -> RenderedPhoto:
-    """Rasterise, light, develop; return the photo with ``truth`` plus the common fields."""
+    """Rasterise, light, develop; return the photo with ``truth`` plus the common fields.
+
+    ``effects`` adds the camera's scene-dependent blur before development (thin-lens
+    depth of field from each pixel's depth, motion blur) and the Bayer mosaic.
+    """
     cam = resolve_camera(camera, scale)
     light = lighting if lighting is not None else Lighting()
     rot, t_mm = pose.extrinsics(frame)
-    albedo = rasterise(layers, cam, rot, t_mm)
+    fx = effects or SceneEffects()
+    if fx.depth_of_field:
+        albedo, depth = rasterise(layers, cam, rot, t_mm, depth=True)
+        focus_mm = _focus_depth_mm(rot, t_mm, frame, fx.focus_height_mm)
+        diameter = defocus_diameter_px(depth, focus_mm, cam.fx, fx.focal_length_mm, fx.f_number)
+        albedo = depth_of_field(albedo, diameter)
+        truth = {
+            **truth,
+            "depth_of_field": {
+                "focus_depth_mm": focus_mm,
+                "blur_diameter_px_min": float(diameter.min()),
+                "blur_diameter_px_max": float(diameter.max()),
+            },
+        }
+        del depth, diameter
+    else:
+        albedo = rasterise(layers, cam, rot, t_mm)
+    if fx.motion_blur_px > 0:
+        albedo = motion_blur(albedo, fx.motion_blur_px, fx.motion_blur_deg)
+    if fx.bayer and not light.bayer:
+        light = replace(light, bayer=True)
     dev = develop(albedo, light, seed=seed, keep_linear=linear, centre_px=cam.principal_point_px)
     import cv2
 

@@ -29,6 +29,7 @@ from cvmeasure.camera import CameraModel
 from cvmeasure_datasets.optics import RayMap, project_frame_points
 
 __all__ = [
+    "Rays",
     "Window",
     "Layer",
     "box_coverage",
@@ -44,17 +45,52 @@ __all__ = [
 BBox = tuple[float, float, float, float]  # xmin, ymin, xmax, ymax in plane mm
 
 
+class Rays:
+    """The camera rays of a block of pixels, in the scene frame.
+
+    ``centre_mm`` (3,) is the camera centre; ``dx``, ``dy``, ``dz`` the ray
+    directions (arrays), scaled so that the camera-frame depth of the point
+    ``centre + s * d`` is ``s`` mm.
+    """
+
+    def __init__(self, centre_mm: np.ndarray, dx: np.ndarray, dy: np.ndarray, dz: np.ndarray):
+        self.centre = centre_mm
+        self.dx, self.dy, self.dz = dx, dy, dz
+
+    def depth_at_z(self, z_mm: float) -> np.ndarray:
+        """Camera depth (mm) where each ray meets the plane z = ``z_mm`` of the frame."""
+        if z_mm == 0.0:
+            return -self.centre[2] / self.dz
+        return (z_mm - self.centre[2]) / self.dz
+
+    def at_z(self, z_mm: float) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y) in mm where each ray meets the plane z = ``z_mm`` of the frame."""
+        s = self.depth_at_z(z_mm)
+        return self.centre[0] + s * self.dx, self.centre[1] + s * self.dy
+
+    def sub(self, rows: slice, cols: slice) -> Rays:
+        return Rays(self.centre, self.dx[rows, cols], self.dy[rows, cols], self.dz[rows, cols])
+
+
 class Window:
     """A rectangle of pixels with its plane coordinates ``u``, ``v`` (mm).
 
-    The arrays include a one-pixel halo on every side so that pixel-space
-    gradients are central differences everywhere; :meth:`crop` removes it.
+    ``u``, ``v`` lie in the layer's plane (z = ``z_mm`` of the scene frame, 0 for
+    the scene plane); ``rays`` (when the rasteriser provides them) let a layer
+    trace its pixels to other heights (3D objects). The arrays include a
+    one-pixel halo on every side so that pixel-space gradients are central
+    differences everywhere; :meth:`crop` removes it.
     """
 
-    def __init__(self, u_mm: np.ndarray, v_mm: np.ndarray) -> None:
+    def __init__(
+        self, u_mm: np.ndarray, v_mm: np.ndarray, rays: Rays | None = None, z_mm: float = 0.0
+    ) -> None:
         self.u = u_mm
         self.v = v_mm
+        self.rays = rays
+        self.z_mm = z_mm
         self._jac: tuple[np.ndarray, ...] | None = None
+        self.cache: dict[str, object] = {}
 
     def jacobian(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(du/dx, du/dy, dv/dx, dv/dy) in mm per pixel."""
@@ -116,18 +152,27 @@ def sdf_circle(u: np.ndarray, v: np.ndarray, centre_mm: Sequence[float], radius_
     return np.hypot(u - centre_mm[0], v - centre_mm[1]) - radius_mm
 
 
-def sdf_capsules(u: np.ndarray, v: np.ndarray, polyline_mm: np.ndarray, radius_mm: float):
+def sdf_capsules(
+    u: np.ndarray,
+    v: np.ndarray,
+    polyline_mm: np.ndarray,
+    radius_mm: float,
+    band_mm: float | None = None,
+):
     """Signed distance to the union of capsules of ``radius_mm`` around a polyline (N, 2).
 
-    Exact within a band of a few pixels around the capsules; farther away the
-    value is capped (it only ever feeds an anti-aliased coverage). Each segment
-    is evaluated only on the pixels inside its own padded bounding box.
+    Exact within a band of a few pixels around the capsules (or ``band_mm``: a soft
+    edge needs a band at least as wide as its ramp); farther away the value is
+    capped (it only ever feeds an anti-aliased coverage). Each segment is
+    evaluated only on the pixels inside its own padded bounding box.
     """
     pts = np.asarray(polyline_mm, dtype=np.float64)
     # the band: 4 pixels beyond the surface (pixel size from the window's extent)
     steps = [np.abs(np.diff(a, axis=ax)).max() for a in (u, v) for ax in (0, 1) if a.shape[ax] > 1]
     px_mm = max(steps) if steps else 1.0
     cap = radius_mm + 4.0 * px_mm + 1e-6
+    if band_mm is not None:
+        cap = max(cap, radius_mm + band_mm)
     best = np.full(np.shape(u), cap)
     for a, b in zip(pts[:-1], pts[1:], strict=True):
         lo = np.minimum(a, b) - cap
@@ -201,6 +246,9 @@ class Layer:
     kind : "paint" (over-paint with ``colour``) or "shadow" (multiply by
         ``1 - strength * alpha``).
     strength : shadow darkness in [0, 1].
+    z_mm : the frame z of the plane the window's ``u``, ``v`` lie in (0: the scene
+        plane; the machine frame's z is up, the board frame's away from the camera).
+    z_extent_mm : (z_lo, z_hi) the object spans, for its pixel box (default ``z_mm``).
     """
 
     bbox_mm: BBox | None
@@ -208,12 +256,21 @@ class Layer:
     colour: Sequence[float] | Callable[[Window], np.ndarray] = (0.0, 0.0, 0.0)
     kind: Literal["paint", "shadow"] = "paint"
     strength: float = 0.0
+    z_mm: float = 0.0
+    z_extent_mm: tuple[float, float] | None = None
 
 
 def _bbox_px(
-    bbox_mm: BBox | None, camera: CameraModel, rot: np.ndarray, t_mm: np.ndarray
+    bbox_mm: BBox | None,
+    camera: CameraModel,
+    rot: np.ndarray,
+    t_mm: np.ndarray,
+    z_extent_mm: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[int, int, int, int] | None:
-    """Pixel box (x0, y0, x1, y1), end-exclusive, clipped to the image; None if empty."""
+    """Pixel box (x0, y0, x1, y1), end-exclusive, clipped to the image; None if empty.
+
+    The box is the frame box ``bbox_mm`` at the heights ``z_extent_mm`` (both ends).
+    """
     w, h = camera.image_size_px
     if bbox_mm is None:
         return 0, 0, w, h
@@ -227,7 +284,9 @@ def _bbox_px(
             np.column_stack((np.full_like(s, x1), y0 + (y1 - y0) * s)),
         ]
     )
-    cam_z = (np.column_stack((border, np.zeros(len(border)))) @ rot.T + t_mm)[:, 2]
+    zs = sorted(set(z_extent_mm))
+    border = np.vstack([np.column_stack((border, np.full(len(border), z))) for z in zs])
+    cam_z = (border @ rot.T + t_mm)[:, 2]
     if np.any(cam_z <= 1e-6):
         return 0, 0, w, h
     px = project_frame_points(camera, rot, t_mm, border)
@@ -248,14 +307,19 @@ def rasterise(
     t_mm: np.ndarray,
     *,
     rows_per_strip: int = 256,
-) -> np.ndarray:
+    depth: bool = False,
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Paint ``layers`` into a linear-RGB albedo image (H, W, 3), float32.
 
     Work proceeds in horizontal strips so that memory stays bounded at 14 MP;
     within a strip only the columns some layer needs are traced to the plane.
+    Each layer's window is traced to its own plane (``Layer.z_mm``).
+    With ``depth=True`` also returns the camera depth (H, W) in mm of what each
+    pixel shows (painted layers blended by coverage, at their ``z_mm``).
     """
     w, h = camera.image_size_px
     img = np.zeros((h, w, 3), dtype=np.float32)
+    depth_map = np.zeros((h, w), dtype=np.float32) if depth else None
     if (
         layers
         and layers[0].alpha is None
@@ -263,8 +327,13 @@ def rasterise(
         and not callable(layers[0].colour)
     ):
         img[...] = np.asarray(layers[0].colour, dtype=np.float32)  # a plain background
+        if depth_map is not None:
+            depth_map[...] = _plane_depth(camera, rot, t_mm, 0.0)
         layers = layers[1:]
-    boxes = [_bbox_px(layer.bbox_mm, camera, rot, t_mm) for layer in layers]
+    boxes = [
+        _bbox_px(layer.bbox_mm, camera, rot, t_mm, layer.z_extent_mm or (layer.z_mm, layer.z_mm))
+        for layer in layers
+    ]
     rays = RayMap(camera)
     for sy0 in range(0, h, rows_per_strip):
         sy1 = min(h, sy0 + rows_per_strip)
@@ -280,17 +349,24 @@ def rasterise(
         # plane coordinates of the strip plus a one-pixel halo
         ys = np.arange(sy0 - 1, sy1 + 1, dtype=np.float64)
         xs = np.arange(cx0 - 1, cx1 + 1, dtype=np.float64)
-        u, v = rays.plane_grid_mm(rot, t_mm, xs, ys)
+        strip_rays = Rays(-rot.T @ t_mm, *rays.direction_grid(rot, xs, ys))
+        u, v = strip_rays.at_z(0.0)
         for layer, (bx0, by0, bx1, by1) in active:
             y0, y1 = max(by0, sy0), min(by1, sy1)
             # window indices into the strip arrays (which start at (cx0 - 1, sy0 - 1))
             r0, r1 = y0 - sy0, y1 - sy0 + 2
             c0, c1 = bx0 - cx0, bx1 - cx0 + 2
-            win = Window(u[r0:r1, c0:c1], v[r0:r1, c0:c1])
+            sub = strip_rays.sub(slice(r0, r1), slice(c0, c1))
+            if layer.z_mm == 0.0:
+                win = Window(u[r0:r1, c0:c1], v[r0:r1, c0:c1], sub)
+            else:
+                win = Window(*sub.at_z(layer.z_mm), sub, layer.z_mm)
             target = img[y0:y1, bx0:bx1]
             if layer.alpha is None:
                 col = layer.colour(win) if callable(layer.colour) else layer.colour
                 target[...] = Window.crop(col) if callable(layer.colour) else col
+                if depth_map is not None:
+                    depth_map[y0:y1, bx0:bx1] = Window.crop(sub.depth_at_z(layer.z_mm))
                 continue
             alpha = Window.crop(layer.alpha(win)).astype(np.float32)[..., None]
             if layer.kind == "shadow":
@@ -302,4 +378,16 @@ def rasterise(
             else:
                 col = np.asarray(colour, dtype=np.float32)
             target += alpha * (col - target)
-    return img
+            if depth_map is not None:
+                dtarget = depth_map[y0:y1, bx0:bx1]
+                dtarget += alpha[..., 0] * (Window.crop(sub.depth_at_z(layer.z_mm)) - dtarget)
+    return (img, depth_map) if depth_map is not None else img
+
+
+def _plane_depth(camera: CameraModel, rot: np.ndarray, t_mm: np.ndarray, z_mm: float) -> np.ndarray:
+    """Camera depth (H, W) in mm of the plane z = ``z_mm`` at every pixel."""
+    w, h = camera.image_size_px
+    dirs = RayMap(camera, step_px=64).direction_grid(
+        rot, np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64)
+    )
+    return Rays(-rot.T @ t_mm, *dirs).depth_at_z(z_mm).astype(np.float32)

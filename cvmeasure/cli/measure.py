@@ -74,6 +74,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="image the disc edges are found in (default: luma for JPEG/8-bit photos, green "
         "for RAW/16-bit ones; green also for any lens with strong lateral colour)",
     )
+    p.add_argument(
+        "--heights",
+        choices=("none", "parallel"),
+        default="none",
+        help="without --plane/--board, the kit's marker heights cannot be applied exactly: "
+        "none (default) measures in the image and states the bound in height_bound_deg; "
+        "parallel (needs --camera) corrects them assuming the camera looks square onto the "
+        "plate (bound: what a 3 deg tilt leaves). With a plane they are always applied",
+    )
     p.add_argument("--json", action="store_true", help="print JSON Lines (default: a table)")
     p.set_defaults(func=run)
 
@@ -113,6 +122,12 @@ def run(args: argparse.Namespace) -> int:
             "the seed method measures in image pixels: it takes no --camera, --plane or --board",
         )
     plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
+    if args.heights == "parallel" and (camera is None or args.plane or args.board):
+        raise InputError(
+            "--heights parallel",
+            "corrects a camera-only measurement: it needs --camera and no --plane/--board "
+            "(a plane applies the heights exactly)",
+        )
     board = None
     if args.board is not None:
         from cvmeasure.board import load_board
@@ -149,6 +164,7 @@ def run(args: argparse.Namespace) -> int:
                 method=args.method,
                 space=args.space,
                 edge=args.edge,
+                heights=args.heights,
             )
         except InputError as exc:
             print(f"cvmeasure measure: {exc}", file=sys.stderr)

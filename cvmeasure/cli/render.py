@@ -48,6 +48,13 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--lateral-ca", type=float, help="lateral chromatic aberration (red 1+x, blue 1-x)"
     )
+    p.add_argument(
+        "--effects",
+        metavar="SPEC",
+        help="real-scene effects (bender and part): 'all' or names, comma-separated, optionally "
+        "NAME=VALUE, e.g. marker_heights,supports,wire_3d or all,clutter=12,wire_across=wire_b "
+        "or wire_3d,part_lift_mm=2 (cvmeasure_datasets.SceneEffects; default: the flat scene)",
+    )
     p.add_argument("--linear", action="store_true", help="also write a 16-bit linear RGB TIFF")
     p.add_argument("--json", action="store_true", help="print what was written as JSON")
     p.set_defaults(func=run)
@@ -197,6 +204,14 @@ def run(args: argparse.Namespace) -> int:
         poses = cvmeasure_datasets.random_board_poses(args.count, args.seed, board=board)
     occlude = _occlusions(args.occlude) if args.kind == "bender" else {}
     kit = load_kit(args.kit) if args.kind == "bender" and args.kit else None
+    effects = None
+    if args.effects is not None:
+        if args.kind == "board":
+            raise InputError("--effects", "board views have no scene effects")
+        try:
+            effects = cvmeasure_datasets.SceneEffects.parse(args.effects)
+        except ValueError as exc:
+            raise InputError("--effects", str(exc)) from None
     for i in range(args.count):
         seed = args.seed + i
         light = _lighting(args, seed)
@@ -210,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
                 kit=kit,
                 occlude=occlude,
                 pose=_pose(args, None),
+                effects=effects,
                 **common,
             )
         elif args.kind == "part":
@@ -223,7 +239,12 @@ def run(args: argparse.Namespace) -> int:
             except ValueError as exc:
                 raise InputError("command line", f"bad part: {exc}") from None
             photo = cvmeasure_datasets.render_part_photo(
-                part=part, board=board, sheet=args.sheet, pose=_pose(args, None), **common
+                part=part,
+                board=board,
+                sheet=args.sheet,
+                pose=_pose(args, None),
+                effects=effects,
+                **common,
             )
         else:
             photo = cvmeasure_datasets.render_board_view(

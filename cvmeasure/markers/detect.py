@@ -297,7 +297,16 @@ def _search(
             where = ", ".join(
                 f"({c.centre_px[0]:.0f}, {c.centre_px[1]:.0f})" for c in [best, *rivals]
             )
-            failures[role] = f"ambiguous: {1 + len(rivals)} discs of its colour at {where}"
+            near = all(
+                math.dist(c.centre_px, best.centre_px) < 2.0 * max(c.radius_px, best.radius_px)
+                for c in rivals
+            )
+            failures[role] = (
+                f"ambiguous: {1 + len(rivals)} pieces of its colour side by side at {where} "
+                "(one disc cut by something across it?)"
+                if near
+                else f"ambiguous: {1 + len(rivals)} discs of its colour at {where}"
+            )
             continue
         found[role] = best
         others[role] = tuple(cands[1:])

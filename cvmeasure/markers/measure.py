@@ -11,9 +11,17 @@ Frames of the angle computation
   uniform scale, so no camera is needed for an ideal, parallel view);
 * ``camera``: undistorted pixels (lens distortion removed from every edge point
   before the circle fit);
-* ``plane``: millimetres on the marker plane (edge points undistorted and
-  mapped through the plane's homography, so the fitted circle's centre is the
-  disc's true centre, not the centre of its perspective ellipse).
+* ``plane``: millimetres on the plate (edge points undistorted and each
+  disc's mapped through the plane pose to its own height above the plate,
+  ``kit.height_mm(role)``, so the fitted circle's centre is the disc's true
+  centre, not the centre of its perspective ellipse, and angles are true
+  plate-plane angles whatever the discs' heights).
+
+Marker heights without a plane pose cannot be applied exactly: the result says
+so, and ``height_bound_deg`` bounds what they can do to the angles
+(:mod:`cvmeasure.markers.heights`); ``heights="parallel"`` corrects them assuming
+a camera square to the plate. A kit without heights is measured flat, with a
+warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
 Stated uncertainties are sampling errors of the edge fits (with a floor per
@@ -31,10 +39,11 @@ green (a cheap probe of the regions already read); where they show lateral colou
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -54,10 +63,12 @@ from cvmeasure.markers.colour import (
     kit_colour_model,
 )
 from cvmeasure.markers.detect import MarkerCandidate, find_markers
+from cvmeasure.markers.heights import BOUND_TILT_DEG, fallback_focal_px, height_parallax
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
     CORRELATION_FACTOR,
     EDGE_MODES,
+    UNEVEN_RING_SPREAD,
     channel_shifts_px,
     disc_edge_points,
 )
@@ -80,6 +91,12 @@ __all__ = [
 
 Method = Literal["ours", "seed"]
 METHODS: tuple[str, ...] = ("ours", "seed")
+#: How marker heights are treated without a plane pose: "none" (bounded, warned
+#: about) or "parallel" (corrected assuming a camera square to the plate; needs a camera).
+HeightMode = Literal["none", "parallel"]
+HEIGHT_MODES: tuple[str, ...] = ("none", "parallel")
+#: Height bounds (deg) below this are not warned about (the heights barely matter).
+HEIGHT_WARN_DEG = 1e-3
 
 #: Centre standard uncertainty (px per axis) stated for the seed method's Hough centres.
 SEED_CENTRE_SIGMA_PX = 0.5
@@ -144,11 +161,20 @@ def measure_trial(
 
 @dataclass(frozen=True)
 class _Transform:
-    """Image pixels -> the measurement frame of the angles."""
+    """Image pixels -> the measurement frame of the angles (``plane``: the pose's plane)."""
 
     name: str
     func: Any = None
     y_down: bool = True
+    plane: PlaneModel | None = None
+
+    def at_height(self, height_mm: float) -> _Transform:
+        """The same frame for points ``height_mm`` above the plate (only a plane pose can)."""
+        if self.plane is None or height_mm == 0.0:
+            return self
+        return replace(
+            self, func=functools.partial(self.plane.image_to_plane_mm, height_mm=height_mm)
+        )
 
     def __call__(self, pts: np.ndarray) -> np.ndarray:
         return pts if self.func is None else np.asarray(self.func(pts), dtype=np.float64)
@@ -167,10 +193,10 @@ def _transform(
 ) -> _Transform:
     h, w = shape[:2]
     if plane is not None:
-        func = plane.for_image((w, h), source).image_to_plane_mm
-        t = _Transform("plane", func)
+        own = plane.for_image((w, h), source)
+        t = _Transform("plane", own.image_to_plane_mm)
         det = float(np.linalg.det(t.jacobian(((w - 1) / 2, (h - 1) / 2))))
-        return _Transform("plane", func, y_down=det > 0)
+        return _Transform("plane", own.image_to_plane_mm, y_down=det > 0, plane=own)
     if camera is not None:
         return _Transform("undistorted", camera.for_image((w, h), source).undistort_px)
     return _Transform("image")
@@ -182,14 +208,23 @@ def refine_candidate(
     """Sub-pixel circle of one found disc (image px) and its edge points, or why there is none.
 
     Edge points are re-extracted around the refined circle until it stops moving
-    (at most three passes).
+    (at most three passes); where its ring is unevenly lit (a shadow across the
+    marker), a last pass takes each ray's edge against that ray's own levels.
     """
     centre, radius = cand.centre_px, cand.radius_px
     fit = None
     edges = None
-    for _ in range(3):
-        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge)
-        if edges.points_px.shape[0] < MIN_EDGE_POINTS:
+    local = False  # the last pass, when the ring is unevenly lit: each ray's own levels
+    passes = 0
+    while True:
+        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge, local_levels=local)
+        n_points = edges.points_px.shape[0]
+        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * 2 * math.pi * radius):
+            return (
+                "too little of its edge is clear of the shadow or cover across it "
+                f"({n_points} edge points)"
+            )
+        if n_points < MIN_EDGE_POINTS:
             return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
         try:
             init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
@@ -202,8 +237,13 @@ def refine_candidate(
         if not (0.5 * cand.radius_px < fit.radius < 1.6 * cand.radius_px):
             return f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
         centre, radius = fit.centre, fit.radius
-        if moved < 0.05 * radius:
+        passes += 1
+        if local:
             break
+        if moved < 0.05 * radius or passes >= 3:
+            if edges.ring_spread < UNEVEN_RING_SPREAD:
+                break
+            local = True  # settled on a circle: its ring samples now fall on the ring
     return fit, edges
 
 
@@ -257,13 +297,54 @@ def lateral_ca_estimate(
 
 
 def _anisotropy(offsets: np.ndarray) -> np.ndarray:
-    """(cos 2t, sin 2t) components of a closed outline's ellipticity, from its second moments.
+    """(cos 2t, sin 2t) components of a closed outline's ellipticity, from its radii.
 
-    0 for a circle; about (e, 0) for an ellipse with axes a (1 + e) along x and a along y.
+    The radius about the centre fitted as ``r0 (1 + a cos 2t + b sin 2t)``; returns
+    ``2 (a, b)``: 0 for a circle, about (e, 0) for an ellipse with axes a (1 + e) along
+    x and a along y. Unlike second moments of the points, it does not read the points'
+    uneven spacing round the outline (rays even in the image are uneven on a tilted
+    plane: 1 % at 8 deg of tilt) as a shape.
     """
-    m = offsets.T @ offsets / max(len(offsets), 1)
-    trace = float(m[0, 0] + m[1, 1]) or 1.0
-    return np.array([(m[0, 0] - m[1, 1]) / trace, 2.0 * m[0, 1] / trace])
+    r = np.hypot(offsets[:, 0], offsets[:, 1])
+    t = np.arctan2(offsets[:, 1], offsets[:, 0])
+    basis = np.column_stack((np.ones_like(t), np.cos(2 * t), np.sin(2 * t)))
+    if len(r) < 3:
+        return np.zeros(2)
+    sol = np.linalg.lstsq(basis, r, rcond=None)[0]
+    return 2.0 * sol[1:] / (sol[0] or 1.0)
+
+
+def _split_half_cov(points_px: np.ndarray, fit: CircleFit) -> np.ndarray:
+    """Centre covariance (px^2) from how fits to halves of the edge disagree with the whole.
+
+    The inlier edge points are split in two halves round the centre, four ways (the
+    split line every 45 deg); each half's circle, fitted with the radius free,
+    differs from the whole's centre by ``d``; returns the mean of ``d d^T`` over the
+    eight halves. For a whole, clean edge this is a few times the sampling
+    covariance; for an edge bent by a cover or a shadow's edge, its systematic part.
+    """
+    pts = np.asarray(points_px, dtype=np.float64)
+    c = np.asarray(fit.centre)
+    off = pts - c
+    resid = np.abs(np.hypot(off[:, 0], off[:, 1]) - fit.radius)
+    keep = resid < 3.0 * max(fit.rms_residual, 0.05)
+    pts, off = pts[keep], off[keep]
+    theta = np.arctan2(off[:, 1], off[:, 0])
+    diffs = []
+    for split in np.radians([0.0, 45.0, 90.0, 135.0]):
+        side = np.mod(theta - split, 2 * math.pi) < math.pi
+        for half in (side, ~side):
+            if half.sum() < MIN_EDGE_POINTS:
+                continue
+            try:
+                part = fit_circle_robust(pts[half], init=(c[0], c[1], fit.radius))
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            diffs.append(np.asarray(part.centre) - c)
+    if not diffs:
+        return np.zeros((2, 2))
+    d = np.asarray(diffs)
+    return d.T @ d / len(d)
 
 
 def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | None) -> list[str]:
@@ -275,6 +356,12 @@ def _marker_warnings(role: str, fit: CircleFit, edges: Any, delta_e: float | Non
     if edges.clipped_fraction > OVEREXPOSED_FRACTION:
         out.append(
             f"marker {role!r} overexposed ({100 * edges.clipped_fraction:.0f} % of its ring clipped)"
+        )
+    if edges.ring_spread >= UNEVEN_RING_SPREAD:
+        out.append(
+            f"marker {role!r} unevenly lit (its ring's level varies by {100 * edges.ring_spread:.0f}"
+            " % of the disc-to-ring step: a shadow or an object across it?); edges taken "
+            "against each ray's own levels"
         )
     if edges.contrast < LOW_CONTRAST:
         out.append(f"marker {role!r} has low contrast ({edges.contrast:.0f}/255)")
@@ -342,6 +429,9 @@ def _measure_ours(
     plane_shape: list[np.ndarray] = []
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
+        if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
+            # partly hidden or in a shadow: what the edge's two halves disagree on, too
+            cov_img = cov_img + _split_half_cov(edges.points_px, fit)
         markers[role] = MarkerMeasurement(
             role,
             fit.centre[0],
@@ -357,10 +447,12 @@ def _measure_ours(
             centres[role] = np.array(fit.centre)
             covs[role] = cov_img
         else:
-            jac = transform.jacobian(fit.centre)
-            c_f = transform(np.array([fit.centre]))[0]
+            # on a plane pose, each disc's edge goes to its own height above the plate
+            at = transform.at_height(kit.height_mm(role) if kit.has_heights else 0.0)
+            jac = at.jacobian(fit.centre)
+            c_f = at(np.array([fit.centre]))[0]
             r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
-            pts_f = transform(edges.points_px)
+            pts_f = at(edges.points_px)
             fit_f = fit_circle_robust(
                 pts_f, init=(c_f[0], c_f[1], r_f), correlation_factor=CORRELATION_FACTOR
             )
@@ -432,6 +524,7 @@ def measure_machine_photo(
     colour_model: ColourModel | None = None,
     linear: bool = False,
     edge: str | None = None,
+    heights: HeightMode = "none",
     source: str = "photo",
     photo: str | None = None,
 ) -> MachinePhotoResult:
@@ -454,6 +547,11 @@ def measure_machine_photo(
         :data:`cvmeasure.markers.refine.EDGE_MODE`). Default: "luma" for 8-bit photos
         (JPEGs), switched to "green" with a warning where the discs show lateral
         chromatic aberration; "green" for RAW/linear or 16-bit data.
+    heights : without a plane pose, how the kit's marker heights are treated: "none"
+        (angles in the image, with ``height_bound_deg`` and a warning) or "parallel"
+        (corrected assuming a camera square to the plate, needs ``camera``; the bound
+        is then what a tilt up to :data:`cvmeasure.markers.heights.BOUND_TILT_DEG`
+        leaves). With a plane pose the heights are always applied exactly.
     source : what error messages name (the file).
     photo : what the result's ``photo`` field says.
 
@@ -472,6 +570,13 @@ def measure_machine_photo(
         raise ValueError(f"unknown colour space {space!r}; valid: ('lab', 'rgb')")
     if edge is not None and edge not in EDGE_MODES:
         raise ValueError(f"unknown edge mode {edge!r}; valid: {EDGE_MODES}")
+    if heights not in HEIGHT_MODES:
+        raise ValueError(f"unknown heights mode {heights!r}; valid: {HEIGHT_MODES}")
+    if heights == "parallel" and (camera is None or plane is not None):
+        raise ValueError(
+            "heights='parallel' corrects a camera-only measurement: it needs a camera and "
+            "no plane (a plane pose applies the heights exactly)"
+        )
     img = np.asarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
@@ -481,6 +586,8 @@ def measure_machine_photo(
             raise InputError(
                 source, "the plane was measured with another camera than the one given"
             )
+    height_state: str | None = None
+    height_bound: dict[str, float] | None = None
     if method == "seed":
         if camera is not None or plane is not None:
             raise ValueError(
@@ -499,6 +606,18 @@ def measure_machine_photo(
         markers, centres, covs, warnings = _measure_ours(
             work, bgr8, kit, model, transform, source, edge
         )
+        if not kit.has_heights:
+            height_state = "flat"
+            warnings.append(
+                "the kit gives no marker heights: measured as if every disc lay on the plate "
+                "(put each disc's height_mm above the plate in the kit JSON)"
+            )
+        elif transform.plane is not None:
+            height_state = "plane"
+        else:
+            height_state, height_bound = _heights_without_pose(
+                centres, covs, markers, kit, camera, img.shape, transform, heights, warnings
+            )
     try:
         angles = machine_angles(centres, covs, y_down=transform.y_down)
     except ValueError as exc:
@@ -513,7 +632,63 @@ def measure_machine_photo(
         method,
         space,
         transform.name,
+        height_state,
+        height_bound,
     )
+
+
+def _heights_without_pose(
+    centres: dict[str, np.ndarray],
+    covs: dict[str, np.ndarray],
+    markers: Mapping[str, MarkerMeasurement],
+    kit: MarkerKit,
+    camera: CameraModel | None,
+    shape: tuple[int, ...],
+    transform: _Transform,
+    mode: str,
+    warnings: list[str],
+) -> tuple[str, dict[str, float]]:
+    """Bound (and with ``mode`` "parallel" correct, in place) the heights' effect; warn."""
+    h, w = shape[:2]
+    if camera is not None:
+        cam = camera.for_image((w, h))
+        focal = 0.5 * (cam.fx + cam.fy)
+        pp = cam.principal_point_px
+        lens = "the camera's focal length"
+    else:
+        focal = fallback_focal_px((w, h))
+        pp = ((w - 1) / 2.0, (h - 1) / 2.0)
+        lens = "no camera: a 90 deg lens assumed, a longer one gives less"
+    par = height_parallax(
+        centres,
+        covs,
+        {r: m.r_px for r, m in markers.items()},
+        kit,
+        focal_px=focal,
+        principal_point_px=pp,
+        y_down=transform.y_down,
+    )
+    if mode == "parallel":
+        centres.update(par.centres)
+        covs.update(par.covariances)
+        bound = par.bound_parallel_deg
+        what = (
+            f"marker heights corrected assuming a camera square to the plate ({par.distance_mm:.0f}"
+            f" mm above it): for a tilt up to {BOUND_TILT_DEG:g} deg the angles may still be off"
+        )
+    else:
+        bound = par.bound_none_deg
+        what = (
+            "marker heights not applied (no plane pose: give --plane or --board): the "
+            "angles may be off"
+        )
+    if max(bound.values()) >= HEIGHT_WARN_DEG:
+        warnings.append(
+            f"{what} by up to {bound['pin_angle_deg']:.3f} deg (pin) and "
+            f"{bound['bend_angle_deg']:.3f} deg (bend) (height_bound_deg; camera "
+            f"{par.distance_mm:.0f} mm above the plate from the discs' sizes and {lens})"
+        )
+    return mode, bound
 
 
 def measure_photo_file(

@@ -56,6 +56,13 @@ CENTRE_FLOOR_PX = 0.003
 EDGE_MODE = "luma"
 EDGE_MODES: tuple[str, ...] = ("luma", "green", "colour")
 MIN_STEP_SHARE = 0.25
+#: Ring levels round a disc (each ray's, smoothed over neighbours) spread by more than
+#: this share of the disc-to-ring step: uneven light (a shadow across the marker). The
+#: edge is then found half-way between each ray's own disc and ring levels, and rays
+#: whose own step is under :data:`MIN_LOCAL_STEP` of it (covered) are dropped.
+UNEVEN_RING_SPREAD = 0.2
+MIN_LOCAL_STEP = 0.35
+LEVEL_RATIO_TOLERANCE = 0.15
 
 
 def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
@@ -79,7 +86,9 @@ class EdgePoints:
 
     ``disc_bgr`` / ``ring_bgr`` are the median colours inside the disc and on its
     white ring; ``contrast`` their distance (0..255 units); ``clipped_fraction``
-    the share of ring pixels with a saturated channel.
+    the share of ring pixels with a saturated channel; ``ring_spread`` how much the
+    ring's level varies round the disc (5-95 % range, share of the disc-to-ring step;
+    0 for even light, :data:`UNEVEN_RING_SPREAD` and more: a shadow across it).
     """
 
     points_px: np.ndarray
@@ -87,6 +96,7 @@ class EdgePoints:
     ring_bgr: tuple[float, float, float]
     contrast: float
     clipped_fraction: float
+    ring_spread: float = 0.0
 
 
 def disc_edge_points(
@@ -99,6 +109,7 @@ def disc_edge_points(
     band: float = 0.3,
     step_px: float = 0.25,
     edge: str | None = None,
+    local_levels: bool = False,
 ) -> EdgePoints:
     """Edge points of a disc on its white ring, from a small region of the full photo.
 
@@ -119,6 +130,11 @@ def disc_edge_points(
     band : search the edge within ``(1 +- band) * radius``.
     step_px : sample spacing along each ray (px).
     edge : "luma", "green" or "colour" (default :data:`EDGE_MODE`).
+    local_levels : where the ring's level varies round the disc (``ring_spread`` at or
+        above :data:`UNEVEN_RING_SPREAD`: a shadow across it), find each ray's edge
+        half-way between its own disc and ring levels and drop the rays whose levels
+        are not one light's (see :func:`_local_levels`). Needs a good circle to start
+        (its ring samples must fall on the ring): the refinement's last pass.
     """
     import cv2
 
@@ -155,13 +171,18 @@ def disc_edge_points(
     if mode not in EDGE_MODES:
         raise ValueError(f"unknown edge mode {mode!r}; valid: {EDGE_MODES}")
     luma_w = np.array([0.0722, 0.7152, 0.2126], dtype=np.float32)  # linear Y of BGR
+    # s = (value - ring) / (disc - ring) of one projection of the colour; its offset
+    # ring / (disc - ring) makes s + offset proportional to the light
     if mode == "green" and abs(float(axis[1])) >= MIN_STEP_SHARE * math.sqrt(norm2):
         # the green channel alone: lateral chromatic aberration moves red and blue edges
         s = ((roi[..., 1] - ring_c[1]) / float(axis[1])).astype(np.float32)
+        offset = float(ring_c[1] / axis[1])
     elif mode == "luma" and abs(float(axis @ luma_w)) >= MIN_STEP_SHARE * math.sqrt(norm2):
         s = (((roi - ring_c) @ luma_w) / float(axis @ luma_w)).astype(np.float32)
+        offset = float((ring_c @ luma_w) / (axis @ luma_w))
     else:
         s = ((roi - ring_c) @ (axis / norm2)).astype(np.float32)
+        offset = float((ring_c @ axis) / norm2)
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
 
@@ -172,11 +193,13 @@ def disc_edge_points(
     map_x = (cx - x0 + radii[None, :] * cos).astype(np.float32)
     map_y = (cy - y0 + radii[None, :] * sin).astype(np.float32)
     v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
+    inside = v > -0.5  # not off the photo (and not far darker than the disc)
+    v, spread = _local_levels(v, radii, radius_px, band, offset, local_levels)
     above = v >= 0.5
     cross = above[:, :-1] != above[:, 1:]
-    cross &= (v[:, :-1] > -0.5) & (v[:, 1:] > -0.5)
+    cross &= inside[:, :-1] & inside[:, 1:]
     if not cross.any():
-        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped_fraction)
+        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped_fraction, spread)
     va, vb = v[:, :-1], v[:, 1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(cross, (0.5 - va) / (vb - va), np.nan)
@@ -185,7 +208,49 @@ def disc_edge_points(
     rows = np.flatnonzero(cross.any(axis=1))
     r_best = r_cross[rows, pick[rows]]
     points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
-    return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction)
+    return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, spread)
+
+
+def _local_levels(
+    v: np.ndarray, radii: np.ndarray, radius_px: float, band: float, offset: float, local: bool
+) -> tuple[np.ndarray, float]:
+    """Rays (rows of ``v``, 1 on the disc, 0 on the ring) rescaled to their own levels if uneven.
+
+    Each ray's disc level is the median of its samples inside ``(1 - band / 2) r``,
+    its ring level outside ``(1 + band / 2) r``. ``v + offset`` is proportional to the
+    light (linear data), so a shadow scales both levels alike: their ratio is the
+    same on every ray. When the ring levels spread by :data:`UNEVEN_RING_SPREAD` or
+    more and ``local`` is set, each ray is rescaled to 0 at its ring and 1 at its disc, and a ray is
+    dropped (set to -1: no edge on it) where its disc level is off the one its ring's
+    light predicts by more than :data:`LEVEL_RATIO_TOLERANCE` of the step (a shadow's
+    edge between its disc and ring parts),
+    either part is not flat (a shadow's edge across it) or its step is under
+    :data:`MIN_LOCAL_STEP`. Returns ``(v, spread)``.
+    """
+    inner = radii <= (1 - band / 2) * radius_px
+    outer = radii >= (1 + band / 2) * radius_px
+    if inner.sum() < 2 or outer.sum() < 2 or len(v) < 8:
+        return v, 0.0
+    disc = np.median(v[:, inner], axis=1)
+    ring = np.median(v[:, outer], axis=1)
+    spread = float(np.percentile(ring, 95) - np.percentile(ring, 5))
+    if spread < UNEVEN_RING_SPREAD or not local:
+        return v, spread
+    step = disc - ring
+    # the light on each ray from its ring level; the disc level that light predicts
+    light = (ring + offset) / offset if offset != 0 else np.ones_like(ring)
+    disc_pred = light * (1.0 + offset) - offset
+    flat = (np.ptp(v[:, inner], axis=1) < 0.3 * np.abs(step)) & (
+        np.ptp(v[:, outer], axis=1) < 0.3 * np.abs(step)
+    )
+    ok = (
+        (np.abs(step) >= MIN_LOCAL_STEP)
+        & (np.abs(disc - disc_pred) < LEVEL_RATIO_TOLERANCE * np.abs(disc_pred - ring))
+        & flat
+    )
+    out = np.full_like(v, -1.0)
+    out[ok] = (v[ok] - ring[ok, None]) / step[ok, None]
+    return out, spread
 
 
 def _ray_crossings(

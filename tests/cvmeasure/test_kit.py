@@ -76,3 +76,12 @@ def test_bad_heights_are_named(where, value, message):
         data[where] = value
     with pytest.raises(InputError, match=f"kit.json: .*{message}"):
         MarkerKit.from_dict(data, source="kit.json")
+
+
+def test_flat_kit_drops_the_heights_only():
+    kit = default_kit()
+    flat = kit.flat()
+    assert kit.has_heights and not flat.has_heights
+    assert flat.height_mm("pin") == 0.0 and flat.wire_axis_height_mm is None
+    assert [m.srgb for m in flat.markers] == [m.srgb for m in kit.markers]
+    assert flat.wire_diameter_mm == kit.wire_diameter_mm

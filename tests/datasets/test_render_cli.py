@@ -73,3 +73,26 @@ def test_bad_board_and_kit_files_exit_2(tmp_path, capsys):
     assert main([*argv, "-o", str(tmp_path / "o")]) == 2
     assert "kit.json" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_render_with_effects(tmp_path, capsys):
+    code = main(
+        ["render", "bender", "--pin-deg", "20", "--bend-deg", "15", "--scale", "0.1",
+         "--effects", "marker_heights,wire_3d,clutter=3,wire_across=wire_b", "-o", str(tmp_path)]
+    )  # fmt: skip
+    assert code == 0
+    truth = json.loads((tmp_path / "bender.truth.json").read_text())
+    assert truth["effects"]["marker_heights"] and truth["effects"]["clutter"] == 3
+    assert truth["markers"]["pin"]["height_mm"] == 18.0
+    assert truth["markers"]["wire_b"]["wire_across"] is True
+    code = main(
+        ["render", "part", "--arc", "60", "90", "6", "--scale", "0.1", "--effects",
+         "wire_3d,part_lift_mm=2.5", "-o", str(tmp_path)]
+    )  # fmt: skip
+    assert code == 0
+    truth = json.loads((tmp_path / "part.truth.json").read_text())
+    assert truth["lift_mm"] == 2.5 and len(truth["part"]["centreline_3d_mm"]) == 7
+    capsys.readouterr()
+    assert main(["render", "bender", "--pin-deg", "0", "--bend-deg", "0", "--effects", "fog",
+                 "-o", str(tmp_path)]) == 2  # fmt: skip
+    assert "--effects" in capsys.readouterr().err

@@ -37,3 +37,11 @@ def render():
     """``render(pin=, bend=, light=, seed=, pose=, occlude=((role, frac),), geometry=)``, cached."""
     pytest.importorskip("cvmeasure_datasets.bender")
     return _render
+
+
+@pytest.fixture(scope="session")
+def flat_kit():
+    """The built-in kit without heights: what the flat renders of ``render`` show."""
+    from cvmeasure.kit import default_kit
+
+    return default_kit().flat()

@@ -73,7 +73,11 @@ def test_record_is_the_spec_json_lines_object(render):
         "markers",
         "uncertainty_deg",
         "warnings",
+        "heights",  # project additions after the spec's fields (docs/conventions.md)
+        "height_bound_deg",
     ]
+    assert rec["heights"] == "none"  # image pixels, a kit with heights: bounded, not applied
+    assert set(rec["height_bound_deg"]) == {"pin_angle_deg", "bend_angle_deg"}
     assert set(rec["markers"]) == set(ROLES)
     assert set(rec["markers"]["pin"]) == {"x_px", "y_px", "r_px", "sigma_px"}
     assert set(rec["uncertainty_deg"]) == {"pin_angle_deg", "bend_angle_deg"}
@@ -81,10 +85,10 @@ def test_record_is_the_spec_json_lines_object(render):
     assert rec["markers"]["pin"]["r_px"] == pytest.approx(r_true, rel=0.05)
 
 
-def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render):
+def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render, flat_kit):
     pose = Pose(tilt_deg=12.0, tilt_direction_deg=60.0, yaw_deg=25.0, offset_mm=(60.0, 40.0))
     photo = render(pin=40.0, bend=70.0, light=Lighting(cct_k=5000.0), pose=pose, seed=4)
-    kit = default_kit()
+    kit = flat_kit  # the render is flat
     rot, t_mm = pose.extrinsics("machine")
     k = photo.camera.camera_matrix
     h_image_plane = k @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
@@ -250,11 +254,11 @@ def test_sixteen_bit_and_linear_input(render):
         assert c.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=BEND_TOL_DEG)
 
 
-def test_a_plane_from_another_distance_is_warned_about(render):
+def test_a_plane_from_another_distance_is_warned_about(render, flat_kit):
     """The kit's disc diameters are known: on a plane from another pose they measure wrong."""
     pose = Pose(tilt_deg=6.0, tilt_direction_deg=40.0, yaw_deg=30.0, offset_mm=(-10.0, 5.0))
     photo = render(pin=40.0, bend=35.0, light=Lighting(cct_k=5000.0), pose=pose, seed=11)
-    kit = default_kit()
+    kit = flat_kit  # the render is flat
 
     def plane_at(distance_mm):
         p = Pose(tilt_deg=6.0, tilt_direction_deg=40.0, yaw_deg=30.0, offset_mm=(-10.0, 5.0))

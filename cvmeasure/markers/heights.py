@@ -1,0 +1,137 @@
+"""Marker heights without a plane pose: the parallax they cause, bounded, and a correction.
+
+With a plane pose each disc's edge is mapped to its own height above the plate
+(:meth:`cvmeasure.contracts.PlaneModel.image_to_plane_mm`), exactly. Without one
+(camera only, or image pixels) the angles are computed in the image, where a disc
+``h`` mm above the plate appears where a plate point ``D / (D - h)`` times farther
+from the camera's foot point would (``D`` the camera's distance from the plate,
+mm): a homothety about the foot point, whatever the camera's tilt. Discs at
+different heights are thus displaced differently, by ``h / D`` of their distance
+from the foot point.
+
+:func:`height_parallax` estimates ``D`` from each disc's apparent size and the
+focal length (``D = f r_mm / r_px + h``), and computes
+
+* the angles with every disc moved back to the plate about the principal point
+  (the foot point of a camera square to the plate): the *parallel* correction;
+* the worst angle change the heights cause for any foot point within
+  ``f tan(tilt_deg)`` of the principal point (a camera tilted up to ``tilt_deg``):
+  the bound of the uncorrected angles, and the bound of the corrected ones
+  (what the foot point's unknown offset leaves).
+
+Frames: centres in image or undistorted pixels (x right, y down as in the photo);
+angles in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from cvmeasure.geometry import wrap_deg
+from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.markers.angles import machine_angles
+
+__all__ = ["HeightParallax", "height_parallax", "BOUND_TILT_DEG", "fallback_focal_px"]
+
+#: The camera tilt (deg, optical axis from the plate's normal) the no-pose bounds allow:
+#: the camera's foot point anywhere within ``f tan(BOUND_TILT_DEG)`` of the principal point.
+BOUND_TILT_DEG = 3.0
+#: Foot-point directions sampled for the worst case (the change is near linear in it).
+_DIRECTIONS = 24
+
+
+def fallback_focal_px(size_px: tuple[int, int]) -> float:
+    """Focal length (px) assumed without a camera: half the image diagonal.
+
+    A 90 deg diagonal field of view; a longer lens (all but the widest) puts the
+    camera farther for the same disc size, so the heights matter less and the
+    bound computed with this focal length holds.
+    """
+    return 0.5 * math.hypot(*size_px)
+
+
+@dataclass(frozen=True)
+class HeightParallax:
+    """What the markers' heights do to angles measured in the image (no plane pose).
+
+    ``distance_mm`` is the camera's estimated distance from the plate (median over
+    the discs); ``centres`` / ``covariances`` the centres moved back to the plate
+    about the principal point (same frame as the input); ``bound_none_deg`` the
+    worst angle change the heights cause (pin, bend), i.e. the bound of the
+    uncorrected angles; ``bound_parallel_deg`` the worst error left after the
+    parallel correction, both for a tilt up to ``tilt_deg``.
+    """
+
+    distance_mm: float
+    centres: dict[str, np.ndarray]
+    covariances: dict[str, np.ndarray]
+    bound_none_deg: dict[str, float]
+    bound_parallel_deg: dict[str, float]
+    tilt_deg: float
+
+
+def _angles(centres: Mapping[str, np.ndarray], y_down: bool) -> np.ndarray:
+    a = machine_angles(centres, y_down=y_down)
+    return np.array([a.pin_angle_deg, a.bend_angle_deg])
+
+
+def height_parallax(
+    centres_px: Mapping[str, np.ndarray],
+    covariances_px: Mapping[str, np.ndarray],
+    radii_px: Mapping[str, float],
+    kit: MarkerKit,
+    *,
+    focal_px: float,
+    principal_point_px: tuple[float, float],
+    y_down: bool = True,
+    tilt_deg: float = BOUND_TILT_DEG,
+) -> HeightParallax:
+    """The heights' effect on angles measured in image (or undistorted) pixels.
+
+    Parameters
+    ----------
+    centres_px, covariances_px : each role's disc centre (2,) and its covariance (2, 2), px.
+    radii_px : each role's disc radius, px (its apparent size gives the distance).
+    kit : the kit (heights and diameters, mm).
+    focal_px : focal length, px (:func:`fallback_focal_px` without a camera).
+    principal_point_px : where the optical axis meets the image, px.
+    tilt_deg : the largest camera tilt the bounds allow for.
+    """
+    pp = np.asarray(principal_point_px, dtype=np.float64)
+    heights = {r: kit.height_mm(r) for r in ROLES}
+    dist = [
+        focal_px * 0.5 * kit.by_role(r).diameter_mm / float(radii_px[r]) + heights[r] for r in ROLES
+    ]
+    d_mm = float(np.median(dist))
+    shrink = {r: (d_mm - heights[r]) / d_mm for r in ROLES}
+    c = {r: np.asarray(centres_px[r], dtype=np.float64).reshape(2) for r in ROLES}
+
+    def at(foot: np.ndarray) -> np.ndarray:
+        return _angles({r: foot + (c[r] - foot) * shrink[r] for r in ROLES}, y_down)
+
+    raw = _angles(c, y_down)
+    corrected = at(pp)
+    reach = focal_px * math.tan(math.radians(tilt_deg))
+    feet = [pp] + [
+        pp + reach * np.array([math.cos(t), math.sin(t)])
+        for t in np.linspace(0.0, 2 * math.pi, _DIRECTIONS, endpoint=False)
+    ]
+    worst_none = np.zeros(2)
+    worst_par = np.zeros(2)
+    for foot in feet:
+        a = at(foot)
+        worst_none = np.maximum(worst_none, np.abs(wrap_deg(raw - a)))
+        worst_par = np.maximum(worst_par, np.abs(wrap_deg(corrected - a)))
+    keys = ("pin_angle_deg", "bend_angle_deg")
+    return HeightParallax(
+        d_mm,
+        {r: pp + (c[r] - pp) * shrink[r] for r in ROLES},
+        {r: np.asarray(covariances_px[r]) * shrink[r] ** 2 for r in ROLES},
+        {k: float(v) for k, v in zip(keys, worst_none, strict=True)},
+        {k: float(v) for k, v in zip(keys, worst_par, strict=True)},
+        float(tilt_deg),
+    )
