@@ -233,9 +233,7 @@ def main(argv: list[str] | None = None) -> dict:
     camera, calibration = calibrated_camera(scale)
     results = [_run_case(c, scale, camera) for c in cases]
     arcs = [r for r in results if r["kind"] == "arc"]
-    round_results = [
-        _run_round_case(c, scale, camera) for c in _round_cases(6, args.seed)
-    ]
+    round_results = [_run_round_case(c, scale, camera) for c in _round_cases(6, args.seed)]
     # how the error grows at lower resolution (not part of the targets)
     probe = {
         "kind": "arc",

@@ -58,6 +58,8 @@ _STEP_PX = 0.05
 _MIN_RHO_PX = 1.5
 
 EndShape = Literal["round", "flat"]
+#: Least length of the silhouette centreline, as a share of the symmetric one's.
+SILHOUETTE_MIN_SHARE = 0.95
 #: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
 _CLIPPED = 250.0
 
@@ -79,7 +81,9 @@ class Centreline:
     asymmetry : median over the profiles of the remaining asymmetry at the centre
         relative to the profile's own variance in the window (0 perfectly
         symmetric, about 1 for no symmetry at all).
-    centre_from : ``"symmetry"`` or ``"silhouette"`` (between the two silhouette edges).
+    centre_from : ``"symmetry"``, ``"silhouette"`` (between the two silhouette edges),
+        or ``"symmetry (...)"`` when silhouette edges were asked for but did not follow
+        the whole wire.
     edge_width_px : with silhouette edges, ndarray (M,): the distance between the
         two edges at each point (NaN at the end points), pixels; else None.
     """
@@ -107,6 +111,10 @@ class Centreline:
             "coverage": self.coverage,
             "asymmetry": self.asymmetry,
         }
+
+
+def _length(path: np.ndarray) -> float:
+    return float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
 
 
 def _resample(path: np.ndarray, step: float) -> np.ndarray:
@@ -573,12 +581,22 @@ def measure_centreline(
     if wire_width_px is not None:
         # from the mask's path, not the symmetric centres: those may have lost a
         # stretch of the wire (a clipped highlight), which could not come back
-        centres, prof_ok, widths, coverage = _silhouette_centres(
-            profiles_at, path, offsets, float(wire_width_px), step_px, rough, window
-        )
-        centre_from = "silhouette"
-        if np.isfinite(widths).any():
-            half_width = 0.5 * float(np.nanmedian(widths))
+        try:
+            found = _silhouette_centres(
+                profiles_at, path, offsets, float(wire_width_px), step_px, rough, window
+            )
+        except ValueError:
+            found = None
+        # the silhouette edges must follow the wire as far as its symmetric centres do;
+        # where they lose a stretch at an end the part would be cut short: keep the
+        # symmetric centres and say so (centre_from)
+        if found is not None and _length(found[0]) >= SILHOUETTE_MIN_SHARE * _length(centres):
+            centres, prof_ok, widths, coverage = found
+            centre_from = "silhouette"
+            if np.isfinite(widths).any():
+                half_width = 0.5 * float(np.nanmedian(widths))
+        else:
+            centre_from = "symmetry (no silhouette edges along the whole wire)"
     ends = np.vstack(
         (
             _end_point(g, centres, prof_ok, offsets, rho, half_width, head=True, shape=end_shape),

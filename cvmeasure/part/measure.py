@@ -361,7 +361,7 @@ def measure_centreline_mm(
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
     # a side-lit round wire is not symmetric across; between silhouette edges a wire
     # wide along most of its length is the test instead
-    asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from == "symmetry"
+    asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from != "silhouette"
     if centre.coverage < MIN_COVERAGE or asymmetric:
         raise InputError(
             source,
@@ -650,6 +650,12 @@ def measure_part(
             edge_width_px=widths,
         )
     warnings: list[str] = []
+    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+        warnings.append(
+            "round_wire_edges_lost: the wire's silhouette edges were not found along the whole "
+            "wire, so the centreline is the profiles' centre of symmetry, which a side-lit "
+            "highlight or a shadow can pull off the axis; the lift was not bounded"
+        )
     lift = None
     flat_mm = centreline_mm
     if wire_diameter_mm is not None and centre.edge_width_px is not None:
