@@ -102,7 +102,11 @@ class Centreline:
         widths = self.edge_width_px
         return {
             "centre_from": self.centre_from,
-            "edge_width_px": None if widths is None else float(np.nanmedian(widths)),
+            "edge_width_px": (
+                None
+                if widths is None or not np.isfinite(widths).any()
+                else float(np.nanmedian(widths))
+            ),
             "points": len(self.points_px),
             "half_width_px": self.half_width_px,
             "rho_px": self.rho_px,

@@ -687,6 +687,12 @@ def measure_part(
         raise InputError(source, f"cannot fit the part ({exc})") from None
     bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
     lift_info = None
+    if wire_diameter_mm is not None and centre.centre_from == "silhouette" and lift is None:
+        warnings.append(
+            "part_lifted: the part's lift off the plate could not be bounded (too few places "
+            "with both silhouette edges clean, e.g. a shadow beside the wire all along): a "
+            "lifted part would go unnoticed"
+        )
     if lift is not None:
         lift_info, extra_sigma, lift_warning = _lift_effects(
             plane, centre.points_px, flat_mm, centreline_mm, lift, ours, poly, divisions,
