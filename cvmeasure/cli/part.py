@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from cvmeasure.cli.options import int_in, non_negative_float
+from cvmeasure.cli.options import int_in, non_negative_float, positive_float
 
 __all__ = ["register", "run"]
 
@@ -36,11 +36,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="method of the headline values (default ours; all are reported under 'methods')",
     )
     p.add_argument(
+        "--wire-diameter-mm",
+        type=positive_float,
+        help="the wire's diameter: the centreline then lies between the wire's two silhouette "
+        "edges (not on a side-lit highlight or a shadow's edge), the axis at the wire's radius "
+        "above the board's plane, and the part's lift off the plate is bounded from the wire's "
+        "apparent width (warned about as part_lifted); default: --kit's wire_diameter_mm",
+    )
+    p.add_argument(
+        "--kit",
+        type=Path,
+        help="kit JSON whose wire_diameter_mm is the wire's diameter (the built-in kit's is 3 mm; "
+        "only with --wire-diameter-mm absent)",
+    )
+    p.add_argument(
         "--axis-height-mm",
+        "--wire-axis-height-mm",
+        dest="axis_height_mm",
         type=non_negative_float,
-        default=0.0,
-        help="height of the wire's axis above the board's plane, e.g. the wire's radius when "
-        "part and board lie on the same surface (default 0)",
+        default=None,
+        help="height of the wire's axis above the board's plane where the part rests (default: "
+        "the wire's radius with a diameter, else 0)",
     )
     p.add_argument(
         "--ends",
@@ -72,6 +88,15 @@ def run(args: argparse.Namespace) -> int:
     board = load_board(args.board)
     camera = load_camera(args.camera)
     design = load_design(args.design).wire() if args.design else None
+    diameter = args.wire_diameter_mm
+    if diameter is None and args.kit:
+        from cvmeasure.kit import load_kit
+
+        diameter = load_kit(args.kit).wire_diameter_mm
+        if diameter is None:
+            raise InputError(
+                args.kit, "the kit gives no wire_diameter_mm (pass --wire-diameter-mm)"
+            )
     photo = read_photo(args.photo)
     m = measure_part(
         photo.bgr,
@@ -84,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         axis_height_mm=args.axis_height_mm,
         end_shape=args.ends,
         source=str(args.photo),
+        wire_diameter_mm=diameter,
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:
@@ -153,5 +179,11 @@ def _print_summary(m, out) -> None:
                 f"{b.seed_absolute_error_deg:.3f} deg, relative {b.seed_relative_error_pct:.2f} %",
                 file=out,
             )
+    if m.lift is not None:
+        print(
+            f"  lift off the plate (from the wire's width): {m.lift['lift_mm']:.2f} +- "
+            f"{m.lift['lift_sigma_mm']:.2f} mm, used as a {m.lift['used']}",
+            file=out,
+        )
     for w in m.warnings:
         print(f"  warning: {w}", file=out)

@@ -20,6 +20,19 @@ renderer draws it), so the brightness beyond the end point along the axis
 repeats the half-profile across the wire; the end point is where the axial
 profile best matches the mean cross half-profile.
 
+With the wire's expected width in pixels (from its diameter through the
+calibrated plane, :func:`cvmeasure.part.measure.measure_centreline_mm`), the
+centres are instead taken between the wire's two **silhouette edges**
+(:func:`silhouette_edges`): the symmetry above holds only for light from
+straight above; a light from one side puts the specular highlight on the lit
+flank and the symmetric centre follows it (1.4-2.9 px off the axis on a
+ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
+the profile's gradient; per profile, the pair of peaks whose distance is within
+15 % of the expected width and whose summed strength is largest is the wire
+(the highlight's own edges are closer together, the shadow's outer edge
+farther out). The edges' distance is the wire's apparent width, which
+:mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
+
 Frames: input and output in image pixels (OpenCV: x right, y down, pixel
 centres at integers). :mod:`cvmeasure.part.measure` maps them to board mm.
 """
@@ -31,7 +44,13 @@ from typing import Any, Literal
 
 import numpy as np
 
-__all__ = ["Centreline", "EndShape", "measure_centreline", "symmetric_centres"]
+__all__ = [
+    "Centreline",
+    "EndShape",
+    "measure_centreline",
+    "silhouette_edges",
+    "symmetric_centres",
+]
 
 _STEP_PX = 0.05
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
@@ -39,6 +58,10 @@ _STEP_PX = 0.05
 _MIN_RHO_PX = 1.5
 
 EndShape = Literal["round", "flat"]
+#: Least length of the silhouette centreline, as a share of the symmetric one's.
+SILHOUETTE_MIN_SHARE = 0.95
+#: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
+_CLIPPED = 250.0
 
 
 @dataclass(frozen=True)
@@ -58,6 +81,11 @@ class Centreline:
     asymmetry : median over the profiles of the remaining asymmetry at the centre
         relative to the profile's own variance in the window (0 perfectly
         symmetric, about 1 for no symmetry at all).
+    centre_from : ``"symmetry"``, ``"silhouette"`` (between the two silhouette edges),
+        or ``"symmetry (...)"`` when silhouette edges were asked for but did not follow
+        the whole wire.
+    edge_width_px : with silhouette edges, ndarray (M,): the distance between the
+        two edges at each point (NaN at the end points), pixels; else None.
     """
 
     points_px: np.ndarray
@@ -67,9 +95,18 @@ class Centreline:
     rejected: int
     coverage: float = 1.0
     asymmetry: float = 0.0
+    centre_from: str = "symmetry"
+    edge_width_px: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        widths = self.edge_width_px
         return {
+            "centre_from": self.centre_from,
+            "edge_width_px": (
+                None
+                if widths is None or not np.isfinite(widths).any()
+                else float(np.nanmedian(widths))
+            ),
             "points": len(self.points_px),
             "half_width_px": self.half_width_px,
             "rho_px": self.rho_px,
@@ -78,6 +115,10 @@ class Centreline:
             "coverage": self.coverage,
             "asymmetry": self.asymmetry,
         }
+
+
+def _length(path: np.ndarray) -> float:
+    return float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
 
 
 def _resample(path: np.ndarray, step: float) -> np.ndarray:
@@ -182,6 +223,169 @@ def symmetric_centres(
     shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
     shift = np.where(inner, shift, np.nan)
     return shift, cost[rows, k]
+
+
+def silhouette_edges(
+    profiles: np.ndarray,
+    offsets_px: np.ndarray,
+    width_px: np.ndarray | float,
+    *,
+    tolerance: float = 0.05,
+    centre_tolerance: float = 0.2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wire's two silhouette edges on each profile across it, pixels along the normal.
+
+    Parameters
+    ----------
+    profiles : ndarray (P, S); grey levels at ``offsets_px`` (S,) along each normal.
+    width_px : the expected apparent width (scalar or (P,)), pixels.
+    tolerance : relative range of widths accepted about ``width_px``.
+    centre_tolerance : largest distance of the pair's midpoint from offset 0 (the
+        current centre), relative to ``width_px``.
+
+    Returns
+    -------
+    left, right : ndarray (P,) each, offsets of the two edges (NaN where no pair of
+        gradient peaks has a width within the tolerance), pixels.
+
+    Each edge is a local maximum of the profile's gradient magnitude (smoothed over
+    0.5 px), refined by a parabola; of every pair of peaks whose distance is within
+    ``tolerance`` of the width and whose midpoint is near the current centre, the one
+    with the largest summed gradient wins (a shadow's outer edge paired with a
+    highlight's edge can have the wire's width, but not about its centre).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    p = np.asarray(profiles, dtype=np.float64)
+    step = float(offsets_px[1] - offsets_px[0])
+    grad = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1))
+    n_p = len(p)
+    width = np.broadcast_to(np.asarray(width_px, dtype=np.float64), (n_p,))
+    left = np.full(n_p, np.nan)
+    right = np.full(n_p, np.nan)
+    inner = grad[:, 1:-1]
+    is_peak = (inner >= grad[:, :-2]) & (inner > grad[:, 2:])
+    is_peak &= inner >= 0.15 * inner.max(axis=1, keepdims=True)
+    for i in range(n_p):
+        k = np.nonzero(is_peak[i])[0] + 1
+        if len(k) < 2:
+            continue
+        g0, g1, g2 = grad[i, k - 1], grad[i, k], grad[i, k + 1]
+        den = g0 - 2 * g1 + g2
+        frac = np.where(den < 0, 0.5 * (g0 - g2) / np.where(den < 0, den, -1.0), 0.0)
+        pos = offsets_px[k] + np.clip(frac, -0.5, 0.5) * step
+        gap = pos[None, :] - pos[:, None]
+        score = g1[None, :] + g1[:, None]
+        ok = np.abs(gap / width[i] - 1.0) <= tolerance
+        ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * centre_tolerance * width[i]
+        if not ok.any():
+            continue
+        a, b = np.unravel_index(np.argmax(np.where(ok, score, -np.inf)), gap.shape)
+        left[i], right[i] = pos[a], pos[b]
+    return left, right
+
+
+def outer_edges(
+    profiles: np.ndarray, offsets_px: np.ndarray, width_px: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wire's silhouette edges found from inside: the last edge before the plate.
+
+    A stretch where the profile is flat (gradient below a threshold over 0.08 wire
+    widths, at least 1.5 px) is outside the wire: the plate, or a shadow lying on
+    it; inside a round wire nothing is flat (shading, highlight; a clipped
+    highlight is flat but is known by its level). Between the flat
+    stretches lie the wire, a shadow's penumbra, other lines; the wire is the one
+    0.9-1.6 widths wide (a penumbra joined to it widens it) nearest the profile's
+    centre (within 0.7 widths; 1.5 when the centre lies on a flat stretch, such as
+    a wide shadow). Its
+    silhouette edges are the strongest gradients within 2.5 px inside its two
+    ends, refined by a parabola.
+
+    Returns left, right offsets (P,) px, NaN where no stretch of the wire's width
+    was found.
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    p = np.asarray(profiles, dtype=np.float64)
+    step = float(offsets_px[1] - offsets_px[0])
+    g = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1)) / step  # grey per px
+    n = p.shape[1]
+    outer = max(3, n // 10)
+    noise = 1.4826 * np.median(
+        np.abs(np.concatenate((g[:, :outer], g[:, -outer:]), axis=1)), axis=1
+    )
+    tau = np.maximum(3.0 * noise, 0.08 * g.max(axis=1))
+    # a clipped highlight is flat too, but inside the wire
+    flat = (g < tau[:, None]) & (p < _CLIPPED)
+    run = max(2, int(round(max(1.5, 0.08 * width_px) / step)))
+    back = int(round(2.5 / step))
+    left = np.full(len(p), np.nan)
+    right = np.full(len(p), np.nan)
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    # covered[i, j]: sample j lies in a flat stretch at least ``run`` samples long
+    all_flat = sliding_window_view(flat, run, axis=1).all(axis=2)
+    covered = np.zeros_like(flat)
+    for k in range(run):
+        covered[:, k : k + all_flat.shape[1]] |= all_flat
+    for i in range(len(p)):
+        # the stretches between flat ones: the wire, a penumbra, a stray line...
+        busy = ~covered[i]
+        change = np.diff(np.concatenate(([False], busy, [False])).astype(np.int8))
+        starts, stops = np.nonzero(change == 1)[0], np.nonzero(change == -1)[0]
+        if len(starts) == 0:
+            continue
+        width = (stops - starts) * step
+        centre = 0.5 * (offsets_px[starts] + offsets_px[np.minimum(stops, n) - 1])
+        fits = (width >= 0.9 * width_px) & (width <= 1.6 * width_px)
+        # a rough centre on a flat stretch (a wide shadow) is off the wire: look farther
+        reach = (1.5 if covered[i, n // 2] else 0.7) * width_px
+        fits &= (starts > 0) & (stops < n) & (np.abs(centre) <= reach)
+        if not fits.any():
+            continue
+        # the one holding the current centre, else the nearest
+        j = int(np.argmin(np.where(fits, np.abs(centre), np.inf)))
+        a, b = int(starts[j]), int(stops[j])  # busy samples a .. b - 1
+        left[i] = _peak(g[i], a, min(b, a + back), offsets_px)
+        right[i] = _peak(g[i], max(a, b - back), b, offsets_px)
+    return left, right
+
+
+def _edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN."""
+    from scipy.ndimage import gaussian_filter1d
+
+    step = float(offsets[1] - offsets[0])
+    g = np.abs(gaussian_filter1d(np.asarray(profiles, float), 0.5 / step, axis=1, order=1)) / step
+    ok = np.isfinite(edge)
+    k = np.clip(
+        np.round((np.nan_to_num(edge) - offsets[0]) / step).astype(int), 0, len(offsets) - 1
+    )
+    return np.where(ok, g[np.arange(len(g)), k], 0.0)
+
+
+def _majority(labels: np.ndarray, window: int) -> np.ndarray:
+    """The most frequent non-negative label (0, 1, 2) in a window along the wire; -1 where none."""
+    from scipy.ndimage import uniform_filter1d
+
+    counts = np.stack(
+        [uniform_filter1d((labels == k).astype(float), window, mode="nearest") for k in range(3)]
+    )
+    out = np.argmax(counts, axis=0)
+    return np.where(counts.max(axis=0) > 0, out, -1)
+
+
+def _peak(g: np.ndarray, lo: int, hi: int, offsets: np.ndarray) -> float:
+    """Sub-sample position of the maximum of ``g[lo:hi]`` (parabola), in offset units."""
+    k = lo + int(np.argmax(g[lo:hi]))
+    if 0 < k < len(g) - 1:
+        c0, c1, c2 = g[k - 1], g[k], g[k + 1]
+        den = c0 - 2 * c1 + c2
+        frac = 0.5 * (c0 - c2) / den if den < 0 else 0.0
+    else:
+        frac = 0.0
+    step = offsets[1] - offsets[0]
+    return float(offsets[k] + np.clip(frac, -0.5, 0.5) * step)
 
 
 def _asymmetry_ratio(
@@ -297,6 +501,7 @@ def measure_centreline(
     width_guess_px: float,
     step_px: float = 1.0,
     end_shape: EndShape = "round",
+    wire_width_px: float | None = None,
 ) -> Centreline:
     """Sub-pixel centreline of the wire along a rough path.
 
@@ -310,6 +515,9 @@ def measure_centreline(
     end_shape : ``"round"`` (hemispherical caps, matched to the cross profile)
         or ``"flat"`` (square-cut: the end face is where the brightness along
         the axis falls half-way from the wire's crest to the background).
+    wire_width_px : the wire's expected apparent width (its diameter seen from the
+        camera), pixels. With it the centres lie between the two silhouette edges
+        (see the module notes); without it, at the profiles' centre of symmetry.
 
     Raises
     ------
@@ -323,6 +531,8 @@ def measure_centreline(
     path = _resample(np.asarray(path_px, dtype=np.float64), step_px)
     path = _smooth(path, max(2.0, 2.0 * hw0) / step_px)
     reach = 3.0 * hw0 + 4.0
+    if wire_width_px is not None:
+        reach = max(reach, 1.25 * wire_width_px + 5.0)
     offsets = np.arange(-round(reach / _STEP_PX), round(reach / _STEP_PX) + 1) * _STEP_PX
 
     def profiles_at(centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
@@ -342,7 +552,7 @@ def measure_centreline(
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
     rejected = 0
     window = int(round(6.0 * hw0 / step_px))
-    for final in (False, True, True):
+    for final in (False, False, True):
         shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
@@ -369,10 +579,32 @@ def measure_centreline(
     centres = (centres + shift[:, None] * normals)[ok]
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
+    prof_ok = prof[ok]
+    centre_from = "symmetry"
+    widths = None
+    if wire_width_px is not None:
+        # from the mask's path, not the symmetric centres: those may have lost a
+        # stretch of the wire (a clipped highlight), which could not come back
+        try:
+            found = _silhouette_centres(
+                profiles_at, path, offsets, float(wire_width_px), step_px, rough, window
+            )
+        except ValueError:
+            found = None
+        # the silhouette edges must follow the wire as far as its symmetric centres do;
+        # where they lose a stretch at an end the part would be cut short: keep the
+        # symmetric centres and say so (centre_from)
+        if found is not None and _length(found[0]) >= SILHOUETTE_MIN_SHARE * _length(centres):
+            centres, prof_ok, widths, coverage = found
+            centre_from = "silhouette"
+            if np.isfinite(widths).any():
+                half_width = 0.5 * float(np.nanmedian(widths))
+        else:
+            centre_from = "symmetry (no silhouette edges along the whole wire)"
     ends = np.vstack(
         (
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=True, shape=end_shape),
-            _end_point(g, centres, prof[ok], offsets, rho, half_width, head=False, shape=end_shape),
+            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=True, shape=end_shape),
+            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=False, shape=end_shape),
         )
     )
     # trim centres that lie beyond the end points (skeleton overshoot)
@@ -390,6 +622,9 @@ def measure_centreline(
         inward = inward / max(np.hypot(*inward), 1e-12)
         keep[idx] &= ((centres[idx] - end) @ inward) >= 0.5 * half_width
     inner = centres[keep]
+    edge_width = None
+    if widths is not None:
+        edge_width = np.concatenate(([np.nan], widths[keep], [np.nan]))
     return Centreline(
         points_px=np.vstack((ends[:1], inner, ends[1:])),
         half_width_px=half_width,
@@ -398,7 +633,121 @@ def measure_centreline(
         rejected=rejected,
         coverage=coverage,
         asymmetry=symmetry,
+        centre_from=centre_from,
+        edge_width_px=edge_width,
     )
+
+
+def _shadow_side(
+    profiles: np.ndarray,
+    normals: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    offsets: np.ndarray,
+) -> np.ndarray | None:
+    """The image direction (2,) in which the wire's shadow lies, or None when none is seen.
+
+    Beside an edge, a flat stretch darker than the plate farther out on the same side
+    is the shadow; the direction that has most of these sides' outward normals on
+    its side (the middle of the best ones) is the way the light casts.
+    """
+    n = profiles.shape[1]
+    outer = max(3, n // 12)
+    votes = []
+    for side, edge in ((-1.0, left), (1.0, right)):
+        ok = np.isfinite(edge)
+        k = np.clip(np.searchsorted(offsets, edge[ok] + side * 2.0), 0, n - 1)
+        k2 = np.clip(np.searchsorted(offsets, edge[ok] + side * 4.0), 0, n - 1)
+        rows = np.nonzero(ok)[0]
+        near = 0.5 * (profiles[rows, k] + profiles[rows, k2])
+        far = np.median(profiles[rows, -outer:] if side > 0 else profiles[rows, :outer], axis=1)
+        dark = near < far - 0.15 * np.maximum(far, 10.0)
+        votes.append(side * normals[rows[dark]])
+    v = np.vstack(votes)
+    if len(v) < 10:
+        return None
+    # the direction that puts the most votes on its side; of a tie, the middle
+    angles = np.radians(np.arange(0.0, 360.0, 1.0))
+    dirs = np.column_stack((np.cos(angles), np.sin(angles)))
+    agree = ((v @ dirs.T) > 0).mean(axis=0)
+    if agree.max() < 0.8:
+        return None
+    best = np.nonzero(agree >= agree.max() - 1e-9)[0]
+    mean = dirs[best].sum(axis=0)
+    return mean / max(float(np.hypot(*mean)), 1e-12)
+
+
+def _silhouette_centres(
+    profiles_at: Any,
+    centres: np.ndarray,
+    offsets: np.ndarray,
+    width_px: float,
+    step_px: float,
+    smooth_px: float,
+    window: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
+
+    Where the two edges are a width apart (within 5 %) the centre is their
+    midpoint. Where they are not, a shadow's penumbra joins the silhouette on the
+    shadow side (its flat stretch too narrow to be seen), or a false flat stretch
+    cut the wire, so the centre is one edge moved by half the width (the median
+    width of the clean pairs): the lit side's, where the shadow's side is known
+    (:func:`_shadow_side`, from the whole wire) and the wire runs across the light;
+    else the sharper one. One rule holds along two widths of wire (the majority):
+    an edge's shading
+    bias is alike along a straight chord: a parallel shift, which leaves its
+    direction, and so the bends, unchanged; a chord measured partly by pairs and
+    partly by one edge would not be.
+
+    Returns the centres, their profiles, the edge widths (px, NaN where only one
+    edge was used) and the share of profiles with a centre.
+    """
+    coverage = 1.0
+    widths = np.zeros(0)
+    for final in (False, False, True):
+        normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
+        prof = profiles_at(centres, normals)
+        left, right = outer_edges(prof, offsets, width_px)
+        width = right - left
+        pair = np.abs(width / width_px - 1.0) <= 0.05
+        w_eff = float(np.median(width[pair])) if pair.sum() >= 10 else width_px
+        shift = np.where(pair, 0.5 * (left + right), np.nan)
+        from_left = left + 0.5 * w_eff
+        from_right = right - 0.5 * w_eff
+        # the sharper edge (a penumbra joined to the silhouette softens it), unless
+        # the shadow says; an edge that would move the centre far does not count
+        sharp_l, sharp_r = _edge_gradient(prof, offsets, left), _edge_gradient(prof, offsets, right)
+        near_l = np.abs(np.nan_to_num(from_left, nan=np.inf)) <= 0.25 * width_px
+        near_r = np.abs(np.nan_to_num(from_right, nan=np.inf)) <= 0.25 * width_px
+        use_left = near_l & (~near_r | (sharp_l >= sharp_r))
+        shadow = _shadow_side(prof, normals, left, right, offsets)
+        if shadow is not None:
+            towards = normals @ shadow  # > 0: the shadow lies on the + (right) side
+            use_left = np.where(np.abs(towards) > 0.05, towards > 0, use_left)
+        # one rule along a stretch of wire (the majority over two widths), so that a
+        # chord is not measured partly by pairs and partly by one edge
+        rule = np.where(pair, 0, np.where(use_left & near_l, 1, np.where(near_r, 2, -1)))
+        rule = _majority(rule, max(3, int(round(2.0 * width_px / step_px))))
+        shift = np.where(
+            (rule == 0) & pair,
+            0.5 * (left + right),
+            np.where(
+                (rule == 1) & near_l, from_left, np.where((rule == 2) & near_r, from_right, np.nan)
+            ),
+        )
+        shift = _despike(shift, window)
+        ok = np.isfinite(shift)
+        coverage = float(ok.mean())
+        if ok.sum() < 5:
+            raise ValueError("no silhouette edges of the wire's width along the path")
+        centres = (centres + shift[:, None] * normals)[ok]
+        widths = np.where(pair, width, np.nan)[ok]
+        if not final:
+            centres = _resample(centres, step_px)
+    # the last profiles, re-centred on the edges' midpoints (for the end points)
+    normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
+    return centres, profiles_at(centres, normals), widths, coverage
 
 
 def _end_point(

@@ -51,6 +51,7 @@ from cvmeasure.part.fit import (
     count_chords,
     fit_polyline,
 )
+from cvmeasure.part.lift import LiftEstimate, estimate_lift, points_at_heights_mm, unroll_mm
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 
@@ -164,6 +165,10 @@ class PartMeasurement:
     divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
         (vertices found on the centreline) or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
+    lift : with a wire diameter, the part's lift off the plate from the wire's
+        apparent width (:mod:`cvmeasure.part.lift`): ``lift_mm``, ``lift_sigma_mm``,
+        ``used`` (``"corrected"`` or ``"bound"``), and the effect of the lift and of its
+        uncertainty on the radius (%) and the vertex bends (deg); else None.
     """
 
     source: str
@@ -185,6 +190,7 @@ class PartMeasurement:
     shape: str = "arc"
     divisions_from: str | None = None
     chords_found: ChordCount | None = None
+    lift: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
@@ -215,6 +221,7 @@ class PartMeasurement:
             None if self.vertices_px is None else np.round(self.vertices_px, 2).tolist()
         )
         out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
+        out["lift"] = self.lift
         out["warnings"] = list(self.warnings)
         return out
 
@@ -294,17 +301,22 @@ def _board_exclusion(board: BoardSpec, plane: PlaneModel, shape: tuple[int, int]
 
 def measure_centreline_mm(
     image: np.ndarray,
-    board: BoardSpec,
-    camera: CameraModel,
+    board: BoardSpec | None,
+    camera: CameraModel | None,
     *,
-    axis_height_mm: float = 0.0,
+    axis_height_mm: float | None = None,
     end_shape: EndShape = "round",
     source: str = "photo",
+    wire_diameter_mm: float | None = None,
+    plane: PlaneModel | None = None,
 ) -> tuple[Any, WireMask, Centreline, np.ndarray]:
     """Board plane, wire mask, pixel centreline and centreline in board mm of one photo.
 
     ``axis_height_mm`` is how far the wire's axis lies above the board's
-    plane, towards the camera (see :func:`measure_part`).
+    plane, towards the camera (see :func:`measure_part`). With ``wire_diameter_mm``
+    the centreline lies between the wire's silhouette edges. ``plane`` (e.g. from
+    ``cvmeasure plane``) replaces the board's plane in the photo; ``board`` is then
+    only left out of the wire search (None: nothing is).
 
     Raises
     ------
@@ -313,9 +325,13 @@ def measure_centreline_mm(
     """
     from cvmeasure.calibration.plane import estimate_plane
 
-    plane = estimate_plane(image, board, camera, source=source)
+    if plane is None:
+        if board is None or camera is None:
+            raise ValueError("need a plane, or a board and a camera")
+        plane = estimate_plane(image, board, camera, source=source)
+    height = _axis_height(axis_height_mm, wire_diameter_mm)
     mm_per_px = plane.mm_per_px
-    exclude = _board_exclusion(board, plane, image.shape[:2])
+    exclude = None if board is None else _board_exclusion(board, plane, image.shape[:2])
     wire = segment_wire(
         image,
         exclude=exclude,
@@ -324,24 +340,47 @@ def measure_centreline_mm(
     )
     if wire is None:
         raise InputError(source, "no wire found beside the board")
+    width_px = None
+    if wire_diameter_mm is not None:
+        # the diameter over the local scale at the axis' height, about the wire's middle
+        mid = wire.path_px[len(wire.path_px) // 2]
+        probe = plane.image_to_plane_mm(mid + np.array([[0, 0], [1, 0], [0, 1]]), height_mm=height)
+        scale = float(
+            np.sqrt(abs(np.linalg.det(np.vstack((probe[1] - probe[0], probe[2] - probe[0])))))
+        )
+        width_px = wire_diameter_mm / scale
     try:
         centre = measure_centreline(
-            gray_float(image), wire.path_px, width_guess_px=wire.width_px, end_shape=end_shape
+            gray_float(image),
+            wire.path_px,
+            width_guess_px=wire.width_px,
+            end_shape=end_shape,
+            wire_width_px=width_px,
         )
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
-    if centre.coverage < MIN_COVERAGE or centre.asymmetry > MAX_ASYMMETRY:
+    # a side-lit round wire is not symmetric across; between silhouette edges a wire
+    # wide along most of its length is the test instead
+    asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from != "silhouette"
+    if centre.coverage < MIN_COVERAGE or asymmetric:
         raise InputError(
             source,
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
             f"has a round wire's symmetric profile along {100 * centre.coverage:.0f} % of it, "
             f"asymmetry {centre.asymmetry:.2f} > {MAX_ASYMMETRY})"
-            if centre.asymmetry > MAX_ASYMMETRY
+            if asymmetric
             else f"no wire found beside the board (the longest thin line, "
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)",
         )
-    return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=axis_height_mm)
+    return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=height)
+
+
+def _axis_height(axis_height_mm: float | None, wire_diameter_mm: float | None) -> float:
+    """The axis' height above the plate: as given; else the radius of a known wire; else 0."""
+    if axis_height_mm is not None:
+        return float(axis_height_mm)
+    return 0.0 if wire_diameter_mm is None else 0.5 * float(wire_diameter_mm)
 
 
 def _outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarray:
@@ -374,7 +413,7 @@ def _outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndar
 
 def _ends_at_a_boundary(
     ends_px: np.ndarray,
-    board: BoardSpec,
+    board: BoardSpec | None,
     plane: PlaneModel,
     shape: tuple[int, int],
     width_px: float,
@@ -389,6 +428,8 @@ def _ends_at_a_boundary(
     for x, y in ends_px:
         if min(x, y, w - 1 - x, h - 1 - y) < edge:
             return "the photo's edge"
+    if board is None:
+        return ""
     near_board = cv2.dilate(
         _board_exclusion(board, plane, shape).astype(np.uint8),
         cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(reach) + 1,) * 2),
@@ -397,6 +438,89 @@ def _ends_at_a_boundary(
         if 0 <= y < h and 0 <= x < w and near_board[y, x]:
             return "the board"
     return ""
+
+
+#: What a lift may change before it is warned about: the parts targets.
+LIFT_RADIUS_PCT = 0.3
+LIFT_BEND_DEG = 0.03
+
+
+def _lifted_mm(
+    plane: PlaneModel, points_px: np.ndarray, base_mm: float, lift: LiftEstimate, factor: float
+) -> np.ndarray:
+    """The centreline with each point on its own height (``factor`` x the lift), unrolled."""
+    pts = points_at_heights_mm(plane, points_px, base_mm + factor * lift.height_mm)
+    return unroll_mm(pts, (factor * lift.slope[0], factor * lift.slope[1]))
+
+
+def _lift_effects(
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    flat_mm: np.ndarray,
+    used_mm: np.ndarray,
+    lift: LiftEstimate,
+    ours: ArcResult,
+    poly: PolylineFit | None,
+    divisions: int | None,
+    base_mm: float,
+) -> tuple[dict[str, Any], np.ndarray | None, str]:
+    """The lift's summary, the bends' extra sigma (deg) and a warning ('' when none).
+
+    The effect of the lift is the difference between measuring flat and corrected;
+    the effect of its uncertainty is that of a lift of one sigma in the same direction.
+    """
+
+    def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
+        try:
+            res, _, p = arc_from_points(other_mm, divisions)
+        except ValueError:
+            return float("nan"), float("nan"), None
+        d_r = 100.0 * (res.radius_mm / ours.radius_mm - 1.0)
+        if p is None or poly is None:
+            return d_r, 0.0, None
+        d_b = np.asarray(p.bend_deg) - np.asarray(poly.bend_deg)
+        return d_r, float(np.max(np.abs(d_b))) if len(d_b) else 0.0, np.abs(d_b)
+
+    # the widths' own systematic errors (shading of the flanks, which changes with the
+    # wire's direction to the light) are of the size of a lift's effect: on ray-traced
+    # flat parts they read as several mm of lift, so the estimate only bounds the part
+    corrected = False
+    other = _lifted_mm(plane, points_px, base_mm, lift, 1.0)
+    lift_r, lift_b, _ = effect(other)
+    unit = lift.lift_sigma_mm / max(lift.lift_mm, 1e-9)
+    sigma_r, sigma_b, sigma_bends = effect(
+        _lifted_mm(plane, points_px, base_mm, lift, unit)
+        if np.isfinite(unit) and lift.lift_mm > 0
+        else used_mm
+    )
+    info = {
+        **lift.to_dict(),
+        "used": "corrected" if corrected else "bound",
+        "effect_radius_pct": abs(lift_r),
+        "effect_bend_deg": lift_b,
+        "sigma_radius_pct": abs(sigma_r),
+        "sigma_bend_deg": sigma_b,
+    }
+    warning = ""
+    how = (
+        "corrected (each point mapped at its own height)"
+        if corrected
+        else "not corrected (not significant): a bound"
+    )
+    if abs(lift_r) > LIFT_RADIUS_PCT or lift_b > LIFT_BEND_DEG:
+        warning = (
+            f"part_lifted: the part does not lie flat, one end about {lift.lift_mm:.2f} +- "
+            f"{lift.lift_sigma_mm:.2f} mm off the plate (from the wire's apparent width); it "
+            f"moves the radius by {abs(lift_r):.2f} % and a vertex bend by up to {lift_b:.3f} deg, "
+            f"{how}"
+        )
+    if abs(sigma_r) > LIFT_RADIUS_PCT or sigma_b > LIFT_BEND_DEG:
+        warning = (warning + "; " if warning else "part_lifted: ") + (
+            f"the lift is known to +- {lift.lift_sigma_mm:.2f} mm only, which leaves the radius "
+            f"uncertain by {abs(sigma_r):.2f} % and a vertex bend by {sigma_b:.3f} deg (more than "
+            f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg): lay the part flat"
+        )
+    return info, sigma_bends, warning
 
 
 def _net_turn_deg(points_mm: np.ndarray) -> float:
@@ -448,17 +572,19 @@ def compare_with_design(
 
 def measure_part(
     image: np.ndarray,
-    board: BoardSpec,
-    camera: CameraModel,
+    board: BoardSpec | None,
+    camera: CameraModel | None,
     *,
     divisions: int | None = None,
     design: DesignPath | None = None,
     design_source: str = "design",
     method: Method = "ours",
-    axis_height_mm: float = 0.0,
+    axis_height_mm: float | None = None,
     end_shape: EndShape = "round",
     source: str = "photo",
     allow_mirror: bool = True,
+    wire_diameter_mm: float | None = None,
+    plane: PlaneModel | None = None,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -473,10 +599,20 @@ def measure_part(
     design : the design wire (:meth:`cvmeasure.design.Design.wire`), optional.
     method : which method gives the headline values.
     axis_height_mm : height of the wire's axis above the board's plane (mm,
-        towards the camera). 0 measures in the board's plane (the rendered
-        photos' convention); for a wire lying on the same surface as the board,
-        pass its radius (e.g. 1.59 for 1/8 inch wire) to remove the ~0.1-0.2 %
-        scale error of the raised axis.
+        towards the camera) where the part rests. None: the wire's radius with
+        ``wire_diameter_mm`` (a part lying on the plate), else 0 (the board's plane,
+        the flat photo lab's convention). Ignoring a raised axis scales the part by
+        about height / distance (0.1-0.3 %).
+    wire_diameter_mm : the wire's diameter (e.g. the kit's ``wire_diameter_mm``).
+        With it the centreline lies between the wire's two silhouette edges (not
+        on a side-lit highlight or a shadow's edge) and the part's lift off the
+        plate is estimated from the wire's apparent width
+        (:mod:`cvmeasure.part.lift`): corrected when significant, and warned about
+        (``part_lifted``) when it or its uncertainty moves the radius by more than
+        0.3 % or a vertex bend by more than 0.03 deg. The estimate bounds, it does
+        not correct: the widths' own shading errors are as large as a lift's effect.
+    plane : the plane measured elsewhere (``cvmeasure plane``); then ``board`` is
+        only left out of the wire search and may be None, ``camera`` is unused.
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
         ``"flat"`` (square-cut); decides where the centreline's end points are.
     source : the photo's name, used in errors.
@@ -495,12 +631,42 @@ def measure_part(
     if divisions is not None and divisions < 1:
         raise ValueError(f"divisions must be >= 1, got {divisions}")
     plane, wire, centre, centreline_mm = measure_centreline_mm(
-        image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape, source=source
+        image,
+        board,
+        camera,
+        axis_height_mm=axis_height_mm,
+        end_shape=end_shape,
+        source=source,
+        wire_diameter_mm=wire_diameter_mm,
+        plane=plane,
     )
     if _net_turn_deg(centreline_mm) < 0:  # run so that the part turns counter-clockwise
         centreline_mm = centreline_mm[::-1]
-        centre = replace(centre, points_px=centre.points_px[::-1], ends_px=centre.ends_px[::-1])
+        widths = None if centre.edge_width_px is None else centre.edge_width_px[::-1]
+        centre = replace(
+            centre,
+            points_px=centre.points_px[::-1],
+            ends_px=centre.ends_px[::-1],
+            edge_width_px=widths,
+        )
     warnings: list[str] = []
+    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+        warnings.append(
+            "round_wire_edges_lost: the wire's silhouette edges were not found along the whole "
+            "wire, so the centreline is the profiles' centre of symmetry, which a side-lit "
+            "highlight or a shadow can pull off the axis; the lift was not bounded"
+        )
+    lift = None
+    flat_mm = centreline_mm
+    if wire_diameter_mm is not None and centre.edge_width_px is not None:
+        base = _axis_height(axis_height_mm, wire_diameter_mm)
+        lift = estimate_lift(
+            plane,
+            centre.points_px,
+            centre.edge_width_px,
+            wire_diameter_mm=wire_diameter_mm,
+            axis_height_mm=base,
+        )
     chords = count_chords(centreline_mm)
     divisions_from = "--divisions" if divisions is not None else None
     if divisions is None and chords.divisions is not None:
@@ -519,6 +685,23 @@ def measure_part(
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
+    bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
+    lift_info = None
+    if wire_diameter_mm is not None and centre.centre_from == "silhouette" and lift is None:
+        warnings.append(
+            "part_lifted: the part's lift off the plate could not be bounded (too few places "
+            "with both silhouette edges clean, e.g. a shadow beside the wire all along): a "
+            "lifted part would go unnoticed"
+        )
+    if lift is not None:
+        lift_info, extra_sigma, lift_warning = _lift_effects(
+            plane, centre.points_px, flat_mm, centreline_mm, lift, ours, poly, divisions,
+            _axis_height(axis_height_mm, wire_diameter_mm),
+        )  # fmt: skip
+        if bend_sigma is not None and extra_sigma is not None:
+            bend_sigma = np.hypot(bend_sigma, extra_sigma)
+        if lift_warning:
+            warnings.append(lift_warning)
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = _outline_mm(image, wire, plane)
@@ -581,7 +764,7 @@ def measure_part(
         chords_found=chords,
         methods=methods,
         vertex_bend_deg=vertex_bends,
-        vertex_bend_sigma_deg=None if poly is None else poly.bend_sigma_deg,
+        vertex_bend_sigma_deg=bend_sigma,
         vertices_mm=None if poly is None else poly.vertices_mm,
         vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
         centreline_mm=centreline_mm,
@@ -595,6 +778,7 @@ def measure_part(
             "corner_count": plane.corner_count,
         },
         wire={**wire.to_dict(), **centre.to_dict()},
+        lift=lift_info,
         seed_arcs=seed_arcs,
         comparison=comparison,
         warnings=tuple(warnings),

@@ -147,7 +147,14 @@ def test_bad_inputs_exit_2(files, capsys, tmp_path):
     base = ["--board", str(files["board"]), "--camera", str(files["camera"])]
     broken = tmp_path / "broken.dxf"
     broken.write_text("0\nSECTION\n", encoding="utf-8")
+    from cvmeasure.kit import default_kit
+
+    flat_kit = tmp_path / "flat_kit.json"  # a kit written before wire sizes existed
+    kit = default_kit().to_dict()
+    kit.pop("wire_diameter_mm")
+    atomic_write_json(flat_kit, kit)
     cases = [
+        ([str(files["jpg"]), *base, "--kit", str(flat_kit)], "flat_kit.json"),
         ([str(tmp_path / "missing.jpg"), *base], "missing.jpg"),
         ([str(files["jpg"]), *base, "--design", str(broken)], "broken.dxf"),
         ([str(files["jpg"]), *base, "--plot", str(tmp_path / "p.png")], "--plot"),
