@@ -74,10 +74,13 @@ __all__ = [
 #: Wanted final angles closer than this (deg) share one curve correction.
 GROUP_GAP_DEG = 0.5
 #: Default damping gain of a correction.
-DEFAULT_GAIN = 0.8
+DEFAULT_GAIN = 0.9
 #: Damping gain once the machine's response has been measured (see :func:`correct_calibration`).
-DEFAULT_INFORMED_GAIN = 0.9
+DEFAULT_INFORMED_GAIN = 0.95
 _CURVE_MODELS = ("linear", "pchip")
+#: A vertex whose measured bend (in the wanted direction) is below this many sigmas was
+#: not bent at all (see :func:`correct_calibration`).
+UNBENT_SIGMA = 3.0
 
 
 @dataclass(frozen=True)
@@ -100,7 +103,13 @@ class Correction:
     model_final_per_pin : d final / d pin per vertex of the uncorrected compensation.
     response_ratio : the machine's observed d final / d pin over the model's, from
         this part and the job's previous one (None: first part, or too little change);
-        the step is ``gain / response_ratio``.
+        the step is ``informed_gain / response_ratio``.
+    unbent : per vertex, whether it was not bent at all (measured bend in the wanted
+        direction below :data:`UNBENT_SIGMA` sigmas: the pin stopped short of the wire).
+    sigma_deg : the measured bends' stated standard uncertainties.
+    noise_factor : how much larger the job's observed part-to-part scatter is than
+        the stated sigmas (>= 1; see :func:`noise_factor`); the dead band uses
+        ``sigma_deg * noise_factor``.
     notes : what was not corrected and why.
     """
 
@@ -120,6 +129,9 @@ class Correction:
     bent_pin_deg: tuple[float, ...] = ()
     model_final_per_pin: tuple[float, ...] = ()
     response_ratio: float | None = None
+    unbent: tuple[bool, ...] = ()
+    sigma_deg: tuple[float, ...] = ()
+    noise_factor: float = 1.0
     notes: tuple[str, ...] = ()
 
     @property
@@ -146,6 +158,9 @@ class Correction:
             "bent_pin_deg": list(self.bent_pin_deg),
             "model_final_per_pin": list(self.model_final_per_pin),
             "response_ratio": self.response_ratio,
+            "unbent": list(self.unbent),
+            "sigma_deg": list(self.sigma_deg),
+            "noise_factor": self.noise_factor,
             "notes": list(self.notes),
         }
 
@@ -185,19 +200,27 @@ RESPONSE_RATIO_RANGE = (0.5, 2.0)
 
 
 def _response_ratio(
-    prev: Mapping[str, Any] | None, bent_pin: np.ndarray, measured: np.ndarray, noise_deg: float
+    prev: Mapping[str, Any] | None,
+    bent_pin: np.ndarray,
+    measured: np.ndarray,
+    noise_deg: float,
+    unbent: np.ndarray,
 ) -> float | None:
     """Observed d final / d pin over the model's, pooled over the job's vertices.
 
     From the last two parts of the job (their pins and measured bends); None when
-    the pins moved too little to tell the slope from the noise.
+    the pins moved too little to tell the slope from the noise. Vertices not bent
+    in either part (``unbent`` now, ``unbent`` in the previous record) have no slope.
     """
     if prev is None or "bent_pin_deg" not in prev or "model_final_per_pin" not in prev:
         return None
-    dp = bent_pin - np.asarray(prev["bent_pin_deg"], float)
-    dm = measured - np.asarray(prev["measured_deg"], float)
-    model = np.asarray(prev["model_final_per_pin"], float)
-    if dp.shape != bent_pin.shape or np.sqrt(np.mean(dp**2)) < 10.0 * max(noise_deg, 0.005):
+    used = ~unbent & ~np.asarray(prev.get("unbent", np.zeros(unbent.size, bool)), bool)
+    if not used.any():
+        return None
+    dp = (bent_pin - np.asarray(prev["bent_pin_deg"], float))[used]
+    dm = (measured - np.asarray(prev["measured_deg"], float))[used]
+    model = np.asarray(prev["model_final_per_pin"], float)[used]
+    if np.sqrt(np.mean(dp**2)) < 10.0 * max(noise_deg, 0.005):
         return None
     observed = float(np.sum(dp * dm) / np.sum(dp * dp))
     expected = float(np.sum(dp * dp * model) / np.sum(dp * dp))
@@ -254,6 +277,65 @@ def _pooled_errors(
         total += np.where(open_, np.asarray(c["measured_error_deg"], float), 0.0)
         k += open_
     return k, total / k
+
+
+#: Pins that moved less than this (deg) between two parts count as unchanged for the
+#: noise estimate of :func:`noise_factor`.
+STILL_PIN_DEG = 0.1
+#: At least this many repeat differences before the stated sigmas are scaled.
+MIN_REPEATS = 6
+#: The stated sigmas are scaled by at most this.
+MAX_NOISE_FACTOR = 5.0
+
+
+def noise_factor(
+    calibration: Calibration,
+    design: str,
+    bent_pin: np.ndarray,
+    measured: np.ndarray,
+    sigma: np.ndarray,
+) -> float:
+    """Observed over stated measurement noise of this job (>= 1; 1 until enough repeats).
+
+    The stated per-vertex sigmas of a part photo count sampling only; whether they
+    hold is seen when the job repeats. Between consecutive parts of the job (its
+    history, then this part), a vertex whose pin moved less than :data:`STILL_PIN_DEG`
+    should change its bend by the model's response to that move, within
+    ``sqrt(s1^2 + s2^2)``; the RMS of those normalised differences (at least
+    :data:`MIN_REPEATS` of them, vertices bent in both parts) scales the stated sigmas.
+    """
+    runs = [
+        c
+        for c in corrections_of(calibration)
+        if c.get("design") == design
+        and int(c.get("bends", -1)) == bent_pin.size
+        and len(c.get("sigma_deg", ())) == bent_pin.size
+    ]
+    now = {
+        "bent_pin_deg": bent_pin,
+        "measured_deg": measured,
+        "sigma_deg": sigma,
+        "unbent": np.zeros(bent_pin.size, bool),
+        "model_final_per_pin": runs[-1]["model_final_per_pin"] if runs else np.ones(bent_pin.size),
+    }
+    z: list[np.ndarray] = []
+    seq = [*runs, now]
+    for a, b in zip(seq[:-1], seq[1:], strict=False):
+        dp = np.asarray(b["bent_pin_deg"], float) - np.asarray(a["bent_pin_deg"], float)
+        dm = np.asarray(b["measured_deg"], float) - np.asarray(a["measured_deg"], float)
+        s2 = np.asarray(a["sigma_deg"], float) ** 2 + np.asarray(b["sigma_deg"], float) ** 2
+        ok = (
+            (np.abs(dp) < STILL_PIN_DEG)
+            & (s2 > 0)
+            & ~np.asarray(a.get("unbent", np.zeros(dp.size, bool)), bool)
+            & ~np.asarray(b.get("unbent", np.zeros(dp.size, bool)), bool)
+        )
+        model = np.asarray(a["model_final_per_pin"], float)
+        z.append(((dm - model * dp)[ok]) / np.sqrt(s2[ok]))
+    zz = np.concatenate(z) if z else np.zeros(0)
+    if zz.size < MIN_REPEATS:
+        return 1.0
+    return float(np.clip(np.sqrt(np.mean(zz**2)), 1.0, MAX_NOISE_FACTOR))
 
 
 def _groups(magnitudes: np.ndarray) -> list[np.ndarray]:
@@ -370,24 +452,44 @@ def correct_calibration(
                 for tt in t
             ]
         )
-    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)))
+    # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
+    factor = noise_factor(calibration, design, bent_pin, m, sig)
+    sig_eff = np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9))
+    # A vertex bent less than its noise, or the wrong way, was not bent at all: the pin
+    # stopped short of the wire (a dead zone: backlash, home offset and lost steps
+    # together exceed the wanted bend). Its error says only that the shortfall is at least
+    # the wanted bend; it is read from the same direction's bent vertices instead.
+    unbent = (sign * m < UNBENT_SIGMA * sig_eff) & (np.abs(t) > 2.0 * UNBENT_SIGMA * sig_eff)
+    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
     # once the machine's own response has been measured (ratio), the step is known to a
     # few per cent and the damping can be lighter: still < 1, so never an overshoot
-    step = gain / ratio * max(gain, informed_gain) / gain if ratio else gain
+    step = max(gain, informed_gain) / ratio if ratio else gain
     # Evidence accumulates while a vertex's pin stays the same: its error is the mean
     # over the job's consecutive parts bent with this very pin (k of them), whose noise is
     # sigma / sqrt(k). A first look (k = 1) acts only on errors beyond ``first_look_sigma``
     # sigmas (large errors are corrected at once); later looks beyond ``deadband_sigma``
     # sigmas of the mean. A converged job is thus not kicked about by noise.
     k, mean_error = _pooled_errors(calibration, design, bent_pin, error)
-    sig_eff = np.maximum(sig, min_deadband_deg / max(deadband_sigma, 1e-9))
     band = np.where(k == 1, first_look_sigma, deadband_sigma) * sig_eff / np.sqrt(k)
     error = mean_error
-    curves = dict(calibration.compensation.springback)
-    updates: list[dict[str, Any]] = []
     notes: list[str] = []
-    residual = error.copy()
-    whole = np.zeros(t.size, bool)  # vertices of a significant group the curve could not take
+    for direction in ("ccw", "cw"):
+        d_idx = np.array([tt != 0 and direction_of(tt) == direction for tt in t])
+        stuck = d_idx & unbent
+        if not stuck.any():
+            continue
+        bent_ok = d_idx & ~unbent
+        short = float(np.median(-sign[bent_ok] * error[bent_ok])) if bent_ok.any() else 0.0
+        error[stuck] = -sign[stuck] * np.maximum(np.abs(t[stuck]), short)
+        band[stuck] = 0.0
+        notes.append(
+            f"{direction}: {int(stuck.sum())} vertices not bent at all (dead zone); their "
+            f"shortfall is taken as max(wanted bend, the direction's median {short:.2f} deg)"
+        )
+    curves = dict(calibration.compensation.springback)
+    bent_curves = dict(calibration.compensation.springback)
+    updates: list[dict[str, Any]] = []
+    corrected = np.zeros(t.size)  # per vertex: the error (aim deg) this correction removes
     for direction in ("ccw", "cw"):
         idx = np.flatnonzero([(tt != 0 and direction_of(tt) == direction) for tt in t])
         if idx.size == 0:
@@ -398,27 +500,31 @@ def correct_calibration(
         mags = np.abs(t[idx])
         for group in _groups(mags):
             members = idx[group]
-            e_mag = float(np.mean(sign[members] * error[members]))
-            group_band = float(np.sqrt(np.mean(band[members] ** 2)) / np.sqrt(group.size))
-            residual[members] = error[members] - sign[members] * e_mag
-            if abs(e_mag) <= group_band:
-                residual[members] = error[members]  # the vertices may still correct alone
+            own = np.abs(error[members]) > band[members]
+            corrected[members] = np.where(own, error[members], 0.0)
+            live = members[~unbent[members]]  # a dead-zone vertex says nothing of the curve
+            if live.size == 0:
                 continue
-            final = float(np.mean(mags[group]))
-            curve = curves[direction]
+            e_mag = float(np.mean(sign[live] * error[live]))
+            group_band = float(np.sqrt(np.mean(band[live] ** 2)) / np.sqrt(live.size))
+            if abs(e_mag) <= group_band:
+                continue
+            # the group's mean is significant: every member takes it, plus its own rest
+            # when that rest is itself beyond the vertex's band
+            corrected[live] = np.where(own[~unbent[members]], error[live], sign[live] * e_mag)
+            final = float(np.mean(np.abs(t[live])))
             shift = -step * e_mag
-            before = _loaded_at(curve, final)
-            base_curve = base.springback[direction]
-            slope = _slope(lambda x, c=base_curve: _loaded_at(c, x), final)
+            # the knot moves from where the part was bent (the calibration it was bent
+            # with), not from a curve already moved by a neighbouring group
+            before = _loaded_at(bent_curves[direction], final)
+            slope = _slope(lambda x, c=base.springback[direction]: _loaded_at(c, x), final)
             after = before + shift * slope
-            moved = _with_knot(curve, final, after)
+            moved = _with_knot(curves[direction], final, after)
             if np.any(np.diff(moved.loaded_deg) <= 0):
                 notes.append(
                     f"{direction} {final:.2f} deg: moving the knot would make the curve "
-                    "non-monotone; corrected per vertex instead"
+                    "non-monotone; corrected per vertex only"
                 )
-                residual[members] = error[members]
-                whole[members] = True
                 continue
             curves[direction] = moved
             updates.append(
@@ -429,16 +535,18 @@ def correct_calibration(
                     "aim_shift_deg": shift,
                     "loaded_before_deg": before,
                     "loaded_after_deg": after,
-                    "vertices": [int(i) for i in members],
+                    "vertices": [int(i) for i in live],
                 }
             )
-    # a vertex whose own error is beyond its band is corrected whole (its group's share
-    # through the curve, the rest here), however small the rest
-    vertex = (np.abs(error) > band) | whole
-    offsets = offsets - np.where(vertex, step * residual * pin_per_final, 0.0)
+    # The job's next pins are set per vertex: the pin the part was bent with, moved by the
+    # damped error this correction removes. The curve's knots serve later jobs; whatever
+    # they (and their interpolation between knots) do to this job's vertices, the offsets
+    # take back, so no vertex is corrected twice and an untouched vertex keeps its pin.
+    wanted_pin = bent_pin - step * corrected * pin_per_final
     comp = replace(calibration.compensation, springback=curves)
     history = corrections_of(calibration)
     new_cal = replace(calibration, compensation=comp)
+    offsets = wanted_pin - np.asarray(corrected_pin_commands(new_cal, t))
     pins = corrected_pin_commands(new_cal, t, offsets)
     correction = Correction(
         part=part,
@@ -457,6 +565,9 @@ def correct_calibration(
         bent_pin_deg=tuple(float(v) for v in bent_pin),
         model_final_per_pin=tuple(float(1.0 / v) for v in pin_per_final),
         response_ratio=ratio,
+        unbent=tuple(bool(v) for v in unbent),
+        sigma_deg=tuple(float(v) for v in sig),
+        noise_factor=factor,
         notes=tuple(notes),
     )
     provenance = {**calibration.provenance, "corrections": [*history, correction.to_dict()]}
@@ -477,7 +588,7 @@ def correct_from_part(
     *,
     design_name: str = "design",
     gain: float = DEFAULT_GAIN,
-    deadband_sigma: float = 2.0,
+    deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
 ) -> tuple[Calibration, Correction, Any]:
     """Correct from a measured part; return (calibration, correction, the next job).
