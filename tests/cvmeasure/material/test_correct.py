@@ -45,7 +45,7 @@ EFFECTS = (Effect("backlash", 1.2), Effect("offset", 0.7), Effect("drift", 0.03)
 NOISE_DEG = 0.03
 
 
-def run_loop(cal, target, parts, *, seed=0, design="job"):
+def run_loop(cal, target, parts, *, seed=0, design="job", stated_sigma_deg=NOISE_DEG):
     """Bend ``parts`` parts, correcting after each; true bends of every part (parts, N)."""
     rng = np.random.default_rng(seed)
     made = []
@@ -55,7 +55,7 @@ def run_loop(cal, target, parts, *, seed=0, design="job"):
         made.append(true)
         measured = true + rng.normal(0.0, NOISE_DEG, len(target))
         cal, _ = correct_calibration(
-            cal, target, measured, sigma_deg=np.full(len(target), NOISE_DEG), design=design
+            cal, target, measured, sigma_deg=np.full(len(target), stated_sigma_deg), design=design
         )
     return cal, np.array(made)
 
@@ -77,6 +77,47 @@ def test_saddle_both_directions_and_mixed_angles():
     target = np.concatenate([target, rng.uniform(4, 40, 6) * rng.choice([-1, 1], 6)])
     _, made = run_loop(default_calibration(), target, 4, seed=1)
     assert np.abs(made[2] - target).max() < 0.1
+
+
+def test_a_bend_in_the_dead_zone_is_reached_within_two_corrections():
+    # the seed saddle's profile: 0.9 deg bends next to reversals, less than the machine's
+    # backlash plus home offset, so the first part has none at all there
+    target = np.array([-7.45, -4.47, -0.91, 2.72, 6.1, 8.36, 8.36, 6.1, 2.72, -0.91, -4.47, -7.45])
+    cal, made = run_loop(default_calibration(), target, 3, seed=4)
+    assert np.abs(made[0][[2, 9]]).max() < 0.05  # not bent at all
+    first = corrections_of(cal)[0]
+    assert first["unbent"][2] and first["unbent"][9] and sum(first["unbent"]) == 2
+    assert np.abs(made[2] - target).max() < 0.1
+
+
+def test_a_vertex_left_alone_keeps_its_pin_when_neighbouring_knots_move():
+    """Knots moved at 10 and 14 deg change the curve at 12 deg; the job's 12 deg vertex,
+    measured right, keeps its pin (its offset takes the interpolation back)."""
+    cal = default_calibration()
+    target = np.array([10.0, 12.0, 14.0])
+    measured = target + np.array([-1.0, 0.0, -1.0])
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=np.full(3, 0.02))
+    assert sorted(u["final_deg"] for u in corr.curve_updates) == [10.0, 14.0]
+    before = np.asarray(corrected_pin_commands(cal, target))
+    after = np.asarray(corr.pin_deg)
+    assert after[1] == pytest.approx(before[1], abs=1e-9)
+    # the curve alone (another job) does move at 12 deg
+    assert abs(corrected_pin_commands(cal2, [12.0])[0] - before[1]) > 0.3
+    # the corrected vertices move by gain * error through the model's slope, once
+    slope = np.asarray(corr.model_final_per_pin)
+    np.testing.assert_allclose((after - before)[[0, 2]] * slope[[0, 2]], 0.9, rtol=1e-6)
+
+
+def test_stated_sigmas_too_small_are_scaled_by_the_jobs_own_scatter():
+    target = np.full(10, 12.0)
+    # the photo states a third of the true noise: the job's repeats show it
+    cal, made = run_loop(default_calibration(), target, 14, seed=5, stated_sigma_deg=0.01)
+    factors = [c["noise_factor"] for c in corrections_of(cal)]
+    assert factors[0] == 1.0  # no repeats yet
+    assert 2.0 < factors[-1] < 4.5
+    assert np.abs(made[7:] - made[6]).max() < 2 * NOISE_DEG
+    cal, _ = run_loop(default_calibration(), target, 14, seed=5)  # honest sigmas
+    assert corrections_of(cal)[-1]["noise_factor"] < 1.5
 
 
 def test_no_oscillation_error_shrinks_monotonically():
