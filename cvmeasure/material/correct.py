@@ -9,27 +9,37 @@ is ``compensate(aim)``):
 1. **per direction and angle, through the compensation curve**: the vertices
    of one direction are grouped by wanted final angle (groups closer than
    :data:`GROUP_GAP_DEG`); a group whose mean error ``e`` exceeds its noise
-   dead band moves the springback curve so that the wanted angle ``T`` is
-   reached with the loaded angle that used to give ``T - gain * e``: a knot
-   ``(T, loaded(T - gain * e))`` replaces the knots within the gap of ``T``
-   (linear and PCHIP curves; any job bending ``T`` afterwards benefits);
-2. **per vertex, for a repeated job**: what is left at each vertex after its
-   group's mean (drift along the job, backlash after a change of side) goes
-   into a per-vertex pin offset (deg of pin, through the slope of the
-   uncorrected compensation), kept in the calibration's history for that
-   design and bend count.
+   dead band moves the springback curve the part was bent with so that the
+   wanted angle ``T`` is reached with the loaded angle that used to give
+   ``T - step * e``: a knot replaces the knots within the gap of ``T`` (linear
+   and PCHIP curves; any job bending ``T`` afterwards benefits);
+2. **per vertex, for a repeated job**: each vertex's next pin is the pin it was
+   bent with, moved by the damped error this correction removes (its group's
+   mean, plus its own rest beyond its band: drift along the job, backlash after
+   a change of side), through the slope of the uncorrected compensation. The
+   per-vertex pin offsets (kept in the calibration's history for that design and
+   bend count) are what makes the moved curve give those pins, so the curve's
+   interpolation between moved knots never corrects a vertex twice.
 
-The correction is damped (``gain`` < 1, default 0.8): with the true
+A vertex not bent at all (its measured bend in the wanted direction below
+:data:`UNBENT_SIGMA` sigmas: the pin stopped short of the wire, a dead zone of
+backlash, home offset and lost steps) is censored: its shortfall is taken as the
+larger of the wanted bend and the median shortfall of its direction's bent
+vertices, and it moves no knot and is left out of the response estimate.
+
+The correction is damped (``gain`` < 1, default 0.9): with the true
 response slope ``s = d final / d aim`` near 1, each error is multiplied by
 ``1 - gain * s``, which converges without sign changes for ``0 < gain * s < 1``
-(a springback or scale 25 % off the model still does not oscillate). From the
+(a springback or scale 10 % off the model still does not oscillate). From the
 second part of a job on, the machine's response is measured (the pooled ratio
 of bend change to pin change between its last two parts, over the model's) and
-the step becomes ``informed_gain / ratio`` (default 0.9). The dead band: an error
+the step becomes ``informed_gain / ratio`` (default 0.95). The dead band: an error
 seen once is corrected only beyond ``first_look_sigma`` (4) measurement sigmas;
 while a vertex's pin stays the same its errors are pooled over the job's parts
 and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas over
-``sqrt(k)``, so a converged job is not kicked about by measurement noise.
+``sqrt(k)``, so a converged job is not kicked about by measurement noise. The
+sigmas are the part's stated ones scaled by :func:`noise_factor` (the job's own
+part-to-part scatter, once it repeats).
 
 The calibration keeps every correction in ``provenance["corrections"]`` (a list,
 oldest first; :meth:`Correction.to_dict`): which part photo, which design,
@@ -69,6 +79,8 @@ __all__ = [
     "corrections_of",
     "correct_from_part",
     "target_bends_deg",
+    "noise_factor",
+    "UNBENT_SIGMA",
 ]
 
 #: Wanted final angles closer than this (deg) share one curve correction.
