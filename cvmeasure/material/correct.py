@@ -35,9 +35,11 @@ second part of a job on, the machine's response is measured (the pooled ratio
 of bend change to pin change between its last two parts, over the model's) and
 the step becomes ``informed_gain / ratio`` (default 0.95). The dead band: an error
 seen once is corrected only beyond ``first_look_sigma`` (4) measurement sigmas;
-while a vertex's pin stays the same its errors are pooled over the job's parts
-and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas over
-``sqrt(k)``, so a converged job is not kicked about by measurement noise. The
+while a vertex's pin stays within :data:`STILL_PIN_DEG` its errors are pooled over
+the job's parts (each brought to the current pin by the response to the small pin
+moves) and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas
+over ``sqrt(k)``, so a converged job is not kicked about by measurement noise (one
+photo's outlier weighs ``1/k`` in the mean instead of starting a correction). The
 sigmas are the part's stated ones scaled by :func:`noise_factor` (the job's own
 part-to-part scatter, once it repeats).
 
@@ -90,6 +92,16 @@ DEFAULT_GAIN = 0.9
 #: Damping gain once the machine's response has been measured (see :func:`correct_calibration`).
 DEFAULT_INFORMED_GAIN = 0.95
 _CURVE_MODELS = ("linear", "pchip")
+#: Pins that moved less than this (deg) between two parts of a job count as the same
+#: pin: their errors are pooled (brought to the new pin by the response) and their
+#: differences measure the noise (:func:`noise_factor`).
+STILL_PIN_DEG = 0.1
+#: At most this many parts of a job are pooled per vertex (a slow drift of the
+#: process is still followed).
+POOL_PARTS = 10
+#: This part's error differing from the job's pooled earlier parts (same pin) by more
+#: than this many combined sigmas is a suspect jump (see :func:`_pooled_errors`).
+JUMP_SIGMA = 6.0
 #: A vertex whose measured bend (in the wanted direction) is below this many sigmas was
 #: not bent at all (see :func:`correct_calibration`).
 UNBENT_SIGMA = 3.0
@@ -122,6 +134,9 @@ class Correction:
     noise_factor : how much larger the job's observed part-to-part scatter is than
         the stated sigmas (>= 1; see :func:`noise_factor`); the dead band uses
         ``sigma_deg * noise_factor``.
+    suspect : per vertex, whether this part's error was a jump from the earlier parts
+        bent with the same pin, left out of the pool (a measurement outlier, or a
+        process jump confirmed by the next part).
     notes : what was not corrected and why.
     """
 
@@ -144,6 +159,7 @@ class Correction:
     unbent: tuple[bool, ...] = ()
     sigma_deg: tuple[float, ...] = ()
     noise_factor: float = 1.0
+    suspect: tuple[bool, ...] = ()
     notes: tuple[str, ...] = ()
 
     @property
@@ -173,6 +189,7 @@ class Correction:
             "unbent": list(self.unbent),
             "sigma_deg": list(self.sigma_deg),
             "noise_factor": self.noise_factor,
+            "suspect": list(self.suspect),
             "notes": list(self.notes),
         }
 
@@ -270,30 +287,91 @@ def _slope(fn: Any, x: float, h: float = 0.5) -> float:
         return float((fn(x + h) - fn(x - h)) / (2.0 * h))
 
 
+@dataclass(frozen=True)
+class _Pool:
+    """Per vertex: parts pooled (k), their weighted mean error brought to this part's pin,
+    its standard uncertainty, and whether this part's error is a suspect jump."""
+
+    k: np.ndarray
+    mean_deg: np.ndarray
+    sigma_deg: np.ndarray
+    suspect: np.ndarray
+
+
 def _pooled_errors(
-    calibration: Calibration, design: str, bent_pin: np.ndarray, error: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per vertex: how many consecutive parts (this one included) had this pin, their mean error."""
-    total = error.copy()
-    k = np.ones(error.size)
+    calibration: Calibration,
+    design: str,
+    bent_pin: np.ndarray,
+    error: np.ndarray,
+    sigma: np.ndarray,
+    floor_deg: float,
+    factor: float,
+    response_ratio: float,
+) -> _Pool:
+    """Pool this part's errors with the job's latest parts bent with (nearly) this pin.
+
+    A part bent with a pin within :data:`STILL_PIN_DEG` of this part's counts, its error
+    moved by the response to the pin change (the model's slope times ``response_ratio``:
+    a few hundredths of a degree of pin, known to a few per cent); the pool stops at the
+    first part outside it, or not bent at that vertex, and holds at most
+    :data:`POOL_PARTS` parts. The mean is weighted by the inverse variances (each part's
+    stated sigma times ``factor``, at least ``floor_deg``): a vertex its photo measured
+    badly weighs little. This part's error is a suspect jump when it differs from the
+    earlier parts' mean by more than :data:`JUMP_SIGMA` combined sigmas: it is not
+    pooled, unless the job's previous part showed the same jump (then the process
+    moved: the pool restarts from those two parts).
+    """
+    w_now = 1.0 / np.maximum(sigma * factor, floor_deg) ** 2
+    w_sum = np.zeros(error.size)
+    we_sum = np.zeros(error.size)
+    k_prev = np.zeros(error.size)
     open_ = np.ones(error.size, bool)
+    last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # previous part's (e, w, suspect)
     for c in reversed(corrections_of(calibration)):
         if c.get("design") != design or int(c.get("bends", -1)) != error.size:
             continue
         pins = np.asarray(c.get("bent_pin_deg", ()), float)
-        if pins.shape != bent_pin.shape:
+        if pins.shape != bent_pin.shape or "model_final_per_pin" not in c:
             break
-        open_ &= np.abs(pins - bent_pin) < 1e-9
+        unbent = np.asarray(c.get("unbent", np.zeros(error.size, bool)), bool)
+        open_ &= (np.abs(pins - bent_pin) < STILL_PIN_DEG) & ~unbent & (k_prev < POOL_PARTS - 1)
         if not open_.any():
             break
-        total += np.where(open_, np.asarray(c["measured_error_deg"], float), 0.0)
-        k += open_
-    return k, total / k
+        model = np.asarray(c["model_final_per_pin"], float)
+        moved = np.asarray(c["measured_error_deg"], float) + response_ratio * model * (
+            bent_pin - pins
+        )
+        s = np.asarray(c.get("sigma_deg", sigma), float)
+        w = 1.0 / np.maximum(s * factor, floor_deg) ** 2
+        was_suspect = np.asarray(c.get("suspect", np.zeros(error.size, bool)), bool)
+        if last is None:
+            last = (moved, w, was_suspect & open_)
+        use = open_ & ~was_suspect
+        w_sum += np.where(use, w, 0.0)
+        we_sum += np.where(use, w * moved, 0.0)
+        k_prev += use
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_prev = np.where(k_prev > 0, we_sum / w_sum, 0.0)
+        gap_sigma = np.sqrt(1.0 / w_now + np.where(k_prev > 0, 1.0 / w_sum, 0.0))
+    suspect = (k_prev > 0) & (np.abs(error - mean_prev) > JUMP_SIGMA * gap_sigma)
+    k = k_prev + 1
+    mean = (we_sum + w_now * error) / (w_sum + w_now)
+    sig_pool = 1.0 / np.sqrt(w_sum + w_now)
+    if last is not None:
+        e_l, w_l, s_l = last
+        again = suspect & s_l & (np.abs(error - e_l) <= JUMP_SIGMA * np.sqrt(1 / w_now + 1 / w_l))
+        # the same jump twice running: the process moved; pool those two parts only
+        mean = np.where(again, (w_l * e_l + w_now * error) / (w_l + w_now), mean)
+        sig_pool = np.where(again, 1.0 / np.sqrt(w_l + w_now), sig_pool)
+        k = np.where(again, 2.0, k)
+        suspect &= ~again
+    # a suspect jump is not pooled: the earlier parts' mean stands
+    mean = np.where(suspect, mean_prev, mean)
+    sig_pool = np.where(suspect, 1.0 / np.sqrt(np.maximum(w_sum, 1e-30)), sig_pool)
+    k = np.where(suspect, k_prev, k)
+    return _Pool(k, mean, sig_pool, suspect)
 
 
-#: Pins that moved less than this (deg) between two parts count as unchanged for the
-#: noise estimate of :func:`noise_factor`.
-STILL_PIN_DEG = 0.1
 #: At least this many repeat differences before the stated sigmas are scaled.
 MIN_REPEATS = 6
 #: The stated sigmas are scaled by at most this.
@@ -313,8 +391,9 @@ def noise_factor(
     hold is seen when the job repeats. Between consecutive parts of the job (its
     history, then this part), a vertex whose pin moved less than :data:`STILL_PIN_DEG`
     should change its bend by the model's response to that move, within
-    ``sqrt(s1^2 + s2^2)``; the RMS of those normalised differences (at least
-    :data:`MIN_REPEATS` of them, vertices bent in both parts) scales the stated sigmas.
+    ``sqrt(s1^2 + s2^2)``; the robust SD (1.4826 times the median absolute value) of
+    those normalised differences (at least :data:`MIN_REPEATS` of them, vertices bent
+    in both parts) scales the stated sigmas.
     """
     runs = [
         c
@@ -347,7 +426,9 @@ def noise_factor(
     zz = np.concatenate(z) if z else np.zeros(0)
     if zz.size < MIN_REPEATS:
         return 1.0
-    return float(np.clip(np.sqrt(np.mean(zz**2)), 1.0, MAX_NOISE_FACTOR))
+    # a robust scale (1.4826 MAD, the SD of a normal): one photo's outlier must not
+    # widen the band for the whole job (outliers are the jump test's business)
+    return float(np.clip(1.4826 * np.median(np.abs(zz)), 1.0, MAX_NOISE_FACTOR))
 
 
 def _groups(magnitudes: np.ndarray) -> list[np.ndarray]:
@@ -481,10 +562,18 @@ def correct_calibration(
     # sigma / sqrt(k). A first look (k = 1) acts only on errors beyond ``first_look_sigma``
     # sigmas (large errors are corrected at once); later looks beyond ``deadband_sigma``
     # sigmas of the mean. A converged job is thus not kicked about by noise.
-    k, mean_error = _pooled_errors(calibration, design, bent_pin, error)
-    band = np.where(k == 1, first_look_sigma, deadband_sigma) * sig_eff / np.sqrt(k)
-    error = mean_error
+    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    pool = _pooled_errors(calibration, design, bent_pin, error, sig, floor, factor, ratio or 1.0)
+    k = pool.k
+    band = np.where(k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
+    error = pool.mean_deg
     notes: list[str] = []
+    if pool.suspect.any():
+        notes.append(
+            f"vertices {', '.join(str(int(i)) for i in np.flatnonzero(pool.suspect))}: "
+            "error unlike the earlier parts bent with this pin (a measurement outlier or a "
+            "jump of the process); not pooled until the next part shows it again"
+        )
     for direction in ("ccw", "cw"):
         d_idx = np.array([tt != 0 and direction_of(tt) == direction for tt in t])
         stuck = d_idx & unbent
@@ -580,6 +669,7 @@ def correct_calibration(
         unbent=tuple(bool(v) for v in unbent),
         sigma_deg=tuple(float(v) for v in sig),
         noise_factor=factor,
+        suspect=tuple(bool(v) for v in pool.suspect),
         notes=tuple(notes),
     )
     provenance = {**calibration.provenance, "corrections": [*history, correction.to_dict()]}

@@ -120,6 +120,43 @@ def test_stated_sigmas_too_small_are_scaled_by_the_jobs_own_scatter():
     assert corrections_of(cal)[-1]["noise_factor"] < 1.5
 
 
+def _converged_job(target, parts, seed):
+    cal, made = run_loop(default_calibration(), target, parts, seed=seed)
+    return cal, made[-1]
+
+
+def test_a_measurement_outlier_moves_no_pin_and_a_real_jump_is_followed():
+    target = np.full(8, 15.0)
+    cal, made = _converged_job(target, 8, seed=6)
+    sig = np.full(8, NOISE_DEG)
+    pins = corrected_pin_commands(cal, target, job_vertex_offsets(cal, "job", 8))
+    rng = np.random.default_rng(7)
+    # one photo measures vertex 3 1.5 deg off (its stated sigma normal): nothing moves
+    measured = made + rng.normal(0.0, NOISE_DEG, 8)
+    measured[3] += 1.5
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=sig, design="job")
+    assert corr.suspect[3] and sum(corr.suspect) == 1
+    assert corr.pin_deg == pytest.approx(pins, abs=0.05)  # the outlier would move it 1.35
+    # the next part measures right: still nothing moves
+    cal3, corr = correct_calibration(
+        cal2, target, made + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert not any(corr.suspect)
+    assert corr.pin_deg == pytest.approx(pins, abs=0.05)  # the outlier would move it 1.35
+    # a real jump of 0.5 deg at vertex 3, seen twice running: followed at the second part
+    shifted = made.copy()
+    shifted[3] -= 0.5
+    cal4, corr = correct_calibration(
+        cal3, target, shifted + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert corr.suspect[3] and corr.pin_deg[3] == pytest.approx(pins[3], abs=0.05)
+    _, corr = correct_calibration(
+        cal4, target, shifted + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert not corr.suspect[3]
+    assert abs(corr.pin_deg[3]) > abs(pins[3]) + 0.3
+
+
 def test_no_oscillation_error_shrinks_monotonically():
     target = np.full(12, 20.0)
     _, made = run_loop(default_calibration(), target, 4, seed=2)
