@@ -82,6 +82,7 @@ __all__ = [
     "correct_from_part",
     "target_bends_deg",
     "noise_factor",
+    "orient_to_job",
     "UNBENT_SIGMA",
 ]
 
@@ -683,6 +684,35 @@ def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarra
     return -bend_angles_deg(np.asarray(chord_vertices_mm, dtype=np.float64))
 
 
+#: The other end-to-end orientation is used when its bends' RMS error is below this
+#: share of the registered one's.
+TURN_RATIO = 0.5
+
+
+def orient_to_job(
+    target_deg: ArrayLike, measured_deg: ArrayLike, sigma_deg: ArrayLike | None
+) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """The measured bends in job order, choosing the end the job was fed from.
+
+    The registration of a part onto its design picks the end-to-end orientation by
+    shape alone; a part far from its design (the first part on an uncorrected
+    machine), of a design nearly symmetric end to end, can fit better reversed.
+    Reversed, the bends read ``-measured[::-1]``; the job's wanted bends decide: the
+    other orientation is used when its RMS error is below :data:`TURN_RATIO` of the
+    registered one's (a symmetric design gives equal errors and keeps the registration).
+    Returns (measured, sigma, turned), machine frame, deg.
+    """
+    t = np.asarray(target_deg, float)
+    m = np.asarray(measured_deg, float)
+    alt = -m[::-1]
+    rms = float(np.sqrt(np.mean((m - t) ** 2)))
+    rms_alt = float(np.sqrt(np.mean((alt - t) ** 2)))
+    if rms_alt < TURN_RATIO * rms:
+        sig = None if sigma_deg is None else np.asarray(sigma_deg, float)[::-1]
+        return alt, sig, True
+    return m, None if sigma_deg is None else np.asarray(sigma_deg, float), False
+
+
 def correct_from_part(
     calibration: Calibration,
     measurement: Any,
@@ -725,6 +755,7 @@ def correct_from_part(
     sigma = measurement.vertex_bend_sigma_deg
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
+    measured, sigma, turned = orient_to_job(target, measured, sigma)
     chords = design.chords(len(target) + 1)  # the count measured (given or found)
     bends = bend_list(chords, source=design_name)
     if len(bends.bends_deg) != len(target):
@@ -744,5 +775,14 @@ def correct_from_part(
         deadband_sigma=deadband_sigma,
         min_deadband_deg=min_deadband_deg,
     )
+    if turned:
+        note = (
+            "the photo's registration matched the part end to end reversed; its bends fit the "
+            "job far better the other way round, which was used"
+        )
+        corr = replace(corr, notes=(*corr.notes, note))
+        history = corrections_of(cal)
+        history[-1] = corr.to_dict()
+        cal = replace(cal, provenance={**cal.provenance, "corrections": history})
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
     return cal, corr, GcodeJob(lines, bends, corr.pin_deg)

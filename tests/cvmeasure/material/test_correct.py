@@ -272,3 +272,21 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     code = main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "other.gcode")])
     assert code == 2
     assert "other.gcode" in capsys.readouterr().err
+
+
+def test_a_part_registered_end_to_end_reversed_is_turned_back_by_the_job():
+    from cvmeasure.material.correct import orient_to_job
+
+    # random 21 of the closed-loop benchmark: nearly symmetric end to end, 2.4 deg off
+    target = np.array([18.719, -5.63, -7.953, 4.169, 8.621, -3.111, 3.848, -17.8])
+    made = target + np.array([-2.343, -0.296, -0.266, -2.288, -2.372, -0.155, -2.388, -0.096])
+    sigma = np.linspace(0.01, 0.02, 8)
+    measured, sig, turned = orient_to_job(target, -made[::-1], sigma)
+    assert turned
+    np.testing.assert_allclose(measured, made)
+    np.testing.assert_allclose(sig, sigma[::-1])
+    # registered right: kept; a design whose reversed reading is itself (both readings
+    # equally far from the job): the registration's choice is kept
+    assert not orient_to_job(target, made, sigma)[2]
+    sym = np.array([5.0, 3.0, -3.0, -5.0])
+    assert not orient_to_job(sym, sym + 0.3, sigma[:4])[2]
