@@ -43,7 +43,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
     p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")
     p.add_argument(
-        "--gain", type=positive_float, default=0.8, help="damping gain (0, 1], default 0.8"
+        "--gain",
+        type=positive_float,
+        default=0.9,
+        help="damping gain (0, 1] of a first correction, default 0.9 (from the job's second "
+        "part on, the measured response sets the step)",
     )
     p.add_argument(
         "--deadband-sigma",

@@ -9,27 +9,39 @@ is ``compensate(aim)``):
 1. **per direction and angle, through the compensation curve**: the vertices
    of one direction are grouped by wanted final angle (groups closer than
    :data:`GROUP_GAP_DEG`); a group whose mean error ``e`` exceeds its noise
-   dead band moves the springback curve so that the wanted angle ``T`` is
-   reached with the loaded angle that used to give ``T - gain * e``: a knot
-   ``(T, loaded(T - gain * e))`` replaces the knots within the gap of ``T``
-   (linear and PCHIP curves; any job bending ``T`` afterwards benefits);
-2. **per vertex, for a repeated job**: what is left at each vertex after its
-   group's mean (drift along the job, backlash after a change of side) goes
-   into a per-vertex pin offset (deg of pin, through the slope of the
-   uncorrected compensation), kept in the calibration's history for that
-   design and bend count.
+   dead band moves the springback curve the part was bent with so that the
+   wanted angle ``T`` is reached with the loaded angle that used to give
+   ``T - step * e``: a knot replaces the knots within the gap of ``T`` (linear
+   and PCHIP curves; any job bending ``T`` afterwards benefits);
+2. **per vertex, for a repeated job**: each vertex's next pin is the pin it was
+   bent with, moved by the damped error this correction removes (its group's
+   mean, plus its own rest beyond its band: drift along the job, backlash after
+   a change of side), through the slope of the uncorrected compensation. The
+   per-vertex pin offsets (kept in the calibration's history for that design and
+   bend count) are what makes the moved curve give those pins, so the curve's
+   interpolation between moved knots never corrects a vertex twice.
 
-The correction is damped (``gain`` < 1, default 0.8): with the true
+A vertex not bent at all (its measured bend in the wanted direction below
+:data:`UNBENT_SIGMA` sigmas: the pin stopped short of the wire, a dead zone of
+backlash, home offset and lost steps) is censored: its shortfall is taken as the
+larger of the wanted bend and the median shortfall of its direction's bent
+vertices, and it moves no knot and is left out of the response estimate.
+
+The correction is damped (``gain`` < 1, default 0.9): with the true
 response slope ``s = d final / d aim`` near 1, each error is multiplied by
 ``1 - gain * s``, which converges without sign changes for ``0 < gain * s < 1``
-(a springback or scale 25 % off the model still does not oscillate). From the
+(a springback or scale 10 % off the model still does not oscillate). From the
 second part of a job on, the machine's response is measured (the pooled ratio
 of bend change to pin change between its last two parts, over the model's) and
-the step becomes ``informed_gain / ratio`` (default 0.9). The dead band: an error
+the step becomes ``informed_gain / ratio`` (default 0.95). The dead band: an error
 seen once is corrected only beyond ``first_look_sigma`` (4) measurement sigmas;
-while a vertex's pin stays the same its errors are pooled over the job's parts
-and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas over
-``sqrt(k)``, so a converged job is not kicked about by measurement noise.
+while a vertex's pin stays within :data:`STILL_PIN_DEG` its errors are pooled over
+the job's parts (each brought to the current pin by the response to the small pin
+moves) and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas
+over ``sqrt(k)``, so a converged job is not kicked about by measurement noise (one
+photo's outlier weighs ``1/k`` in the mean instead of starting a correction). The
+sigmas are the part's stated ones scaled by :func:`noise_factor` (the job's own
+part-to-part scatter, once it repeats).
 
 The calibration keeps every correction in ``provenance["corrections"]`` (a list,
 oldest first; :meth:`Correction.to_dict`): which part photo, which design,
@@ -69,15 +81,31 @@ __all__ = [
     "corrections_of",
     "correct_from_part",
     "target_bends_deg",
+    "noise_factor",
+    "orient_to_job",
+    "UNBENT_SIGMA",
 ]
 
 #: Wanted final angles closer than this (deg) share one curve correction.
 GROUP_GAP_DEG = 0.5
 #: Default damping gain of a correction.
-DEFAULT_GAIN = 0.8
+DEFAULT_GAIN = 0.9
 #: Damping gain once the machine's response has been measured (see :func:`correct_calibration`).
-DEFAULT_INFORMED_GAIN = 0.9
+DEFAULT_INFORMED_GAIN = 0.95
 _CURVE_MODELS = ("linear", "pchip")
+#: Pins that moved less than this (deg) between two parts of a job count as the same
+#: pin: their errors are pooled (brought to the new pin by the response) and their
+#: differences measure the noise (:func:`noise_factor`).
+STILL_PIN_DEG = 0.1
+#: At most this many parts of a job are pooled per vertex (a slow drift of the
+#: process is still followed).
+POOL_PARTS = 10
+#: This part's error differing from the job's pooled earlier parts (same pin) by more
+#: than this many combined sigmas is a suspect jump (see :func:`_pooled_errors`).
+JUMP_SIGMA = 6.0
+#: A vertex whose measured bend (in the wanted direction) is below this many sigmas was
+#: not bent at all (see :func:`correct_calibration`).
+UNBENT_SIGMA = 3.0
 
 
 @dataclass(frozen=True)
@@ -100,7 +128,16 @@ class Correction:
     model_final_per_pin : d final / d pin per vertex of the uncorrected compensation.
     response_ratio : the machine's observed d final / d pin over the model's, from
         this part and the job's previous one (None: first part, or too little change);
-        the step is ``gain / response_ratio``.
+        the step is ``informed_gain / response_ratio``.
+    unbent : per vertex, whether it was not bent at all (measured bend in the wanted
+        direction below :data:`UNBENT_SIGMA` sigmas: the pin stopped short of the wire).
+    sigma_deg : the measured bends' stated standard uncertainties.
+    noise_factor : how much larger the job's observed part-to-part scatter is than
+        the stated sigmas (>= 1; see :func:`noise_factor`); the dead band uses
+        ``sigma_deg * noise_factor``.
+    suspect : per vertex, whether this part's error was a jump from the earlier parts
+        bent with the same pin, left out of the pool (a measurement outlier, or a
+        process jump confirmed by the next part).
     notes : what was not corrected and why.
     """
 
@@ -120,6 +157,10 @@ class Correction:
     bent_pin_deg: tuple[float, ...] = ()
     model_final_per_pin: tuple[float, ...] = ()
     response_ratio: float | None = None
+    unbent: tuple[bool, ...] = ()
+    sigma_deg: tuple[float, ...] = ()
+    noise_factor: float = 1.0
+    suspect: tuple[bool, ...] = ()
     notes: tuple[str, ...] = ()
 
     @property
@@ -146,6 +187,10 @@ class Correction:
             "bent_pin_deg": list(self.bent_pin_deg),
             "model_final_per_pin": list(self.model_final_per_pin),
             "response_ratio": self.response_ratio,
+            "unbent": list(self.unbent),
+            "sigma_deg": list(self.sigma_deg),
+            "noise_factor": self.noise_factor,
+            "suspect": list(self.suspect),
             "notes": list(self.notes),
         }
 
@@ -185,19 +230,27 @@ RESPONSE_RATIO_RANGE = (0.5, 2.0)
 
 
 def _response_ratio(
-    prev: Mapping[str, Any] | None, bent_pin: np.ndarray, measured: np.ndarray, noise_deg: float
+    prev: Mapping[str, Any] | None,
+    bent_pin: np.ndarray,
+    measured: np.ndarray,
+    noise_deg: float,
+    unbent: np.ndarray,
 ) -> float | None:
     """Observed d final / d pin over the model's, pooled over the job's vertices.
 
     From the last two parts of the job (their pins and measured bends); None when
-    the pins moved too little to tell the slope from the noise.
+    the pins moved too little to tell the slope from the noise. Vertices not bent
+    in either part (``unbent`` now, ``unbent`` in the previous record) have no slope.
     """
     if prev is None or "bent_pin_deg" not in prev or "model_final_per_pin" not in prev:
         return None
-    dp = bent_pin - np.asarray(prev["bent_pin_deg"], float)
-    dm = measured - np.asarray(prev["measured_deg"], float)
-    model = np.asarray(prev["model_final_per_pin"], float)
-    if dp.shape != bent_pin.shape or np.sqrt(np.mean(dp**2)) < 10.0 * max(noise_deg, 0.005):
+    used = ~unbent & ~np.asarray(prev.get("unbent", np.zeros(unbent.size, bool)), bool)
+    if not used.any():
+        return None
+    dp = (bent_pin - np.asarray(prev["bent_pin_deg"], float))[used]
+    dm = (measured - np.asarray(prev["measured_deg"], float))[used]
+    model = np.asarray(prev["model_final_per_pin"], float)[used]
+    if np.sqrt(np.mean(dp**2)) < 10.0 * max(noise_deg, 0.005):
         return None
     observed = float(np.sum(dp * dm) / np.sum(dp * dp))
     expected = float(np.sum(dp * dp * model) / np.sum(dp * dp))
@@ -235,25 +288,148 @@ def _slope(fn: Any, x: float, h: float = 0.5) -> float:
         return float((fn(x + h) - fn(x - h)) / (2.0 * h))
 
 
+@dataclass(frozen=True)
+class _Pool:
+    """Per vertex: parts pooled (k), their weighted mean error brought to this part's pin,
+    its standard uncertainty, and whether this part's error is a suspect jump."""
+
+    k: np.ndarray
+    mean_deg: np.ndarray
+    sigma_deg: np.ndarray
+    suspect: np.ndarray
+
+
 def _pooled_errors(
-    calibration: Calibration, design: str, bent_pin: np.ndarray, error: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Per vertex: how many consecutive parts (this one included) had this pin, their mean error."""
-    total = error.copy()
-    k = np.ones(error.size)
+    calibration: Calibration,
+    design: str,
+    bent_pin: np.ndarray,
+    error: np.ndarray,
+    sigma: np.ndarray,
+    floor_deg: float,
+    factor: float,
+    response_ratio: float,
+) -> _Pool:
+    """Pool this part's errors with the job's latest parts bent with (nearly) this pin.
+
+    A part bent with a pin within :data:`STILL_PIN_DEG` of this part's counts, its error
+    moved by the response to the pin change (the model's slope times ``response_ratio``:
+    a few hundredths of a degree of pin, known to a few per cent); the pool stops at the
+    first part outside it, or not bent at that vertex, and holds at most
+    :data:`POOL_PARTS` parts. The mean is weighted by the inverse variances (each part's
+    stated sigma times ``factor``, at least ``floor_deg``): a vertex its photo measured
+    badly weighs little. This part's error is a suspect jump when it differs from the
+    earlier parts' mean by more than :data:`JUMP_SIGMA` combined sigmas: it is not
+    pooled, unless the job's previous part showed the same jump (then the process
+    moved: the pool restarts from those two parts).
+    """
+    w_now = 1.0 / np.maximum(sigma * factor, floor_deg) ** 2
+    w_sum = np.zeros(error.size)
+    we_sum = np.zeros(error.size)
+    k_prev = np.zeros(error.size)
     open_ = np.ones(error.size, bool)
+    last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # previous part's (e, w, suspect)
     for c in reversed(corrections_of(calibration)):
         if c.get("design") != design or int(c.get("bends", -1)) != error.size:
             continue
         pins = np.asarray(c.get("bent_pin_deg", ()), float)
-        if pins.shape != bent_pin.shape:
+        if pins.shape != bent_pin.shape or "model_final_per_pin" not in c:
             break
-        open_ &= np.abs(pins - bent_pin) < 1e-9
+        unbent = np.asarray(c.get("unbent", np.zeros(error.size, bool)), bool)
+        open_ &= (np.abs(pins - bent_pin) < STILL_PIN_DEG) & ~unbent & (k_prev < POOL_PARTS - 1)
         if not open_.any():
             break
-        total += np.where(open_, np.asarray(c["measured_error_deg"], float), 0.0)
-        k += open_
-    return k, total / k
+        model = np.asarray(c["model_final_per_pin"], float)
+        moved = np.asarray(c["measured_error_deg"], float) + response_ratio * model * (
+            bent_pin - pins
+        )
+        s = np.asarray(c.get("sigma_deg", sigma), float)
+        w = 1.0 / np.maximum(s * factor, floor_deg) ** 2
+        was_suspect = np.asarray(c.get("suspect", np.zeros(error.size, bool)), bool)
+        if last is None:
+            last = (moved, w, was_suspect & open_)
+        use = open_ & ~was_suspect
+        w_sum += np.where(use, w, 0.0)
+        we_sum += np.where(use, w * moved, 0.0)
+        k_prev += use
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_prev = np.where(k_prev > 0, we_sum / w_sum, 0.0)
+        gap_sigma = np.sqrt(1.0 / w_now + np.where(k_prev > 0, 1.0 / w_sum, 0.0))
+    suspect = (k_prev > 0) & (np.abs(error - mean_prev) > JUMP_SIGMA * gap_sigma)
+    k = k_prev + 1
+    mean = (we_sum + w_now * error) / (w_sum + w_now)
+    sig_pool = 1.0 / np.sqrt(w_sum + w_now)
+    if last is not None:
+        e_l, w_l, s_l = last
+        again = suspect & s_l & (np.abs(error - e_l) <= JUMP_SIGMA * np.sqrt(1 / w_now + 1 / w_l))
+        # the same jump twice running: the process moved; pool those two parts only
+        mean = np.where(again, (w_l * e_l + w_now * error) / (w_l + w_now), mean)
+        sig_pool = np.where(again, 1.0 / np.sqrt(w_l + w_now), sig_pool)
+        k = np.where(again, 2.0, k)
+        suspect &= ~again
+    # a suspect jump is not pooled: the earlier parts' mean stands
+    mean = np.where(suspect, mean_prev, mean)
+    sig_pool = np.where(suspect, 1.0 / np.sqrt(np.maximum(w_sum, 1e-30)), sig_pool)
+    k = np.where(suspect, k_prev, k)
+    return _Pool(k, mean, sig_pool, suspect)
+
+
+#: At least this many repeat differences before the stated sigmas are scaled.
+MIN_REPEATS = 6
+#: The stated sigmas are scaled by at most this.
+MAX_NOISE_FACTOR = 5.0
+
+
+def noise_factor(
+    calibration: Calibration,
+    design: str,
+    bent_pin: np.ndarray,
+    measured: np.ndarray,
+    sigma: np.ndarray,
+) -> float:
+    """Observed over stated measurement noise of this job (>= 1; 1 until enough repeats).
+
+    The stated per-vertex sigmas of a part photo count sampling only; whether they
+    hold is seen when the job repeats. Between consecutive parts of the job (its
+    history, then this part), a vertex whose pin moved less than :data:`STILL_PIN_DEG`
+    should change its bend by the model's response to that move, within
+    ``sqrt(s1^2 + s2^2)``; the robust SD (1.4826 times the median absolute value) of
+    those normalised differences (at least :data:`MIN_REPEATS` of them, vertices bent
+    in both parts) scales the stated sigmas.
+    """
+    runs = [
+        c
+        for c in corrections_of(calibration)
+        if c.get("design") == design
+        and int(c.get("bends", -1)) == bent_pin.size
+        and len(c.get("sigma_deg", ())) == bent_pin.size
+    ]
+    now = {
+        "bent_pin_deg": bent_pin,
+        "measured_deg": measured,
+        "sigma_deg": sigma,
+        "unbent": np.zeros(bent_pin.size, bool),
+        "model_final_per_pin": runs[-1]["model_final_per_pin"] if runs else np.ones(bent_pin.size),
+    }
+    z: list[np.ndarray] = []
+    seq = [*runs, now]
+    for a, b in zip(seq[:-1], seq[1:], strict=False):
+        dp = np.asarray(b["bent_pin_deg"], float) - np.asarray(a["bent_pin_deg"], float)
+        dm = np.asarray(b["measured_deg"], float) - np.asarray(a["measured_deg"], float)
+        s2 = np.asarray(a["sigma_deg"], float) ** 2 + np.asarray(b["sigma_deg"], float) ** 2
+        ok = (
+            (np.abs(dp) < STILL_PIN_DEG)
+            & (s2 > 0)
+            & ~np.asarray(a.get("unbent", np.zeros(dp.size, bool)), bool)
+            & ~np.asarray(b.get("unbent", np.zeros(dp.size, bool)), bool)
+        )
+        model = np.asarray(a["model_final_per_pin"], float)
+        z.append(((dm - model * dp)[ok]) / np.sqrt(s2[ok]))
+    zz = np.concatenate(z) if z else np.zeros(0)
+    if zz.size < MIN_REPEATS:
+        return 1.0
+    # a robust scale (1.4826 MAD, the SD of a normal): one photo's outlier must not
+    # widen the band for the whole job (outliers are the jump test's business)
+    return float(np.clip(1.4826 * np.median(np.abs(zz)), 1.0, MAX_NOISE_FACTOR))
 
 
 def _groups(magnitudes: np.ndarray) -> list[np.ndarray]:
@@ -370,24 +546,52 @@ def correct_calibration(
                 for tt in t
             ]
         )
-    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)))
+    # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
+    factor = noise_factor(calibration, design, bent_pin, m, sig)
+    sig_eff = np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9))
+    # A vertex bent less than its noise, or the wrong way, was not bent at all: the pin
+    # stopped short of the wire (a dead zone: backlash, home offset and lost steps
+    # together exceed the wanted bend). Its error says only that the shortfall is at least
+    # the wanted bend; it is read from the same direction's bent vertices instead.
+    unbent = (sign * m < UNBENT_SIGMA * sig_eff) & (np.abs(t) > 2.0 * UNBENT_SIGMA * sig_eff)
+    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
     # once the machine's own response has been measured (ratio), the step is known to a
     # few per cent and the damping can be lighter: still < 1, so never an overshoot
-    step = gain / ratio * max(gain, informed_gain) / gain if ratio else gain
+    step = max(gain, informed_gain) / ratio if ratio else gain
     # Evidence accumulates while a vertex's pin stays the same: its error is the mean
     # over the job's consecutive parts bent with this very pin (k of them), whose noise is
     # sigma / sqrt(k). A first look (k = 1) acts only on errors beyond ``first_look_sigma``
     # sigmas (large errors are corrected at once); later looks beyond ``deadband_sigma``
     # sigmas of the mean. A converged job is thus not kicked about by noise.
-    k, mean_error = _pooled_errors(calibration, design, bent_pin, error)
-    sig_eff = np.maximum(sig, min_deadband_deg / max(deadband_sigma, 1e-9))
-    band = np.where(k == 1, first_look_sigma, deadband_sigma) * sig_eff / np.sqrt(k)
-    error = mean_error
-    curves = dict(calibration.compensation.springback)
-    updates: list[dict[str, Any]] = []
+    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    pool = _pooled_errors(calibration, design, bent_pin, error, sig, floor, factor, ratio or 1.0)
+    k = pool.k
+    band = np.where(k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
+    error = pool.mean_deg
     notes: list[str] = []
-    residual = error.copy()
-    whole = np.zeros(t.size, bool)  # vertices of a significant group the curve could not take
+    if pool.suspect.any():
+        notes.append(
+            f"vertices {', '.join(str(int(i)) for i in np.flatnonzero(pool.suspect))}: "
+            "error unlike the earlier parts bent with this pin (a measurement outlier or a "
+            "jump of the process); not pooled until the next part shows it again"
+        )
+    for direction in ("ccw", "cw"):
+        d_idx = np.array([tt != 0 and direction_of(tt) == direction for tt in t])
+        stuck = d_idx & unbent
+        if not stuck.any():
+            continue
+        bent_ok = d_idx & ~unbent
+        short = float(np.median(-sign[bent_ok] * error[bent_ok])) if bent_ok.any() else 0.0
+        error[stuck] = -sign[stuck] * np.maximum(np.abs(t[stuck]), short)
+        band[stuck] = 0.0
+        notes.append(
+            f"{direction}: {int(stuck.sum())} vertices not bent at all (dead zone); their "
+            f"shortfall is taken as max(wanted bend, the direction's median {short:.2f} deg)"
+        )
+    curves = dict(calibration.compensation.springback)
+    bent_curves = dict(calibration.compensation.springback)
+    updates: list[dict[str, Any]] = []
+    corrected = np.zeros(t.size)  # per vertex: the error (aim deg) this correction removes
     for direction in ("ccw", "cw"):
         idx = np.flatnonzero([(tt != 0 and direction_of(tt) == direction) for tt in t])
         if idx.size == 0:
@@ -398,27 +602,31 @@ def correct_calibration(
         mags = np.abs(t[idx])
         for group in _groups(mags):
             members = idx[group]
-            e_mag = float(np.mean(sign[members] * error[members]))
-            group_band = float(np.sqrt(np.mean(band[members] ** 2)) / np.sqrt(group.size))
-            residual[members] = error[members] - sign[members] * e_mag
-            if abs(e_mag) <= group_band:
-                residual[members] = error[members]  # the vertices may still correct alone
+            own = np.abs(error[members]) > band[members]
+            corrected[members] = np.where(own, error[members], 0.0)
+            live = members[~unbent[members]]  # a dead-zone vertex says nothing of the curve
+            if live.size == 0:
                 continue
-            final = float(np.mean(mags[group]))
-            curve = curves[direction]
+            e_mag = float(np.mean(sign[live] * error[live]))
+            group_band = float(np.sqrt(np.mean(band[live] ** 2)) / np.sqrt(live.size))
+            if abs(e_mag) <= group_band:
+                continue
+            # the group's mean is significant: every member takes it, plus its own rest
+            # when that rest is itself beyond the vertex's band
+            corrected[live] = np.where(own[~unbent[members]], error[live], sign[live] * e_mag)
+            final = float(np.mean(np.abs(t[live])))
             shift = -step * e_mag
-            before = _loaded_at(curve, final)
-            base_curve = base.springback[direction]
-            slope = _slope(lambda x, c=base_curve: _loaded_at(c, x), final)
+            # the knot moves from where the part was bent (the calibration it was bent
+            # with), not from a curve already moved by a neighbouring group
+            before = _loaded_at(bent_curves[direction], final)
+            slope = _slope(lambda x, c=base.springback[direction]: _loaded_at(c, x), final)
             after = before + shift * slope
-            moved = _with_knot(curve, final, after)
+            moved = _with_knot(curves[direction], final, after)
             if np.any(np.diff(moved.loaded_deg) <= 0):
                 notes.append(
                     f"{direction} {final:.2f} deg: moving the knot would make the curve "
-                    "non-monotone; corrected per vertex instead"
+                    "non-monotone; corrected per vertex only"
                 )
-                residual[members] = error[members]
-                whole[members] = True
                 continue
             curves[direction] = moved
             updates.append(
@@ -429,16 +637,18 @@ def correct_calibration(
                     "aim_shift_deg": shift,
                     "loaded_before_deg": before,
                     "loaded_after_deg": after,
-                    "vertices": [int(i) for i in members],
+                    "vertices": [int(i) for i in live],
                 }
             )
-    # a vertex whose own error is beyond its band is corrected whole (its group's share
-    # through the curve, the rest here), however small the rest
-    vertex = (np.abs(error) > band) | whole
-    offsets = offsets - np.where(vertex, step * residual * pin_per_final, 0.0)
+    # The job's next pins are set per vertex: the pin the part was bent with, moved by the
+    # damped error this correction removes. The curve's knots serve later jobs; whatever
+    # they (and their interpolation between knots) do to this job's vertices, the offsets
+    # take back, so no vertex is corrected twice and an untouched vertex keeps its pin.
+    wanted_pin = bent_pin - step * corrected * pin_per_final
     comp = replace(calibration.compensation, springback=curves)
     history = corrections_of(calibration)
     new_cal = replace(calibration, compensation=comp)
+    offsets = wanted_pin - np.asarray(corrected_pin_commands(new_cal, t))
     pins = corrected_pin_commands(new_cal, t, offsets)
     correction = Correction(
         part=part,
@@ -457,6 +667,10 @@ def correct_calibration(
         bent_pin_deg=tuple(float(v) for v in bent_pin),
         model_final_per_pin=tuple(float(1.0 / v) for v in pin_per_final),
         response_ratio=ratio,
+        unbent=tuple(bool(v) for v in unbent),
+        sigma_deg=tuple(float(v) for v in sig),
+        noise_factor=factor,
+        suspect=tuple(bool(v) for v in pool.suspect),
         notes=tuple(notes),
     )
     provenance = {**calibration.provenance, "corrections": [*history, correction.to_dict()]}
@@ -470,6 +684,35 @@ def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarra
     return -bend_angles_deg(np.asarray(chord_vertices_mm, dtype=np.float64))
 
 
+#: The other end-to-end orientation is used when its bends' RMS error is below this
+#: share of the registered one's.
+TURN_RATIO = 0.5
+
+
+def orient_to_job(
+    target_deg: ArrayLike, measured_deg: ArrayLike, sigma_deg: ArrayLike | None
+) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """The measured bends in job order, choosing the end the job was fed from.
+
+    The registration of a part onto its design picks the end-to-end orientation by
+    shape alone; a part far from its design (the first part on an uncorrected
+    machine), of a design nearly symmetric end to end, can fit better reversed.
+    Reversed, the bends read ``-measured[::-1]``; the job's wanted bends decide: the
+    other orientation is used when its RMS error is below :data:`TURN_RATIO` of the
+    registered one's (a symmetric design gives equal errors and keeps the registration).
+    Returns (measured, sigma, turned), machine frame, deg.
+    """
+    t = np.asarray(target_deg, float)
+    m = np.asarray(measured_deg, float)
+    alt = -m[::-1]
+    rms = float(np.sqrt(np.mean((m - t) ** 2)))
+    rms_alt = float(np.sqrt(np.mean((alt - t) ** 2)))
+    if rms_alt < TURN_RATIO * rms:
+        sig = None if sigma_deg is None else np.asarray(sigma_deg, float)[::-1]
+        return alt, sig, True
+    return m, None if sigma_deg is None else np.asarray(sigma_deg, float), False
+
+
 def correct_from_part(
     calibration: Calibration,
     measurement: Any,
@@ -477,7 +720,7 @@ def correct_from_part(
     *,
     design_name: str = "design",
     gain: float = DEFAULT_GAIN,
-    deadband_sigma: float = 2.0,
+    deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
 ) -> tuple[Calibration, Correction, Any]:
     """Correct from a measured part; return (calibration, correction, the next job).
@@ -512,6 +755,7 @@ def correct_from_part(
     sigma = measurement.vertex_bend_sigma_deg
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
+    measured, sigma, turned = orient_to_job(target, measured, sigma)
     chords = design.chords(len(target) + 1)  # the count measured (given or found)
     bends = bend_list(chords, source=design_name)
     if len(bends.bends_deg) != len(target):
@@ -531,5 +775,14 @@ def correct_from_part(
         deadband_sigma=deadband_sigma,
         min_deadband_deg=min_deadband_deg,
     )
+    if turned:
+        note = (
+            "the photo's registration matched the part end to end reversed; its bends fit the "
+            "job far better the other way round, which was used"
+        )
+        corr = replace(corr, notes=(*corr.notes, note))
+        history = corrections_of(cal)
+        history[-1] = corr.to_dict()
+        cal = replace(cal, provenance={**cal.provenance, "corrections": history})
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
     return cal, corr, GcodeJob(lines, bends, corr.pin_deg)

@@ -45,7 +45,7 @@ EFFECTS = (Effect("backlash", 1.2), Effect("offset", 0.7), Effect("drift", 0.03)
 NOISE_DEG = 0.03
 
 
-def run_loop(cal, target, parts, *, seed=0, design="job"):
+def run_loop(cal, target, parts, *, seed=0, design="job", stated_sigma_deg=NOISE_DEG):
     """Bend ``parts`` parts, correcting after each; true bends of every part (parts, N)."""
     rng = np.random.default_rng(seed)
     made = []
@@ -55,7 +55,7 @@ def run_loop(cal, target, parts, *, seed=0, design="job"):
         made.append(true)
         measured = true + rng.normal(0.0, NOISE_DEG, len(target))
         cal, _ = correct_calibration(
-            cal, target, measured, sigma_deg=np.full(len(target), NOISE_DEG), design=design
+            cal, target, measured, sigma_deg=np.full(len(target), stated_sigma_deg), design=design
         )
     return cal, np.array(made)
 
@@ -77,6 +77,84 @@ def test_saddle_both_directions_and_mixed_angles():
     target = np.concatenate([target, rng.uniform(4, 40, 6) * rng.choice([-1, 1], 6)])
     _, made = run_loop(default_calibration(), target, 4, seed=1)
     assert np.abs(made[2] - target).max() < 0.1
+
+
+def test_a_bend_in_the_dead_zone_is_reached_within_two_corrections():
+    # the seed saddle's profile: 0.9 deg bends next to reversals, less than the machine's
+    # backlash plus home offset, so the first part has none at all there
+    target = np.array([-7.45, -4.47, -0.91, 2.72, 6.1, 8.36, 8.36, 6.1, 2.72, -0.91, -4.47, -7.45])
+    cal, made = run_loop(default_calibration(), target, 3, seed=4)
+    assert np.abs(made[0][[2, 9]]).max() < 0.05  # not bent at all
+    first = corrections_of(cal)[0]
+    assert first["unbent"][2] and first["unbent"][9] and sum(first["unbent"]) == 2
+    assert np.abs(made[2] - target).max() < 0.1
+
+
+def test_a_vertex_left_alone_keeps_its_pin_when_neighbouring_knots_move():
+    """Knots moved at 10 and 14 deg change the curve at 12 deg; the job's 12 deg vertex,
+    measured right, keeps its pin (its offset takes the interpolation back)."""
+    cal = default_calibration()
+    target = np.array([10.0, 12.0, 14.0])
+    measured = target + np.array([-1.0, 0.0, -1.0])
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=np.full(3, 0.02))
+    assert sorted(u["final_deg"] for u in corr.curve_updates) == [10.0, 14.0]
+    before = np.asarray(corrected_pin_commands(cal, target))
+    after = np.asarray(corr.pin_deg)
+    assert after[1] == pytest.approx(before[1], abs=1e-9)
+    # the curve alone (another job) does move at 12 deg
+    assert abs(corrected_pin_commands(cal2, [12.0])[0] - before[1]) > 0.3
+    # the corrected vertices move by gain * error through the model's slope, once
+    slope = np.asarray(corr.model_final_per_pin)
+    np.testing.assert_allclose((after - before)[[0, 2]] * slope[[0, 2]], 0.9, rtol=1e-6)
+
+
+def test_stated_sigmas_too_small_are_scaled_by_the_jobs_own_scatter():
+    target = np.full(10, 12.0)
+    # the photo states a third of the true noise: the job's repeats show it
+    cal, made = run_loop(default_calibration(), target, 14, seed=5, stated_sigma_deg=0.01)
+    factors = [c["noise_factor"] for c in corrections_of(cal)]
+    assert factors[0] == 1.0  # no repeats yet
+    assert 2.0 < factors[-1] < 4.5
+    assert np.abs(made[7:] - made[6]).max() < 2 * NOISE_DEG
+    cal, _ = run_loop(default_calibration(), target, 14, seed=5)  # honest sigmas
+    assert corrections_of(cal)[-1]["noise_factor"] < 1.5
+
+
+def _converged_job(target, parts, seed):
+    cal, made = run_loop(default_calibration(), target, parts, seed=seed)
+    return cal, made[-1]
+
+
+def test_a_measurement_outlier_moves_no_pin_and_a_real_jump_is_followed():
+    target = np.full(8, 15.0)
+    cal, made = _converged_job(target, 8, seed=6)
+    sig = np.full(8, NOISE_DEG)
+    pins = corrected_pin_commands(cal, target, job_vertex_offsets(cal, "job", 8))
+    rng = np.random.default_rng(7)
+    # one photo measures vertex 3 1.5 deg off (its stated sigma normal): nothing moves
+    measured = made + rng.normal(0.0, NOISE_DEG, 8)
+    measured[3] += 1.5
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=sig, design="job")
+    assert corr.suspect[3] and sum(corr.suspect) == 1
+    assert corr.pin_deg == pytest.approx(pins, abs=0.05)  # the outlier would move it 1.35
+    # the next part measures right: still nothing moves
+    cal3, corr = correct_calibration(
+        cal2, target, made + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert not any(corr.suspect)
+    assert corr.pin_deg == pytest.approx(pins, abs=0.05)  # the outlier would move it 1.35
+    # a real jump of 0.5 deg at vertex 3, seen twice running: followed at the second part
+    shifted = made.copy()
+    shifted[3] -= 0.5
+    cal4, corr = correct_calibration(
+        cal3, target, shifted + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert corr.suspect[3] and corr.pin_deg[3] == pytest.approx(pins[3], abs=0.05)
+    _, corr = correct_calibration(
+        cal4, target, shifted + rng.normal(0.0, NOISE_DEG, 8), sigma_deg=sig, design="job"
+    )
+    assert not corr.suspect[3]
+    assert abs(corr.pin_deg[3]) > abs(pins[3]) + 0.3
 
 
 def test_no_oscillation_error_shrinks_monotonically():
@@ -194,3 +272,21 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     code = main(["correct", str(jpg), *common, *out, "--job", str(tmp_path / "other.gcode")])
     assert code == 2
     assert "other.gcode" in capsys.readouterr().err
+
+
+def test_a_part_registered_end_to_end_reversed_is_turned_back_by_the_job():
+    from cvmeasure.material.correct import orient_to_job
+
+    # random 21 of the closed-loop benchmark: nearly symmetric end to end, 2.4 deg off
+    target = np.array([18.719, -5.63, -7.953, 4.169, 8.621, -3.111, 3.848, -17.8])
+    made = target + np.array([-2.343, -0.296, -0.266, -2.288, -2.372, -0.155, -2.388, -0.096])
+    sigma = np.linspace(0.01, 0.02, 8)
+    measured, sig, turned = orient_to_job(target, -made[::-1], sigma)
+    assert turned
+    np.testing.assert_allclose(measured, made)
+    np.testing.assert_allclose(sig, sigma[::-1])
+    # registered right: kept; a design whose reversed reading is itself (both readings
+    # equally far from the job): the registration's choice is kept
+    assert not orient_to_job(target, made, sigma)[2]
+    sym = np.array([5.0, 3.0, -3.0, -5.0])
+    assert not orient_to_job(sym, sym + 0.3, sigma[:4])[2]
