@@ -9,10 +9,13 @@ physically general form (defaults in brackets give the narrow form):
   the same direction as the one before (a pure play operator with return to
   home loses it only on direction reversals: 0);
 - ``drift``: ``load_exponent`` [0]: the steps lost per bend grow with the pin
-  torque as ``d (T / 3 N m)^p``; the loss shifts home, so a later bend in the
-  same direction is under-bent and one in the other direction over-bent
-  (``h_k = -sum_{j<k} s_j d_j``, the helix of the seed paper when all bends go one
-  way; a re-home, bend_index back to 0, resets it);
+  torque as ``d_j = d (T_j / 3 N m)^p``; ``home_shift`` [0]: the share of the
+  accumulated loss that shifts home instead of shortening every later bend. The
+  narrow form (0, the spec's helix) shortens bend k by ``d k`` whatever its
+  direction; a home shift (1) under-bends a later bend in the same direction and
+  over-bends one in the other (``h_k = -sum_{j<k} s_j d_j``; both agree when all
+  bends go one way). The general form (either shape parameter non-zero) follows
+  the rows in the order executed; a re-home (bend_index back to 0) resets it;
 - ``camera_tilt``: ``tilt_axis_deg`` [0]: the tilt is about an axis at this
   azimuth in the bending plane (0: the feed axis); angles are measured from the
   image of the feed leg.
@@ -27,8 +30,9 @@ name                     parameter                   enters the model as
                                                      ``w_k = 1`` on a reversal, else the share
 ``offset``               ``offset_deg``              zero error: ``r -> r + c`` (signed)
 ``scale``                ``scale``                   ``r -> r (1 + s)``
-``drift``                ``drift_deg_per_bend``      home shift from steps lost by earlier
-                                                     bends: ``r -> r + h_k`` (signed)
+``drift``                ``drift_deg_per_bend``      loss growing with bend index k:
+                                                     ``|r| -> |r| - d k`` (the helix); general
+                                                     form: home shift ``r -> r + h_k``
 ``springback_asymmetry`` ``asymmetry``               springback ``* (1 + s_dir alpha)``
 ``camera_tilt``          ``tilt_deg``                measured angles foreshortened about an
                                                      axis at ``tilt_axis_deg`` (feed axis:
@@ -185,6 +189,15 @@ EFFECTS: dict[str, EffectSpec] = {
                     3.0,
                     0.0,
                     "steps lost per bend grow with the pin torque as (T / 3 N m)^p",
+                ),
+                ShapeSpec(
+                    "home_shift",
+                    "1",
+                    0.0,
+                    1.0,
+                    0.0,
+                    "share of the accumulated loss that shifts home (signed by the "
+                    "direction of the bends that lost it) instead of shortening every bend",
                 ),
             ),
         ),

@@ -159,6 +159,7 @@ class _History:
     direction: NDArray[np.float64]
     reversal: NDArray[np.bool_]  # first bend of a run, or direction changed
     run: NDArray[np.int64]  # run id: a re-home (bend_index back to 0 or down) starts one
+    bend_index: NDArray[np.float64]  # as given
 
     @classmethod
     def of(cls, cmd: NDArray[np.float64], bend_index: NDArray[np.float64]) -> _History:
@@ -166,14 +167,18 @@ class _History:
         prev_index = np.concatenate([[np.inf], bend_index[:-1]])
         start = (bend_index <= prev_index) | (bend_index == 0)
         prev_dir = np.concatenate([[0.0], direction[:-1]])
-        return cls(direction, start | (direction != prev_dir), np.cumsum(start) - 1)
+        reversal = start | (direction != prev_dir)
+        return cls(direction, reversal, np.cumsum(start) - 1, bend_index)
+
+    def accumulated(self, step: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``sum step_j`` over the earlier bends of each bend's run."""
+        before = np.cumsum(step) - step
+        first = np.searchsorted(self.run, self.run)  # index of each run's first bend
+        return before - before[first]
 
     def home_shift(self, loss_deg: NDArray[np.float64]) -> NDArray[np.float64]:
         """Signed home shift of each bend: ``-sum s_j loss_j`` over earlier bends of its run."""
-        step = self.direction * loss_deg
-        before = np.cumsum(step) - step
-        first = np.searchsorted(self.run, self.run)  # index of each run's first bend
-        return -(before - before[first])
+        return -self.accumulated(self.direction * loss_deg)
 
 
 #: Reference pin torque of the drift's load law (N m): d is the loss per bend at this load.
@@ -199,11 +204,18 @@ def _rotation(
         r = r - values["backlash"] * np.where(history.reversal, 1.0, share)
     if "drift" in values:
         p = shapes.get("load_exponent", 0.0)
-        if p == 0.0 or torque_nm is None:
-            loss = np.full(r.shape, values["drift"])
+        share = shapes.get("home_shift", 0.0)
+        if p == 0.0 and share == 0.0:
+            # the spec's helix: bend k loses d k whatever the order (bend_index as given)
+            r = r - values["drift"] * history.bend_index
         else:
-            loss = values["drift"] * (np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM) ** p
-        r = r + direction * history.home_shift(loss)
+            if p == 0.0 or torque_nm is None:
+                loss = np.full(r.shape, values["drift"])
+            else:
+                t = np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM
+                loss = values["drift"] * t**p
+            r = r - (1.0 - share) * history.accumulated(loss)
+            r = r + share * direction * history.home_shift(loss)
     return np.maximum(r, 0.0)
 
 

@@ -184,14 +184,29 @@ def test_backlash_general_form_loses_play_on_reversals_only():
     assert Effect.from_dict(rev.to_dict()) == rev
 
 
-def test_drift_shifts_home_in_the_sense_of_the_lost_steps():
+def test_drift_narrow_form_is_the_spec_helix_whatever_the_direction():
+    # the spec's drift keeps its meaning: bend k loses d k, both directions alike,
+    # bend_index taken as given (so the inverse of one bend at index k works)
     cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
     got = simulate(cmds, effects=[Effect("drift", 0.1)]).pin_deg
+    np.testing.assert_allclose(got, [60.0, 59.9, -59.8, -59.7, 59.6])
+    one = simulate([60.0], effects=[Effect("drift", 0.1)], bend_index=[7]).pin_deg
+    np.testing.assert_allclose(one, [59.3])
+
+
+def test_drift_shifts_home_in_the_sense_of_the_lost_steps():
+    cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
+    home = Effect("drift", 0.1, (("home_shift", 1.0),))
+    got = simulate(cmds, effects=[home]).pin_deg
     # home moves back by 0.1 per ccw bend: later ccw bends are short, cw bends long
     np.testing.assert_allclose(got, [60.0, 59.9, -60.2, -60.1, 60.0])
     # re-homing (bend_index back to 0) resets the shift
-    again = simulate(cmds, effects=[Effect("drift", 0.1)], bend_index=[0, 1, 0, 1, 2]).pin_deg
+    again = simulate(cmds, effects=[home], bend_index=[0, 1, 0, 1, 2]).pin_deg
     np.testing.assert_allclose(again, [60.0, 59.9, -60.0, -59.9, 60.2])
+    # half of the loss shifts home, half shortens every later bend
+    half = Effect("drift", 0.1, (("home_shift", 0.5),))
+    got = simulate(cmds, effects=[half]).pin_deg
+    np.testing.assert_allclose(got, [60.0, 59.9, -60.0, -59.9, 59.8])
     # load-dependent: bends under more torque lose more steps
     loaded = Effect("drift", 0.1, (("load_exponent", 2.0),))
     small = simulate([20.0, 20.0], effects=[loaded]).pin_deg
