@@ -43,7 +43,6 @@ from cvmeasure.diagnose.fitting import (
     fit_model,
     group_folds,
     grouped_kfold_cv,
-    residuals,
 )
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
 from cvmeasure.diagnose.residuals import (
@@ -99,8 +98,9 @@ class CandidateResult:
     cause: str  # the effect tried
     cv_rmse_deg: float
     fit: ModelFit
-    delta_bic: float
+    delta_bic: float  # against the model it extends, both with the model-form discrepancy
     accepted: bool
+    cv_discrepancy_rmse_deg: float = math.nan  # held-out, the discrepancy profiled out
 
     def to_dict(self) -> dict[str, Any]:
         fit = self.fit.to_dict()
@@ -108,6 +108,7 @@ class CandidateResult:
             "cause": self.cause,
             "with": [c for c in self.fit.causes if c != self.cause],
             "cv_rmse_deg": self.cv_rmse_deg,
+            "cv_rmse_with_discrepancy_deg": self.cv_discrepancy_rmse_deg,
             "fit_rmse_deg": self.fit.rmse_deg,
             "params": fit["params"],
             "intervals": fit["intervals"],
@@ -214,11 +215,13 @@ class Diagnosis:
 
 
 def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
-    """BIC improvement of ``fit`` over ``base`` (residuals floored at the resolution)."""
+    """BIC improvement of ``fit`` over ``base``, both with the bounded model-form
+    discrepancy profiled out of their residuals (floored at the resolution)."""
     n = fit.n_obs
     extra = fit.n_params - base.n_params
     floor = n * RESOLUTION_DEG**2
-    rss0, rss1 = max(base.rss_deg2, floor), max(fit.rss_deg2, floor)
+    rss0 = max(base.rss_discrepancy_deg2, floor)
+    rss1 = max(fit.rss_discrepancy_deg2, floor)
     return float(n * math.log(rss0 / rss1) - extra * math.log(n))
 
 
@@ -229,7 +232,7 @@ def _leftover_of(
     base_effects: Sequence[Effect],
     folds: Sequence[NDArray[np.bool_]],
 ) -> bool:
-    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    res = fit.residuals(trials, params, base_effects)
     return leftover_structure(trials, res, list(folds)).unnamed
 
 
@@ -241,7 +244,7 @@ def _structure_left(
     folds: Sequence[NDArray[np.bool_]],
 ) -> bool:
     """Screen for a second cause: structure left along the angle, or a residual trend."""
-    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    res = fit.residuals(trials, params, base_effects)
     if leftover_structure(trials, res, list(folds)).gain > SECOND_SCREEN_GAIN:
         return True
     p_values = [t.p_value for t in residual_trends(trials, res) if math.isfinite(t.p_value)]
@@ -334,10 +337,12 @@ def diagnose(
         min_delta_bic=min_delta_bic,
     )
     base_fit = fit_model(trials, params, "none", base_effects=ctx.base_effects)
-    base_cv = grouped_kfold_cv(
+    base_cv_res = grouped_kfold_cv(
         trials, params, "none", ctx.fold_masks, base_effects=ctx.base_effects, full_fit=base_fit
-    ).rmse_deg
-    results = _try_causes(ctx, base_fit, base_cv, names)
+    )
+    base_cv = base_cv_res.rmse_deg
+    base_cv_disc = base_cv_res.rmse_after_discrepancy_deg(trials)
+    results = _try_causes(ctx, base_fit, base_cv_disc, names)
     naming = _name_causes(ctx, results, base_fit, base_cv, max_causes)
     notes.extend(naming.notes)
     experiment = naming.experiment
@@ -346,10 +351,8 @@ def diagnose(
     elif experiment is None and not trials.has_loaded:
         experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
     ext_fit = naming.fit
-    base_res = residuals(trials, params, ctx.base_effects, (), base_fit.strength_scale)
-    ext_res = residuals(
-        trials, params, ctx.base_effects, ext_fit.causes, ext_fit.strength_scale, ext_fit.values
-    )
+    base_res = base_fit.residuals(trials, params, ctx.base_effects)
+    ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -441,7 +444,10 @@ def _try_causes(
     cv_all: bool = True,
 ) -> list[CandidateResult]:
     """Each cause on top of ``named``, best held-out first; ``cv_all=False`` skips the
-    held-out error of causes that already fail the BIC test (they cannot be accepted)."""
+    held-out error of causes that already fail the BIC test (they cannot be accepted).
+
+    ``named_cv`` is the held-out RMSE of ``named`` with the discrepancy profiled out:
+    a cause must beat "model + discrepancy", not the model alone."""
     out = []
     for name in tried:
         fit = fit_model(
@@ -449,25 +455,27 @@ def _try_causes(
             ctx.params,
             (*named.causes, name),
             base_effects=ctx.base_effects,
-            known=named.param_values_by_cause(),
+            known={**named.param_values_by_cause(), **named.nuisance_values()},
+            known_shapes=named.shapes_by_cause(),
         )
         dbic = _delta_bic(named, fit)
         if not cv_all and dbic < ctx.min_delta_bic:
             out.append(CandidateResult(name, math.nan, fit, dbic, False))
             continue
-        cv = grouped_kfold_cv(
+        held = grouped_kfold_cv(
             ctx.trials,
             ctx.params,
             fit.causes,
             ctx.fold_masks,
             base_effects=ctx.base_effects,
             full_fit=fit,
-        ).rmse_deg
-        cv_gain_ok = max(cv, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
+        )
+        cv, cv_disc = held.rmse_deg, held.rmse_after_discrepancy_deg(ctx.trials)
+        cv_gain_ok = max(cv_disc, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
             named_cv, RESOLUTION_DEG
         )
         accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
-        out.append(CandidateResult(name, cv, fit, dbic, accepted))
+        out.append(CandidateResult(name, cv, fit, dbic, accepted, cv_disc))
     out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
     return out
 
@@ -494,7 +502,7 @@ def _extend(
         round2 = _try_causes(
             ctx,
             first.fit,
-            first.cv_rmse_deg,
+            first.cv_discrepancy_rmse_deg,
             [n for n in ctx.names if n not in blocked],
             cv_all=False,
         )
