@@ -92,9 +92,7 @@ def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
     return out
 
 
-def _profile_discrepancy(
-    r: NDArray[np.float64], basis: NDArray[np.float64]
-) -> NDArray[np.float64]:
+def _profile_discrepancy(r: NDArray[np.float64], basis: NDArray[np.float64]) -> NDArray[np.float64]:
     """Bounded least-squares discrepancy coefficients for residuals ``r`` (finite rows):
     the unconstrained solution when it lies within the bounds, else bounded-variable
     least squares."""
