@@ -29,6 +29,7 @@ still missing by more than ``GROSS_MISFIT_DEG`` names nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -38,8 +39,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
+from cvmeasure.diagnose.discover import DiscoveredTerm, discover
 from cvmeasure.diagnose.fitting import (
     ModelFit,
+    discrepancy_basis,
     fit_model,
     group_folds,
     grouped_kfold_cv,
@@ -61,6 +64,7 @@ __all__ = [
     "GROSS_MISFIT_DEG",
     "CandidateResult",
     "Diagnosis",
+    "cv_groups",
     "diagnose",
 ]
 
@@ -142,6 +146,8 @@ class Diagnosis:
     n_trials: int
     n_folds: int
     notes: tuple[str, ...] = field(default=())
+    discovered: tuple[DiscoveredTerm, ...] = field(default=())
+    evidence: tuple[tuple[str, float], ...] = field(default=())  # (explanation, weight)
 
     @property
     def gain(self) -> float:
@@ -211,6 +217,8 @@ class Diagnosis:
                 "min_delta_bic": MIN_DELTA_BIC,
             },
             "notes": list(self.notes),
+            "discovered": [t.to_dict() for t in self.discovered],
+            "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
         }
 
 
@@ -319,14 +327,10 @@ def diagnose(
             f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
             "parts, order kept) to bound the time; intervals are those of the subset"
         )
-    groups = trials.group
     notes.extend(_design_notes(trials))
-    if len(set(groups)) < MIN_GROUPS:
-        groups = tuple(str(i) for i in range(len(trials)))
-        notes.append(
-            f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
-            "effects shared within a part are not held out"
-        )
+    groups, note = cv_groups(trials)
+    if note:
+        notes.append(note)
     ctx = _Context(
         trials=trials,
         params=params,
@@ -353,6 +357,40 @@ def diagnose(
     ext_fit = naming.fit
     base_res = base_fit.residuals(trials, params, ctx.base_effects)
     ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
+    cause, ext_cv = naming.cause, naming.cv_rmse_deg
+    basis = discrepancy_basis(trials)
+    base_res_d = base_res - basis @ np.asarray(base_fit.discrepancy)
+    found = discover(trials, base_res_d, groups, ctx.fold_masks)
+    if base_fit.sigma_deg > GROSS_MISFIT_DEG:  # the simulation does not describe these data
+        found = dataclasses.replace(found, terms=())
+    mean_terms = [t for t in found.terms if t.term != "scatter"]
+    named_cv = naming.cv_discrepancy_rmse_deg if cause != "none" else base_cv_disc
+    if found.terms and (
+        cause == "none" or (mean_terms and found.rmse_after_deg <= (1.0 - min_cv_gain) * named_cv)
+    ):
+        if cause != "none":
+            notes.append(
+                "terms outside the catalogue explain the data better than "
+                f"{', '.join(ext_fit.causes)} (held-out {found.rmse_after_deg:.3f} vs "
+                f"{named_cv:.3f} deg, model-form discrepancy profiled out): no catalogue "
+                "name is given"
+            )
+        cause, ext_fit = "unexplained", base_fit
+        ext_res = base_res - found.correction_deg
+        if mean_terms:
+            ext_cv = base_cv * found.rmse_after_deg / max(found.rmse_before_deg, 1e-12)
+        else:
+            ext_cv = base_cv
+        discovered = found.terms
+    else:
+        discovered = ()
+        if cause != "none":
+            ext_res_d = ext_res - basis @ np.asarray(ext_fit.discrepancy)
+            discovered = discover(trials, ext_res_d, groups, ctx.fold_masks).terms
+    for t in discovered:
+        notes.append(
+            f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
+        )
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -362,11 +400,11 @@ def diagnose(
             "or look for two causes at once"
         )
     return Diagnosis(
-        cause=naming.cause,
+        cause=cause,
         params=ext_fit.param_values(),
         intervals=ext_fit.param_intervals(),
         baseline_rmse_deg=base_cv,
-        extended_rmse_deg=naming.cv_rmse_deg,
+        extended_rmse_deg=ext_cv,
         candidates=tuple(results),
         second_candidates=naming.second_round,
         baseline_fit=base_fit,
@@ -382,7 +420,56 @@ def diagnose(
         n_trials=len(trials),
         n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
+        discovered=tuple(discovered),
+        evidence=_evidence(results, naming),
     )
+
+
+def cv_groups(trials: TrialTable) -> tuple[tuple[str, ...], str | None]:
+    """Cross-validation groups and a note: the parts when there are at least
+    ``MIN_GROUPS`` of them, else single trials with repeated identical commands held
+    out together (a repeat left in the training folds would leak its own answer)."""
+    has_parts = any(t.part for t in trials.trials)
+    if has_parts and len(set(trials.group)) >= MIN_GROUPS:
+        return trials.group, None
+    notes = []
+    if has_parts:
+        notes.append(
+            f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
+            "effects shared within a part are not held out"
+        )
+    keys = tuple(f"command {c:.1f}" for c in trials.commanded_pin_deg)
+    n_keys = len(set(keys))
+    if n_keys < MIN_GROUPS:
+        keys = tuple(str(i) for i in range(len(trials)))
+    elif n_keys < len(trials):
+        notes.append(
+            f"repeated commands are held out together in cross-validation ({n_keys} "
+            f"distinct commands in {len(trials)} trials)"
+        )
+    return keys, "; ".join(notes) or None
+
+
+#: Explanations whose evidence weights are within this factor of the best are a tie.
+TIE_RATIO = math.exp(-1.0)  # delta BIC of 2
+
+
+def _evidence(results: Sequence[CandidateResult], naming: _Naming) -> tuple[tuple[str, float], ...]:
+    """Evidence weights (BIC approximation of posterior probabilities, equal priors) of
+    the explanations compared against the baseline + discrepancy: nothing, each single
+    cause, the named pair; best first."""
+    scores = {"none": 0.0}
+    for c in results:
+        if math.isfinite(c.delta_bic):
+            scores[c.cause] = c.delta_bic
+    for c in naming.second_round:
+        if c.accepted and math.isfinite(c.delta_bic):
+            first = [x for x in c.fit.causes if x != c.cause]
+            scores[" + ".join([*first, c.cause])] = scores.get(first[0], 0.0) + c.delta_bic
+    top = max(scores.values())
+    raw = {k: math.exp(0.5 * (v - top)) for k, v in scores.items()}
+    total = sum(raw.values())
+    return tuple(sorted(((k, v / total) for k, v in raw.items()), key=lambda kv: -kv[1]))
 
 
 def _subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable:
@@ -420,6 +507,7 @@ class _Extension:
     identifiability: tuple[Identifiability, ...]
     second_round: tuple[CandidateResult, ...]
     notes: tuple[str, ...]
+    cv_discrepancy_rmse_deg: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -433,6 +521,7 @@ class _Naming:
     second_round: tuple[CandidateResult, ...]
     experiment: str | None
     notes: tuple[str, ...]
+    cv_discrepancy_rmse_deg: float = math.nan
 
 
 def _try_causes(
@@ -496,6 +585,7 @@ def _extend(
     )
     blocked = {first.cause, *(i.causes[1] for i in ident if not i.separable)}
     fit, cv, round2, notes = first.fit, first.cv_rmse_deg, [], []
+    cv_disc = first.cv_discrepancy_rmse_deg
     if max_causes > 1 and _structure_left(
         ctx.trials, first.fit, ctx.params, ctx.base_effects, masks
     ):
@@ -517,11 +607,12 @@ def _extend(
             more = []
         if more:
             fit, cv = more[0].fit, more[0].cv_rmse_deg
+            cv_disc = more[0].cv_discrepancy_rmse_deg
             notes.append(
                 f"a second cause, {more[0].cause}, improves the held-out RMSE further "
                 f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
             )
-    return _Extension(fit, cv, ident, tuple(round2), tuple(notes))
+    return _Extension(fit, cv, ident, tuple(round2), tuple(notes), cv_disc)
 
 
 def _name_causes(
@@ -590,4 +681,5 @@ def _name_causes(
         ext.second_round,
         experiment,
         tuple(notes),
+        ext.cv_discrepancy_rmse_deg,
     )

@@ -426,6 +426,7 @@ def fit_model(
         return np.concatenate([r[ok] - basis @ _profile_discrepancy(r[ok], basis), prior])
 
     nominal = [float((known or {}).get(n.key, getattr(params, n.key))) for n in nuis]
+    alternatives: list[tuple[int, float, Shape]] = []  # (index, start value, form)
     if isinstance(start, ModelFit):
         start_nuis = list(start.nuisance) if len(start.nuisance) == m else nominal
         x0 = np.array([start.strength_scale, *start_nuis, *start.values], dtype=np.float64)
@@ -439,13 +440,19 @@ def fit_model(
             if c in known:
                 continue
             grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
-            best = (math.inf, 0.0, ())
+            per_form = []
             for form in FORMS.get(c, ((),)):
                 forms[i - 1 - m] = form
+                costs = []
                 for v in grid:
                     x0[i] = v
-                    best = min(best, (float(np.sum(resid(x0) ** 2)), float(v), form))
-            x0[i], forms[i - 1 - m] = best[1], best[2]
+                    costs.append(float(np.sum(resid(x0) ** 2)))
+                j = int(np.argmin(costs))
+                per_form.append((costs[j], float(grid[j]), form))
+            per_form.sort(key=lambda t: t[0])
+            x0[i], forms[i - 1 - m] = per_form[0][1], per_form[0][2]
+            if len(per_form) > 1:  # the grid is coarse: the runner-up form is refined too
+                alternatives.append((i, per_form[1][1], per_form[1][2]))
     lower = np.array([_STRENGTH_BOUNDS[0], *(n.lower for n in nuis), *(s.lower for s in specs)])
     upper = np.array([_STRENGTH_BOUNDS[1], *(n.upper for n in nuis), *(s.upper for s in specs)])
     # keep the start strictly inside the bounds (least_squares requires it)
@@ -454,9 +461,21 @@ def fit_model(
     scale = np.array(
         [0.1, *(0.5 * n.prior_sd for n in nuis), *(max(abs(s.typical[1]), 1e-3) for s in specs)]
     )
-    sol = optimize.least_squares(
-        resid, x0, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
-    )
+    starts = [(x0, list(forms))]
+    for i, v, form in alternatives:
+        alt_x, alt_forms = x0.copy(), list(forms)
+        alt_x[i], alt_forms[i - 1 - m] = v, form
+        starts.append((np.clip(alt_x, lower + 1e-9 * span, upper - 1e-9 * span), alt_forms))
+    sol, best_forms = None, list(forms)
+    for x_start, f in starts:
+        forms[:] = f
+        trial = optimize.least_squares(
+            resid, x_start, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
+        )
+        if sol is None or trial.cost < sol.cost:
+            sol, best_forms = trial, list(f)
+    forms[:] = best_forms
+    assert sol is not None
     r = sol.fun
     r0 = raw(sol.x)
     ok = np.isfinite(r0)

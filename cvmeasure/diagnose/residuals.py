@@ -35,6 +35,7 @@ UNNAMED_GAIN = 0.3
 COVARIATES: dict[str, tuple[str, ...]] = {
     "direction": ("offset", "axis_offset", "springback_asymmetry"),
     "bend_index": ("drift",),
+    "signed_bend_index": ("drift",),
     "commanded_angle": ("scale", "camera_tilt", "backlash"),
     "signed_angle": ("offset", "axis_offset", "springback_asymmetry"),
     "unloaded_minus_loaded": ("springback_asymmetry",),
@@ -73,6 +74,7 @@ def _features(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
     return {
         "direction": tile(s),
         "bend_index": tile(trials.bend_index),
+        "signed_bend_index": tile(s * trials.bend_index),
         "commanded_angle": tile(mag),
         "signed_angle": tile(s * mag),
         "unloaded_minus_loaded": np.where(block == 2, np.nan, unloaded),
