@@ -387,6 +387,8 @@ def diagnose(
         if cause != "none":
             ext_res_d = ext_res - basis @ np.asarray(ext_fit.discrepancy)
             discovered = discover(trials, ext_res_d, groups, ctx.fold_masks).terms
+    if ext_fit.causes:
+        ext_fit = _widened(ctx, ext_fit)
     for t in discovered:
         notes.append(
             f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
@@ -448,6 +450,33 @@ def cv_groups(trials: TrialTable) -> tuple[tuple[str, ...], str | None]:
             f"distinct commands in {len(trials)} trials)"
         )
     return keys, "; ".join(notes) or None
+
+
+def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
+    """The fit with its 95 % intervals widened by their model-form sensitivity: the
+    causes refitted with the bounded discrepancy profiled out of every residual move by
+    ``delta``; each half-width becomes ``sqrt(half^2 + delta^2)`` (within the bounds).
+    Only when the data show a model-form error (the discrepancy improves the BIC of the
+    fit, its coefficients counted as parameters); otherwise the intervals are kept."""
+    n = fit.n_obs
+    k = len(fit.discrepancy)
+    floor = n * RESOLUTION_DEG**2
+    ratio = max(fit.rss_deg2, floor) / max(fit.rss_discrepancy_deg2, floor)
+    if n * math.log(ratio) - k * math.log(n) <= 0:
+        return fit
+    alt = fit_model(
+        ctx.trials,
+        ctx.params,
+        fit.causes,
+        base_effects=ctx.base_effects,
+        start=fit,
+        discrepancy=True,
+    )
+    out = []
+    for c, v, va, (lo, hi) in zip(fit.causes, fit.values, alt.values, fit.intervals, strict=True):
+        half = math.hypot(max(v - lo, hi - v), va - v)
+        out.append((max(v - half, EFFECTS[c].lower), min(v + half, EFFECTS[c].upper)))
+    return dataclasses.replace(fit, intervals=tuple(out))
 
 
 #: Explanations whose evidence weights are within this factor of the best are a tie.
