@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import special
 
 from cvmeasure.contracts import TrialTable
 
@@ -174,12 +174,18 @@ def _scatter(trials: TrialTable, r: NDArray[np.float64]) -> DiscoveredTerm | Non
         return None
     mag = np.abs(trials.commanded_pin_deg)[ok]
     logsq = np.log(res[ok] ** 2 + 1e-12)
-    fit = stats.linregress(mag, logsq)
-    if not (fit.pvalue < SCATTER_P and fit.slope > 0):
+    x = np.column_stack([np.ones(mag.size), mag])
+    coef, *_ = np.linalg.lstsq(x, logsq, rcond=None)
+    dof = max(mag.size - 2, 1)
+    resid = logsq - x @ coef
+    stderr = math.sqrt(float(np.sum(resid**2)) / dof / float(np.sum((mag - mag.mean()) ** 2)))
+    slope = float(coef[1])
+    p_value = float(2.0 * special.stdtr(dof, -abs(slope) / max(stderr, 1e-300)))
+    if not (p_value < SCATTER_P and slope > 0):
         return None
-    t = float(stats.t.ppf(0.975, max(ok.sum() - 2, 1)))
-    half = 0.5 * fit.slope  # log sd per deg
-    ci = (0.5 * (fit.slope - t * fit.stderr), 0.5 * (fit.slope + t * fit.stderr))
+    t = float(special.stdtrit(dof, 0.975))
+    half = 0.5 * slope  # log sd per deg
+    ci = (0.5 * (slope - t * stderr), 0.5 * (slope + t * stderr))
     return DiscoveredTerm(
         "scatter", _WORDS["scatter"], (100 * half,), ((100 * ci[0], 100 * ci[1]),), 1.0, 0.0
     )
@@ -238,7 +244,7 @@ def discover(
     dof = max(y.size - x.shape[1], 1)
     cov = np.linalg.pinv(x.T @ x) * float(np.sum(resid**2)) / dof
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    t = float(stats.t.ppf(0.975, dof))
+    t = float(special.stdtrit(dof, 0.975))
     terms, i = [], 0
     for c in stable:
         w = sel[c].shape[1]

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.geometry import wrap_deg
@@ -338,7 +338,7 @@ def residuals(
 def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple[float, float]:
     if not math.isfinite(se):
         return (lo, hi)
-    t = float(stats.t.ppf(0.975, max(dof, 1)))
+    t = float(special.stdtrit(max(dof, 1), 0.975))  # Student t quantile (no scipy.stats)
     return (max(center - t * se, lo), min(center + t * se, hi))
 
 

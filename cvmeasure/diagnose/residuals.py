@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
 
@@ -83,6 +83,16 @@ def _features(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
     }
 
 
+def _pearson(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
+    """Pearson correlation and its two-sided p-value (Student t with n - 2 dof)."""
+    rho = float(np.clip(np.corrcoef(x, y)[0, 1], -1.0, 1.0))
+    dof = x.size - 2
+    if abs(rho) >= 1.0:
+        return rho, 0.0
+    t = abs(rho) * math.sqrt(dof / (1.0 - rho * rho))
+    return rho, float(2.0 * special.stdtr(dof, -t))
+
+
 def residual_trends(trials: TrialTable, residual_deg: NDArray[np.float64]) -> list[ResidualTrend]:
     """Correlations of stacked residuals (blocks of :data:`BLOCKS`; NaN = not measured)."""
     r = np.asarray(residual_deg, dtype=np.float64)
@@ -94,8 +104,8 @@ def residual_trends(trials: TrialTable, residual_deg: NDArray[np.float64]) -> li
         if x.size < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
             out.append(ResidualTrend(name, math.nan, math.nan, COVARIATES[name]))
             continue
-        res = stats.pearsonr(x, y)
-        out.append(ResidualTrend(name, float(res.statistic), float(res.pvalue), COVARIATES[name]))
+        rho, p = _pearson(x, y)
+        out.append(ResidualTrend(name, rho, p, COVARIATES[name]))
     return out
 
 
