@@ -389,6 +389,13 @@ def diagnose(
             discovered = discover(trials, ext_res_d, groups, ctx.fold_masks).terms
     if ext_fit.causes:
         ext_fit = _widened(ctx, ext_fit)
+    evidence = _evidence(results, naming)
+    ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
+    if ties:
+        notes.append(
+            f"tie: {', '.join(ties)} explain the data about as well as {evidence[0][0]} "
+            "(evidence weights within a delta BIC of 2)"
+        )
     for t in discovered:
         notes.append(
             f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
@@ -423,7 +430,7 @@ def diagnose(
         n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
         discovered=tuple(discovered),
-        evidence=_evidence(results, naming),
+        evidence=evidence,
     )
 
 
@@ -491,8 +498,8 @@ def _evidence(results: Sequence[CandidateResult], naming: _Naming) -> tuple[tupl
     for c in results:
         if math.isfinite(c.delta_bic):
             scores[c.cause] = c.delta_bic
-    for c in naming.second_round:
-        if c.accepted and math.isfinite(c.delta_bic):
+    for c in naming.second_round:  # the pair named (a refused pair is not an explanation)
+        if set(c.fit.causes) == set(naming.fit.causes) and math.isfinite(c.delta_bic):
             first = [x for x in c.fit.causes if x != c.cause]
             scores[" + ".join([*first, c.cause])] = scores.get(first[0], 0.0) + c.delta_bic
     top = max(scores.values())
