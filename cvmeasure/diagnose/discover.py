@@ -142,21 +142,32 @@ def _words(name: str) -> str:
 
 
 def _forward(
-    y: NDArray[np.float64], cols: dict[str, NDArray[np.float64]], names: Sequence[str]
+    gram: NDArray[np.float64],
+    xty: NDArray[np.float64],
+    yty: float,
+    n: int,
+    spans: dict[str, slice],
+    names: Sequence[str],
 ) -> list[str]:
-    """Forward selection by BIC on (y, columns) rows given."""
+    """Forward selection by BIC from the (weighted) normal equations of ``n`` rows:
+    ``gram = X^T W X``, ``xty = X^T W y``, ``yty = y^T W y`` over every column of the
+    library, ``spans`` each group's columns (the same least squares as on the rows
+    repeated by their weights, without building them)."""
     chosen: list[str] = []
-    n = y.size
-    rss = float(np.sum(y**2))
+    rss = yty
     for _ in range(MAX_TERMS):
         best = None
         for name in names:
             if name in chosen or any(c.split("_")[0] == name.split("_")[0] for c in chosen):
                 continue
-            x = np.column_stack([cols[c] for c in (*chosen, name)])
-            beta = np.linalg.lstsq(x, y, rcond=None)[0]
-            r = float(np.sum((y - x @ beta) ** 2))
-            dbic = n * math.log(max(rss, 1e-12) / max(r, 1e-12)) - cols[name].shape[1] * math.log(n)
+            idx = np.concatenate(
+                [np.arange(spans[c].start, spans[c].stop) for c in (*chosen, name)]
+            )
+            g, b = gram[np.ix_(idx, idx)], xty[idx]
+            beta = np.linalg.lstsq(g, b, rcond=None)[0]
+            r = max(yty - float(b @ beta), 0.0)
+            width = spans[name].stop - spans[name].start
+            dbic = n * math.log(max(rss, 1e-12) / max(r, 1e-12)) - width * math.log(n)
             if dbic >= MIN_DELTA_BIC and (best is None or dbic > best[0]):
                 best = (dbic, name, r)
         if best is None:
@@ -207,18 +218,41 @@ def discover(
     ok = np.isfinite(r) & (np.arange(3 * n) < 2 * n)
     y = r[ok]
     sel = {k: v[ok] for k, v in cols.items()}
-    labels = np.asarray(groups)
-    unique = np.unique(labels)
+    unique, group_of = np.unique(np.asarray(groups), return_inverse=True)
     trial_of = np.tile(np.arange(n), 3)[ok]
+    design = np.column_stack([sel[k] for k in names]) if names else np.zeros((y.size, 0))
+    widths = np.cumsum([0] + [sel[k].shape[1] for k in names])
+    spans = {
+        k: slice(int(a), int(b)) for k, a, b in zip(names, widths[:-1], widths[1:], strict=True)
+    }
+    # per-group sums of the normal equations: a resample's are their weighted sum
+    row_group = group_of.reshape(-1)[trial_of]
+
+    def group_sums(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.bincount(row_group, weights=v, minlength=unique.size)
+
+    n_cols = design.shape[1]
+    gram_g = np.zeros((unique.size, n_cols, n_cols))
+    for i in range(n_cols):
+        for j in range(i, n_cols):
+            gram_g[:, i, j] = gram_g[:, j, i] = group_sums(design[:, i] * design[:, j])
+    xty_g = np.column_stack([group_sums(design[:, i] * y) for i in range(n_cols)])
+    yty_g = group_sums(y**2)
+    rows_g = np.bincount(row_group, minlength=unique.size)
     rng = np.random.default_rng(seed)
     counts: dict[str, int] = {k: 0 for k in names}
     for _ in range(RESAMPLES):
-        drawn = rng.choice(unique, unique.size, replace=True)
-        weight = np.zeros(n)
-        for g in drawn:
-            weight[labels == g] += 1.0
-        rows = np.repeat(np.arange(y.size), weight[trial_of].astype(int))
-        for c in _forward(y[rows], {k: v[rows] for k, v in sel.items()}, names):
+        w = np.bincount(rng.integers(0, unique.size, unique.size), minlength=unique.size)
+        w = w.astype(np.float64)
+        chosen = _forward(
+            np.tensordot(w, gram_g, axes=1),
+            w @ xty_g,
+            float(w @ yty_g),
+            int(w @ rows_g),
+            spans,
+            names,
+        )
+        for c in chosen:
             counts[c] += 1
     stable = [k for k in names if counts[k] >= STABILITY * RESAMPLES]
     before = float(np.sqrt(np.mean(y**2))) if y.size else math.nan

@@ -101,10 +101,13 @@ def _profile_discrepancy(r: NDArray[np.float64], basis: NDArray[np.float64]) -> 
     beta = np.zeros(basis.shape[1])
     if not used.any():
         return beta
-    a = basis[:, used]
-    sol = np.linalg.lstsq(a, r, rcond=None)[0]
+    # ||r - a b||^2 = ||q^T r - R b||^2 + const (a = q R): the same minimisers on the
+    # small triangular problem, whatever the number of rows
+    q, tri = np.linalg.qr(basis[:, used])
+    qtr = q.T @ r
+    sol = np.linalg.lstsq(tri, qtr, rcond=None)[0]
     if np.any(np.abs(sol) > bound):
-        sol = optimize.lsq_linear(a, r, bounds=(-bound, bound), method="bvls").x
+        sol = optimize.lsq_linear(tri, qtr, bounds=(-bound, bound), method="bvls").x
     beta[used] = sol
     return beta
 
