@@ -92,7 +92,7 @@ MIN_GROUPS = 3
 MIN_TRIALS = 8
 #: More trials than this are diagnosed on a random subset of this size (whole CV groups,
 #: order kept), said in the notes: the intervals are then those of the subset (wider).
-MAX_TRIALS = 20_000
+MAX_TRIALS = 5_000
 
 
 @dataclass(frozen=True)

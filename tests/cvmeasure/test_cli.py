@@ -1,6 +1,9 @@
+import subprocess
+import sys
+
 import pytest
 
-from cvmeasure.cli import main
+from cvmeasure.cli import COMMAND_MODULES, build_parser, main
 
 
 def test_help_lists_demo(capsys):
@@ -152,3 +155,19 @@ def test_sim_url_speedup_must_be_positive(tmp_path, capsys):
     job.write_text("G90\n")
     assert main(["bend", str(job), "--port", "sim://?speedup=0"]) == 2
     assert "speedup must be a finite number > 0" in capsys.readouterr().err
+
+
+def test_a_command_loads_only_its_own_module():
+    # start-up: `cvmeasure diagnose` must not import the other commands' libraries
+    code = (
+        "import sys; from cvmeasure.cli import build_parser; "
+        "p = build_parser('diagnose'); p.parse_args(['diagnose', 't.csv']); "
+        "print(sorted(m for m in ('cvmeasure.batch', 'cv2') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[]"
+    # the full parser (help, unknown command) still knows every command
+    names = build_parser()._subparsers._group_actions[0].choices
+    assert set(COMMAND_MODULES) <= set(names)

@@ -177,7 +177,7 @@ def test_garbage_data_name_nothing():
 def test_very_many_trials_are_diagnosed_on_a_stated_subset(monkeypatch):
     import cvmeasure.diagnose.core as core
 
-    monkeypatch.setattr(core, "MAX_TRIALS", 150)  # the real bound is 20,000 (benchmarked)
+    monkeypatch.setattr(core, "MAX_TRIALS", 150)  # the real bound is 5,000 (benchmarked)
     case = hidden_case(23, effect="backlash", n_trials=400)
     result = diagnose(case.trials)
     assert result.n_trials <= 150 and result.cause == "backlash"
