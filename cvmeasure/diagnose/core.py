@@ -460,11 +460,13 @@ def cv_groups(trials: TrialTable) -> tuple[tuple[str, ...], str | None]:
 
 
 def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
-    """The fit with its 95 % intervals widened by their model-form sensitivity: the
-    causes refitted with the bounded discrepancy profiled out of every residual move by
-    ``delta``; each half-width becomes ``sqrt(half^2 + delta^2)`` (within the bounds).
-    Only when the data show a model-form error (the discrepancy improves the BIC of the
-    fit, its coefficients counted as parameters); otherwise the intervals are kept."""
+    """The fit with its 95 % intervals widened by the model form: the causes are refitted
+    with the bounded discrepancy profiled out of every residual, and each interval
+    becomes the hull of the two fits' 95 % intervals (within the bounds), so it holds
+    the parameter whether the model-form error stays in the residuals or is taken by
+    the discrepancy (a move of the estimate and the lost precision both count). Only
+    when the data show a model-form error (the discrepancy improves the BIC of the fit,
+    its coefficients counted as parameters); otherwise the intervals are kept."""
     n = fit.n_obs
     k = len(fit.discrepancy)
     floor = n * RESOLUTION_DEG**2
@@ -480,9 +482,8 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
         discrepancy=True,
     )
     out = []
-    for c, v, va, (lo, hi) in zip(fit.causes, fit.values, alt.values, fit.intervals, strict=True):
-        half = math.hypot(max(v - lo, hi - v), va - v)
-        out.append((max(v - half, EFFECTS[c].lower), min(v + half, EFFECTS[c].upper)))
+    for c, (lo, hi), (alo, ahi) in zip(fit.causes, fit.intervals, alt.intervals, strict=True):
+        out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
     return dataclasses.replace(fit, intervals=tuple(out))
 
 
