@@ -29,6 +29,7 @@ still missing by more than ``GROSS_MISFIT_DEG`` names nothing.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -38,12 +39,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
+from cvmeasure.diagnose.discover import DiscoveredTerm, discover
 from cvmeasure.diagnose.fitting import (
     ModelFit,
+    discrepancy_basis,
     fit_model,
     group_folds,
     grouped_kfold_cv,
-    residuals,
 )
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
 from cvmeasure.diagnose.residuals import (
@@ -62,6 +64,7 @@ __all__ = [
     "GROSS_MISFIT_DEG",
     "CandidateResult",
     "Diagnosis",
+    "cv_groups",
     "diagnose",
 ]
 
@@ -89,7 +92,7 @@ MIN_GROUPS = 3
 MIN_TRIALS = 8
 #: More trials than this are diagnosed on a random subset of this size (whole CV groups,
 #: order kept), said in the notes: the intervals are then those of the subset (wider).
-MAX_TRIALS = 20_000
+MAX_TRIALS = 5_000
 
 
 @dataclass(frozen=True)
@@ -99,8 +102,9 @@ class CandidateResult:
     cause: str  # the effect tried
     cv_rmse_deg: float
     fit: ModelFit
-    delta_bic: float
+    delta_bic: float  # against the model it extends, both with the model-form discrepancy
     accepted: bool
+    cv_discrepancy_rmse_deg: float = math.nan  # held-out, the discrepancy profiled out
 
     def to_dict(self) -> dict[str, Any]:
         fit = self.fit.to_dict()
@@ -108,6 +112,7 @@ class CandidateResult:
             "cause": self.cause,
             "with": [c for c in self.fit.causes if c != self.cause],
             "cv_rmse_deg": self.cv_rmse_deg,
+            "cv_rmse_with_discrepancy_deg": self.cv_discrepancy_rmse_deg,
             "fit_rmse_deg": self.fit.rmse_deg,
             "params": fit["params"],
             "intervals": fit["intervals"],
@@ -141,6 +146,8 @@ class Diagnosis:
     n_trials: int
     n_folds: int
     notes: tuple[str, ...] = field(default=())
+    discovered: tuple[DiscoveredTerm, ...] = field(default=())
+    evidence: tuple[tuple[str, float], ...] = field(default=())  # (explanation, weight)
 
     @property
     def gain(self) -> float:
@@ -210,15 +217,19 @@ class Diagnosis:
                 "min_delta_bic": MIN_DELTA_BIC,
             },
             "notes": list(self.notes),
+            "discovered": [t.to_dict() for t in self.discovered],
+            "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
         }
 
 
 def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
-    """BIC improvement of ``fit`` over ``base`` (residuals floored at the resolution)."""
+    """BIC improvement of ``fit`` over ``base``, both with the bounded model-form
+    discrepancy profiled out of their residuals (floored at the resolution)."""
     n = fit.n_obs
     extra = fit.n_params - base.n_params
     floor = n * RESOLUTION_DEG**2
-    rss0, rss1 = max(base.rss_deg2, floor), max(fit.rss_deg2, floor)
+    rss0 = max(base.rss_discrepancy_deg2, floor)
+    rss1 = max(fit.rss_discrepancy_deg2, floor)
     return float(n * math.log(rss0 / rss1) - extra * math.log(n))
 
 
@@ -229,7 +240,7 @@ def _leftover_of(
     base_effects: Sequence[Effect],
     folds: Sequence[NDArray[np.bool_]],
 ) -> bool:
-    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    res = fit.residuals(trials, params, base_effects)
     return leftover_structure(trials, res, list(folds)).unnamed
 
 
@@ -241,7 +252,7 @@ def _structure_left(
     folds: Sequence[NDArray[np.bool_]],
 ) -> bool:
     """Screen for a second cause: structure left along the angle, or a residual trend."""
-    res = residuals(trials, params, base_effects, fit.causes, fit.strength_scale, fit.values)
+    res = fit.residuals(trials, params, base_effects)
     if leftover_structure(trials, res, list(folds)).gain > SECOND_SCREEN_GAIN:
         return True
     p_values = [t.p_value for t in residual_trends(trials, res) if math.isfinite(t.p_value)]
@@ -316,14 +327,10 @@ def diagnose(
             f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
             "parts, order kept) to bound the time; intervals are those of the subset"
         )
-    groups = trials.group
     notes.extend(_design_notes(trials))
-    if len(set(groups)) < MIN_GROUPS:
-        groups = tuple(str(i) for i in range(len(trials)))
-        notes.append(
-            f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
-            "effects shared within a part are not held out"
-        )
+    groups, note = cv_groups(trials)
+    if note:
+        notes.append(note)
     ctx = _Context(
         trials=trials,
         params=params,
@@ -334,10 +341,12 @@ def diagnose(
         min_delta_bic=min_delta_bic,
     )
     base_fit = fit_model(trials, params, "none", base_effects=ctx.base_effects)
-    base_cv = grouped_kfold_cv(
+    base_cv_res = grouped_kfold_cv(
         trials, params, "none", ctx.fold_masks, base_effects=ctx.base_effects, full_fit=base_fit
-    ).rmse_deg
-    results = _try_causes(ctx, base_fit, base_cv, names)
+    )
+    base_cv = base_cv_res.rmse_deg
+    base_cv_disc = base_cv_res.rmse_after_discrepancy_deg(trials)
+    results = _try_causes(ctx, base_fit, base_cv_disc, names)
     naming = _name_causes(ctx, results, base_fit, base_cv, max_causes)
     notes.extend(naming.notes)
     experiment = naming.experiment
@@ -346,10 +355,51 @@ def diagnose(
     elif experiment is None and not trials.has_loaded:
         experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
     ext_fit = naming.fit
-    base_res = residuals(trials, params, ctx.base_effects, (), base_fit.strength_scale)
-    ext_res = residuals(
-        trials, params, ctx.base_effects, ext_fit.causes, ext_fit.strength_scale, ext_fit.values
-    )
+    base_res = base_fit.residuals(trials, params, ctx.base_effects)
+    ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
+    cause, ext_cv = naming.cause, naming.cv_rmse_deg
+    basis = discrepancy_basis(trials)
+    base_res_d = base_res - basis @ np.asarray(base_fit.discrepancy)
+    found = discover(trials, base_res_d, groups, ctx.fold_masks)
+    if base_fit.sigma_deg > GROSS_MISFIT_DEG:  # the simulation does not describe these data
+        found = dataclasses.replace(found, terms=())
+    mean_terms = [t for t in found.terms if t.term != "scatter"]
+    named_cv = naming.cv_discrepancy_rmse_deg if cause != "none" else base_cv_disc
+    if found.terms and (
+        cause == "none" or (mean_terms and found.rmse_after_deg <= (1.0 - min_cv_gain) * named_cv)
+    ):
+        if cause != "none":
+            notes.append(
+                "terms outside the catalogue explain the data better than "
+                f"{', '.join(ext_fit.causes)} (held-out {found.rmse_after_deg:.3f} vs "
+                f"{named_cv:.3f} deg, model-form discrepancy profiled out): no catalogue "
+                "name is given"
+            )
+        cause, ext_fit = "unexplained", base_fit
+        ext_res = base_res - found.correction_deg
+        if mean_terms:
+            ext_cv = base_cv * found.rmse_after_deg / max(found.rmse_before_deg, 1e-12)
+        else:
+            ext_cv = base_cv
+        discovered = found.terms
+    else:
+        discovered = ()
+        if cause != "none":
+            ext_res_d = ext_res - basis @ np.asarray(ext_fit.discrepancy)
+            discovered = discover(trials, ext_res_d, groups, ctx.fold_masks).terms
+    if ext_fit.causes:
+        ext_fit = _widened(ctx, ext_fit)
+    evidence = _evidence(results, naming)
+    ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
+    if ties:
+        notes.append(
+            f"tie: {', '.join(ties)} explain the data about as well as {evidence[0][0]} "
+            "(evidence weights within a delta BIC of 2)"
+        )
+    for t in discovered:
+        notes.append(
+            f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
+        )
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -359,11 +409,11 @@ def diagnose(
             "or look for two causes at once"
         )
     return Diagnosis(
-        cause=naming.cause,
+        cause=cause,
         params=ext_fit.param_values(),
         intervals=ext_fit.param_intervals(),
         baseline_rmse_deg=base_cv,
-        extended_rmse_deg=naming.cv_rmse_deg,
+        extended_rmse_deg=ext_cv,
         candidates=tuple(results),
         second_candidates=naming.second_round,
         baseline_fit=base_fit,
@@ -379,7 +429,84 @@ def diagnose(
         n_trials=len(trials),
         n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
+        discovered=tuple(discovered),
+        evidence=evidence,
     )
+
+
+def cv_groups(trials: TrialTable) -> tuple[tuple[str, ...], str | None]:
+    """Cross-validation groups and a note: the parts when there are at least
+    ``MIN_GROUPS`` of them, else single trials with repeated identical commands held
+    out together (a repeat left in the training folds would leak its own answer)."""
+    has_parts = any(t.part for t in trials.trials)
+    if has_parts and len(set(trials.group)) >= MIN_GROUPS:
+        return trials.group, None
+    notes = []
+    if has_parts:
+        notes.append(
+            f"fewer than {MIN_GROUPS} parts: cross-validation groups are single trials, so "
+            "effects shared within a part are not held out"
+        )
+    keys = tuple(f"command {c:.1f}" for c in trials.commanded_pin_deg)
+    n_keys = len(set(keys))
+    if n_keys < MIN_GROUPS:
+        keys = tuple(str(i) for i in range(len(trials)))
+    elif n_keys < len(trials):
+        notes.append(
+            f"repeated commands are held out together in cross-validation ({n_keys} "
+            f"distinct commands in {len(trials)} trials)"
+        )
+    return keys, "; ".join(notes) or None
+
+
+def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
+    """The fit with its 95 % intervals widened by the model form: the causes are refitted
+    with the bounded discrepancy profiled out of every residual, and each interval
+    becomes the hull of the two fits' 95 % intervals (within the bounds), so it holds
+    the parameter whether the model-form error stays in the residuals or is taken by
+    the discrepancy (a move of the estimate and the lost precision both count). Only
+    when the data show a model-form error (the discrepancy improves the BIC of the fit,
+    its coefficients counted as parameters); otherwise the intervals are kept."""
+    n = fit.n_obs
+    k = len(fit.discrepancy)
+    floor = n * RESOLUTION_DEG**2
+    ratio = max(fit.rss_deg2, floor) / max(fit.rss_discrepancy_deg2, floor)
+    if n * math.log(ratio) - k * math.log(n) <= 0:
+        return fit
+    alt = fit_model(
+        ctx.trials,
+        ctx.params,
+        fit.causes,
+        base_effects=ctx.base_effects,
+        start=fit,
+        discrepancy=True,
+    )
+    out = []
+    for c, (lo, hi), (alo, ahi) in zip(fit.causes, fit.intervals, alt.intervals, strict=True):
+        out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
+    return dataclasses.replace(fit, intervals=tuple(out))
+
+
+#: Explanations whose evidence weights are within this factor of the best are a tie.
+TIE_RATIO = math.exp(-1.0)  # delta BIC of 2
+
+
+def _evidence(results: Sequence[CandidateResult], naming: _Naming) -> tuple[tuple[str, float], ...]:
+    """Evidence weights (BIC approximation of posterior probabilities, equal priors) of
+    the explanations compared against the baseline + discrepancy: nothing, each single
+    cause, the named pair; best first."""
+    scores = {"none": 0.0}
+    for c in results:
+        if math.isfinite(c.delta_bic):
+            scores[c.cause] = c.delta_bic
+    for c in naming.second_round:  # the pair named (a refused pair is not an explanation)
+        if set(c.fit.causes) == set(naming.fit.causes) and math.isfinite(c.delta_bic):
+            first = [x for x in c.fit.causes if x != c.cause]
+            scores[" + ".join([*first, c.cause])] = scores.get(first[0], 0.0) + c.delta_bic
+    top = max(scores.values())
+    raw = {k: math.exp(0.5 * (v - top)) for k, v in scores.items()}
+    total = sum(raw.values())
+    return tuple(sorted(((k, v / total) for k, v in raw.items()), key=lambda kv: -kv[1]))
 
 
 def _subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable:
@@ -417,6 +544,7 @@ class _Extension:
     identifiability: tuple[Identifiability, ...]
     second_round: tuple[CandidateResult, ...]
     notes: tuple[str, ...]
+    cv_discrepancy_rmse_deg: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -430,6 +558,7 @@ class _Naming:
     second_round: tuple[CandidateResult, ...]
     experiment: str | None
     notes: tuple[str, ...]
+    cv_discrepancy_rmse_deg: float = math.nan
 
 
 def _try_causes(
@@ -441,7 +570,10 @@ def _try_causes(
     cv_all: bool = True,
 ) -> list[CandidateResult]:
     """Each cause on top of ``named``, best held-out first; ``cv_all=False`` skips the
-    held-out error of causes that already fail the BIC test (they cannot be accepted)."""
+    held-out error of causes that already fail the BIC test (they cannot be accepted).
+
+    ``named_cv`` is the held-out RMSE of ``named`` with the discrepancy profiled out:
+    a cause must beat "model + discrepancy", not the model alone."""
     out = []
     for name in tried:
         fit = fit_model(
@@ -449,25 +581,27 @@ def _try_causes(
             ctx.params,
             (*named.causes, name),
             base_effects=ctx.base_effects,
-            known=named.param_values_by_cause(),
+            known={**named.param_values_by_cause(), **named.nuisance_values()},
+            known_shapes=named.shapes_by_cause(),
         )
         dbic = _delta_bic(named, fit)
         if not cv_all and dbic < ctx.min_delta_bic:
             out.append(CandidateResult(name, math.nan, fit, dbic, False))
             continue
-        cv = grouped_kfold_cv(
+        held = grouped_kfold_cv(
             ctx.trials,
             ctx.params,
             fit.causes,
             ctx.fold_masks,
             base_effects=ctx.base_effects,
             full_fit=fit,
-        ).rmse_deg
-        cv_gain_ok = max(cv, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
+        )
+        cv, cv_disc = held.rmse_deg, held.rmse_after_discrepancy_deg(ctx.trials)
+        cv_gain_ok = max(cv_disc, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
             named_cv, RESOLUTION_DEG
         )
         accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
-        out.append(CandidateResult(name, cv, fit, dbic, accepted))
+        out.append(CandidateResult(name, cv, fit, dbic, accepted, cv_disc))
     out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
     return out
 
@@ -488,13 +622,14 @@ def _extend(
     )
     blocked = {first.cause, *(i.causes[1] for i in ident if not i.separable)}
     fit, cv, round2, notes = first.fit, first.cv_rmse_deg, [], []
+    cv_disc = first.cv_discrepancy_rmse_deg
     if max_causes > 1 and _structure_left(
         ctx.trials, first.fit, ctx.params, ctx.base_effects, masks
     ):
         round2 = _try_causes(
             ctx,
             first.fit,
-            first.cv_rmse_deg,
+            first.cv_discrepancy_rmse_deg,
             [n for n in ctx.names if n not in blocked],
             cv_all=False,
         )
@@ -509,11 +644,12 @@ def _extend(
             more = []
         if more:
             fit, cv = more[0].fit, more[0].cv_rmse_deg
+            cv_disc = more[0].cv_discrepancy_rmse_deg
             notes.append(
                 f"a second cause, {more[0].cause}, improves the held-out RMSE further "
                 f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
             )
-    return _Extension(fit, cv, ident, tuple(round2), tuple(notes))
+    return _Extension(fit, cv, ident, tuple(round2), tuple(notes), cv_disc)
 
 
 def _name_causes(
@@ -582,4 +718,5 @@ def _name_causes(
         ext.second_round,
         experiment,
         tuple(notes),
+        ext.cv_discrepancy_rmse_deg,
     )

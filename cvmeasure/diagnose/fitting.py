@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import optimize, stats
+from scipy import optimize, special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.geometry import wrap_deg
@@ -42,7 +42,90 @@ _STRENGTH_BOUNDS = (0.2, 5.0)
 _GRID_POINTS = 9
 
 
+@dataclass(frozen=True)
+class Nuisance:
+    """A machine parameter fitted with every model (the user's own machine).
+
+    Physical prior: normal about the nominal value with standard deviation
+    ``prior_sd`` (a workshop tolerance), truncated to ``[lower, upper]``; it
+    enters the least squares as one residual ``(v - nominal) / prior_sd *
+    PRIOR_NOISE_DEG``.
+    """
+
+    key: str  # SimParams field
+    lower: float
+    upper: float
+    prior_sd: float
+
+
+#: Geometry fitted beside the strength: the die edge radius decides where the pin meets
+#: the wire and the shape of the loaded angle along the bend. (The hardening law's
+#: shape is left to the discrepancy: its exponent and the strength are not separable.)
+NUISANCE: tuple[Nuisance, ...] = (Nuisance("die_radius_mm", 0.8, 2.6, 0.2),)
+#: Angle noise (deg) that scales the priors' residuals (mid of the 0.02-0.1 deg range).
+PRIOR_NOISE_DEG = 0.05
+
+
+#: Model-form discrepancy (Kennedy-O'Hagan style, bounded): the baseline of a simulation
+#: that is not the machine leaves a smooth wave along the bend, the same in both
+#: directions (the head is mirror-symmetric), its own for loaded and released angles.
+#: It is ``s * sum_j beta_bj P_j(|cmd| / 90 - 1)`` (Legendre P_0..P_3, b = loaded,
+#: released), each coefficient within +- DISCREPANCY_BOUND_DEG: large enough for the
+#: model-form error of a fitted baseline (0.1-0.5 deg), too small for a catalogue cause
+#: of typical size, which must therefore explain the excess. Causes are compared on
+#: their residuals with the discrepancy profiled out (bounded least squares); their
+#: parameters are fitted without it (inside its bounds it would absorb them).
+DISCREPANCY_DEGREE = 3
+DISCREPANCY_BOUND_DEG = 0.25
+
+
+def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
+    """Design matrix (3 N, 2 (degree + 1)) of the discrepancy over stacked observations."""
+    n = len(trials)
+    u = np.clip(np.abs(trials.commanded_pin_deg) / 90.0 - 1.0, -1.0, 1.0)
+    legendre = np.polynomial.legendre.legvander(u, DISCREPANCY_DEGREE)  # (n, d + 1)
+    signed = trials.direction_sign[:, None] * legendre
+    m = DISCREPANCY_DEGREE + 1
+    out = np.zeros((3 * n, 2 * m))
+    out[:n, :m] = signed
+    out[n : 2 * n, m:] = signed
+    return out
+
+
+def _profile_discrepancy(r: NDArray[np.float64], basis: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Bounded least-squares discrepancy coefficients for residuals ``r`` (finite rows):
+    the unconstrained solution when it lies within the bounds, else bounded-variable
+    least squares."""
+    bound = DISCREPANCY_BOUND_DEG
+    used = np.any(basis != 0, axis=0)
+    beta = np.zeros(basis.shape[1])
+    if not used.any():
+        return beta
+    # ||r - a b||^2 = ||q^T r - R b||^2 + const (a = q R): the same minimisers on the
+    # small triangular problem, whatever the number of rows
+    q, tri = np.linalg.qr(basis[:, used])
+    qtr = q.T @ r
+    sol = np.linalg.lstsq(tri, qtr, rcond=None)[0]
+    if np.any(np.abs(sol) > bound):
+        sol = optimize.lsq_linear(tri, qtr, bounds=(-bound, bound), method="bvls").x
+    beta[used] = sol
+    return beta
+
+
 Causes = tuple[str, ...]
+Shape = tuple[tuple[str, float], ...]
+
+#: The forms of a cause that are tried (shape parameters, see cvmeasure.sim.effects); the
+#: first is the spec's narrow form. The form whose grid point fits best is refined.
+FORMS: dict[str, tuple[Shape, ...]] = {
+    "backlash": ((), (("same_direction_share", 0.0),)),
+    "drift": (
+        (),
+        (("home_shift", 1.0),),
+        (("home_shift", 1.0), ("load_exponent", 1.0)),
+    ),
+    "camera_tilt": tuple((("tilt_axis_deg", float(a)),) if a else () for a in range(-75, 91, 15)),
+}
 
 
 def _as_causes(causes: str | Sequence[str]) -> Causes:
@@ -63,6 +146,10 @@ class ModelFit:
     rss_deg2: float  # residual sum of squares over all measured angles
     n_obs: int
     n_params: int
+    nuisance: tuple[float, ...] = ()  # values of NUISANCE (empty: the nominal ones)
+    shapes: tuple[Shape, ...] = ()  # each cause's form (empty: the narrow forms)
+    discrepancy: tuple[float, ...] = ()  # coefficients (deg) of the discrepancy (empty: none)
+    rss_discrepancy_deg2: float = math.nan  # residual sum of squares after the discrepancy
 
     @property
     def cause(self) -> str:
@@ -88,14 +175,39 @@ class ModelFit:
 
     def effects(self) -> tuple[Effect, ...]:
         """The fitted effects (clipped to their physical bounds)."""
-        return _effects((), self.causes, self.values)
+        return _effects((), self.causes, self.values, self.shapes)
 
     def params(self, base: SimParams) -> SimParams:
-        """``base`` with the fitted material strength."""
-        return _scaled(base, self.strength_scale)
+        """``base`` with the fitted material strength and nuisance geometry."""
+        return _scaled(base, self.strength_scale, self.nuisance)
+
+    def nuisance_values(self) -> dict[str, float]:
+        return {n.key: v for n, v in zip(NUISANCE, self.nuisance, strict=False)}
+
+    def residuals(
+        self, trials: TrialTable, params: SimParams, base_effects: Sequence[Effect] = ()
+    ) -> NDArray[np.float64]:
+        """Measured minus predicted by this fit (see :func:`residuals`)."""
+        return residuals(
+            trials,
+            params,
+            base_effects,
+            self.causes,
+            self.strength_scale,
+            self.values,
+            nuisance=self.nuisance,
+            shapes=self.shapes,
+        )
 
     def param_values(self) -> dict[str, float]:
-        return {EFFECTS[c].param: v for c, v in zip(self.causes, self.values, strict=True)}
+        """Each cause's parameter, and the shape parameters of a general form."""
+        out = {EFFECTS[c].param: v for c, v in zip(self.causes, self.values, strict=True)}
+        for form in self.shapes:
+            out.update(dict(form))
+        return out
+
+    def shapes_by_cause(self) -> dict[str, Shape]:
+        return dict(zip(self.causes, self.shapes, strict=False))
 
     def reordered(self, causes: Sequence[str]) -> ModelFit:
         """The same fit with its causes listed in another order."""
@@ -104,6 +216,7 @@ class ModelFit:
             self,
             causes=tuple(self.causes[i] for i in order),
             values=tuple(self.values[i] for i in order),
+            shapes=tuple(self.shapes[i] for i in order) if self.shapes else (),
             intervals=tuple(self.intervals[i] for i in order),
         )
 
@@ -119,6 +232,7 @@ class ModelFit:
             "strength_scale": self.strength_scale,
             "strength_interval": list(self.strength_interval),
             "params": self.param_values(),
+            "nuisance": self.nuisance_values(),
             "intervals": {k: list(v) for k, v in self.param_intervals().items()},
             "rmse_deg": self.rmse_deg,
             "n_obs": self.n_obs,
@@ -138,21 +252,35 @@ class CrossValidation:
         r = self.residual_deg[np.isfinite(self.residual_deg)]
         return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
+    def rmse_after_discrepancy_deg(self, trials: TrialTable) -> float:
+        """Held-out RMSE with the bounded model-form discrepancy profiled out."""
+        ok = np.isfinite(self.residual_deg)
+        if not ok.any():
+            return math.nan
+        basis = discrepancy_basis(trials)[ok]
+        r = self.residual_deg[ok]
+        return float(np.sqrt(np.mean((r - basis @ _profile_discrepancy(r, basis)) ** 2)))
+
     def to_dict(self) -> dict[str, Any]:
         return {"causes": list(self.causes), "cv_rmse_deg": self.rmse_deg}
 
 
-def _scaled(base: SimParams, scale: float) -> SimParams:
-    return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale)
+def _scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
+    extra = {n.key: float(v) for n, v in zip(NUISANCE, nuisance, strict=False)}
+    return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale, **extra)
 
 
 def _effects(
-    base_effects: Sequence[Effect], causes: Causes, values: Sequence[float]
+    base_effects: Sequence[Effect],
+    causes: Causes,
+    values: Sequence[float],
+    shapes: Sequence[Shape] = (),
 ) -> tuple[Effect, ...]:
     kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
+    forms = list(shapes) + [()] * (len(causes) - len(shapes))
     added = tuple(
-        Effect(c, float(np.clip(v, EFFECTS[c].lower, EFFECTS[c].upper)))
-        for c, v in zip(causes, values, strict=True)
+        Effect(c, float(np.clip(v, EFFECTS[c].lower, EFFECTS[c].upper)), f)
+        for c, v, f in zip(causes, values, forms, strict=True)
     )
     return (*kept, *added)
 
@@ -164,13 +292,16 @@ def predict(
     causes: str | Sequence[str],
     strength_scale: float,
     values: Sequence[float] = (),
+    *,
+    nuisance: Sequence[float] = (),
+    shapes: Sequence[Shape] = (),
 ) -> NDArray[np.float64]:
     """Predicted observations of the trials under a model, stacked like
     :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg)."""
     res = simulate(
         trials.commanded_pin_deg,
-        _scaled(params, strength_scale),
-        _effects(base_effects, _as_causes(causes), values),
+        _scaled(params, strength_scale, nuisance),
+        _effects(base_effects, _as_causes(causes), values, shapes),
         bend_index=trials.bend_index,
     )
     return np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
@@ -183,19 +314,34 @@ def residuals(
     causes: str | Sequence[str],
     strength_scale: float,
     values: Sequence[float] = (),
+    *,
+    nuisance: Sequence[float] = (),
+    discrepancy: Sequence[float] = (),
+    shapes: Sequence[Shape] = (),
 ) -> NDArray[np.float64]:
     """Measured minus predicted, stacked by blocks (loaded, unloaded, pin); NaN = not measured."""
-    predicted = predict(trials, params, base_effects, causes, strength_scale, values)
+    predicted = predict(
+        trials,
+        params,
+        base_effects,
+        causes,
+        strength_scale,
+        values,
+        nuisance=nuisance,
+        shapes=shapes,
+    )
     r = trials.observations() - predicted
     n = len(trials)
     r[2 * n :] = wrap_deg(r[2 * n :])  # pin angles are directions
+    if len(discrepancy):
+        r = r - discrepancy_basis(trials) @ np.asarray(discrepancy, dtype=np.float64)
     return r
 
 
 def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple[float, float]:
     if not math.isfinite(se):
         return (lo, hi)
-    t = float(stats.t.ppf(0.975, max(dof, 1)))
+    t = float(special.stdtrit(max(dof, 1), 0.975))  # Student t quantile (no scipy.stats)
     return (max(center - t * se, lo), min(center + t * se, hi))
 
 
@@ -205,60 +351,143 @@ def fit_model(
     causes: str | Sequence[str] = "none",
     *,
     base_effects: Sequence[Effect] = (),
-    start: tuple[float, Sequence[float]] | None = None,
+    start: ModelFit | tuple[float, Sequence[float]] | None = None,
     known: dict[str, float] | None = None,
+    known_shapes: dict[str, Shape] | None = None,
+    nuisance: bool = True,
+    discrepancy: bool = False,
+    rows: NDArray[np.bool_] | None = None,
 ) -> ModelFit:
-    """Fit the strength scale and the parameters of the effects ``causes`` to the trials.
+    """Fit the strength scale, the nuisance geometry and the causes' parameters.
 
     Parameters
     ----------
     trials : TrialTable
         Measured bends.
     params : SimParams
-        The simulation's nominal parameters.
+        The simulation's nominal parameters (the nuisance start there).
     causes : str or sequence of str
-        ``"none"`` (baseline: strength only), an effect name, or several.
+        ``"none"`` (baseline: strength and nuisance only), an effect name, or several.
     base_effects : sequence of Effect
         Effects already known (from the params JSON), kept fixed.
-    start : (strength_scale, values), optional
+    start : ModelFit or (strength_scale, values), optional
         Start point (skips the grid search), e.g. a full-data fit for CV folds.
     known : dict, optional
-        Start values of some causes (e.g. from a previous round); the others
-        start from the best point of a grid over their bounds.
+        Start values of some causes or nuisance parameters (e.g. from a previous
+        round); the other causes start from the best point of a grid over their bounds.
+    nuisance : bool
+        Fit :data:`NUISANCE` (die radius, hardening exponent) within their
+        physical bounds (True, default) or keep the nominal values.
+    known_shapes : dict, optional
+        The forms of causes given in ``known`` (the others: every form of
+        :data:`FORMS` is tried on the grid, the best one refined).
+    discrepancy : bool
+        Fit with the bounded model-form discrepancy profiled out of every residual
+        (False, default: the parameters are fitted without it, and the discrepancy
+        is profiled from the final residuals for ``rss_discrepancy_deg2``).
+    rows : bool array of shape (N,), optional
+        Fit only these trials; the model still runs over every trial in order, so
+        a bend's history (reversals, home shift) is that of the real sequence.
     """
     names = _as_causes(causes)
     specs = [EFFECTS[c] for c in names]
+    nuis = NUISANCE if nuisance else ()
+    m = len(nuis)
+
+    keep = np.tile(np.ones(len(trials), dtype=bool) if rows is None else np.asarray(rows), 3)
+    basis_all = discrepancy_basis(trials)[keep] if discrepancy else None
+
+    forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
+    if isinstance(start, ModelFit) and len(start.shapes) == len(names):
+        forms = list(start.shapes)
+
+    def raw(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return _residuals_full(x)[keep]
+
+    def _residuals_full(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return residuals(
+            trials,
+            params,
+            base_effects,
+            names,
+            x[0],
+            x[1 + m :],
+            nuisance=x[1 : 1 + m],
+            shapes=forms,
+        )
+
+    prior_centre = np.array([float(getattr(params, n.key)) for n in nuis])
+    prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        r = residuals(trials, params, base_effects, names, x[0], x[1:])
-        return r[np.isfinite(r)]
+        r = raw(x)
+        ok = np.isfinite(r)
+        prior = (x[1 : 1 + m] - prior_centre) * prior_weight
+        if basis_all is None:
+            return np.concatenate([r[ok], prior])
+        basis = basis_all[ok]
+        return np.concatenate([r[ok] - basis @ _profile_discrepancy(r[ok], basis), prior])
 
-    if start is not None:
-        x0 = np.array([start[0], *start[1]], dtype=np.float64)
+    nominal = [float((known or {}).get(n.key, getattr(params, n.key))) for n in nuis]
+    alternatives: list[tuple[int, float, Shape]] = []  # (index, start value, form)
+    if isinstance(start, ModelFit):
+        start_nuis = list(start.nuisance) if len(start.nuisance) == m else nominal
+        x0 = np.array([start.strength_scale, *start_nuis, *start.values], dtype=np.float64)
+    elif start is not None:
+        x0 = np.array([start[0], *nominal, *start[1]], dtype=np.float64)
     else:
         known = known or {}
-        x0 = np.array([1.0] + [known.get(c, 0.0) for c in names], dtype=np.float64)
-        x0[1:] = np.clip(x0[1:], [s.lower for s in specs], [s.upper for s in specs])
-        for i, (c, spec) in enumerate(zip(names, specs, strict=True), start=1):
+        x0 = np.array([1.0, *nominal] + [known.get(c, 0.0) for c in names], dtype=np.float64)
+        x0[1 + m :] = np.clip(x0[1 + m :], [s.lower for s in specs], [s.upper for s in specs])
+        for i, (c, spec) in enumerate(zip(names, specs, strict=True), start=1 + m):
             if c in known:
                 continue
             grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
-            costs = []
-            for v in grid:
-                x0[i] = v
-                costs.append(np.sum(resid(x0) ** 2))
-            x0[i] = float(grid[int(np.argmin(costs))])
-    lower = np.array([_STRENGTH_BOUNDS[0]] + [s.lower for s in specs])
-    upper = np.array([_STRENGTH_BOUNDS[1]] + [s.upper for s in specs])
+            per_form = []
+            for form in FORMS.get(c, ((),)):
+                forms[i - 1 - m] = form
+                costs = []
+                for v in grid:
+                    x0[i] = v
+                    costs.append(float(np.sum(resid(x0) ** 2)))
+                j = int(np.argmin(costs))
+                per_form.append((costs[j], float(grid[j]), form))
+            per_form.sort(key=lambda t: t[0])
+            x0[i], forms[i - 1 - m] = per_form[0][1], per_form[0][2]
+            if len(per_form) > 1:  # the grid is coarse: the runner-up form is refined too
+                alternatives.append((i, per_form[1][1], per_form[1][2]))
+    lower = np.array([_STRENGTH_BOUNDS[0], *(n.lower for n in nuis), *(s.lower for s in specs)])
+    upper = np.array([_STRENGTH_BOUNDS[1], *(n.upper for n in nuis), *(s.upper for s in specs)])
     # keep the start strictly inside the bounds (least_squares requires it)
     span = upper - lower
     x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
-    scale = np.array([0.1] + [max(abs(s.typical[1]), 1e-3) for s in specs])
-    sol = optimize.least_squares(
-        resid, x0, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
+    scale = np.array(
+        [0.1, *(0.5 * n.prior_sd for n in nuis), *(max(abs(s.typical[1]), 1e-3) for s in specs)]
     )
+    starts = [(x0, list(forms))]
+    for i, v, form in alternatives:
+        alt_x, alt_forms = x0.copy(), list(forms)
+        alt_x[i], alt_forms[i - 1 - m] = v, form
+        starts.append((np.clip(alt_x, lower + 1e-9 * span, upper - 1e-9 * span), alt_forms))
+    sol, best_forms = None, list(forms)
+    for x_start, f in starts:
+        forms[:] = f
+        trial = optimize.least_squares(
+            resid, x_start, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
+        )
+        if sol is None or trial.cost < sol.cost:
+            sol, best_forms = trial, list(f)
+    forms[:] = best_forms
+    assert sol is not None
     r = sol.fun
-    n_obs, n_par = r.size, sol.x.size
+    r0 = raw(sol.x)
+    ok = np.isfinite(r0)
+    basis_ok = (basis_all if basis_all is not None else discrepancy_basis(trials)[keep])[ok]
+    beta = _profile_discrepancy(r0[ok], basis_ok)
+    rss_disc = float(np.sum((r0[ok] - basis_ok @ beta) ** 2))
+    # the prior residuals are not observations; a general form's shape parameters were
+    # chosen from the data too, so they count as parameters
+    n_obs, n_par = r.size - m, sol.x.size + sum(len(f) for f in forms)
     rss = float(np.sum(r**2))
     dof = n_obs - n_par
     jac = sol.jac
@@ -270,15 +499,19 @@ def fit_model(
     return ModelFit(
         causes=names,
         strength_scale=float(sol.x[0]),
-        values=tuple(float(v) for v in sol.x[1:]),
+        values=tuple(float(v) for v in sol.x[1 + m :]),
         intervals=tuple(
             _interval(float(sol.x[i]), float(se[i]), dof, spec.lower, spec.upper)
-            for i, spec in enumerate(specs, start=1)
+            for i, spec in enumerate(specs, start=1 + m)
         ),
         strength_interval=_interval(float(sol.x[0]), float(se[0]), dof, *_STRENGTH_BOUNDS),
         rss_deg2=rss,
         n_obs=n_obs,
         n_params=n_par,
+        nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
+        shapes=tuple(forms),
+        discrepancy=tuple(float(v) for v in beta),
+        rss_discrepancy_deg2=rss_disc,
     )
 
 
@@ -306,13 +539,22 @@ def grouped_kfold_cv(
     n = len(trials)
     n_blocks = len(BLOCKS)
     out = np.full(n_blocks * n, np.nan)
-    start = (full_fit.strength_scale, full_fit.values) if full_fit is not None else None
+    # the nuisance geometry stays at its full-data fit within the folds (the same for
+    # every model compared: the machine is measured once); strength and causes are refitted
+    fold_params = _scaled(params, 1.0, full_fit.nuisance) if full_fit is not None else params
     for held in folds:
-        train = trials.subset(~held)
-        fit = fit_model(train, params, names, base_effects=base_effects, start=start)
-        test = trials.subset(held)
-        r = residuals(test, params, base_effects, names, fit.strength_scale, fit.values)
-        idx = np.flatnonzero(held)
-        for b in range(n_blocks):
-            out[b * n + idx] = r[b * idx.size : (b + 1) * idx.size]
+        # fitted on the other folds and predicted on this one, the model running over
+        # the whole sequence (history-dependent causes see the real order)
+        fit = fit_model(
+            trials,
+            fold_params,
+            names,
+            base_effects=base_effects,
+            start=full_fit,
+            nuisance=False,
+            rows=~held,
+        )
+        r = fit.residuals(trials, fold_params, base_effects)
+        mask = np.tile(held, n_blocks)
+        out[mask] = r[mask]
     return CrossValidation(causes=names, residual_deg=out)

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
 
@@ -35,6 +35,7 @@ UNNAMED_GAIN = 0.3
 COVARIATES: dict[str, tuple[str, ...]] = {
     "direction": ("offset", "axis_offset", "springback_asymmetry"),
     "bend_index": ("drift",),
+    "signed_bend_index": ("drift",),
     "commanded_angle": ("scale", "camera_tilt", "backlash"),
     "signed_angle": ("offset", "axis_offset", "springback_asymmetry"),
     "unloaded_minus_loaded": ("springback_asymmetry",),
@@ -73,12 +74,23 @@ def _features(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
     return {
         "direction": tile(s),
         "bend_index": tile(trials.bend_index),
+        "signed_bend_index": tile(s * trials.bend_index),
         "commanded_angle": tile(mag),
         "signed_angle": tile(s * mag),
         "unloaded_minus_loaded": np.where(block == 2, np.nan, unloaded),
         "direction_x_unloaded": np.where(block == 2, np.nan, tile(s) * unloaded),
         "pin_vs_bend": (block == 2).astype(float),
     }
+
+
+def _pearson(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
+    """Pearson correlation and its two-sided p-value (Student t with n - 2 dof)."""
+    rho = float(np.clip(np.corrcoef(x, y)[0, 1], -1.0, 1.0))
+    dof = x.size - 2
+    if abs(rho) >= 1.0:
+        return rho, 0.0
+    t = abs(rho) * math.sqrt(dof / (1.0 - rho * rho))
+    return rho, float(2.0 * special.stdtr(dof, -t))
 
 
 def residual_trends(trials: TrialTable, residual_deg: NDArray[np.float64]) -> list[ResidualTrend]:
@@ -92,8 +104,8 @@ def residual_trends(trials: TrialTable, residual_deg: NDArray[np.float64]) -> li
         if x.size < 3 or np.ptp(x) == 0 or np.ptp(y) == 0:
             out.append(ResidualTrend(name, math.nan, math.nan, COVARIATES[name]))
             continue
-        res = stats.pearsonr(x, y)
-        out.append(ResidualTrend(name, float(res.statistic), float(res.pvalue), COVARIATES[name]))
+        rho, p = _pearson(x, y)
+        out.append(ResidualTrend(name, rho, p, COVARIATES[name]))
     return out
 
 

@@ -1,21 +1,42 @@
 """Named effects: what a simulation can get wrong, as parametrised modifiers of the model.
 
-Each effect has one parameter, physical bounds, a stage where it enters the
+Each effect has one main parameter, physical bounds, a stage where it enters the
 forward model (not added to its output) and a typical size used to draw
-synthetic test data. The spec's names keep their meaning:
+synthetic test data. Three effects have *shape* parameters that make their
+physically general form (defaults in brackets give the narrow form):
+
+- ``backlash``: ``same_direction_share`` [1]: share of the play lost by a bend in
+  the same direction as the one before (a pure play operator with return to
+  home loses it only on direction reversals: 0);
+- ``drift``: ``load_exponent`` [0]: the steps lost per bend grow with the pin
+  torque as ``d_j = d (T_j / 3 N m)^p``; ``home_shift`` [0]: the share of the
+  accumulated loss that shifts home instead of shortening every later bend. The
+  narrow form (0, the spec's helix) shortens bend k by ``d k`` whatever its
+  direction; a home shift (1) under-bends a later bend in the same direction and
+  over-bends one in the other (``h_k = -sum_{j<k} s_j d_j``; both agree when all
+  bends go one way). The general form (either shape parameter non-zero) follows
+  the rows in the order executed; a re-home (bend_index back to 0) resets it;
+- ``camera_tilt``: ``tilt_axis_deg`` [0]: the tilt is about an axis at this
+  azimuth in the bending plane (0: the feed axis); angles are measured from the
+  image of the feed leg.
+
+The spec's names keep their meaning:
 
 =======================  ==========================  =====================================
 name                     parameter                   enters the model as
 =======================  ==========================  =====================================
 ``none``                 -                           nothing
-``backlash``             ``backlash_deg`` (>= 0)     lost head travel: ``|r| -> |r| - b``
+``backlash``             ``backlash_deg`` (>= 0)     lost head travel: ``|r| -> |r| - b w_k``,
+                                                     ``w_k = 1`` on a reversal, else the share
 ``offset``               ``offset_deg``              zero error: ``r -> r + c`` (signed)
 ``scale``                ``scale``                   ``r -> r (1 + s)``
 ``drift``                ``drift_deg_per_bend``      loss growing with bend index k:
-                                                     ``|r| -> |r| - d k`` (the helix)
+                                                     ``|r| -> |r| - d k`` (the helix); general
+                                                     form: home shift ``r -> r + h_k``
 ``springback_asymmetry`` ``asymmetry``               springback ``* (1 + s_dir alpha)``
-``camera_tilt``          ``tilt_deg``                measured angles foreshortened about the
-                                                     feed axis: ``tan t' = tan t cos(tau)``
+``camera_tilt``          ``tilt_deg``                measured angles foreshortened about an
+                                                     axis at ``tilt_axis_deg`` (feed axis:
+                                                     ``tan t' = tan t cos(tau)``)
 ``axis_offset``          ``axis_offset_mm``          lateral head-axis offset e (tangent
                                                      construction), about ``+-(e/l) cos t``
 ``compliance``           ``compliance_deg_per_nm``   drive wind-up: the head lags by
@@ -35,6 +56,7 @@ from typing import Any, Literal
 
 __all__ = [
     "EffectStage",
+    "ShapeSpec",
     "EffectSpec",
     "Effect",
     "EFFECTS",
@@ -44,6 +66,27 @@ __all__ = [
 ]
 
 EffectStage = Literal["none", "command", "geometry", "springback", "measurement"]
+
+
+@dataclass(frozen=True)
+class ShapeSpec:
+    """A shape parameter of an effect's general form; ``default`` gives the narrow form."""
+
+    key: str  # JSON key (unit in the name where it has one)
+    unit: str
+    lower: float
+    upper: float
+    default: float
+    description: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "key": self.key,
+            "unit": self.unit,
+            "bounds": [self.lower, self.upper],
+            "default": self.default,
+            "description": self.description,
+        }
 
 
 @dataclass(frozen=True)
@@ -59,6 +102,13 @@ class EffectSpec:
     typical: tuple[float, float]  # |value| range used for synthetic draws
     signed: bool  # whether synthetic draws take both signs
     description: str
+    shape: tuple[ShapeSpec, ...] = ()  # parameters of the general form
+
+    def shape_spec(self, key: str) -> ShapeSpec:
+        for s in self.shape:
+            if s.key == key:
+                return s
+        raise ValueError(f"{self.name} has no shape parameter {key!r}")
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -69,6 +119,7 @@ class EffectSpec:
             "stage": self.stage,
             "typical": list(self.typical),
             "description": self.description,
+            "shape": [s.to_dict() for s in self.shape],
         }
 
 
@@ -85,7 +136,18 @@ EFFECTS: dict[str, EffectSpec] = {
             "command",
             (0.6, 3.0),
             False,
-            "gearbox play: every bend loses b of head travel",
+            "gearbox play: a bend loses b of head travel on a direction reversal, "
+            "the share of b on a bend in the same direction",
+            (
+                ShapeSpec(
+                    "same_direction_share",
+                    "1",
+                    0.0,
+                    1.0,
+                    1.0,
+                    "share of b lost when the bend goes the same way as the one before",
+                ),
+            ),
         ),
         EffectSpec(
             "offset",
@@ -118,7 +180,26 @@ EFFECTS: dict[str, EffectSpec] = {
             "command",
             (0.015, 0.06),
             False,
-            "lost steps accumulate bend after bend (the seed paper's helix)",
+            "lost steps shift home bend after bend (the seed paper's helix)",
+            (
+                ShapeSpec(
+                    "load_exponent",
+                    "1",
+                    0.0,
+                    3.0,
+                    0.0,
+                    "steps lost per bend grow with the pin torque as (T / 3 N m)^p",
+                ),
+                ShapeSpec(
+                    "home_shift",
+                    "1",
+                    0.0,
+                    1.0,
+                    0.0,
+                    "share of the accumulated loss that shifts home (signed by the "
+                    "direction of the bends that lost it) instead of shortening every bend",
+                ),
+            ),
         ),
         EffectSpec(
             "springback_asymmetry",
@@ -141,6 +222,16 @@ EFFECTS: dict[str, EffectSpec] = {
             (12.0, 25.0),
             False,
             "photos not parallel to the bending plane: angles foreshortened",
+            (
+                ShapeSpec(
+                    "tilt_axis_deg",
+                    "deg",
+                    -90.0,
+                    90.0,
+                    0.0,
+                    "azimuth of the tilt axis in the bending plane from the feed axis",
+                ),
+            ),
         ),
         EffectSpec(
             "axis_offset",
@@ -177,6 +268,7 @@ class Effect:
 
     name: str
     value: float = 0.0
+    shape: tuple[tuple[str, float], ...] = ()  # (key, value) of shape parameters given
 
     def __post_init__(self) -> None:
         if self.name not in EFFECTS:
@@ -187,15 +279,28 @@ class Effect:
                 f"{self.name}: {spec.param} = {self.value} is outside its physical bounds "
                 f"[{spec.lower}, {spec.upper}] {spec.unit}"
             )
+        shape = tuple((str(k), float(v)) for k, v in dict(self.shape).items())
+        for key, value in shape:
+            sspec = spec.shape_spec(key)
+            if not sspec.lower <= value <= sspec.upper:
+                raise ValueError(
+                    f"{self.name}: {key} = {value} is outside its bounds "
+                    f"[{sspec.lower}, {sspec.upper}] {sspec.unit}"
+                )
+        object.__setattr__(self, "shape", shape)
 
     @property
     def spec(self) -> EffectSpec:
         return EFFECTS[self.name]
 
+    def shape_value(self, key: str) -> float:
+        """The shape parameter ``key`` (its default, the narrow form, when not given)."""
+        return dict(self.shape).get(key, self.spec.shape_spec(key).default)
+
     def to_dict(self) -> dict[str, Any]:
         if self.name == "none":
             return {"name": "none"}
-        return {"name": self.name, self.spec.param: self.value}
+        return {"name": self.name, self.spec.param: self.value, **dict(self.shape)}
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Effect:
@@ -206,25 +311,41 @@ class Effect:
             raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECT_NAMES)}")
         if name == "none":
             return cls("none")
-        key = EFFECTS[name].param
-        if key not in data:
-            raise ValueError(f"effect {name} needs its parameter {key}")
-        return cls(name, float(data[key]))
+        spec = EFFECTS[name]
+        if spec.param not in data:
+            raise ValueError(f"effect {name} needs its parameter {spec.param}")
+        unknown = set(data) - {"name", spec.param, *(s.key for s in spec.shape)}
+        if unknown:
+            raise ValueError(f"effect {name}: unknown key(s) {', '.join(sorted(unknown))}")
+        shape = tuple((s.key, float(data[s.key])) for s in spec.shape if s.key in data)
+        return cls(name, float(data[spec.param]), shape)
 
 
 def parse_effect(text: str) -> Effect:
-    """Parse ``NAME=VALUE`` (or ``none``) as given to ``cvmeasure simulate --effect``."""
-    name, sep, value = text.partition("=")
+    """Parse ``NAME=VALUE[,KEY=VALUE...]`` (or ``none``) as given to ``simulate --effect``.
+
+    >>> parse_effect("camera_tilt=15,tilt_axis_deg=30").shape
+    (('tilt_axis_deg', 30.0),)
+    """
+    head, *rest = text.split(",")
+    name, sep, value = head.partition("=")
     name = name.strip()
-    if name == "none" and not sep:
+    if name == "none" and not sep and not rest:
         return Effect("none")
     if not sep:
         raise ValueError(f"effect {text!r} must be NAME=VALUE")
+    shape = []
+    for item in rest:
+        key, sep2, v = item.partition("=")
+        if not sep2:
+            raise ValueError(f"effect {name}: shape parameter {item!r} must be KEY=VALUE")
+        shape.append((key.strip(), v))
     try:
         number = float(value)
+        shape_values = tuple((k, float(v)) for k, v in shape)
     except ValueError:
-        raise ValueError(f"effect {name}: value {value!r} is not a number") from None
-    return Effect(name, number)
+        raise ValueError(f"effect {name}: value in {text!r} is not a number") from None
+    return Effect(name, number, shape_values)
 
 
 def effects_from_dicts(items: Iterable[Mapping[str, Any]]) -> tuple[Effect, ...]:

@@ -3,6 +3,7 @@
 One bend, vectorised over many::
 
     r       = command effects(commanded_pin_deg)      # backlash, offset, scale, drift
+                                                       # (history: reversals, home shift)
     phi     = phi_contact - approach_deg + |r|         # head angle, die frame of the bend
     phi    -= compliance * (M / l(phi)) * R_p          # drive wind-up under the pin load
     theta_L = tangent construction(phi)                # loaded angle (>= 0), lever l
@@ -48,6 +49,8 @@ __all__ = [
 _MAX_ROTATION_DEG = 200.0
 #: Fixed-point iterations of the compliance lag (converges to < 1e-4 deg in 4).
 _COMPLIANCE_ITERATIONS = 6
+#: Fixed-point iterations of a load-dependent drift (the load changes little with the shift).
+_DRIFT_ITERATIONS = 3
 #: Largest final bend the inverse accepts (deg): the tangent construction ends at 180.
 _MAX_BEND_DEG = 179.0
 
@@ -117,28 +120,111 @@ def effect_values(effects: Iterable[Effect]) -> dict[str, float]:
     return out
 
 
-def apply_camera_tilt_deg(angle_deg: ArrayLike, tilt_deg: float) -> NDArray[np.float64]:
-    """Angles (deg, from +x) as seen by a camera tilted by ``tilt_deg`` about the feed axis."""
+def _shapes(effects: Iterable[Effect]) -> dict[str, float]:
+    """Every shape parameter of the effects switched on (defaults filled in)."""
+    return {s.key: e.shape_value(s.key) for e in effects if e.name != "none" for s in e.spec.shape}
+
+
+def apply_camera_tilt_deg(
+    angle_deg: ArrayLike, tilt_deg: float, axis_deg: float = 0.0
+) -> NDArray[np.float64]:
+    """Angles (deg, from the feed leg +x) as seen by a camera tilted by ``tilt_deg``.
+
+    The tilt is about an axis in the bending plane at ``axis_deg`` from +x (0: the
+    feed axis, ``tan t' = tan t cos(tau)``); orthographic view, so a direction ``v``
+    is seen as ``R(psi) diag(1, cos tau) R(-psi) v`` and the angle is measured from
+    the image of the feed leg.
+    """
     t = np.radians(np.asarray(angle_deg, dtype=np.float64))
     c = np.cos(np.radians(tilt_deg))
-    return np.degrees(np.arctan2(np.sin(t) * c, np.cos(t)))
+    psi = np.radians(axis_deg)
+
+    def seen(a: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        u = np.cos(np.asarray(a) - psi)  # along the axis: kept
+        v = np.sin(np.asarray(a) - psi) * c  # across it: foreshortened
+        return np.arctan2(v, u) + psi
+
+    return np.degrees(wrap_rad(seen(t) - seen(0.0)))
+
+
+def wrap_rad(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Angles (rad) wrapped to [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class _History:
+    """What each bend inherits from the bends before it (rows in the order executed)."""
+
+    direction: NDArray[np.float64]
+    reversal: NDArray[np.bool_]  # first bend of a run, or direction changed
+    run: NDArray[np.int64]  # run id: a re-home (bend_index back to 0 or down) starts one
+    bend_index: NDArray[np.float64]  # as given
+
+    @classmethod
+    def of(cls, cmd: NDArray[np.float64], bend_index: NDArray[np.float64]) -> _History:
+        direction = np.where(cmd < 0, -1.0, 1.0)
+        prev_index = np.concatenate([[np.inf], bend_index[:-1]])
+        start = (bend_index <= prev_index) | (bend_index == 0)
+        prev_dir = np.concatenate([[0.0], direction[:-1]])
+        reversal = start | (direction != prev_dir)
+        return cls(direction, reversal, np.cumsum(start) - 1, bend_index)
+
+    def accumulated(self, step: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``sum step_j`` over the earlier bends of each bend's run."""
+        before = np.cumsum(step) - step
+        first = np.searchsorted(self.run, self.run)  # index of each run's first bend
+        return before - before[first]
+
+    def home_shift(self, loss_deg: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Signed home shift of each bend: ``-sum s_j loss_j`` over earlier bends of its run."""
+        return -self.accumulated(self.direction * loss_deg)
+
+
+#: Reference pin torque of the drift's load law (N m): d is the loss per bend at this load.
+DRIFT_REFERENCE_TORQUE_NM = 3.0
 
 
 def _rotation(
-    cmd: NDArray[np.float64], values: dict[str, float], bend_index: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(direction, head rotation magnitude >= 0) after the command effects."""
-    direction = np.where(cmd < 0, -1.0, 1.0)
+    cmd: NDArray[np.float64],
+    values: dict[str, float],
+    shapes: dict[str, float],
+    history: _History,
+    torque_nm: NDArray[np.float64] | None,
+) -> NDArray[np.float64]:
+    """Head rotation magnitude (>= 0) after the command effects."""
+    direction = history.direction
     r = np.abs(cmd)
     if "scale" in values:
         r = r * (1.0 + values["scale"])
     if "offset" in values:
         r = r + direction * values["offset"]
     if "backlash" in values:
-        r = r - values["backlash"]
+        share = shapes.get("same_direction_share", 1.0)
+        r = r - values["backlash"] * np.where(history.reversal, 1.0, share)
     if "drift" in values:
-        r = r - values["drift"] * bend_index
-    return direction, np.maximum(r, 0.0)
+        p = shapes.get("load_exponent", 0.0)
+        share = shapes.get("home_shift", 0.0)
+        if p == 0.0 and share == 0.0:
+            # the spec's helix: bend k loses d k whatever the order (bend_index as given)
+            r = r - values["drift"] * history.bend_index
+        else:
+            if p == 0.0 or torque_nm is None:
+                loss = np.full(r.shape, values["drift"])
+            else:
+                t = np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM
+                loss = values["drift"] * t**p
+            r = r - (1.0 - share) * history.accumulated(loss)
+            r = r + share * direction * history.home_shift(loss)
+    return np.maximum(r, 0.0)
+
+
+def _torque_nm(
+    law: SpringbackLaw, params: SimParams, theta_l: NDArray[np.float64], lever: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Pin torque about the head axis (N m): (M / l) R_p while the pin loads the wire."""
+    torque = law.moment_nmm / np.maximum(lever, 1e-3) * params.pin_orbit_mm / 1e3
+    return np.where(theta_l > 0, torque, 0.0)
 
 
 def _forward(
@@ -149,19 +235,28 @@ def _forward(
     law: SpringbackLaw,
     *,
     measure: bool = True,
+    shapes: dict[str, float] | None = None,
 ) -> SimResult:
-    direction, r = _rotation(cmd, values, bend_index)
+    shapes = shapes or {}
+    history = _History.of(cmd, bend_index)
+    direction = history.direction
+    r = _rotation(cmd, values, shapes, history, None)
     nominal = head_geometry(params, direction)
     geom = head_geometry(params, direction, axis_offset_mm=values.get("axis_offset", 0.0))
     phi0 = contact_angle_deg(nominal) - params.approach_deg
     phi = phi0 + r
     theta_l, lever = loaded_angle_and_lever(geom, phi)
+    if "drift" in values and shapes.get("load_exponent", 0.0) > 0.0:
+        # the steps a bend loses depend on its own load: iterate to the fixed point
+        for _ in range(_DRIFT_ITERATIONS):
+            r = _rotation(cmd, values, shapes, history, _torque_nm(law, params, theta_l, lever))
+            phi = phi0 + r
+            theta_l, lever = loaded_angle_and_lever(geom, phi)
     if values.get("compliance", 0.0) > 0.0:
         # the drive winds up under the pin load: torque = (M / l) * R_p; the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
-            torque_nm = law.moment_nmm / np.maximum(lever, 1e-3) * params.pin_orbit_mm / 1e3
-            lag = np.where(theta_l > 0, values["compliance"] * torque_nm, 0.0)
+            lag = values["compliance"] * _torque_nm(law, params, theta_l, lever)
             phi = phi0 + np.maximum(r - lag, 0.0)
             theta_l, lever = loaded_angle_and_lever(geom, phi)
         r = phi - phi0
@@ -173,9 +268,10 @@ def _forward(
     loaded = direction * theta_l
     unloaded = direction * (theta_l - sb)
     if measure and "camera_tilt" in values:
-        loaded = apply_camera_tilt_deg(loaded, values["camera_tilt"])
-        unloaded = apply_camera_tilt_deg(unloaded, values["camera_tilt"])
-        pin_machine = apply_camera_tilt_deg(pin_machine, values["camera_tilt"])
+        axis = shapes.get("tilt_axis_deg", 0.0)
+        loaded = apply_camera_tilt_deg(loaded, values["camera_tilt"], axis)
+        unloaded = apply_camera_tilt_deg(unloaded, values["camera_tilt"], axis)
+        pin_machine = apply_camera_tilt_deg(pin_machine, values["camera_tilt"], axis)
     springback = np.sign(loaded) * (loaded - unloaded)
     return SimResult(
         commanded_pin_deg=cmd,
@@ -228,16 +324,27 @@ def simulate(
     cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
     if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
         raise ValueError("commanded_pin_deg must be a finite 1-D array")
+    effects = tuple(effects)
     values = effect_values(effects)
-    return _forward(cmd, params, values, _bend_index(bend_index, cmd.size), springback_law(params))
+    k = _bend_index(bend_index, cmd.size)
+    return _forward(cmd, params, values, k, springback_law(params), shapes=_shapes(effects))
 
 
 def max_reachable_deg(params: SimParams | None = None, effects: Iterable[Effect] = ()) -> float:
     """Largest final (unloaded) bend angle (deg) the inverse can reach in either direction."""
     params = params or SimParams()
+    effects = tuple(effects)
     values = effect_values(effects)
     probe = np.array([_MAX_ROTATION_DEG, -_MAX_ROTATION_DEG])
-    res = _forward(probe, params, values, np.zeros(2), springback_law(params), measure=False)
+    res = _forward(
+        probe,
+        params,
+        values,
+        np.zeros(2),
+        springback_law(params),
+        measure=False,
+        shapes=_shapes(effects),
+    )
     return min(float(np.min(np.abs(res.unloaded_bend_deg))), _MAX_BEND_DEG)
 
 
@@ -283,7 +390,9 @@ def pin_command_for_angle(
     flat = np.atleast_1d(target).ravel()
     if not np.all(np.isfinite(flat)):
         raise ValueError("target_bend_deg must be finite")
+    effects = tuple(effects)
     values = effect_values(effects)
+    shapes = _shapes(effects)
     k = _bend_index(bend_index, flat.size)
     law = springback_law(params)
     direction = np.where(flat < 0, -1.0, 1.0)
@@ -297,7 +406,7 @@ def pin_command_for_angle(
     lo = np.zeros(flat.shape)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
-        res = _forward(direction * mid, params, values, k, law, measure=False)
+        res = _forward(direction * mid, params, values, k, law, measure=False, shapes=shapes)
         below = np.abs(res.unloaded_bend_deg) < goal
         lo = np.where(below, mid, lo)
         hi = np.where(below, hi, mid)

@@ -1,6 +1,9 @@
+import subprocess
+import sys
+
 import pytest
 
-from cvmeasure.cli import main
+from cvmeasure.cli import COMMAND_MODULES, build_parser, main
 
 
 def test_help_lists_demo(capsys):
@@ -157,12 +160,25 @@ def test_sim_url_speedup_must_be_positive(tmp_path, capsys):
 def test_the_parser_loads_no_numerical_library():
     """``cvmeasure --help`` and argument errors start fast: building the parser of every
     command imports neither numpy nor OpenCV (each command imports what it uses when run)."""
-    import subprocess
-    import sys
-
     code = (
         "import sys; from cvmeasure.cli import build_parser; build_parser(); "
         "print(sorted(m for m in ('numpy', 'cv2', 'scipy', 'matplotlib') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_a_command_loads_only_its_own_module():
+    # start-up: `cvmeasure diagnose` must not import the other commands' libraries
+    code = (
+        "import sys; from cvmeasure.cli import build_parser; "
+        "p = build_parser('diagnose'); p.parse_args(['diagnose', 't.csv']); "
+        "print(sorted(m for m in ('cvmeasure.batch', 'cv2') if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
+    assert out.strip() == "[]"
+    # the full parser (help, unknown command) still knows every command
+    names = build_parser()._subparsers._group_actions[0].choices
+    assert set(COMMAND_MODULES) <= set(names)

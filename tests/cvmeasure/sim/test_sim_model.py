@@ -172,3 +172,61 @@ def test_compliance_lag_follows_the_load():
     assert np.all(np.diff(lag) > 0)  # grows as the lever shortens
     # no load before contact: no lag
     assert simulate([5.0], p, [Effect("compliance", 0.4)]).pin_deg[0] == 5.0
+
+
+def test_backlash_general_form_loses_play_on_reversals_only():
+    cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
+    every = simulate(cmds, effects=[Effect("backlash", 1.0)]).pin_deg
+    np.testing.assert_allclose(np.abs(every), 59.0)  # the narrow form: every bend
+    rev = Effect("backlash", 1.0, (("same_direction_share", 0.0),))
+    got = simulate(cmds, effects=[rev]).pin_deg
+    np.testing.assert_allclose(np.abs(got), [59.0, 60.0, 59.0, 60.0, 59.0])
+    assert Effect.from_dict(rev.to_dict()) == rev
+
+
+def test_drift_narrow_form_is_the_spec_helix_whatever_the_direction():
+    # the spec's drift keeps its meaning: bend k loses d k, both directions alike,
+    # bend_index taken as given (so the inverse of one bend at index k works)
+    cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
+    got = simulate(cmds, effects=[Effect("drift", 0.1)]).pin_deg
+    np.testing.assert_allclose(got, [60.0, 59.9, -59.8, -59.7, 59.6])
+    one = simulate([60.0], effects=[Effect("drift", 0.1)], bend_index=[7]).pin_deg
+    np.testing.assert_allclose(one, [59.3])
+
+
+def test_drift_shifts_home_in_the_sense_of_the_lost_steps():
+    cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
+    home = Effect("drift", 0.1, (("home_shift", 1.0),))
+    got = simulate(cmds, effects=[home]).pin_deg
+    # home moves back by 0.1 per ccw bend: later ccw bends are short, cw bends long
+    np.testing.assert_allclose(got, [60.0, 59.9, -60.2, -60.1, 60.0])
+    # re-homing (bend_index back to 0) resets the shift
+    again = simulate(cmds, effects=[home], bend_index=[0, 1, 0, 1, 2]).pin_deg
+    np.testing.assert_allclose(again, [60.0, 59.9, -60.0, -59.9, 60.2])
+    # half of the loss shifts home, half shortens every later bend
+    half = Effect("drift", 0.1, (("home_shift", 0.5),))
+    got = simulate(cmds, effects=[half]).pin_deg
+    np.testing.assert_allclose(got, [60.0, 59.9, -60.0, -59.9, 59.8])
+    # load-dependent: bends under more torque lose more steps
+    loaded = Effect("drift", 0.1, (("load_exponent", 2.0),))
+    small = simulate([20.0, 20.0], effects=[loaded]).pin_deg
+    large = simulate([120.0, 120.0], effects=[loaded]).pin_deg
+    assert 0 < 20.0 - small[1] < 120.0 - large[1]
+
+
+def test_camera_tilt_about_any_axis():
+    from cvmeasure.sim.model import apply_camera_tilt_deg
+
+    # about the feed axis the narrow form; about the axis along the leg nothing changes
+    t = np.array([30.0, 60.0, -45.0])
+    narrow = np.degrees(np.arctan2(np.sin(np.radians(t)) * np.cos(0.3), np.cos(np.radians(t))))
+    np.testing.assert_allclose(apply_camera_tilt_deg(t, np.degrees(0.3), 0.0), narrow)
+    assert apply_camera_tilt_deg(90.0, 20.0, 90.0) == pytest.approx(90.0)  # leg on the axis
+    oblique = apply_camera_tilt_deg(np.array([0.0, 45.0, 90.0]), 20.0, 45.0)
+    # a leg on the axis keeps its direction but the feed leg's image turns: 45 reads 43.2
+    assert oblique[0] == 0.0 and oblique[1] == pytest.approx(43.22, abs=0.01)
+    assert oblique[2] == pytest.approx(86.44, abs=0.01)
+    e = parse_effect("camera_tilt=15,tilt_axis_deg=40")
+    assert e.shape_value("tilt_axis_deg") == 40.0
+    with pytest.raises(ValueError, match="bounds"):
+        Effect("camera_tilt", 15.0, (("tilt_axis_deg", 120.0),))
