@@ -1,12 +1,51 @@
-"""Photos and process settings the timing benchmarks share (speed, decode_speed)."""
+"""What several benchmarks share: the real photo sets and their boards, rendered photos,
+and the one-core process settings of the timing benchmarks."""
 
 from __future__ import annotations
 
 import os
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
-__all__ = ["THREAD_ENV", "one_thread_env", "pin_one_core", "random_bender_photo"]
+__all__ = [
+    "CHARUCO_5X7",
+    "CHESS_LEFT",
+    "CHESS_SLAM",
+    "LIFECAM",
+    "REAL",
+    "THREAD_ENV",
+    "one_thread_env",
+    "pin_one_core",
+    "random_bender_photo",
+]
+
+#: The real photos and RAW files (../shared/data/real from the repository; may be absent).
+REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+
+# Board JSONs (cvmeasure.board.board_from_dict) of the real calibration sets under REAL.
+#: OpenCV samples' left/right 9x6 chessboard, 25 mm squares.
+CHESS_LEFT = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0}
+#: OpenCV contrib SimpleSLAM 9x6 chessboard, 20 mm squares.
+CHESS_SLAM = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 20.0}
+#: OpenCV contrib ArUco tutorial ChArUco 5x7.
+CHARUCO_5X7 = {
+    "type": "charuco",
+    "squares_x": 5,
+    "squares_y": 7,
+    "square_mm": 40.0,
+    "marker_mm": 20.0,
+    "dictionary": "DICT_6X6_250",
+}
+#: PhotonVision LifeCam ChArUco 8x8.
+LIFECAM = {
+    "type": "charuco",
+    "squares_x": 8,
+    "squares_y": 8,
+    "square_mm": 25.4,
+    "marker_mm": 19.05,
+    "dictionary": "DICT_4X4_1000",
+}
 
 #: The thread-pool variables of OpenMP, OpenBLAS, MKL and numexpr.
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")

@@ -452,12 +452,11 @@ def main(argv: list[str] | None = None) -> dict:
     n_occ_total = sum(sum(c.values()) for c in occ_counts.values())
     size = "1152x768" if args.quick else "4608x3072"
     metrics = [
-        Metric(
+        Metric.at_most(
             "pin/bend angle error p95, all effects together, kit with heights",
             p95_all,
             "deg",
-            target=f"<= {ANGLE_TARGET_DEG}",
-            met=p95_all is not None and p95_all <= ANGLE_TARGET_DEG,
+            ANGLE_TARGET_DEG,
         ),
         Metric(
             "the same photos measured with the flat kit (heights removed)",
@@ -478,13 +477,11 @@ def main(argv: list[str] | None = None) -> dict:
             target="90-98",
             met=cov_w2 is not None and 90.0 <= cov_w2 <= 98.0,
         ),
-        Metric(
+        Metric.at_most(
             f"pin/bend p95 on those {n_cov} photos, heights applied (plane from photos)",
             _p95(cov["plane, heights"]["e"]),
             "deg",
-            target=f"<= {ANGLE_TARGET_DEG}",
-            met=_p95(cov["plane, heights"]["e"]) is not None
-            and _p95(cov["plane, heights"]["e"]) <= ANGLE_TARGET_DEG,
+            ANGLE_TARGET_DEG,
         ),
         Metric(
             "camera only (no pose): the heights' effect within height_bound_deg + 2 sigma",
@@ -502,19 +499,17 @@ def main(argv: list[str] | None = None) -> dict:
             target="0",
             met=bender["all together"]["heights"]["refused"] == 0,
         ),
-        Metric(
+        Metric.at_most(
             "part radius error (worst), all effects together",
             r_all,
             "%",
-            target=f"<= {RADIUS_TARGET_PCT}",
-            met=r_all is not None and r_all <= RADIUS_TARGET_PCT,
+            RADIUS_TARGET_PCT,
         ),
-        Metric(
+        Metric.at_most(
             "part segment bend error (worst), all effects together",
             b_all,
             "deg",
-            target=f"<= {BEND_TARGET_DEG}",
-            met=b_all is not None and b_all <= BEND_TARGET_DEG,
+            BEND_TARGET_DEG,
         ),
         Metric(
             "stray objects / occlusion: photos silently wrong (|error| > 3 sigma, no warning)",
