@@ -54,10 +54,12 @@ from cvmeasure_datasets.raster import (
 )
 from cvmeasure_datasets.solids import (
     dense_polyline,
+    flat_wire_layer,
     lamp_direction,
     post_sdf,
     shadow_on_plane,
     tube_layer,
+    wire_shadow_layer,
 )
 
 __all__ = ["RING_SRGB", "BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
@@ -73,6 +75,8 @@ _HOLE = (30, 30, 32)
 RING_SRGB = (236, 236, 232)
 _OCCLUDER = (45, 40, 36)
 _SUPPORT = (84, 86, 92)
+#: The flat wire's shading (:func:`~cvmeasure_datasets.solids.flat_wire_layer`).
+_WIRE_SHADING = {"shade": (0.35, 0.65), "highlight": (0.6, 0.22)}
 
 
 @dataclass(frozen=True)
@@ -131,19 +135,6 @@ def _brushed(seed: int, base: np.ndarray) -> Any:
     def colour(win: Window) -> np.ndarray:
         m = np.interp(win.v, ys, table).astype(np.float32)
         return m[..., None] * base32
-
-    return colour
-
-
-def _wire_shader(radius_mm: float, polyline: np.ndarray, base: np.ndarray) -> Any:
-    """Cylinder shading across the wire with a specular line along its crest."""
-
-    def colour(win: Window) -> np.ndarray:
-        t = np.clip((sdf_capsules(win.u, win.v, polyline, radius_mm) + radius_mm) / radius_mm, 0, 1)
-        nz = np.sqrt(1.0 - t * t)
-        shade = 0.35 + 0.65 * nz
-        spec = 0.6 * np.exp(-((t / 0.22) ** 2))
-        return shade[..., None] * base + spec[..., None]
 
     return colour
 
@@ -328,11 +319,8 @@ def _render(
             wire_shadow = polyline + away * geo.wire_height_mm
         band_mm = None if flat else 3.0
         layers.append(
-            Layer(
-                polyline_bbox(wire_shadow, wire_r + 3.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, wire_shadow, wire_r, band_mm), 1.2),
-                kind="shadow",
-                strength=light.shadow_strength,
+            wire_shadow_layer(
+                wire_shadow, wire_r, light.shadow_strength, soft_mm=1.2, band_mm=band_mm
             )
         )
         for marker in kit.markers:
@@ -367,13 +355,7 @@ def _render(
     if fx.wire_3d:
         layers.append(tube_layer(wire3, wire_r, lin(_WIRE), lamp))
     else:
-        layers.append(
-            Layer(
-                polyline_bbox(polyline, wire_r + 1.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline, wire_r)),
-                _wire_shader(wire_r, polyline, lin(_WIRE)),
-            )
-        )
+        layers.append(flat_wire_layer(polyline, wire_r, lin(_WIRE), **_WIRE_SHADING))
     order = sorted(kit.markers, key=lambda m: heights[m.role])
     if fx.supports:
         for marker in order:
@@ -409,17 +391,9 @@ def _render(
     extra: dict[str, Any] = {"wire_across": {}, "tool_shadow": {}}
     for role in fx.wire_across:
         # a loose wire lying across the ring's edge, 2 mm above the disc, clear of the others
-        c = centres[role]
         ring_r = kit.by_role(role).ring_mm / 2
-        others = [centres[r] for r in centres if r != role]
-        for _ in range(50):
-            ang = float(rng.uniform(0.0, 360.0))
-            n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
-            d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
-            mid = c + n * (ring_r - 0.5)  # the wire's axis over the ring's edge
-            ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
-            if all(np.hypot(*(o - _closest(ends, o))) > 12.0 for o in others):
-                break
+        # the wire's axis over the ring's edge
+        ang, _, ends = _line_across(rng, centres, role, 360.0, ring_r - 0.5, 12.0)
         z = heights[role] + 2.0 + wire_r
         loose = np.column_stack((ends, np.full(2, z)))
         layers.append(tube_layer(loose, wire_r, lin(_WIRE), lamp))
@@ -427,17 +401,8 @@ def _render(
     for role in fx.tool_shadow:
         # a tool's shadow: a band 8 mm wide across the marker (off its centre), 50 mm long,
         # kept clear of the other markers
-        c = centres[role]
         ring_r = kit.by_role(role).ring_mm / 2
-        others = [centres[r] for r in centres if r != role]
-        for _ in range(50):
-            ang = float(rng.uniform(0.0, 180.0))
-            n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
-            d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
-            mid = c + n * ring_r * 0.5
-            ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
-            if all(np.hypot(*(o - _closest(ends, o))) > 16.0 for o in others):
-                break
+        ang, mid, _ = _line_across(rng, centres, role, 180.0, ring_r * 0.5, 16.0)
         layers.append(tool_shadow_layer(mid, ang, 8.0, 0.55, length_mm=50.0))
         extra["tool_shadow"][role] = {
             "centre_mm": mid.tolist(),
@@ -534,6 +499,34 @@ def _render(
         truth=truth,
         effects=fx,
     )
+
+
+def _line_across(
+    rng: np.random.Generator,
+    centres: dict[str, np.ndarray],
+    role: str,
+    max_deg: float,
+    offset_mm: float,
+    clearance_mm: float,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """A 50 mm line past the marker ``role``, clear of the other markers (plate mm).
+
+    Its direction is drawn from ``rng`` in [0, ``max_deg``) deg, its middle lies
+    ``offset_mm`` off the marker's centre (perpendicular to it); redrawn (50 times at
+    most) until every other centre is more than ``clearance_mm`` from it.
+    Returns (direction_deg, middle (2,), ends (2, 2)).
+    """
+    c = centres[role]
+    others = [centres[r] for r in centres if r != role]
+    for _ in range(50):
+        ang = float(rng.uniform(0.0, max_deg))
+        n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
+        d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
+        mid = c + n * offset_mm
+        ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
+        if all(np.hypot(*(o - _closest(ends, o))) > clearance_mm for o in others):
+            break
+    return ang, mid, ends
 
 
 def _closest(segment: np.ndarray, point: np.ndarray) -> np.ndarray:
