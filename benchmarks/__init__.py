@@ -61,6 +61,13 @@ class Metric:
     target: str | None = None
     met: bool | None = None
 
+    @classmethod
+    def at_most(cls, name: str, value: float | None, unit: str, limit: float) -> Metric:
+        """A metric whose target is ``<= limit``; not met when ``value`` is None."""
+        return cls(
+            name, value, unit, target=f"<= {limit}", met=value is not None and value <= limit
+        )
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "name": self.name,

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
+from benchmarks._photos import CHARUCO_5X7, CHESS_LEFT, CHESS_SLAM, LIFECAM, REAL
 from cvmeasure_datasets.demo.calibration import planned_poses
 
 SECTION = "Lens calibration, honest uncertainty, plane check"
@@ -225,47 +226,33 @@ def _real_sets() -> list[list]:
     from cvmeasure.calibration.detect import detect_board
     from cvmeasure.calibration.pipeline import calibrate_detections
 
-    root = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
+    root = REAL
     sets = [
         (
             "OpenCV left 9x6",
             "opencv-samples-chessboard-9x6/left/*.jpg",
-            {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0},
+            CHESS_LEFT,
             0.19633,
             532.81,
         ),
         (
             "SimpleSLAM 9x6",
             "opencv-contrib-simpleslam-chessboard-9x6/images/*.png",
-            {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 20.0},
+            CHESS_SLAM,
             None,
             1171.50,
         ),
         (
             "ChArUco 5x7 tutorial",
             "opencv-contrib-aruco-charuco-5x7/img_0*.jpg",
-            {
-                "type": "charuco",
-                "squares_x": 5,
-                "squares_y": 7,
-                "square_mm": 40.0,
-                "marker_mm": 20.0,
-                "dictionary": "DICT_6X6_250",
-            },
+            CHARUCO_5X7,
             0.182,
             452.51,
         ),
         (
             "LifeCam 1280 JPG",
             "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_1280/*.jpg",
-            {
-                "type": "charuco",
-                "squares_x": 8,
-                "squares_y": 8,
-                "square_mm": 25.4,
-                "marker_mm": 19.05,
-                "dictionary": "DICT_4X4_1000",
-            },
+            LIFECAM,
             None,
             1144.03,
         ),

@@ -15,29 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
+from benchmarks._photos import CHARUCO_5X7, CHESS_LEFT, CHESS_SLAM, LIFECAM, REAL
 
 SECTION = "Lens calibration on real sets and exact-model renders (issue 16)"
 
-REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"
-
-_CHESS_LEFT = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0}
-_CHESS_SLAM = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 20.0}
-_CHARUCO_5X7 = {
-    "type": "charuco",
-    "squares_x": 5,
-    "squares_y": 7,
-    "square_mm": 40.0,
-    "marker_mm": 20.0,
-    "dictionary": "DICT_6X6_250",
-}
-_LIFECAM = {
-    "type": "charuco",
-    "squares_x": 8,
-    "squares_y": 8,
-    "square_mm": 25.4,
-    "marker_mm": 19.05,
-    "dictionary": "DICT_4X4_1000",
-}
 _DIST5 = ("k1", "k2", "p1", "p2", "k3")
 _DIST8 = (*_DIST5, "k4", "k5", "k6")
 
@@ -51,7 +32,7 @@ _PUBLISHED_SETS = [
     (
         "OpenCV left 9x6 (13 views)",
         "opencv-samples-chessboard-9x6/left/*.jpg",
-        _CHESS_LEFT,
+        CHESS_LEFT,
         "5",
         _published(
             [532.80992189, 532.93346422, 342.4952186, 233.8879292],
@@ -63,7 +44,7 @@ _PUBLISHED_SETS = [
     (
         "SimpleSLAM 9x6 (31 views)",
         "opencv-contrib-simpleslam-chessboard-9x6/images/*.png",
-        _CHESS_SLAM,
+        CHESS_SLAM,
         "5",
         _published(
             [1171.4968127, 1166.9979600, 357.34246905, 626.54877426],
@@ -75,7 +56,7 @@ _PUBLISHED_SETS = [
     (
         "ChArUco 5x7 tutorial (4 views)",
         "opencv-contrib-aruco-charuco-5x7/img_0*.jpg",
-        _CHARUCO_5X7,
+        CHARUCO_5X7,
         "5",
         _published(
             [452.5107, 456.7671, 317.7030, 277.7516],
@@ -87,7 +68,7 @@ _PUBLISHED_SETS = [
     (
         "LifeCam 123 frames, PhotonVision's corners",
         None,
-        _LIFECAM,
+        LIFECAM,
         "8",
         _published(
             [1144.02658, 1142.18747, 604.85834, 343.69883],
@@ -100,22 +81,22 @@ _PUBLISHED_SETS = [
 
 #: Sets with no published intrinsics: only the model choice is reported.
 _UNPUBLISHED_SETS = [
-    ("OpenCV right 9x6", "opencv-samples-chessboard-9x6/right/*.jpg", _CHESS_LEFT),
+    ("OpenCV right 9x6", "opencv-samples-chessboard-9x6/right/*.jpg", CHESS_LEFT),
     (
         "LifeCam 1280 JPG",
         "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_1280/*.jpg",
-        _LIFECAM,
+        LIFECAM,
     ),
-    ("LifeCam 480 JPG", "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_480/*.jpg", _LIFECAM),
+    ("LifeCam 480 JPG", "photonvision-lifecam-charuco-8x8/2024-05-07_lifecam_480/*.jpg", LIFECAM),
     (
         "LifeCam 1280 legacy JPG",
         "photonvision-lifecam-charuco-8x8/2024-06-19_lifecam_1280_Old_Pattern/*.jpg",
-        {**_LIFECAM, "legacy_pattern": True},
+        {**LIFECAM, "legacy_pattern": True},
     ),
     (
         "LifeCam 480 legacy JPG",
         "photonvision-lifecam-charuco-8x8/2024-06-19_lifecam_480_Old_Pattern/*.jpg",
-        {**_LIFECAM, "legacy_pattern": True},
+        {**LIFECAM, "legacy_pattern": True},
     ),
 ]
 
@@ -459,7 +440,7 @@ def _transposed() -> tuple[list[Metric], list[Table], list[str]]:
     with tempfile.TemporaryDirectory() as tmp:
         for nx, ny in ((9, 6), (6, 9)):
             board = Path(tmp) / f"board{nx}x{ny}.json"
-            board.write_text(json.dumps({**_CHESS_LEFT, "inner_x": nx, "inner_y": ny}))
+            board.write_text(json.dumps({**CHESS_LEFT, "inner_x": nx, "inner_y": ny}))
             outs.append(
                 _cli(
                     ["calibrate", *files, "--board", str(board), "-o", str(Path(tmp) / "cam.json")]
@@ -605,7 +586,7 @@ def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
     cases = [
         (
             "OpenCV left 9x6",
-            _detect_glob("opencv-samples-chessboard-9x6/left/*.jpg", _CHESS_LEFT),
+            _detect_glob("opencv-samples-chessboard-9x6/left/*.jpg", CHESS_LEFT),
             (9, 6),
             "5",
             "LENSMODEL_OPENCV5",
@@ -613,7 +594,7 @@ def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
         ),
         (
             "SimpleSLAM 9x6",
-            _detect_glob("opencv-contrib-simpleslam-chessboard-9x6/images/*.png", _CHESS_SLAM),
+            _detect_glob("opencv-contrib-simpleslam-chessboard-9x6/images/*.png", CHESS_SLAM),
             (9, 6),
             "5",
             "LENSMODEL_OPENCV5",

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import os
+from benchmarks._photos import one_thread_env, random_bender_photo
 
-# One core: set before numpy/OpenCV load their thread pools.
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS"):
-    os.environ[_var] = "1"
+one_thread_env()  # one core: before numpy/OpenCV load their thread pools
 
 import argparse  # noqa: E402
 import tempfile  # noqa: E402
@@ -28,24 +26,6 @@ SIZES: tuple[tuple[str, int, int], ...] = (
 SPEEDUP_TARGET = 10.0
 
 
-def _photo(size: tuple[int, int], seed: int):
-    """One rendered bender photo at ``size`` (w, h): random light, angles and yaw."""
-    import numpy as np
-
-    from cvmeasure_datasets import Lighting, Pose, render_bender_photo
-
-    rng = np.random.default_rng(seed)
-    pin = float(rng.uniform(-120.0, 120.0))
-    return render_bender_photo(
-        pin_angle_deg=pin,
-        bend_angle_deg=float(np.clip(pin * rng.uniform(0.8, 0.95), -110, 110)),
-        lighting=Lighting.random(seed),
-        pose=Pose(yaw_deg=float(rng.uniform(-180.0, 180.0)), distance_mm=850.0),
-        seed=seed,
-        image_size_px=size,
-    )
-
-
 def _time_sizes(n_photos: int, repeats: int, seed0: int) -> list[dict[str, Any]]:
     """Per size and photo: CPU and wall seconds of decode, ours and the seed method."""
     import cv2
@@ -60,7 +40,7 @@ def _time_sizes(n_photos: int, repeats: int, seed0: int) -> list[dict[str, Any]]
         for label, w, h in SIZES:
             for i in range(n_photos):
                 seed = seed0 + i
-                photo = _photo((w, h), seed)
+                photo = random_bender_photo((w, h), seed)
                 path, _ = photo.save(Path(tmp) / f"{w}_{i}")
                 dec_cpu, dec_wall, img = best_times(lambda p=path: cv2.imread(str(p)), repeats)
                 ours_cpu, ours_wall, ours = best_times(

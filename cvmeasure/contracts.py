@@ -804,13 +804,21 @@ class PlaneModel:
         return board[:, :2]
 
     def plane_to_image_px(self, points_mm: Any) -> NDArray[np.float64]:
-        """Board-frame mm (N, 2) on the plane -> photo pixels (N, 2), with distortion."""
+        """Board-frame mm (N, 2) on the plane, or board-frame points (N, 3) -> photo pixels (N, 2).
+
+        With distortion. For (N, 3), z is the board frame's own (away from the camera for a
+        plane from ``cvmeasure plane``: a height above the plate is -z).
+        """
         import cv2
 
-        pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-        if len(pts) == 0:
+        arr = np.asarray(points_mm, dtype=np.float64)
+        if arr.ndim == 2 and arr.shape[1] == 3:
+            obj = arr
+        else:
+            pts = arr.reshape(-1, 2)
+            obj = np.column_stack((pts, np.zeros(len(pts))))
+        if len(obj) == 0:
             return np.zeros((0, 2))
-        obj = np.column_stack((pts, np.zeros(len(pts))))
         img, _ = cv2.projectPoints(
             obj.reshape(-1, 1, 3),
             self.rvec,

@@ -54,10 +54,12 @@ from cvmeasure_datasets.raster import (
 )
 from cvmeasure_datasets.solids import (
     dense_polyline,
+    flat_wire_layer,
     lamp_direction,
     post_sdf,
     shadow_on_plane,
     tube_layer,
+    wire_shadow_layer,
 )
 
 __all__ = ["RING_SRGB", "BenderGeometry", "bender_wire_polyline", "render_bender_photo"]
@@ -73,6 +75,8 @@ _HOLE = (30, 30, 32)
 RING_SRGB = (236, 236, 232)
 _OCCLUDER = (45, 40, 36)
 _SUPPORT = (84, 86, 92)
+#: The flat wire's shading (:func:`~cvmeasure_datasets.solids.flat_wire_layer`).
+_WIRE_SHADING = {"shade": (0.35, 0.65), "highlight": (0.6, 0.22)}
 
 
 @dataclass(frozen=True)
@@ -135,19 +139,6 @@ def _brushed(seed: int, base: np.ndarray) -> Any:
     return colour
 
 
-def _wire_shader(radius_mm: float, polyline: np.ndarray, base: np.ndarray) -> Any:
-    """Cylinder shading across the wire with a specular line along its crest."""
-
-    def colour(win: Window) -> np.ndarray:
-        t = np.clip((sdf_capsules(win.u, win.v, polyline, radius_mm) + radius_mm) / radius_mm, 0, 1)
-        nz = np.sqrt(1.0 - t * t)
-        shade = 0.35 + 0.65 * nz
-        spec = 0.6 * np.exp(-((t / 0.22) ** 2))
-        return shade[..., None] * base + spec[..., None]
-
-    return colour
-
-
 def _circle_layer(centre, radius_mm, colour, *, kind="paint", strength=0.0, soft_mm=0.0):
     return Layer(
         bbox_mm=circle_bbox(centre, radius_mm + soft_mm + 0.5),
@@ -205,178 +196,24 @@ def render_bender_photo(
     projected along the plate normal onto the plate.
     """
     fx = effects or SceneEffects()
-    if not fx.flat:
-        return _render_3d(
-            pin_angle_deg=pin_angle_deg,
-            bend_angle_deg=bend_angle_deg,
-            kit=kit or default_kit(),
-            camera=camera,
-            pose=pose or Pose(distance_mm=850.0, offset_mm=(-10.0, 0.0)),
-            lighting=lighting if lighting is not None else Lighting(),
-            seed=seed,
-            scale=scale,
-            image_size_px=image_size_px,
-            occlude=dict(occlude or {}),
-            geo=geometry or BenderGeometry(),
-            linear=linear,
-            fx=fx,
-        )
-    kit = kit or default_kit()
-    geo = geometry or BenderGeometry()
-    pose = pose or Pose(distance_mm=850.0, offset_mm=(-10.0, 0.0))
-    light = lighting if lighting is not None else Lighting()
-    occlude = dict(occlude or {})
-    for role, frac in occlude.items():
-        kit.by_role(role)  # KeyError for an unknown role
-        if not 0.0 <= frac <= 1.0:
-            raise ValueError(f"occlude[{role!r}] must be in [0, 1], got {frac}")
-
-    polyline, leg_start, leg_dir = bender_wire_polyline(bend_angle_deg, geo)
-    pin_rad = np.radians(pin_angle_deg)
-    pin_centre = geo.pin_radius_mm * np.array([np.cos(pin_rad), np.sin(pin_rad)])
-    centres = {
-        "origin": np.zeros(2),
-        "axis": np.array([geo.axis_x_mm, 0.0]),
-        "pin": pin_centre,
-        "wire_a": leg_start + geo.wire_a_mm * leg_dir,
-        "wire_b": leg_start + geo.wire_b_mm * leg_dir,
-    }
-    az = np.radians(light.light_azimuth_deg)
-    away = -np.array([np.cos(az), np.sin(az)]) * 0.85  # shadow per mm of height (50 deg sun)
-    rng = np.random.default_rng([seed, 0xBE])
-    lin = srgb8_to_linear
-    wire_r = geo.wire_diameter_mm / 2
-    x0, y0, x1, y1 = geo.plate_mm
-
-    layers: list[Layer] = [
-        Layer(None, None, lin(_TABLE)),
-        Layer(
-            (x0 - 1, y0 - 1, x1 + 1, y1 + 1),
-            lambda w: sdf_alpha(
-                sdf_rect(w.u, w.v, ((x0 + x1) / 2, (y0 + y1) / 2), ((x1 - x0) / 2, (y1 - y0) / 2))
-            ),
-            _brushed(seed, lin(_PLATE)),
-        ),
-    ]
-    for hx, hy in ((x0 + 15, y0 + 15), (x1 - 15, y0 + 15), (x0 + 15, y1 - 15), (x1 - 15, y1 - 15)):
-        layers.append(_circle_layer((hx, hy), 3.2, lin(_HOLE)))
-    guide_c = ((geo.axis_x_mm - 60 + geo.axis_x_mm + 45) / 2, 0.0)
-    layers.append(
-        Layer(
-            (guide_c[0] - 53.5, -15.5, guide_c[0] + 53.5, 15.5),
-            lambda w: sdf_alpha(sdf_rect(w.u, w.v, guide_c, (52.5, 14.0))),
-            lin(_GUIDE),
-        )
-    )
-    layers.append(_circle_layer((0.0, 0.0), geo.die_radius_mm, lin(_DIE)))
-    layers.append(_circle_layer(tuple(pin_centre), geo.pin_diameter_mm / 2, lin(_PIN)))
-    # cast shadows (wire, markers, occluders) on the plate
-    if light.shadow_strength > 0:
-        wire_shadow = polyline + away * geo.wire_height_mm
-        layers.append(
-            Layer(
-                polyline_bbox(wire_shadow, wire_r + 3.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, wire_shadow, wire_r), 1.2),
-                kind="shadow",
-                strength=light.shadow_strength,
-            )
-        )
-        for marker in kit.markers:
-            if occlude.get(marker.role, 0.0) >= 1.0:
-                continue
-            c = tuple(centres[marker.role] + away * geo.marker_height_mm)
-            layers.append(
-                _circle_layer(
-                    c,
-                    marker.ring_mm / 2,
-                    None,
-                    kind="shadow",
-                    strength=light.shadow_strength,
-                    soft_mm=2.0,
-                )
-            )
-    layers.append(
-        Layer(
-            polyline_bbox(polyline, wire_r + 1.0),
-            lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline, wire_r)),
-            _wire_shader(wire_r, polyline, lin(_WIRE)),
-        )
-    )
-    for marker in kit.markers:
-        c = tuple(centres[marker.role])
-        layers.append(_circle_layer(c, marker.ring_mm / 2, lin(RING_SRGB)))
-        layers.append(_circle_layer(c, marker.diameter_mm / 2, lin(marker.srgb)))
-    occluders = {}
-    for role, frac in sorted(occlude.items()):
-        if frac <= 0:
-            continue
-        ring_r = kit.by_role(role).ring_mm / 2
-        ang = float(rng.uniform(0.0, 360.0))
-        d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
-        edge = ring_r - 2.0 * ring_r * frac - 1e-3
-        half = (2.0 * ring_r + 2.0, 1.6 * ring_r)
-        oc = tuple(centres[role] + d * (edge + half[0]))
-        occluders[role] = {"fraction": frac, "direction_deg": ang, "edge_offset_mm": edge}
-        reach = float(np.hypot(*half)) + 0.5
-        layers.append(
-            Layer(
-                (oc[0] - reach, oc[1] - reach, oc[0] + reach, oc[1] + reach),
-                lambda w, oc=oc, ang=ang, half=half: sdf_alpha(sdf_rect(w.u, w.v, oc, half, ang)),
-                lin(_OCCLUDER),
-            )
-        )
-
-    pin_true = float(direction_deg(centres["origin"], centres["pin"]))
-    bend_true = float(direction_deg(centres["wire_a"], centres["wire_b"]))
-    truth: dict[str, Any] = {
-        "kind": "bender",
-        "pin_angle_deg": pin_true,
-        "bend_angle_deg": bend_true,
-        "requested": {"pin_angle_deg": pin_angle_deg, "bend_angle_deg": bend_angle_deg},
-        "kit": kit.to_dict(),
-        "geometry": {**geo.to_dict(), "wire_centreline_mm": polyline.tolist()},
-        "occluders": occluders,
-        "notes": "centre_px is the projection of each disc's centre (the truth); "
-        "ellipse_centre_px is the centre of the disc's image ellipse, which differs under "
-        "perspective. Shapes are flat at machine z = 0.",
-    }
-    cam = resolve_camera(camera, scale, image_size_px)
-    rot, t_mm = pose.extrinsics("machine")
-    markers = {}
-    for marker in kit.markers:
-        c = centres[marker.role]
-        disc = circle_image_geometry(cam, rot, t_mm, c, marker.diameter_mm / 2)
-        ring = circle_image_geometry(cam, rot, t_mm, c, marker.ring_mm / 2)
-        markers[marker.role] = {
-            "x_mm": float(c[0]),
-            "y_mm": float(c[1]),
-            "diameter_mm": marker.diameter_mm,
-            "ring_mm": marker.ring_mm,
-            "x_px": disc["centre_px"][0],
-            "y_px": disc["centre_px"][1],
-            **disc,
-            "ring_r_px": ring["r_px"],
-            "occluded_fraction": float(occlude.get(marker.role, 0.0)),
-            "height_mm": 0.0,
-            "centre_3d_mm": [float(c[0]), float(c[1]), 0.0],
-        }
-    truth["markers"] = markers
-    truth["effects"] = fx.to_dict()
-    truth["px_per_mm_at_origin"] = px_per_mm_at(cam, rot, t_mm, (0.0, 0.0))
-    return render_scene(
-        layers,
-        frame="machine",
-        camera=cam,
-        pose=pose,
-        lighting=light,
+    return _render(
+        pin_angle_deg=pin_angle_deg,
+        bend_angle_deg=bend_angle_deg,
+        kit=kit or default_kit(),
+        camera=camera,
+        pose=pose or Pose(distance_mm=850.0, offset_mm=(-10.0, 0.0)),
+        lighting=lighting if lighting is not None else Lighting(),
         seed=seed,
-        scale=1.0,
+        scale=scale,
+        image_size_px=image_size_px,
+        occlude=dict(occlude or {}),
+        geo=geometry or BenderGeometry(),
         linear=linear,
-        truth=truth,
+        fx=fx,
     )
 
 
-def _render_3d(
+def _render(
     *,
     pin_angle_deg: float,
     bend_angle_deg: float,
@@ -392,7 +229,12 @@ def _render_3d(
     linear: bool,
     fx: SceneEffects,
 ) -> RenderedPhoto:
-    """The bender as a 3D scene with the switchable effects of ``fx`` (see the module doc)."""
+    """The bender scene with the switchable effects of ``fx`` (see the module doc).
+
+    With every effect off (``fx.flat``) this is the flat scene: the wire's diameter from
+    ``geo`` (not the kit), occluders on the plate and the flat truth (no 3D keys).
+    """
+    flat = fx.flat
     for role, frac in occlude.items():
         kit.by_role(role)
         if not 0.0 <= frac <= 1.0:
@@ -411,7 +253,7 @@ def _render_3d(
         "wire_b": leg_start + geo.wire_b_mm * leg_dir,
     }
     heights = {m.role: (kit.height_mm(m.role) if fx.marker_heights else 0.0) for m in kit.markers}
-    wire_d = kit.wire_diameter_mm or geo.wire_diameter_mm
+    wire_d = geo.wire_diameter_mm if flat else (kit.wire_diameter_mm or geo.wire_diameter_mm)
     wire_r = wire_d / 2
     wire_z = (
         (kit.wire_axis_height_mm if kit.wire_axis_height_mm is not None else 5.0)
@@ -475,12 +317,10 @@ def _render_3d(
             wire_shadow = shadow_on_plane(wire3, lamp)
         else:
             wire_shadow = polyline + away * geo.wire_height_mm
+        band_mm = None if flat else 3.0
         layers.append(
-            Layer(
-                polyline_bbox(wire_shadow, wire_r + 3.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, wire_shadow, wire_r, 3.0), 1.2),
-                kind="shadow",
-                strength=light.shadow_strength,
+            wire_shadow_layer(
+                wire_shadow, wire_r, light.shadow_strength, soft_mm=1.2, band_mm=band_mm
             )
         )
         for marker in kit.markers:
@@ -515,13 +355,7 @@ def _render_3d(
     if fx.wire_3d:
         layers.append(tube_layer(wire3, wire_r, lin(_WIRE), lamp))
     else:
-        layers.append(
-            Layer(
-                polyline_bbox(polyline, wire_r + 1.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline, wire_r)),
-                _wire_shader(wire_r, polyline, lin(_WIRE)),
-            )
-        )
+        layers.append(flat_wire_layer(polyline, wire_r, lin(_WIRE), **_WIRE_SHADING))
     order = sorted(kit.markers, key=lambda m: heights[m.role])
     if fx.supports:
         for marker in order:
@@ -557,17 +391,9 @@ def _render_3d(
     extra: dict[str, Any] = {"wire_across": {}, "tool_shadow": {}}
     for role in fx.wire_across:
         # a loose wire lying across the ring's edge, 2 mm above the disc, clear of the others
-        c = centres[role]
         ring_r = kit.by_role(role).ring_mm / 2
-        others = [centres[r] for r in centres if r != role]
-        for _ in range(50):
-            ang = float(rng.uniform(0.0, 360.0))
-            n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
-            d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
-            mid = c + n * (ring_r - 0.5)  # the wire's axis over the ring's edge
-            ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
-            if all(np.hypot(*(o - _closest(ends, o))) > 12.0 for o in others):
-                break
+        # the wire's axis over the ring's edge
+        ang, _, ends = _line_across(rng, centres, role, 360.0, ring_r - 0.5, 12.0)
         z = heights[role] + 2.0 + wire_r
         loose = np.column_stack((ends, np.full(2, z)))
         layers.append(tube_layer(loose, wire_r, lin(_WIRE), lamp))
@@ -575,17 +401,8 @@ def _render_3d(
     for role in fx.tool_shadow:
         # a tool's shadow: a band 8 mm wide across the marker (off its centre), 50 mm long,
         # kept clear of the other markers
-        c = centres[role]
         ring_r = kit.by_role(role).ring_mm / 2
-        others = [centres[r] for r in centres if r != role]
-        for _ in range(50):
-            ang = float(rng.uniform(0.0, 180.0))
-            n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
-            d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
-            mid = c + n * ring_r * 0.5
-            ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
-            if all(np.hypot(*(o - _closest(ends, o))) > 16.0 for o in others):
-                break
+        ang, mid, _ = _line_across(rng, centres, role, 180.0, ring_r * 0.5, 16.0)
         layers.append(tool_shadow_layer(mid, ang, 8.0, 0.55, length_mm=50.0))
         extra["tool_shadow"][role] = {
             "centre_mm": mid.tolist(),
@@ -610,7 +427,7 @@ def _render_3d(
                 (oc[0] - reach, oc[1] - reach, oc[0] + reach, oc[1] + reach),
                 lambda w, oc=oc, ang=ang, half=half: sdf_alpha(sdf_rect(w.u, w.v, oc, half, ang)),
                 lin(_OCCLUDER),
-                z_mm=heights[role] + 1.0,
+                z_mm=0.0 if flat else heights[role] + 1.0,
             )
         )
     pin_true = float(direction_deg(centres["origin"], centres["pin"]))
@@ -621,21 +438,28 @@ def _render_3d(
         "bend_angle_deg": bend_true,
         "requested": {"pin_angle_deg": pin_angle_deg, "bend_angle_deg": bend_angle_deg},
         "kit": kit.to_dict(),
-        "geometry": {
-            **geo.to_dict(),
-            "wire_centreline_mm": polyline.tolist(),
-            "wire_centreline_3d_mm": wire3.tolist(),
-            "wire_axis_height_mm": wire_z,
-        },
+        "geometry": {**geo.to_dict(), "wire_centreline_mm": polyline.tolist()},
         "occluders": occluders,
-        "effects": fx.to_dict(),
-        "stray_objects": [{k: v for k, v in o.items() if k != "reach_mm"} for o in strays],
-        **extra,
-        "notes": "3D scene: each disc lies at height_mm above the plate (centre_3d_mm); "
-        "pin_angle_deg and bend_angle_deg are plate-plane angles between the marker centres "
-        "projected along the plate normal onto the plate (x_mm, y_mm). centre_px is the "
-        "projection of the disc's 3D centre; ellipse_centre_px the centre of its image ellipse.",
     }
+    if flat:
+        truth["notes"] = (
+            "centre_px is the projection of each disc's centre (the truth); "
+            "ellipse_centre_px is the centre of the disc's image ellipse, which differs under "
+            "perspective. Shapes are flat at machine z = 0."
+        )
+    else:
+        truth["geometry"]["wire_centreline_3d_mm"] = wire3.tolist()
+        truth["geometry"]["wire_axis_height_mm"] = wire_z
+        truth["effects"] = fx.to_dict()
+        truth["stray_objects"] = [{k: v for k, v in o.items() if k != "reach_mm"} for o in strays]
+        truth.update(extra)
+        truth["notes"] = (
+            "3D scene: each disc lies at height_mm above the plate (centre_3d_mm); "
+            "pin_angle_deg and bend_angle_deg are plate-plane angles between the marker centres "
+            "projected along the plate normal onto the plate (x_mm, y_mm). centre_px is the "
+            "projection of the disc's 3D centre; ellipse_centre_px the centre of its image "
+            "ellipse."
+        )
     cam = resolve_camera(camera, scale, image_size_px)
     rot, t_mm = pose.extrinsics("machine")
     markers = {}
@@ -656,10 +480,12 @@ def _render_3d(
             "occluded_fraction": float(occlude.get(marker.role, 0.0)),
             "height_mm": z,
             "centre_3d_mm": [float(c[0]), float(c[1]), z],
-            "wire_across": marker.role in fx.wire_across,
-            "tool_shadow": marker.role in fx.tool_shadow,
         }
+        if not flat:
+            markers[marker.role]["wire_across"] = marker.role in fx.wire_across
+            markers[marker.role]["tool_shadow"] = marker.role in fx.tool_shadow
     truth["markers"] = markers
+    truth["effects"] = fx.to_dict()  # after the markers in the flat truth (its historic order)
     truth["px_per_mm_at_origin"] = px_per_mm_at(cam, rot, t_mm, (0.0, 0.0))
     return render_scene(
         layers,
@@ -673,6 +499,34 @@ def _render_3d(
         truth=truth,
         effects=fx,
     )
+
+
+def _line_across(
+    rng: np.random.Generator,
+    centres: dict[str, np.ndarray],
+    role: str,
+    max_deg: float,
+    offset_mm: float,
+    clearance_mm: float,
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """A 50 mm line past the marker ``role``, clear of the other markers (plate mm).
+
+    Its direction is drawn from ``rng`` in [0, ``max_deg``) deg, its middle lies
+    ``offset_mm`` off the marker's centre (perpendicular to it); redrawn (50 times at
+    most) until every other centre is more than ``clearance_mm`` from it.
+    Returns (direction_deg, middle (2,), ends (2, 2)).
+    """
+    c = centres[role]
+    others = [centres[r] for r in centres if r != role]
+    for _ in range(50):
+        ang = float(rng.uniform(0.0, max_deg))
+        n = np.array([np.cos(np.radians(ang + 90)), np.sin(np.radians(ang + 90))])
+        d = np.array([np.cos(np.radians(ang)), np.sin(np.radians(ang))])
+        mid = c + n * offset_mm
+        ends = np.array([mid - 25.0 * d, mid + 25.0 * d])
+        if all(np.hypot(*(o - _closest(ends, o))) > clearance_mm for o in others):
+            break
+    return ang, mid, ends
 
 
 def _closest(segment: np.ndarray, point: np.ndarray) -> np.ndarray:

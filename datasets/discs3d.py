@@ -14,6 +14,10 @@ Positions follow the bender's layout (:func:`cvmeasure_datasets.bender.bender_wi
 origin at (0, 0), axis at (-70, 0), the pin 18 mm out at ``pin_angle_deg``,
 ``wire_a`` and ``wire_b`` 30 and 70 mm along the bent leg. Truth: the angles of
 the discs' true centres' plate coordinates (the spec's definitions).
+
+Kept deliberately separate from the photo lab's 3D scenes (:mod:`cvmeasure_datasets.bender`),
+now that they trace rays too: an independent generator to judge the measuring code on, so
+do not merge the two.
 """
 
 from __future__ import annotations

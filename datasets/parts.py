@@ -24,13 +24,17 @@ from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.photo import RenderedPhoto, px_per_mm_at, render_scene, resolve_camera
 from cvmeasure_datasets.raster import (
     Layer,
-    Window,
-    polyline_bbox,
     sdf_alpha,
-    sdf_capsules,
     sdf_rect,
 )
-from cvmeasure_datasets.solids import dense_polyline, lamp_direction, shadow_on_plane, tube_layer
+from cvmeasure_datasets.solids import (
+    dense_polyline,
+    flat_wire_layer,
+    lamp_direction,
+    shadow_on_plane,
+    tube_layer,
+    wire_shadow_layer,
+)
 
 __all__ = [
     "PartSpec",
@@ -44,6 +48,8 @@ __all__ = [
 
 _SHEETS = {"dark": (38, 38, 42), "light": (212, 212, 206)}
 _WIRE = (170, 171, 175)
+#: The flat wire's shading (:func:`~cvmeasure_datasets.solids.flat_wire_layer`).
+_WIRE_SHADING = {"shade": (0.3, 0.7), "highlight": (0.7, 0.2)}
 
 
 def vertex_bend_angles_deg(vertices_mm: np.ndarray) -> np.ndarray:
@@ -197,16 +203,6 @@ def polyline_part(vertices_mm: Any, *, wire_diameter_mm: float = 2.0) -> PartSpe
     return PartSpec("polyline", v, float("nan"), turn, wire_diameter_mm)
 
 
-def _wire_colour(polyline: np.ndarray, radius_mm: float, base: np.ndarray):
-    def colour(win: Window) -> np.ndarray:
-        t = np.clip((sdf_capsules(win.u, win.v, polyline, radius_mm) + radius_mm) / radius_mm, 0, 1)
-        nz = np.sqrt(1.0 - t * t)
-        spec = 0.7 * np.exp(-((t / 0.2) ** 2))
-        return (0.3 + 0.7 * nz)[..., None] * base + spec[..., None]
-
-    return colour
-
-
 def render_part_photo(
     *,
     part: PartSpec | np.ndarray,
@@ -288,21 +284,8 @@ def render_part_photo(
     extra: dict[str, Any] = {}
     if fx.flat:
         if light.shadow_strength > 0:
-            layers.append(
-                Layer(
-                    polyline_bbox(shadow, r + 3.0),
-                    lambda w: sdf_alpha(sdf_capsules(w.u, w.v, shadow, r), 1.0),
-                    kind="shadow",
-                    strength=light.shadow_strength,
-                )
-            )
-        layers.append(
-            Layer(
-                polyline_bbox(verts, r + 1.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, verts, r)),
-                _wire_colour(verts, r, lin(_WIRE)),
-            )
-        )
+            layers.append(wire_shadow_layer(shadow, r, light.shadow_strength, soft_mm=1.0))
+        layers.append(flat_wire_layer(verts, r, lin(_WIRE), **_WIRE_SHADING))
     else:
         layers, extra = _effect_layers(
             layers, verts, r, spec, fx, light, seed, sheet, sheet_c, sheet_mm
@@ -427,24 +410,11 @@ def _effect_layers(
         else:
             az = np.radians(light.light_azimuth_deg)
             shadow = xy - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
-        layers.append(
-            Layer(
-                polyline_bbox(shadow, r + 3.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, shadow, r, 3.0), 1.0),
-                kind="shadow",
-                strength=light.shadow_strength,
-            )
-        )
+        layers.append(wire_shadow_layer(shadow, r, light.shadow_strength, soft_mm=1.0, band_mm=3.0))
     if fx.wire_3d:
         layers.append(tube_layer(axis3, r, lin(_WIRE), lamp))
     else:
-        layers.append(
-            Layer(
-                polyline_bbox(xy, r + 1.0),
-                lambda w: sdf_alpha(sdf_capsules(w.u, w.v, xy, r)),
-                _wire_colour(xy, r, lin(_WIRE)),
-            )
-        )
+        layers.append(flat_wire_layer(xy, r, lin(_WIRE), **_WIRE_SHADING))
     extra = {
         "part": {"centreline_3d_mm": axis3.tolist(), "projected_centreline_mm": xy.tolist()},
         **info,

@@ -13,6 +13,10 @@ extended source). 3 x 3 rays per pixel, a Gaussian optical blur, noise, sRGB 8 b
 Frames: the board frame (x, y on the plate, z away from the camera), mm; a height h
 above the plate is z = -h. The part is rigid: its own plane is turned about the line
 through its lowest point so that the far end lifts ``lift_mm``.
+
+Kept deliberately separate from :func:`cvmeasure_datasets.parts.render_part_photo`, now that
+it has a 3D wire too: an independent generator to judge the measuring code on, so do not
+merge the two.
 """
 
 from __future__ import annotations

@@ -12,6 +12,9 @@ these helpers intersect them with objects that are not flat on the plane:
 * :func:`shade_metal`: diffuse + Phong specular shading of a shiny steel wire
   under a directional lamp, and :func:`lamp_direction`, :func:`shadow_on_plane`.
 
+And the flat wire both scenes draw when ``wire_3d`` is off: :func:`flat_wire_layer`
+(a shaded capsule strip on the plane) and :func:`wire_shadow_layer` (its cast shadow).
+
 All lengths are mm in the scene frame; ``up`` is +1 for the machine frame (z
 towards the camera) and -1 for the board frame (z away from it).
 """
@@ -20,17 +23,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvmeasure_datasets.raster import Layer, Window, polyline_bbox, sdf_alpha
+from cvmeasure_datasets.raster import Layer, Window, polyline_bbox, sdf_alpha, sdf_capsules
 
 __all__ = [
     "LAMP_ELEVATION_DEG",
     "dense_polyline",
+    "flat_wire_layer",
     "tube_layer",
     "lamp_direction",
     "post_sdf",
     "shade_metal",
     "shadow_on_plane",
     "tube_hits",
+    "wire_shadow_layer",
 ]
 
 #: Elevation of the workshop lamp above the plate (the flat renders' shadows use
@@ -194,4 +199,57 @@ def tube_layer(axis_mm: np.ndarray, radius_mm: float, base: np.ndarray, lamp: np
             float(axis_mm[:, 2].min() - radius_mm),
             float(axis_mm[:, 2].max() + radius_mm),
         ),
+    )
+
+
+def flat_wire_layer(
+    polyline_mm: np.ndarray,
+    radius_mm: float,
+    base: np.ndarray,
+    *,
+    shade: tuple[float, float],
+    highlight: tuple[float, float],
+) -> Layer:
+    """A wire flat on the plane: capsules of ``radius_mm`` around ``polyline_mm`` (N, 2), mm.
+
+    Shaded as a cylinder seen from above: ``shade`` = (ambient, diffuse) gives
+    ``ambient + diffuse * n_z`` times ``base`` (linear RGB), plus a specular line
+    along the crest, ``highlight`` = (strength, width as a fraction of the radius).
+    """
+    ambient, diffuse = shade
+    strength, width = highlight
+
+    def colour(win: Window) -> np.ndarray:
+        t = np.clip(
+            (sdf_capsules(win.u, win.v, polyline_mm, radius_mm) + radius_mm) / radius_mm, 0, 1
+        )
+        nz = np.sqrt(1.0 - t * t)
+        spec = strength * np.exp(-((t / width) ** 2))
+        return (ambient + diffuse * nz)[..., None] * base + spec[..., None]
+
+    return Layer(
+        polyline_bbox(polyline_mm, radius_mm + 1.0),
+        lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline_mm, radius_mm)),
+        colour,
+    )
+
+
+def wire_shadow_layer(
+    polyline_mm: np.ndarray,
+    radius_mm: float,
+    strength: float,
+    *,
+    soft_mm: float,
+    band_mm: float | None = None,
+) -> Layer:
+    """A wire's shadow on the plane: capsules of ``radius_mm`` around ``polyline_mm`` (N, 2).
+
+    ``soft_mm``: width of its soft edge; ``band_mm``: see :func:`sdf_capsules`;
+    ``strength``: darkness in [0, 1].
+    """
+    return Layer(
+        polyline_bbox(polyline_mm, radius_mm + 3.0),
+        lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline_mm, radius_mm, band_mm), soft_mm),
+        kind="shadow",
+        strength=strength,
     )

@@ -117,14 +117,7 @@ def expected_width_px(
     side /= np.maximum(np.linalg.norm(side, axis=1), 1e-12)[:, None]
     r = 0.5 * wire_diameter_mm
     both = np.vstack((xyz + r * side, xyz - r * side))
-    px, _ = cv2.projectPoints(
-        both.reshape(-1, 1, 3),
-        plane.rvec,
-        plane.tvec_mm,
-        plane.camera.camera_matrix,
-        plane.camera.dist_coeffs,
-    )
-    px = px.reshape(-1, 2)
+    px = plane.plane_to_image_px(both)
     return np.hypot(*(px[: len(pts)] - px[len(pts) :]).T)
 
 

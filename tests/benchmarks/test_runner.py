@@ -105,3 +105,27 @@ def test_runner_cli_list_and_unknown():
         [sys.executable, "-m", "benchmarks", "nope"], capture_output=True, text=True, check=False
     )
     assert bad.returncode == 2 and "unknown benchmark(s) nope" in bad.stderr
+
+
+def test_metric_at_most_target_and_met():
+    assert Metric.at_most("p95", 0.05, "deg", 0.1) == Metric(
+        "p95", 0.05, "deg", target="<= 0.1", met=True
+    )
+    assert Metric.at_most("p95", 0.1, "deg", 0.1).met is True  # the limit itself is met
+    assert Metric.at_most("p95", 0.11, "deg", 0.1).met is False
+    assert Metric.at_most("p95", None, "deg", 0.1).to_dict()["met"] is False  # nothing measured
+
+
+def test_shared_real_boards_and_random_photo():
+    from benchmarks._photos import CHARUCO_5X7, LIFECAM, random_bender_photo
+    from cvmeasure.board import board_from_dict
+
+    assert board_from_dict(CHARUCO_5X7).size_mm == pytest.approx((200.0, 280.0))
+    assert board_from_dict(LIFECAM).size_mm == pytest.approx((203.2, 203.2))
+    jpeg = random_bender_photo((240, 160), 5)
+    plain = random_bender_photo((240, 160), 5, jpeg=False)
+    assert jpeg.bgr.shape == plain.bgr.shape == (160, 240, 3)
+    assert jpeg.jpeg_bytes is not None and plain.jpeg_bytes is None
+    # same seed, same scene: only the compression differs
+    assert jpeg.truth["requested"] == plain.truth["requested"]
+    assert abs(jpeg.truth["requested"]["pin_angle_deg"]) <= 120.0

@@ -73,6 +73,22 @@ def test_image_to_plane_maps_corners_to_board_mm(charuco_board, true_camera):
     assert lens["cross_validation_mm"] == pytest.approx(0.5 * plane.mm_per_px)
 
 
+def test_plane_to_image_px_of_raised_points_inverts_image_to_plane(charuco_board, true_camera):
+    rvec, tvec = look_at_pose(charuco_board, 380.0, 25.0, -15.0, (10.0, -5.0), 30.0)
+    det = detect_board(render_view(charuco_board, true_camera, rvec, tvec), charuco_board)
+    plane = fit_plane(det, true_camera)
+    xy = det.object_mm[:, :2]
+    flat = plane.plane_to_image_px(xy)
+    np.testing.assert_array_equal(
+        plane.plane_to_image_px(np.column_stack((xy, 0 * xy[:, 0]))), flat
+    )
+    height_mm = 12.0  # above the board: board z points away from the camera
+    raised = plane.plane_to_image_px(np.column_stack((xy, np.full(len(xy), -height_mm))))
+    assert np.min(np.hypot(*(raised - flat).T)) > 1.0  # the height moves every point
+    back = plane.image_to_plane_mm(raised, height_mm=height_mm)
+    assert np.max(np.abs(back - xy)) < 1e-6  # the ray intersection undoes the projection
+
+
 def test_worst_angle_error_of_known_maps():
     pts = np.column_stack(
         [g.ravel() for g in np.meshgrid(np.linspace(0, 600, 7), np.linspace(0, 400, 5))]
