@@ -162,7 +162,9 @@ def leftover_structure(
             tr, te = train & (cell == c), test & (cell == c)
             if not te.any():
                 continue
-            if tr.sum() > degree + 2:
+            # a polynomial of this degree needs more distinct angles than coefficients
+            # (a plan of a few repeated commands has not): otherwise nothing is smoothed
+            if tr.sum() > degree + 2 and len(np.unique(x[tr])) > degree + 1:
                 coef = np.polyfit(x[tr], r[tr], degree)
                 smoothed[te] = r[te] - np.polyval(coef, x[te])
             else:
