@@ -649,9 +649,10 @@ def main(argv: list[str] | None = None) -> dict:
             "the occluded marker (stray objects: any marker); 'other warnings only' when the "
             "photo's warnings are unrelated (e.g. the plane-size warning the heights cause); "
             "silently wrong: |error| > 3 sigma and no warning at all.",
-            "parts: measure_part with the chord count, the axis height 1.5 mm (the wire's "
-            "radius) when the wire is round; the lifted part's truth is the rigid part's own "
-            "radius and bends.",
+            "parts: measure_part with the chord count and, when the wire is round, its "
+            "3 mm diameter (centreline between the silhouette edges, axis at the wire's "
+            "radius, lift bounded from the edges' width); 'warned' lists round_wire_edges_lost "
+            "and part_lifted; the lifted part's truth is the rigid part's own radius and bends.",
             f"total run {time.perf_counter() - t_start:.0f} s",
         ],
     )
