@@ -296,6 +296,10 @@ def _occlusion_rows(args, scale, camera, kit, n):
     return rows, counts
 
 
+#: the part warnings that say a round wire's centreline or lift is in doubt
+PART_WARNINGS = ("round_wire_edges_lost", "part_lifted")
+
+
 def _part_rows(args, scale, camera, n):
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.errors import InputError
@@ -313,7 +317,7 @@ def _part_rows(args, scale, camera, n):
     }
     out = {}
     for row, fx in rows_fx.items():
-        radius_err, bend_err, refused = [], [], 0
+        radius_err, bend_err, refused, warned = [], [], 0, []
         for i in range(n):
             rng = np.random.default_rng([args.seed, 77, i])
             part = arc_part(
@@ -343,16 +347,26 @@ def _part_rows(args, scale, camera, n):
                     board,
                     camera,
                     divisions=part.divisions,
-                    axis_height_mm=1.5 if fx.wire_3d else 0.0,
+                    # a round wire: silhouette centreline, axis at its radius, lift bound
+                    axis_height_mm=None if fx.wire_3d else 0.0,
+                    wire_diameter_mm=part.wire_diameter_mm if fx.wire_3d else None,
                 )
-            except InputError:
+            except InputError as exc:
+                print(f"part {row} photo {i}: refused ({exc})", flush=True)
                 refused += 1
                 continue
+            warned += [w.split(":")[0] for w in m.warnings if w.split(":")[0] in PART_WARNINGS]
             truth = photo.truth
             radius_err.append(100.0 * (m.result.radius_mm / truth["radius_mm"] - 1.0))
             bend_err.append(m.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions)
-        out[row] = {"radius": radius_err, "bend": bend_err, "refused": refused, "n": n}
-        print(f"part {row}: radius {radius_err} bend {bend_err}", flush=True)
+        out[row] = {
+            "radius": radius_err,
+            "bend": bend_err,
+            "refused": refused,
+            "warned": warned,
+            "n": n,
+        }
+        print(f"part {row}: radius {radius_err} bend {bend_err} warned {warned}", flush=True)
     return out
 
 
@@ -426,6 +440,7 @@ def main(argv: list[str] | None = None) -> dict:
                 float(np.max(np.abs(r["radius"]))) if r["radius"] else None,
                 float(np.max(np.abs(r["bend"]))) if r["bend"] else None,
                 r["refused"],
+                ", ".join(r["warned"]) or "-",
             ]
         )
     occ_table = [
@@ -563,7 +578,14 @@ def main(argv: list[str] | None = None) -> dict:
             ),
             Table(
                 "parts (3 mm wire, chord arcs), worst over the photos",
-                ["effects", "measured", "radius err %", "segment bend err deg", "refused"],
+                [
+                    "effects",
+                    "measured",
+                    "radius err %",
+                    "segment bend err deg",
+                    "refused",
+                    "warned",
+                ],
                 part_table,
             ),
             Table(
@@ -617,9 +639,10 @@ def main(argv: list[str] | None = None) -> dict:
             "the occluded marker (stray objects: any marker); 'other warnings only' when the "
             "photo's warnings are unrelated (e.g. the plane-size warning the heights cause); "
             "silently wrong: |error| > 3 sigma and no warning at all.",
-            "parts: measure_part with the chord count, the axis height 1.5 mm (the wire's "
-            "radius) when the wire is round; the lifted part's truth is the rigid part's own "
-            "radius and bends.",
+            "parts: measure_part with the chord count and, when the wire is round, its "
+            "3 mm diameter (centreline between the silhouette edges, axis at the wire's "
+            "radius, lift bounded from the edges' width); 'warned' lists round_wire_edges_lost "
+            "and part_lifted; the lifted part's truth is the rigid part's own radius and bends.",
             f"total run {time.perf_counter() - t_start:.0f} s",
         ],
     )

@@ -292,14 +292,16 @@ def outer_edges(
 
     A stretch where the profile is flat (gradient below a threshold over 0.08 wire
     widths, at least 1.5 px) is outside the wire: the plate, or a shadow lying on
-    it; inside a round wire nothing is flat (shading, highlight; a clipped
-    highlight is flat but is known by its level). Between the flat
+    it; inside a round wire the only flat stretch is a highlight's crest (clipped,
+    or broad as on the photo lab's 3D wire), known by its level: well above the
+    plate (more than 30 % of the profile's range), where no shadow is. Between the flat
     stretches lie the wire, a shadow's penumbra, other lines; the wire is the one
-    0.9-1.6 widths wide (a penumbra joined to it widens it) nearest the profile's
-    centre (within 0.7 widths; 1.5 when the centre lies on a flat stretch, such as
-    a wide shadow). Its
-    silhouette edges are the strongest gradients within 2.5 px inside its two
-    ends, refined by a parabola.
+    at least 0.9 widths wide nearest the profile's centre (within 0.7 widths; 1.5
+    when the centre lies on a flat stretch, such as a wide shadow) whose
+    silhouette edges, the strongest gradients within 2.5 px inside its two
+    ends (refined by a parabola), are at most 1.6 widths apart (a penumbra joined
+    to it widens it). The stretch itself is wider than the edges' distance by the
+    blurred edges' tails, about 2 px whatever the width: 1.7 widths on a 6 px wire.
 
     Returns left, right offsets (P,) px, NaN where no stretch of the wire's width
     was found.
@@ -315,8 +317,11 @@ def outer_edges(
         np.abs(np.concatenate((g[:, :outer], g[:, -outer:]), axis=1)), axis=1
     )
     tau = np.maximum(3.0 * noise, 0.08 * g.max(axis=1))
-    # a clipped highlight is flat too, but inside the wire
-    flat = (g < tau[:, None]) & (p < _CLIPPED)
+    # a highlight is flat too, but inside the wire: clipped, or a broad crest well
+    # above the plate (a shadow, the only other flat level, is darker than the plate)
+    plate = np.median(np.concatenate((p[:, :outer], p[:, -outer:]), axis=1), axis=1)
+    above = np.maximum(0.3 * (p.max(axis=1) - plate), np.maximum(3.0 * noise * step, 8.0))
+    flat = (g < tau[:, None]) & (p < np.minimum(_CLIPPED, (plate + above)[:, None]))
     run = max(2, int(round(max(1.5, 0.08 * width_px) / step)))
     back = int(round(2.5 / step))
     left = np.full(len(p), np.nan)
@@ -337,17 +342,20 @@ def outer_edges(
             continue
         width = (stops - starts) * step
         centre = 0.5 * (offsets_px[starts] + offsets_px[np.minimum(stops, n) - 1])
-        fits = (width >= 0.9 * width_px) & (width <= 1.6 * width_px)
+        # a stretch holds the blurred edges' tails too (about 2 px each side, whatever
+        # the wire's width): the upper bound is on its edges' distance, below
+        fits = width >= 0.9 * width_px
         # a rough centre on a flat stretch (a wide shadow) is off the wire: look farther
         reach = (1.5 if covered[i, n // 2] else 0.7) * width_px
         fits &= (starts > 0) & (stops < n) & (np.abs(centre) <= reach)
-        if not fits.any():
-            continue
         # the one holding the current centre, else the nearest
-        j = int(np.argmin(np.where(fits, np.abs(centre), np.inf)))
-        a, b = int(starts[j]), int(stops[j])  # busy samples a .. b - 1
-        left[i] = _peak(g[i], a, min(b, a + back), offsets_px)
-        right[i] = _peak(g[i], max(a, b - back), b, offsets_px)
+        for j in np.argsort(np.where(fits, np.abs(centre), np.inf))[: int(fits.sum())]:
+            a, b = int(starts[j]), int(stops[j])  # busy samples a .. b - 1
+            lo = _peak(g[i], a, min(b, a + back), offsets_px)
+            hi = _peak(g[i], max(a, b - back), b, offsets_px)
+            if hi - lo <= 1.6 * width_px:
+                left[i], right[i] = lo, hi
+                break
     return left, right
 
 

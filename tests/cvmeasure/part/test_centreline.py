@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.part.centreline import measure_centreline, symmetric_centres
+from cvmeasure.part.centreline import measure_centreline, outer_edges, symmetric_centres
 from cvmeasure.part.compare import point_to_polyline
 
 SIZE = (260, 320)  # rows, cols
@@ -104,3 +104,27 @@ def test_symmetric_centres_of_shifted_profiles():
         measure_centreline(
             np.zeros((10, 10)), np.zeros((3, 2)), width_guess_px=2, end_shape="pointed"
         )  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("width_px", "blur_px"),
+    [(5.85, 0.9), (12.0, 0.6), (19.0, 0.6)],  # the photo lab's wire at 1/4, 1/2 and full size
+)
+def test_outer_edges_of_a_wire_with_a_broad_flat_crest(width_px, blur_px):
+    """A highlight's flat crest is inside the wire, and blurred edges' tails widen the
+    stretch by about 2 px whatever the width (the photo lab's 3D wire)."""
+    from scipy.ndimage import gaussian_filter1d
+
+    offsets = np.arange(-400, 401) * 0.05
+    centre_px = 0.3
+    # a disc's shading, saturating to a flat crest over 60 % of the width, on a dark plate
+    inside = np.clip(1.0 - ((offsets - centre_px) / (0.5 * width_px)) ** 2, 0.0, None)
+    profile = 37.0 + 125.0 * np.clip(1.6 * np.sqrt(inside), 0.0, 1.0)
+    profile = gaussian_filter1d(profile, blur_px / 0.05)
+    noisy = profile[None, :] + np.random.default_rng(14).normal(0.0, 0.7, (40, len(offsets)))
+    left, right = outer_edges(noisy, offsets, width_px)
+    assert np.isfinite(left).all() and np.isfinite(right).all()
+    # the centre between the edges is the axis (a gradient peak sits inside a blurred
+    # disc's edge, alike on both sides: the width reads low, the centre does not move)
+    np.testing.assert_allclose(0.5 * (left + right), centre_px, atol=0.05)
+    assert np.all(np.abs((right - left) / width_px - 1.0) < 0.1)
