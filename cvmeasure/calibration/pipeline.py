@@ -282,7 +282,8 @@ def choose_model(
 ) -> tuple[str, dict[str, Any]]:
     """The simplest model whose richer rivals add nothing significant.
 
-    Every candidate of :data:`AUTO_MODELS` is fitted on all corners (:func:`_full_fit`)
+    Every candidate of :data:`AUTO_MODELS` is fitted on the corners and views model 5's
+    outlier rejection keeps (:func:`_full_fit`)
     and, for the evidence and as a guard against over-fitting, on the even views and
     tested on the odd ones, and back (:func:`_held_out_rms_px`). Starting from the
     simplest, a richer model replaces the current choice when its extra coefficients are
@@ -297,6 +298,14 @@ def choose_model(
             "rule": "too few views to choose a model (need 6 or more); model 5 is used",
             "candidates": [],
         }
+    from cvmeasure.errors import InputError
+
+    # every candidate is judged on the same corners: those model 5's rejection keeps
+    # (an outlier corner would inflate every model's residuals alike and hide the gain)
+    try:
+        detections = list(calibrate_views(detections, image_size_px, model="5").detections)
+    except InputError:
+        pass
     evidence: list[dict[str, Any]] = []
     for m in AUTO_MODELS:
         fit = _full_fit(detections, image_size_px, m)
