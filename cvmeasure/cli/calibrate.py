@@ -44,7 +44,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.calibration.pipeline import (
+        calibrate_detections,
+        detect_photos,
+        model_choice_text,
+    )
     from cvmeasure.camera import save_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import to_jsonable
@@ -91,13 +95,7 @@ def run(args: argparse.Namespace) -> int:
     cv = report.cross_validation
     print(f"camera JSON: {path}")
     if report.model_choice is not None:
-        ev = ", ".join(
-            f"{e['model']}: {e['held_out_rms_px']:.4f} px"
-            for e in report.model_choice["candidates"]
-        )
-        print(
-            f"model {report.result.model} chosen: simplest within noise of the best held-out RMS ({ev})"
-        )
+        print(model_choice_text(report.model_choice))
     determined = report.uncertainty.max_px <= 10.0 * max(report.camera.image_size_px)
     if cv is not None:
         ratio = f"{cv.ratio:.1f}x what noise explains" if determined else "noise undetermined"
