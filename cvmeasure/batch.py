@@ -423,17 +423,20 @@ def _init_worker() -> None:
 PARENT_POLL_S = 0.2
 
 
-def _pool_worker_init() -> None:
+def _pool_worker_init(batch_pid: int | None = None) -> None:
     """A pool worker: one OpenCV thread, and it exits as soon as its parent is gone.
 
-    The parent is the batch (spawn) or the fork server, which ends with the batch.
-    A batch killed with SIGKILL cannot stop its workers; without this they finish
-    their photo and idle until the pool's pipes time out (30 s seen).
+    The parent is the batch (spawn: ``batch_pid``) or the fork server, which ends
+    with the batch. A batch killed with SIGKILL cannot stop its workers; without
+    this they finish their photo and idle until the pool's pipes time out (30 s
+    seen). A spawned worker still importing when the batch dies is already
+    re-parented when this runs: it is compared with ``batch_pid``, not with the
+    parent it finds, so it exits too.
     """
     import threading
 
     _init_worker()
-    parent_pid = os.getppid()
+    parent_pid = os.getppid() if batch_pid is None else batch_pid
 
     def watch() -> None:
         while os.getppid() == parent_pid:
@@ -525,6 +528,7 @@ def _run_processes(
             max_workers=workers,
             mp_context=ctx,
             initializer=_pool_worker_init,
+            initargs=(os.getpid() if start_method == "spawn" else None,),
         )
         # the workers start on these first submits, inheriting the one-thread environment
         for path, key in todo:
