@@ -154,6 +154,14 @@ class MarkerKit:
             if not 0 < spec.diameter_mm < spec.ring_mm:
                 raise InputError(source, f"marker {spec.role!r}: need 0 < diameter_mm < ring_mm")
             markers.append(spec)
+        with_heights = [m.role for m in markers if m.height_mm is not None]
+        if with_heights and len(with_heights) < len(markers):
+            without = [m.role for m in markers if m.height_mm is None]
+            raise InputError(
+                source,
+                f"height_mm is given for {', '.join(with_heights)} but not for "
+                f"{', '.join(without)}: give every marker's height or none (a flat kit)",
+            )
         try:
             wire_d = _length(data.get("wire_diameter_mm"), "wire_diameter_mm", minimum=1e-6)
             wire_h = _length(data.get("wire_axis_height_mm"), "wire_axis_height_mm", minimum=0.0)

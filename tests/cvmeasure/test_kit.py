@@ -85,3 +85,10 @@ def test_flat_kit_drops_the_heights_only():
     assert flat.height_mm("pin") == 0.0 and flat.wire_axis_height_mm is None
     assert [m.srgb for m in flat.markers] == [m.srgb for m in kit.markers]
     assert flat.wire_diameter_mm == kit.wire_diameter_mm
+
+
+def test_a_kit_with_some_heights_missing_is_refused_naming_them():
+    data = default_kit().to_dict()
+    del data["markers"][2]["height_mm"]  # the pin's
+    with pytest.raises(InputError, match=r"kit.json: height_mm is given for .* but not for pin"):
+        MarkerKit.from_dict(data, source="kit.json")
