@@ -106,8 +106,8 @@ class EdgePoints:
         """5-95 % range of the rays' ring levels (median of each ray's ring samples)."""
         if self.ring_samples is None:
             return 0.0
-        ring = np.median(self.ring_samples, axis=1)
-        return float(np.percentile(ring, 95) - np.percentile(ring, 5))
+        lo, hi = np.percentile(np.median(self.ring_samples, axis=1), (5.0, 95.0))
+        return float(hi - lo)
 
 
 @functools.lru_cache(maxsize=64)
