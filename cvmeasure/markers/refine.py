@@ -106,8 +106,26 @@ class EdgePoints:
         """5-95 % range of the rays' ring levels (median of each ray's ring samples)."""
         if self.ring_samples is None:
             return 0.0
-        lo, hi = np.percentile(np.median(self.ring_samples, axis=1), (5.0, 95.0))
-        return float(hi - lo)
+        ring = np.sort(_row_medians(self.ring_samples))
+        return _sorted_percentile(ring, 95.0) - _sorted_percentile(ring, 5.0)
+
+
+def _row_medians(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, axis=1)`` of a small 2-D array, from one sort (no NaN checks)."""
+    srt = np.sort(a, axis=1)
+    n = srt.shape[1]
+    if n % 2:
+        return srt[:, n // 2]
+    return (srt[:, n // 2 - 1] + srt[:, n // 2]) / 2
+
+
+def _sorted_percentile(srt: np.ndarray, q: float) -> float:
+    """The ``q`` % percentile of sorted values, linear between neighbours (numpy's default)."""
+    if len(srt) == 1:
+        return float(srt[0])
+    h = (len(srt) - 1) * q / 100.0
+    i = min(int(h), len(srt) - 2)
+    return float(srt[i] + (h - i) * (float(srt[i + 1]) - float(srt[i])))
 
 
 @functools.lru_cache(maxsize=64)
