@@ -264,7 +264,8 @@ def disc_edge_points(
     ring_samples = v[:, outer] if min(len(v) // 4, n_disc, outer.sum()) >= 2 else None
     if local_levels:
         v = _local_levels(v, radii, radius_px, band, offset)
-    points = _edge_crossings(v, inside, radii, radius_px, step_px, cx, cy, cos[:, 0], sin[:, 0])
+    rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
+    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
 
 
@@ -272,22 +273,14 @@ def disc_edge_points(
 _LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], dtype=np.float32)
 
 
-def _edge_crossings(
-    v: np.ndarray,
-    inside: np.ndarray,
-    radii: np.ndarray,
-    radius_px: float,
-    step_px: float,
-    cx: float,
-    cy: float,
-    cos: np.ndarray,
-    sin: np.ndarray,
-) -> np.ndarray:
-    """Per ray (rows of ``v``), the 0.5 crossing nearest ``radius_px`` as an image point (N, 2).
+def _nearest_crossings(
+    v: np.ndarray, inside: np.ndarray, radii: np.ndarray, radius_px: float, step_px: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray (rows of ``v``), the 0.5 crossing radius nearest ``radius_px``: ``(rows, radii)``.
 
     A crossing lies between two neighbouring samples both ``inside``, linearly
-    interpolated; rays without one give no point. Only the crossings are interpolated
-    (a few per ray), not every sample.
+    interpolated; rays without one are left out. Only the crossings are interpolated
+    (a few per ray), not every sample; of two crossings equally near, the inner one.
     """
     above = v >= 0.5
     cross = above[:, :-1] != above[:, 1:]
@@ -295,15 +288,15 @@ def _edge_crossings(
     cross &= inside[:, 1:]
     rows, cols = np.nonzero(cross)
     if not len(rows):
-        return np.zeros((0, 2))
+        return rows, np.zeros(0)
     va, vb = v[rows, cols], v[rows, cols + 1]
     r_cross = radii[cols] + ((0.5 - va) / (vb - va)) * step_px
-    # nearest the radius per ray; ties keep the inner crossing (lexsort is stable)
-    order = np.lexsort((np.abs(r_cross - radius_px), rows))
-    first = np.flatnonzero(np.diff(rows[order], prepend=-1))
-    pick = order[first]
-    rows, r_best = rows[pick], r_cross[pick]
-    return np.column_stack((cx + r_best * cos[rows], cy + r_best * sin[rows]))
+    if len(rows) > 1 and not (rows[1:] > rows[:-1]).all():
+        # rays with more than one crossing: the nearest the radius (lexsort is stable)
+        order = np.lexsort((np.abs(r_cross - radius_px), rows))
+        pick = order[np.flatnonzero(np.diff(rows[order], prepend=-1))]
+        rows, r_cross = rows[pick], r_cross[pick]
+    return rows, r_cross
 
 
 def _local_levels(
@@ -352,14 +345,11 @@ def _ray_crossings(
     v: np.ndarray, radii: np.ndarray, radius_px: float, step_px: float
 ) -> np.ndarray:
     """Per ray (last axis: samples), the 0.5 crossing radius nearest ``radius_px``; NaN if none."""
-    va, vb = v[..., :-1], v[..., 1:]
-    cross = ((va >= 0.5) != (vb >= 0.5)) & (va > -0.5) & (vb > -0.5)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r_cross = radii[:-1] + np.where(cross, (0.5 - va) / (vb - va), np.nan) * step_px
-    dist = np.where(cross, np.abs(r_cross - radius_px), np.inf)
-    pick = np.argmin(dist, axis=-1)[..., None]
-    best = np.take_along_axis(r_cross, pick, axis=-1)[..., 0]
-    return np.where(np.isfinite(np.take_along_axis(dist, pick, axis=-1)[..., 0]), best, np.nan)
+    flat = v.reshape(-1, v.shape[-1])
+    rows, r_best = _nearest_crossings(flat, flat > -0.5, radii, radius_px, step_px)
+    out = np.full(flat.shape[0], np.nan)
+    out[rows] = r_best
+    return out.reshape(v.shape[:-1])
 
 
 def channel_shifts_px(
