@@ -66,11 +66,6 @@ MIN_LOCAL_STEP = 0.35
 LEVEL_RATIO_TOLERANCE = 0.15
 
 
-def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
-    enc = srgb_encode(np.asarray(lin, dtype=np.float64)) * 255.0
-    return (float(enc[0]), float(enc[1]), float(enc[2]))
-
-
 def _linear_roi(raw: np.ndarray) -> np.ndarray:
     """A region in linear light (float32, 0..1): a blurred edge crosses half-way at the edge."""
     import cv2
@@ -226,8 +221,8 @@ def disc_edge_points(
     clipped_fraction = np.count_nonzero((brightest >= top - 1) & ring) / n_ring
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
-    disc_t = _linear_to_srgb8(disc_c)
-    ring_t = _linear_to_srgb8(ring_c)
+    enc = srgb_encode(np.stack((disc_c, ring_c)).astype(np.float64)) * 255.0
+    disc_t, ring_t = (tuple(map(float, e)) for e in enc)
     contrast = math.dist(disc_t, ring_t)
     if norm2 <= 0:
         return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped_fraction)
@@ -251,7 +246,7 @@ def disc_edge_points(
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
 
-    n_rays = int(np.clip(round(2 * math.pi * radius_px), 48, 1440))
+    n_rays = min(max(round(2 * math.pi * radius_px), 48), 1440)
     radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
     cos, sin = _unit_rays(n_rays)
     map_x = (cx - x0 + radii * cos).astype(np.float32)
