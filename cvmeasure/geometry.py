@@ -131,8 +131,18 @@ class CircleFit:
 
 def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
     ang = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
-    bins = np.unique(np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(int) % 36)
-    return float(bins.size / 36.0)
+    bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
+    return float(np.count_nonzero(np.bincount(bins, minlength=36)) / 36.0)
+
+
+def _abs_median(values: np.ndarray) -> float:
+    """``np.median(np.abs(values))`` of a 1-D array, by partition (no sort, no checks)."""
+    a = np.abs(values)
+    n = a.size
+    if n % 2:
+        return float(np.partition(a, n // 2)[n // 2])
+    part = np.partition(a, (n // 2 - 1, n // 2))
+    return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
 def fit_circle_robust(
@@ -172,42 +182,49 @@ def fit_circle_robust(
     else:
         (cx, cy), r = fit_circle_taubin(p)
     theta = np.array([cx, cy, r], dtype=np.float64)
-    w = np.ones(p.shape[0])
+    n = p.shape[0]
+    w = np.ones(n)
     scale = 0.0
-    jac = np.empty((p.shape[0], 3))
-    jac[:, 2] = 1.0
+    # the Jacobian's rows (d / dist, 1) as contiguous rows of a (3, N) array: J^T W J
+    # and J^T W res are then small dense products
+    jac_t = np.empty((3, n))
+    jac_t[2] = 1.0
+    d_t = np.ascontiguousarray(p.T)
     for it in range(iterations):
-        d = p - theta[:2]
-        dist = np.maximum(np.sqrt(np.einsum("ij,ij->i", d, d)), 1e-12)
+        d = d_t - theta[:2, None]
+        dist = np.sqrt(d[0] * d[0] + d[1] * d[1])
+        np.maximum(dist, 1e-12, out=dist)
         res = dist - theta[2]
         if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
-            mad = 1.4826 * float(np.median(np.abs(res)))
+            mad = 1.4826 * _abs_median(res)
             scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
         u = res / (tukey_c * scale)
-        w = np.where(np.abs(u) < 1.0, (1 - u * u) ** 2, 0.0)
-        if w.sum() < min(5, p.shape[0]):
+        w = 1.0 - u * u  # Tukey's biweight (1 - u^2)^2, 0 for |u| >= 1
+        np.maximum(w, 0.0, out=w)
+        w *= w
+        if w.sum() < min(5, n):
             w = np.ones_like(w)
         # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
-        jac[:, :2] = d / dist[:, None]
-        jw = jac * w[:, None]
+        np.divide(d, dist, out=jac_t[:2])
+        jw_t = jac_t * w
         try:
-            step = np.linalg.solve(jw.T @ jac, jw.T @ res)
+            step = np.linalg.solve(jw_t @ jac_t.T, jw_t @ res)
         except np.linalg.LinAlgError:
             break
         theta = theta + step
         if it >= 2 and np.abs(step).max() < 1e-5:
             break
-    d = p - theta[:2]
-    dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+    d = d_t - theta[:2, None]
+    dist = np.maximum(np.hypot(d[0], d[1]), 1e-12)
     res = dist - theta[2]
     inl = w > 0
-    n_in = int(inl.sum())
-    jac = np.column_stack((-d[:, 0] / dist, -d[:, 1] / dist, -np.ones_like(dist)))
-    jw = jac * w[:, None]
+    n_in = int(np.count_nonzero(inl))
+    np.divide(d, dist, out=jac_t[:2])  # the sign of J does not change J^T W J
+    jw_t = jac_t * w
     dof = max(1.0, float(w.sum()) - 3.0)
-    s2 = float((w * res * res).sum() / dof)
+    s2 = float((w * res) @ res / dof)
     try:
-        cov = np.linalg.inv(jw.T @ jac) * s2 * correlation_factor
+        cov = np.linalg.inv(jw_t @ jac_t.T) * s2 * correlation_factor
     except np.linalg.LinAlgError:
         cov = np.full((3, 3), np.inf)
     return CircleFit(

@@ -97,6 +97,8 @@ def machine_angles(
     a_x = _dir_rad(x_axis, flip)
     pin = math.degrees(_dir_rad(v_pin, flip) - a_x)
     bend = math.degrees(_dir_rad(v_bend, flip) - a_x)
+    if covariances is None:  # no uncertainty to propagate (the heights' bounds call this often)
+        return MachineAngles(float(wrap_deg(pin)), float(wrap_deg(bend)), 0.0, 0.0)
 
     idx = {r: 2 * i for i, r in enumerate(ROLES)}
     g_x = _grad_dir(x_axis, flip)

@@ -20,8 +20,9 @@ Vision 23, 2005, doi:10.1007/s10851-005-0482-8.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -65,11 +66,6 @@ MIN_LOCAL_STEP = 0.35
 LEVEL_RATIO_TOLERANCE = 0.15
 
 
-def _linear_to_srgb8(lin: np.ndarray) -> tuple[float, float, float]:
-    enc = srgb_encode(np.asarray(lin, dtype=np.float64)) * 255.0
-    return (float(enc[0]), float(enc[1]), float(enc[2]))
-
-
 def _linear_roi(raw: np.ndarray) -> np.ndarray:
     """A region in linear light (float32, 0..1): a blurred edge crosses half-way at the edge."""
     import cv2
@@ -88,7 +84,9 @@ class EdgePoints:
     white ring; ``contrast`` their distance (0..255 units); ``clipped_fraction``
     the share of ring pixels with a saturated channel; ``ring_spread`` how much the
     ring's level varies round the disc (5-95 % range, share of the disc-to-ring step;
-    0 for even light, :data:`UNEVEN_RING_SPREAD` and more: a shadow across it).
+    0 for even light, :data:`UNEVEN_RING_SPREAD` and more: a shadow across it),
+    computed when first read from ``ring_samples`` (per ray, its samples on the ring,
+    1 on the disc and 0 on the ring): only the refinement's settled pass needs it.
     """
 
     points_px: np.ndarray
@@ -96,7 +94,59 @@ class EdgePoints:
     ring_bgr: tuple[float, float, float]
     contrast: float
     clipped_fraction: float
-    ring_spread: float = 0.0
+    ring_samples: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def ring_spread(self) -> float:
+        """5-95 % range of the rays' ring levels (median of each ray's ring samples)."""
+        if self.ring_samples is None:
+            return 0.0
+        ring = np.sort(_row_medians(self.ring_samples))
+        return _sorted_percentile(ring, 95.0) - _sorted_percentile(ring, 5.0)
+
+
+def _row_medians(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, axis=1)`` of a small 2-D array, from one sort (no NaN checks)."""
+    srt = np.sort(a, axis=1)
+    n = srt.shape[1]
+    if n % 2:
+        return srt[:, n // 2]
+    return (srt[:, n // 2 - 1] + srt[:, n // 2]) / 2
+
+
+def _sorted_percentile(srt: np.ndarray, q: float) -> float:
+    """The ``q`` % percentile of sorted values, linear between neighbours (numpy's default)."""
+    if len(srt) == 1:
+        return float(srt[0])
+    h = (len(srt) - 1) * q / 100.0
+    i = min(int(h), len(srt) - 2)
+    return float(srt[i] + (h - i) * (float(srt[i + 1]) - float(srt[i])))
+
+
+@functools.lru_cache(maxsize=64)
+def _unit_rays(n_rays: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(cos, sin)`` of ``n_rays`` evenly spaced ray directions, each (n_rays, 1)."""
+    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
+    cos.flags.writeable = sin.flags.writeable = False
+    return cos, sin
+
+
+def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -> np.ndarray:
+    """Per channel, the median of ``lut[raw]`` over ``mask`` (uint8 data; ``n`` pixels in it).
+
+    From each channel's histogram (the lookup table is increasing): the same value as
+    ``np.median(lut[raw][mask], axis=0)``, float32, without sorting the pixels.
+    """
+    import cv2
+
+    lo, hi = (n - 1) // 2, n // 2
+    out = np.empty(3, dtype=np.float32)
+    for c in range(3):
+        cum = np.cumsum(cv2.calcHist([raw], [c], mask, [256], [0, 256]).ravel())
+        a, b = np.searchsorted(cum, (lo, hi), side="right")
+        out[c] = (lut[a] + lut[b]) * np.float32(0.5)
+    return out
 
 
 def disc_edge_points(
@@ -149,93 +199,126 @@ def disc_edge_points(
     top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
     raw = bgr[y0:y1, x0:x1]
     roi = _linear_roi(raw)
-    yy, xx = np.ogrid[y0:y1, x0:x1]
-    dist = np.sqrt((xx - cx) ** 2 + (yy - cy) ** 2)
-    inner = dist < 0.6 * radius_px
+    # squared distances from the centre: the masks without a square root per pixel
+    d2 = (np.arange(y0, y1, dtype=np.float64)[:, None] - cy) ** 2 + (
+        np.arange(x0, x1, dtype=np.float64)[None, :] - cx
+    ) ** 2
     outer_r = radius_px * ring_ratio
     gap = outer_r - radius_px
-    ring = (dist > radius_px + 0.3 * gap) & (dist < outer_r - 0.15 * gap)
-    if np.count_nonzero(inner) < 3 or np.count_nonzero(ring) < 3:
+    inner = d2 < (0.6 * radius_px) ** 2
+    ring = (d2 > (radius_px + 0.3 * gap) ** 2) & (d2 < (outer_r - 0.15 * gap) ** 2)
+    n_inner, n_ring = np.count_nonzero(inner), np.count_nonzero(ring)
+    if n_inner < 3 or n_ring < 3:
         return empty
-    disc_c = np.median(roi[inner], axis=0)
-    ring_c = np.median(roi[ring], axis=0)
-    clipped_fraction = float((raw[ring].max(axis=1) >= top - 1).mean())
+    if raw.dtype == np.uint8:
+        disc_c = _median_levels(raw, SRGB8_TO_LINEAR, inner.view(np.uint8), n_inner)
+        ring_c = _median_levels(raw, SRGB8_TO_LINEAR, ring.view(np.uint8), n_ring)
+        brightest = cv2.max(cv2.max(raw[..., 0], raw[..., 1]), raw[..., 2])
+    else:
+        disc_c = np.median(roi[inner], axis=0)
+        ring_c = np.median(roi[ring], axis=0)
+        brightest = raw.max(axis=2)
+    clipped_fraction = np.count_nonzero((brightest >= top - 1) & ring) / n_ring
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
-    disc_t = _linear_to_srgb8(disc_c)
-    ring_t = _linear_to_srgb8(ring_c)
-    contrast = float(np.linalg.norm(np.subtract(disc_t, ring_t)))
+    enc = srgb_encode(np.stack((disc_c, ring_c)).astype(np.float64)) * 255.0
+    disc_t, ring_t = (tuple(map(float, e)) for e in enc)
+    contrast = math.dist(disc_t, ring_t)
     if norm2 <= 0:
         return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped_fraction)
     mode = edge or EDGE_MODE
     if mode not in EDGE_MODES:
         raise ValueError(f"unknown edge mode {mode!r}; valid: {EDGE_MODES}")
-    luma_w = np.array([0.0722, 0.7152, 0.2126], dtype=np.float32)  # linear Y of BGR
-    # s = (value - ring) / (disc - ring) of one projection of the colour; its offset
-    # ring / (disc - ring) makes s + offset proportional to the light
+    # s = (value - ring) / (disc - ring) of one projection of the colour (a weighted sum
+    # of the channels: one cv2.transform); its offset ring / (disc - ring) makes
+    # s + offset proportional to the light
     if mode == "green" and abs(float(axis[1])) >= MIN_STEP_SHARE * math.sqrt(norm2):
         # the green channel alone: lateral chromatic aberration moves red and blue edges
-        s = ((roi[..., 1] - ring_c[1]) / float(axis[1])).astype(np.float32)
-        offset = float(ring_c[1] / axis[1])
-    elif mode == "luma" and abs(float(axis @ luma_w)) >= MIN_STEP_SHARE * math.sqrt(norm2):
-        s = (((roi - ring_c) @ luma_w) / float(axis @ luma_w)).astype(np.float32)
-        offset = float((ring_c @ luma_w) / (axis @ luma_w))
+        weights = np.array([0.0, 1.0, 0.0])
+    elif mode == "luma" and abs(float(axis @ _LUMA_BGR)) >= MIN_STEP_SHARE * math.sqrt(norm2):
+        weights = _LUMA_BGR.astype(np.float64)
     else:
-        s = ((roi - ring_c) @ (axis / norm2)).astype(np.float32)
-        offset = float((ring_c @ axis) / norm2)
+        weights = axis.astype(np.float64)
+    step_level = float(axis.astype(np.float64) @ weights)
+    offset = float(ring_c.astype(np.float64) @ weights) / step_level
+    m = np.append(weights / step_level, -offset)[None, :]
+    s = cv2.transform(roi, m)
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
 
-    n_rays = int(np.clip(round(2 * math.pi * radius_px), 48, 1440))
-    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    n_rays = min(max(round(2 * math.pi * radius_px), 48), 1440)
     radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
-    cos, sin = np.cos(phi)[:, None], np.sin(phi)[:, None]
-    map_x = (cx - x0 + radii[None, :] * cos).astype(np.float32)
-    map_y = (cy - y0 + radii[None, :] * sin).astype(np.float32)
+    cos, sin = _unit_rays(n_rays)
+    map_x = (cx - x0 + radii * cos).astype(np.float32)
+    map_y = (cy - y0 + radii * sin).astype(np.float32)
     v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
-    v, spread = _local_levels(v, radii, radius_px, band, offset, local_levels)
+    # the ring's samples, for ring_spread (read only on the refinement's settled pass)
+    outer = radii >= (1 + band / 2) * radius_px
+    n_disc = np.count_nonzero(radii <= (1 - band / 2) * radius_px)
+    ring_samples = v[:, outer] if min(len(v) // 4, n_disc, outer.sum()) >= 2 else None
+    if local_levels:
+        v = _local_levels(v, radii, radius_px, band, offset)
+    rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
+    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
+    return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
+
+
+#: Linear luminance Y of a linear BGR pixel (Rec. 709 weights, blue first).
+_LUMA_BGR = np.array([0.0722, 0.7152, 0.2126], dtype=np.float32)
+
+
+def _nearest_crossings(
+    v: np.ndarray, inside: np.ndarray, radii: np.ndarray, radius_px: float, step_px: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray (rows of ``v``), the 0.5 crossing radius nearest ``radius_px``: ``(rows, radii)``.
+
+    A crossing lies between two neighbouring samples both ``inside``, linearly
+    interpolated; rays without one are left out. Only the crossings are interpolated
+    (a few per ray), not every sample; of two crossings equally near, the inner one.
+    """
     above = v >= 0.5
     cross = above[:, :-1] != above[:, 1:]
-    cross &= inside[:, :-1] & inside[:, 1:]
-    if not cross.any():
-        return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, contrast, clipped_fraction, spread)
-    va, vb = v[:, :-1], v[:, 1:]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        frac = np.where(cross, (0.5 - va) / (vb - va), np.nan)
-    r_cross = radii[None, :-1] + frac * step_px
-    pick = np.nanargmin(np.where(cross, np.abs(r_cross - radius_px), np.inf), axis=1)
-    rows = np.flatnonzero(cross.any(axis=1))
-    r_best = r_cross[rows, pick[rows]]
-    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
-    return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, spread)
+    cross &= inside[:, :-1]
+    cross &= inside[:, 1:]
+    rows, cols = np.nonzero(cross)
+    if not len(rows):
+        return rows, np.zeros(0)
+    va, vb = v[rows, cols], v[rows, cols + 1]
+    r_cross = radii[cols] + ((0.5 - va) / (vb - va)) * step_px
+    if len(rows) > 1 and not (rows[1:] > rows[:-1]).all():
+        # rays with more than one crossing: the nearest the radius (lexsort is stable)
+        order = np.lexsort((np.abs(r_cross - radius_px), rows))
+        pick = order[np.flatnonzero(np.diff(rows[order], prepend=-1))]
+        rows, r_cross = rows[pick], r_cross[pick]
+    return rows, r_cross
 
 
 def _local_levels(
-    v: np.ndarray, radii: np.ndarray, radius_px: float, band: float, offset: float, local: bool
-) -> tuple[np.ndarray, float]:
+    v: np.ndarray, radii: np.ndarray, radius_px: float, band: float, offset: float
+) -> np.ndarray:
     """Rays (rows of ``v``, 1 on the disc, 0 on the ring) rescaled to their own levels if uneven.
 
     Each ray's disc level is the median of its samples inside ``(1 - band / 2) r``,
     its ring level outside ``(1 + band / 2) r``. ``v + offset`` is proportional to the
     light (linear data), so a shadow scales both levels alike: their ratio is the
     same on every ray. When the ring levels spread by :data:`UNEVEN_RING_SPREAD` or
-    more and ``local`` is set, each ray is rescaled to 0 at its ring and 1 at its disc, and a ray is
+    more, each ray is rescaled to 0 at its ring and 1 at its disc, and a ray is
     dropped (set to -1: no edge on it) where its disc level is off the one its ring's
     light predicts by more than :data:`LEVEL_RATIO_TOLERANCE` of the step (a shadow's
     edge between its disc and ring parts),
     either part is not flat (a shadow's edge across it) or its step is under
-    :data:`MIN_LOCAL_STEP`. Returns ``(v, spread)``.
+    :data:`MIN_LOCAL_STEP`. Returns ``v`` (unchanged for even light).
     """
     inner = radii <= (1 - band / 2) * radius_px
     outer = radii >= (1 + band / 2) * radius_px
     if inner.sum() < 2 or outer.sum() < 2 or len(v) < 8:
-        return v, 0.0
+        return v
     disc = np.median(v[:, inner], axis=1)
     ring = np.median(v[:, outer], axis=1)
     spread = float(np.percentile(ring, 95) - np.percentile(ring, 5))
-    if spread < UNEVEN_RING_SPREAD or not local:
-        return v, spread
+    if spread < UNEVEN_RING_SPREAD:
+        return v
     step = disc - ring
     # the light on each ray from its ring level; the disc level that light predicts
     light = (ring + offset) / offset if offset != 0 else np.ones_like(ring)
@@ -250,21 +333,18 @@ def _local_levels(
     )
     out = np.full_like(v, -1.0)
     out[ok] = (v[ok] - ring[ok, None]) / step[ok, None]
-    return out, spread
+    return out
 
 
 def _ray_crossings(
     v: np.ndarray, radii: np.ndarray, radius_px: float, step_px: float
 ) -> np.ndarray:
     """Per ray (last axis: samples), the 0.5 crossing radius nearest ``radius_px``; NaN if none."""
-    va, vb = v[..., :-1], v[..., 1:]
-    cross = ((va >= 0.5) != (vb >= 0.5)) & (va > -0.5) & (vb > -0.5)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r_cross = radii[:-1] + np.where(cross, (0.5 - va) / (vb - va), np.nan) * step_px
-    dist = np.where(cross, np.abs(r_cross - radius_px), np.inf)
-    pick = np.argmin(dist, axis=-1)[..., None]
-    best = np.take_along_axis(r_cross, pick, axis=-1)[..., 0]
-    return np.where(np.isfinite(np.take_along_axis(dist, pick, axis=-1)[..., 0]), best, np.nan)
+    flat = v.reshape(-1, v.shape[-1])
+    rows, r_best = _nearest_crossings(flat, flat > -0.5, radii, radius_px, step_px)
+    out = np.full(flat.shape[0], np.nan)
+    out[rows] = r_best
+    return out.reshape(v.shape[:-1])
 
 
 def channel_shifts_px(

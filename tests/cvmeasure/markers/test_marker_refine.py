@@ -109,3 +109,33 @@ def test_green_edges_ignore_lateral_chromatic_aberration():
     assert 0.0 < luma.centre[0] - c[0] < 0.25  # blue has 7 % of the luminance weight
     with pytest.raises(ValueError, match="unknown edge mode"):
         disc_edge_points(img, c, 15.0, 1.4, edge="hue")
+
+
+def test_levels_from_histograms_are_numpys_medians():
+    """The disc and ring levels from uint8 histograms equal np.median of the linear pixels."""
+    from cvmeasure.colorimetry import SRGB8_TO_LINEAR
+    from cvmeasure.markers.refine import _median_levels
+
+    rng = np.random.default_rng(19)
+    raw = rng.integers(0, 256, (41, 37, 3), dtype=np.uint8)
+    lin = SRGB8_TO_LINEAR[raw]
+    for n_wanted in (1, 2, 7, 300, 1516):  # odd and even counts
+        mask = np.zeros(raw.shape[:2], bool)
+        mask.flat[rng.choice(mask.size, n_wanted, replace=False)] = True
+        got = _median_levels(raw, SRGB8_TO_LINEAR, mask.view(np.uint8), n_wanted)
+        np.testing.assert_array_equal(got, np.median(lin[mask], axis=0))
+
+
+def test_ring_spread_is_the_percentile_range_of_the_rays_ring_medians():
+    from cvmeasure.markers.refine import EdgePoints, _row_medians, _sorted_percentile
+
+    rng = np.random.default_rng(3)
+    for shape in ((200, 21), (64, 20), (9, 1)):
+        samples = rng.normal(size=shape).astype(np.float32)
+        np.testing.assert_array_equal(_row_medians(samples), np.median(samples, axis=1))
+        ring = np.median(samples, axis=1)
+        expected = np.percentile(ring, 95) - np.percentile(ring, 5)
+        edges = EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0, samples)
+        assert edges.ring_spread == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert _sorted_percentile(np.sort(ring), 50.0) == pytest.approx(np.median(ring))
+    assert EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0).ring_spread == 0.0
