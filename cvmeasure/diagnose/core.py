@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discover import DiscoveredTerm, discover
+from cvmeasure.diagnose.discover import DiscoveredTerm, discover, library, term_words
 from cvmeasure.diagnose.fitting import (
     ModelFit,
     discrepancy_basis,
@@ -47,7 +47,11 @@ from cvmeasure.diagnose.fitting import (
     group_folds,
     grouped_kfold_cv,
 )
-from cvmeasure.diagnose.identify import Identifiability, check_identifiability
+from cvmeasure.diagnose.identify import (
+    CONFOUNDED_SIMILARITY,
+    Identifiability,
+    check_identifiability,
+)
 from cvmeasure.diagnose.residuals import (
     LeftoverCheck,
     ResidualTrend,
@@ -432,6 +436,14 @@ def diagnose(
         notes.append(
             f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
         )
+    if ext_fit.causes:
+        for words in _order_confounded(ctx, base_fit, base_res - ext_res, gain_of):
+            notes.append(
+                f"{', '.join(ext_fit.causes)} cannot be told from {words} on this plan "
+                "(the trial order and the previous bend follow the angle); "
+                f"{ORDER_EXPERIMENT}"
+            )
+            experiment = experiment or ORDER_EXPERIMENT
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -517,6 +529,46 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
     for c, (lo, hi), (alo, ahi) in zip(fit.causes, fit.intervals, alt.intervals, strict=True):
         out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
     return dataclasses.replace(fit, intervals=tuple(out))
+
+
+#: Library terms that depend on the order of the bends, not only on each bend.
+ORDER_TERMS = ("warm_up", "order_squared", "previous_bend")
+ORDER_EXPERIMENT = "bend the same angles in a random order"
+
+
+def _order_confounded(
+    ctx: _Context,
+    base_fit: ModelFit,
+    change_deg: NDArray[np.float64],
+    head_gain: NDArray[np.float64],
+) -> list[str]:
+    """Order-dependent library terms (:data:`ORDER_TERMS`) whose columns reproduce the
+    named causes' change of the predictions on this plan (|cosine| above
+    CONFOUNDED_SIMILARITY after projecting out the machine's nuisance directions): on
+    an ordered plan a warm-up or the previous bend can look like a catalogue cause."""
+    n = len(ctx.trials)
+    rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)
+    jac = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)[rows]
+    q = np.linalg.qr(jac)[0]
+
+    def project(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return v - q @ (q.T @ v)
+
+    sig = project(change_deg[rows])
+    norm = float(np.sum(sig**2))
+    if norm <= 0:
+        return []
+    best: dict[str, tuple[float, str]] = {}  # family -> (similarity, member)
+    for name, cols in library(ctx.trials, head_gain).items():
+        family = next((f for f in ORDER_TERMS if name.startswith(f)), None)
+        if family is None:
+            continue
+        x = np.column_stack([project(c[rows]) for c in cols.T])
+        fit = x @ np.linalg.lstsq(x, sig, rcond=None)[0]
+        similarity = math.sqrt(max(float(sig @ fit) / norm, 0.0))
+        if similarity > max(CONFOUNDED_SIMILARITY, best.get(family, (0.0, ""))[0]):
+            best[family] = (similarity, name)
+    return [f"{term_words(name)} (similarity {sim:.4f})" for sim, name in best.values()]
 
 
 #: Explanations whose evidence weights are within this factor of the best are a tie.

@@ -52,6 +52,7 @@ __all__ = [
     "DiscoveredTerm",
     "Discovery",
     "library",
+    "term_words",
     "discover",
 ]
 
@@ -164,6 +165,11 @@ def library(
 def _family(name: str) -> str:
     """The mechanism of a library term: its name without a trailing period or constant."""
     return name.rpartition("_")[0] if name[-1].isdigit() else name
+
+
+def term_words(name: str) -> str:
+    """A library term in words (e.g. ``warm_up_15``)."""
+    return _words(name)
 
 
 def _words(name: str) -> str:

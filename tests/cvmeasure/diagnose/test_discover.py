@@ -159,3 +159,17 @@ def test_no_scatter_is_found_on_homoscedastic_noise(seed):
     case = pb.physical_case(seed, "none", plan=("random", "sweep", "repeats")[seed % 3])
     result = diagnose(case.trials)
     assert all(t.term != "scatter" for t in result.discovered)
+
+
+def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment():
+    # on a sweep (rising angles) a warm-up follows the angle: it is named drift, and the
+    # result says that it cannot be told from a warm-up on this plan and how to tell
+    case = pb.physical_case(412, "warm_up", plan="sweep", n_trials=60)
+    result = diagnose(case.trials)
+    assert result.cause == "drift"
+    notes = [n for n in result.notes if "cannot be told from" in n and "warm-up" in n]
+    assert notes, result.notes
+    assert result.recommended_experiment == "bend the same angles in a random order"
+    # the same mechanism bent in a random order is not given the catalogue name
+    shuffled = diagnose(pb.physical_case(403, "warm_up", plan="random", n_trials=60).trials)
+    assert shuffled.cause == "unexplained"
