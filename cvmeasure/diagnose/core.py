@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discover import DiscoveredTerm, discover
+from cvmeasure.diagnose.discover import DiscoveredTerm, discover, library, term_words
 from cvmeasure.diagnose.fitting import (
     ModelFit,
     discrepancy_basis,
@@ -47,7 +47,11 @@ from cvmeasure.diagnose.fitting import (
     group_folds,
     grouped_kfold_cv,
 )
-from cvmeasure.diagnose.identify import Identifiability, check_identifiability
+from cvmeasure.diagnose.identify import (
+    CONFOUNDED_SIMILARITY,
+    Identifiability,
+    check_identifiability,
+)
 from cvmeasure.diagnose.residuals import (
     LeftoverCheck,
     ResidualTrend,
@@ -360,20 +364,53 @@ def diagnose(
     cause, ext_cv = naming.cause, naming.cv_rmse_deg
     basis = discrepancy_basis(trials)
     base_res_d = base_res - basis @ np.asarray(base_fit.discrepancy)
-    found = discover(trials, base_res_d, groups, ctx.fold_masks)
+    gain_of = base_fit.head_sensitivity(trials, params, ctx.base_effects)
+    found = discover(
+        trials,
+        base_res_d,
+        groups,
+        ctx.fold_masks,
+        head_gain=gain_of,
+        refit=base_fit.nuisance_jacobian(trials, params, ctx.base_effects),
+    )
     if base_fit.sigma_deg > GROSS_MISFIT_DEG:  # the simulation does not describe these data
         found = dataclasses.replace(found, terms=())
     mean_terms = [t for t in found.terms if t.term != "scatter"]
     named_cv = naming.cv_discrepancy_rmse_deg if cause != "none" else base_cv_disc
+    scores = _scores(results, naming)
+    named_bic = max(
+        (v for k, v in scores.items() if set(k.split(" + ")) == set(naming.fit.causes)),
+        default=0.0,
+    )
+    # what the library still finds in the named cause's residuals
+    beside: tuple[DiscoveredTerm, ...] = ()
+    if cause != "none":
+        beside = discover(
+            trials,
+            ext_res - basis @ np.asarray(ext_fit.discrepancy),
+            groups,
+            ctx.fold_masks,
+            head_gain=ext_fit.head_sensitivity(trials, params, ctx.base_effects),
+            refit=ext_fit.nuisance_jacobian(trials, params, ctx.base_effects),
+        ).terms
+    # discovered terms replace a catalogue name only when they are better both held out
+    # (by min_cv_gain) and in evidence (a larger evidence weight: delta BIC with their
+    # coefficients and their choice from the library counted)
     if found.terms and (
-        cause == "none" or (mean_terms and found.rmse_after_deg <= (1.0 - min_cv_gain) * named_cv)
+        cause == "none"
+        or (
+            mean_terms
+            and found.rmse_after_deg <= (1.0 - min_cv_gain) * named_cv
+            and found.delta_bic > named_bic
+        )
     ):
         if cause != "none":
             notes.append(
                 "terms outside the catalogue explain the data better than "
-                f"{', '.join(ext_fit.causes)} (held-out {found.rmse_after_deg:.3f} vs "
-                f"{named_cv:.3f} deg, model-form discrepancy profiled out): no catalogue "
-                "name is given"
+                f"{', '.join(ext_fit.causes)} (held-out "
+                f"{found.rmse_after_deg:.3f} vs {named_cv:.3f} deg, model-form discrepancy "
+                f"profiled out; delta BIC {found.delta_bic:.0f} vs {named_bic:.0f}): no "
+                "catalogue name is given"
             )
         cause, ext_fit = "unexplained", base_fit
         ext_res = base_res - found.correction_deg
@@ -383,13 +420,12 @@ def diagnose(
             ext_cv = base_cv
         discovered = found.terms
     else:
-        discovered = ()
-        if cause != "none":
-            ext_res_d = ext_res - basis @ np.asarray(ext_fit.discrepancy)
-            discovered = discover(trials, ext_res_d, groups, ctx.fold_masks).terms
+        discovered = beside
     if ext_fit.causes:
         ext_fit = _widened(ctx, ext_fit)
-    evidence = _evidence(results, naming)
+    if mean_terms and math.isfinite(found.delta_bic):
+        scores[_DISCOVERED] = found.delta_bic
+    evidence = _evidence(scores)
     ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
     if ties:
         notes.append(
@@ -400,6 +436,14 @@ def diagnose(
         notes.append(
             f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
         )
+    if ext_fit.causes:
+        for words in _order_confounded(ctx, base_fit, base_res - ext_res, gain_of):
+            notes.append(
+                f"{', '.join(ext_fit.causes)} cannot be told from {words} on this plan "
+                "(the trial order and the previous bend follow the angle); "
+                f"{ORDER_EXPERIMENT}"
+            )
+            experiment = experiment or ORDER_EXPERIMENT
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -487,14 +531,57 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
     return dataclasses.replace(fit, intervals=tuple(out))
 
 
+#: Library terms that depend on the order of the bends, not only on each bend.
+ORDER_TERMS = ("warm_up", "order_squared", "previous_bend")
+ORDER_EXPERIMENT = "bend the same angles in a random order"
+
+
+def _order_confounded(
+    ctx: _Context,
+    base_fit: ModelFit,
+    change_deg: NDArray[np.float64],
+    head_gain: NDArray[np.float64],
+) -> list[str]:
+    """Order-dependent library terms (:data:`ORDER_TERMS`) whose columns reproduce the
+    named causes' change of the predictions on this plan (|cosine| above
+    CONFOUNDED_SIMILARITY after projecting out the machine's nuisance directions): on
+    an ordered plan a warm-up or the previous bend can look like a catalogue cause."""
+    n = len(ctx.trials)
+    rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)
+    jac = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)[rows]
+    q = np.linalg.qr(jac)[0]
+
+    def project(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return v - q @ (q.T @ v)
+
+    sig = project(change_deg[rows])
+    norm = float(np.sum(sig**2))
+    if norm <= 0:
+        return []
+    best: dict[str, tuple[float, str]] = {}  # family -> (similarity, member)
+    for name, cols in library(ctx.trials, head_gain).items():
+        family = next((f for f in ORDER_TERMS if name.startswith(f)), None)
+        if family is None:
+            continue
+        x = np.column_stack([project(c[rows]) for c in cols.T])
+        fit = x @ np.linalg.lstsq(x, sig, rcond=None)[0]
+        similarity = math.sqrt(max(float(sig @ fit) / norm, 0.0))
+        if similarity > max(CONFOUNDED_SIMILARITY, best.get(family, (0.0, ""))[0]):
+            best[family] = (similarity, name)
+    return [f"{term_words(name)} (similarity {sim:.4f})" for sim, name in best.values()]
+
+
 #: Explanations whose evidence weights are within this factor of the best are a tie.
 TIE_RATIO = math.exp(-1.0)  # delta BIC of 2
 
 
-def _evidence(results: Sequence[CandidateResult], naming: _Naming) -> tuple[tuple[str, float], ...]:
-    """Evidence weights (BIC approximation of posterior probabilities, equal priors) of
-    the explanations compared against the baseline + discrepancy: nothing, each single
-    cause, the named pair; best first."""
+#: The explanation "terms outside the catalogue" in the evidence weights.
+_DISCOVERED = "unexplained (discovered terms)"
+
+
+def _scores(results: Sequence[CandidateResult], naming: _Naming) -> dict[str, float]:
+    """Delta BIC against the baseline + discrepancy of nothing, each single cause and
+    the named pair."""
     scores = {"none": 0.0}
     for c in results:
         if math.isfinite(c.delta_bic):
@@ -503,6 +590,12 @@ def _evidence(results: Sequence[CandidateResult], naming: _Naming) -> tuple[tupl
         if set(c.fit.causes) == set(naming.fit.causes) and math.isfinite(c.delta_bic):
             first = [x for x in c.fit.causes if x != c.cause]
             scores[" + ".join([*first, c.cause])] = scores.get(first[0], 0.0) + c.delta_bic
+    return scores
+
+
+def _evidence(scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
+    """Evidence weights (BIC approximation of posterior probabilities, equal priors) of
+    the explanations scored by :func:`_scores` (and the discovered terms); best first."""
     top = max(scores.values())
     raw = {k: math.exp(0.5 * (v - top)) for k, v in scores.items()}
     total = sum(raw.values())

@@ -9,8 +9,12 @@ term                   regressor (``s`` = bend direction, ``k`` = trial order)
 =====================  =============================================================
 ``gear_runout_P``      ``s sin(2 pi |cmd| / P)``, ``s cos(...)``: a periodic error of the
                        drive along the head rotation (P = 60, 90, 120, 180 deg)
-``warm_up_T``          ``s exp(-k / T)``: a transient at the start of a run (T = 5, 15 bends)
-``previous_bend``      ``s s_prev |theta_prev| / 90``: the previous bend in the free span
+``warm_up_T``          ``s (1 - exp(-k / T))``: a loss that builds up over the first bends
+                       of a run and levels off (T = 5, 15, 45 bends)
+``previous_bend``      ``s_prev |theta_prev| / 90`` (the bend's size changes by
+                       ``s s_prev |theta_prev| / 90``: the previous bend, lying in the free
+                       span, adds when it was bent the same way, takes off when not; the
+                       same for a mirrored run, as the head is mirror-symmetric)
 ``order_squared``      ``s (k / N)^2``: a curved trend along the run
 ``released_angle``     ``s [released] |cmd| / 100``: springback growing with the angle
                        beyond what the model and its discrepancy allow
@@ -21,8 +25,12 @@ adding at least ``MIN_DELTA_BIC``) on bootstrap resamples of the CV groups; a
 term is kept when it is selected in at least ``STABILITY`` of the resamples and
 its grouped held-out gain is at least ``MIN_GAIN``. Terms come with their
 coefficient, a 95 % interval (OLS, Student t) and the held-out gain. A variance
-growing with the angle (scatter, no mean) is tested separately (log squared
-residuals against the angle) and reported as a term of its own.
+growing with the angle (scatter, no mean) is tested separately and reported as a
+term of its own: on the measured springback (loaded minus released residual, which
+the photo error shared by a bend's two photos and every machine-side error leave
+out; the released residual when no loaded angle was measured), a smooth mean along
+the angle removed per direction, a likelihood-ratio test of a standard deviation
+``sqrt(sigma0^2 + (c |cmd| / 100)^2)`` against a constant one.
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import special
+from scipy import optimize, special
 
 from cvmeasure.contracts import TrialTable
 
@@ -44,6 +52,7 @@ __all__ = [
     "DiscoveredTerm",
     "Discovery",
     "library",
+    "term_words",
     "discover",
 ]
 
@@ -57,16 +66,21 @@ MIN_DELTA_BIC = 10.0
 RESAMPLES = 30
 #: Most terms selected.
 MAX_TERMS = 3
+#: Name of the always-fitted nuisance columns (see :func:`discover`).
+_REFIT = "_refit"
 #: p-value below which a variance growing with the angle is reported.
 SCATTER_P = 1e-4
 
 _WORDS = {
     "gear_runout": "a periodic error of the drive along the head rotation, period {p} deg",
-    "warm_up": "a transient at the start of the run, time constant {p} bends",
-    "previous_bend": "the previous bend, lying in the free span, changes the next one",
+    "warm_up": "a loss that builds up over the first bends of the run and levels off "
+    "(warm-up), time constant {p} bends",
+    "previous_bend": "the previous bend, lying in the free span, changes the next one "
+    "(more when bent the same way, less when not)",
     "order_squared": "a curved trend along the run (trial order squared)",
     "released_angle": "springback growing with the angle beyond the model",
-    "scatter": "scatter growing with the angle (variance, not a mean error)",
+    "scatter": "springback scatter growing with the angle (variance, not a mean error): "
+    "standard deviation in deg per 100 deg of bend",
 }
 
 
@@ -100,6 +114,9 @@ class Discovery:
     rmse_before_deg: float
     rmse_after_deg: float
     correction_deg: NDArray[np.float64]  # the terms' full-data prediction, stacked
+    #: BIC improvement of the mean terms over the residuals they were found in (each
+    #: coefficient counted, and one more per term for its choice from the library)
+    delta_bic: float = 0.0
 
     @property
     def gain(self) -> float:
@@ -108,9 +125,16 @@ class Discovery:
         return 1.0 - self.rmse_after_deg / self.rmse_before_deg
 
 
-def library(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
-    """Regressor groups (name -> columns (3 N, c)) over stacked observations."""
+def library(
+    trials: TrialTable, head_gain: NDArray[np.float64] | None = None
+) -> dict[str, NDArray[np.float64]]:
+    """Regressor groups (name -> columns (3 N, c)) over stacked observations.
+
+    ``head_gain`` (3 N, deg of bend per deg of head rotation, e.g.
+    :meth:`ModelFit.head_sensitivity`) carries the drive's terms (runout, warm-up,
+    trend along the run: errors of the head rotation) to the bend; None = 1."""
     n = len(trials)
+    gain = np.ones(3 * n) if head_gain is None else np.asarray(head_gain, dtype=np.float64)
     s = trials.direction_sign
     mag = np.abs(trials.commanded_pin_deg)
     k = np.arange(n, dtype=np.float64)
@@ -127,13 +151,25 @@ def library(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
     cols: dict[str, NDArray[np.float64]] = {}
     for p in (60, 90, 120, 180):
         w = 2 * np.pi * mag / p
-        cols[f"gear_runout_{p}"] = np.column_stack([stack(s * np.sin(w)), stack(s * np.cos(w))])
-    for t in (5, 15):
-        cols[f"warm_up_{t}"] = stack(s * np.exp(-k / t))[:, None]
-    cols["previous_bend"] = stack(s * prev_s * prev_theta / 90.0)[:, None]
-    cols["order_squared"] = stack(s * (k / max(n - 1, 1)) ** 2)[:, None]
+        cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(
+            [stack(s * np.sin(w)), stack(s * np.cos(w))]
+        )
+    for t in (5, 15, 45):
+        cols[f"warm_up_{t}"] = (gain * stack(s * (1.0 - np.exp(-k / t))))[:, None]
+    cols["previous_bend"] = stack(prev_s * prev_theta / 90.0)[:, None]
+    cols["order_squared"] = (gain * stack(s * (k / max(n - 1, 1)) ** 2))[:, None]
     cols["released_angle"] = stack(s * mag / 100.0, blocks=(1,))[:, None]
     return cols
+
+
+def _family(name: str) -> str:
+    """The mechanism of a library term: its name without a trailing period or constant."""
+    return name.rpartition("_")[0] if name[-1].isdigit() else name
+
+
+def term_words(name: str) -> str:
+    """A library term in words (e.g. ``warm_up_15``)."""
+    return _words(name)
 
 
 def _words(name: str) -> str:
@@ -148,17 +184,22 @@ def _forward(
     n: int,
     spans: dict[str, slice],
     names: Sequence[str],
+    forced: Sequence[str] = (),
 ) -> list[str]:
     """Forward selection by BIC from the (weighted) normal equations of ``n`` rows:
     ``gram = X^T W X``, ``xty = X^T W y``, ``yty = y^T W y`` over every column of the
     library, ``spans`` each group's columns (the same least squares as on the rows
     repeated by their weights, without building them)."""
-    chosen: list[str] = []
+    chosen: list[str] = list(forced)
     rss = yty
+    if chosen:
+        idx = np.concatenate([np.arange(spans[c].start, spans[c].stop) for c in chosen])
+        b = xty[idx]
+        rss = max(yty - float(b @ np.linalg.lstsq(gram[np.ix_(idx, idx)], b, rcond=None)[0]), 0.0)
     for _ in range(MAX_TERMS):
         best = None
         for name in names:
-            if name in chosen or any(c.split("_")[0] == name.split("_")[0] for c in chosen):
+            if name in chosen or any(_family(c) == _family(name) for c in chosen):
                 continue
             idx = np.concatenate(
                 [np.arange(spans[c].start, spans[c].stop) for c in (*chosen, name)]
@@ -174,32 +215,77 @@ def _forward(
             break
         chosen.append(best[1])
         rss = best[2]
-    return chosen
+    return [c for c in chosen if c not in forced]
+
+
+def _springback_residual(
+    trials: TrialTable, r: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(residual, bend size deg, direction) of the measured springback: loaded minus
+    released residual where both were measured, else the released residual."""
+    n = len(trials)
+    loaded, released = r[:n], r[n : 2 * n]
+    both = np.isfinite(loaded) & np.isfinite(released)
+    use_both = both.sum() >= 10
+    res = loaded - released if use_both else released
+    ok = both if use_both else np.isfinite(released)
+    size = np.abs(trials.loaded_bend_deg)
+    size = np.where(np.isfinite(size), size, np.abs(trials.unloaded_bend_deg))
+    size = np.where(np.isfinite(size), size, np.abs(trials.commanded_pin_deg))
+    return res[ok], size[ok], trials.direction_sign[ok]
+
+
+def _heteroscedastic_loglik(
+    e: NDArray[np.float64], x: NDArray[np.float64], c: float
+) -> tuple[float, float]:
+    """Log-likelihood of residuals ``e`` with standard deviation ``sqrt(s0^2 + (c x)^2)``,
+    maximised over ``s0``; returns (log-likelihood, s0)."""
+    e2 = e * e
+    cx2 = (c * x) ** 2
+
+    def nll(log_s0: float) -> float:
+        v = math.exp(2.0 * log_s0) + cx2
+        return 0.5 * float(np.sum(np.log(v) + e2 / v))
+
+    rms = math.sqrt(float(np.mean(e2))) + 1e-12
+    sol = optimize.minimize_scalar(
+        nll, bounds=(math.log(rms) - 12.0, math.log(rms) + 1.0), method="bounded"
+    )
+    return -float(sol.fun) - 0.5 * e.size * math.log(2.0 * math.pi), math.exp(float(sol.x))
 
 
 def _scatter(trials: TrialTable, r: NDArray[np.float64]) -> DiscoveredTerm | None:
-    n = len(trials)
-    res = r[n : 2 * n]
-    ok = np.isfinite(res)
-    if ok.sum() < 10:
+    """Springback scatter growing with the bend (see the module notes), or None."""
+    res, size, sign = _springback_residual(trials, r)
+    if res.size < 10:
         return None
-    mag = np.abs(trials.commanded_pin_deg)[ok]
-    logsq = np.log(res[ok] ** 2 + 1e-12)
-    x = np.column_stack([np.ones(mag.size), mag])
-    coef, *_ = np.linalg.lstsq(x, logsq, rcond=None)
-    dof = max(mag.size - 2, 1)
-    resid = logsq - x @ coef
-    stderr = math.sqrt(float(np.sum(resid**2)) / dof / float(np.sum((mag - mag.mean()) ** 2)))
-    slope = float(coef[1])
-    p_value = float(2.0 * special.stdtr(dof, -abs(slope) / max(stderr, 1e-300)))
-    if not (p_value < SCATTER_P and slope > 0):
-        return None
-    t = float(special.stdtrit(dof, 0.975))
-    half = 0.5 * slope  # log sd per deg
-    ci = (0.5 * (slope - t * stderr), 0.5 * (slope + t * stderr))
-    return DiscoveredTerm(
-        "scatter", _WORDS["scatter"], (100 * half,), ((100 * ci[0], 100 * ci[1]),), 1.0, 0.0
+    x = size / 100.0
+    e = res.copy()
+    for d in (-1.0, 1.0):  # a smooth mean along the bend, per direction, is not scatter
+        m = sign == d
+        degree = min(3, len(np.unique(np.round(x[m], 3))) - 2)
+        if degree >= 0 and m.sum() > degree + 2:
+            e[m] = res[m] - np.polyval(np.polyfit(x[m], res[m], degree), x[m])
+    ll0, _ = _heteroscedastic_loglik(e, x, 0.0)
+    c_max = 3.0 * math.sqrt(float(np.mean(e * e))) / max(float(np.mean(x)), 1e-6)
+    grid = np.linspace(0.0, c_max, 121)
+    profile = np.array([_heteroscedastic_loglik(e, x, float(c))[0] for c in grid])
+    best = int(np.argmax(profile))
+    lo_c = grid[max(best - 1, 0)]
+    hi_c = grid[min(best + 1, grid.size - 1)]
+    c_hat = float(
+        optimize.minimize_scalar(
+            lambda c: -_heteroscedastic_loglik(e, x, c)[0], bounds=(lo_c, hi_c), method="bounded"
+        ).x
     )
+    ll1 = max(_heteroscedastic_loglik(e, x, c_hat)[0], float(profile[best]))
+    lr = max(2.0 * (ll1 - ll0), 0.0)
+    p_value = 0.5 * float(special.chdtrc(1, lr))  # c >= 0: half a chi-square on the bound
+    if not (p_value < SCATTER_P and c_hat > 0):
+        return None
+    inside = grid[2.0 * (ll1 - profile) <= float(special.chdtri(1, 0.05))]
+    interval = (float(inside.min()), float(inside.max())) if inside.size else (c_hat, c_hat)
+    return DiscoveredTerm("scatter", _WORDS["scatter"], (c_hat,), (interval,), 1.0, 0.0)
 
 
 def discover(
@@ -209,11 +295,21 @@ def discover(
     folds: Sequence[NDArray[np.bool_]],
     *,
     seed: int = 0,
+    head_gain: NDArray[np.float64] | None = None,
+    refit: NDArray[np.float64] | None = None,
 ) -> Discovery:
-    """Search the library on stacked residuals (NaN = not measured); see the module notes."""
+    """Search the library on stacked residuals (NaN = not measured); see the module notes
+    (``head_gain``: see :func:`library`). ``refit`` (3 N, q): how the model's prediction
+    moves with its nuisance parameters (strength, geometry); these columns enter every
+    fit beside the terms (a linearised refit of the machine with each term) and are
+    not reported as terms."""
     r = np.asarray(residual_deg, dtype=np.float64)
     n = len(trials)
-    cols = library(trials)
+    cols = library(trials, head_gain)
+    forced: tuple[str, ...] = ()
+    if refit is not None and np.size(refit):
+        cols[_REFIT] = np.asarray(refit, dtype=np.float64).reshape(3 * n, -1)
+        forced = (_REFIT,)
     names = list(cols)
     ok = np.isfinite(r) & (np.arange(3 * n) < 2 * n)
     y = r[ok]
@@ -250,17 +346,29 @@ def discover(
             float(w @ yty_g),
             int(w @ rows_g),
             spans,
-            names,
+            [c for c in names if c not in forced],
+            forced,
         )
         for c in chosen:
             counts[c] += 1
-    stable = [k for k in names if counts[k] >= STABILITY * RESAMPLES]
+    # stability of a mechanism, not of one member of its family (the periods of a runout,
+    # the time constants of a warm-up compete for the same resamples): a family selected
+    # in STABILITY of them is kept with its most selected member
+    family_counts: dict[str, int] = {}
+    for k in names:
+        if k not in forced:
+            family_counts[_family(k)] = family_counts.get(_family(k), 0) + counts[k]
+    stable = [
+        max((k for k in names if k not in forced and _family(k) == f), key=lambda k: counts[k])
+        for f, c in family_counts.items()
+        if c >= STABILITY * RESAMPLES
+    ]
     before = float(np.sqrt(np.mean(y**2))) if y.size else math.nan
     empty = Discovery((), before, before, np.zeros(3 * n))
     scatter = _scatter(trials, r)
     if not stable:
         return Discovery((scatter,), before, before, np.zeros(3 * n)) if scatter else empty
-    x = np.column_stack([sel[c] for c in stable])
+    x = np.column_stack([sel[c] for c in (*forced, *stable)])
     # grouped held-out gain of the stable set
     held = np.full(y.size, np.nan)
     for mask in folds:
@@ -279,7 +387,7 @@ def discover(
     cov = np.linalg.pinv(x.T @ x) * float(np.sum(resid**2)) / dof
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     t = float(special.stdtrit(dof, 0.975))
-    terms, i = [], 0
+    terms, i = [], sum(sel[c].shape[1] for c in forced)
     for c in stable:
         w = sel[c].shape[1]
         b, e = beta[i : i + w], se[i : i + w]
@@ -289,7 +397,7 @@ def discover(
                 _words(c),
                 tuple(float(v) for v in b),
                 tuple((float(v - t * u), float(v + t * u)) for v, u in zip(b, e, strict=True)),
-                counts[c] / RESAMPLES,
+                family_counts[_family(c)] / RESAMPLES,
                 gain,
             )
         )
@@ -298,4 +406,11 @@ def discover(
         terms.append(scatter)
     full = np.zeros(3 * n)
     full[ok] = x @ beta
-    return Discovery(tuple(terms), before, after, full)
+    n_forced = sum(sel[c].shape[1] for c in forced)
+    rss0 = float(np.sum(y**2))
+    if n_forced:
+        xf = x[:, :n_forced]
+        rss0 = float(np.sum((y - xf @ np.linalg.lstsq(xf, y, rcond=None)[0]) ** 2))
+    k = x.shape[1] - n_forced + len(stable)
+    dbic = y.size * math.log(max(rss0, 1e-12) / max(float(np.sum(resid**2)), 1e-12))
+    return Discovery(tuple(terms), before, after, full, dbic - k * math.log(y.size))

@@ -199,6 +199,53 @@ class ModelFit:
             shapes=self.shapes,
         )
 
+    def head_sensitivity(
+        self,
+        trials: TrialTable,
+        params: SimParams,
+        base_effects: Sequence[Effect] = (),
+        step_deg: float = 0.5,
+    ) -> NDArray[np.float64]:
+        """How much each measured bend grows per degree more head rotation under this
+        fit (deg/deg, stacked like the observations; the pin block is 1): an error of
+        the drive in head degrees reaches the bend multiplied by it."""
+        s = trials.direction_sign
+        kw = dict(nuisance=self.nuisance, shapes=self.shapes)
+        args = (trials, params, base_effects, self.causes, self.strength_scale, self.values)
+        up = predict(*args, **kw, commanded_pin_deg=trials.commanded_pin_deg + s * step_deg)
+        down = predict(*args, **kw, commanded_pin_deg=trials.commanded_pin_deg - s * step_deg)
+        out = np.tile(s, 3) * (up - down) / (2.0 * step_deg)
+        out[2 * len(trials) :] = 1.0
+        return out
+
+    def nuisance_jacobian(
+        self, trials: TrialTable, params: SimParams, base_effects: Sequence[Effect] = ()
+    ) -> NDArray[np.float64]:
+        """(3 N, 1 + len(NUISANCE)): change of every prediction (deg) per unit of the
+        strength scale and of each nuisance parameter (central differences), the
+        directions in which a refit of the machine moves the model."""
+        cols = []
+        base = [self.strength_scale, *self.nuisance]
+        for j, step in enumerate([0.01, *(0.05 * n.prior_sd for n in NUISANCE)][: len(base)]):
+            out = []
+            for sign in (1.0, -1.0):
+                x = list(base)
+                x[j] += sign * step
+                out.append(
+                    predict(
+                        trials,
+                        params,
+                        base_effects,
+                        self.causes,
+                        x[0],
+                        self.values,
+                        nuisance=x[1:],
+                        shapes=self.shapes,
+                    )
+                )
+            cols.append((out[0] - out[1]) / (2.0 * step))
+        return np.column_stack(cols)
+
     def param_values(self) -> dict[str, float]:
         """Each cause's parameter, and the shape parameters of a general form."""
         out = {EFFECTS[c].param: v for c, v in zip(self.causes, self.values, strict=True)}
@@ -295,11 +342,13 @@ def predict(
     *,
     nuisance: Sequence[float] = (),
     shapes: Sequence[Shape] = (),
+    commanded_pin_deg: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Predicted observations of the trials under a model, stacked like
-    :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg)."""
+    :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg);
+    ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
     res = simulate(
-        trials.commanded_pin_deg,
+        trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg,
         _scaled(params, strength_scale, nuisance),
         _effects(base_effects, _as_causes(causes), values, shapes),
         bend_index=trials.bend_index,
