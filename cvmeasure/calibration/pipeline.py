@@ -29,6 +29,7 @@ from cvmeasure.calibration.uncertainty import (
     cross_validate,
     projection_uncertainty,
 )
+from cvmeasure.calibration.warp import board_extent_mm, refine_board_warp, warp_test
 from cvmeasure.camera import CameraModel
 
 __all__ = [
@@ -57,6 +58,7 @@ class CalibrationReport:
     cross_validation: CrossValidation | None
     warnings: tuple[str, ...]
     model_choice: dict[str, Any] | None = None
+    board_warp: dict[str, Any] | None = None
 
     @property
     def camera(self) -> CameraModel:
@@ -89,6 +91,7 @@ class CalibrationReport:
             "coverage": self.coverage.to_dict(),
             "warnings": list(self.warnings),
             "model_choice": self.model_choice,
+            "board_warp": self.board_warp,
             "board": board.to_dict(),
             "observations": [
                 {
@@ -137,6 +140,7 @@ class CalibrationReport:
             "corners_rejected": self.result.corners_rejected,
             "model": self.result.model,
             "model_choice": self.model_choice,
+            "board_warp": self.board_warp,
             "warnings": list(self.warnings),
         }
 
@@ -376,12 +380,20 @@ def calibrate_detections(
     reject_outliers: bool = True,
     cross_check: bool = True,
     source: str = "calibration photos",
+    board_warp: str = "auto",
 ) -> CalibrationReport:
     """Solve, then measure projection uncertainty, coverage and the cross-validation diff.
 
     Raises :class:`~cvmeasure.errors.InputError` (naming ``source``) when too
     few views are usable. ``model="auto"`` picks it with :func:`choose_model`.
+    ``board_warp``: ``"auto"`` solves mrcal's two-parameter board warp with the lens
+    (:mod:`cvmeasure.calibration.warp`) and keeps it only when the data show it (its
+    chi-square rejects a flat board at p < 0.0027), ``"on"`` always keeps it, ``"off"``
+    never solves it; the report's ``board_warp`` says which, with the warp in mm and its
+    sigma. The cross-validation's halves are solved the same way.
     """
+    if board_warp not in ("auto", "on", "off"):
+        raise ValueError(f"board_warp must be auto, on or off, not {board_warp!r}")
     choice = None
     if model == "auto":
         usable = [d for d in detections if d.ok]
@@ -389,10 +401,37 @@ def calibrate_detections(
     result = calibrate_views(
         detections, image_size_px, model=model, reject_outliers=reject_outliers, source=source
     )
+    warp_info = None
+    extent = None
+    if board_warp != "off":
+        extent = board_extent_mm(result.detections)
+        warped = refine_board_warp(result, extent_mm=extent)
+        test = warp_test(warped.board_warp)
+        used = board_warp == "on" or test.significant
+        warp_info = {
+            "mode": board_warp,
+            "used": used,
+            **test.to_dict(),
+            "text": test.text()
+            + (
+                ": solved with the lens"
+                if used
+                else ": not used (--board-warp on to keep it anyway)"
+            ),
+        }
+        if used:
+            result = warped
+    use_warp = result.board_warp is not None
     unc = projection_uncertainty(result)
     cov = image_coverage(result.detections, result.image_size_px, [v.rvec for v in result.views])
     cv = (
-        cross_validate(result.detections, result.image_size_px, model=model)
+        cross_validate(
+            result.detections,
+            result.image_size_px,
+            model=model,
+            board_warp=use_warp,
+            board_extent_mm=extent,
+        )
         if cross_check
         else None
     )
@@ -441,7 +480,7 @@ def calibrate_detections(
         )
     if result.rejected:
         warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
-    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice)
+    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice, warp_info)
 
 
 def detect_photos(
