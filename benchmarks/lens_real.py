@@ -456,7 +456,7 @@ def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[
     from cvmeasure.calibration.uncertainty import projection_diff
 
     rows, zs, fired, ratios, autos, truth_p95 = [], [], [], [], [], []
-    zs_on, warp_z, warp_used, fired_on = [], [], [], []
+    zs_on, warp_z, warp_used, fired_on, too_simple = [], [], [], [], []
     for r in range(runs):
         seed = 1600 + r
         cam, dets = _render_set(scale, n_views, seed)
@@ -476,6 +476,7 @@ def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[
         cv = rep.cross_validation
         warned = any("the two halves of the views disagree" in w for w in rep.warnings)
         fired.append(warned)
+        too_simple.append(any("is too simple for these views" in w for w in rep.warnings))
         ratios.append(cv.ratio if cv else float("nan"))
         auto = calibrate_detections(dets, cam.image_size_px, model="auto", cross_check=False)
         autos.append(auto.result.model)
@@ -513,6 +514,14 @@ def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[
             "%",
             target="<= 5",
             met=false_alarm <= 0.05,
+        ),
+        Metric(
+            f"'model too simple' warning (the richer model's F-test) on exact-model renders, "
+            f"{runs} seeds",
+            100 * float(np.mean(too_simple)),
+            "%",
+            target="<= 5",
+            met=float(np.mean(too_simple)) <= 0.05,
         ),
         Metric(
             "cross-validation ratio on exact-model renders, median (about 1 = calibrated)",
