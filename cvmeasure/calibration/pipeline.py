@@ -412,7 +412,9 @@ def calibrate_detections(
     (:mod:`cvmeasure.calibration.warp`) and keeps it only when the data show it (its
     chi-square rejects a flat board at p < 0.0027), ``"on"`` always keeps it, ``"off"``
     never solves it; the report's ``board_warp`` says which, with the warp in mm and its
-    sigma. The cross-validation's halves are solved the same way.
+    sigma. The cross-validation's halves are solved the same way. With ``cross_check`` and
+    a model given (not ``"auto"``), :func:`richer_model_test` also asks whether the next
+    richer model fits the same corners significantly better, and warns if so.
     """
     if board_warp not in ("auto", "on", "off"):
         raise ValueError(f"board_warp must be auto, on or off, not {board_warp!r}")
