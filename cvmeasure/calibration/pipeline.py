@@ -430,7 +430,7 @@ def calibrate_detections(
     if board_warp != "off":
         extent = board_extent_mm(result.detections)
         warped = refine_board_warp(result, extent_mm=extent)
-        test = warp_test(warped.board_warp)
+        test = warp_test(warped.board_warp, warped)
         used = board_warp == "on" or test.significant
         warp_info = {
             "mode": board_warp,

@@ -79,16 +79,32 @@ class WarpTest:
     warp: BoardWarp
     chi2: float
     p: float
+    z_towards_camera: bool = True  # the board frame's +z points towards the camera
 
     @property
     def significant(self) -> bool:
         return self.p < WARP_SIGNIFICANT_P
 
     def text(self) -> str:
+        """One line, the same for a board described transposed: each side's bow (its length
+        in mm), towards or away from the camera, longest side first."""
         (wx, wy), (sx, sy) = self.warp.warp_mm, self.warp.sigma_mm
+        sides = []
+        for w, s, (lo, hi) in zip((wx, wy), (sx, sy), self.warp.extent_mm, strict=True):
+            towards = (w > 0) == self.z_towards_camera
+            where = "towards the camera" if towards else "away from it"
+            sides.append(
+                (
+                    hi - lo,
+                    abs(w),
+                    f"{abs(w):.4f} +- {s:.4f} mm {where} along the {hi - lo:.0f} mm side",
+                )
+            )
+        sides.sort(key=lambda t: (-t[0], -t[1]))
         return (
-            f"board warp {wx:+.4f} +- {sx:.4f} mm along x, {wy:+.4f} +- {sy:.4f} mm along y "
-            f"(chi-square p {self.p:.2g}: "
+            "board warp (the middle out of the plane of the edges): "
+            + ", ".join(t[2] for t in sides)
+            + f" (chi-square p {self.p:.2g}: "
             + ("the board is not flat" if self.significant else "flat within noise")
             + ")"
         )
@@ -321,10 +337,19 @@ def refine_board_warp(
     )
 
 
-def warp_test(warp: BoardWarp) -> WarpTest:
-    """Chi-square of the warp against its covariance (2 dof): does the data show one?"""
+def warp_test(warp: BoardWarp, result=None) -> WarpTest:
+    """Chi-square of the warp against its covariance (2 dof): does the data show one?
+    With the solved ``result`` the text says which way the board bows (towards the camera
+    or away, the same for a board described transposed)."""
+    import cv2
     from scipy.stats import chi2 as chi2_dist
 
     w = np.asarray(warp.warp_mm)
     c2 = float(w @ np.linalg.pinv(warp.covariance_mm2) @ w)
-    return WarpTest(warp, c2, float(chi2_dist.sf(c2, 2)))
+    towards = True
+    if result is not None and result.views:
+        view, det = result.views[0], result.detections[0]
+        rot, _ = cv2.Rodrigues(np.asarray(view.rvec, dtype=np.float64))
+        centre = rot @ np.asarray(det.object_mm, dtype=np.float64).mean(axis=0) + view.tvec_mm
+        towards = bool(rot[:, 2] @ centre < 0)  # +z points back at the camera at the origin
+    return WarpTest(warp, c2, float(chi2_dist.sf(c2, 2)), towards)

@@ -119,7 +119,10 @@ def test_calibrate_board_warp_flag(photo_dir, tmp_path, capsys):
         if mode == "off":
             assert not line and warp is None
             continue
-        assert re.match(r"board warp [+-]\d\.\d{4} \+- \d\.\d{4} mm along x", line[0])
+        side = r"\d\.\d{4} \+- \d\.\d{4} mm (towards the camera|away from it) along the \d+ mm side"
+        assert re.match(
+            rf"board warp \(the middle out of the plane of the edges\): {side}, {side}", line[0]
+        )
         assert warp["used"] == (mode == "on")
         assert "flat within noise" in line[0], line  # the renderer's board is flat
         assert abs(warp["warp_mm"][0]) <= 3 * warp["sigma_mm"][0]

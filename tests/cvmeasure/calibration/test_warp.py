@@ -119,6 +119,9 @@ def test_warp_follows_the_board_described_transposed():
     assert b.board_warp.warp_mm[1] == pytest.approx(-a.board_warp.warp_mm[0], abs=1e-6)
     assert b.board_warp.sigma_mm[0] == pytest.approx(a.board_warp.sigma_mm[1], rel=1e-6)
     assert b.camera.fx == pytest.approx(a.camera.fx, rel=1e-8)
+    # what is printed is the same: each side's bow by its length, towards or away from the camera
+    ta, tb = warp_test(a.board_warp, a).text(), warp_test(b.board_warp, b).text()
+    assert ta == tb and "200 mm side" in ta and "125 mm side" in ta
     assert b.std_devs["cx"] == pytest.approx(a.std_devs["cx"], rel=1e-6)
 
 
