@@ -29,6 +29,7 @@ from cvmeasure.calibration.uncertainty import (
     cross_validate,
     projection_uncertainty,
 )
+from cvmeasure.calibration.warp import board_extent_mm, refine_board_warp, warp_test
 from cvmeasure.camera import CameraModel
 
 __all__ = [
@@ -57,6 +58,7 @@ class CalibrationReport:
     cross_validation: CrossValidation | None
     warnings: tuple[str, ...]
     model_choice: dict[str, Any] | None = None
+    board_warp: dict[str, Any] | None = None
 
     @property
     def camera(self) -> CameraModel:
@@ -89,6 +91,7 @@ class CalibrationReport:
             "coverage": self.coverage.to_dict(),
             "warnings": list(self.warnings),
             "model_choice": self.model_choice,
+            "board_warp": self.board_warp,
             "board": board.to_dict(),
             "observations": [
                 {
@@ -137,6 +140,7 @@ class CalibrationReport:
             "corners_rejected": self.result.corners_rejected,
             "model": self.result.model,
             "model_choice": self.model_choice,
+            "board_warp": self.board_warp,
             "warnings": list(self.warnings),
         }
 
@@ -345,6 +349,28 @@ def choose_model(
     }
 
 
+#: The next richer model :func:`richer_model_test` tries for each model.
+_NEXT_RICHER = {"1": "2", "2": "5", "5": "rational"}
+
+
+def richer_model_test(
+    detections: Sequence[BoardDetection], image_size_px: tuple[int, int], model: str
+) -> dict[str, Any] | None:
+    """Does the next richer model (1 -> 2 -> 5 -> rational) fit the same corners
+    significantly better? The nested F-test of :func:`_richer_supported` (p < 0.0027, and
+    not ill-conditioned). This sees model error the cross-validation cannot: both halves of
+    the views share a too-simple model's bias, so their difference hides it (issue 16: model
+    1 on a k1 k2 lens, 27 px off the true lens in the corners, halves ratio 0.6). None for
+    models with no richer candidate or when a fit fails."""
+    richer = _NEXT_RICHER.get(model)
+    if richer is None:
+        return None
+    fits = [_full_fit(detections, image_size_px, m) for m in (model, richer)]
+    if fits[0] is None or fits[1] is None:
+        return None
+    return _richer_supported({"model": model, "fit": fits[0]}, {"model": richer, "fit": fits[1]})
+
+
 def model_choice_text(choice: dict[str, Any]) -> str:
     """One line of evidence for a :func:`choose_model` choice: per candidate its held-out
     RMS (px) and, for richer ones, the largest extra coefficient in sigmas and the F-test p."""
@@ -376,12 +402,22 @@ def calibrate_detections(
     reject_outliers: bool = True,
     cross_check: bool = True,
     source: str = "calibration photos",
+    board_warp: str = "auto",
 ) -> CalibrationReport:
     """Solve, then measure projection uncertainty, coverage and the cross-validation diff.
 
     Raises :class:`~cvmeasure.errors.InputError` (naming ``source``) when too
     few views are usable. ``model="auto"`` picks it with :func:`choose_model`.
+    ``board_warp``: ``"auto"`` solves mrcal's two-parameter board warp with the lens
+    (:mod:`cvmeasure.calibration.warp`) and keeps it only when the data show it (its
+    chi-square rejects a flat board at p < 0.0027), ``"on"`` always keeps it, ``"off"``
+    never solves it; the report's ``board_warp`` says which, with the warp in mm and its
+    sigma. The cross-validation's halves are solved the same way. With ``cross_check`` and
+    a model given (not ``"auto"``), :func:`richer_model_test` also asks whether the next
+    richer model fits the same corners significantly better, and warns if so.
     """
+    if board_warp not in ("auto", "on", "off"):
+        raise ValueError(f"board_warp must be auto, on or off, not {board_warp!r}")
     choice = None
     if model == "auto":
         usable = [d for d in detections if d.ok]
@@ -389,16 +425,56 @@ def calibrate_detections(
     result = calibrate_views(
         detections, image_size_px, model=model, reject_outliers=reject_outliers, source=source
     )
+    warp_info = None
+    extent = None
+    if board_warp != "off":
+        extent = board_extent_mm(result.detections)
+        warped = refine_board_warp(result, extent_mm=extent)
+        test = warp_test(warped.board_warp, warped)
+        used = board_warp == "on" or test.significant
+        warp_info = {
+            "mode": board_warp,
+            "used": used,
+            **test.to_dict(),
+            "text": test.text()
+            + (
+                ": solved with the lens"
+                if used
+                else ": not used (--board-warp on to keep it anyway)"
+            ),
+        }
+        if used:
+            result = warped
+    use_warp = result.board_warp is not None
     unc = projection_uncertainty(result)
     cov = image_coverage(result.detections, result.image_size_px, [v.rvec for v in result.views])
     cv = (
-        cross_validate(result.detections, result.image_size_px, model=model)
+        cross_validate(
+            result.detections,
+            result.image_size_px,
+            model=model,
+            board_warp=use_warp,
+            board_extent_mm=extent,
+        )
         if cross_check
         else None
     )
     warnings: list[str] = []
     for det in detections:
         warnings.extend(f"{det.source}: {n}" for n in det.notes)
+    richer = (
+        richer_model_test(result.detections, result.image_size_px, model)
+        if cross_check and choice is None
+        else None
+    )
+    if richer is not None and richer["supported"]:
+        t = max(richer["extra_coefficient_sigmas"].values(), default=0.0)
+        warnings.append(
+            f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
+            f"the same corners significantly better (F-test p {richer['f_test_p']:.2g}, extra "
+            f"coefficient {t:.1f} sigma); the halves check cannot see this (both halves share "
+            "the bias): use --model auto or a richer model"
+        )
     if cv is None and cross_check:
         warnings.append("too few views to cross-validate two halves (need 6 or more)")
     elif cv is not None and cv.ratio > CROSS_VALIDATION_RATIO_LIMIT:
@@ -441,7 +517,7 @@ def calibrate_detections(
         )
     if result.rejected:
         warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
-    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice)
+    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice, warp_info)
 
 
 def detect_photos(

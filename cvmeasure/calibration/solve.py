@@ -154,6 +154,9 @@ class CalibrationResult:
         The corner sets actually used (outliers removed), parallel to ``views``.
     rounds : int
         Solves run by the rejection loop.
+    board_warp : BoardWarp or None
+        The board's bow solved with the lens (:mod:`cvmeasure.calibration.warp`), or None
+        for a flat board.
     """
 
     camera: CameraModel
@@ -165,6 +168,7 @@ class CalibrationResult:
     rejected: tuple[RejectedView, ...]
     detections: tuple[BoardDetection, ...] = field(repr=False)
     rounds: int = 1
+    board_warp: Any = None  # calibration.warp.BoardWarp when solved with a board warp
 
     @property
     def image_size_px(self) -> tuple[int, int]:
@@ -190,6 +194,7 @@ class CalibrationResult:
             "corner_count": self.corner_count,
             "corners_rejected": self.corners_rejected,
             "rounds": self.rounds,
+            "board_warp": self.board_warp.to_dict() if self.board_warp is not None else None,
         }
 
 
@@ -310,6 +315,8 @@ def calibrate_views(
     max_rounds: int = 8,
     min_views: int = MIN_VIEWS,
     source: str = "calibration photos",
+    board_warp: bool = False,
+    board_extent_mm: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> CalibrationResult:
     """Calibrate a camera from board detections, dropping bad corners and views.
 
@@ -328,6 +335,11 @@ def calibrate_views(
         view drops no corners and re-admits every corner of the remaining views.
     min_views : int
         Fewer usable views raise :class:`InputError` naming ``source``.
+    board_warp : bool
+        Refine the result with mrcal's two-parameter board warp
+        (:func:`cvmeasure.calibration.warp.refine_board_warp`) on the corners the
+        rejection kept; ``board_extent_mm`` is the corner grid it is relative to (default:
+        every corner the detections saw).
 
     Returns
     -------
@@ -451,7 +463,7 @@ def calibrate_views(
         )
         for d, e, r, t in zip(active, per_view, rvecs, tvecs, strict=True)
     )
-    return CalibrationResult(
+    out = CalibrationResult(
         camera=camera,
         model=model,
         flags=flags,
@@ -462,3 +474,8 @@ def calibrate_views(
         detections=tuple(active),
         rounds=rounds,
     )
+    if board_warp:
+        from cvmeasure.calibration.warp import refine_board_warp
+
+        out = refine_board_warp(out, extent_mm=board_extent_mm)
+    return out

@@ -30,6 +30,7 @@ import numpy as np
 
 from cvmeasure.calibration.detect import BoardDetection
 from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
+from cvmeasure.calibration.warp import gauss_markov_covariance
 from cvmeasure.camera import CameraModel
 
 __all__ = [
@@ -90,12 +91,35 @@ def _view_jacobian(camera: CameraModel, det: BoardDetection, rvec, tvec):
 
 
 def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
-    """Covariance of intrinsics and poses: sigma^2 (J^T J)^-1 with sigma^2 = |r|^2 / (2N - P)."""
+    """Covariance of intrinsics and poses: sigma^2 (J^T J)^-1 with sigma^2 = |r|^2 / (2N - P).
+
+    With a board warp (``result.board_warp``) the corners are the warped board's and the
+    warp's two parameters are solved too: the covariance returned is the intrinsics' and
+    poses' marginal (their uncertainty includes the warp's).
+    """
     cam = result.camera
     names_intr = tuple(result.std_devs)
     n_i = len(names_intr)
     n_v = len(result.views)
     n_dist = cam.dist_coeffs.size
+    if result.board_warp is not None:
+        from cvmeasure.calibration.warp import warp_jacobian
+
+        w = result.board_warp
+        r, jac_w = warp_jacobian(
+            cam,
+            result.detections,
+            [v.rvec for v in result.views],
+            [v.tvec_mm for v in result.views],
+            n_i,
+            w.extent_mm,
+            w.warp_mm,
+        )
+        cov, sigma2, dof = gauss_markov_covariance(r, jac_w)
+        names = names_intr + tuple(
+            f"view{k}_{q}" for k in range(n_v) for q in ("rx", "ry", "rz", "tx", "ty", "tz")
+        )
+        return ParameterCovariance(names, n_i, cov[:-2, :-2], float(np.sqrt(sigma2)), dof)
     blocks = []
     res = []
     for k, (det, view) in enumerate(zip(result.detections, result.views, strict=True)):
@@ -108,13 +132,7 @@ def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
         blocks.append(full)
     jac_all = np.concatenate(blocks)
     r = np.concatenate(res)
-    p = jac_all.shape[1]
-    dof = max(jac_all.shape[0] - p, 1)
-    sigma2 = float(r @ r) / dof
-    scale = np.sqrt(np.sum(jac_all**2, axis=0))
-    scale[scale == 0] = 1.0
-    js = jac_all / scale
-    cov = np.linalg.pinv(js.T @ js) / np.outer(scale, scale) * sigma2
+    cov, sigma2, dof = gauss_markov_covariance(r, jac_all)
     names = names_intr + tuple(
         f"view{k}_{q}" for k in range(n_v) for q in ("rx", "ry", "rz", "tx", "ty", "tz")
     )
@@ -428,8 +446,11 @@ def cross_validate(
     *,
     model: str = "5",
     grid: tuple[int, int] = (24, 16),
+    board_warp: bool = False,
+    board_extent_mm: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> CrossValidation | None:
-    """Calibrate even and odd views separately and compare them.
+    """Calibrate even and odd views separately and compare them (each half with a board
+    warp relative to ``board_extent_mm`` when ``board_warp``).
 
     Returns None when either half has fewer than 3 usable views. ``ratio`` is
     the central-60 % RMS diff over the combined central projection uncertainty
@@ -442,7 +463,16 @@ def cross_validate(
     if min(len(h) for h in halves) < 3:
         return None
     try:
-        res = [calibrate_views(h, image_size_px, model=model) for h in halves]  # type: ignore[arg-type]
+        res = [
+            calibrate_views(
+                h,
+                image_size_px,
+                model=model,  # type: ignore[arg-type]
+                board_warp=board_warp,
+                board_extent_mm=board_extent_mm,
+            )
+            for h in halves
+        ]
     except InputError:
         return None
     diff = projection_diff(res[0].camera, res[1].camera, grid=grid, fit_rotation=True)

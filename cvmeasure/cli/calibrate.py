@@ -33,6 +33,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "5 (k1 k2 p1 p2 k3), 8 / rational (k1..k6), thin-prism (k1..k6, s1..s4)",
     )
     p.add_argument(
+        "--board-warp",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="solve the board's bow out of its plane with the lens (mrcal's two-parameter "
+        "calobject_warp): auto (default: kept only when the data show it, its chi-square "
+        "p < 0.0027), on (always kept), off (a flat board)",
+    )
+    p.add_argument(
         "--no-reject", action="store_true", help="keep every corner and view (no rejection loop)"
     )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -73,7 +81,12 @@ def run(args: argparse.Namespace) -> int:
             f"no usable board in any photo ({first.source}: {first.reason})",
         )
     report = calibrate_detections(
-        detections, size, model=args.model, reject_outliers=not args.no_reject, source=source
+        detections,
+        size,
+        model=args.model,
+        reject_outliers=not args.no_reject,
+        source=source,
+        board_warp=args.board_warp,
     )
     argv = [
         "cvmeasure",
@@ -85,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
         str(args.out),
         "--model",
         args.model,
+        "--board-warp",
+        args.board_warp,
     ]
     camera = report.camera_model(board, provenance=provenance(argv))
     path = save_camera(args.out, camera)
@@ -96,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"camera JSON: {path}")
     if report.model_choice is not None:
         print(model_choice_text(report.model_choice))
+    if report.board_warp is not None:
+        print(report.board_warp["text"])
     determined = report.uncertainty.max_px <= 10.0 * max(report.camera.image_size_px)
     if cv is not None:
         ratio = f"{cv.ratio:.1f}x what noise explains" if determined else "noise undetermined"

@@ -104,6 +104,32 @@ def test_calibrate_human_output_and_models(photo_dir, tmp_path, capsys):
     assert ("more than 10x the image size" in text) == (unc_max > 10 * max(cam.image_size_px))
 
 
+def test_calibrate_board_warp_flag(photo_dir, tmp_path, capsys):
+    """--board-warp: the renders' board is flat; auto says so (warp in mm with its sigma)
+    and keeps the flat solve, off prints no warp line, on keeps it in the camera JSON."""
+    base = ["calibrate", *_photos(photo_dir), "--board", str(photo_dir / "board.json")]
+    cams = {}
+    for mode in ("auto", "off", "on"):
+        out = tmp_path / f"cam_{mode}.json"
+        assert main([*base, "-o", str(out), "--model", "5", "--board-warp", mode]) == 0
+        text = capsys.readouterr().out
+        line = [t for t in text.splitlines() if t.startswith("board warp")]
+        cams[mode] = load_camera(out)
+        warp = cams[mode].calibration["board_warp"]
+        if mode == "off":
+            assert not line and warp is None
+            continue
+        side = r"\d\.\d{4} \+- \d\.\d{4} mm (towards the camera|away from it) along the \d+ mm side"
+        assert re.match(
+            rf"board warp \(the middle out of the plane of the edges\): {side}, {side}", line[0]
+        )
+        assert warp["used"] == (mode == "on")
+        assert "flat within noise" in line[0], line  # the renderer's board is flat
+        assert abs(warp["warp_mm"][0]) <= 3 * warp["sigma_mm"][0]
+    assert cams["auto"].fx == cams["off"].fx
+    assert "--board-warp on" in cams["on"].calibration["provenance"]["command"]
+
+
 def test_calibrate_bad_inputs_exit_2(photo_dir, tmp_path, capsys):
     out = tmp_path / "never.json"
     board = str(photo_dir / "board.json")

@@ -136,3 +136,27 @@ def test_a_dropped_view_leaves_no_trace(charuco_board, true_camera):
     assert {r.source for r in mixed.rejected} == {"foreign0", "foreign1"}
     assert mixed.corner_count == alone.corner_count
     assert mixed.camera.fx == pytest.approx(alone.camera.fx, rel=1e-9)
+
+
+def test_a_model_simpler_than_the_lens_is_warned_about_though_the_halves_agree():
+    """Model 1 (k1) on a k1 k2 lens: tens of px off the true lens at the image corners, yet
+    both halves of the views share the bias, so the halves check reads ~1x (issue 16's
+    false-negative check). The richer model's F-test on the same corners catches it; on a
+    lens that is exactly model 1 it stays quiet."""
+    from cvmeasure.board import ChessboardSpec
+    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.camera import CameraModel
+
+    board = ChessboardSpec(inner_x=9, inner_y=6, square_mm=25.0)
+    k = np.array([[1000.0, 0.0, 645.0], [0.0, 1002.0, 478.0], [0.0, 0.0, 1.0]])
+    for k2, should_warn in ((0.1, True), (0.0, False)):
+        lens = CameraModel((1280, 960), k, np.array([-0.25, k2, 0.0, 0.0, 0.0]))
+        for seed in (1,):
+            poses = random_poses(board, 16, seed, distance_mm=450)
+            dets = synthetic_detections(board, lens, poses, 0.1, np.random.default_rng(seed))
+            rep = calibrate_detections(dets, lens.image_size_px, model="1", board_warp="off")
+            warned = any("model 1 is too simple" in w for w in rep.warnings)
+            assert warned == should_warn, (k2, seed, rep.warnings)
+            if should_warn:
+                assert projection_diff(lens, rep.camera).p95_px > 10.0  # px: real model error
+                assert rep.cross_validation.ratio < 3.0  # the halves cannot see it
