@@ -88,7 +88,8 @@ def test_evidence_weights_over_the_explanations():
 def test_intervals_widened_by_the_model_form_hold_the_truth():
     # independent model, compliance in the same form as the catalogue's: the fit without
     # the discrepancy is biased by the model-form error (0.31 for 0.55 deg/(N m)); the
-    # interval is the hull of the fits with and without it, and holds the truth
+    # interval (the hull of the fits with and without it, each widened by its correlation
+    # with the discrepancy and the dead zone) holds the truth
     case = pb.physical_case(118, "compliance", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
     assert result.cause == "compliance"
@@ -96,4 +97,4 @@ def test_intervals_widened_by_the_model_form_hold_the_truth():
     truth = case.hidden[0].params[key]
     lo, hi = result.intervals[key]
     assert lo <= truth <= hi, (truth, (lo, hi))
-    assert hi - lo < 0.6 * EFFECTS["compliance"].typical[1]  # widened, not unbounded
+    assert hi - lo < EFFECTS["compliance"].typical[1]  # widened, not unbounded
