@@ -15,9 +15,12 @@ Steps, on measured trials:
    accepted, nothing is named (``cause = "none"``): the residuals are at the
    noise floor.
 4. A second cause on top of the first when structure is left (same rule,
-   against the one-cause model; the best few first causes each get this
-   round and the lowest held-out model wins). It is refused when the pair
-   still leaves structure: that is reported as an unnamed discrepancy.
+   against the one-cause model + discrepancy; the best few first causes each
+   get this round and the lowest held-out model wins). The accepted second
+   causes are ranked by their held-out RMSE with the discrepancy profiled out,
+   and the first whose pair leaves no structure beyond the discrepancy, with
+   both causes of plausible size, is named; otherwise the pair is refused and
+   reported as an unnamed discrepancy.
 5. The causes' parameters with 95 % intervals (Gauss-Newton covariance,
    Student t), residual trends before and after, a leftover check, and an
    identifiability check against the other candidates on this design,
@@ -244,8 +247,28 @@ def _leftover_of(
     base_effects: Sequence[Effect],
     folds: Sequence[NDArray[np.bool_]],
 ) -> bool:
+    """Structure left by ``fit`` beyond the model-form discrepancy: the check runs on
+    its residuals with the bounded discrepancy profiled out, so a pair is tested against
+    "baseline + discrepancy + both causes", as each cause was when it was accepted
+    (the baseline of a simulation that is not the machine always leaves a wave)."""
     res = fit.residuals(trials, params, base_effects)
+    if fit.discrepancy:
+        res = res - discrepancy_basis(trials) @ np.asarray(fit.discrepancy)
     return leftover_structure(trials, res, list(folds)).unnamed
+
+
+#: A pair is named only when each of its causes is at most this multiple of its typical
+#: size: two causes, one of them far larger than any machine shows, are taking the place
+#: of a mechanism the catalogue does not have (the discrepancy hides the rest).
+PAIR_PLAUSIBLE_RATIO = 1.5
+
+
+def _plausible(fit: ModelFit) -> bool:
+    """Every cause of ``fit`` within PAIR_PLAUSIBLE_RATIO of its typical size."""
+    return all(
+        abs(v) <= PAIR_PLAUSIBLE_RATIO * max(abs(x) for x in EFFECTS[c].typical)
+        for c, v in zip(fit.causes, fit.values, strict=True)
+    )
 
 
 def _structure_left(
@@ -726,15 +749,25 @@ def _extend(
             [n for n in ctx.names if n not in blocked],
             cv_all=False,
         )
-        more = [c for c in round2 if c.accepted]
-        # two causes must explain the data down to the noise; if structure is still
-        # left, the second name would be forced onto an unnamed discrepancy
-        if more and _leftover_of(ctx.trials, more[0].fit, ctx.params, ctx.base_effects, masks):
+        # accepted on the held-out RMSE with the discrepancy profiled out, so ranked on
+        # it too (the raw one also carries the model-form wave, the same for every pair)
+        more = sorted((c for c in round2 if c.accepted), key=lambda c: c.cv_discrepancy_rmse_deg)
+        # two causes must explain the data down to the noise (beyond the discrepancy); if
+        # structure is still left, the second name would be forced onto an unnamed
+        # discrepancy: the next accepted pair is tried, at most BEAM_WIDTH of them
+        refused = []
+        for c in more[:BEAM_WIDTH]:
+            if _plausible(c.fit) and not _leftover_of(
+                ctx.trials, c.fit, ctx.params, ctx.base_effects, masks
+            ):
+                break
+            refused.append(c.cause)
+        if refused:
             notes.append(
-                f"{more[0].cause} on top of {first.cause} lowers the held-out RMSE but "
-                "leaves structure no pair of named causes explains; not named"
+                f"{', '.join(refused)} on top of {first.cause} lower(s) the held-out RMSE "
+                "but leave(s) structure no pair of named causes explains; not named"
             )
-            more = []
+        more = [c for c in more[:BEAM_WIDTH] if c.cause not in refused]
         if more:
             fit, cv = more[0].fit, more[0].cv_rmse_deg
             cv_disc = more[0].cv_discrepancy_rmse_deg

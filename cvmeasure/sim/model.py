@@ -5,7 +5,7 @@ One bend, vectorised over many::
     r       = command effects(commanded_pin_deg)      # backlash, offset, scale, drift
                                                        # (history: reversals, home shift)
     phi     = phi_contact - approach_deg + |r|         # head angle, die frame of the bend
-    phi    -= compliance * (M / l(phi)) * R_p          # drive wind-up under the pin load
+    phi    -= compliance * (M / l(phi)) * R_p cos(phi - theta_L)  # drive wind-up under the pin load
     theta_L = tangent construction(phi)                # loaded angle (>= 0), lever l
     sb      = min(theta_L, (b theta_L + a(l)) (1 + s alpha))
     theta_U = theta_L - sb
@@ -220,10 +220,18 @@ def _rotation(
 
 
 def _torque_nm(
-    law: SpringbackLaw, params: SimParams, theta_l: NDArray[np.float64], lever: NDArray[np.float64]
+    law: SpringbackLaw,
+    params: SimParams,
+    phi_deg: NDArray[np.float64],
+    theta_l: NDArray[np.float64],
+    lever: NDArray[np.float64],
 ) -> NDArray[np.float64]:
-    """Pin torque about the head axis (N m): (M / l) R_p while the pin loads the wire."""
-    torque = law.moment_nmm / np.maximum(lever, 1e-3) * params.pin_orbit_mm / 1e3
+    """Pin torque about the head axis (N m) while the pin loads the wire: the pin force
+    ``M / l`` is normal to the free leg (direction ``theta_l``, die frame), so its arm
+    about the head axis is the orbit radius' component along the leg,
+    ``R_p |cos(phi - theta_l)|`` (``phi``: the pin's angle about the axis, deg)."""
+    arm_mm = params.pin_orbit_mm * np.abs(np.cos(np.radians(phi_deg - theta_l)))
+    torque = law.moment_nmm / np.maximum(lever, 1e-3) * arm_mm / 1e3
     return np.where(theta_l > 0, torque, 0.0)
 
 
@@ -249,14 +257,16 @@ def _forward(
     if "drift" in values and shapes.get("load_exponent", 0.0) > 0.0:
         # the steps a bend loses depend on its own load: iterate to the fixed point
         for _ in range(_DRIFT_ITERATIONS):
-            r = _rotation(cmd, values, shapes, history, _torque_nm(law, params, theta_l, lever))
+            r = _rotation(
+                cmd, values, shapes, history, _torque_nm(law, params, phi, theta_l, lever)
+            )
             phi = phi0 + r
             theta_l, lever = loaded_angle_and_lever(geom, phi)
     if values.get("compliance", 0.0) > 0.0:
-        # the drive winds up under the pin load: torque = (M / l) * R_p; the lag
+        # the drive winds up under the pin load: torque = (M / l) * R_p cos(phi - theta); the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
-            lag = values["compliance"] * _torque_nm(law, params, theta_l, lever)
+            lag = values["compliance"] * _torque_nm(law, params, phi, theta_l, lever)
             phi = phi0 + np.maximum(r - lag, 0.0)
             theta_l, lever = loaded_angle_and_lever(geom, phi)
         r = phi - phi0

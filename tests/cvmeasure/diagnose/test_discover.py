@@ -88,7 +88,8 @@ def test_evidence_weights_over_the_explanations():
 def test_intervals_widened_by_the_model_form_hold_the_truth():
     # independent model, compliance in the same form as the catalogue's: the fit without
     # the discrepancy is biased by the model-form error (0.31 for 0.55 deg/(N m)); the
-    # interval is the hull of the fits with and without it, and holds the truth
+    # interval (the hull of the fits with and without it, each widened by its correlation
+    # with the discrepancy and the dead zone) holds the truth
     case = pb.physical_case(118, "compliance", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
     assert result.cause == "compliance"
@@ -96,7 +97,7 @@ def test_intervals_widened_by_the_model_form_hold_the_truth():
     truth = case.hidden[0].params[key]
     lo, hi = result.intervals[key]
     assert lo <= truth <= hi, (truth, (lo, hi))
-    assert hi - lo < 0.6 * EFFECTS["compliance"].typical[1]  # widened, not unbounded
+    assert hi - lo < EFFECTS["compliance"].typical[1]  # widened, not unbounded
 
 
 def test_previous_bend_term_is_mirror_symmetric():
@@ -173,3 +174,47 @@ def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment(
     # the same mechanism bent in a random order is not given the catalogue name
     shuffled = diagnose(pb.physical_case(403, "warm_up", plan="random", n_trials=60).trials)
     assert shuffled.cause == "unexplained"
+
+
+
+
+def test_two_causes_on_the_independent_model_are_both_named():
+    # pairs hidden in the physical model (the tests' own seeds): the second cause is
+    # tested, ranked and checked for leftover structure against "baseline + discrepancy
+    # + first cause"; on the raw residuals the model-form wave refused every right pair
+    # but one of these four (1 of 4 named before)
+    cases = [
+        (400, ("axis_offset", "compliance"), "repeats"),
+        (401, ("backlash", "springback_asymmetry"), "random"),
+        (402, ("axis_offset", "compliance"), "random"),
+        (403, ("backlash", "springback_asymmetry"), "repeats"),
+    ]
+    named = []
+    for seed, pair, plan in cases:
+        result = diagnose(pb.physical_case(seed, pair, plan=plan, n_trials=60).trials)
+        assert result.cause in pair  # the first named is one of the two
+        named.append(set(result.causes) == set(pair))
+    assert sum(named) >= 2, named
+
+
+def test_intervals_on_the_independent_model_hold_the_truth():
+    # single causes in the form the fitted parameter means (backlash lost on every bend),
+    # the tests' own seeds and every plan: the intervals carry the discrepancy and the
+    # dead zone's prior; the 4 named hold the truth (compliance on seed 414 is named
+    # scale: no interval to count)
+    held = []
+    for i, name in enumerate(["offset", "scale", "backlash", "axis_offset", "compliance"]):
+        case = pb.physical_case(
+            410 + i,
+            name,
+            plan=pb.PLANS[i % 3],
+            n_trials=60,
+            params={"backlash": {"same_direction_share": 1.0}},
+        )
+        result = diagnose(case.trials)
+        key = EFFECTS[name].param
+        if key in result.intervals:
+            lo, hi = result.intervals[key]
+            held.append(lo <= case.hidden[0].params[key] <= hi)
+            assert hi - lo < EFFECTS[name].typical[1]  # widened, not unbounded
+    assert len(held) >= 4 and all(held), held

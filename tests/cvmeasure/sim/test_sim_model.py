@@ -164,12 +164,16 @@ def test_compliance_lag_follows_the_load():
     base = simulate(cmds, p)
     eff = simulate(cmds, p, [Effect("compliance", 0.4)])
     lag = base.pin_deg - eff.pin_deg
-    # lag = k * (M / l) * R_p at the lagged position (fixed point)
+    # lag = k * (M / l) * R_p cos(phi - theta) at the lagged position (fixed point): the
+    # pin force is normal to the leg, its arm about the head axis is R_p cos(phi - theta)
     from cvmeasure.sim.springback import springback_law
 
-    torque_nm = springback_law(p).moment_nmm / eff.lever_mm * p.pin_orbit_mm / 1e3
+    arm_mm = p.pin_orbit_mm * np.cos(np.radians(eff.pin_angle_deg - eff.loaded_bend_deg))
+    assert np.all((arm_mm > 0.6 * p.pin_orbit_mm) & (arm_mm < p.pin_orbit_mm))
+    torque_nm = springback_law(p).moment_nmm / eff.lever_mm * arm_mm / 1e3
     np.testing.assert_allclose(lag, 0.4 * torque_nm, rtol=1e-4)
-    assert np.all(np.diff(lag) > 0)  # grows as the lever shortens
+    # grows as the lever shortens, until the arm turning away from the leg wins (120 deg)
+    assert np.all(np.diff(lag[:3]) > 0) and lag[3] < lag[2]
     # no load before contact: no lag
     assert simulate([5.0], p, [Effect("compliance", 0.4)]).pin_deg[0] == 5.0
 
