@@ -176,8 +176,6 @@ def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment(
     assert shuffled.cause == "unexplained"
 
 
-
-
 def test_two_causes_on_the_independent_model_are_both_named():
     # pairs hidden in the physical model (the tests' own seeds): the second cause is
     # tested, ranked and checked for leftover structure against "baseline + discrepancy
