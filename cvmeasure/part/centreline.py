@@ -28,9 +28,10 @@ straight above; a light from one side puts the specular highlight on the lit
 flank and the symmetric centre follows it (1.4-2.9 px off the axis on a
 ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
 the profile's gradient; per profile, the pair of peaks whose distance is within
-15 % of the expected width and whose summed strength is largest is the wire
-(the highlight's own edges are closer together, the shadow's outer edge
-farther out). The edges' distance is the wire's apparent width, which
+8 % of the expected width, that step one up and one down, with no highlight
+beyond either, and whose summed strength is largest is the wire (the highlight's
+own edges are closer together, the shadow's outer edge farther out). The end
+points are the caps' silhouettes on the axis less the half-width. The edges' distance is the wire's apparent width, which
 :mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
 
 Frames: input and output in image pixels (OpenCV: x right, y down, pixel
@@ -60,6 +61,16 @@ _MIN_RHO_PX = 1.5
 EndShape = Literal["round", "flat"]
 #: Least length of the silhouette centreline, as a share of the symmetric one's.
 SILHOUETTE_MIN_SHARE = 0.95
+#: Remaining asymmetry (see :attr:`Centreline.asymmetry`) above which the symmetric
+#: centres are not a wire's (rendered wires lit from above give 0.001-0.08).
+SYMMETRIC_WIRE_MAX = 0.12
+#: Least length of the silhouette centreline, as a share of the mask path's, when the
+#: symmetric centres are not a wire's (the path runs on a little into a joined shadow).
+SILHOUETTE_MIN_SHARE_OF_PATH = 0.85
+#: Relative range of the silhouette edges' distance about the expected width.
+PAIR_TOLERANCE = 0.08
+#: Share of profiles with a clean edge pair from which the gaps are left open.
+PAIRS_ONLY_SHARE = 0.6
 #: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
 _CLIPPED = 250.0
 
@@ -252,13 +263,20 @@ def silhouette_edges(
     0.5 px), refined by a parabola; of every pair of peaks whose distance is within
     ``tolerance`` of the width and whose midpoint is near the current centre, the one
     with the largest summed gradient wins (a shadow's outer edge paired with a
-    highlight's edge can have the wire's width, but not about its centre).
+    highlight's edge can have the wire's width, but not about its centre). Beyond a
+    silhouette edge (1.5-3 px out) lies the plate or a shadow, never a highlight: an
+    edge with a level there above the plate's by 30 % of the profile's range is not one
+    (a dark flat shadow's outer edge and a highlight's edge are the strongest pair a
+    width apart on a light sheet when the wire's limb beside the shadow is as dark).
+    And one edge of the pair steps up, the other down: the limbs are darker than what
+    lies beside them (a light sheet, a shadow) or brighter (a dark sheet).
     """
     from scipy.ndimage import gaussian_filter1d
 
     p = np.asarray(profiles, dtype=np.float64)
     step = float(offsets_px[1] - offsets_px[0])
-    grad = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1))
+    signed = gaussian_filter1d(p, 0.5 / step, axis=1, order=1)
+    grad = np.abs(signed)
     n_p = len(p)
     width = np.broadcast_to(np.asarray(width_px, dtype=np.float64), (n_p,))
     left = np.full(n_p, np.nan)
@@ -266,6 +284,11 @@ def silhouette_edges(
     inner = grad[:, 1:-1]
     is_peak = (inner >= grad[:, :-2]) & (inner > grad[:, 2:])
     is_peak &= inner >= 0.15 * inner.max(axis=1, keepdims=True)
+    outer = max(3, p.shape[1] // 10)
+    plate = np.median(np.concatenate((p[:, :outer], p[:, -outer:]), axis=1), axis=1)
+    bright = plate + 0.3 * (p.max(axis=1) - plate)
+    out1, out2 = int(round(1.5 / step)), int(round(3.0 / step))
+    last = p.shape[1] - 1
     for i in range(n_p):
         k = np.nonzero(is_peak[i])[0] + 1
         if len(k) < 2:
@@ -276,7 +299,16 @@ def silhouette_edges(
         pos = offsets_px[k] + np.clip(frac, -0.5, 0.5) * step
         gap = pos[None, :] - pos[:, None]
         score = g1[None, :] + g1[:, None]
+        # the level beyond each peak as a left edge (outwards = lower offsets) and a right one
+        beyond_l = 0.5 * (p[i, np.clip(k - out1, 0, last)] + p[i, np.clip(k - out2, 0, last)])
+        beyond_r = 0.5 * (p[i, np.clip(k + out1, 0, last)] + p[i, np.clip(k + out2, 0, last)])
         ok = np.abs(gap / width[i] - 1.0) <= tolerance
+        ok &= (beyond_l <= bright[i])[:, None] & (beyond_r <= bright[i])[None, :]
+        # one edge steps into the wire, the other out of it (the limbs darker than all
+        # around them, or brighter): a shadow's outer edge and a highlight's far edge
+        # step the same way
+        sense = np.sign(signed[i, k])
+        ok &= (sense[:, None] * sense[None, :]) < 0
         ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * centre_tolerance * width[i]
         if not ok.any():
             continue
@@ -602,19 +634,31 @@ def measure_centreline(
         # the silhouette edges must follow the wire as far as its symmetric centres do;
         # where they lose a stretch at an end the part would be cut short: keep the
         # symmetric centres and say so (centre_from)
-        if found is not None and _length(found[0]) >= SILHOUETTE_MIN_SHARE * _length(centres):
+        # unless those are no wire's (a side-lit wire far from symmetric, a shadow joined
+        # to it: they wander off along the shadow), then most of the mask's own path
+        reach_px = (
+            SILHOUETTE_MIN_SHARE * _length(centres)
+            if symmetry <= SYMMETRIC_WIRE_MAX
+            else SILHOUETTE_MIN_SHARE_OF_PATH * _length(path)
+        )
+        if found is not None and _length(found[0]) >= reach_px:
             centres, prof_ok, widths, coverage = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
             centre_from = "symmetry (no silhouette edges along the whole wire)"
+    # between silhouette edges the end is found from the cap's silhouette too
+    at_edges = centre_from == "silhouette"
     ends = np.vstack(
-        (
-            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=True, shape=end_shape),
-            _end_point(g, centres, prof_ok, offsets, rho, half_width, head=False, shape=end_shape),
-        )
-    )
+        [
+            _end_point(
+                g, centres, prof_ok, offsets, rho, half_width,
+                head=head, shape=end_shape, silhouette=at_edges,
+            )
+            for head in (True, False)
+        ]
+    )  # fmt: skip
     # trim centres that lie beyond the end points (skeleton overshoot)
     keep = np.ones(len(centres), dtype=bool)
     k = min(5, len(centres) - 1)
@@ -696,8 +740,10 @@ def _silhouette_centres(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
-    Where the two edges are a width apart (within 5 %) the centre is their
-    midpoint. Where they are not, a shadow's penumbra joins the silhouette on the
+    The edges are the strongest gradient pair a width apart (within 8 %, or 0.5 px;
+    :func:`silhouette_edges`), else those found from inside (:func:`outer_edges`);
+    where they are a width apart the centre is their midpoint. Where such pairs cover
+    most of the wire (``PAIRS_ONLY_SHARE``) the other profiles are left out. Where they are not, a shadow's penumbra joins the silhouette on the
     shadow side (its flat stretch too narrow to be seen), or a false flat stretch
     cut the wire, so the centre is one edge moved by half the width (the median
     width of the clean pairs): the lit side's, where the shadow's side is known
@@ -713,12 +759,30 @@ def _silhouette_centres(
     """
     coverage = 1.0
     widths = np.zeros(0)
-    for final in (False, False, True):
+    # the edges' distance is the width within 5 %, or half a pixel on a thin wire (a
+    # blurred 6 px wire's limbs read 4-5 % wide)
+    tol = max(PAIR_TOLERANCE, 0.5 / width_px)
+    for n_pass, final in enumerate((False, False, True)):
         normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
         prof = profiles_at(centres, normals)
-        left, right = outer_edges(prof, offsets, width_px)
+        # the mask's path can lie half a width off the axis (a shadow joined to the mask):
+        # the first pass looks for the pair's midpoint within half a width of it
+        near = 0.5 if n_pass == 0 else 0.2
+        # the strongest pair of gradient peaks a width apart about the centre; where there
+        # is none (a penumbra joined to one side blurs its edge), the edges found from
+        # inside (:func:`outer_edges`). Not the other way round: on a light sheet a dark
+        # wire's gently shaded body is flat to that test and a soft shadow ramp joins one
+        # side, so a shadow's outer edge and the highlight's can pass for the wire there
+        left, right = silhouette_edges(
+            prof, offsets, width_px, tolerance=tol, centre_tolerance=near
+        )
         width = right - left
-        pair = np.abs(width / width_px - 1.0) <= 0.05
+        pair = np.abs(width / width_px - 1.0) <= tol
+        left2, right2 = outer_edges(prof[~pair], offsets, width_px)
+        fill = np.nonzero(~pair)[0]
+        left[fill], right[fill] = left2, right2
+        width = right - left
+        pair = np.abs(width / width_px - 1.0) <= tol
         w_eff = float(np.median(width[pair])) if pair.sum() >= 10 else width_px
         shift = np.where(pair, 0.5 * (left + right), np.nan)
         from_left = left + 0.5 * w_eff
@@ -744,6 +808,11 @@ def _silhouette_centres(
                 (rule == 1) & near_l, from_left, np.where((rule == 2) & near_r, from_right, np.nan)
             ),
         )
+        if pair.mean() >= PAIRS_ONLY_SHARE:
+            # clean pairs along most of the wire: the gaps are left open (the fits need no
+            # centre there) rather than filled by one edge, which a shadow's or a
+            # highlight's edge can stand in for over a stretch (4 px off on a lab render)
+            shift = np.where(pair, 0.5 * (left + right), np.nan)
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         coverage = float(ok.mean())
@@ -753,6 +822,13 @@ def _silhouette_centres(
         widths = np.where(pair, width, np.nan)[ok]
         if not final:
             centres = _resample(centres, step_px)
+    # a short run of centres cut off from the rest by a gap at either end (false edges
+    # beside a cap's highlight: 3 px off the axis on a lab render) is not the wire's
+    gap = np.nonzero(np.hypot(*np.diff(centres, axis=0).T) > 3.0 * step_px)[0]
+    lo = int(gap[0]) + 1 if len(gap) and _length(centres[: gap[0] + 1]) < width_px else 0
+    hi = int(gap[-1]) + 1 if len(gap) and _length(centres[gap[-1] + 1 :]) < width_px else None
+    if len(centres[lo:hi]) >= 5:
+        centres, widths = centres[lo:hi], widths[lo:hi]
     # the last profiles, re-centred on the edges' midpoints (for the end points)
     normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
     return centres, profiles_at(centres, normals), widths, coverage
@@ -768,12 +844,21 @@ def _end_point(
     *,
     head: bool,
     shape: EndShape = "round",
+    silhouette: bool = False,
 ) -> np.ndarray:
     """The end point of the wire's axis at one end, pixels.
 
     Round ends: the centre of the hemispherical cap. Flat ends: the end face,
     where the brightness along the axis crosses half-way from the crest (the
     median on the axis inside the wire) to the background beyond.
+
+    With ``silhouette`` (centres between the silhouette edges, ``half_width`` half
+    the edges' distance), a round end is the cap's silhouette on the axis
+    (:func:`_cap_edge`) moved back by the half-width: the cap's outline is the
+    same limb as the wire's sides, so the edges' shading bias cancels. The
+    brightness along the axis of a side-lit cap (a specular spot, a lit or a
+    dark face) does not repeat the profile across the wire, which the match
+    below assumes (it stopped 30 px short on the photo lab's 23 px wire).
 
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
@@ -805,6 +890,10 @@ def _end_point(
     template = np.median(0.5 * (right + left), axis=0)
     if shape == "flat":
         return _flat_end(gray, start, d, block, half_width)
+    if silhouette:
+        edge = _cap_edge(gray, start, d, block, half_width)
+        if edge is not None:
+            return start + (edge - half_width) * d
     search = np.arange(
         -round((1.0 * half_width) / _STEP_PX), round((8.0 * half_width + 4.0) / _STEP_PX) + 1
     )
@@ -821,6 +910,43 @@ def _end_point(
     else:
         best = float(search[k])
     return start + best * d
+
+
+def _cap_edge(
+    gray: np.ndarray, start: np.ndarray, d: np.ndarray, block: np.ndarray, half_width: float
+) -> float | None:
+    """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none.
+
+    The silhouette is where the brightness along the axis steps from the wire's towards
+    the background's (the profiles' ``block`` across the wire near the end give both
+    levels): a peak of that signed gradient (over 0.5 px, refined by a parabola). Of the
+    peaks at least half as strong as the strongest, the outermost within two
+    half-widths beyond the strongest: a specular spot on the cap has edges of its own
+    inside the cap, a shadow's penumbra beyond it is soft, and another object farther
+    away is not taken.
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    mid = block.shape[1] // 2
+    k_in = max(1, int(round(0.8 * half_width / _STEP_PX)))
+    wire = float(np.median(block[:, mid - k_in : mid + k_in + 1]))
+    outer = max(2, block.shape[1] // 10)
+    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    sign = 1.0 if wire > background else -1.0
+    t = np.arange(0, round((8.0 * half_width + 4.0) / _STEP_PX) + 1) * _STEP_PX
+    axial = _sample(gray, start[None, :] + t[:, None] * d[None, :])
+    grad = -sign * gaussian_filter1d(axial, 0.5 / _STEP_PX, order=1)
+    inner = grad[1:-1]
+    peaks = np.nonzero((inner >= grad[:-2]) & (inner > grad[2:]) & (inner > 0))[0] + 1
+    if len(peaks) == 0:
+        return None
+    strong = peaks[grad[peaks] >= 0.5 * grad[peaks].max()]
+    first = strong[np.argmax(grad[strong])]
+    k = int(strong[t[strong] <= t[first] + 2.0 * half_width].max())
+    g0, g1, g2 = grad[k - 1], grad[k], grad[k + 1]
+    den = g0 - 2 * g1 + g2
+    frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
+    return float(t[k] + np.clip(frac, -0.5, 0.5) * _STEP_PX)
 
 
 def _flat_end(

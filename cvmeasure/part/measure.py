@@ -34,7 +34,12 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, fit_circle_robust
-from cvmeasure.part.centreline import Centreline, EndShape, measure_centreline
+from cvmeasure.part.centreline import (
+    SYMMETRIC_WIRE_MAX,
+    Centreline,
+    EndShape,
+    measure_centreline,
+)
 from cvmeasure.part.compare import (
     BendComparison,
     Deviation,
@@ -80,7 +85,7 @@ MIN_COVERAGE = 0.5
 #: Largest remaining asymmetry (relative to the profile's variance) of a round
 #: wire's cross-profiles: rendered wires give 0.001-0.08 (0.25-1x size, both
 #: sheets), thin lines on a cluttered real desk 0.27-0.84.
-MAX_ASYMMETRY = 0.12
+MAX_ASYMMETRY = SYMMETRIC_WIRE_MAX
 #: Margin around the board left out of the wire search (mm).
 BOARD_MARGIN_MM = 4.0
 
