@@ -317,7 +317,7 @@ def _part_rows(args, scale, camera, n):
     }
     out = {}
     for row, fx in rows_fx.items():
-        radius_err, bend_err, refused, warned = [], [], 0, []
+        radius_err, bend_err, refused, warned, z, bound = [], [], 0, [], [], []
         for i in range(n):
             rng = np.random.default_rng([args.seed, 77, i])
             part = arc_part(
@@ -359,12 +359,19 @@ def _part_rows(args, scale, camera, n):
             truth = photo.truth
             radius_err.append(100.0 * (m.result.radius_mm / truth["radius_mm"] - 1.0))
             bend_err.append(m.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions)
+            if m.vertex_bend_deg is not None and m.vertex_bend_sigma_deg is not None:
+                vb_err = np.abs(m.vertex_bend_deg) - truth["arc_angle_deg"] / part.divisions
+                z += list(np.abs(vb_err) / np.asarray(m.vertex_bend_sigma_deg))
+            if m.lift is not None:
+                bound.append(float(m.lift["effect_radius_pct"]))
         out[row] = {
             "radius": radius_err,
             "bend": bend_err,
             "refused": refused,
             "warned": warned,
             "n": n,
+            "z": z,
+            "lift_bound_radius_pct": bound,
         }
         print(f"part {row}: radius {radius_err} bend {bend_err} warned {warned}", flush=True)
     return out
@@ -441,6 +448,8 @@ def main(argv: list[str] | None = None) -> dict:
                 float(np.max(np.abs(r["bend"]))) if r["bend"] else None,
                 r["refused"],
                 ", ".join(r["warned"]) or "-",
+                _within2(r["z"]),
+                float(np.max(r["lift_bound_radius_pct"])) if r["lift_bound_radius_pct"] else None,
             ]
         )
     occ_table = [
@@ -594,6 +603,8 @@ def main(argv: list[str] | None = None) -> dict:
                     "segment bend err deg",
                     "refused",
                     "warned",
+                    "% vertex bends < 2 sigma",
+                    "lift bound on radius % (largest)",
                 ],
                 part_table,
             ),

@@ -56,7 +56,15 @@ from cvmeasure.part.fit import (
     count_chords,
     fit_polyline,
 )
-from cvmeasure.part.lift import LiftEstimate, estimate_lift, points_at_heights_mm, unroll_mm
+from cvmeasure.part.lift import (
+    MAX_LIFT_MM,
+    LiftEstimate,
+    estimate_lift,
+    lift_bound_mm,
+    points_at_heights_mm,
+    rocked_lift,
+    unroll_mm,
+)
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 
@@ -170,10 +178,12 @@ class PartMeasurement:
     divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
         (vertices found on the centreline) or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
-    lift : with a wire diameter, the part's lift off the plate from the wire's
-        apparent width (:mod:`cvmeasure.part.lift`): ``lift_mm``, ``lift_sigma_mm``,
-        ``used`` (``"corrected"`` or ``"bound"``), and the effect of the lift and of its
-        uncertainty on the radius (%) and the vertex bends (deg); else None.
+    lift : with a wire diameter, the part's lift off the plate
+        (:mod:`cvmeasure.part.lift`): the width's estimate ``lift_mm``,
+        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``), ``bound_mm`` and
+        the bound's worst effect on the radius (``effect_radius_pct``), the bend per
+        chord and a vertex bend (``effect_segment_bend_deg``, ``effect_bend_deg``);
+        else None.
     """
 
     source: str
@@ -461,18 +471,22 @@ def _lifted_mm(
 def _lift_effects(
     plane: PlaneModel,
     points_px: np.ndarray,
-    flat_mm: np.ndarray,
     used_mm: np.ndarray,
-    lift: LiftEstimate,
+    lift: LiftEstimate | None,
     ours: ArcResult,
     poly: PolylineFit | None,
     divisions: int | None,
     base_mm: float,
+    max_lift_mm: float = MAX_LIFT_MM,
 ) -> tuple[dict[str, Any], np.ndarray | None, str]:
-    """The lift's summary, the bends' extra sigma (deg) and a warning ('' when none).
+    """The lift's bound, the bends' extra sigma (deg) and a warning ('' when none).
 
-    The effect of the lift is the difference between measuring flat and corrected;
-    the effect of its uncertainty is that of a lift of one sigma in the same direction.
+    The lift is bounded by :func:`cvmeasure.part.lift.lift_bound_mm` (the width's
+    estimate + 2 sigma, at most ``max_lift_mm``); its effect is the largest change of
+    the radius and of each vertex bend when the part, rocked that much towards any of
+    16 directions, is measured with each point on the plane of its own height (the
+    tilted plane unrolled into the part's own) instead of flat. Half the worst change
+    of each vertex bend is added to its sigma (so 2 sigma covers the bound).
     """
 
     def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
@@ -481,51 +495,48 @@ def _lift_effects(
         except ValueError:
             return float("nan"), float("nan"), None
         d_r = 100.0 * (res.radius_mm / ours.radius_mm - 1.0)
-        if p is None or poly is None:
-            return d_r, 0.0, None
-        d_b = np.asarray(p.bend_deg) - np.asarray(poly.bend_deg)
-        return d_r, float(np.max(np.abs(d_b))) if len(d_b) else 0.0, np.abs(d_b)
+        d_s = float((res.segment_bend_deg or 0.0) - (ours.segment_bend_deg or 0.0))
+        if p is None or poly is None or len(p.bend_deg) != len(poly.bend_deg):
+            return d_r, d_s, None
+        return d_r, d_s, np.abs(np.asarray(p.bend_deg) - np.asarray(poly.bend_deg))
 
-    # the widths' own systematic errors (shading of the flanks, which changes with the
-    # wire's direction to the light) are of the size of a lift's effect: on ray-traced
-    # flat parts they read as several mm of lift, so the estimate only bounds the part
-    corrected = False
-    other = _lifted_mm(plane, points_px, base_mm, lift, 1.0)
-    lift_r, lift_b, _ = effect(other)
-    unit = lift.lift_sigma_mm / max(lift.lift_mm, 1e-9)
-    sigma_r, sigma_b, sigma_bends = effect(
-        _lifted_mm(plane, points_px, base_mm, lift, unit)
-        if np.isfinite(unit) and lift.lift_mm > 0
-        else used_mm
-    )
+    bound = lift_bound_mm(lift, max_lift_mm)
+    worst_r, worst_s, worst_b = 0.0, 0.0, None
+    if bound > 0:
+        for direction in np.arange(0.0, 360.0, 22.5):
+            rocked = rocked_lift(used_mm, float(direction), bound)
+            d_r, d_s, d_b = effect(_lifted_mm(plane, points_px, base_mm, rocked, 1.0))
+            if not np.isfinite(d_r):
+                continue
+            worst_r, worst_s = max(worst_r, abs(d_r)), max(worst_s, abs(d_s))
+            if d_b is not None:
+                worst_b = d_b if worst_b is None else np.maximum(worst_b, d_b)
+    worst_vertex = float(np.max(worst_b)) if worst_b is not None and len(worst_b) else 0.0
     info = {
-        **lift.to_dict(),
-        "used": "corrected" if corrected else "bound",
-        "effect_radius_pct": abs(lift_r),
-        "effect_bend_deg": lift_b,
-        "sigma_radius_pct": abs(sigma_r),
-        "sigma_bend_deg": sigma_b,
+        **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
+        "used": "bound",
+        "bound_mm": bound,
+        "effect_radius_pct": worst_r,
+        "effect_segment_bend_deg": worst_s,
+        "effect_bend_deg": worst_vertex,
     }
     warning = ""
-    how = (
-        "corrected (each point mapped at its own height)"
-        if corrected
-        else "not corrected (not significant): a bound"
-    )
-    if abs(lift_r) > LIFT_RADIUS_PCT or lift_b > LIFT_BEND_DEG:
+    if worst_r > LIFT_RADIUS_PCT or worst_s > LIFT_BEND_DEG or worst_vertex > LIFT_BEND_DEG:
+        seen = (
+            "the wire's apparent width gives no usable estimate"
+            if lift is None or bound >= max_lift_mm
+            else f"the wire's apparent width puts it at {lift.lift_mm:.2f} +- "
+            f"{lift.lift_sigma_mm:.2f} mm"
+        )
         warning = (
-            f"part_lifted: the part does not lie flat, one end about {lift.lift_mm:.2f} +- "
-            f"{lift.lift_sigma_mm:.2f} mm off the plate (from the wire's apparent width); it "
-            f"moves the radius by {abs(lift_r):.2f} % and a vertex bend by up to {lift_b:.3f} deg, "
-            f"{how}"
+            f"part_lifted: the part may not lie flat and its lift is not measured ({seen}); "
+            f"a lift of up to {bound:.1f} mm at one end would move the radius by up to "
+            f"{worst_r:.2f} %, the bend per chord by up to {worst_s:.3f} deg and a vertex bend "
+            f"by up to {worst_vertex:.3f} deg (half of it is in the vertex bends' sigmas): lay "
+            "the part flat, or press it down, to measure it within "
+            f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg"
         )
-    if abs(sigma_r) > LIFT_RADIUS_PCT or sigma_b > LIFT_BEND_DEG:
-        warning = (warning + "; " if warning else "part_lifted: ") + (
-            f"the lift is known to +- {lift.lift_sigma_mm:.2f} mm only, which leaves the radius "
-            f"uncertain by {abs(sigma_r):.2f} % and a vertex bend by {sigma_b:.3f} deg (more than "
-            f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg): lay the part flat"
-        )
-    return info, sigma_bends, warning
+    return info, None if worst_b is None else 0.5 * worst_b, warning
 
 
 def _net_turn_deg(points_mm: np.ndarray) -> float:
@@ -590,6 +601,7 @@ def measure_part(
     allow_mirror: bool = True,
     wire_diameter_mm: float | None = None,
     plane: PlaneModel | None = None,
+    max_lift_mm: float = MAX_LIFT_MM,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -611,13 +623,16 @@ def measure_part(
     wire_diameter_mm : the wire's diameter (e.g. the kit's ``wire_diameter_mm``).
         With it the centreline lies between the wire's two silhouette edges (not
         on a side-lit highlight or a shadow's edge) and the part's lift off the
-        plate is estimated from the wire's apparent width
-        (:mod:`cvmeasure.part.lift`): corrected when significant, and warned about
-        (``part_lifted``) when it or its uncertainty moves the radius by more than
-        0.3 % or a vertex bend by more than 0.03 deg. The estimate bounds, it does
-        not correct: the widths' own shading errors are as large as a lift's effect.
+        plate is estimated from the wire's apparent width and bounded
+        (:mod:`cvmeasure.part.lift`, ``max_lift_mm``): the worst effect of that lift
+        on the radius and the bends is reported under ``lift``, half of it is added
+        to the vertex bends' sigmas, and it is warned about (``part_lifted``) when it
+        exceeds 0.3 % or 0.03 deg. Not corrected: neither the width nor the cast
+        shadow measures a lift of 0-3 mm well enough (docs/part-measurement.md).
     plane : the plane measured elsewhere (``cvmeasure plane``); then ``board`` is
         only left out of the wire search and may be None, ``camera`` is unused.
+    max_lift_mm : with ``wire_diameter_mm``, the largest lift the part may rock to
+        when the width does not bound it better (mm; 0 for a part pressed flat).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
         ``"flat"`` (square-cut); decides where the centreline's end points are.
     source : the photo's name, used in errors.
@@ -662,7 +677,6 @@ def measure_part(
             "highlight or a shadow can pull off the axis; the lift was not bounded"
         )
     lift = None
-    flat_mm = centreline_mm
     if wire_diameter_mm is not None and centre.edge_width_px is not None:
         base = _axis_height(axis_height_mm, wire_diameter_mm)
         lift = estimate_lift(
@@ -692,16 +706,12 @@ def measure_part(
         raise InputError(source, f"cannot fit the part ({exc})") from None
     bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
     lift_info = None
-    if wire_diameter_mm is not None and centre.centre_from == "silhouette" and lift is None:
-        warnings.append(
-            "part_lifted: the part's lift off the plate could not be bounded (too few places "
-            "with both silhouette edges clean, e.g. a shadow beside the wire all along): a "
-            "lifted part would go unnoticed"
-        )
-    if lift is not None:
+    if wire_diameter_mm is not None:
+        # a round wire on the plate may rock: its lift is bounded (the width's estimate
+        # where it is good enough, else the largest lift a part rocks to)
         lift_info, extra_sigma, lift_warning = _lift_effects(
-            plane, centre.points_px, flat_mm, centreline_mm, lift, ours, poly, divisions,
-            _axis_height(axis_height_mm, wire_diameter_mm),
+            plane, centre.points_px, centreline_mm, lift, ours, poly, divisions,
+            _axis_height(axis_height_mm, wire_diameter_mm), max_lift_mm,
         )  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
