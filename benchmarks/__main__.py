@@ -13,10 +13,12 @@ import argparse
 import ast
 import datetime as _dt
 import json
+import os
 import subprocess
 import sys
 import time
 from collections.abc import Sequence
+from typing import Any
 
 from benchmarks import BENCH_DIR, REPO_ROOT, RESULTS_DIR, format_table, write_results_md
 
@@ -28,19 +30,92 @@ def discover() -> list[str]:
     return sorted(p.stem for p in BENCH_DIR.glob("*.py") if not p.stem.startswith("_"))
 
 
+#: Benchmarks that measure several cores at once: with ``--cores`` they run alone, last.
+ALL_CORES = frozenset({"batch"})
+
+
+def _command_of(name: str, quick: bool) -> list[str]:
+    return [sys.executable, "-m", f"benchmarks.{name}"] + (["--quick"] if quick else [])
+
+
+def _last_line(stderr: str | None) -> str:
+    err_lines = [ln for ln in (stderr or "").splitlines() if ln.strip()]
+    return err_lines[-1] if err_lines else ""
+
+
 def _run_one(name: str, quick: bool, timeout_s: float) -> tuple[int, float, str]:
-    cmd = [sys.executable, "-m", f"benchmarks.{name}"] + (["--quick"] if quick else [])
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(
-            cmd, cwd=REPO_ROOT, stderr=subprocess.PIPE, text=True, timeout=timeout_s, check=False
+            _command_of(name, quick),
+            cwd=REPO_ROOT,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=timeout_s,
+            check=False,
         )
     except subprocess.TimeoutExpired:
         return -1, time.perf_counter() - t0, f"timed out after {timeout_s:.0f} s"
-    err_lines = [ln for ln in (proc.stderr or "").splitlines() if ln.strip()]
     if proc.stderr:
         sys.stderr.write(proc.stderr)
-    return proc.returncode, time.perf_counter() - t0, err_lines[-1] if err_lines else ""
+    return proc.returncode, time.perf_counter() - t0, _last_line(proc.stderr)
+
+
+def _previous_seconds(name: str) -> float:
+    """How long the benchmark took last time (from its result JSON; 0 when unknown)."""
+    try:
+        data = json.loads((RESULTS_DIR / f"{name}.json").read_text(encoding="utf-8"))
+        return float(data.get("seconds") or 0.0)
+    except (OSError, ValueError, TypeError):
+        return 0.0
+
+
+def _run_pinned(
+    names: Sequence[str], quick: bool, timeout_s: float, cores: Sequence[int]
+) -> dict[str, tuple[int, float, str]]:
+    """Run ``names`` at most ``len(cores)`` at a time, each pinned to a core of its own.
+
+    Longest first (by the last run's seconds), so the queues end together; a child's
+    stderr goes to a temporary file and is echoed when it ends.
+    """
+    import tempfile
+
+    pending = sorted(names, key=_previous_seconds, reverse=True)
+    free = list(cores)
+    running: dict[str, tuple[subprocess.Popen[bytes], int, float, Any]] = {}
+    done: dict[str, tuple[int, float, str]] = {}
+    while pending or running:
+        while pending and free:
+            name, core = pending.pop(0), free.pop(0)
+            err = tempfile.TemporaryFile(mode="w+")
+            print(f"--- {name} (core {core})", flush=True)
+            proc = subprocess.Popen(
+                _command_of(name, quick),
+                cwd=REPO_ROOT,
+                stderr=err,
+                preexec_fn=lambda c=core: os.sched_setaffinity(0, {c}),
+            )
+            running[name] = (proc, core, time.perf_counter(), err)
+        time.sleep(0.5)
+        for name, (proc, core, t0, err) in list(running.items()):
+            elapsed = time.perf_counter() - t0
+            code = proc.poll()
+            if code is None and elapsed > timeout_s:
+                proc.kill()
+                code = proc.wait()
+                done[name] = (-1, elapsed, f"timed out after {timeout_s:.0f} s")
+            elif code is None:
+                continue
+            err.seek(0)
+            text = err.read()
+            err.close()
+            if text:
+                sys.stderr.write(text)
+            done.setdefault(name, (code, elapsed, _last_line(text)))
+            print(f"--- {name} ended ({elapsed:.0f} s, exit {code})", flush=True)
+            del running[name]
+            free.append(core)
+    return done
 
 
 def _mark_failed(name: str, code: int, last_line: str, command: str) -> None:
@@ -94,6 +169,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         default=1800.0,
         help="seconds allowed per benchmark (default 1800)",
     )
+    p.add_argument(
+        "--cores",
+        type=int,
+        default=1,
+        help="run up to N benchmarks at once, each pinned to a core of its own (Linux); "
+        f"{', '.join(sorted(ALL_CORES))} then run alone on every core (default 1: one at a time)",
+    )
     args = p.parse_args(argv)
     available = discover()
     if args.list:
@@ -104,17 +186,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"python -m benchmarks: unknown benchmark(s) {', '.join(unknown)}", file=sys.stderr)
         return 2
     command = "python -m benchmarks" + (" --quick" if args.quick else "")
+    if args.cores > 1:
+        command += f" --cores {args.cores}"
     if args.names:
         command += " " + " ".join(args.names)
     if args.render_only:
         path = write_results_md(command=None, refresh_preamble=True)
         print(f"wrote {path}")
         return 0
+    names = list(args.names or available)
+    outcomes: dict[str, tuple[int, float, str]] = {}
+    if args.cores > 1 and hasattr(os, "sched_setaffinity"):
+        cores = sorted(os.sched_getaffinity(0))[: args.cores]
+        alone = [n for n in names if n in ALL_CORES]
+        outcomes.update(
+            _run_pinned([n for n in names if n not in ALL_CORES], args.quick, args.timeout, cores)
+        )
+        names = alone
+    for name in names:
+        print(f"--- {name}", flush=True)
+        outcomes[name] = _run_one(name, args.quick, args.timeout)
     rows = []
     failed = 0
     for name in args.names or available:
-        print(f"--- {name}", flush=True)
-        code, seconds, last = _run_one(name, args.quick, args.timeout)
+        code, seconds, last = outcomes[name]
         if code != 0:
             failed += 1
             one = f"python -m benchmarks.{name}" + (" --quick" if args.quick else "")

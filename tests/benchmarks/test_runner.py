@@ -129,3 +129,31 @@ def test_shared_real_boards_and_random_photo():
     # same seed, same scene: only the compression differs
     assert jpeg.truth["requested"] == plain.truth["requested"]
     assert abs(jpeg.truth["requested"]["pin_angle_deg"]) <= 120.0
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_pinned_runs_each_on_a_core_of_its_own(tmp_path, monkeypatch):
+    """--cores N: every child is pinned to one core, at most N at once, exit codes kept."""
+    import os
+
+    import benchmarks.__main__ as runner
+
+    cores = sorted(os.sched_getaffinity(0))[:2]
+
+    def command(name, quick):
+        code = 3 if name == "bad" else 0
+        script = (
+            "import os, sys, time; "
+            f"open({str(tmp_path)!r} + '/{name}', 'w').write(str(len(os.sched_getaffinity(0))) + ' ' + str(min(os.sched_getaffinity(0)))); "
+            f"time.sleep(0.3); sys.stderr.write('last line of {name}\\n'); sys.exit({code})"
+        )
+        return [sys.executable, "-c", script]
+
+    monkeypatch.setattr(runner, "_command_of", command)
+    done = runner._run_pinned(["a", "b", "bad"], False, 60.0, cores)
+    assert set(done) == {"a", "b", "bad"}
+    assert done["bad"][0] == 3 and done["bad"][2] == "last line of bad"
+    assert done["a"][0] == 0 and done["b"][0] == 0
+    for name in ("a", "b", "bad"):
+        count, core = map(int, (tmp_path / name).read_text().split())
+        assert count == 1 and core in cores
