@@ -4,8 +4,11 @@ The solve is OpenCV 5's ``calibrateCameraExtended`` (Zhang's method followed by
 Levenberg-Marquardt) with one of six distortion models (k1 only up to thin prism), wrapped in a loop that
 drops outlier corners (residual beyond 4 robust sigmas from the median residual
 of the corner's board neighbours, so smooth model error is not mistaken for bad
-corners) and bad views (RMS above
-3x the median view RMS, or too few corners left) and solves again.
+corners; sigma the larger of the pooled and the corner's own view's, since blur and
+distance make some views noisier) and bad views (RMS above
+3x the median view RMS, or too few corners left) and solves again. Each round judges
+every detected corner of the remaining views again, so the kept set is a fixed point
+of the rule rather than an erosion of the residuals' tails.
 
 References
 ----------
@@ -64,6 +67,9 @@ _OUTLIER_SIGMAS = 4.0
 _OUTLIER_FLOOR_PX = 0.25
 _VIEW_RMS_FACTOR = 3.0
 _VIEW_RMS_FLOOR_PX = 0.5
+#: A corner dropped in an earlier round comes back only when its residual is within this
+#: fraction of the limit (hysteresis: corners right at the limit do not flip every round).
+_READMIT = 0.8
 
 
 def model_flags(model: str) -> int:
@@ -330,9 +336,11 @@ def calibrate_views(
         Distortion model (see :data:`DISTORTION_MODELS`).
     reject_outliers : bool
         Run the rejection loop (corners off their neighbours' residual by more than
-        4 robust sigmas, views above 3x
-        the median view RMS), at most ``max_rounds`` solves. A round that drops a
-        view drops no corners and re-admits every corner of the remaining views.
+        4 robust sigmas, the larger of the pooled and their view's; views above 3x
+        the median view RMS), at most ``max_rounds`` solves. Every round judges every
+        detected corner again (one dropped earlier returns within 0.8 of the limit).
+        A round that drops a view drops no corners and re-admits every corner of the
+        remaining views.
     min_views : int
         Fewer usable views raise :class:`InputError` naming ``source``.
     board_warp : bool
@@ -380,6 +388,7 @@ def calibrate_views(
 
     check_count()
     rounds = 0
+    seen = {tuple((d.source, d.ids.tobytes()) for d in active)}
     while True:
         rounds += 1
         try:
@@ -388,21 +397,37 @@ def calibrate_views(
             raise InputError(source, f"the calibration solve failed: {exc}") from None
         if not reject_outliers or rounds >= max_rounds:
             break
+        # every corner each view was detected with is judged again under this round's
+        # solve (a corner dropped earlier comes back if it now fits): the kept set is a
+        # fixed point of the rule, not the end of an erosion of the residuals' tails
+        full = [original[id(d)] for d in active]
         residuals = [
-            _robust_residuals(camera, d, r, t) for d, r, t in zip(active, rvecs, tvecs, strict=True)
+            _robust_residuals(camera, d, r, t) for d, r, t in zip(full, rvecs, tvecs, strict=True)
         ]
         # a corner is judged against its neighbours: model error is smooth over the board
         # (rejecting it biased SimpleSLAM's focal length by 3 sigma), a bad corner is not
-        local = [_neighbour_relative(d, res) for d, res in zip(active, residuals, strict=True)]
+        local = [_neighbour_relative(d, res) for d, res in zip(full, residuals, strict=True)]
         allres = np.concatenate(local).ravel()
         sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
-        limit = max(_OUTLIER_SIGMAS * sigma, _OUTLIER_FLOOR_PX)
+        # and against its own view's noise when that is larger than the pool's: blur and
+        # distance make some views' corners noisier (LifeCam: view sigma 0.13-0.70 px),
+        # and a corner of a blurred view is not a mis-detection for being 4 pooled sigmas off
+        limits = []
+        for loc in local:
+            s_view = 1.4826 * float(np.median(np.abs(loc.ravel() - np.median(loc.ravel()))))
+            limits.append(max(_OUTLIER_SIGMAS * max(sigma, s_view), _OUTLIER_FLOOR_PX))
         view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
         # Views first (judged on their inlier corners, so a few outliers drop corners,
         # not the view); corners only in a round where no view went, because a bad
         # view distorts the solve and with it every other view's residuals.
         bad_views: dict[int, str] = {}
-        outlier = [np.linalg.norm(loc, axis=1) > limit for loc in local]
+        # hysteresis: a corner dropped in an earlier round comes back only well inside the
+        # limit (x _READMIT), so corners right at it do not flip in and out every round
+        outlier = []
+        for d, orig, loc, lim in zip(active, full, local, limits, strict=True):
+            norm = np.linalg.norm(loc, axis=1)
+            was_out = ~np.isin(orig.ids, d.ids)
+            outlier.append(np.where(was_out, norm > _READMIT * lim, norm > lim))
         for k, res in enumerate(residuals):
             norms = np.linalg.norm(res, axis=1)
             n_out = int(np.sum(outlier[k]))
@@ -411,7 +436,7 @@ def calibrate_views(
             if n_out > 0.5 * len(norms):
                 bad_views[k] = (
                     f"{n_out} of {len(norms)} corners are off their neighbours by more than "
-                    f"{limit:.3f} px (blurred or moved photo, or a different lens setting?)"
+                    f"{limits[k]:.3f} px (blurred or moved photo, or a different lens setting?)"
                 )
             elif vrms > view_limit:
                 bad_views[k] = (
@@ -424,17 +449,22 @@ def calibrate_views(
             if k in bad_views:
                 rejected.append(RejectedView(det.source, bad_views[k]))
                 continue
-            if bad_views:
-                # a dropped view distorted the solve: corners judged against it get
-                # another chance, every corner of the remaining views is re-admitted
-                det = original[id(det)]
-                n_rejected_corners[id(det)] = 0
-            keep = ~outlier[k]
-            if not bad_views and not keep.all():
-                changed = True
-                sub = det.subset(keep)
-                n_rejected_corners[id(sub)] = n_rejected_corners[id(det)] + int((~keep).sum())
-                original[id(sub)] = original[id(det)]
+            orig = full[k]
+            # a dropped view distorted the solve: corners judged against it get another
+            # chance, every corner of the remaining views is re-admitted
+            keep = np.ones(orig.corner_count, bool) if bad_views else ~outlier[k]
+            if keep.all():
+                if det is not orig:
+                    changed = True
+                det = orig
+            else:
+                if det.corner_count != int(keep.sum()) or not np.array_equal(
+                    det.ids, orig.ids[keep]
+                ):
+                    changed = True
+                sub = orig.subset(keep)
+                n_rejected_corners[id(sub)] = int((~keep).sum())
+                original[id(sub)] = orig
                 if sub.corner_count < MIN_CORNERS:
                     rejected.append(
                         RejectedView(
@@ -442,13 +472,20 @@ def calibrate_views(
                             f"too few corners left after outlier removal ({sub.corner_count})",
                         )
                     )
+                    changed = True
                     continue
                 det = sub
             new_active.append(det)
+        state = tuple((d.source, d.ids.tobytes()) for d in new_active)
+        if not changed or state in seen:
+            # no change, or back to a corner set already solved (the rule cycles between
+            # corners on the edge of its limit): the last solve stands
+            if not changed:
+                active = new_active
+            break
+        seen.add(state)
         active = new_active
         check_count()
-        if not changed:
-            break
     names = _free_intrinsics(model)
     std_devs = {n: float(sd_intr[INTRINSIC_NAMES.index(n)]) for n in names}
     views = tuple(
