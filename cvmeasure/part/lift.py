@@ -30,8 +30,13 @@ the bends' sigmas and warned about when it exceeds the targets (0.3 % radius,
 on ray-traced round wires lit from the side the silhouette edges' shading bias
 changes with the wire's direction to the light by a few hundredths of a pixel,
 which reads as 13-16 mm of lift on flat parts (full size, 19 px wire); a cast
-shadow fit did not do better (docs/part-measurement.md). Frames: board frame (mm),
-heights towards the camera.
+shadow fit did not do better (docs/part-measurement.md).
+
+Two photos of the part slid on the plate between them do measure it
+(:func:`estimate_lift_moved`): the perspective difference of the two views is
+``(foot shift / distance) x h(p)``, a non-rigid field for a tilted part; then the lift
+is corrected (``cvmeasure part --moved``). Frames: board frame (mm), heights towards
+the camera.
 """
 
 from __future__ import annotations

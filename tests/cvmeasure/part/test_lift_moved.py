@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -118,3 +120,32 @@ def test_the_same_photo_twice_is_not_a_moved_photo():
     assert unused and "not moved" in unused[0]
     assert m.lift["used"] == "bound" and m.lift["moved"]["lift_mm"] is None
     assert any(w.startswith("part_lifted") for w in m.warnings)
+
+
+def test_cli_part_moved(tmp_path, capsys):
+    """``cvmeasure part PHOTO --moved PHOTO2``: the lift measured and corrected; without a
+    wire diameter the option is refused (exit 2) naming it."""
+    import cv2
+
+    from cvmeasure.camera import save_camera
+    from cvmeasure.cli import main
+    from cvmeasure.fileio import atomic_write_json
+
+    first, second = _lab(3.0, 1700, "dark", (60.0, 0.0))
+    paths = [tmp_path / "first.png", tmp_path / "second.png"]
+    for path, photo in zip(paths, (first, second), strict=True):
+        cv2.imwrite(str(path), photo.bgr)
+    camera = tmp_path / "camera.json"
+    save_camera(camera, first.camera)
+    board = atomic_write_json(tmp_path / "board.json", BOARD.to_dict())
+    base = ["--board", str(board), "--camera", str(camera), "--divisions", "8"]
+    argv = ["part", str(paths[0]), *base, "--wire-diameter-mm", "3", "--moved", str(paths[1])]
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["lift"]["used"] == "correction"
+    assert abs(out["lift"]["lift_mm"] - 3.0) < 2.0 * out["lift"]["lift_sigma_mm"]
+    assert abs(100.0 * (out["radius_mm"] / 62.0 - 1.0)) < 0.3
+    assert main(argv) == 0
+    assert "from the moved photo" in capsys.readouterr().out
+    assert main(["part", str(paths[0]), *base, "--moved", str(paths[1])]) == 2
+    assert "--moved" in capsys.readouterr().err
