@@ -334,12 +334,12 @@ def _register_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray
 
 def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
     """Signed distance (N,) of points from a dense curve (M, 2), left of travel positive."""
+    from scipy.spatial import cKDTree
+
     from cvmeasure.part.compare import _PolylineIndex
 
     feet = _PolylineIndex(curve).feet(points)
     tangent = np.gradient(curve, axis=0)
-    from scipy.spatial import cKDTree
-
     _, k = cKDTree(curve).query(points)
     tg = tangent[k] / np.maximum(np.linalg.norm(tangent[k], axis=1), 1e-12)[:, None]
     rel = points - feet
@@ -373,13 +373,14 @@ def estimate_lift_moved(
     standard uncertainty counts one independent sample per wire diameter along the
     part. ``axis_height_mm``: the axis' height where the part rests (the wire's radius).
     """
+    import cv2
     from scipy.optimize import least_squares
 
     p1 = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     p2 = np.asarray(points_moved_px, dtype=np.float64).reshape(-1, 2)
     q1 = points_at_heights_mm(plane, p1, axis_height_mm)
     q2 = points_at_heights_mm(plane_moved, p2, axis_height_mm)
-    rot, _ = __import__("cv2").Rodrigues(plane.rvec)
+    rot, _ = cv2.Rodrigues(plane.rvec)
     centre = -rot.T @ np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
     foot, distance = centre[:2], float(abs(centre[2]))
     theta0, shift0, inside = _register_rigid(q2, q1)
