@@ -429,7 +429,10 @@ def main(argv: list[str] | None = None) -> dict:
             "0 / 1.5 / 3 mm at one end (a rigid tilt; the truth is the part's own shape), "
             "no Bayer, depth of field or clutter; the plane from a board photo at the same pose "
             "(benchmarks/_calibrated.plane_for_pose); 'round' = measure_part(wire_diameter_mm=3), "
-            "'flat' = the same photo measured as a flat stripe on the plate (no diameter)",
+            "'flat' = the same photo measured as a flat stripe on the plate (no diameter); "
+            f"'moved' = with a second photo of the part slid {MOVED_SHIFT_MM:.0f} mm along x "
+            "(same pose, lift and light; measure_part(moved_image=...), cvmeasure part --moved): "
+            "the lift measured from the two views and corrected",
         ],
     )
 
