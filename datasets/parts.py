@@ -217,6 +217,7 @@ def render_part_photo(
     placement_deg: float | None = None,
     linear: bool = False,
     effects: SceneEffects | None = None,
+    part_shift_mm: tuple[float, float] = (0.0, 0.0),
 ) -> RenderedPhoto:
     """Render a finished part on a matte sheet to the right of a ChArUco board.
 
@@ -234,6 +235,9 @@ def render_part_photo(
         about a line on the sheet through its lowest end) so that its other end lifts
         that much; the camera effects, a textured sheet and stray objects on the sheet
         as for the bender. Default: all off, the flat render.
+    part_shift_mm : slide the part by this much on the sheet (board frame, mm), keeping
+        its placement and its rocking pose: the same seed and a shift give a second photo
+        of the same part moved (``cvmeasure part --moved``).
 
     Returns
     -------
@@ -256,7 +260,10 @@ def render_part_photo(
     sheet_c = (bw + 10.0 + sheet_mm / 2, bh / 2)
     rng = np.random.default_rng([seed, 0xA2])
     angle = float(rng.uniform(0.0, 360.0)) if placement_deg is None else float(placement_deg)
-    centre = (sheet_c[0] + rng.uniform(-5, 5), sheet_c[1] + rng.uniform(-5, 5))
+    centre = (
+        sheet_c[0] + rng.uniform(-5, 5) + part_shift_mm[0],
+        sheet_c[1] + rng.uniform(-5, 5) + part_shift_mm[1],
+    )
     verts = spec.placed(angle, centre)
     pose = pose or Pose(
         distance_mm=900.0, offset_mm=((bw + 10.0 + sheet_mm - 20.0) / 2 + 10.0, bh / 2)

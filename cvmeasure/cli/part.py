@@ -50,6 +50,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "only with --wire-diameter-mm absent)",
     )
     p.add_argument(
+        "--moved",
+        type=Path,
+        metavar="PHOTO2",
+        help="a second photo of the same part slid on the plate by tens of mm (same camera, "
+        "board in view, the part keeping its pose): the part's lift is measured from the two "
+        "views' perspective difference and corrected (needs the wire's diameter); when the "
+        "part was not moved, a warning says so and the lift is only bounded",
+    )
+    p.add_argument(
         "--axis-height-mm",
         "--wire-axis-height-mm",
         dest="axis_height_mm",
@@ -98,6 +107,9 @@ def run(args: argparse.Namespace) -> int:
                 args.kit, "the kit gives no wire_diameter_mm (pass --wire-diameter-mm)"
             )
     photo = read_photo(args.photo)
+    if args.moved and diameter is None:
+        raise InputError("--moved", "the lift from a moved photo needs --wire-diameter-mm or --kit")
+    moved = read_photo(args.moved).bgr if args.moved else None
     m = measure_part(
         photo.bgr,
         board,
@@ -110,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         end_shape=args.ends,
         source=str(args.photo),
         wire_diameter_mm=diameter,
+        moved_image=moved,
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:
@@ -179,7 +192,13 @@ def _print_summary(m, out) -> None:
                 f"{b.seed_absolute_error_deg:.3f} deg, relative {b.seed_relative_error_pct:.2f} %",
                 file=out,
             )
-    if m.lift is not None:
+    if m.lift is not None and m.lift["used"] == "correction":
+        print(
+            f"  lift off the plate (from the moved photo): {m.lift['lift_mm']:.2f} +- "
+            f"{m.lift['lift_sigma_mm']:.2f} mm, corrected",
+            file=out,
+        )
+    elif m.lift is not None and m.lift.get("lift_mm") is not None:
         print(
             f"  lift off the plate (from the wire's width): {m.lift['lift_mm']:.2f} +- "
             f"{m.lift['lift_sigma_mm']:.2f} mm, used as a {m.lift['used']}",

@@ -30,13 +30,18 @@ the bends' sigmas and warned about when it exceeds the targets (0.3 % radius,
 on ray-traced round wires lit from the side the silhouette edges' shading bias
 changes with the wire's direction to the light by a few hundredths of a pixel,
 which reads as 13-16 mm of lift on flat parts (full size, 19 px wire); a cast
-shadow fit did not do better (docs/part-measurement.md). Frames: board frame (mm),
-heights towards the camera.
+shadow fit did not do better (docs/part-measurement.md).
+
+Two photos of the part slid on the plate between them do measure it
+(:func:`estimate_lift_moved`): the perspective difference of the two views is
+``(foot shift / distance) x h(p)``, a non-rigid field for a tilted part; then the lift
+is corrected (``cvmeasure part --moved``). Frames: board frame (mm), heights towards
+the camera.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -45,6 +50,9 @@ from cvmeasure.contracts import PlaneModel
 
 __all__ = [
     "MAX_LIFT_MM",
+    "MIN_FOOT_SHIFT_MM",
+    "MovedLift",
+    "estimate_lift_moved",
     "LiftEstimate",
     "estimate_lift",
     "expected_width_px",
@@ -243,3 +251,207 @@ def lift_bound_mm(estimate: LiftEstimate | None, max_lift_mm: float = MAX_LIFT_M
     if estimate is None or not np.isfinite(estimate.lift_sigma_mm):
         return float(max_lift_mm)
     return float(min(max_lift_mm, estimate.lift_mm + 2.0 * estimate.lift_sigma_mm))
+
+
+#: A second photo whose motion moves the camera's foot point less than this (mm) does not
+#: measure a lift: the cue is ``foot shift / distance`` x the lift (at 20 mm and 600 mm, a
+#: 0.5 mm lift is 0.017 mm of difference, a tenth of a pixel at full size).
+MIN_FOOT_SHIFT_MM = 20.0
+
+
+@dataclass(frozen=True)
+class MovedLift:
+    """The part's lift from two photos of it, slid on the plate between them.
+
+    Attributes
+    ----------
+    lift : the lift along the first photo's centreline (heights 0 at the lowest point,
+        ``slope`` in mm per board mm, ``lift_sigma_mm``); None when the photos do not
+        measure it (``message`` says why).
+    rotation_deg, shift_mm : the part's rigid motion on the plate from the second photo
+        to the first (``first = R second + shift``, board frame), degrees and mm.
+    foot_shift_mm : how far that motion moves the point under the camera, mm: the cue's
+        lever (the perspective difference is ``foot_shift / distance`` x the height).
+    distance_mm : the camera's height above the plate, mm.
+    residual_rms_mm : rms distance of the registered second centreline from the first, mm.
+    samples : second-photo points used.
+    message : '' when measured, else why not.
+    """
+
+    lift: LiftEstimate | None
+    rotation_deg: float
+    shift_mm: tuple[float, float]
+    foot_shift_mm: float
+    distance_mm: float
+    residual_rms_mm: float
+    samples: int
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **(self.lift.to_dict() if self.lift is not None else {"lift_mm": None}),
+            "rotation_deg": self.rotation_deg,
+            "shift_mm": list(self.shift_mm),
+            "foot_shift_mm": self.foot_shift_mm,
+            "distance_mm": self.distance_mm,
+            "residual_rms_mm": self.residual_rms_mm,
+            "samples": self.samples,
+            "message": self.message,
+        }
+
+
+def _rigid(theta: float, shift: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    c, s = np.cos(theta), np.sin(theta)
+    return pts @ np.array([[c, s], [-s, c]]) + shift
+
+
+def _register_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Rigid (angle rad, shift) taking the curve ``src`` onto ``dst`` (ICP to the curve),
+    and the mask of ``src`` points whose foot lies inside ``dst`` (2 mm from its ends)."""
+    from cvmeasure.part.compare import _kabsch, _PolylineIndex, resample_by_length
+
+    a = resample_by_length(src, 200)
+    b = resample_by_length(dst, 200)
+    best = None
+    for cand in (a, a[::-1]):
+        r, t = _kabsch(cand, b, mirror=False)
+        rms = float(np.sqrt(np.mean(np.sum((cand @ r.T + t - b) ** 2, axis=1))))
+        if best is None or rms < best[0]:
+            best = (rms, r, t)
+    _, r, t = best
+    index = _PolylineIndex(dst)
+    for _ in range(30):
+        moved = src @ r.T + t
+        r, t = _kabsch(src, index.feet(moved), mirror=False)
+    theta = float(np.arctan2(r[1, 0], r[0, 0]))
+    feet = index.feet(src @ r.T + t)
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(dst, axis=0).T))))
+    d_start = np.hypot(*(feet - dst[0]).T)
+    d_end = np.hypot(*(feet - dst[-1]).T)
+    inside = (d_start > 2.0) & (d_end > 2.0) & (s[-1] > 4.0)
+    return theta, t, inside
+
+
+def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
+    """Signed distance (N,) of points from a dense curve (M, 2), left of travel positive."""
+    from scipy.spatial import cKDTree
+
+    from cvmeasure.part.compare import _PolylineIndex
+
+    feet = _PolylineIndex(curve).feet(points)
+    tangent = np.gradient(curve, axis=0)
+    _, k = cKDTree(curve).query(points)
+    tg = tangent[k] / np.maximum(np.linalg.norm(tangent[k], axis=1), 1e-12)[:, None]
+    rel = points - feet
+    return tg[:, 0] * rel[:, 1] - tg[:, 1] * rel[:, 0]
+
+
+def estimate_lift_moved(
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    plane_moved: PlaneModel,
+    points_moved_px: np.ndarray,
+    *,
+    axis_height_mm: float,
+    wire_diameter_mm: float,
+    min_foot_shift_mm: float = MIN_FOOT_SHIFT_MM,
+) -> MovedLift:
+    """The part's lift from its centreline in two photos, the part slid between them.
+
+    ``points_px`` (M, 2) and ``points_moved_px`` (K, 2): the wire's centreline in the
+    first and the second photo (ordered along the wire), each photo with its plane.
+    The part is rigid and planar and keeps its rocking pose when slid (its lift an
+    affine function of position on the part, 0 at its lowest point). A point ``h`` up
+    images ``h / D`` farther from the camera's foot point; mapped to the plate, the
+    two views of the part then differ by a rigid motion plus ``(foot shift / D) h(p)``,
+    which for a tilted part is a non-rigid (linear) field no rigid motion absorbs. So
+    the tilt (2 parameters) and the rigid motion (3) are fitted together by robust
+    least squares: the first photo's points and the second's, each mapped to the plane
+    of its own height, moved onto the first by the rigid motion, at the least normal
+    distance from the first photo's centreline. The lift's constant is not observable
+    (it scales both views alike): the part rests at its lowest point, height 0. The
+    standard uncertainty counts one independent sample per wire diameter along the
+    part. ``axis_height_mm``: the axis' height where the part rests (the wire's radius).
+    """
+    import cv2
+    from scipy.optimize import least_squares
+
+    p1 = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    p2 = np.asarray(points_moved_px, dtype=np.float64).reshape(-1, 2)
+    q1 = points_at_heights_mm(plane, p1, axis_height_mm)
+    q2 = points_at_heights_mm(plane_moved, p2, axis_height_mm)
+    rot, _ = cv2.Rodrigues(plane.rvec)
+    centre = -rot.T @ np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
+    foot, distance = centre[:2], float(abs(centre[2]))
+    theta0, shift0, inside = _register_rigid(q2, q1)
+    # the motion first -> second moves the foot point F to R^-1 (F - shift)
+    c0, s0 = np.cos(theta0), np.sin(theta0)
+    r0 = np.array([[c0, -s0], [s0, c0]])
+    foot_shift = float(np.hypot(*(r0.T @ (foot - shift0) - foot)))
+    res0 = _signed_distance(_rigid(theta0, shift0, q2[inside]), q1)
+    rms0 = float(np.sqrt(np.mean(res0**2))) if inside.any() else float("nan")
+    base = MovedLift(None, float(np.degrees(theta0)), (float(shift0[0]), float(shift0[1])),
+                     foot_shift, distance, rms0, int(inside.sum()))  # fmt: skip
+    if inside.sum() < 20:
+        return replace(base, message="the two centrelines do not overlap")
+    if foot_shift < min_foot_shift_mm:
+        return replace(
+            base,
+            message=f"the part was not moved between the photos (the point under the camera "
+            f"moves {foot_shift:.1f} mm < {min_foot_shift_mm:.0f} mm): its lift cannot be "
+            "measured from them",
+        )
+    mid = q1.mean(axis=0)
+
+    def heights(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        slope = x[3:5] * 1e-2  # parameters in % (of mm per mm)
+        h1 = (q1 - mid) @ slope
+        low = float(h1.min())
+        h2 = (_rigid(x[0], x[1:3], q2[inside]) - mid) @ slope
+        return h1 - low, h2 - low
+
+    def residual(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
+        h1, h2 = heights(x)
+        x1 = points_at_heights_mm(plane, p1, axis_height_mm + h1)
+        x2 = points_at_heights_mm(plane_moved, p2[inside][keep], axis_height_mm + h2[keep])
+        return _signed_distance(_rigid(x[0], x[1:3], x2), x1)
+
+    x = np.array([theta0, shift0[0], shift0[1], 0.0, 0.0])
+    used = np.ones(int(inside.sum()), dtype=bool)
+    for _ in range(3):  # refit without the points a centreline defect puts off (> 4 sigma)
+        fit = least_squares(residual, x, args=(used,), x_scale=np.array([1e-4, 0.05, 0.05, 0.1, 0.1]),
+                            diff_step=1e-6)  # fmt: skip
+        x = fit.x
+        every = residual(x, np.ones_like(used))
+        med = float(np.median(every))
+        used = np.abs(every - med) < 4.0 * 1.4826 * float(np.median(np.abs(every - med))) + 1e-9
+    fit = least_squares(residual, x, args=(used,), x_scale=np.array([1e-4, 0.05, 0.05, 0.1, 0.1]),
+                        diff_step=1e-6)  # fmt: skip
+    res = fit.fun
+    jac = fit.jac
+    sigma2 = float(np.sum(res**2) / max(used.sum() - 5, 1))
+    length = float(np.sum(np.hypot(*np.diff(q2[inside], axis=0).T)))
+    n_eff = max(6.0, length / wire_diameter_mm)
+    cov = np.linalg.pinv(jac.T @ jac) * sigma2 * used.sum() / n_eff
+    slope = fit.x[3:5] * 1e-2
+    slope_cov = cov[3:5, 3:5] * 1e-4
+    h1, _ = heights(fit.x)
+    rel = (q1 - mid) @ slope
+    span = q1[int(np.argmax(rel))] - q1[int(np.argmin(rel))]
+    lift = LiftEstimate(
+        height_mm=h1,
+        slope=(float(slope[0]), float(slope[1])),
+        slope_cov=slope_cov,
+        lift_mm=float(h1.max()),
+        lift_sigma_mm=float(np.sqrt(span @ slope_cov @ span)),
+        samples=int(used.sum()),
+        width_scale=float("nan"),
+    )
+    return replace(
+        base,
+        lift=lift,
+        rotation_deg=float(np.degrees(fit.x[0])),
+        shift_mm=(float(fit.x[1]), float(fit.x[2])),
+        residual_rms_mm=float(np.sqrt(np.mean(res**2))),
+        samples=int(used.sum()),
+    )

@@ -60,6 +60,7 @@ from cvmeasure.part.lift import (
     MAX_LIFT_MM,
     LiftEstimate,
     estimate_lift,
+    estimate_lift_moved,
     lift_bound_mm,
     points_at_heights_mm,
     rocked_lift,
@@ -539,6 +540,62 @@ def _lift_effects(
     return info, None if worst_b is None else 0.5 * worst_b, warning
 
 
+#: Two views of a slid part whose registered centrelines differ by more than this rms
+#: (photo pixels) disagree beyond their noise (a centreline defect in one of them, e.g. an
+#: edge lost to a shadow): their lift is not used. Measured on the round-wire renders at
+#: half size: 0.08-0.12 px where the lift came out right, 0.43 px on one that read 6 mm
+#: for 1.5 mm.
+MOVED_MAX_RMS_PX = 0.25
+
+
+def _moved_lift(
+    moved_image: np.ndarray,
+    moved_plane: PlaneModel | None,
+    board: BoardSpec | None,
+    camera: CameraModel | None,
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    wire_diameter_mm: float,
+    axis_height_mm: float | None,
+    end_shape: EndShape,
+    centre_from: str,
+) -> tuple[dict[str, Any], Any, str]:
+    """The lift from a second photo of the slid part: (info, the MovedLift when usable, warning)."""
+    plane2, _, centre2, _ = measure_centreline_mm(
+        moved_image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
+        source="moved photo", wire_diameter_mm=wire_diameter_mm, plane=moved_plane,
+    )  # fmt: skip
+    if centre_from != "silhouette" or centre2.centre_from != "silhouette":
+        return (
+            {"lift_mm": None, "message": "silhouette edges lost"},
+            None,
+            "moved_photo_unused: the wire's silhouette edges were not found along the whole wire "
+            "in "
+            + ("the first photo" if centre_from != "silhouette" else "the moved photo")
+            + ": the profiles' centre of symmetry follows the highlight, which moves with the "
+            "view, so the two views' difference is not the lift; the lift is bounded instead",
+        )
+    moved = estimate_lift_moved(
+        plane, points_px, plane2, centre2.points_px,
+        axis_height_mm=_axis_height(axis_height_mm, wire_diameter_mm),
+        wire_diameter_mm=wire_diameter_mm,
+    )  # fmt: skip
+    info = moved.to_dict()
+    if moved.lift is None:
+        return info, None, f"moved_photo_unused: {moved.message}; the lift is bounded instead"
+    rms_px = moved.residual_rms_mm / plane.mm_per_px
+    info["residual_rms_px"] = rms_px
+    if rms_px > MOVED_MAX_RMS_PX:
+        return (
+            info,
+            None,
+            f"moved_photo_unused: the two views of the part disagree ({rms_px:.2f} px rms after "
+            f"registration > {MOVED_MAX_RMS_PX} px: a centreline defect in one of them), so their "
+            f"lift ({moved.lift.lift_mm:.2f} mm) is not used; the lift is bounded instead",
+        )
+    return info, moved, ""
+
+
 def _net_turn_deg(points_mm: np.ndarray) -> float:
     """Total signed turning of an ordered centreline (board frame sense), degrees."""
     pts = np.asarray(points_mm, dtype=np.float64)
@@ -602,6 +659,8 @@ def measure_part(
     wire_diameter_mm: float | None = None,
     plane: PlaneModel | None = None,
     max_lift_mm: float = MAX_LIFT_MM,
+    moved_image: np.ndarray | None = None,
+    moved_plane: PlaneModel | None = None,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -633,6 +692,16 @@ def measure_part(
         only left out of the wire search and may be None, ``camera`` is unused.
     max_lift_mm : with ``wire_diameter_mm``, the largest lift the part may rock to
         when the width does not bound it better (mm; 0 for a part pressed flat).
+    moved_image : with ``wire_diameter_mm``, a second photo of the same part slid on the
+        plate (tens of mm, keeping its pose; same camera): its lift is then measured from
+        the two views' perspective difference
+        (:func:`cvmeasure.part.lift.estimate_lift_moved`) and corrected (each point on the
+        plane of its own height, unrolled); only its uncertainty (2 sigma, any direction)
+        is bounded and warned about. When the part was not moved, or the two centrelines
+        disagree (residual above :data:`MOVED_MAX_RMS_PX`), a warning says so and the lift
+        is bounded as with one photo.
+    moved_plane : the second photo's plane (default: ``plane`` when given, else measured
+        from the board in ``moved_image``).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
         ``"flat"`` (square-cut); decides where the centreline's end points are.
     source : the photo's name, used in errors.
@@ -646,6 +715,7 @@ def measure_part(
     ValueError
         An unknown ``method`` or ``divisions < 1``.
     """
+    moved_given = plane is not None
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
     if divisions is not None and divisions < 1:
@@ -700,13 +770,55 @@ def measure_part(
             f"--divisions {divisions}, but no chord vertices were found in the photo "
             f"({chords.reason})"
         )
+    flat_mm = centreline_mm
     try:
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
     bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
     lift_info = None
-    if wire_diameter_mm is not None:
+    moved_info = None
+    if wire_diameter_mm is not None and moved_image is not None:
+        moved_info, corrected, moved_warning = _moved_lift(
+            moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
+            board, camera, plane, centre.points_px, wire_diameter_mm, axis_height_mm, end_shape,
+            centre.centre_from,
+        )  # fmt: skip
+        if moved_warning:
+            warnings.append(moved_warning)
+        if corrected is not None:
+            flat = (ours, poly)
+            centreline_mm = _lifted_mm(
+                plane, centre.points_px, _axis_height(axis_height_mm, wire_diameter_mm),
+                corrected.lift, 1.0,
+            )  # fmt: skip
+            try:
+                ours, circle, poly = arc_from_points(centreline_mm, divisions)
+            except ValueError as exc:
+                raise InputError(source, f"cannot fit the part ({exc})") from None
+            bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
+            lift_info, extra_sigma, _ = _lift_effects(
+                plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions,
+                _axis_height(axis_height_mm, wire_diameter_mm),
+                2.0 * corrected.lift.lift_sigma_mm,
+            )  # fmt: skip
+            lift_info = {**lift_info, **moved_info, "used": "correction",
+                         "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
+            if bend_sigma is not None and extra_sigma is not None:
+                bend_sigma = np.hypot(bend_sigma, extra_sigma)
+            if (
+                lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
+                or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
+                or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
+            ):
+                warnings.append(
+                    f"part_lifted: the two photos put the lift at {corrected.lift.lift_mm:.2f} +- "
+                    f"{corrected.lift.lift_sigma_mm:.2f} mm (corrected); its uncertainty (2 "
+                    f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
+                    f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
+                    f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"
+                )
+    if wire_diameter_mm is not None and lift_info is None:
         # a round wire on the plate may rock: its lift is bounded (the width's estimate
         # where it is good enough, else the largest lift a part rocks to)
         lift_info, extra_sigma, lift_warning = _lift_effects(
@@ -717,6 +829,8 @@ def measure_part(
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
         if lift_warning:
             warnings.append(lift_warning)
+        if moved_info is not None:
+            lift_info = {**lift_info, "moved": moved_info}
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = _outline_mm(image, wire, plane)
