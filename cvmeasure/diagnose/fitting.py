@@ -177,6 +177,9 @@ class ModelFit:
     shapes: tuple[Shape, ...] = ()  # each cause's form (empty: the narrow forms)
     discrepancy: tuple[float, ...] = ()  # coefficients (deg) of the discrepancy (empty: none)
     rss_discrepancy_deg2: float = math.nan  # residual sum of squares after the discrepancy
+    #: p-value of the discrepancy's share of the residuals under "the model is the machine"
+    #: (chi-square; below DISCREPANCY_P the data show a model-form error)
+    model_form_p: float = math.nan
 
     @property
     def cause(self) -> str:
@@ -618,7 +621,7 @@ def fit_model(
     # error of an angle is the same for all its repeats)
     command = trials.commanded_pin_deg if rows is None else trials.commanded_pin_deg[rows]
     cluster = np.unique(np.round(command, 1), return_inverse=True)[1]
-    se, shift = _standard_errors(
+    se, shift, model_form_p = _standard_errors(
         sol.jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
     )
     center = sol.x + shift
@@ -642,6 +645,7 @@ def fit_model(
         shapes=tuple(forms),
         discrepancy=tuple(float(v) for v in beta),
         rss_discrepancy_deg2=rss_disc,
+        model_form_p=model_form_p,
     )
 
 
@@ -654,7 +658,7 @@ def _standard_errors(
     noise_disc_deg2: float,
     *,
     clusters: NDArray[np.int_] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Standard errors of the fitted parameters and the move of their centre, with what
     is not fitted carried (Kennedy-O'Hagan).
 
@@ -684,7 +688,8 @@ def _standard_errors(
     the errors' correlation within a cluster), so a shared photo error or the model-form
     error common to the repeats of an angle is carried.
 
-    Returns (standard errors, centre moves), both of shape (n_par,).
+    Returns (standard errors, centre moves), both of shape (n_par,), and the p-value of
+    the discrepancy's energy under "no model-form error" (1 without a discrepancy).
     """
     n_par = jac.shape[1]
     n_obs = basis.shape[0]
@@ -699,7 +704,7 @@ def _standard_errors(
     try:
         inv = np.linalg.inv(sens.T @ sens)
     except np.linalg.LinAlgError:
-        return np.full(n_par, math.inf), np.zeros(n_par)
+        return np.full(n_par, math.inf), np.zeros(n_par), 1.0
     var = np.diag(inv)[:n_par] * noise_var_deg2
     r = np.zeros(sens.shape[0])
     r[: jac.shape[0]] = residual_deg  # at the fit: only the unfitted columns pull
@@ -714,6 +719,7 @@ def _standard_errors(
             robust = labels.size / (labels.size - 1.0) * np.sum(per**2, axis=1)
             var = var + np.maximum(robust - model, 0.0)
     used = np.any(basis != 0, axis=0)
+    p_value = 1.0
     if used.any():
         d = np.zeros((sens.shape[0], int(used.sum())))
         d[:n_obs] = basis[:, used]
@@ -736,7 +742,7 @@ def _standard_errors(
                 tau2 = max(tau2, DISCREPANCY_BOUND_DEG**2 / 3.0)
             a_d = inv @ (sens.T @ d)  # parameter shift per unit coefficient
             var = var + tau2 * np.sum(a_d[:n_par] ** 2, axis=1)
-    return np.sqrt(np.maximum(var, 0.0)), shift
+    return np.sqrt(np.maximum(var, 0.0)), shift, p_value
 
 
 def group_folds(groups: Sequence[str], k: int = 5, *, seed: int = 0) -> list[NDArray[np.bool_]]:

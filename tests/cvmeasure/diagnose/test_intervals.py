@@ -21,7 +21,7 @@ def _linear_case(nuisance_column, *, seed=3, n=200, noise=0.05, truth=(1.0, 0.4)
     theta = float(x @ y / (x @ x))  # conditional fit (a = 0)
     r = y - theta * x
     var = float(r @ r) / (n - 1)
-    se, shift = _standard_errors(-x[:, None], var, np.zeros((n, 0)), g[:, None], r, var)
+    se, shift, _ = _standard_errors(-x[:, None], var, np.zeros((n, 0)), g[:, None], r, var)
     return theta, float(se[0]), float(shift[0]), noise / float(np.sqrt(x @ x))
 
 
