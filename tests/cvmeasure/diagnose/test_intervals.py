@@ -90,3 +90,27 @@ def test_tilt_about_another_axis_beside_a_scale_is_carried_in_the_scale_interval
     lo, hi = result.intervals["scale"]
     assert lo <= case.hidden[1].params["scale"] <= hi, (case.hidden[1].params, (lo, hi))
     assert hi - lo < EFFECTS["scale"].typical[1]  # widened, not unbounded
+
+
+def test_errors_shared_within_a_command_are_carried_by_the_cluster_sandwich():
+    # 10 commands bent 12 times each: an error shared by the repeats of a command (the
+    # model-form error of that angle) makes the mean 1/sqrt(10), not 1/sqrt(120), precise
+    rng = np.random.default_rng(5)
+    labels = np.repeat(np.arange(10), 12)
+    x = np.ones(labels.size)  # an offset
+    spread = []
+    for shared in (0.0, 0.1):
+        ses, errors = [], []
+        for _ in range(200):
+            y = rng.normal(0.0, shared, 10)[labels] + rng.normal(0.0, 0.05, labels.size)
+            r = y - y.mean()
+            var = float(r @ r) / (labels.size - 1)
+            basis = np.zeros((labels.size, 0))
+            se, _, _ = _standard_errors(-x[:, None], var, basis, basis, r, var, clusters=labels)
+            ses.append(se[0])
+            errors.append(y.mean())
+        spread.append((float(np.median(ses)), float(np.std(errors))))
+    (se_iid, sd_iid), (se_shared, sd_shared) = spread
+    assert se_iid == pytest.approx(sd_iid, rel=0.2)  # independent errors: the model's
+    assert se_shared == pytest.approx(sd_shared, rel=0.3)  # shared: the sandwich's
+    assert se_shared > 5 * se_iid
