@@ -44,6 +44,7 @@ from numpy.typing import NDArray
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.discover import DiscoveredTerm, discover, library, term_words
 from cvmeasure.diagnose.fitting import (
+    DISCREPANCY_P,
     ModelFit,
     discrepancy_basis,
     fit_model,
@@ -534,11 +535,7 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
     the discrepancy (a move of the estimate and the lost precision both count). Only
     when the data show a model-form error (the discrepancy improves the BIC of the fit,
     its coefficients counted as parameters); otherwise the intervals are kept."""
-    n = fit.n_obs
-    k = len(fit.discrepancy)
-    floor = n * RESOLUTION_DEG**2
-    ratio = max(fit.rss_deg2, floor) / max(fit.rss_discrepancy_deg2, floor)
-    if n * math.log(ratio) - k * math.log(n) <= 0:
+    if not fit.model_form_p < DISCREPANCY_P:
         return fit
     alt = fit_model(
         ctx.trials,

@@ -85,6 +85,10 @@ UNFITTED_PRIOR_SD: tuple[tuple[str, float], ...] = (("approach_deg", 0.1),)
 #: parameters are fitted without it (inside its bounds it would absorb them).
 DISCREPANCY_DEGREE = 3
 DISCREPANCY_BOUND_DEG = 0.25
+#: The data show a model-form error when the discrepancy's share of the residuals is
+#: beyond the noise at this p-value (chi-square): the intervals then carry the
+#: discrepancy's prior variance (see :func:`_standard_errors`).
+DISCREPANCY_P = 0.01
 
 
 def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
@@ -136,6 +140,21 @@ FORMS: dict[str, tuple[Shape, ...]] = {
 }
 
 
+#: Continuous shape parameters of a form chosen from the grid of :data:`FORMS`, with the
+#: standard deviation of the grid's rounding (uniform within half a step: step / sqrt(12)):
+#: marginalised in every interval like the unfitted machine parameters.
+FORM_PRIOR_SD: dict[str, tuple[tuple[str, float], ...]] = {
+    "camera_tilt": (("tilt_axis_deg", 15.0 / math.sqrt(12.0)),),
+    "drift": (("load_exponent", 1.0 / math.sqrt(12.0)),),
+}
+
+
+def _shape_bounds(cause: str, key: str) -> tuple[float, float]:
+    """Bounds of a shape parameter of a cause (see cvmeasure.sim.effects)."""
+    spec = EFFECTS[cause].shape_spec(key)
+    return (spec.lower, spec.upper)
+
+
 def _as_causes(causes: str | Sequence[str]) -> Causes:
     if isinstance(causes, str):
         return () if causes == "none" else (causes,)
@@ -158,6 +177,9 @@ class ModelFit:
     shapes: tuple[Shape, ...] = ()  # each cause's form (empty: the narrow forms)
     discrepancy: tuple[float, ...] = ()  # coefficients (deg) of the discrepancy (empty: none)
     rss_discrepancy_deg2: float = math.nan  # residual sum of squares after the discrepancy
+    #: p-value of the discrepancy's share of the residuals under "the model is the machine"
+    #: (chi-square; below DISCREPANCY_P the data show a model-form error)
+    model_form_p: float = math.nan
 
     @property
     def cause(self) -> str:
@@ -395,11 +417,18 @@ def residuals(
     return r
 
 
-def _interval(center: float, se: float, dof: int, lo: float, hi: float) -> tuple[float, float]:
+def _interval(
+    center: float, se: float, dof: int, lo: float, hi: float, *, keep: float | None = None
+) -> tuple[float, float]:
+    """Student-t 95 % interval about ``center`` within ``[lo, hi]``, stretched to hold
+    ``keep`` (the reported estimate, when the interval's centre was moved)."""
     if not math.isfinite(se):
         return (lo, hi)
     t = float(special.stdtrit(max(dof, 1), 0.975))  # Student t quantile (no scipy.stats)
-    return (max(center - t * se, lo), min(center + t * se, hi))
+    a, b = center - t * se, center + t * se
+    if keep is not None:
+        a, b = min(a, keep), max(b, keep)
+    return (max(a, lo), min(b, hi))
 
 
 def fit_model(
@@ -561,17 +590,54 @@ def fit_model(
             shapes=forms,
         )[keep]
         unfitted.append((r0 - shifted)[ok])
+    for i, c in enumerate(names):  # a form's continuous shape, chosen from a grid
+        for key, sd in FORM_PRIOR_SD.get(c, ()):
+            shape = dict(forms[i])
+            if c == "drift" and not shape.get("home_shift"):
+                continue  # the load exponent is only tried with the home shift
+            value = shape.get(key, 0.0)
+            lo, hi = _shape_bounds(c, key)
+            step = sd if value + sd <= hi or value - sd < lo else -sd  # inside the bounds
+            shape[key] = value + step
+            moved_forms = [*forms[:i], tuple(shape.items()), *forms[i + 1 :]]
+            shifted = residuals(
+                trials,
+                params,
+                base_effects,
+                names,
+                sol.x[0],
+                sol.x[1 + m :],
+                nuisance=sol.x[1 : 1 + m],
+                shapes=moved_forms,
+            )[keep]
+            unfitted.append((r0 - shifted)[ok] * (sd / step))
     cols = np.column_stack(unfitted) if unfitted else np.zeros((int(ok.sum()), 0))
-    se = _standard_errors(sol.jac, rss / max(dof, 1), basis_ok, beta, cols)
+    # the noise left once the discrepancy is taken too (the residual variance of the
+    # fit, rss / dof, also carries the model-form wave)
+    k_disc = int(np.any(basis_ok != 0, axis=0).sum())
+    noise_disc = rss_disc / max(dof - k_disc, 1)
+    # clusters of observation rows (of r0[ok]) whose errors may be shared: the loaded and
+    # released photo of one bend, and every bend of one repeated command (the model-form
+    # error of an angle is the same for all its repeats)
+    command = trials.commanded_pin_deg if rows is None else trials.commanded_pin_deg[rows]
+    cluster = np.unique(np.round(command, 1), return_inverse=True)[1]
+    se, shift, model_form_p = _standard_errors(
+        sol.jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
+    )
+    center = sol.x + shift
     return ModelFit(
         causes=names,
         strength_scale=float(sol.x[0]),
         values=tuple(float(v) for v in sol.x[1 + m :]),
         intervals=tuple(
-            _interval(float(sol.x[i]), float(se[i]), dof, spec.lower, spec.upper)
+            _interval(
+                float(center[i]), float(se[i]), dof, spec.lower, spec.upper, keep=float(sol.x[i])
+            )
             for i, spec in enumerate(specs, start=1 + m)
         ),
-        strength_interval=_interval(float(sol.x[0]), float(se[0]), dof, *_STRENGTH_BOUNDS),
+        strength_interval=_interval(
+            float(center[0]), float(se[0]), dof, *_STRENGTH_BOUNDS, keep=float(sol.x[0])
+        ),
         rss_deg2=rss,
         n_obs=n_obs,
         n_params=n_par,
@@ -579,6 +645,7 @@ def fit_model(
         shapes=tuple(forms),
         discrepancy=tuple(float(v) for v in beta),
         rss_discrepancy_deg2=rss_disc,
+        model_form_p=model_form_p,
     )
 
 
@@ -586,39 +653,96 @@ def _standard_errors(
     jac: NDArray[np.float64],
     noise_var_deg2: float,
     basis: NDArray[np.float64],
-    beta: NDArray[np.float64],
     unfitted: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Standard errors of the fitted parameters with the model-form discrepancy as a
-    random bias (Kennedy-O'Hagan): ``cov = (J'J)^-1 s^2 + tau^2 (A D)(A D)'``,
-    ``A = (J'J)^-1 J'`` the estimator's sensitivity to the observations and ``D`` the
-    discrepancy basis over the observation rows (the prior rows follow them), so a
-    parameter widens by its correlation with the discrepancy. ``tau^2`` is the mean
-    square of the discrepancy coefficients profiled from the fit's residuals ``beta``
-    (empirical Bayes: the part the parameters absorbed is taken as large as the part
-    they left), less their noise variance. ``unfitted`` (observation rows, one column per
-    parameter of :data:`UNFITTED_PRIOR_SD`) is the change of the predictions by one prior
-    standard deviation of a machine parameter held at its nominal value; each adds its
-    ``(A g)^2``."""
+    residual_deg: NDArray[np.float64],
+    noise_disc_deg2: float,
+    *,
+    clusters: NDArray[np.int_] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Standard errors of the fitted parameters and the move of their centre, with what
+    is not fitted carried (Kennedy-O'Hagan).
+
+    ``jac`` (residual rows then prior rows) is the fit's Jacobian; ``residual_deg`` are the fit's
+    residuals (the rows of ``jac``); ``unfitted`` (one
+    column per parameter of :data:`UNFITTED_PRIOR_SD`, observation rows) the change of
+    the predictions by one prior standard deviation of a machine parameter held at its
+    nominal value. That parameter is *marginalised*: it joins the Gauss-Newton system
+    as a column with its prior (unit precision per prior sd), so the parameters widen
+    only by the part of it the data cannot tell from them (all of it for play lost on
+    every bend, little for a scale), and the centre moves by the one Gauss-Newton step
+    of the joint fit (the data's pull on it: the fit held it at nominal).
+
+    The model-form discrepancy ``D beta`` (``basis`` over the observation rows) is a
+    random bias with ``beta ~ N(0, tau^2 I)``: ``cov += tau^2 (A D)(A D)'``, ``A`` the
+    estimator's sensitivity to the observations. ``tau^2`` by the method of moments on
+    the fit's residuals ``r`` (which are ``P (D beta + e)``, ``P`` the projector off the
+    fitted directions): ``E |Q'r|^2 = tau^2 tr(D'PD) + s^2 rank(Q)``, ``Q`` an orthonormal
+    basis of ``PD`` and ``s^2 = noise_disc_deg2`` the noise left after the discrepancy;
+    so the part of the discrepancy that the parameters absorbed is counted (it was the
+    mean square of the profiled coefficients, which misses that part).
+
+    ``clusters`` (one label per observation row) group rows whose errors may be shared
+    (the two photos of a bend, the repeats of one command): the noise part of the
+    variance is the larger of the model's (independent errors, ``s^2 A A'``) and the
+    cluster-robust sandwich ``G / (G - 1) sum_g (A r_g)(A r_g)'`` (consistent whatever
+    the errors' correlation within a cluster), so a shared photo error or the model-form
+    error common to the repeats of an angle is carried.
+
+    Returns (standard errors, centre moves), both of shape (n_par,), and the p-value of
+    the discrepancy's energy under "no model-form error" (1 without a discrepancy).
+    """
     n_par = jac.shape[1]
+    n_obs = basis.shape[0]
+    n_unf = unfitted.shape[1] if unfitted.size else 0
+    # prediction sensitivities (the residual Jacobian is minus them), the unfitted
+    # parameters in prior sd units with their prior rows scaled to the noise
+    sens = np.zeros((jac.shape[0] + n_unf, n_par + n_unf))
+    sens[: jac.shape[0], :n_par] = -jac
+    if n_unf:
+        sens[:n_obs, n_par:] = unfitted
+        sens[jac.shape[0] :, n_par:] = math.sqrt(noise_var_deg2) * np.eye(n_unf)
     try:
-        inv = np.linalg.inv(jac.T @ jac)
+        inv = np.linalg.inv(sens.T @ sens)
     except np.linalg.LinAlgError:
-        return np.full(n_par, math.inf)
-    var = np.diag(inv) * noise_var_deg2
+        return np.full(n_par, math.inf), np.zeros(n_par), 1.0
+    var = np.diag(inv)[:n_par] * noise_var_deg2
+    r = np.zeros(sens.shape[0])
+    r[: jac.shape[0]] = residual_deg  # at the fit: only the unfitted columns pull
+    shift = (inv @ (sens.T @ r))[:n_par]
+    if clusters is not None and clusters.size == n_obs:
+        a = (inv[:n_par] @ sens.T)[:, :n_obs]  # parameter change per unit observation
+        model = noise_var_deg2 * np.sum(a**2, axis=1)
+        labels, where = np.unique(clusters, return_inverse=True)
+        if labels.size > 1:
+            per = np.zeros((n_par, labels.size))
+            np.add.at(per.T, where, (a * r[:n_obs]).T)
+            robust = labels.size / (labels.size - 1.0) * np.sum(per**2, axis=1)
+            var = var + np.maximum(robust - model, 0.0)
     used = np.any(basis != 0, axis=0)
+    p_value = 1.0
     if used.any():
-        d = np.zeros((jac.shape[0], int(used.sum())))
-        d[: basis.shape[0]] = basis[:, used]
-        noise_beta = noise_var_deg2 * np.diag(np.linalg.pinv(d.T @ d))
-        tau2 = max(float(np.mean(beta[used] ** 2 - noise_beta)), 0.0)
-        sens = inv @ (jac.T @ d)  # (n_par, n_basis): parameter shift per unit coefficient
-        var = var + tau2 * np.sum(sens**2, axis=1)
-    if unfitted.size:
-        g = np.zeros((jac.shape[0], unfitted.shape[1]))
-        g[: unfitted.shape[0]] = unfitted
-        var = var + np.sum((inv @ (jac.T @ g)) ** 2, axis=1)
-    return np.sqrt(np.maximum(var, 0.0))
+        d = np.zeros((sens.shape[0], int(used.sum())))
+        d[:n_obs] = basis[:, used]
+        q_fit = np.linalg.qr(sens)[0]
+        pd = d - q_fit @ (q_fit.T @ d)  # the discrepancy off the fitted directions
+        q, tri, *_ = np.linalg.svd(pd, full_matrices=False)
+        keep = tri > 1e-9 * max(float(tri[0]), 1e-300)
+        q = q[:, keep]
+        trace = float(np.sum(pd**2))
+        if trace > 0:
+            energy = float(np.sum((q.T @ r) ** 2))
+            rank = int(keep.sum())
+            tau2 = max((energy - noise_disc_deg2 * rank) / trace, 0.0)
+            # the data show a model-form error (the discrepancy's energy beyond the noise
+            # at p < DISCREPANCY_P): the part of it along the parameters is absorbed and
+            # cannot be measured, so the coefficients' variance is at least that of the
+            # discrepancy's own prior (uniform within its bounds)
+            p_value = float(special.chdtrc(rank, energy / max(noise_disc_deg2, 1e-300)))
+            if p_value < DISCREPANCY_P:
+                tau2 = max(tau2, DISCREPANCY_BOUND_DEG**2 / 3.0)
+            a_d = inv @ (sens.T @ d)  # parameter shift per unit coefficient
+            var = var + tau2 * np.sum(a_d[:n_par] ** 2, axis=1)
+    return np.sqrt(np.maximum(var, 0.0)), shift, p_value
 
 
 def group_folds(groups: Sequence[str], k: int = 5, *, seed: int = 0) -> list[NDArray[np.bool_]]:
