@@ -323,6 +323,9 @@ class CrossValidation:
 
     causes: Causes
     residual_deg: NDArray[np.float64]
+    #: Held-out residuals less the discrepancy fitted with the model on the other folds
+    #: (None: the model was fitted without it).
+    residual_discrepancy_deg: NDArray[np.float64] | None = None
 
     @property
     def rmse_deg(self) -> float:
@@ -330,7 +333,11 @@ class CrossValidation:
         return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
     def rmse_after_discrepancy_deg(self, trials: TrialTable) -> float:
-        """Held-out RMSE with the bounded model-form discrepancy profiled out."""
+        """Held-out RMSE with the bounded model-form discrepancy profiled out (predicted
+        from the other folds when it was fitted with the model there)."""
+        if self.residual_discrepancy_deg is not None:
+            r = self.residual_discrepancy_deg[np.isfinite(self.residual_discrepancy_deg)]
+            return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
         ok = np.isfinite(self.residual_deg)
         if not ok.any():
             return math.nan
@@ -763,12 +770,17 @@ def grouped_kfold_cv(
     *,
     base_effects: Sequence[Effect] = (),
     full_fit: ModelFit | None = None,
+    discrepancy: bool = False,
 ) -> CrossValidation:
-    """Held-out residuals: fit on all folds but one, predict the one, for every fold."""
+    """Held-out residuals: fit on all folds but one, predict the one, for every fold
+    (with ``discrepancy``, the model and the bounded discrepancy are fitted together on
+    the other folds and both predict the held-out one)."""
     names = _as_causes(causes)
     n = len(trials)
     n_blocks = len(BLOCKS)
     out = np.full(n_blocks * n, np.nan)
+    out_d = np.full(n_blocks * n, np.nan)
+    basis = discrepancy_basis(trials)
     # the nuisance geometry stays at its full-data fit within the folds (the same for
     # every model compared: the machine is measured once); strength and causes are refitted
     fold_params = _scaled(params, 1.0, full_fit.nuisance) if full_fit is not None else params
@@ -782,9 +794,13 @@ def grouped_kfold_cv(
             base_effects=base_effects,
             start=full_fit,
             nuisance=False,
+            discrepancy=discrepancy,
             rows=~held,
         )
         r = fit.residuals(trials, fold_params, base_effects)
         mask = np.tile(held, n_blocks)
         out[mask] = r[mask]
-    return CrossValidation(causes=names, residual_deg=out)
+        out_d[mask] = (r - basis @ np.asarray(fit.discrepancy))[mask]
+    return CrossValidation(
+        causes=names, residual_deg=out, residual_discrepancy_deg=out_d if discrepancy else None
+    )
