@@ -237,6 +237,8 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_vertex_err_deg"] = float(np.max(np.abs(bends - true_seg)))
         out[f"{name}_within_2sigma"] = [bool(v) for v in np.abs(bends - true_seg) < 2 * sigma]
         out[f"{name}_lifted_warning"] = any(w.startswith("part_lifted") for w in m.warnings)
+        # an end point it cannot locate well (its cap facing its shadow) is said too
+        out[f"{name}_end_warning"] = any(w.startswith("part_end_uncertain") for w in m.warnings)
         out[f"{name}_lift"] = m.lift
         out[f"{name}_moved_unused"] = any(w.startswith("moved_photo_unused") for w in m.warnings)
     return out
@@ -443,7 +445,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
     r_worst = max((abs(r["round_radius_err_pct"]) for r in ok), default=float("nan"))
     b_worst = max((abs(r["round_segment_bend_err_deg"]) for r in ok), default=float("nan"))
     v_worst = max((r["round_vertex_err_deg"] for r in ok), default=float("nan"))
-    # silently wrong: off target and no part_lifted warning
+    # silently wrong: off target and no part_lifted or part_end_uncertain warning
     silent = sum(
         1
         for r in ok
@@ -451,7 +453,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             abs(r["round_radius_err_pct"]) > RADIUS_TARGET_PCT
             or r["round_vertex_err_deg"] > BEND_TARGET_DEG
         )
-        and not r["round_lifted_warning"]
+        and not (r["round_lifted_warning"] or r.get("round_end_warning"))
     )
     held = [v for r in ok for v in r["round_within_2sigma"]]
     rate = 100.0 * float(np.mean(held)) if held else float("nan")
@@ -485,7 +487,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             rate, "%", "90-98", bool(90.0 <= rate <= 98.0),
         ),
         Metric(
-            "round wire: parts off target without a part_lifted warning (silently wrong)",
+            "round wire: parts off target without a part_lifted or part_end_uncertain warning (silently wrong)",
             f"{silent} of {len(ok)} ({refused} refused)", "parts", "0", silent == 0,
         ),
         *_moved_metrics(rows),
@@ -520,7 +522,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
             abs(r["moved_radius_err_pct"]) > RADIUS_TARGET_PCT
             or abs(r["moved_segment_bend_err_deg"]) > BEND_TARGET_DEG
         )
-        and not r["moved_lifted_warning"]
+        and not (r["moved_lifted_warning"] or r.get("moved_end_warning"))
     )
     return [
         Metric(
@@ -540,7 +542,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
         Metric("round wire, two photos: vertex bends within 2 stated sigma", rate, "%"),
         Metric(
             "round wire, two photos: radius or bend per chord off target without a "
-            "part_lifted warning",
+            "part_lifted or part_end_uncertain warning",
             f"{silent} of {len(ok)}", "parts", "0", silent == 0,
         ),
     ]  # fmt: skip
@@ -570,6 +572,7 @@ def _round_table(rows: list[dict]) -> Table:
                 val(r, "moved_segment_bend_err_deg"),
                 val(r, "moved_vertex_err_deg"),
                 _moved_lift_cell(r.get("moved_lift")),
+                "yes" if r.get("moved_end_warning") else "no",
             ]
         )
     return Table(
@@ -579,6 +582,7 @@ def _round_table(rows: list[dict]) -> Table:
             "part", "sheet", "lift_mm", "light_elev_deg", "R_%", "bend_per_chord_deg",
             "vertex_worst_deg", "lift_est_mm", "part_lifted", "flat_R_%", "flat_vertex_worst_deg",
             "moved_R_%", "moved_bend_per_chord_deg", "moved_vertex_worst_deg", "moved_lift_mm",
+            "moved_end_uncertain",
         ],
         body,
     )  # fmt: skip

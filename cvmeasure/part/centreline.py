@@ -40,7 +40,7 @@ centres at integers). :mod:`cvmeasure.part.measure` maps them to board mm.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -54,6 +54,9 @@ __all__ = [
 ]
 
 _STEP_PX = 0.05
+#: An end whose outward axis is within 60 deg of the shadow's direction faces away from
+#: the light (:func:`_end_point`).
+INTO_SHADOW_COS = 0.5
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
 #: valley is symmetric enough to pass for a centre.
 _MIN_RHO_PX = 1.5
@@ -97,6 +100,10 @@ class Centreline:
         the whole wire.
     edge_width_px : with silhouette edges, ndarray (M,): the distance between the
         two edges at each point (NaN at the end points), pixels; else None.
+    end_uncertainty_px : (2,) how far inside each end point a weaker step could be the
+        cap's silhouette instead (pixels, along the axis; 0 where none): at an end facing
+        away from the light on a light sheet, where the shadow's far edge and the cap's
+        silhouette both step the same way (:func:`_cap_edge`).
     """
 
     points_px: np.ndarray
@@ -108,6 +115,7 @@ class Centreline:
     asymmetry: float = 0.0
     centre_from: str = "symmetry"
     edge_width_px: np.ndarray | None = None
+    end_uncertainty_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     def to_dict(self) -> dict[str, Any]:
         widths = self.edge_width_px
@@ -125,6 +133,7 @@ class Centreline:
             "rejected": self.rejected,
             "coverage": self.coverage,
             "asymmetry": self.asymmetry,
+            "end_uncertainty_px": [float(v) for v in self.end_uncertainty_px],
         }
 
 
@@ -622,6 +631,7 @@ def measure_centreline(
     prof_ok = prof[ok]
     centre_from = "symmetry"
     widths = None
+    shadow = None
     if wire_width_px is not None:
         # from the mask's path, not the symmetric centres: those may have lost a
         # stretch of the wire (a clipped highlight), which could not come back
@@ -642,7 +652,7 @@ def measure_centreline(
             else SILHOUETTE_MIN_SHARE_OF_PATH * _length(path)
         )
         if found is not None and _length(found[0]) >= reach_px:
-            centres, prof_ok, widths, coverage = found
+            centres, prof_ok, widths, coverage, shadow = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
@@ -650,15 +660,15 @@ def measure_centreline(
             centre_from = "symmetry (no silhouette edges along the whole wire)"
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
-    ends = np.vstack(
-        [
-            _end_point(
-                g, centres, prof_ok, offsets, rho, half_width,
-                head=head, shape=end_shape, silhouette=at_edges,
-            )
-            for head in (True, False)
-        ]
-    )  # fmt: skip
+    found_ends = [
+        _end_point(
+            g, centres, prof_ok, offsets, rho, half_width,
+            head=head, shape=end_shape, silhouette=at_edges, shadow=shadow,
+        )
+        for head in (True, False)
+    ]  # fmt: skip
+    ends = np.vstack([e[0] for e in found_ends])
+    end_uncertainty = np.array([e[1] for e in found_ends])
     # trim centres that lie beyond the end points (skeleton overshoot)
     keep = np.ones(len(centres), dtype=bool)
     k = min(5, len(centres) - 1)
@@ -687,6 +697,7 @@ def measure_centreline(
         asymmetry=symmetry,
         centre_from=centre_from,
         edge_width_px=edge_width,
+        end_uncertainty_px=end_uncertainty,
     )
 
 
@@ -737,7 +748,7 @@ def _silhouette_centres(
     step_px: float,
     smooth_px: float,
     window: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
     The edges are the strongest gradient pair a width apart (within 8 %, or 0.5 px;
@@ -755,7 +766,8 @@ def _silhouette_centres(
     partly by one edge would not be.
 
     Returns the centres, their profiles, the edge widths (px, NaN where only one
-    edge was used) and the share of profiles with a centre.
+    edge was used), the share of profiles with a centre and the image direction in
+    which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen).
     """
     coverage = 1.0
     widths = np.zeros(0)
@@ -831,7 +843,7 @@ def _silhouette_centres(
         centres, widths = centres[lo:hi], widths[lo:hi]
     # the last profiles, re-centred on the edges' midpoints (for the end points)
     normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
-    return centres, profiles_at(centres, normals), widths, coverage
+    return centres, profiles_at(centres, normals), widths, coverage, shadow
 
 
 def _end_point(
@@ -845,8 +857,9 @@ def _end_point(
     head: bool,
     shape: EndShape = "round",
     silhouette: bool = False,
-) -> np.ndarray:
-    """The end point of the wire's axis at one end, pixels.
+    shadow: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """The end point of the wire's axis at one end, pixels, and its uncertainty (px).
 
     Round ends: the centre of the hemispherical cap. Flat ends: the end face,
     where the brightness along the axis crosses half-way from the crest (the
@@ -859,6 +872,11 @@ def _end_point(
     brightness along the axis of a side-lit cap (a specular spot, a lit or a
     dark face) does not repeat the profile across the wire, which the match
     below assumes (it stopped 30 px short on the photo lab's 23 px wire).
+
+    ``shadow``: the image direction in which the wire's shadow lies, when seen. An end
+    whose axis points into it (within 60 deg) faces away from the light and the shadow of
+    a lifted end can reach beyond its cap: the returned uncertainty says how far inside
+    the cap's silhouette could lie (:func:`_cap_edge`; 0 elsewhere).
 
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
@@ -889,11 +907,13 @@ def _end_point(
     left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
     template = np.median(0.5 * (right + left), axis=0)
     if shape == "flat":
-        return _flat_end(gray, start, d, block, half_width)
+        return _flat_end(gray, start, d, block, half_width), 0.0
     if silhouette:
-        edge = _cap_edge(gray, start, d, block, half_width)
-        if edge is not None:
-            return start + (edge - half_width) * d
+        into_shadow = shadow is not None and float(d @ shadow) >= INTO_SHADOW_COS
+        found = _cap_edge(gray, start, d, block, half_width, facing_shadow=into_shadow)
+        if found is not None:
+            edge, spread = found
+            return start + (edge - half_width) * d, spread
     search = np.arange(
         -round((1.0 * half_width) / _STEP_PX), round((8.0 * half_width + 4.0) / _STEP_PX) + 1
     )
@@ -909,13 +929,20 @@ def _end_point(
         best = float(search[k] + np.clip(frac, -1, 1) * _STEP_PX)
     else:
         best = float(search[k])
-    return start + best * d
+    return start + best * d, 0.0
 
 
 def _cap_edge(
-    gray: np.ndarray, start: np.ndarray, d: np.ndarray, block: np.ndarray, half_width: float
-) -> float | None:
-    """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none.
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    half_width: float,
+    *,
+    facing_shadow: bool = False,
+) -> tuple[float, float] | None:
+    """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none,
+    and how far inside it a weaker step could be the silhouette instead (px, else 0).
 
     The silhouette is where the brightness along the axis steps from the wire's towards
     the background's (the profiles' ``block`` across the wire near the end give both
@@ -923,7 +950,12 @@ def _cap_edge(
     peaks at least half as strong as the strongest, the outermost within two
     half-widths beyond the strongest: a specular spot on the cap has edges of its own
     inside the cap, a shadow's penumbra beyond it is soft, and another object farther
-    away is not taken.
+    away is not taken. At an end facing away from the light (``facing_shadow``) on a
+    plate brighter than the wire, the shadow's far edge steps like the silhouette and as
+    strongly, and may be the outermost peak (13.5 px beyond the cap at a 1.5 mm lift):
+    there the uncertainty is how far inside the taken peak the innermost one at least a
+    quarter as strong lies (within two half-widths), else 0. Taking the innermost strong
+    peak instead was measured wrong as often (a lab render's cap: 0.10 deg per chord).
     """
     from scipy.ndimage import gaussian_filter1d
 
@@ -943,10 +975,18 @@ def _cap_edge(
     strong = peaks[grad[peaks] >= 0.5 * grad[peaks].max()]
     first = strong[np.argmax(grad[strong])]
     k = int(strong[t[strong] <= t[first] + 2.0 * half_width].max())
+    spread = 0.0
+    # the shadow's far edge steps like the silhouette, and as strongly, only where the plate
+    # is brighter than the wire (a light sheet); on a dark one it is faint beside the wire's
+    if facing_shadow and sign < 0:
+        weak = peaks[
+            (grad[peaks] >= 0.25 * grad[peaks].max()) & (t[peaks] >= t[k] - 2.0 * half_width)
+        ]
+        spread = float(t[k] - t[weak].min())
     g0, g1, g2 = grad[k - 1], grad[k], grad[k + 1]
     den = g0 - 2 * g1 + g2
     frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
-    return float(t[k] + np.clip(frac, -0.5, 0.5) * _STEP_PX)
+    return float(t[k] + np.clip(frac, -0.5, 0.5) * _STEP_PX), spread
 
 
 def _flat_end(

@@ -459,6 +459,9 @@ def _ends_at_a_boundary(
 #: What a lift may change before it is warned about: the parts targets.
 LIFT_RADIUS_PCT = 0.3
 LIFT_BEND_DEG = 0.03
+#: An end point's uncertainty that could move the bend per chord by more than this (deg) is
+#: warned about (``part_end_uncertain``).
+END_BEND_DEG = 0.03
 
 
 def _lifted_mm(
@@ -738,6 +741,7 @@ def measure_part(
             points_px=centre.points_px[::-1],
             ends_px=centre.ends_px[::-1],
             edge_width_px=widths,
+            end_uncertainty_px=centre.end_uncertainty_px[::-1],
         )
     warnings: list[str] = []
     if wire_diameter_mm is not None and centre.centre_from != "silhouette":
@@ -860,6 +864,20 @@ def measure_part(
             "arc_angle_deg are of the one circle nearest to it and describe no real arc; read "
             "chord_width_mm, height_mm and the bend at each vertex"
         )
+    end_px = float(np.max(centre.end_uncertainty_px))
+    if end_px > 0.0 and ours.radius_mm > 0.0:
+        # one end point moved along the wire by u turns the arc by u / R: each chord's bend
+        # by that over the chords
+        end_mm = end_px * plane.mm_per_px
+        turn_deg = float(np.degrees(end_mm / ours.radius_mm))
+        per_chord = turn_deg / divisions if divisions else turn_deg
+        if per_chord > END_BEND_DEG:
+            warnings.append(
+                f"part_end_uncertain: an end of the wire faces its shadow on a light plate and "
+                f"its cap's outline could lie up to {end_mm:.2f} mm farther in; the arc angle "
+                f"may be up to {turn_deg:.2f} deg and the bend per chord {per_chord:.3f} deg "
+                "smaller (the vertex bends are not affected)"
+            )
     cut = _ends_at_a_boundary(centre.ends_px, board, plane, image.shape[:2], wire.width_px)
     if cut:
         warnings.append(
