@@ -825,8 +825,13 @@ class FakeTinyG:
         if self._pos["x"] == start["x"] or self._pos["z"] > 90.0 or start["z"] > 90.0:
             return
         pin = self._pos["x"]
-        loaded, unloaded = self._simulate(pin)
         held = self._holding
+        toward_home = start["x"] * pin >= 0.0 and abs(pin) < abs(start["x"])
+        if toward_home and held is None:
+            # a retreating pin presses nothing: a return to home cut by two stops
+            # (its fix-up ending off home) is not a new bend
+            return
+        loaded, unloaded = self._simulate(pin)
         if loaded != 0.0 and (held is None or abs(loaded) > abs(held[1]) + 1e-9):
             if held is not None and math.copysign(1, loaded) != math.copysign(1, held[1]):
                 self._release()

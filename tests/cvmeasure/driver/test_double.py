@@ -265,3 +265,44 @@ def test_queue_and_filtered_status_reports():
         assert ys == sorted(ys) and ys[-1] == 15.0 and len(ys) >= 3  # reported while moving
         assert all(len(f) < 7 for f in sr[1:])  # filtered: only what changed
         host.close()
+
+
+def _hold_when(board: FakeTinyG, host: Host, below_deg: float) -> float:
+    """Feedhold + flush once the retreating pin is under ``below_deg``; the pin where it stopped."""
+    deadline = time.monotonic() + 5.0
+    while board.machine_state().pin_deg >= below_deg and time.monotonic() < deadline:
+        time.sleep(0.002)
+    host.send(b"!%")
+    host.messages.clear()
+    host.collect(2.0, until=lambda m: isinstance(m, RxReport))
+    return board.machine_state().pin_deg
+
+
+def test_a_retreat_cut_twice_is_one_bend():
+    # the pin's return to home cut by two stops (each resumed by a fix-up to X0):
+    # a retreating pin presses nothing, so the part has one bend, not two
+    with FakeTinyG(speedup=4.0) as b:
+        host = Host(b.port)
+        pin = float(pin_command_for_angle(60.0))
+        host.send(b"N1 G91 G1 Y20 F3000\nN2 G90 G1 X%.4f F6000\n" % pin)
+        host.collect(2.0, until=stat_is(3))
+        assert b.machine_state().holding
+        host.send(b"N3 G90 G1 X0 F1000\n")  # 67 deg/s wall
+        first = _hold_when(b, host, 0.75 * pin)
+        assert 0.55 * pin < first < 0.75 * pin  # cut midway: the wire was let go
+        assert len(b.machine_state().bends) == 1 and not b.machine_state().holding
+        host.send(b"N3 G90 G1 X0 F1000\n")
+        second = _hold_when(b, host, 0.45 * pin)
+        assert 0.3 * pin < second < 0.45 * pin  # cut again, the pin still off home
+        assert not b.machine_state().holding
+        host.send(b"N3 G90 G1 X0 F1000\nN4 G91 G1 Y15 F3000\n")
+        host.messages.clear()
+        host.collect(3.0, until=lambda m: isinstance(m, StatusReport) and m.line == 4)
+        host.collect(3.0, until=stat_is(3))
+        state = b.machine_state()
+        assert state.pin_deg == 0.0 and state.feed_mm == pytest.approx(35.0)
+        assert len(state.bends) == 1
+        bend = state.bends[0]
+        assert bend.pin_deg == pytest.approx(pin) and bend.feed_before_mm == 20.0
+        assert bend.unloaded_bend_deg == pytest.approx(60.0, abs=1e-4)
+        host.close()
