@@ -42,7 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discover import DiscoveredTerm, discover, library, term_words
+from cvmeasure.diagnose.discover import (
+    DiscoveredTerm,
+    Discovery,
+    discover,
+    library,
+    term_words,
+)
 from cvmeasure.diagnose.fitting import (
     DISCREPANCY_P,
     ModelFit,
@@ -409,14 +415,7 @@ def diagnose(
     # what the library still finds in the named cause's residuals
     beside: tuple[DiscoveredTerm, ...] = ()
     if cause != "none":
-        beside = discover(
-            trials,
-            ext_res - basis @ np.asarray(ext_fit.discrepancy),
-            groups,
-            ctx.fold_masks,
-            head_gain=ext_fit.head_sensitivity(trials, params, ctx.base_effects),
-            refit=ext_fit.nuisance_jacobian(trials, params, ctx.base_effects),
-        ).terms
+        beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
 
     # discovered terms replace a catalogue name only when they are better both held out
     # (by min_cv_gain) and in evidence (a larger evidence weight: delta BIC with their
@@ -455,14 +454,7 @@ def diagnose(
                 cause, ext_fit = option.causes[0], option
                 ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
                 ext_cv = next(c.cv_rmse_deg for c in results if c.fit is option)
-                beside = discover(
-                    trials,
-                    ext_res - basis @ np.asarray(ext_fit.discrepancy),
-                    groups,
-                    ctx.fold_masks,
-                    head_gain=ext_fit.head_sensitivity(trials, params, ctx.base_effects),
-                    refit=ext_fit.nuisance_jacobian(trials, params, ctx.base_effects),
-                ).terms
+                beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
             for key in [k for k in scores if set(k.split(" + ")) == set(option.causes)]:
                 scores[key] = named_bic
             break
@@ -566,19 +558,28 @@ def _kept_against_terms(
     joint, joint_cv, joint_bic = _joint_with_discrepancy(ctx, fit, base_fit)
     if not _typical_size(joint):
         return None
-    trials, params = ctx.trials, ctx.params
-    left = discover(
-        trials,
-        joint.residuals(trials, params, ctx.base_effects)
-        - discrepancy_basis(trials) @ np.asarray(joint.discrepancy),
-        groups,
-        ctx.fold_masks,
-        head_gain=joint.head_sensitivity(trials, params, ctx.base_effects),
-        refit=joint.nuisance_jacobian(trials, params, ctx.base_effects),
+    left = _terms_beside(
+        ctx, joint, joint.residuals(ctx.trials, ctx.params, ctx.base_effects), groups
     )
     if any(t.term != "scatter" for t in left.terms):
         return None
     return joint_cv, joint_bic
+
+
+def _terms_beside(
+    ctx: _Context, fit: ModelFit, residual_deg: NDArray[np.float64], groups: Sequence[str]
+) -> Discovery:
+    """What the library of :mod:`~cvmeasure.diagnose.discover` finds in ``fit``'s
+    residuals (deg, (3N,)) once its model-form discrepancy is taken out."""
+    trials, params = ctx.trials, ctx.params
+    return discover(
+        trials,
+        residual_deg - discrepancy_basis(trials) @ np.asarray(fit.discrepancy),
+        groups,
+        ctx.fold_masks,
+        head_gain=fit.head_sensitivity(trials, params, ctx.base_effects),
+        refit=fit.nuisance_jacobian(trials, params, ctx.base_effects),
+    )
 
 
 def _joint_with_discrepancy(
