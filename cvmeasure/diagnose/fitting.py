@@ -450,6 +450,7 @@ def fit_model(
     nuisance: bool = True,
     discrepancy: bool = False,
     rows: NDArray[np.bool_] | None = None,
+    intervals: bool = True,
 ) -> ModelFit:
     """Fit the strength scale, the nuisance geometry and the causes' parameters.
 
@@ -481,6 +482,10 @@ def fit_model(
     rows : bool array of shape (N,), optional
         Fit only these trials; the model still runs over every trial in order, so
         a bend's history (reversals, home shift) is that of the real sequence.
+    intervals : bool
+        Compute the intervals and the model-form p-value (True, default); False
+        leaves them NaN (a cross-validation fold uses only the fitted values and
+        the discrepancy, and the point estimate is the same).
     """
     names = _as_causes(causes)
     specs = [EFFECTS[c] for c in names]
@@ -497,8 +502,14 @@ def fit_model(
     def raw(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return _residuals_full(x)[keep]
 
+    # the last few evaluations: the solver's final point is evaluated again below
+    seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+
     def _residuals_full(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return residuals(
+        key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
+        if key in seen:
+            return seen[key].copy()
+        out = residuals(
             trials,
             params,
             base_effects,
@@ -508,6 +519,10 @@ def fit_model(
             nuisance=x[1 : 1 + m],
             shapes=forms,
         )
+        if len(seen) >= 4:
+            seen.pop(next(iter(seen)))
+        seen[key] = out.copy()
+        return out
 
     prior_centre = np.array([float(getattr(params, n.key)) for n in nuis])
     prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
@@ -583,6 +598,21 @@ def fit_model(
     n_obs, n_par = r.size - m, sol.x.size + sum(len(f) for f in forms)
     rss = float(np.sum(r**2))
     dof = n_obs - n_par
+    if not intervals:
+        return ModelFit(
+            causes=names,
+            strength_scale=float(sol.x[0]),
+            values=tuple(float(v) for v in sol.x[1 + m :]),
+            intervals=tuple((math.nan, math.nan) for _ in names),
+            strength_interval=(math.nan, math.nan),
+            rss_deg2=rss,
+            n_obs=n_obs,
+            n_params=n_par,
+            nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
+            shapes=tuple(forms),
+            discrepancy=tuple(float(v) for v in beta),
+            rss_discrepancy_deg2=rss_disc,
+        )
     unfitted = []
     for key, sd in UNFITTED_PRIOR_SD:  # prediction change per prior standard deviation
         moved = params.replace(**{key: float(getattr(params, key)) + sd})
@@ -796,6 +826,7 @@ def grouped_kfold_cv(
             nuisance=False,
             discrepancy=discrepancy,
             rows=~held,
+            intervals=False,  # only the fitted values and discrepancy are used
         )
         r = fit.residuals(trials, fold_params, base_effects)
         mask = np.tile(held, n_blocks)

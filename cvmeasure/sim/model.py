@@ -250,7 +250,11 @@ def _forward(
     direction = history.direction
     r = _rotation(cmd, values, shapes, history, None)
     nominal = head_geometry(params, direction)
-    geom = head_geometry(params, direction, axis_offset_mm=values.get("axis_offset", 0.0))
+    geom = (
+        head_geometry(params, direction, axis_offset_mm=values["axis_offset"])
+        if "axis_offset" in values
+        else nominal  # the same circles (an offset of 0 adds nothing)
+    )
     phi0 = contact_angle_deg(nominal) - params.approach_deg
     phi = phi0 + r
     theta_l, lever = loaded_angle_and_lever(geom, phi)
