@@ -163,12 +163,22 @@ class _History:
 
     @classmethod
     def of(cls, cmd: NDArray[np.float64], bend_index: NDArray[np.float64]) -> _History:
+        key = (cmd.tobytes(), bend_index.tobytes())  # a fit simulates one plan many times
+        if key in _HISTORIES:
+            return _HISTORIES[key]
+        bend_index = bend_index.copy()
         direction = np.where(cmd < 0, -1.0, 1.0)
         prev_index = np.concatenate([[np.inf], bend_index[:-1]])
         start = (bend_index <= prev_index) | (bend_index == 0)
         prev_dir = np.concatenate([[0.0], direction[:-1]])
         reversal = start | (direction != prev_dir)
-        return cls(direction, reversal, np.cumsum(start) - 1, bend_index)
+        out = cls(direction, reversal, np.cumsum(start) - 1, bend_index)
+        for a in (out.direction, out.reversal, out.run, out.bend_index):
+            a.setflags(write=False)  # shared by every simulation of the same plan
+        if len(_HISTORIES) >= 8:
+            _HISTORIES.pop(next(iter(_HISTORIES)))
+        _HISTORIES[key] = out
+        return out
 
     def accumulated(self, step: NDArray[np.float64]) -> NDArray[np.float64]:
         """``sum step_j`` over the earlier bends of each bend's run."""
@@ -180,6 +190,9 @@ class _History:
         """Signed home shift of each bend: ``-sum s_j loss_j`` over earlier bends of its run."""
         return -self.accumulated(self.direction * loss_deg)
 
+
+#: The histories of the last plans simulated (keyed by commands and bend indices).
+_HISTORIES: dict[tuple[bytes, bytes], _History] = {}
 
 #: Reference pin torque of the drift's load law (N m): d is the loss per bend at this load.
 DRIFT_REFERENCE_TORQUE_NM = 3.0
