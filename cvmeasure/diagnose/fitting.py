@@ -25,7 +25,7 @@ from scipy import optimize, special
 from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
-from cvmeasure.sim.model import simulate
+from cvmeasure.sim.model import apply_camera_tilt_deg, simulate
 from cvmeasure.sim.params import SimParams
 
 __all__ = [
@@ -416,12 +416,36 @@ def residuals(
         nuisance=nuisance,
         shapes=shapes,
     )
-    r = trials.observations() - predicted
-    n = len(trials)
-    r[2 * n :] = wrap_deg(r[2 * n :])  # pin angles are directions
+    r = _observed_minus(trials, predicted)
     if len(discrepancy):
         r = r - discrepancy_basis(trials) @ np.asarray(discrepancy, dtype=np.float64)
     return r
+
+
+def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Measured minus ``predicted`` (stacked by blocks); pin angles wrapped as directions."""
+    r = trials.observations() - predicted
+    n = len(trials)
+    r[2 * n :] = wrap_deg(r[2 * n :])  # pin angles are directions
+    return r
+
+
+#: A measurement-stage cause: it changes only how the camera sees the simulated angles,
+#: so the grid over it projects one simulation instead of simulating every grid point.
+_CAMERA = "camera_tilt"
+
+
+def _tilted(untilted: NDArray[np.float64], value: float, form: Shape) -> NDArray[np.float64]:
+    """Predicted observations (stacked by blocks) of a simulation without camera tilt,
+    seen by the camera of ``camera_tilt`` = ``value`` in ``form`` (what
+    :func:`cvmeasure.sim.simulate` does with the effect on)."""
+    spec = EFFECTS[_CAMERA]
+    effect = Effect(_CAMERA, float(np.clip(value, spec.lower, spec.upper)), form)
+    axis = effect.shape_value("tilt_axis_deg")
+    tilt = float(effect.value)
+    return np.concatenate(
+        [apply_camera_tilt_deg(block, tilt, axis) for block in np.split(untilted, 3)]
+    )
 
 
 def _interval(
@@ -529,18 +553,20 @@ def fit_model(
 
     resid_seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
 
+    def with_priors(x: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The least-squares residuals at ``x`` from its raw residuals ``r``."""
+        ok = np.isfinite(r)
+        prior = (x[1 : 1 + m] - prior_centre) * prior_weight
+        if basis_all is None:
+            return np.concatenate([r[ok], prior])
+        basis = basis_all[ok]
+        return np.concatenate([r[ok] - basis @ _profile_discrepancy(r[ok], basis), prior])
+
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
         key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
         if key in resid_seen:
             return resid_seen[key].copy()
-        r = raw(x)
-        ok = np.isfinite(r)
-        prior = (x[1 : 1 + m] - prior_centre) * prior_weight
-        if basis_all is None:
-            out = np.concatenate([r[ok], prior])
-        else:
-            basis = basis_all[ok]
-            out = np.concatenate([r[ok] - basis @ _profile_discrepancy(r[ok], basis), prior])
+        out = with_priors(x, raw(x))
         if len(resid_seen) >= 4:
             resid_seen.pop(next(iter(resid_seen)))
         resid_seen[key] = out.copy()
@@ -565,12 +591,30 @@ def fit_model(
                 continue
             grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
             per_form = []
+            untilted = None
+            if c == _CAMERA:  # the rest of the model is the same at every grid point
+                rest = [k for k in range(len(names)) if k != i - 1 - m]
+                untilted = predict(
+                    trials,
+                    params,
+                    [e for e in base_effects if e.name != _CAMERA],
+                    [names[k] for k in rest],
+                    x0[0],
+                    [x0[1 + m + k] for k in rest],
+                    nuisance=x0[1 : 1 + m],
+                    shapes=[forms[k] for k in rest],
+                )
             for form in FORMS.get(c, ((),)):
                 forms[i - 1 - m] = form
                 costs = []
                 for v in grid:
                     x0[i] = v
-                    costs.append(float(np.sum(resid(x0) ** 2)))
+                    if untilted is None:
+                        r = resid(x0)
+                    else:
+                        seen_raw = _observed_minus(trials, _tilted(untilted, v, form))[keep]
+                        r = with_priors(x0, seen_raw)
+                    costs.append(float(np.sum(r**2)))
                 j = int(np.argmin(costs))
                 per_form.append((costs[j], float(grid[j]), form))
             per_form.sort(key=lambda t: t[0])
