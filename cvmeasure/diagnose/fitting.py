@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -162,6 +162,33 @@ def _as_causes(causes: str | Sequence[str]) -> Causes:
 
 
 @dataclass(frozen=True)
+class _Solution:
+    """Where a fit on every trial ended (without the discrepancy), so that the folds of its
+    cross-validation, which start there, need not simulate that point again: the
+    residuals and the forward-difference Jacobian of one fold at that point are rows of
+    these (the same numbers)."""
+
+    trials: TrialTable  # the very table fitted (compared by identity)
+    params: SimParams
+    base_effects: tuple[Effect, ...]
+    causes: Causes
+    shapes: tuple[Shape, ...]
+    x: NDArray[np.float64]  # strength scale, NUISANCE values, the causes' values
+    residual_deg: NDArray[np.float64]  # (3 N,) measured minus predicted at x
+    jacobian: NDArray[np.float64]  # (3 N, x.size) d residual / d x; NaN rows: not measured
+
+    def matches(
+        self, trials: TrialTable, params: SimParams, base_effects: Sequence[Effect], causes: Causes
+    ) -> bool:
+        return (
+            trials is self.trials
+            and params == self.params
+            and tuple(base_effects) == self.base_effects
+            and causes == self.causes
+        )
+
+
+@dataclass(frozen=True)
 class ModelFit:
     """A fitted model: base simulation, strength scale and zero or more named effects."""
 
@@ -180,6 +207,8 @@ class ModelFit:
     #: p-value of the discrepancy's share of the residuals under "the model is the machine"
     #: (chi-square; below DISCREPANCY_P the data show a model-form error)
     model_form_p: float = math.nan
+    #: where the solver ended (a fit on every trial without the discrepancy), for the folds
+    solution: _Solution | None = field(default=None, repr=False, compare=False)
 
     @property
     def cause(self) -> str:
@@ -295,6 +324,7 @@ class ModelFit:
             values=tuple(self.values[i] for i in order),
             shapes=tuple(self.shapes[i] for i in order) if self.shapes else (),
             intervals=tuple(self.intervals[i] for i in order),
+            solution=None,
         )
 
     def param_values_by_cause(self) -> dict[str, float]:
@@ -475,6 +505,7 @@ def fit_model(
     discrepancy: bool = False,
     rows: NDArray[np.bool_] | None = None,
     intervals: bool = True,
+    _seed: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> ModelFit:
     """Fit the strength scale, the nuisance geometry and the causes' parameters.
 
@@ -510,6 +541,9 @@ def fit_model(
         Compute the intervals and the model-form p-value (True, default); False
         leaves them NaN (a cross-validation fold uses only the fitted values and
         the discrepancy, and the point estimate is the same).
+    _seed : (x, residuals (3 N,), Jacobian (3 N, x.size)), optional
+        The residuals and Jacobian already known at the point ``x`` (a fold started
+        where the fit on every trial ended; see :class:`_Solution`).
     """
     names = _as_causes(causes)
     specs = [EFFECTS[c] for c in names]
@@ -528,6 +562,9 @@ def fit_model(
 
     # the last few evaluations: the solver's final point is evaluated again below
     seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+    seed_forms = tuple(forms)
+    if _seed is not None:
+        seen[(_seed[0].tobytes(), seed_forms)] = _seed[1].copy()
 
     def _residuals_full(x: NDArray[np.float64]) -> NDArray[np.float64]:
         key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
@@ -573,6 +610,15 @@ def fit_model(
         return out
 
     def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        if (
+            _seed is not None
+            and m == 0
+            and tuple(forms) == seed_forms
+            and x.tobytes() == _seed[0].tobytes()
+        ):
+            known_rows = _seed[2][keep][np.isfinite(raw(x))]
+            if known_rows.shape[0] == resid(x).size and np.all(np.isfinite(known_rows)):
+                return np.ascontiguousarray(known_rows.T).T  # the layout of the differences
         return _forward_difference_jacobian(resid, x, lower, upper)
 
     nominal = [float((known or {}).get(n.key, getattr(params, n.key))) for n in nuis]
@@ -655,6 +701,15 @@ def fit_model(
     n_obs, n_par = r.size - m, sol.x.size + sum(len(f) for f in forms)
     rss = float(np.sum(r**2))
     dof = n_obs - n_par
+    solution = None
+    if rows is None and basis_all is None:  # the folds of its cross-validation start here
+        full = _residuals_full(sol.x)
+        measured = np.isfinite(full)
+        jac_full = np.full((full.size, sol.x.size), np.nan)
+        jac_full[measured] = sol.jac[: int(measured.sum())]
+        solution = _Solution(
+            trials, params, tuple(base_effects), names, tuple(forms), sol.x.copy(), full, jac_full
+        )
     if not intervals:
         return ModelFit(
             causes=names,
@@ -669,6 +724,7 @@ def fit_model(
             shapes=tuple(forms),
             discrepancy=tuple(float(v) for v in beta),
             rss_discrepancy_deg2=rss_disc,
+            solution=solution,
         )
     unfitted = []
     for key, sd in UNFITTED_PRIOR_SD:  # prediction change per prior standard deviation
@@ -740,6 +796,7 @@ def fit_model(
         discrepancy=tuple(float(v) for v in beta),
         rss_discrepancy_deg2=rss_disc,
         model_form_p=model_form_p,
+        solution=solution,
     )
 
 
@@ -907,6 +964,18 @@ def grouped_kfold_cv(
     # the nuisance geometry stays at its full-data fit within the folds (the same for
     # every model compared: the machine is measured once); strength and causes are refitted
     fold_params = _scaled(params, 1.0, full_fit.nuisance) if full_fit is not None else params
+    seed = None
+    state = full_fit.solution if full_fit is not None else None
+    if (
+        state is not None
+        and not discrepancy
+        and state.matches(trials, params, base_effects, names)
+        and state.shapes == full_fit.shapes
+    ):
+        # the folds start where the fit on every trial ended (strength and causes; the
+        # nuisance is held there): its residuals and Jacobian columns at that point
+        cols = [0, *range(state.x.size - len(names), state.x.size)]
+        seed = (state.x[cols], state.residual_deg, state.jacobian[:, cols])
     for held in folds:
         # fitted on the other folds and predicted on this one, the model running over
         # the whole sequence (history-dependent causes see the real order)
@@ -920,6 +989,7 @@ def grouped_kfold_cv(
             discrepancy=discrepancy,
             rows=~held,
             intervals=False,  # only the fitted values and discrepancy are used
+            _seed=seed,
         )
         r = fit.residuals(trials, fold_params, base_effects)
         mask = np.tile(held, n_blocks)
