@@ -209,6 +209,9 @@ class ModelFit:
     model_form_p: float = math.nan
     #: where the solver ended (a fit on every trial without the discrepancy), for the folds
     solution: _Solution | None = field(default=None, repr=False, compare=False)
+    #: measured minus predicted over every trial at the fitted point (3 N,), as
+    #: :meth:`residuals` gives it with the params fitted on (None: not kept)
+    residual_deg: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
 
     @property
     def cause(self) -> str:
@@ -325,6 +328,7 @@ class ModelFit:
             shapes=tuple(self.shapes[i] for i in order) if self.shapes else (),
             intervals=tuple(self.intervals[i] for i in order),
             solution=None,
+            residual_deg=None,
         )
 
     def param_values_by_cause(self) -> dict[str, float]:
@@ -452,6 +456,10 @@ def residuals(
     return r
 
 
+#: Points whose residuals one fit keeps (a start grid has at most 12 x 9).
+_MEMO_POINTS = 128
+
+
 def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
     """Measured minus ``predicted`` (stacked by blocks); pin angles wrapped as directions."""
     r = trials.observations() - predicted
@@ -560,7 +568,8 @@ def fit_model(
     def raw(x: NDArray[np.float64]) -> NDArray[np.float64]:
         return _residuals_full(x)[keep]
 
-    # the last few evaluations: the solver's final point is evaluated again below
+    # the points evaluated (the grid's best is the solver's start, its final point is
+    # evaluated again below)
     seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
     seed_forms = tuple(forms)
     if _seed is not None:
@@ -580,7 +589,7 @@ def fit_model(
             nuisance=x[1 : 1 + m],
             shapes=forms,
         )
-        if len(seen) >= 4:
+        if len(seen) >= _MEMO_POINTS:
             seen.pop(next(iter(seen)))
         seen[key] = out.copy()
         return out
@@ -604,7 +613,7 @@ def fit_model(
         if key in resid_seen:
             return resid_seen[key].copy()
         out = with_priors(x, raw(x))
-        if len(resid_seen) >= 4:
+        if len(resid_seen) >= _MEMO_POINTS:
             resid_seen.pop(next(iter(resid_seen)))
         resid_seen[key] = out.copy()
         return out
@@ -658,8 +667,9 @@ def fit_model(
                     if untilted is None:
                         r = resid(x0)
                     else:
-                        seen_raw = _observed_minus(trials, _tilted(untilted, v, form))[keep]
-                        r = with_priors(x0, seen_raw)
+                        full = _observed_minus(trials, _tilted(untilted, v, form))
+                        seen[(x0.tobytes(), tuple(forms))] = full.copy()
+                        r = with_priors(x0, full[keep])
                     costs.append(float(np.sum(r**2)))
                 j = int(np.argmin(costs))
                 per_form.append((costs[j], float(grid[j]), form))
@@ -725,6 +735,7 @@ def fit_model(
             discrepancy=tuple(float(v) for v in beta),
             rss_discrepancy_deg2=rss_disc,
             solution=solution,
+            residual_deg=_residuals_full(sol.x),
         )
     unfitted = []
     for key, sd in UNFITTED_PRIOR_SD:  # prediction change per prior standard deviation
@@ -991,7 +1002,11 @@ def grouped_kfold_cv(
             intervals=False,  # only the fitted values and discrepancy are used
             _seed=seed,
         )
-        r = fit.residuals(trials, fold_params, base_effects)
+        r = (
+            fit.residual_deg
+            if fit.residual_deg is not None
+            else fit.residuals(trials, fold_params, base_effects)
+        )
         mask = np.tile(held, n_blocks)
         out[mask] = r[mask]
         out_d[mask] = (r - basis @ np.asarray(fit.discrepancy))[mask]
