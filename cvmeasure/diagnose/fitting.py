@@ -397,7 +397,7 @@ def _effects(
     kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
     forms = list(shapes) + [()] * (len(causes) - len(shapes))
     added = tuple(
-        Effect(c, float(np.clip(v, EFFECTS[c].lower, EFFECTS[c].upper)), f)
+        Effect(c, min(max(float(v), EFFECTS[c].lower), EFFECTS[c].upper), f)
         for c, v, f in zip(causes, values, forms, strict=True)
     )
     return (*kept, *added)
@@ -478,7 +478,7 @@ def _tilted(untilted: NDArray[np.float64], value: float, form: Shape) -> NDArray
     seen by the camera of ``camera_tilt`` = ``value`` in ``form`` (what
     :func:`cvmeasure.sim.simulate` does with the effect on)."""
     spec = EFFECTS[_CAMERA]
-    effect = Effect(_CAMERA, float(np.clip(value, spec.lower, spec.upper)), form)
+    effect = Effect(_CAMERA, min(max(float(value), spec.lower), spec.upper), form)
     axis = effect.shape_value("tilt_axis_deg")
     tilt = float(effect.value)
     return np.concatenate(

@@ -90,7 +90,7 @@ def head_geometry(
 def contact_angle_deg(geom: HeadGeometry) -> NDArray[np.float64] | float:
     """Pin angle phi_c (deg, die frame of the bend) at first contact with the straight wire."""
     ratio = (geom.pin_contact_mm + np.asarray(geom.axis_y_mm)) / geom.pin_orbit_mm
-    out = -np.degrees(np.arcsin(np.clip(ratio, -1.0, 1.0)))
+    out = -np.degrees(np.arcsin(np.minimum(np.maximum(ratio, -1.0), 1.0)))
     return float(out) if np.ndim(out) == 0 else out
 
 
@@ -104,7 +104,8 @@ def _tangent(geom: HeadGeometry, pin_angle_deg: ArrayLike) -> tuple[np.ndarray, 
     psi = np.arctan2(dy, dx)
     psi = np.where(psi < -np.pi / 2, psi + 2 * np.pi, psi)  # continuous past 180 deg
     sep = geom.die_wrap_mm + geom.pin_contact_mm
-    theta = psi + np.arcsin(np.clip(sep / np.maximum(span, sep), -1.0, 1.0))
+    # np.minimum(np.maximum(.)) is np.clip's arithmetic without its call overhead
+    theta = psi + np.arcsin(np.minimum(np.maximum(sep / np.maximum(span, sep), -1.0), 1.0))
     lever = np.sqrt(np.maximum(span**2 - sep**2, 0.0))
     return theta, lever
 

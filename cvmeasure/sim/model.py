@@ -291,7 +291,7 @@ def _forward(
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])
-    sb = np.clip(affine, 0.0, theta_l)
+    sb = np.minimum(np.maximum(affine, 0.0), theta_l)  # np.clip's values, less overhead
     loaded = direction * theta_l
     unloaded = direction * (theta_l - sb)
     if measure and "camera_tilt" in values:
