@@ -104,18 +104,31 @@ def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
     return out
 
 
-def _profile_discrepancy(r: NDArray[np.float64], basis: NDArray[np.float64]) -> NDArray[np.float64]:
+Factor = tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]
+
+
+def _discrepancy_factor(basis: NDArray[np.float64]) -> Factor:
+    """(columns used, q, R) of the QR factorisation of the discrepancy's used columns."""
+    used = np.any(basis != 0, axis=0)
+    if not used.any():
+        return used, np.zeros((basis.shape[0], 0)), np.zeros((0, 0))
+    q, tri = np.linalg.qr(basis[:, used])
+    return used, q, tri
+
+
+def _profile_discrepancy(
+    r: NDArray[np.float64], basis: NDArray[np.float64], factor: Factor | None = None
+) -> NDArray[np.float64]:
     """Bounded least-squares discrepancy coefficients for residuals ``r`` (finite rows):
     the unconstrained solution when it lies within the bounds, else bounded-variable
-    least squares."""
+    least squares. ``factor``: :func:`_discrepancy_factor` of ``basis``, when known."""
     bound = DISCREPANCY_BOUND_DEG
-    used = np.any(basis != 0, axis=0)
     beta = np.zeros(basis.shape[1])
+    used, q, tri = factor if factor is not None else _discrepancy_factor(basis)
     if not used.any():
         return beta
     # ||r - a b||^2 = ||q^T r - R b||^2 + const (a = q R): the same minimisers on the
     # small triangular problem, whatever the number of rows
-    q, tri = np.linalg.qr(basis[:, used])
     qtr = q.T @ r
     sol = np.linalg.lstsq(tri, qtr, rcond=None)[0]
     if np.any(np.abs(sol) > bound):
@@ -598,6 +611,7 @@ def fit_model(
     prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
 
     resid_seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+    factors: dict[bytes, Factor] = {}
 
     def with_priors(x: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
         """The least-squares residuals at ``x`` from its raw residuals ``r``."""
@@ -606,7 +620,11 @@ def fit_model(
         if basis_all is None:
             return np.concatenate([r[ok], prior])
         basis = basis_all[ok]
-        return np.concatenate([r[ok] - basis @ _profile_discrepancy(r[ok], basis), prior])
+        key = ok.tobytes()
+        if key not in factors:  # the measured rows rarely change between points
+            factors[key] = _discrepancy_factor(basis)
+        beta = _profile_discrepancy(r[ok], basis, factors[key])
+        return np.concatenate([r[ok] - basis @ beta, prior])
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
         key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
