@@ -164,8 +164,9 @@ class _History:
     @classmethod
     def of(cls, cmd: NDArray[np.float64], bend_index: NDArray[np.float64]) -> _History:
         key = (cmd.tobytes(), bend_index.tobytes())  # a fit simulates one plan many times
-        if key in _HISTORIES:
-            return _HISTORIES[key]
+        known = _HISTORIES.get(key)
+        if known is not None:
+            return known
         bend_index = bend_index.copy()
         direction = np.where(cmd < 0, -1.0, 1.0)
         prev_index = np.concatenate([[np.inf], bend_index[:-1]])
@@ -176,7 +177,7 @@ class _History:
         for a in (out.direction, out.reversal, out.run, out.bend_index):
             a.setflags(write=False)  # shared by every simulation of the same plan
         if len(_HISTORIES) >= 8:
-            _HISTORIES.pop(next(iter(_HISTORIES)))
+            _HISTORIES.clear()  # (single dict operations: safe beside a simulating thread)
         _HISTORIES[key] = out
         return out
 
