@@ -339,18 +339,25 @@ class CrossValidation:
         r = self.residual_deg[np.isfinite(self.residual_deg)]
         return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
+    def residual_after_discrepancy_deg(self, trials: TrialTable) -> NDArray[np.float64]:
+        """Held-out residuals with the bounded model-form discrepancy profiled out
+        (predicted from the other folds when it was fitted with the model there)."""
+        if self.residual_discrepancy_deg is not None:
+            return self.residual_discrepancy_deg
+        out = np.full(self.residual_deg.shape, np.nan)
+        ok = np.isfinite(self.residual_deg)
+        if ok.any():
+            basis = discrepancy_basis(trials)[ok]
+            r = self.residual_deg[ok]
+            out[ok] = r - basis @ _profile_discrepancy(r, basis)
+        return out
+
     def rmse_after_discrepancy_deg(self, trials: TrialTable) -> float:
         """Held-out RMSE with the bounded model-form discrepancy profiled out (predicted
         from the other folds when it was fitted with the model there)."""
-        if self.residual_discrepancy_deg is not None:
-            r = self.residual_discrepancy_deg[np.isfinite(self.residual_discrepancy_deg)]
-            return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
-        ok = np.isfinite(self.residual_deg)
-        if not ok.any():
-            return math.nan
-        basis = discrepancy_basis(trials)[ok]
-        r = self.residual_deg[ok]
-        return float(np.sqrt(np.mean((r - basis @ _profile_discrepancy(r, basis)) ** 2)))
+        r = self.residual_after_discrepancy_deg(trials)
+        r = r[np.isfinite(r)]
+        return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
     def to_dict(self) -> dict[str, Any]:
         return {"causes": list(self.causes), "cv_rmse_deg": self.rmse_deg}
