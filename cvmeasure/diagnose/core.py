@@ -914,6 +914,20 @@ def _extend(
         # accepted on the held-out RMSE with the discrepancy profiled out, so ranked on
         # it too (the raw one also carries the model-form wave, the same for every pair)
         more = sorted((c for c in round2 if c.accepted), key=lambda c: c.cv_discrepancy_rmse_deg)
+        # a pair that explains less (evidence) than its added cause alone is a fit stuck
+        # where the first cause took up the added one's signature: not a pair to name
+        alone = {c.cause: c.delta_bic for c in results}
+        stuck = [
+            c.cause
+            for c in more
+            if first.delta_bic + c.delta_bic < alone.get(c.cause, -math.inf) - ctx.min_delta_bic
+        ]
+        if stuck:
+            notes.append(
+                f"{', '.join(stuck)} on top of {first.cause} explain(s) less than "
+                f"{', '.join(stuck)} alone (delta BIC): the pair is not named"
+            )
+        more = [c for c in more if c.cause not in stuck]
         # two causes must explain the data down to the noise (beyond the discrepancy); if
         # structure is still left, the second name would be forced onto an unnamed
         # discrepancy: the next accepted pair is tried, at most BEAM_WIDTH of them
@@ -959,7 +973,16 @@ def _name_causes(
     # greedy with a small beam: the best few single causes each get their second round
     firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
     outcomes = [(first, _extend(ctx, first, results, max_causes)) for first in firsts[:BEAM_WIDTH]]
-    best, ext = min(outcomes, key=lambda o: o[1].cv_rmse_deg)
+    # the lowest held-out error wins among the outcomes the evidence does not rule out
+    # (a delta BIC within min_delta_bic of the best outcome's): a pair stuck where its
+    # first cause took up another's signature can predict held-out data slightly
+    # better while explaining far less than that other cause alone
+    evidence_of = [_delta_bic(base_fit, o[1].fit) for o in outcomes]
+    top = max(evidence_of)
+    plausible = [
+        o for o, e in zip(outcomes, evidence_of, strict=True) if e >= top - ctx.min_delta_bic
+    ]
+    best, ext = min(plausible, key=lambda o: o[1].cv_rmse_deg)
     ext_fit = ext.fit
     single_cv = {c.cause: c.cv_rmse_deg for c in results}
     if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
