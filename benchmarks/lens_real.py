@@ -736,7 +736,8 @@ def _transposed() -> tuple[list[Metric], list[Table], list[str]]:
 #: Debian's python3-mrcal is built for the system Python.
 _MRCAL_PYTHON = "/usr/bin/python3"
 
-_MRCAL_SCRIPT = r"""
+#: The board observations both mrcal scripts start from (JSON file in argv[1]).
+_MRCAL_OBSERVATIONS = r"""
 import json, sys
 import numpy as np
 import mrcal
@@ -749,7 +750,11 @@ obs[..., 2] = -1.0  # missing corners
 for i, view in enumerate(d["views"]):
     for cid, x, y in view:
         obs[i, int(cid) // nx, int(cid) % nx] = (x, y, 1.0)
-oi = dict(
+"""
+
+_MRCAL_SCRIPT = (
+    _MRCAL_OBSERVATIONS
+    + r"""oi = dict(
     intrinsics=np.array([[d["fx"], d["fy"], d["cx"], d["cy"], *d["dist"]]]),
     extrinsics_rt_fromref=np.zeros((0, 6)),
     frames_rt_toref=np.array([np.r_[r, t] for r, t in zip(d["rvecs"], d["tvecs"])]),
@@ -781,6 +786,7 @@ model.write(d["cameramodel"])
 print(json.dumps({"intrinsics": intr.tolist(), "warp": np.asarray(oi["calobject_warp"]).tolist(), "rms_px": float(stats["rms_reproj_error__pixels"]),
                   "sigma_px": np.asarray(sigma).tolist(), "version": getattr(mrcal, "__version__", "")}))
 """
+)
 
 
 def _mrcal_available() -> str:
@@ -979,20 +985,9 @@ def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
     return metrics, tables, sorted(set(notes))
 
 
-_MRCAL_RECIPE = r"""
-import json, sys
-import numpy as np
-import mrcal
-
-d = json.load(open(sys.argv[1]))
-nx, ny = d["grid"]
-n = len(d["views"])
-obs = np.zeros((n, ny, nx, 3))
-obs[..., 2] = -1.0  # missing corners
-for i, view in enumerate(d["views"]):
-    for cid, x, y in view:
-        obs[i, int(cid) // nx, int(cid) % nx] = (x, y, 1.0)
-present = obs[..., 2] >= 0  # mrcal marks outliers by negating the weight in place
+_MRCAL_RECIPE = (
+    _MRCAL_OBSERVATIONS
+    + r"""present = obs[..., 2] >= 0  # mrcal marks outliers by negating the weight in place
 oi = dict(
     intrinsics=np.array([d["intrinsics"]]),
     extrinsics_rt_fromref=np.zeros((0, 6)),
@@ -1020,6 +1015,7 @@ outlier = (oi["observations_board"][..., 2] < 0) & present
 print(json.dumps({"intrinsics": oi["intrinsics"][0].tolist(), "warp": oi["calobject_warp"].tolist(),
                   "outliers": [np.flatnonzero(o.ravel()).tolist() for o in outlier]}))
 """
+)
 
 
 def _mrcal_published_recipe() -> tuple[list[Metric], list[Table], list[str]]:

@@ -119,6 +119,9 @@ class CandidateResult:
     delta_bic: float  # against the model it extends, both with the model-form discrepancy
     accepted: bool
     cv_discrepancy_rmse_deg: float = math.nan  # held-out, the discrepancy profiled out
+    #: held-out residuals (deg, [loaded..., unloaded..., pin...], NaN = not measured) with
+    #: the discrepancy profiled out; None when the held-out error was not computed
+    cv_residual_deg: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
         fit = self.fit.to_dict()
@@ -162,6 +165,9 @@ class Diagnosis:
     notes: tuple[str, ...] = field(default=())
     discovered: tuple[DiscoveredTerm, ...] = field(default=())
     evidence: tuple[tuple[str, float], ...] = field(default=())  # (explanation, weight)
+    #: a tie held out: the named cause and the accepted single causes whose held-out error
+    #: is within one standard error (over the CV groups) of its own; empty when none
+    tie: tuple[str, ...] = field(default=())
 
     @property
     def gain(self) -> float:
@@ -233,6 +239,7 @@ class Diagnosis:
             "notes": list(self.notes),
             "discovered": [t.to_dict() for t in self.discovered],
             "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
+            "tie": list(self.tie),
         }
 
 
@@ -481,6 +488,17 @@ def diagnose(
     if mean_terms and math.isfinite(found.delta_bic):
         scores[_DISCOVERED] = found.delta_bic
     evidence = _evidence(scores)
+    tie: tuple[str, ...] = ()
+    if cause not in ("none", "unexplained") and len(ext_fit.causes) == 1:
+        named_result = next((c for c in results if c.fit.causes == ext_fit.causes), None)
+        if named_result is not None:
+            tie = _held_out_tie(named_result, results, groups)
+    if tie:
+        notes.append(
+            f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {cause} (held-out "
+            f"mean squared error within {TIE_STANDARD_ERRORS:g} standard error over the CV "
+            "groups): the data do not tell them apart"
+        )
     ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
     if ties:
         notes.append(
@@ -530,6 +548,7 @@ def diagnose(
         notes=tuple(notes),
         discovered=tuple(discovered),
         evidence=evidence,
+        tie=tie,
     )
 
 
@@ -697,6 +716,45 @@ def _order_confounded(
     return [f"{term_words(name)} (similarity {sim:.4f})" for sim, name in best.values()]
 
 
+#: A single cause ties the named one held out when its held-out mean squared error (the
+#: discrepancy profiled out) exceeds the named cause's by at most this many standard
+#: errors of the difference over the CV groups (the one-standard-error rule).
+TIE_STANDARD_ERRORS = 1.0
+
+
+def _held_out_tie(
+    named: CandidateResult, others: Sequence[CandidateResult], groups: Sequence[str]
+) -> tuple[str, ...]:
+    """The named single cause and the accepted single causes that explain the held-out
+    data as well (:data:`TIE_STANDARD_ERRORS`); empty when none ties.
+
+    The difference of squared held-out errors is summed per CV group (a group's
+    observations share their fold and their errors), and its mean per observation is
+    compared with its cluster-robust standard error over the groups."""
+    if named.cv_residual_deg is None:
+        return ()
+    labels = np.unique(np.asarray(groups), return_inverse=True)[1]
+    rows = np.tile(labels, named.cv_residual_deg.size // labels.size)
+    n_groups = int(labels.max()) + 1
+    tied = []
+    for c in others:
+        if c is named or not c.accepted or c.cv_residual_deg is None:
+            continue
+        ok = np.isfinite(named.cv_residual_deg) & np.isfinite(c.cv_residual_deg)
+        diff = c.cv_residual_deg[ok] ** 2 - named.cv_residual_deg[ok] ** 2
+        per_group = np.bincount(rows[ok], weights=diff, minlength=n_groups)
+        count = np.bincount(rows[ok], minlength=n_groups).astype(float)
+        mean = float(diff.sum() / max(ok.sum(), 1))
+        g = int(np.count_nonzero(count))
+        if g < 2:
+            continue
+        dev = per_group - count * mean
+        se = math.sqrt(g / (g - 1) * float(np.sum(dev**2))) / float(ok.sum())
+        if mean <= TIE_STANDARD_ERRORS * se:
+            tied.append(c.cause)
+    return (named.cause, *tied) if tied else ()
+
+
 #: Explanations whose evidence weights are within this factor of the best are a tie.
 TIE_RATIO = math.exp(-1.0)  # delta BIC of 2
 
@@ -815,12 +873,13 @@ def _try_causes(
             base_effects=ctx.base_effects,
             full_fit=fit,
         )
+        held_disc = held.residual_after_discrepancy_deg(ctx.trials)
         cv, cv_disc = held.rmse_deg, held.rmse_after_discrepancy_deg(ctx.trials)
         cv_gain_ok = max(cv_disc, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
             named_cv, RESOLUTION_DEG
         )
         accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
-        out.append(CandidateResult(name, cv, fit, dbic, accepted, cv_disc))
+        out.append(CandidateResult(name, cv, fit, dbic, accepted, cv_disc, held_disc))
     out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
     return out
 
@@ -855,6 +914,20 @@ def _extend(
         # accepted on the held-out RMSE with the discrepancy profiled out, so ranked on
         # it too (the raw one also carries the model-form wave, the same for every pair)
         more = sorted((c for c in round2 if c.accepted), key=lambda c: c.cv_discrepancy_rmse_deg)
+        # a pair that explains less (evidence) than its added cause alone is a fit stuck
+        # where the first cause took up the added one's signature: not a pair to name
+        alone = {c.cause: c.delta_bic for c in results}
+        stuck = [
+            c.cause
+            for c in more
+            if first.delta_bic + c.delta_bic < alone.get(c.cause, -math.inf) - ctx.min_delta_bic
+        ]
+        if stuck:
+            notes.append(
+                f"{', '.join(stuck)} on top of {first.cause} explain(s) less than "
+                f"{', '.join(stuck)} alone (delta BIC): the pair is not named"
+            )
+        more = [c for c in more if c.cause not in stuck]
         # two causes must explain the data down to the noise (beyond the discrepancy); if
         # structure is still left, the second name would be forced onto an unnamed
         # discrepancy: the next accepted pair is tried, at most BEAM_WIDTH of them
@@ -900,7 +973,16 @@ def _name_causes(
     # greedy with a small beam: the best few single causes each get their second round
     firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
     outcomes = [(first, _extend(ctx, first, results, max_causes)) for first in firsts[:BEAM_WIDTH]]
-    best, ext = min(outcomes, key=lambda o: o[1].cv_rmse_deg)
+    # the lowest held-out error wins among the outcomes the evidence does not rule out
+    # (a delta BIC within min_delta_bic of the best outcome's): a pair stuck where its
+    # first cause took up another's signature can predict held-out data slightly
+    # better while explaining far less than that other cause alone
+    evidence_of = [_delta_bic(base_fit, o[1].fit) for o in outcomes]
+    top = max(evidence_of)
+    plausible = [
+        o for o, e in zip(outcomes, evidence_of, strict=True) if e >= top - ctx.min_delta_bic
+    ]
+    best, ext = min(plausible, key=lambda o: o[1].cv_rmse_deg)
     ext_fit = ext.fit
     single_cv = {c.cause: c.cv_rmse_deg for c in results}
     if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -152,6 +152,13 @@ FORMS: dict[str, tuple[Shape, ...]] = {
     "camera_tilt": tuple((("tilt_axis_deg", float(a)),) if a else () for a in range(-75, 91, 15)),
 }
 
+
+#: Head steps (deg) a drift shifting home may lose whole (``step_deg``): after the fit with
+#: a continuous home shift, its rate is profiled on a fine grid for each step size and the
+#: quantised form is kept when it fits better (see :func:`_profile_quantised_drift`).
+DRIFT_STEPS_DEG: tuple[float, ...] = (0.03, 0.06, 0.12)
+#: Rates profiled for a quantised drift, as multiples of the continuous form's rate.
+_DRIFT_RATE_FACTORS = np.linspace(0.4, 1.6, 25)
 
 #: Continuous shape parameters of a form chosen from the grid of :data:`FORMS`, with the
 #: standard deviation of the grid's rounding (uniform within half a step: step / sqrt(12)):
@@ -379,18 +386,25 @@ class CrossValidation:
         r = self.residual_deg[np.isfinite(self.residual_deg)]
         return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
+    def residual_after_discrepancy_deg(self, trials: TrialTable) -> NDArray[np.float64]:
+        """Held-out residuals with the bounded model-form discrepancy profiled out
+        (predicted from the other folds when it was fitted with the model there)."""
+        if self.residual_discrepancy_deg is not None:
+            return self.residual_discrepancy_deg
+        out = np.full(self.residual_deg.shape, np.nan)
+        ok = np.isfinite(self.residual_deg)
+        if ok.any():
+            basis = discrepancy_basis(trials)[ok]
+            r = self.residual_deg[ok]
+            out[ok] = r - basis @ _profile_discrepancy(r, basis)
+        return out
+
     def rmse_after_discrepancy_deg(self, trials: TrialTable) -> float:
         """Held-out RMSE with the bounded model-form discrepancy profiled out (predicted
         from the other folds when it was fitted with the model there)."""
-        if self.residual_discrepancy_deg is not None:
-            r = self.residual_discrepancy_deg[np.isfinite(self.residual_discrepancy_deg)]
-            return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
-        ok = np.isfinite(self.residual_deg)
-        if not ok.any():
-            return math.nan
-        basis = discrepancy_basis(trials)[ok]
-        r = self.residual_deg[ok]
-        return float(np.sqrt(np.mean((r - basis @ _profile_discrepancy(r, basis)) ** 2)))
+        r = self.residual_after_discrepancy_deg(trials)
+        r = r[np.isfinite(r)]
+        return float(np.sqrt(np.mean(r**2))) if r.size else math.nan
 
     def to_dict(self) -> dict[str, Any]:
         return {"causes": list(self.causes), "cv_rmse_deg": self.rmse_deg}
@@ -636,7 +650,7 @@ def fit_model(
         resid_seen[key] = out.copy()
         return out
 
-    def jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    def fd_jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         if (
             _seed is not None
             and m == 0
@@ -711,13 +725,20 @@ def fit_model(
     sol, best_forms = None, list(forms)
     for x_start, f in starts:
         forms[:] = f
-        trial = optimize.least_squares(
-            resid, x_start, jac=jac, bounds=(lower, upper), x_scale=scale, method="trf", xtol=1e-9
-        )
+        frozen = [1 + m + i for i, c in enumerate(names) if _whole_steps(c, f[i])]
+        trial = _least_squares(resid, x_start, lower, upper, scale, frozen, jac=fd_jac)
         if sol is None or trial.cost < sol.cost:
             sol, best_forms = trial, list(f)
     forms[:] = best_forms
     assert sol is not None
+    for i, c in enumerate(names):
+        shape = dict(forms[i])
+        if c == "drift" and shape.get("home_shift") and not shape.get("step_deg"):
+            quantised = _profile_quantised_drift(
+                resid, sol, 1 + m + i, forms, i, lower, upper, scale
+            )
+            if quantised is not None:
+                sol = quantised
     r = sol.fun
     r0 = raw(sol.x)
     ok = np.isfinite(r0)
@@ -800,8 +821,23 @@ def fit_model(
     # error of an angle is the same for all its repeats)
     command = trials.commanded_pin_deg if rows is None else trials.commanded_pin_deg[rows]
     cluster = np.unique(np.round(command, 1), return_inverse=True)[1]
+    jac = sol.jac
+    for i, c in enumerate(names):
+        if _whole_steps(c, forms[i]):
+            # whole steps: the residuals are flat between steps; the rate's sensitivity is
+            # that of the expected loss (the continuous form, the step's phase unknown)
+            continuous = [*forms[:i], tuple((k, v) for k, v in forms[i] if k != "step_deg")]
+            continuous += forms[i + 1 :]
+            quantised, forms[:] = list(forms), continuous
+            j = 1 + m + i
+            h = 1e-4 * max(abs(float(sol.x[j])), 1e-3)
+            up = sol.x.copy()
+            up[j] += h
+            jac = np.array(jac, dtype=np.float64, copy=True)
+            jac[:, j] = (resid(up) - resid(sol.x)) / h
+            forms[:] = quantised
     se, shift, model_form_p = _standard_errors(
-        sol.jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
+        jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
     )
     center = sol.x + shift
     return ModelFit(
@@ -863,6 +899,113 @@ def _forward_difference_jacobian(
         x1[i] = x[i] + h[i]
         jac_t[i] = (fun(x1) - f0) / ((x[i] + h[i]) - x[i])
     return jac_t.T  # the layout scipy's own differences have
+
+
+def _whole_steps(cause: str, form: Shape) -> bool:
+    """Whether a cause's form loses whole steps (residuals flat in its parameter)."""
+    return cause == "drift" and bool(dict(form).get("step_deg"))
+
+
+def _least_squares(
+    resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    x0: NDArray[np.float64],
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+    scale: NDArray[np.float64],
+    frozen: Sequence[int] = (),
+    *,
+    jac: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+) -> optimize.OptimizeResult:
+    """Bounded least squares (trf) with the parameters ``frozen`` held at ``x0`` (a
+    drift losing whole steps: profiled on a grid, its residuals are flat between steps
+    and a finite difference across a step would throw the solver); the result's ``x``
+    and ``jac`` are full-width (zero columns for the frozen ones). ``jac``: the
+    Jacobian of ``resid`` (default scipy's forward differences), used when nothing is
+    frozen."""
+    if not frozen:
+        return optimize.least_squares(
+            resid,
+            x0,
+            jac="2-point" if jac is None else jac,
+            bounds=(lower, upper),
+            x_scale=scale,
+            method="trf",
+            xtol=1e-9,
+        )
+    free = np.setdiff1d(np.arange(x0.size), frozen)
+    full = x0.copy()
+
+    def reduced(z: NDArray[np.float64]) -> NDArray[np.float64]:
+        full[free] = z
+        return resid(full)
+
+    fit = optimize.least_squares(
+        reduced,
+        x0[free],
+        bounds=(lower[free], upper[free]),
+        x_scale=scale[free],
+        method="trf",
+        xtol=1e-9,
+    )
+    x = x0.copy()
+    x[free] = fit.x
+    jac = np.zeros((fit.jac.shape[0], x0.size))
+    jac[:, free] = fit.jac
+    fit.x, fit.jac = x, jac
+    return fit
+
+
+def _profile_quantised_drift(
+    resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    sol: optimize.OptimizeResult,
+    index: int,
+    forms: list[Shape],
+    cause: int,
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+    scale: NDArray[np.float64],
+) -> optimize.OptimizeResult | None:
+    """The fit with the drift's steps lost whole, if it is better than ``sol`` (its
+    continuous home shift), else None; ``forms[cause]`` is set to the form kept.
+
+    Whole steps make the residuals flat in the rate between steps, so the rate is
+    profiled on a grid (:data:`_DRIFT_RATE_FACTORS` times the continuous rate) for each
+    step of :data:`DRIFT_STEPS_DEG` with the other parameters at the continuous fit, the
+    best point refitted (the other parameters) and its rate profiled again on a finer
+    grid about it."""
+    rate = float(sol.x[index])
+    if rate <= 0.0:
+        return None
+    continuous = forms[cause]
+    best: tuple[float, float, Shape] | None = None
+    x = sol.x.copy()
+    for step in DRIFT_STEPS_DEG:
+        forms[cause] = (*continuous, ("step_deg", step))
+        for f in _DRIFT_RATE_FACTORS:
+            x[index] = min(rate * f, upper[index])
+            cost = float(np.sum(resid(x) ** 2))
+            if best is None or cost < best[0]:
+                best = (cost, float(x[index]), forms[cause])
+    assert best is not None
+    forms[cause] = best[2]
+    span = upper - lower
+    x = sol.x.copy()
+    x[index] = best[1]
+    x = np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
+    fit = _least_squares(resid, x, lower, upper, scale, [index])
+    x = fit.x.copy()
+    fine = best[1] * (1.0 + np.linspace(-0.06, 0.06, 13))
+    costs = []
+    for v in fine:
+        x[index] = min(v, upper[index])
+        costs.append(float(np.sum(resid(x) ** 2)))
+    x[index] = min(float(fine[int(np.argmin(costs))]), upper[index])
+    x = np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
+    fit = _least_squares(resid, x, lower, upper, scale, [index])
+    if fit.cost < sol.cost:
+        return fit
+    forms[cause] = continuous
+    return None
 
 
 def _standard_errors(

@@ -57,6 +57,12 @@ _STEP_PX = 0.05
 #: An end whose outward axis is within 60 deg of the shadow's direction faces away from
 #: the light (:func:`_end_point`).
 INTO_SHADOW_COS = 0.5
+#: Least strength of a step inside the taken cap edge (share of the strongest) that can be
+#: the cap's silhouette where a cast shadow reaches past the cap (:func:`_cap_edge`).
+SHADOW_STEP_SHARE = 0.25
+#: A stretch along the axis whose darkening below the plate exceeds this many times the
+#: wire body's is cast shadow (measured: shadows 1.9-2.4, caps' own stretches <= 0.9).
+SHADOW_DARKER = 1.25
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
 #: valley is symmetric enough to pass for a centre.
 _MIN_RHO_PX = 1.5
@@ -979,14 +985,37 @@ def _cap_edge(
     # the shadow's far edge steps like the silhouette, and as strongly, only where the plate
     # is brighter than the wire (a light sheet); on a dark one it is faint beside the wire's
     if facing_shadow and sign < 0:
-        weak = peaks[
-            (grad[peaks] >= 0.25 * grad[peaks].max()) & (t[peaks] >= t[k] - 2.0 * half_width)
-        ]
-        spread = float(t[k] - t[weak].min())
+        weak = peaks[grad[peaks] >= SHADOW_STEP_SHARE * grad[peaks].max()]
+        # walk in over cast shadow: a stretch inside the taken step darker than the wire's
+        # body is plate lit by the ambient light only, not the lamp-lit wire or its cap
+        while True:
+            inside = weak[(t[weak] < t[k]) & (t[weak] >= t[k] - 2.0 * half_width)]
+            if len(inside) == 0:
+                break
+            j = int(inside.max())
+            level = _stretch_level(gray, start, d, t[j], t[k], half_width)
+            if background - level <= SHADOW_DARKER * (background - wire):
+                break
+            k = j
+        near = weak[(t[weak] <= t[k]) & (t[weak] >= t[k] - 2.0 * half_width)]
+        spread = float(t[k] - t[near].min())
     g0, g1, g2 = grad[k - 1], grad[k], grad[k + 1]
     den = g0 - 2 * g1 + g2
     frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
     return float(t[k] + np.clip(frac, -0.5, 0.5) * _STEP_PX), spread
+
+
+def _stretch_level(
+    gray: np.ndarray, start: np.ndarray, d: np.ndarray, t0: float, t1: float, half_width: float
+) -> float:
+    """Mean grey level of the stretch of the axis ``start + t d`` between two steps at ``t0``
+    and ``t1`` (px; 1.5 px kept clear of each), within a quarter half-width across it."""
+    lo, hi = t0 + 1.5, t1 - 1.5
+    ts = np.arange(lo, hi + 1e-9, 0.5) if hi > lo else np.array([0.5 * (t0 + t1)])
+    us = np.arange(-0.25 * half_width, 0.25 * half_width + 1e-9, 0.5)
+    normal = np.array([-d[1], d[0]])
+    pts = start[None, None, :] + ts[:, None, None] * d + us[None, :, None] * normal
+    return float(np.mean(_sample(gray, pts)))
 
 
 def _flat_end(

@@ -14,8 +14,11 @@ physically general form (defaults in brackets give the narrow form):
   narrow form (0, the spec's helix) shortens bend k by ``d k`` whatever its
   direction; a home shift (1) under-bends a later bend in the same direction and
   over-bends one in the other (``h_k = -sum_{j<k} s_j d_j``; both agree when all
-  bends go one way). The general form (either shape parameter non-zero) follows
-  the rows in the order executed; a re-home (bend_index back to 0) resets it;
+  bends go one way); ``step_deg`` [0]: steps are lost whole, the run's accumulated
+  loss rounded to this head step (a bend loses ``q (round(D_k / q) - round(D_{k-1} /
+  q))``, ``D_k`` the continuous loss up to and including bend k). The general form
+  (any shape parameter non-zero) follows the rows in the order executed; a re-home
+  (bend_index back to 0) resets it;
 - ``camera_tilt``: ``tilt_axis_deg`` [0]: the tilt is about an axis at this
   azimuth in the bending plane (0: the feed axis); angles are measured from the
   image of the feed leg.
@@ -198,6 +201,15 @@ EFFECTS: dict[str, EffectSpec] = {
                     0.0,
                     "share of the accumulated loss that shifts home (signed by the "
                     "direction of the bends that lost it) instead of shortening every bend",
+                ),
+                ShapeSpec(
+                    "step_deg",
+                    "deg",
+                    0.0,
+                    1.0,
+                    0.0,
+                    "steps are lost whole: the accumulated loss of the run is rounded to "
+                    "this head step (0: a continuous loss)",
                 ),
             ),
         ),

@@ -219,7 +219,7 @@ def _rotation(
     if "drift" in values:
         p = shapes.get("load_exponent", 0.0)
         share = shapes.get("home_shift", 0.0)
-        if p == 0.0 and share == 0.0:
+        if p == 0.0 and share == 0.0 and shapes.get("step_deg", 0.0) == 0.0:
             # the spec's helix: bend k loses d k whatever the order (bend_index as given)
             r = r - values["drift"] * history.bend_index
         else:
@@ -228,6 +228,12 @@ def _rotation(
             else:
                 t = np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM
                 loss = values["drift"] * t**p
+            step = shapes.get("step_deg", 0.0)
+            if step > 0.0:  # steps lost whole: the run's accumulated loss, rounded
+                before = history.accumulated(loss)
+                loss = step * (
+                    np.floor((before + loss) / step + 0.5) - np.floor(before / step + 0.5)
+                )
             r = r - (1.0 - share) * history.accumulated(loss)
             r = r + share * direction * history.home_shift(loss)
     return np.maximum(r, 0.0)

@@ -216,11 +216,12 @@ def test_a_side_lit_lab_wire_on_the_light_sheet_is_measured_to_its_caps():
         assert np.min(np.hypot(*(ends - end).T)) < 0.15
 
 
-def test_an_end_facing_its_shadow_on_a_light_plate_states_its_uncertainty():
+def test_an_end_facing_its_shadow_on_a_light_plate_is_found_at_its_cap():
     """A lifted part's shadow reaches beyond the cap that faces away from the light (light
-    sheet, light from azimuth 0): its far edge can be taken for the cap's silhouette. Measured:
-    that end 6.8 px beyond the true axis end (the other 0.28 px), bend per chord +0.078 deg;
-    the stated end uncertainty covers it and part_end_uncertain says so."""
+    sheet, light from azimuth 0) and its far edge steps as strongly as the cap's outline. The
+    stretch between the two is darker than the wire's body (the plate in the ambient light
+    only), so the cap is the step inside it. Measured: that end 0.25 px from the true axis end
+    (taking the outermost strong step: 6.8 px beyond it), the other 0.28 px."""
     camera = cvmeasure_datasets.default_camera().scaled(SCALE)
     part = cvmeasure_datasets.arc_part(50.0, 120.0, 8, wire_diameter_mm=WIRE_MM)
     photo = render_round_wire(
@@ -230,12 +231,8 @@ def test_an_end_facing_its_shadow_on_a_light_plate_states_its_uncertainty():
     m = measure_part(
         photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=8
     )
-    true_ends_px = photo.plane.plane_to_image_px(photo.vertices_mm[[0, -1]])
-    stated = np.asarray(m.wire["end_uncertainty_px"])
-    for end, sigma in zip(m.centreline_px[[0, -1]], stated, strict=True):
-        err = float(np.min(np.hypot(*(true_ends_px - end).T)))
-        assert err < sigma + 1.0  # within the stated uncertainty and a pixel
-    bend_err = abs(float(m.result.segment_bend_deg) - 15.0)
-    warned = any(w.startswith("part_end_uncertain") for w in m.warnings)
-    assert warned or bend_err <= 0.03
-    assert stated.max() > 3.0 and warned
+    rot, t_mm = POSE.extrinsics("board")
+    true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
+    for end in m.centreline_px[[0, -1]]:
+        assert float(np.min(np.hypot(*(true_ends_px - end).T))) < 1.0
+    assert not any(w.startswith("part_end_uncertain") for w in m.warnings), m.warnings
