@@ -83,13 +83,8 @@ UNFITTED_PRIOR_SD: tuple[tuple[str, float], ...] = (("approach_deg", 0.1),)
 #: of typical size, which must therefore explain the excess. Causes are compared on
 #: their residuals with the discrepancy profiled out (bounded least squares); their
 #: parameters are fitted without it (inside its bounds it would absorb them).
-#: The bound was 0.25 deg: on the independent physical model (development seeds, not the
-#: benchmark's) a fitted baseline's coefficients sat at +-0.25 (loaded residual +0.6 deg
-#: at small bends falling to 0 at 110 deg: the span's elastic bow beyond the pin, and a
-#: pin orbit / pin radius off nominal changing the rotation-to-bend gain), and the excess
-#: was named `scale` (or camera tilt, or compliance taken low) on no-effect sweeps.
 DISCREPANCY_DEGREE = 3
-DISCREPANCY_BOUND_DEG = 0.4
+DISCREPANCY_BOUND_DEG = 0.25
 #: The data show a model-form error when the discrepancy's share of the residuals is
 #: beyond the noise at this p-value (chi-square): the intervals then carry the
 #: discrepancy's prior variance (see :func:`_standard_errors`).
