@@ -509,6 +509,18 @@ def diagnose(
     if order_ties:
         tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:])
         tie = (*tie, *(name for _, name in order_ties))
+    # a name is a pick only when the named causes explain the held-out data at least as
+    # well as the discovered terms (both with the discrepancy profiled out); terms better
+    # held out, though not by min_cv_gain, tie them
+    term_ties = [t.term for t in mean_terms if t.term not in tie]
+    if cause not in ("none", "unexplained") and term_ties and found.rmse_after_deg < named_cv:
+        tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:], *term_ties)
+        notes.append(
+            f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
+            f"data at least as well as {', '.join(ext_fit.causes)} ({found.rmse_after_deg:.3f} "
+            f"vs {named_cv:.3f} deg, model-form discrepancy profiled out): the name is not "
+            "a pick"
+        )
     ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
     if ties:
         notes.append(
