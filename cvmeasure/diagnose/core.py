@@ -166,7 +166,9 @@ class Diagnosis:
     discovered: tuple[DiscoveredTerm, ...] = field(default=())
     evidence: tuple[tuple[str, float], ...] = field(default=())  # (explanation, weight)
     #: a tie held out: the named cause and the accepted single causes whose held-out error
-    #: is within one standard error (over the CV groups) of its own; empty when none
+    #: is within one standard error (over the CV groups) of its own; then the library's
+    #: order-dependent terms (outside the catalogue, e.g. ``warm_up_45``) that reproduce
+    #: the named causes' change on this plan (a pair written ``a + b``); empty when none
     tie: tuple[str, ...] = field(default=())
 
     @property
@@ -493,11 +495,31 @@ def diagnose(
         named_result = next((c for c in results if c.fit.causes == ext_fit.causes), None)
         if named_result is not None:
             tie = _held_out_tie(named_result, results, groups)
+    # an order-dependent term outside the catalogue that reproduces the named causes'
+    # change of the predictions on this plan ties them: the name is not a pick
+    order_ties: list[tuple[str, str]] = []
+    if ext_fit.causes:
+        order_ties = _order_confounded(ctx, base_fit, base_res - ext_res, gain_of)
     if tie:
         notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {cause} (held-out "
             f"mean squared error within {TIE_STANDARD_ERRORS:g} standard error over the CV "
             "groups): the data do not tell them apart"
+        )
+    if order_ties:
+        tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:])
+        tie = (*tie, *(name for _, name in order_ties))
+    # a name is a pick only when the named causes explain the held-out data at least as
+    # well as the discovered terms (both with the discrepancy profiled out); terms better
+    # held out, though not by min_cv_gain, tie them
+    term_ties = [t.term for t in mean_terms if t.term not in tie]
+    if cause not in ("none", "unexplained") and term_ties and found.rmse_after_deg < named_cv:
+        tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:], *term_ties)
+        notes.append(
+            f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
+            f"data at least as well as {', '.join(ext_fit.causes)} ({found.rmse_after_deg:.3f} "
+            f"vs {named_cv:.3f} deg, model-form discrepancy profiled out): the name is not "
+            "a pick"
         )
     ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
     if ties:
@@ -509,14 +531,13 @@ def diagnose(
         notes.append(
             f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
         )
-    if ext_fit.causes:
-        for words in _order_confounded(ctx, base_fit, base_res - ext_res, gain_of):
-            notes.append(
-                f"{', '.join(ext_fit.causes)} cannot be told from {words} on this plan "
-                "(the trial order and the previous bend follow the angle); "
-                f"{ORDER_EXPERIMENT}"
-            )
-            experiment = experiment or ORDER_EXPERIMENT
+    for words, _ in order_ties:
+        notes.append(
+            f"{', '.join(ext_fit.causes)} cannot be told from {words} on this plan "
+            "(the trial order and the previous bend follow the angle): a tie is reported, "
+            f"not a pick; {ORDER_EXPERIMENT}"
+        )
+        experiment = experiment or ORDER_EXPERIMENT
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -686,11 +707,12 @@ def _order_confounded(
     base_fit: ModelFit,
     change_deg: NDArray[np.float64],
     head_gain: NDArray[np.float64],
-) -> list[str]:
+) -> list[tuple[str, str]]:
     """Order-dependent library terms (:data:`ORDER_TERMS`) whose columns reproduce the
     named causes' change of the predictions on this plan (|cosine| above
     CONFOUNDED_SIMILARITY after projecting out the machine's nuisance directions): on
-    an ordered plan a warm-up or the previous bend can look like a catalogue cause."""
+    an ordered plan a warm-up or the previous bend can look like a catalogue cause.
+    Each as (its words with the similarity, its library name)."""
     n = len(ctx.trials)
     rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)
     jac = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)[rows]
@@ -713,7 +735,7 @@ def _order_confounded(
         similarity = math.sqrt(max(float(sig @ fit) / norm, 0.0))
         if similarity > max(CONFOUNDED_SIMILARITY, best.get(family, (0.0, ""))[0]):
             best[family] = (similarity, name)
-    return [f"{term_words(name)} (similarity {sim:.4f})" for sim, name in best.values()]
+    return [(f"{term_words(name)} (similarity {sim:.4f})", name) for sim, name in best.values()]
 
 
 #: A single cause ties the named one held out when its held-out mean squared error (the

@@ -178,11 +178,14 @@ def test_no_scatter_is_found_on_homoscedastic_noise(seed):
 
 
 def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment():
-    # on a sweep (rising angles) a warm-up follows the angle: it is named drift, and the
-    # result says that it cannot be told from a warm-up on this plan and how to tell
+    # on a sweep (rising angles) a warm-up follows the angle: drift fits it, and the
+    # result reports drift tied with the warm-up term (not a pick), says that it cannot
+    # be told from a warm-up on this plan and how to tell
     case = pb.physical_case(412, "warm_up", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
     assert result.cause == "drift"
+    assert result.tie[0] == "drift" and any(t.startswith("warm_up") for t in result.tie)
+    assert result.to_dict()["tie"] == list(result.tie)
     notes = [n for n in result.notes if "cannot be told from" in n and "warm-up" in n]
     assert notes, result.notes
     assert result.recommended_experiment == "bend the same angles in a random order"
@@ -231,3 +234,15 @@ def test_intervals_on_the_independent_model_hold_the_truth():
             held.append(lo <= case.hidden[0].params[key] <= hi)
             assert hi - lo < EFFECTS[name].typical[1]  # widened, not unbounded
     assert len(held) >= 4 and all(held), held
+
+
+def test_a_name_that_explains_the_held_out_data_worse_than_the_terms_is_a_tie():
+    # a previous-bend coupling on a sweep looks like a scale (the previous bend follows
+    # the angle); scale + offset are named, but the discovered previous-bend term
+    # predicts the held-out data better (not by min_cv_gain): the name is reported as
+    # tied with the term, not as a pick
+    case = pb.physical_case(500, "short_segment", plan="sweep", n_trials=60)
+    result = diagnose(case.trials)
+    assert result.causes and result.tie, (result.causes, result.tie)
+    assert "previous_bend" in result.tie
+    assert any("the name is not a pick" in n for n in result.notes)
