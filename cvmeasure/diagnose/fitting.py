@@ -487,6 +487,29 @@ def residuals(
 _MEMO_POINTS = 128
 
 
+class _PointMemo:
+    """Residual arrays of one fit keyed by the parameter point and the causes' forms,
+    the oldest dropped beyond :data:`_MEMO_POINTS`; arrays are copied in and out."""
+
+    def __init__(self) -> None:
+        self._kept: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+
+    @staticmethod
+    def _key(x: NDArray[np.float64], forms: Sequence[Shape]) -> tuple[bytes, tuple[Shape, ...]]:
+        return np.asarray(x, dtype=np.float64).tobytes(), tuple(forms)
+
+    def get(self, x: NDArray[np.float64], forms: Sequence[Shape]) -> NDArray[np.float64] | None:
+        value = self._kept.get(self._key(x, forms))
+        return None if value is None else value.copy()
+
+    def put(
+        self, x: NDArray[np.float64], forms: Sequence[Shape], value: NDArray[np.float64]
+    ) -> None:
+        if len(self._kept) >= _MEMO_POINTS:
+            self._kept.pop(next(iter(self._kept)))
+        self._kept[self._key(x, forms)] = value.copy()
+
+
 def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
     """Measured minus ``predicted`` (stacked by blocks); pin angles wrapped as directions."""
     r = trials.observations() - predicted
@@ -597,15 +620,15 @@ def fit_model(
 
     # the points evaluated (the grid's best is the solver's start, its final point is
     # evaluated again below)
-    seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+    seen = _PointMemo()
     seed_forms = tuple(forms)
     if _seed is not None:
-        seen[(_seed[0].tobytes(), seed_forms)] = _seed[1].copy()
+        seen.put(_seed[0], seed_forms, _seed[1])
 
     def _residuals_full(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
-        if key in seen:
-            return seen[key].copy()
+        known = seen.get(x, forms)
+        if known is not None:
+            return known
         out = residuals(
             trials,
             params,
@@ -616,15 +639,13 @@ def fit_model(
             nuisance=x[1 : 1 + m],
             shapes=forms,
         )
-        if len(seen) >= _MEMO_POINTS:
-            seen.pop(next(iter(seen)))
-        seen[key] = out.copy()
+        seen.put(x, forms, out)
         return out
 
     prior_centre = np.array([float(getattr(params, n.key)) for n in nuis])
     prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
 
-    resid_seen: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+    resid_seen = _PointMemo()
     factors: dict[bytes, Factor] = {}
 
     def with_priors(x: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -641,13 +662,11 @@ def fit_model(
         return np.concatenate([r[ok] - basis @ beta, prior])
 
     def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        key = (np.asarray(x, dtype=np.float64).tobytes(), tuple(forms))
-        if key in resid_seen:
-            return resid_seen[key].copy()
+        known = resid_seen.get(x, forms)
+        if known is not None:
+            return known
         out = with_priors(x, raw(x))
-        if len(resid_seen) >= _MEMO_POINTS:
-            resid_seen.pop(next(iter(resid_seen)))
-        resid_seen[key] = out.copy()
+        resid_seen.put(x, forms, out)
         return out
 
     def fd_jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -700,7 +719,7 @@ def fit_model(
                         r = resid(x0)
                     else:
                         full = _observed_minus(trials, _tilted(untilted, v, form))
-                        seen[(x0.tobytes(), tuple(forms))] = full.copy()
+                        seen.put(x0, forms, full)
                         r = with_priors(x0, full[keep])
                     costs.append(float(np.sum(r**2)))
                 j = int(np.argmin(costs))
@@ -759,23 +778,23 @@ def fit_model(
         solution = _Solution(
             trials, params, tuple(base_effects), names, tuple(forms), sol.x.copy(), full, jac_full
         )
+    point = ModelFit(  # the fitted point; its intervals follow unless not wanted
+        causes=names,
+        strength_scale=float(sol.x[0]),
+        values=tuple(float(v) for v in sol.x[1 + m :]),
+        intervals=tuple((math.nan, math.nan) for _ in names),
+        strength_interval=(math.nan, math.nan),
+        rss_deg2=rss,
+        n_obs=n_obs,
+        n_params=n_par,
+        nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
+        shapes=tuple(forms),
+        discrepancy=tuple(float(v) for v in beta),
+        rss_discrepancy_deg2=rss_disc,
+        solution=solution,
+    )
     if not intervals:
-        return ModelFit(
-            causes=names,
-            strength_scale=float(sol.x[0]),
-            values=tuple(float(v) for v in sol.x[1 + m :]),
-            intervals=tuple((math.nan, math.nan) for _ in names),
-            strength_interval=(math.nan, math.nan),
-            rss_deg2=rss,
-            n_obs=n_obs,
-            n_params=n_par,
-            nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
-            shapes=tuple(forms),
-            discrepancy=tuple(float(v) for v in beta),
-            rss_discrepancy_deg2=rss_disc,
-            solution=solution,
-            residual_deg=_residuals_full(sol.x),
-        )
+        return dataclasses.replace(point, residual_deg=_residuals_full(sol.x))
     unfitted = []
     for key, sd in UNFITTED_PRIOR_SD:  # prediction change per prior standard deviation
         moved = params.replace(**{key: float(getattr(params, key)) + sd})
@@ -840,10 +859,8 @@ def fit_model(
         jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
     )
     center = sol.x + shift
-    return ModelFit(
-        causes=names,
-        strength_scale=float(sol.x[0]),
-        values=tuple(float(v) for v in sol.x[1 + m :]),
+    return dataclasses.replace(
+        point,
         intervals=tuple(
             _interval(
                 float(center[i]), float(se[i]), dof, spec.lower, spec.upper, keep=float(sol.x[i])
@@ -853,15 +870,7 @@ def fit_model(
         strength_interval=_interval(
             float(center[0]), float(se[0]), dof, *_STRENGTH_BOUNDS, keep=float(sol.x[0])
         ),
-        rss_deg2=rss,
-        n_obs=n_obs,
-        n_params=n_par,
-        nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
-        shapes=tuple(forms),
-        discrepancy=tuple(float(v) for v in beta),
-        rss_discrepancy_deg2=rss_disc,
         model_form_p=model_form_p,
-        solution=solution,
     )
 
 
