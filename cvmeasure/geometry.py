@@ -145,6 +145,32 @@ def _abs_median(values: np.ndarray) -> float:
     return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
+def _solve_sym3(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """``x`` with ``a x = b`` for a symmetric 3x3 ``a`` (Cramer's rule); None when singular.
+
+    The circle fit's normal equations are 3x3: the explicit solution avoids
+    ``np.linalg.solve``'s per-call overhead (several times the arithmetic here).
+    """
+    (a00, a01, a02), (_, a11, a12), (_, _, a22) = a.tolist()
+    b0, b1, b2 = b.tolist()
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    if not det or not math.isfinite(det):
+        return None
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    return np.array(
+        (
+            (c00 * b0 + c01 * b1 + c02 * b2) / det,
+            (c01 * b0 + c11 * b1 + c12 * b2) / det,
+            (c02 * b0 + c12 * b1 + c22 * b2) / det,
+        )
+    )
+
+
 def fit_circle_robust(
     points: np.ndarray,
     *,
@@ -207,9 +233,8 @@ def fit_circle_robust(
         # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
         np.divide(d, dist, out=jac_t[:2])
         jw_t = jac_t * w
-        try:
-            step = np.linalg.solve(jw_t @ jac_t.T, jw_t @ res)
-        except np.linalg.LinAlgError:
+        step = _solve_sym3(jw_t @ jac_t.T, jw_t @ res)
+        if step is None:
             break
         theta = theta + step
         if it >= 2 and np.abs(step).max() < 1e-5:

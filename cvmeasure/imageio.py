@@ -116,9 +116,9 @@ def to_bgr8(image: np.ndarray, *, linear: bool = False) -> np.ndarray:
     """Any (H, W, 3) uint8/uint16 BGR image -> display-referred uint8 BGR.
 
     ``linear`` data (RAW, linear renders) is sRGB-encoded first; an 8-bit
-    gamma-encoded image is returned as it is (no copy).
+    gamma-encoded image is returned as it is (no copy; an ndarray subclass stays one).
     """
-    img = np.asarray(image)
+    img = np.asanyarray(image)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError("a colour (H, W, 3) BGR image is needed")
     if img.dtype == np.uint8 and not linear:

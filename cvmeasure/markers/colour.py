@@ -384,8 +384,13 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
     img = np.asarray(bgr8)
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
         raise ValueError("classify_bgr8 needs an (H, W, 3) uint8 BGR image")
-    q = (img >> _QUANT_SHIFT).astype(np.int32)
-    idx = (q[..., 2] << 10) | (q[..., 1] << 5) | q[..., 0]  # R, G, B
+    # the 15-bit R, G, B index of each pixel, built in place in uint16 (few temporaries)
+    q = img >> _QUANT_SHIFT
+    idx = q[..., 2].astype(np.uint16)
+    idx <<= 5
+    idx |= q[..., 1]
+    idx <<= 5
+    idx |= q[..., 0]
     used = np.flatnonzero(np.bincount(idx.ravel(), minlength=1 << 15))
     rgb8 = np.column_stack(((used >> 10) & 31, (used >> 5) & 31, used & 31)).astype(np.float64)
     rgb8 = rgb8 * (1 << _QUANT_SHIFT) + (1 << _QUANT_SHIFT) / 2 - 0.5
@@ -395,4 +400,4 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
     lut_used = np.where(dist[np.arange(len(used)), best] <= model.max_distance, best, -1)
     lut = np.full(1 << 15, -1, dtype=np.int8)
     lut[used] = lut_used.astype(np.int8)
-    return lut[idx]
+    return np.take(lut, idx)

@@ -577,7 +577,7 @@ def measure_machine_photo(
             "heights='parallel' corrects a camera-only measurement: it needs a camera and "
             "no plane (a plane pose applies the heights exactly)"
         )
-    img = np.asarray(bgr)
+    img = np.asanyarray(bgr)  # a LazyBGR (pixels made where read) stays one
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
     bgr8 = to_bgr8(img, linear=linear)
@@ -711,6 +711,19 @@ def measure_photo_file(
     from cvmeasure.imageio import read_photo
 
     if not isinstance(photo, Photo):
+        lazy = _jpeg_planes_bgr(photo, options) if board is None else None
+        if lazy is not None:
+            try:
+                return measure_machine_photo(
+                    lazy,
+                    kit,
+                    camera=camera,
+                    plane=plane,
+                    source=str(photo),
+                    **{"photo": str(photo), **options, "linear": False},
+                )
+            except MarkerNotFoundError:
+                pass  # measured again from the full decode: its result, its message
         photo = read_photo(photo)
     source = str(photo.path)
     if board is not None:
@@ -726,3 +739,35 @@ def measure_photo_file(
     return measure_machine_photo(
         photo.bgr, kit, camera=camera, plane=plane, source=source, **options
     )
+
+
+def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -> Any:
+    """The JPEG path of :func:`measure_photo_file`: the file decoded to its Y, Cb, Cr planes.
+
+    Returns a :class:`cvmeasure.jpegplanes.LazyBGR` (BGR made only where the search and
+    the refinement read: the search's reduced copy and the markers' regions, the same
+    pixels as the full decode up to rounding), or None, and the caller decodes the whole
+    file as before, for anything else: not a YCbCr JPEG with 4:4:4/4:2:2/4:2:0 chroma,
+    a damaged file, more than :data:`cvmeasure.imageio.MAX_PHOTO_PIXELS`, no
+    libturbojpeg, a linear file or options this path does not take (method "seed").
+    """
+    from pathlib import Path
+
+    from cvmeasure import jpegplanes
+    from cvmeasure.imageio import MAX_PHOTO_PIXELS, is_jpeg_data, is_linear_name, is_raw
+
+    p = Path(path)
+    if (
+        options.get("method", "ours") != "ours"
+        or options.get("linear")
+        or is_raw(p)
+        or is_linear_name(p)
+        or not jpegplanes.available()
+        or not p.is_file()
+    ):
+        return None
+    data = p.read_bytes()
+    if not is_jpeg_data(data):
+        return None
+    planes = jpegplanes.read_planes(data, max_pixels=MAX_PHOTO_PIXELS)
+    return None if planes is None else planes.lazy_bgr()

@@ -1,0 +1,101 @@
+"""The JPEG planes path: Y, Cb, Cr decoded once, BGR made only where it is read (issue 19)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+import simplejpeg
+
+from cvmeasure import jpegplanes
+
+needs_lib = pytest.mark.skipif(
+    not jpegplanes.available(),
+    reason="libturbojpeg (Debian libturbojpeg0) not installed: the planes path is not used here",
+)
+
+
+def _textured(seed: int, shape=(151, 203)) -> np.ndarray:
+    """Colour gradients, a saturated disc with sharp edges and noise (odd size on purpose)."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = np.dstack((xx * 255 // w, yy * 255 // h, 128 + 0 * xx)).astype(np.float64)
+    disc = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (h / 4) ** 2
+    img[disc] = (30, 140, 230)
+    img += rng.normal(0, 6, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def _jpeg(img: np.ndarray, subsampling: str, quality: int = 90) -> bytes:
+    return simplejpeg.encode_jpeg(img, quality, colorspace="BGR", colorsubsampling=subsampling)
+
+
+def _close(a: np.ndarray, b: np.ndarray) -> None:
+    """Equal up to rounding: at most 2 levels apart, 0.2 level on average, unbiased.
+
+    The upsampling's ties round half up here, alternately up and down in libjpeg-turbo;
+    on this noisy test image up to ~15 % of the samples differ, on rendered photos ~0.1 %.
+    """
+    d = a.astype(np.int16) - b.astype(np.int16)
+    assert np.abs(d).max() <= 2
+    assert np.abs(d).mean() <= 0.2
+    assert abs(d.mean()) <= 0.1
+
+
+@needs_lib
+@pytest.mark.parametrize("subsampling", ["444", "422", "420"])
+@pytest.mark.parametrize("quality", [75, 98])
+def test_planes_give_the_full_decodes_pixels(subsampling, quality):
+    data = _jpeg(_textured(3), subsampling, quality)
+    full = simplejpeg.decode_jpeg(data, colorspace="BGR")
+    planes = jpegplanes.read_planes(data)
+    assert planes is not None
+    # the luma plane is libjpeg-turbo's own, bit for bit
+    np.testing.assert_array_equal(planes.y, simplejpeg.decode_jpeg(data, colorspace="GRAY")[..., 0])
+    h, w = full.shape[:2]
+    _close(planes.region_bgr(0, h, 0, w), full)
+    # a region inside, at odd offsets, is the same pixels as the whole image's
+    _close(planes.region_bgr(37, 101, 51, 150), full[37:101, 51:150])
+    # the sampled copy is the decoded image's every step-th pixel
+    for step in (3, 7, 10):
+        _close(planes.sampled_bgr(step), full[::step, ::step])
+
+
+@needs_lib
+def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image():
+    data = _jpeg(_textured(4), "420")
+    full = simplejpeg.decode_jpeg(data, colorspace="BGR")
+    planes = jpegplanes.read_planes(data)
+    lazy = planes.lazy_bgr()
+    assert lazy.shape == full.shape and lazy.dtype == np.uint8
+    roi = lazy[20:60, 30:90]
+    assert type(roi) is np.ndarray and roi.shape == (40, 60, 3)
+    np.testing.assert_array_equal(roi, planes.region_bgr(20, 60, 30, 90))
+    np.testing.assert_array_equal(lazy[22:50, 35:80], roi[2:30, 5:50])  # from the kept region
+    np.testing.assert_array_equal(lazy[::5, ::5], planes.sampled_bgr(5))
+    np.testing.assert_array_equal(lazy[10:20, 10:20, 1], planes.region_bgr(10, 20, 10, 20)[..., 1])
+    # any other indexing: the whole image is made first, then read as an array
+    row = lazy[7]
+    _close(row, full[7])
+    _close(np.asarray(lazy), full)
+
+
+@needs_lib
+def test_what_the_planes_path_does_not_take_is_left_to_the_full_decode(tmp_path):
+    grey = cv2.cvtColor(_textured(5), cv2.COLOR_BGR2GRAY)
+    assert (
+        jpegplanes.read_planes(simplejpeg.encode_jpeg(grey[..., None], 90, colorspace="GRAY"))
+        is None
+    )
+    data = _jpeg(_textured(5), "420")
+    assert jpegplanes.read_planes(data[:-300]) is None  # damaged: libjpeg warns, nothing guessed
+    assert jpegplanes.read_planes(data, max_pixels=100) is None  # too large: not decoded here
+    p = tmp_path / "x.jpg"
+    cv2.imwrite(
+        str(p), _textured(5), [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_PROGRESSIVE, 1]
+    )
+    planes = jpegplanes.read_planes(p.read_bytes())  # progressive: libjpeg-turbo decodes it too
+    assert planes is not None
+    full = simplejpeg.decode_jpeg(p.read_bytes(), colorspace="BGR")
+    _close(planes.region_bgr(0, full.shape[0], 0, full.shape[1]), full)
