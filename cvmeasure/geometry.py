@@ -211,29 +211,32 @@ def fit_circle_robust(
     n = p.shape[0]
     w = np.ones(n)
     scale = 0.0
-    # the Jacobian's rows (d / dist, 1) as contiguous rows of a (3, N) array: J^T W J
-    # and J^T W res are then small dense products
-    jac_t = np.empty((3, n))
-    jac_t[2] = 1.0
+    # rows (d / dist, 1, residual) of one (4, N) array: its weighted Gram matrix holds
+    # J^T W J (top left 3x3) and J^T W res (last column) in one small product
+    rows = np.empty((4, n))
+    rows[2] = 1.0
+    jac_t, res = rows[:3], rows[3]
     d_t = np.ascontiguousarray(p.T)
     for it in range(iterations):
         d = d_t - theta[:2, None]
-        dist = np.sqrt(d[0] * d[0] + d[1] * d[1])
+        dist = np.hypot(d[0], d[1])
         np.maximum(dist, 1e-12, out=dist)
-        res = dist - theta[2]
+        np.subtract(dist, theta[2], out=res)
         if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
             mad = 1.4826 * _abs_median(res)
             scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
-        u = res / (tukey_c * scale)
-        w = 1.0 - u * u  # Tukey's biweight (1 - u^2)^2, 0 for |u| >= 1
+        w = np.square(res)  # Tukey's biweight (1 - u^2)^2, u = res / (c scale); 0 for |u| >= 1
+        w *= -1.0 / (tukey_c * scale) ** 2
+        w += 1.0
         np.maximum(w, 0.0, out=w)
         w *= w
-        if w.sum() < min(5, n):
-            w = np.ones_like(w)
         # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
         np.divide(d, dist, out=jac_t[:2])
-        jw_t = jac_t * w
-        step = _solve_sym3(jw_t @ jac_t.T, jw_t @ res)
+        gram = (rows * w) @ rows.T
+        if gram[2, 2] < min(5, n):  # (almost) every weight 0: unweighted
+            w = np.ones_like(w)
+            gram = rows @ rows.T
+        step = _solve_sym3(gram[:3, :3], gram[:3, 3])
         if step is None:
             break
         theta = theta + step

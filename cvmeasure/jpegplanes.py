@@ -161,15 +161,13 @@ class JpegPlanes:
         return out[0], out[1]
 
     def _to_bgr(self, y: np.ndarray, cb: np.ndarray, cr: np.ndarray) -> np.ndarray:
-        """BGR uint8 from same-size Y, Cb, Cr: the JFIF equations in float32, rounded half up."""
+        """BGR uint8 from same-size Y, Cb, Cr: the JFIF equations in float32, rounded, saturated."""
         import cv2
 
         ycc = cv2.merge((np.ascontiguousarray(y), cb, cr)).astype(np.float32)
         bgr = cv2.transform(ycc, _YCC_TO_BGR)
-        bgr += 0.5
-        np.floor(bgr, out=bgr)
-        np.clip(bgr, 0.0, 255.0, out=bgr)
-        return bgr.astype(np.uint8)
+        # negatives to 0 first: convertScaleAbs rounds and saturates at 255 (no abs left)
+        return cv2.convertScaleAbs(cv2.max(bgr, 0.0))
 
     def region_bgr(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
         """BGR uint8 of rows [y0, y1), columns [x0, x1) (inside the image): (y1 - y0, x1 - x0, 3)."""
