@@ -32,14 +32,15 @@ def _jpeg(img: np.ndarray, subsampling: str, quality: int = 90) -> bytes:
 
 
 def _close(a: np.ndarray, b: np.ndarray) -> None:
-    """Equal up to rounding: at most 2 levels apart, 0.2 level on average, unbiased.
+    """Equal up to rounding: at most 2 levels apart, 0.25 level on average, unbiased.
 
-    The upsampling's ties round half up here, alternately up and down in libjpeg-turbo;
+    The upsampling's ties round half up here, alternately up and down in libjpeg-turbo, and
+    OpenCV's colour conversion rounds its coefficients to 3 decimals;
     on this noisy test image up to ~15 % of the samples differ, on rendered photos ~0.1 %.
     """
     d = a.astype(np.int16) - b.astype(np.int16)
     assert np.abs(d).max() <= 2
-    assert np.abs(d).mean() <= 0.2
+    assert np.abs(d).mean() <= 0.25
     assert abs(d.mean()) <= 0.1
 
 
