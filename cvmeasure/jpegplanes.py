@@ -45,6 +45,7 @@ _TJCS_YCBCR = 1
 _TJFLAG_ACCURATEDCT = 4096
 _TJFLAG_STOPONWARNING = 8192
 
+
 @functools.lru_cache(maxsize=1)
 def _library() -> Any:
     """libturbojpeg through ctypes, or None when it is not installed."""
