@@ -159,10 +159,27 @@ class JpegPlanes:
 
     def region_bgr(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
         """BGR uint8 of rows [y0, y1), columns [x0, x1) (inside the image): (y1 - y0, x1 - x0, 3)."""
-        ys = np.arange(y0, y1)
-        xs = np.arange(x0, x1)
-        cb, cr = self._chroma(ys, xs)
-        return self._to_bgr(self.y[y0:y1, x0:x1], cb, cr)
+        import cv2
+
+        if self.sx == 1 and self.sy == 1:
+            return self._to_bgr(self.y[y0:y1, x0:x1], self.cb[y0:y1, x0:x1], self.cr[y0:y1, x0:x1])
+        # the chroma samples round the region, one more each side (clipped at the image's
+        # edge), upsampled by cv2.resize: its bilinear output pixel x sits at (x + 0.5) / sx
+        # - 0.5 of its input, as libjpeg-turbo's fancy upsampling, and it replicates the
+        # input's edge, which matters only at the image's own edge (as in libjpeg-turbo)
+        hc, wc = self.cb.shape
+        cy0, cy1 = max(0, y0 // self.sy - 1), min(hc, (y1 - 1) // self.sy + 2)
+        cx0, cx1 = max(0, x0 // self.sx - 1), min(wc, (x1 - 1) // self.sx + 2)
+        crcb = cv2.merge((self.cr[cy0:cy1, cx0:cx1], self.cb[cy0:cy1, cx0:cx1]))
+        up = cv2.resize(
+            crcb,
+            ((cx1 - cx0) * self.sx, (cy1 - cy0) * self.sy),
+            interpolation=cv2.INTER_LINEAR,
+        )
+        oy, ox = y0 - cy0 * self.sy, x0 - cx0 * self.sx
+        up = up[oy : oy + y1 - y0, ox : ox + x1 - x0]
+        ycrcb = cv2.merge((np.ascontiguousarray(self.y[y0:y1, x0:x1]), up[..., 0], up[..., 1]))
+        return cv2.cvtColor(ycrcb, cv2.COLOR_YCrCb2BGR)
 
     def sampled_bgr(self, step: int) -> np.ndarray:
         """BGR uint8 of every ``step``-th pixel from (0, 0): ``decoded[::step, ::step]``."""

@@ -133,7 +133,8 @@ def estimate_white(
     maxc = cv2.max(cv2.max(b, g), r)
     unclipped = (maxc < 250).astype(np.uint8)
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
-    hist = np.bincount(cv2.bitwise_and(gray, gray, mask=unclipped).ravel(), minlength=256)
+    # grey histograms by calcHist (no int64 copy of the image, as np.bincount makes)
+    hist = cv2.calcHist([gray], [0], unclipped, [256], [0, 256]).ravel().astype(np.int64)
     hist[0] = 0
     n_ok = int(hist.sum())
     if n_ok == 0:
@@ -148,7 +149,7 @@ def estimate_white(
     n_bright = int(np.count_nonzero(bright))
     clipped_fraction = 1.0 - n_sel / max(1, n_bright)
     white = np.array([mr, mg, mb])
-    hist_all = np.bincount(gray.ravel(), minlength=256)
+    hist_all = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel().astype(np.int64)
     above_all = np.cumsum(hist_all[::-1])[::-1]
     level_all = int(np.flatnonzero(above_all >= k)[-1])
     brightest = gray >= level_all
