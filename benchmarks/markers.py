@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.errors import InputError
     from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit
-    from cvmeasure.markers import measure_machine_photo
+    from cvmeasure.markers import measure_machine_photo, measure_photo_file
 
     cv2.setNumThreads(1)
     scale = 0.5 if args.quick else 1.0
@@ -130,6 +130,8 @@ def main(argv: list[str] | None = None) -> dict:
     ratios, decode_s, measure_s, wall_ratios = [], [], [], []
     tilt_errors = []
     true_pose_errors = []
+    file_errors: list[float] = []  # ours (LAB) measured from the file (the JPEG one-pass path)
+    file_vs_array: list[float] = []
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for k, (photo, pose, light, tilt) in enumerate(_photos(n, scale, args.seed)):
@@ -179,6 +181,17 @@ def main(argv: list[str] | None = None) -> dict:
                     if tilt and method == "ours" and space == "lab":
                         tilt_errors.append(abs(err))
                 row.append(f"{errs[0]:+.4f} / {errs[1]:+.4f}")
+                if method == "ours" and space == "lab":
+                    # the same from the file, as `cvmeasure measure` reads it (JPEGs through
+                    # their Y, Cb, Cr planes where libturbojpeg is: cvmeasure.jpegplanes)
+                    try:
+                        via_file = measure_photo_file(path, kit, camera=lens, plane=plane)
+                    except InputError:
+                        continue
+                    for key in ("pin_angle_deg", "bend_angle_deg"):
+                        err = float(getattr(via_file, key) - truth[key])
+                        file_errors.append(abs((err + 180.0) % 360.0 - 180.0))
+                        file_vs_array.append(abs(getattr(via_file, key) - getattr(res, key)))
             try:  # informative: the renderer's true lens and pose, which no user has
                 ideal = measure_machine_photo(
                     img,
@@ -211,6 +224,17 @@ def main(argv: list[str] | None = None) -> dict:
             "deg",
             target="<= 0.02",
             met=bool(ours) and p95(ours) <= 0.02,
+        ),
+        Metric(
+            "p95 angle error, ours (LAB) measured from the file (measure_photo_file: JPEGs "
+            "through their Y, Cb, Cr planes, issue 19)",
+            p95(file_errors),
+            "deg",
+        ),
+        Metric(
+            "largest |from the file - from the decoded photo|, ours (LAB)",
+            max(file_vs_array) if file_vs_array else None,
+            "deg",
         ),
         Metric(
             "p95 angle error, ours (LAB), through the renderer's true lens and pose "
