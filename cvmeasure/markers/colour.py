@@ -131,7 +131,7 @@ def estimate_white(
     img = np.ascontiguousarray(bgr8)
     b, g, r = cv2.split(img)
     maxc = cv2.max(cv2.max(b, g), r)
-    unclipped = (maxc < 250).astype(np.uint8)
+    unclipped = cv2.compare(maxc, 250, cv2.CMP_LT)  # 255 where every channel is below 250
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     # grey histograms by calcHist (no int64 copy of the image, as np.bincount makes)
     hist = cv2.calcHist([gray], [0], unclipped, [256], [0, 256]).ravel().astype(np.int64)
@@ -142,18 +142,17 @@ def estimate_white(
     k = min(n_ok, max(20, int(np.ceil(top_fraction * n_ok))))
     above = np.cumsum(hist[::-1])[::-1]  # pixels with grey >= level
     level = int(np.flatnonzero(above >= k)[-1])
-    select = ((gray >= level) & (unclipped > 0)).astype(np.uint8)
+    select = cv2.bitwise_and(cv2.compare(gray, level, cv2.CMP_GE), unclipped)
     n_sel = int(cv2.countNonZero(select))
     mb, mg, mr, _ = cv2.mean(img, mask=select)
-    bright = gray >= level
-    n_bright = int(np.count_nonzero(bright))
+    hist_all = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel().astype(np.int64)
+    above_all = np.cumsum(hist_all[::-1])[::-1]  # as above, every pixel
+    n_bright = int(above_all[level])  # pixels with grey >= level
     clipped_fraction = 1.0 - n_sel / max(1, n_bright)
     white = np.array([mr, mg, mb])
-    hist_all = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel().astype(np.int64)
-    above_all = np.cumsum(hist_all[::-1])[::-1]
     level_all = int(np.flatnonzero(above_all >= k)[-1])
-    brightest = gray >= level_all
     if recover_clipped and clipped_fraction > CLIPPED_WHITE_FRACTION:
+        brightest = gray >= level_all
         colour = _unclipped_white_colour(img, maxc, white)
         # its level: the brightest pixels (the rings) in the white's weakest channel,
         # the one least likely clipped
@@ -169,7 +168,8 @@ def estimate_white(
             )
     # Overexposed rings: their unclipped neighbours give the light's colour but not its
     # level. Raise the white (in linear light) to the brightest pixels' grey, clipped or not.
-    grey_all = cv2.mean(gray, mask=brightest.astype(np.uint8))[0]
+    # the mean grey of the pixels at or above level_all, from the histogram
+    grey_all = float(np.arange(level_all, 256) @ hist_all[level_all:]) / int(above_all[level_all])
     grey_white = float(white @ np.array([0.299, 0.587, 0.114]))
     if grey_all > grey_white + 1.0:
         gain = srgb_decode(np.array(grey_all / 255.0)) / srgb_decode(np.array(grey_white / 255.0))
