@@ -180,12 +180,23 @@ class _Transform:
         return pts if self.func is None else np.asarray(self.func(pts), dtype=np.float64)
 
     def jacobian(self, xy: tuple[float, float], h: float = 0.5) -> np.ndarray:
-        if self.func is None:
-            return np.eye(2)
+        return self.mapped_with_jacobian(xy, np.zeros((0, 2)), h)[0]
+
+    def mapped_with_jacobian(
+        self, xy: tuple[float, float], pts: np.ndarray, h: float = 0.5
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Jacobian at ``xy`` by central differences of ``h`` px, ``xy`` mapped, ``pts`` mapped).
+
+        One call of the mapping for all three (it maps each point on its own).
+        """
         x, y = xy
-        p = np.array([[x + h, y], [x - h, y], [x, y + h], [x, y - h]])
+        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
+        if self.func is None:
+            return np.eye(2), np.array([x, y], dtype=np.float64), pts
+        p = np.vstack(([[x + h, y], [x - h, y], [x, y + h], [x, y - h], [x, y]], pts))
         q = self(p)
-        return np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
+        jac = np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
+        return jac, q[4], q[5:]
 
 
 def _transform(
@@ -449,10 +460,8 @@ def _measure_ours(
         else:
             # on a plane pose, each disc's edge goes to its own height above the plate
             at = transform.at_height(kit.height_mm(role) if kit.has_heights else 0.0)
-            jac = at.jacobian(fit.centre)
-            c_f = at(np.array([fit.centre]))[0]
+            jac, c_f, pts_f = at.mapped_with_jacobian(fit.centre, edges.points_px)
             r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
-            pts_f = at(edges.points_px)
             fit_f = fit_circle_robust(
                 pts_f, init=(c_f[0], c_f[1], r_f), correlation_factor=CORRELATION_FACTOR
             )
