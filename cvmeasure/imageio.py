@@ -11,7 +11,9 @@ An unreadable file raises :class:`~cvmeasure.errors.InputError` naming it.
 JPEGs are decoded by libjpeg-turbo through simplejpeg (accurate integer IDCT and
 fancy chroma upsampling: the same pixels as ``cv2.imdecode``, bit for bit, in
 0.45-0.93x its time on one core; :func:`decode_jpeg`); what simplejpeg refuses
-(CMYK, 12-bit, damaged files) goes to OpenCV as before.
+(CMYK, 12-bit, damaged files) goes to OpenCV as before. A marker measurement from a
+JPEG file (``measure_photo_file``) decodes only its Y, Cb, Cr planes where Debian's
+libturbojpeg is installed, and makes BGR only where it reads (:mod:`cvmeasure.jpegplanes`).
 """
 
 from __future__ import annotations
