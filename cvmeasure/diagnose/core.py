@@ -17,10 +17,11 @@ Steps, on measured trials:
 4. A second cause on top of the first when structure is left (same rule,
    against the one-cause model + discrepancy; the best few first causes each
    get this round and the lowest held-out model wins). The accepted second
-   causes are ranked by their held-out RMSE with the discrepancy profiled out,
-   and the first whose pair leaves no structure beyond the discrepancy, with
-   both causes of plausible size, is named; otherwise the pair is refused and
-   reported as an unnamed discrepancy.
+   causes are ranked by their held-out RMSE with the discrepancy profiled out
+   (a first cause's grid-rounded shape chosen again beside each), and the first
+   whose pair has both causes of plausible size is named. A named pair is checked
+   for held-out ties with the other pairs: when all that tie share its first
+   cause, the second is not settled and the first is named alone.
 5. The causes' parameters with 95 % intervals (Gauss-Newton covariance,
    Student t), residual trends before and after, a leftover check, and an
    identifiability check against the other candidates on this design,
@@ -167,9 +168,10 @@ class Diagnosis:
     discovered: tuple[DiscoveredTerm, ...] = field(default=())
     evidence: tuple[tuple[str, float], ...] = field(default=())  # (explanation, weight)
     #: a tie held out: the named cause and the accepted single causes whose held-out error
-    #: is within one standard error (over the CV groups) of its own; then the library's
-    #: order-dependent terms (outside the catalogue, e.g. ``warm_up_45``) that reproduce
-    #: the named causes' change on this plan (a pair written ``a + b``); empty when none
+    #: is within one standard error (over the CV groups) of its own (for a named pair: the
+    #: pair and the other pairs the beam could name, each written ``a + b``); then the
+    #: library's order-dependent terms (outside the catalogue, e.g. ``warm_up_45``) that
+    #: reproduce the named causes' change on this plan; empty when none
     tie: tuple[str, ...] = field(default=())
 
     @property
