@@ -7,8 +7,10 @@ saying why, where it is absent.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -22,3 +24,24 @@ def shared_real() -> Path:
     if not path.is_dir():
         pytest.skip(f"real data not found at {path} (the shared/ folder is absent)")
     return path
+
+
+def _textured(seed: int, shape: tuple[int, int] = (120, 184), noise: float = 6.0) -> np.ndarray:
+    """A BGR uint8 test image: colour gradients, a saturated disc with sharp edges, noise.
+
+    What a JPEG's chroma upsampling and IDCT see at edges and in smooth areas.
+    """
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = np.dstack((xx * 255 // w, yy * 255 // h, 128 + 0 * xx)).astype(np.float64)
+    disc = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (h / 4) ** 2
+    img[disc] = (30, 140, 230)
+    img += rng.normal(0, noise, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="session")
+def textured_bgr() -> Callable[..., np.ndarray]:
+    """``textured_bgr(seed, shape=(120, 184), noise=6.0)``: a BGR uint8 test image."""
+    return _textured

@@ -72,18 +72,6 @@ def test_a_photo_declaring_too_many_pixels_is_refused_before_decoding(tmp_path):
     assert grown_kb < 200_000  # nothing near the 2.7 GB a decode would take
 
 
-def _textured(seed: int, shape=(120, 184)) -> np.ndarray:
-    """A colour image with edges, gradients and noise: what chroma upsampling and IDCT see."""
-    rng = np.random.default_rng(seed)
-    h, w = shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    img = np.dstack((xx * 255 // w, yy * 255 // h, 128 + 0 * xx)).astype(np.float64)
-    disc = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (h / 4) ** 2
-    img[disc] = (30, 140, 230)
-    img += rng.normal(0, 6, img.shape)
-    return np.clip(img, 0, 255).astype(np.uint8)
-
-
 @pytest.mark.parametrize(
     "params",
     [
@@ -94,11 +82,11 @@ def _textured(seed: int, shape=(120, 184)) -> np.ndarray:
         [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_RST_INTERVAL, 4],
     ],
 )
-def test_jpeg_decode_gives_opencvs_pixels_bit_for_bit(tmp_path, params):
+def test_jpeg_decode_gives_opencvs_pixels_bit_for_bit(tmp_path, params, textured_bgr):
     from cvmeasure.imageio import decode_jpeg
 
     p = tmp_path / "x.jpg"
-    cv2.imwrite(str(p), _textured(5), params)
+    cv2.imwrite(str(p), textured_bgr(5), params)
     data = np.fromfile(p, dtype=np.uint8)
     fast = decode_jpeg(data, p)
     assert fast is not None  # simplejpeg decoded it (not the fallback)
@@ -106,9 +94,9 @@ def test_jpeg_decode_gives_opencvs_pixels_bit_for_bit(tmp_path, params):
     np.testing.assert_array_equal(read_photo(p).bgr, fast)
 
 
-def test_grey_jpeg_reads_as_three_equal_channels(tmp_path):
+def test_grey_jpeg_reads_as_three_equal_channels(tmp_path, textured_bgr):
     p = tmp_path / "grey.jpg"
-    grey = cv2.cvtColor(_textured(6), cv2.COLOR_BGR2GRAY)
+    grey = cv2.cvtColor(textured_bgr(6), cv2.COLOR_BGR2GRAY)
     cv2.imwrite(str(p), grey, [cv2.IMWRITE_JPEG_QUALITY, 95])
     bgr = read_photo(p).bgr
     assert bgr.shape == grey.shape + (3,)
@@ -116,11 +104,11 @@ def test_grey_jpeg_reads_as_three_equal_channels(tmp_path):
     np.testing.assert_array_equal(bgr[..., 0], bgr[..., 2])
 
 
-def test_truncated_jpeg_goes_to_opencv_as_before(tmp_path):
+def test_truncated_jpeg_goes_to_opencv_as_before(tmp_path, textured_bgr):
     from cvmeasure.imageio import decode_jpeg
 
     p = tmp_path / "cut.jpg"
-    cv2.imwrite(str(p), _textured(7), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    cv2.imwrite(str(p), textured_bgr(7), [cv2.IMWRITE_JPEG_QUALITY, 90])
     data = np.fromfile(p, dtype=np.uint8)[:-400]
     data.tofile(p)
     assert decode_jpeg(data, p) is None  # strict: damaged data is not guessed at here
@@ -129,11 +117,11 @@ def test_truncated_jpeg_goes_to_opencv_as_before(tmp_path):
         read_photo(p)
 
 
-def test_a_jpeg_declaring_too_many_pixels_is_refused_before_decoding(tmp_path):
+def test_a_jpeg_declaring_too_many_pixels_is_refused_before_decoding(tmp_path, textured_bgr):
     import struct
 
     p = tmp_path / "bomb.jpg"
-    cv2.imwrite(str(p), _textured(8, (16, 16)), [cv2.IMWRITE_JPEG_QUALITY, 90])
+    cv2.imwrite(str(p), textured_bgr(8, (16, 16)), [cv2.IMWRITE_JPEG_QUALITY, 90])
     data = bytearray(p.read_bytes())
     sof = data.index(b"\xff\xc0")
     data[sof + 5 : sof + 9] = struct.pack(">HH", 30000, 30000)  # height, width

@@ -15,18 +15,6 @@ needs_lib = pytest.mark.skipif(
 )
 
 
-def _textured(seed: int, shape=(151, 203), noise: float = 6.0) -> np.ndarray:
-    """Colour gradients, a saturated disc with sharp edges and noise (odd size on purpose)."""
-    rng = np.random.default_rng(seed)
-    h, w = shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    img = np.dstack((xx * 255 // w, yy * 255 // h, 128 + 0 * xx)).astype(np.float64)
-    disc = (xx - w / 2) ** 2 + (yy - h / 2) ** 2 < (h / 4) ** 2
-    img[disc] = (30, 140, 230)
-    img += rng.normal(0, noise, img.shape)
-    return np.clip(img, 0, 255).astype(np.uint8)
-
-
 def _jpeg(img: np.ndarray, subsampling: str, quality: int = 90) -> bytes:
     return simplejpeg.encode_jpeg(img, quality, colorspace="BGR", colorsubsampling=subsampling)
 
@@ -47,8 +35,8 @@ def _close(a: np.ndarray, b: np.ndarray) -> None:
 @needs_lib
 @pytest.mark.parametrize("subsampling", ["444", "422", "420"])
 @pytest.mark.parametrize("quality", [75, 98])
-def test_planes_give_the_full_decodes_pixels(subsampling, quality):
-    data = _jpeg(_textured(3), subsampling, quality)
+def test_planes_give_the_full_decodes_pixels(subsampling, quality, textured_bgr):
+    data = _jpeg(textured_bgr(3, (151, 203)), subsampling, quality)
     full = simplejpeg.decode_jpeg(data, colorspace="BGR")
     planes = jpegplanes.read_planes(data)
     assert planes is not None
@@ -60,7 +48,7 @@ def test_planes_give_the_full_decodes_pixels(subsampling, quality):
     _close(planes.region_bgr(37, 101, 51, 150), full[37:101, 51:150])
     # the sampled copy is the decoded image's every step-th pixel, with the chroma sample
     # it lies in: the same but next to colour edges (where subsampled chroma is interpolated)
-    clean = _jpeg(_textured(3, noise=0.0), subsampling, quality)
+    clean = _jpeg(textured_bgr(3, (151, 203), noise=0.0), subsampling, quality)
     planes, full = jpegplanes.read_planes(clean), simplejpeg.decode_jpeg(clean, colorspace="BGR")
     for step in (3, 7, 10):
         got = planes.sampled_bgr(step)
@@ -75,8 +63,8 @@ def test_planes_give_the_full_decodes_pixels(subsampling, quality):
 
 
 @needs_lib
-def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image():
-    data = _jpeg(_textured(4), "420")
+def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image(textured_bgr):
+    data = _jpeg(textured_bgr(4, (151, 203)), "420")
     full = simplejpeg.decode_jpeg(data, colorspace="BGR")
     planes = jpegplanes.read_planes(data)
     lazy = planes.lazy_bgr()
@@ -95,18 +83,20 @@ def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image():
 
 
 @needs_lib
-def test_what_the_planes_path_does_not_take_is_left_to_the_full_decode(tmp_path):
-    grey = cv2.cvtColor(_textured(5), cv2.COLOR_BGR2GRAY)
+def test_what_the_planes_path_does_not_take_is_left_to_the_full_decode(tmp_path, textured_bgr):
+    grey = cv2.cvtColor(textured_bgr(5, (151, 203)), cv2.COLOR_BGR2GRAY)
     assert (
         jpegplanes.read_planes(simplejpeg.encode_jpeg(grey[..., None], 90, colorspace="GRAY"))
         is None
     )
-    data = _jpeg(_textured(5), "420")
+    data = _jpeg(textured_bgr(5, (151, 203)), "420")
     assert jpegplanes.read_planes(data[:-300]) is None  # damaged: libjpeg warns, nothing guessed
     assert jpegplanes.read_planes(data, max_pixels=100) is None  # too large: not decoded here
     p = tmp_path / "x.jpg"
     cv2.imwrite(
-        str(p), _textured(5), [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_PROGRESSIVE, 1]
+        str(p),
+        textured_bgr(5, (151, 203)),
+        [cv2.IMWRITE_JPEG_QUALITY, 90, cv2.IMWRITE_JPEG_PROGRESSIVE, 1],
     )
     planes = jpegplanes.read_planes(p.read_bytes())  # progressive: libjpeg-turbo decodes it too
     assert planes is not None
