@@ -182,10 +182,12 @@ class PartMeasurement:
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): the width's estimate ``lift_mm``,
-        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``), ``bound_mm`` and
-        the bound's worst effect on the radius (``effect_radius_pct``), the bend per
-        chord and a vertex bend (``effect_segment_bend_deg``, ``effect_bend_deg``);
-        else None.
+        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``, or ``"correction"``
+        when a lift was measured and corrected), ``source`` (where the lift came from:
+        ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
+        ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
+        the bend per chord and a vertex bend (``effect_segment_bend_deg``,
+        ``effect_bend_deg``); else None.
     """
 
     source: str
@@ -520,6 +522,7 @@ def _lift_effects(
     info = {
         **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
         "used": "bound",
+        "source": "width",
         "bound_mm": bound,
         "effect_radius_pct": worst_r,
         "effect_segment_bend_deg": worst_s,
@@ -844,6 +847,7 @@ def measure_part(
                 2.0 * corrected.lift.lift_sigma_mm,
             )  # fmt: skip
             lift_info = {**lift_info, **moved_info, "used": "correction",
+                         "source": "shadow" if shadow_info else "moved_photo",
                          "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
             if bend_sigma is not None and extra_sigma is not None:
                 bend_sigma = np.hypot(bend_sigma, extra_sigma)
