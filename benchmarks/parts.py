@@ -221,11 +221,11 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
     true_seg = case["arc_angle_deg"] / case["divisions"]
     out = {**case}
     for name, diameter, second in (("round", 3.0, None), ("flat", None, None),
-                                   ("moved", 3.0, moved.bgr)):  # fmt: skip
+                                   ("moved", 3.0, moved.bgr), ("shadow", 3.0, None)):  # fmt: skip
         try:
             m = measure_part(
                 photo.bgr, None, None, plane=plane, wire_diameter_mm=diameter,
-                divisions=case["divisions"], moved_image=second,
+                divisions=case["divisions"], moved_image=second, shadow_lift=name == "shadow",
             )  # fmt: skip
         except InputError as exc:
             out[f"{name}_refused"] = str(exc)
@@ -434,7 +434,9 @@ def main(argv: list[str] | None = None) -> dict:
             "'flat' = the same photo measured as a flat stripe on the plate (no diameter); "
             f"'moved' = with a second photo of the part slid {MOVED_SHIFT_MM:.0f} mm along x "
             "(same pose, lift and light; measure_part(moved_image=...), cvmeasure part --moved): "
-            "the lift measured from the two views and corrected",
+            "the lift measured from the two views and corrected; 'shadow' = the one photo "
+            "with measure_part(shadow_lift=True) (cvmeasure part --shadow-lift, off by "
+            "default): the lift from the wire's cast shadow, corrected when its 2 sigma <= 1 mm",
         ],
     )
 
@@ -491,6 +493,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             f"{silent} of {len(ok)} ({refused} refused)", "parts", "0", silent == 0,
         ),
         *_moved_metrics(rows),
+        *_shadow_metrics(rows),
         Metric(
             "round wire measured as a flat stripe: radius error (worst)",
             max((abs(r["flat_radius_err_pct"]) for r in flat_ok), default=float("nan")), "%",
@@ -548,6 +551,57 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
     ]  # fmt: skip
 
 
+def _shadow_metrics(rows: list[dict]) -> list[Metric]:
+    """The same one photo with ``shadow_lift=True``: the lift from the cast shadow (informative:
+    off by default, no target of its own)."""
+    ok = [r for r in rows if "shadow_radius_err_pct" in r]
+    r_worst = max((abs(r["shadow_radius_err_pct"]) for r in ok), default=float("nan"))
+    b_worst = max((abs(r["shadow_segment_bend_err_deg"]) for r in ok), default=float("nan"))
+    v_worst = max((r["shadow_vertex_err_deg"] for r in ok), default=float("nan"))
+    lift_err = [
+        abs(r["shadow_lift"]["lift_mm"] - r["lift_mm"])
+        for r in ok
+        if r["shadow_lift"] and r["shadow_lift"].get("used") == "correction"
+    ]
+    held = [v for r in ok for v in r["shadow_within_2sigma"]]
+    rate = 100.0 * float(np.mean(held)) if held else float("nan")
+    # off target: the radius, the bend per chord or a vertex bend
+    silent = sum(
+        1
+        for r in ok
+        if (
+            abs(r["shadow_radius_err_pct"]) > RADIUS_TARGET_PCT
+            or abs(r["shadow_segment_bend_err_deg"]) > BEND_TARGET_DEG
+            or r["shadow_vertex_err_deg"] > BEND_TARGET_DEG
+        )
+        and not (r["shadow_lifted_warning"] or r.get("shadow_end_warning"))
+    )
+    return [
+        Metric("round wire, one photo with --shadow-lift: radius error (worst)", r_worst, "%"),
+        Metric(
+            "round wire, one photo with --shadow-lift: bend per chord error (worst)", b_worst, "deg"
+        ),
+        Metric(
+            "round wire, one photo with --shadow-lift: bend at each vertex error (worst)",
+            v_worst, "deg",
+        ),
+        Metric(
+            f"round wire, one photo with --shadow-lift: lift error (worst; {len(lift_err)} of "
+            f"{len(ok)} corrected)",
+            max(lift_err, default=float("nan")), "mm",
+        ),
+        Metric(
+            "round wire, one photo with --shadow-lift: vertex bends within 2 stated sigma",
+            rate, "%",
+        ),
+        Metric(
+            "round wire, one photo with --shadow-lift: radius, bend per chord or a vertex bend "
+            "off target without a part_lifted or part_end_uncertain warning",
+            f"{silent} of {len(ok)} ({len(rows) - len(ok)} refused)", "parts",
+        ),
+    ]  # fmt: skip
+
+
 def _round_table(rows: list[dict]) -> Table:
     def val(r: dict, key: str) -> Any:
         return r.get(key, "refused")
@@ -573,6 +627,11 @@ def _round_table(rows: list[dict]) -> Table:
                 val(r, "moved_vertex_err_deg"),
                 _moved_lift_cell(r.get("moved_lift")),
                 "yes" if r.get("moved_end_warning") else "no",
+                val(r, "shadow_radius_err_pct"),
+                val(r, "shadow_segment_bend_err_deg"),
+                val(r, "shadow_vertex_err_deg"),
+                _shadow_lift_cell(r.get("shadow_lift")),
+                "yes" if r.get("shadow_lifted_warning") else "no",
             ]
         )
     return Table(
@@ -582,7 +641,8 @@ def _round_table(rows: list[dict]) -> Table:
             "part", "sheet", "lift_mm", "light_elev_deg", "R_%", "bend_per_chord_deg",
             "vertex_worst_deg", "lift_est_mm", "part_lifted", "flat_R_%", "flat_vertex_worst_deg",
             "moved_R_%", "moved_bend_per_chord_deg", "moved_vertex_worst_deg", "moved_lift_mm",
-            "moved_end_uncertain",
+            "moved_end_uncertain", "shadow_R_%", "shadow_bend_per_chord_deg",
+            "shadow_vertex_worst_deg", "shadow_lift_mm", "shadow_part_lifted",
         ],
         body,
     )  # fmt: skip
@@ -595,6 +655,17 @@ def _moved_lift_cell(lift: dict | None) -> str:
         return f"{lift['lift_mm']:.2f} +- {lift['lift_sigma_mm']:.2f}"
     moved = lift.get("moved") or {}
     return f"unused ({moved.get('lift_mm')})"
+
+
+def _shadow_lift_cell(lift: dict | None) -> str:
+    if not lift:
+        return "refused"
+    if lift.get("used") == "correction":
+        return f"{lift['lift_mm']:.2f} +- {lift['lift_sigma_mm']:.2f}"
+    shadow = lift.get("shadow") or {}
+    if shadow.get("lift_mm") is None:
+        return "none"
+    return f"bound ({shadow['lift_mm']:.2f} +- {shadow.get('lift_sigma_mm', float('nan')):.2f})"
 
 
 if __name__ == "__main__":

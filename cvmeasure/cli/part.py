@@ -23,7 +23,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the seed paper's absolute and relative errors are reported.",
     )
     p.add_argument("photo", type=Path, help="photo of the part beside the board")
-    p.add_argument("--board", type=Path, required=True, help="board JSON (spec)")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--board", type=Path, help="board JSON (spec): the board in the photo")
+    g.add_argument(
+        "--plane",
+        type=Path,
+        help="plane JSON (`cvmeasure plane -o`) of the plate the part lies on, measured from "
+        "another photo by the same camera in the same pose (no board in this photo)",
+    )
     p.add_argument("--camera", type=Path, required=True, help="camera JSON (cvmeasure calibrate)")
     p.add_argument(
         "--divisions", type=int_in(1, 1000), help="number of chords the part was bent in"
@@ -59,6 +66,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "part was not moved, a warning says so and the lift is only bounded",
     )
     p.add_argument(
+        "--shadow-lift",
+        action="store_true",
+        help="one photo: measure the part's lift from the wire's cast shadow (lamp and tilt "
+        "fitted over the whole wire) and correct it when its 2 sigma is at most 1 mm, else "
+        "bound it as without (needs the wire's diameter; not with --moved; off by default: "
+        "checked on ray-traced renders only, docs/part-measurement.md)",
+    )
+    p.add_argument(
         "--axis-height-mm",
         "--wire-axis-height-mm",
         dest="axis_height_mm",
@@ -85,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     from cvmeasure.board import load_board
     from cvmeasure.camera import load_camera
+    from cvmeasure.contracts import PlaneModel
     from cvmeasure.design import load_design
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
@@ -94,8 +110,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.plot and not args.design:
         raise InputError("--plot", "the deviation plot needs --design")
-    board = load_board(args.board)
     camera = load_camera(args.camera)
+    board = load_board(args.board) if args.board else None
+    plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
     design = load_design(args.design).wire() if args.design else None
     diameter = args.wire_diameter_mm
     if diameter is None and args.kit:
@@ -109,6 +126,14 @@ def run(args: argparse.Namespace) -> int:
     photo = read_photo(args.photo)
     if args.moved and diameter is None:
         raise InputError("--moved", "the lift from a moved photo needs --wire-diameter-mm or --kit")
+    if args.shadow_lift and diameter is None:
+        raise InputError(
+            "--shadow-lift", "the lift from the shadow needs --wire-diameter-mm or --kit"
+        )
+    if args.shadow_lift and args.moved:
+        raise InputError("--shadow-lift", "one photo's lift: not with --moved (two photos)")
+    if args.moved and args.plane:
+        raise InputError("--moved", "the moved photo's plane comes from its board: use --board")
     moved = read_photo(args.moved).bgr if args.moved else None
     m = measure_part(
         photo.bgr,
@@ -123,6 +148,8 @@ def run(args: argparse.Namespace) -> int:
         source=str(args.photo),
         wire_diameter_mm=diameter,
         moved_image=moved,
+        plane=plane,
+        shadow_lift=args.shadow_lift,
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:
@@ -193,8 +220,9 @@ def _print_summary(m, out) -> None:
                 file=out,
             )
     if m.lift is not None and m.lift["used"] == "correction":
+        seen = {"shadow": "the cast shadow"}.get(m.lift.get("source"), "the moved photo")
         print(
-            f"  lift off the plate (from the moved photo): {m.lift['lift_mm']:.2f} +- "
+            f"  lift off the plate (from {seen}): {m.lift['lift_mm']:.2f} +- "
             f"{m.lift['lift_sigma_mm']:.2f} mm, corrected",
             file=out,
         )

@@ -68,6 +68,7 @@ from cvmeasure.part.lift import (
 )
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
+from cvmeasure.part.shadow import estimate_lift_shadow
 
 __all__ = [
     "Method",
@@ -181,10 +182,12 @@ class PartMeasurement:
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): the width's estimate ``lift_mm``,
-        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``), ``bound_mm`` and
-        the bound's worst effect on the radius (``effect_radius_pct``), the bend per
-        chord and a vertex bend (``effect_segment_bend_deg``, ``effect_bend_deg``);
-        else None.
+        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``, or ``"correction"``
+        when a lift was measured and corrected), ``source`` (where the lift came from:
+        ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
+        ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
+        the bend per chord and a vertex bend (``effect_segment_bend_deg``,
+        ``effect_bend_deg``); else None.
     """
 
     source: str
@@ -519,6 +522,7 @@ def _lift_effects(
     info = {
         **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
         "used": "bound",
+        "source": "width",
         "bound_mm": bound,
         "effect_radius_pct": worst_r,
         "effect_segment_bend_deg": worst_s,
@@ -541,6 +545,12 @@ def _lift_effects(
             f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg"
         )
     return info, None if worst_b is None else 0.5 * worst_b, warning
+
+
+#: The shadow's lift (one photo, ``shadow_lift=True``) is corrected when its 2 sigma is at
+#: most this (mm): the part's radius needs its mean height to about 1 mm (0.3 % of 550 mm
+#: is 1.6 mm of camera distance).
+SHADOW_MAX_2SIGMA_MM = 1.0
 
 
 #: Two views of a slid part whose registered centrelines differ by more than this rms
@@ -664,6 +674,7 @@ def measure_part(
     max_lift_mm: float = MAX_LIFT_MM,
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
+    shadow_lift: bool = False,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -703,6 +714,11 @@ def measure_part(
         is bounded and warned about. When the part was not moved, or the two centrelines
         disagree (residual above :data:`MOVED_MAX_RMS_PX`), a warning says so and the lift
         is bounded as with one photo.
+    shadow_lift : with ``wire_diameter_mm`` and one photo (no ``moved_image``), measure the
+        lift from the wire's cast shadow (:func:`cvmeasure.part.shadow.estimate_lift_shadow`)
+        and correct it when its 2 sigma is at most :data:`SHADOW_MAX_2SIGMA_MM`; else (no
+        clear shadow, a wider uncertainty) the lift is bounded as without it. Off by
+        default: measured on development renders only (docs/part-measurement.md).
     moved_plane : the second photo's plane (default: ``plane`` when given, else measured
         from the board in ``moved_image``).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
@@ -782,6 +798,7 @@ def measure_part(
     bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
     lift_info = None
     moved_info = None
+    corrected = None
     if wire_diameter_mm is not None and moved_image is not None:
         moved_info, corrected, moved_warning = _moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
@@ -790,6 +807,29 @@ def measure_part(
         )  # fmt: skip
         if moved_warning:
             warnings.append(moved_warning)
+    shadow_info = None
+    if (
+        shadow_lift
+        and wire_diameter_mm is not None
+        and moved_image is None
+        and centre.centre_from == "silhouette"
+    ):
+        shadow = estimate_lift_shadow(
+            image, plane, centre.points_px, wire_diameter_mm=wire_diameter_mm,
+            axis_height_mm=_axis_height(axis_height_mm, wire_diameter_mm),
+        )  # fmt: skip
+        shadow_info = shadow.to_dict()
+        if shadow.lift is not None and 2.0 * shadow.lift.lift_sigma_mm <= SHADOW_MAX_2SIGMA_MM:
+            corrected = shadow
+            moved_info = {**shadow_info, "source": "shadow"}
+        else:
+            corrected = None
+            if shadow.lift is not None:
+                shadow_info["message"] = (
+                    f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
+                    f"{shadow.lift.lift_sigma_mm:.2f} mm: too uncertain to correct"
+                )
+    if (wire_diameter_mm is not None and moved_image is not None) or moved_info is not None:
         if corrected is not None:
             flat = (ours, poly)
             centreline_mm = _lifted_mm(
@@ -807,6 +847,7 @@ def measure_part(
                 2.0 * corrected.lift.lift_sigma_mm,
             )  # fmt: skip
             lift_info = {**lift_info, **moved_info, "used": "correction",
+                         "source": "shadow" if shadow_info else "moved_photo",
                          "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
             if bend_sigma is not None and extra_sigma is not None:
                 bend_sigma = np.hypot(bend_sigma, extra_sigma)
@@ -816,7 +857,8 @@ def measure_part(
                 or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
             ):
                 warnings.append(
-                    f"part_lifted: the two photos put the lift at {corrected.lift.lift_mm:.2f} +- "
+                    f"part_lifted: the {'shadow' if shadow_info else 'two photos'} put the lift "
+                    f"at {corrected.lift.lift_mm:.2f} +- "
                     f"{corrected.lift.lift_sigma_mm:.2f} mm (corrected); its uncertainty (2 "
                     f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
                     f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
@@ -835,6 +877,8 @@ def measure_part(
             warnings.append(lift_warning)
         if moved_info is not None:
             lift_info = {**lift_info, "moved": moved_info}
+        if shadow_info is not None:
+            lift_info = {**lift_info, "shadow": shadow_info}
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = _outline_mm(image, wire, plane)

@@ -1,0 +1,454 @@
+"""A part's lift from ONE photo: the wire's cast shadow on the plate, fitted globally.
+
+Under a distant lamp a point of the wire's axis at height ``H`` above the plate casts
+its shadow at ``p + H s`` (plate, board frame), ``s`` the lamp's horizontal shadow vector
+per mm of height (unknown: learnt from the photo). A cylinder of radius ``r`` lying
+along a horizontal direction with plate normal ``n`` casts a band whose edges lie at
+``H (n.s) +- r sqrt(1 + (n.s)^2)`` across it (the light's ray at distance ``r`` from the
+axis); the outer edge, on the side ``n.s > 0``, lies beyond the wire and is seen on
+the plate. A rigid part rests on the plate: ``H = r + h(p)``, ``h = a.p + c >= 0`` with
+``h = 0`` at its lowest point (``c = -min a.p``). Fitted together over the whole
+centreline: ``s`` (2) and ``a`` (2), by least squares on the shadow's outer edge
+measured across the wire (on the plate, the photo linearised from sRGB, the edge at
+half the step from the shadow's level to the plate's). The resting stretch's offset
+is ``r (n.s)`` plus the band's half width, which fixes ``s``; the lifted stretch's extra
+offset ``h (n.s)`` gives ``a``. The curved part supplies many directions ``n``.
+
+The predicted edge is the exact one of the model: each axis point on the plane of its
+own height (the perspective of the lifted end counts), its shadow point, the shadow
+curve's own normal and the crossing of the measuring line with that curve (on a bend
+the shadow is displaced along the wire too).
+
+Where the shadow is not usable (no dark band beside the wire, the lamp nearly along
+the wire everywhere, the edge hidden behind the wire in the oblique view) or the fit's
+uncertainty is too large, :func:`estimate_lift_shadow` says so (``message``) and the
+caller bounds the lift instead. Frames: board frame (mm), heights towards the camera.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.contracts import PlaneModel
+from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, points_at_heights_mm
+
+__all__ = [
+    "ShadowEdges",
+    "ShadowLift",
+    "estimate_lift_shadow",
+    "measure_shadow_edges",
+    "predict_shadow_edges_mm",
+]
+
+#: Profiles across the wire reach this far from its axis on each side (mm).
+PROFILE_REACH_MM = 11.0
+#: The plate's level is the median of the profile's last stretch this long (mm).
+PLATE_STRETCH_MM = 1.5
+#: A shadow darker than the plate by less than this fraction of the plate's light is none
+#: (a cast shadow keeps only the ambient light; 0.25 leaves room for a bright room).
+MIN_SHADOW_CONTRAST = 0.25
+#: A measured edge is used where the model puts it this far beyond the wire's silhouette
+#: on the plate (mm): nearer, the silhouette's own step joins it.
+MIN_GAP_MM = 0.35
+#: Residuals are clipped at this (mm) when starts of the fit are compared.
+SCORE_CLIP_MM = 0.15
+#: The model's axis points are this far apart (mm).
+MODEL_STEP_MM = 0.25
+#: The shadow edges' common bias, mm: on the ray-traced round wires (development seeds,
+#: full and half size) the measured edges sat -0.05..+0.05 mm from the true ones on
+#: average (negative on light plates, positive on dark ones).
+EDGE_BIAS_MM = 0.05
+#: An edge is an outlier (a centreline defect, clutter) only beyond this from the fit (mm),
+#: however tight the others: several times the edges' bias.
+OUTLIER_MM = 0.15
+#: Centreline points this close to either end are left out (the caps' own shadows), mm.
+END_MARGIN_MM = 4.0
+
+
+@dataclass(frozen=True)
+class ShadowEdges:
+    """The cast shadow's outer edge measured across the wire, per sampled axis point.
+
+    Attributes
+    ----------
+    index : (K,) index into the centreline points of each sample.
+    axis_mm : (K, 2) axis point at the resting height on the plate, board mm.
+    normal : (K, 2) unit plate normal of the axis (left of travel).
+    offset_mm : (K, 2) the outer edge's distance along ``+normal`` / ``-normal`` (both
+        >= 0), NaN where that side has no shadow edge.
+    silhouette_mm : (K, 2) where the plate starts to be seen beyond the wire on each side
+        (the silhouette generators' rays on the plate), mm along ``+-normal``.
+    contrast : (K, 2) (plate - shadow) / plate, linear light.
+    """
+
+    index: np.ndarray
+    axis_mm: np.ndarray
+    normal: np.ndarray
+    offset_mm: np.ndarray
+    silhouette_mm: np.ndarray
+    contrast: np.ndarray
+
+
+@dataclass(frozen=True)
+class ShadowLift:
+    """The part's lift from its cast shadow in one photo.
+
+    Attributes
+    ----------
+    lift : heights along the centreline (0 at the lowest point), slope, lift and its
+        standard uncertainty; None when the shadow does not measure it (``message``).
+    shadow_mm_per_mm : (sx, sy) the lamp's horizontal shadow vector per mm of height, and
+        ``shadow_sigma`` its standard uncertainties.
+    lamp_elevation_deg, lamp_azimuth_deg : the lamp's direction from ``s`` (azimuth of
+        the direction towards the lamp, board frame).
+    residual_rms_mm : rms of the edges' residuals, mm.
+    samples : edges used; ``length_mm`` the wire length they span.
+    message : '' when measured, else why not.
+    """
+
+    lift: LiftEstimate | None
+    shadow_mm_per_mm: tuple[float, float]
+    shadow_sigma: tuple[float, float]
+    lamp_elevation_deg: float
+    lamp_azimuth_deg: float
+    residual_rms_mm: float
+    samples: int
+    length_mm: float
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **(self.lift.to_dict() if self.lift is not None else {"lift_mm": None}),
+            "shadow_mm_per_mm": list(self.shadow_mm_per_mm),
+            "lamp_elevation_deg": self.lamp_elevation_deg,
+            "lamp_azimuth_deg": self.lamp_azimuth_deg,
+            "residual_rms_mm": self.residual_rms_mm,
+            "samples": self.samples,
+            "message": self.message,
+        }
+
+
+def _unit_normals(points_mm: np.ndarray) -> np.ndarray:
+    t = np.gradient(points_mm, axis=0)
+    t /= np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
+    return np.column_stack((-t[:, 1], t[:, 0]))
+
+
+def _silhouette_on_plate_mm(
+    plane: PlaneModel, axis_mm: np.ndarray, normal: np.ndarray, height_mm: float, radius_mm: float
+) -> np.ndarray:
+    """(K, 2): how far along +-normal the wire hides the plate (its silhouette's rays)."""
+    import cv2
+
+    rot, _ = cv2.Rodrigues(plane.rvec)
+    centre = -rot.T @ np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
+    xyz = np.column_stack((axis_mm, np.full(len(axis_mm), -height_mm)))
+    tangent = np.column_stack((normal[:, 1], -normal[:, 0], np.zeros(len(normal))))
+    side = np.cross(tangent, xyz - centre)
+    side /= np.maximum(np.linalg.norm(side, axis=1), 1e-12)[:, None]
+    out = np.empty((len(axis_mm), 2))
+    for k, sign in enumerate((1.0, -1.0)):
+        limb = xyz + sign * radius_mm * side
+        # the camera's ray through the limb, on to the plate (z = 0)
+        ray = limb - centre
+        t = -centre[2] / ray[:, 2]
+        ground = centre[:2] + t[:, None] * ray[:, :2]
+        out[:, k] = np.abs(np.einsum("ij,ij->i", ground - axis_mm, normal))
+    return out
+
+
+def measure_shadow_edges(
+    image: np.ndarray,
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    *,
+    wire_diameter_mm: float,
+    axis_height_mm: float,
+    step_mm: float = 0.5,
+) -> ShadowEdges:
+    """The cast shadow's outer edge across the wire (both sides), every ``step_mm`` along it.
+
+    ``points_px`` (M, 2): the wire's centreline (silhouette centres), ordered. Profiles are
+    sampled on the plate (height 0, where the shadow lies) along the axis' plate normal,
+    in linear light (the photo decoded from sRGB). On each side the plate's level is the
+    median of the profile's far end, the shadow's the darkest beyond the silhouette; the
+    edge is the outermost crossing of their mean, linearly interpolated.
+    """
+    import cv2
+
+    from cvmeasure.colorimetry import srgb_decode
+    from cvmeasure.part.segment import gray_float
+
+    pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    axis_all = points_at_heights_mm(plane, pts_px, axis_height_mm)
+    s_along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(axis_all, axis=0).T))))
+    total = float(s_along[-1])
+    marks = np.arange(END_MARGIN_MM, total - END_MARGIN_MM + 1e-9, step_mm)
+    if len(marks) == 0:
+        marks = np.array([0.5 * total])
+    index = np.clip(np.searchsorted(s_along, marks), 0, len(pts_px) - 1)
+    normal_all = _unit_normals(axis_all)
+    # smooth the normals over ~3 mm: pixel noise of the centre turns them
+    k = max(1, int(round(3.0 / max(total / max(len(pts_px) - 1, 1), 1e-6))))
+    kernel = np.ones(2 * k + 1) / (2 * k + 1)
+    padded = np.pad(normal_all, ((k, k), (0, 0)), mode="edge")
+    smooth = np.column_stack([np.convolve(padded[:, j], kernel, mode="valid") for j in (0, 1)])
+    smooth /= np.maximum(np.linalg.norm(smooth, axis=1), 1e-12)[:, None]
+    axis = axis_all[index]
+    normal = smooth[index]
+    radius = 0.5 * wire_diameter_mm
+    silhouette = _silhouette_on_plate_mm(plane, axis, normal, axis_height_mm, radius)
+    gray = gray_float(image)
+    top = 255.0 if gray.max() > 1.5 else 1.0
+    lin = srgb_decode(np.clip(gray / top, 0.0, 1.0)).astype(np.float32)
+    du = 0.25 * plane.mm_per_px
+    u = np.arange(0.0, PROFILE_REACH_MM + 1e-9, du)
+    offsets = np.full((len(index), 2), np.nan)
+    contrast = np.zeros((len(index), 2))
+    far = u >= PROFILE_REACH_MM - PLATE_STRETCH_MM
+    for k_side, sign in enumerate((1.0, -1.0)):
+        where = axis[:, None, :] + sign * u[None, :, None] * normal[:, None, :]
+        px = plane.plane_to_image_px(where.reshape(-1, 2)).astype(np.float32)
+        prof = cv2.remap(
+            lin, px[:, 0].reshape(len(index), -1), px[:, 1].reshape(len(index), -1),
+            cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan,
+        ).astype(np.float64)  # fmt: skip
+        plate = np.median(prof[:, far], axis=1)
+        seen = u[None, :] > silhouette[:, k_side, None] + 0.1
+        inner = np.where(seen & ~far[None, :], prof, np.inf)
+        dark = np.min(inner, axis=1)
+        c = (plate - dark) / np.maximum(plate, 1e-9)
+        contrast[:, k_side] = np.where(np.isfinite(c), c, 0.0)
+        mid = 0.5 * (plate + dark)
+        below = (prof < mid[:, None]) & seen
+        for i in np.nonzero(contrast[:, k_side] >= MIN_SHADOW_CONTRAST)[0]:
+            idx = np.nonzero(below[i])[0]
+            if len(idx) == 0:
+                continue
+            j = int(idx[-1])  # the outermost sample darker than the mid level
+            if j + 1 >= len(u) or far[j + 1]:
+                continue
+            f0, f1 = prof[i, j], prof[i, j + 1]
+            if not (np.isfinite(f0) and np.isfinite(f1)) or f1 <= f0:
+                continue
+            offsets[i, k_side] = u[j] + (mid[i] - f0) / (f1 - f0) * du
+    return ShadowEdges(index, axis, normal, offsets, silhouette, contrast)
+
+
+def predict_shadow_edges_mm(
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    edges: ShadowEdges,
+    height_mm: np.ndarray,
+    shadow: np.ndarray,
+    radius_mm: float,
+    side: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The model's outer edge offset (K,) along the side ``side`` (K,) (+1 / -1 of normal).
+
+    ``height_mm`` (M,): the axis' height above the plate at every centreline point;
+    ``shadow`` (2,): the shadow vector per mm of height. Each axis point on the plane of its
+    own height, shadowed to ``p + H s``, the band's outer edge ``r sqrt(1 + (m.s)^2)`` off
+    the shadow curve along its own normal ``m``; the offset is where the measuring line
+    (from ``edges.axis_mm`` along ``+-edges.normal``) crosses that edge curve. ``side``
+    (K,): the side to measure on (default the shadow's, ``sign(n.s)``); NaN where the
+    line does not meet the edge.
+    """
+    pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    axis3 = points_at_heights_mm(plane, pts_px, height_mm)
+    sc = axis3 + height_mm[:, None] * shadow[None, :]
+    m = _unit_normals(sc)
+    ms = m @ shadow
+    side_m = np.where(ms >= 0, 1.0, -1.0)
+    edge = sc + (side_m * radius_mm * np.sqrt(1.0 + ms * ms))[:, None] * m
+    q = edges.axis_mm
+    n = edges.normal
+    if side is None:
+        side = np.where(n @ shadow >= 0, 1.0, -1.0)
+    d = n * side[:, None]
+    # crossing of the line q + u d with the polyline ``edge``, near each sample's own index
+    win = 3.0 + (radius_mm + 2.0 * MAX_LIFT_MM) * float(np.hypot(*shadow))
+    step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
+    kw = int(np.ceil(win / step))
+    j = edges.index[:, None] + np.arange(-kw, kw)[None, :]
+    j = np.clip(j, 0, len(edge) - 2)
+    a, b = edge[j], edge[j + 1]
+    rel_a, rel_b = a - q[:, None, :], b - q[:, None, :]
+    cross_a = rel_a[..., 0] * d[:, None, 1] - rel_a[..., 1] * d[:, None, 0]
+    cross_b = rel_b[..., 0] * d[:, None, 1] - rel_b[..., 1] * d[:, None, 0]
+    brackets = (cross_a * cross_b <= 0) & (cross_a != cross_b)
+    t = np.where(brackets, cross_a / np.where(cross_a != cross_b, cross_a - cross_b, 1.0), 0.0)
+    hit = a + t[..., None] * (b - a)
+    along = np.einsum("ikj,ij->ik", hit - q[:, None, :], d)
+    along = np.where(brackets & (along > 0), along, np.inf)
+    out = np.min(along, axis=1)
+    return np.where(np.isfinite(out), out, np.nan), side
+
+
+def _heights(plane_mm: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    rel = plane_mm @ slope
+    return rel - rel.min()
+
+
+def estimate_lift_shadow(
+    image: np.ndarray,
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    *,
+    wire_diameter_mm: float,
+    axis_height_mm: float | None = None,
+    edges: ShadowEdges | None = None,
+) -> ShadowLift:
+    """The part's lift from its cast shadow in one photo (see the module's docstring).
+
+    ``points_px`` (M, 2): the wire's centreline in the photo (silhouette centres), ordered;
+    ``axis_height_mm``: the axis' height where the part rests (default the radius). The
+    standard uncertainties count one independent edge per wire diameter along the part.
+    """
+    from scipy.optimize import least_squares
+
+    radius = 0.5 * wire_diameter_mm
+    base = radius if axis_height_mm is None else float(axis_height_mm)
+    pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    if edges is None:
+        edges = measure_shadow_edges(
+            image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base
+        )
+    flat_mm = points_at_heights_mm(plane, pts_px, base)
+    centred = flat_mm - flat_mm.mean(axis=0)
+    nan2 = (float("nan"), float("nan"))
+    empty = ShadowLift(None, nan2, nan2, float("nan"), float("nan"), float("nan"), 0, 0.0)
+    have = np.isfinite(edges.offset_mm)
+    if have.sum() < 20:
+        return _with(empty, "no cast shadow beside the wire (plate too dark, or no lamp)")
+    full_centred = flat_mm - flat_mm.mean(axis=0)
+    # the model runs on the axis every MODEL_STEP_MM (the photo's centres are ~1 px apart)
+    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(flat_mm, axis=0).T))))
+    keep = np.unique(np.searchsorted(along, np.arange(0.0, along[-1], MODEL_STEP_MM)))
+    keep = np.unique(np.concatenate((keep[keep < len(pts_px)], [len(pts_px) - 1])))
+    edges = replace(edges, index=np.clip(np.searchsorted(keep, edges.index), 0, len(keep) - 1))
+    pts_px = pts_px[keep]
+    centred = full_centred[keep]
+
+    # each sample's shadow side is where its edge was found (the darker band when both);
+    # used where the edge is clear of the wire's silhouette: a fixed set, so the fit cannot
+    # drop an awkward edge by moving its prediction behind the wire
+    k_side = np.where(
+        np.isfinite(edges.offset_mm[:, 0])
+        & (~np.isfinite(edges.offset_mm[:, 1]) | (edges.contrast[:, 0] >= edges.contrast[:, 1])),
+        0,
+        1,
+    )
+    rows = np.arange(len(k_side))
+    meas = edges.offset_mm[rows, k_side]
+    clear = np.isfinite(meas) & (meas > edges.silhouette_mm[rows, k_side] + MIN_GAP_MM)
+    side = np.where(k_side == 0, 1.0, -1.0)
+
+    def residual(x: np.ndarray, use: np.ndarray) -> np.ndarray:
+        h = base + _heights(centred, x[2:] * 1e-2)
+        pred, _ = predict_shadow_edges_mm(plane, pts_px, edges, h, x[:2], radius, side)
+        res = np.where(np.isfinite(pred), meas - pred, SCORE_CLIP_MM)
+        return np.where(use, res, 0.0)
+
+    def usable(x: np.ndarray) -> np.ndarray:
+        return clear.copy()
+
+    # start (flat part, no perspective): the side with the shadow is the sign of n.s and
+    # the outer edge u = r (x + sqrt(1 + x^2)), x = |n.s|, so n.s is linear in s
+    u0 = meas / radius
+    ok0 = clear & (u0 > 1.0)
+    if ok0.sum() < 20:
+        return _with(empty, "the shadow's edge is nowhere clear of the wire")
+    xs = (u0[ok0] ** 2 - 1.0) / (2.0 * u0[ok0]) * side[ok0]
+    design = edges.normal[ok0]
+    s0 = np.linalg.lstsq(design, xs, rcond=None)[0]
+    for _ in range(5):  # a few edges off the shadow (a centreline defect) do not turn it
+        r0 = xs - design @ s0
+        w = np.abs(r0) < 3.0 * 1.4826 * float(np.median(np.abs(r0))) + 1e-6
+        s0 = np.linalg.lstsq(design[w], xs[w], rcond=None)[0]
+
+    def refine(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        use = usable(x)
+        for _ in range(3):  # refit: the used edges follow the shadow's side; drop outliers
+            if use.sum() < 20:
+                break
+            fit = least_squares(residual, x, args=(use,), x_scale=np.array([0.05, 0.05, 0.1, 0.1]),
+                                diff_step=1e-5, loss="soft_l1", f_scale=0.1)  # fmt: skip
+            x = fit.x
+            use = usable(x)
+            res = residual(x, use)
+            med = float(np.median(res[use])) if use.any() else 0.0
+            mad = 1.4826 * float(np.median(np.abs(res[use] - med))) + 1e-6 if use.any() else 1.0
+            use &= np.abs(res - med) < max(4.0 * mad, OUTLIER_MM)
+        return x, use
+
+    def score(x: np.ndarray) -> float:
+        """One objective for every start: clipped squares, an edge not used costs the clip."""
+        use = usable(x)
+        res = residual(x, use)
+        clipped = np.minimum(res**2, SCORE_CLIP_MM**2)
+        return float(np.sum(np.where(use, clipped, SCORE_CLIP_MM**2)[have.any(axis=1)]))
+
+    # starts: flat, and lifted by MAX_LIFT_MM towards eight directions (the tilt's fit
+    # has local minima where the lamp's length trades against the lift)
+    extent = float(np.max(np.ptp(centred, axis=0))) + 1e-9
+    starts = [np.array([s0[0], s0[1], 0.0, 0.0])]
+    for ang in np.radians(np.arange(0.0, 360.0, 45.0)):
+        g = 100.0 * MAX_LIFT_MM / extent
+        starts.append(np.array([s0[0], s0[1], g * np.cos(ang), g * np.sin(ang)]))
+    best = None
+    for x_start in starts:
+        x_fit, use_fit = refine(x_start)
+        sc = score(x_fit)
+        if best is None or sc < best[0]:
+            best = (sc, x_fit, use_fit)
+    _, x, use = best
+    fit = least_squares(residual, x, args=(use,), x_scale=np.array([0.05, 0.05, 0.1, 0.1]),
+                        diff_step=1e-5)  # fmt: skip
+    x = fit.x
+    res = fit.fun[use]
+    n_used = int(use.sum())
+    if n_used < 20:
+        return _with(empty, "too few shadow edges clear of the wire")
+    jac = fit.jac[use]
+    sigma2 = float(np.sum(res**2) / max(n_used - 4, 1))
+    along = edges.axis_mm[use]
+    length = float(np.sum(np.hypot(*np.diff(along, axis=0).T)))
+    n_eff = max(4.0, min(n_used, length / wire_diameter_mm))
+    cov_stat = np.linalg.pinv(jac.T @ jac) * sigma2 * n_used / n_eff
+    # the edges' common bias (blur, penumbra and tone curve move every edge alike): its
+    # effect on the parameters, added as a systematic term
+    bias_shift = np.linalg.pinv(jac) @ np.full(n_used, EDGE_BIAS_MM)
+    cov = cov_stat + np.outer(bias_shift, bias_shift)
+    slope = x[2:] * 1e-2
+    slope_cov = cov[2:, 2:] * 1e-4
+    height = _heights(full_centred, slope)
+    rel = full_centred @ slope
+    span = full_centred[int(np.argmax(rel))] - full_centred[int(np.argmin(rel))]
+    lift = LiftEstimate(
+        height_mm=height,
+        slope=(float(slope[0]), float(slope[1])),
+        slope_cov=slope_cov,
+        lift_mm=float(height.max()),
+        lift_sigma_mm=float(np.sqrt(max(span @ slope_cov @ span, 0.0))),
+        samples=n_used,
+        width_scale=float("nan"),
+    )
+    s = x[:2]
+    return ShadowLift(
+        lift=lift,
+        shadow_mm_per_mm=(float(s[0]), float(s[1])),
+        shadow_sigma=(float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))),
+        lamp_elevation_deg=float(np.degrees(np.arctan2(1.0, np.hypot(*s)))),
+        lamp_azimuth_deg=float(np.degrees(np.arctan2(-s[1], -s[0])) % 360.0),
+        residual_rms_mm=float(np.sqrt(np.mean(res**2))),
+        samples=n_used,
+        length_mm=length,
+    )
+
+
+def _with(base: ShadowLift, message: str) -> ShadowLift:
+    return replace(base, message=message)
