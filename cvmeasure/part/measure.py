@@ -798,7 +798,8 @@ def measure_part(
     bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
     lift_info = None
     moved_info = None
-    corrected = None
+    shadow_info = None
+    corrected = None  # a lift measured and corrected: from the moved photo or the shadow
     if wire_diameter_mm is not None and moved_image is not None:
         moved_info, corrected, moved_warning = _moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
@@ -807,13 +808,7 @@ def measure_part(
         )  # fmt: skip
         if moved_warning:
             warnings.append(moved_warning)
-    shadow_info = None
-    if (
-        shadow_lift
-        and wire_diameter_mm is not None
-        and moved_image is None
-        and centre.centre_from == "silhouette"
-    ):
+    elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
         shadow = estimate_lift_shadow(
             image, plane, centre.points_px, wire_diameter_mm=wire_diameter_mm,
             axis_height_mm=_axis_height(axis_height_mm, wire_diameter_mm),
@@ -821,49 +816,46 @@ def measure_part(
         shadow_info = shadow.to_dict()
         if shadow.lift is not None and 2.0 * shadow.lift.lift_sigma_mm <= SHADOW_MAX_2SIGMA_MM:
             corrected = shadow
-            moved_info = {**shadow_info, "source": "shadow"}
-        else:
-            corrected = None
-            if shadow.lift is not None:
-                shadow_info["message"] = (
-                    f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
-                    f"{shadow.lift.lift_sigma_mm:.2f} mm: too uncertain to correct"
-                )
-    if (wire_diameter_mm is not None and moved_image is not None) or moved_info is not None:
-        if corrected is not None:
-            flat = (ours, poly)
-            centreline_mm = _lifted_mm(
-                plane, centre.points_px, _axis_height(axis_height_mm, wire_diameter_mm),
-                corrected.lift, 1.0,
-            )  # fmt: skip
-            try:
-                ours, circle, poly = arc_from_points(centreline_mm, divisions)
-            except ValueError as exc:
-                raise InputError(source, f"cannot fit the part ({exc})") from None
-            bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
-            lift_info, extra_sigma, _ = _lift_effects(
-                plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions,
-                _axis_height(axis_height_mm, wire_diameter_mm),
-                2.0 * corrected.lift.lift_sigma_mm,
-            )  # fmt: skip
-            lift_info = {**lift_info, **moved_info, "used": "correction",
-                         "source": "shadow" if shadow_info else "moved_photo",
-                         "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
-            if bend_sigma is not None and extra_sigma is not None:
-                bend_sigma = np.hypot(bend_sigma, extra_sigma)
-            if (
-                lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
-                or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
-                or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
-            ):
-                warnings.append(
-                    f"part_lifted: the {'shadow' if shadow_info else 'two photos'} put the lift "
-                    f"at {corrected.lift.lift_mm:.2f} +- "
-                    f"{corrected.lift.lift_sigma_mm:.2f} mm (corrected); its uncertainty (2 "
-                    f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
-                    f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
-                    f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"
-                )
+        elif shadow.lift is not None:
+            shadow_info["message"] = (
+                f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
+                f"{shadow.lift.lift_sigma_mm:.2f} mm: too uncertain to correct"
+            )
+    if corrected is not None:
+        flat = (ours, poly)
+        centreline_mm = _lifted_mm(
+            plane, centre.points_px, _axis_height(axis_height_mm, wire_diameter_mm),
+            corrected.lift, 1.0,
+        )  # fmt: skip
+        try:
+            ours, circle, poly = arc_from_points(centreline_mm, divisions)
+        except ValueError as exc:
+            raise InputError(source, f"cannot fit the part ({exc})") from None
+        bend_sigma = None if poly is None else np.asarray(poly.bend_sigma_deg, dtype=float)
+        lift_info, extra_sigma, _ = _lift_effects(
+            plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions,
+            _axis_height(axis_height_mm, wire_diameter_mm),
+            2.0 * corrected.lift.lift_sigma_mm,
+        )  # fmt: skip
+        by_shadow = shadow_info is not None
+        lift_info = {**lift_info, **(shadow_info if by_shadow else moved_info),
+                     "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
+                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
+        if bend_sigma is not None and extra_sigma is not None:
+            bend_sigma = np.hypot(bend_sigma, extra_sigma)
+        if (
+            lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
+            or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
+            or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
+        ):
+            warnings.append(
+                f"part_lifted: the {'shadow' if by_shadow else 'two photos'} put the lift "
+                f"at {corrected.lift.lift_mm:.2f} +- "
+                f"{corrected.lift.lift_sigma_mm:.2f} mm (corrected); its uncertainty (2 "
+                f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
+                f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
+                f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"
+            )
     if wire_diameter_mm is not None and lift_info is None:
         # a round wire on the plate may rock: its lift is bounded (the width's estimate
         # where it is good enough, else the largest lift a part rocks to)
