@@ -148,8 +148,7 @@ class JpegPlanes:
         )
         oy, ox = y0 - cy0 * self.sy, x0 - cx0 * self.sx
         up = up[oy : oy + y1 - y0, ox : ox + x1 - x0]
-        ycrcb = cv2.merge((np.ascontiguousarray(self.y[y0:y1, x0:x1]), up[..., 0], up[..., 1]))
-        return cv2.cvtColor(ycrcb, cv2.COLOR_YCrCb2BGR)
+        return self._to_bgr(self.y[y0:y1, x0:x1], up[..., 1], up[..., 0])
 
     def sampled_bgr(self, step: int) -> np.ndarray:
         """BGR uint8 of every ``step``-th pixel from (0, 0), for a search: ~``decoded[::step, ::step]``.
