@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -505,28 +506,60 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
     ]  # fmt: skip
 
 
-def _moved_metrics(rows: list[dict]) -> list[Metric]:
-    """The same parts with a second photo, slid MOVED_SHIFT_MM: the lift measured and corrected."""
-    ok = [r for r in rows if "moved_radius_err_pct" in r]
-    r_worst = max((abs(r["moved_radius_err_pct"]) for r in ok), default=float("nan"))
-    b_worst = max((abs(r["moved_segment_bend_err_deg"]) for r in ok), default=float("nan"))
-    v_worst = max((r["moved_vertex_err_deg"] for r in ok), default=float("nan"))
+@dataclass(frozen=True)
+class _CorrectedStats:
+    """One lift-correcting variant's figures over the round-wire parts it measured."""
+
+    ok: list[dict]  # the parts measured (rows holding the variant's keys)
+    radius_worst_pct: float
+    segment_bend_worst_deg: float
+    vertex_worst_deg: float
+    lift_err_mm: list[float]  # |lift - truth| of the parts whose lift was corrected
+    within_2sigma_pct: float
+    silent: int  # parts off target without a part_lifted or part_end_uncertain warning
+
+
+def _corrected_stats(rows: list[dict], prefix: str, *, vertex_silent: bool) -> _CorrectedStats:
+    """The figures of the rows' ``{prefix}_...`` keys (``moved``: two photos; ``shadow``: one).
+
+    ``vertex_silent``: a vertex bend off target counts as off target too (else only the
+    radius and the bend per chord do).
+    """
+    ok = [r for r in rows if f"{prefix}_radius_err_pct" in r]
+    nan = float("nan")
     lift_err = [
-        abs(r["moved_lift"]["lift_mm"] - r["lift_mm"])
+        abs(r[f"{prefix}_lift"]["lift_mm"] - r["lift_mm"])
         for r in ok
-        if r["moved_lift"] and r["moved_lift"].get("used") == "correction"
+        if r[f"{prefix}_lift"] and r[f"{prefix}_lift"].get("used") == "correction"
     ]
-    held = [v for r in ok for v in r["moved_within_2sigma"]]
-    rate = 100.0 * float(np.mean(held)) if held else float("nan")
+    held = [v for r in ok for v in r[f"{prefix}_within_2sigma"]]
     silent = sum(
         1
         for r in ok
         if (
-            abs(r["moved_radius_err_pct"]) > RADIUS_TARGET_PCT
-            or abs(r["moved_segment_bend_err_deg"]) > BEND_TARGET_DEG
+            abs(r[f"{prefix}_radius_err_pct"]) > RADIUS_TARGET_PCT
+            or abs(r[f"{prefix}_segment_bend_err_deg"]) > BEND_TARGET_DEG
+            or (vertex_silent and r[f"{prefix}_vertex_err_deg"] > BEND_TARGET_DEG)
         )
-        and not (r["moved_lifted_warning"] or r.get("moved_end_warning"))
+        and not (r[f"{prefix}_lifted_warning"] or r.get(f"{prefix}_end_warning"))
     )
+    return _CorrectedStats(
+        ok=ok,
+        radius_worst_pct=max((abs(r[f"{prefix}_radius_err_pct"]) for r in ok), default=nan),
+        segment_bend_worst_deg=max(
+            (abs(r[f"{prefix}_segment_bend_err_deg"]) for r in ok), default=nan
+        ),
+        vertex_worst_deg=max((r[f"{prefix}_vertex_err_deg"] for r in ok), default=nan),
+        lift_err_mm=lift_err,
+        within_2sigma_pct=100.0 * float(np.mean(held)) if held else nan,
+        silent=silent,
+    )
+
+
+def _moved_metrics(rows: list[dict]) -> list[Metric]:
+    """The same parts with a second photo, slid MOVED_SHIFT_MM: the lift measured and corrected."""
+    st = _corrected_stats(rows, "moved", vertex_silent=False)
+    r_worst, b_worst, ok = st.radius_worst_pct, st.segment_bend_worst_deg, st.ok
     return [
         Metric(
             f"round wire, two photos (part slid {MOVED_SHIFT_MM:.0f} mm): radius error (worst)",
@@ -536,17 +569,19 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
             "round wire, two photos: bend per chord error (worst)",
             b_worst, "deg", f"<= {BEND_TARGET_DEG}", bool(b_worst <= BEND_TARGET_DEG),
         ),
-        Metric("round wire, two photos: bend at each vertex error (worst)", v_worst, "deg"),
+        Metric("round wire, two photos: bend at each vertex error (worst)", st.vertex_worst_deg,
+               "deg"),
         Metric(
-            f"round wire, two photos: lift error (worst; {len(lift_err)} of {len(ok)} corrected, "
-            f"{sum(r['moved_moved_unused'] for r in ok)} second photos unused)",
-            max(lift_err, default=float("nan")), "mm",
+            f"round wire, two photos: lift error (worst; {len(st.lift_err_mm)} of {len(ok)} "
+            f"corrected, {sum(r['moved_moved_unused'] for r in ok)} second photos unused)",
+            max(st.lift_err_mm, default=float("nan")), "mm",
         ),
-        Metric("round wire, two photos: vertex bends within 2 stated sigma", rate, "%"),
+        Metric("round wire, two photos: vertex bends within 2 stated sigma",
+               st.within_2sigma_pct, "%"),
         Metric(
             "round wire, two photos: radius or bend per chord off target without a "
             "part_lifted or part_end_uncertain warning",
-            f"{silent} of {len(ok)}", "parts", "0", silent == 0,
+            f"{st.silent} of {len(ok)}", "parts", "0", st.silent == 0,
         ),
     ]  # fmt: skip
 
@@ -554,50 +589,26 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
 def _shadow_metrics(rows: list[dict]) -> list[Metric]:
     """The same one photo with ``shadow_lift=True``: the lift from the cast shadow (informative:
     off by default, no target of its own)."""
-    ok = [r for r in rows if "shadow_radius_err_pct" in r]
-    r_worst = max((abs(r["shadow_radius_err_pct"]) for r in ok), default=float("nan"))
-    b_worst = max((abs(r["shadow_segment_bend_err_deg"]) for r in ok), default=float("nan"))
-    v_worst = max((r["shadow_vertex_err_deg"] for r in ok), default=float("nan"))
-    lift_err = [
-        abs(r["shadow_lift"]["lift_mm"] - r["lift_mm"])
-        for r in ok
-        if r["shadow_lift"] and r["shadow_lift"].get("used") == "correction"
-    ]
-    held = [v for r in ok for v in r["shadow_within_2sigma"]]
-    rate = 100.0 * float(np.mean(held)) if held else float("nan")
-    # off target: the radius, the bend per chord or a vertex bend
-    silent = sum(
-        1
-        for r in ok
-        if (
-            abs(r["shadow_radius_err_pct"]) > RADIUS_TARGET_PCT
-            or abs(r["shadow_segment_bend_err_deg"]) > BEND_TARGET_DEG
-            or r["shadow_vertex_err_deg"] > BEND_TARGET_DEG
-        )
-        and not (r["shadow_lifted_warning"] or r.get("shadow_end_warning"))
-    )
+    st = _corrected_stats(rows, "shadow", vertex_silent=True)
+    ok = st.ok
     return [
-        Metric("round wire, one photo with --shadow-lift: radius error (worst)", r_worst, "%"),
+        Metric("round wire, one photo with --shadow-lift: radius error (worst)",
+               st.radius_worst_pct, "%"),
+        Metric("round wire, one photo with --shadow-lift: bend per chord error (worst)",
+               st.segment_bend_worst_deg, "deg"),
+        Metric("round wire, one photo with --shadow-lift: bend at each vertex error (worst)",
+               st.vertex_worst_deg, "deg"),
         Metric(
-            "round wire, one photo with --shadow-lift: bend per chord error (worst)", b_worst, "deg"
+            f"round wire, one photo with --shadow-lift: lift error (worst; "
+            f"{len(st.lift_err_mm)} of {len(ok)} corrected)",
+            max(st.lift_err_mm, default=float("nan")), "mm",
         ),
-        Metric(
-            "round wire, one photo with --shadow-lift: bend at each vertex error (worst)",
-            v_worst, "deg",
-        ),
-        Metric(
-            f"round wire, one photo with --shadow-lift: lift error (worst; {len(lift_err)} of "
-            f"{len(ok)} corrected)",
-            max(lift_err, default=float("nan")), "mm",
-        ),
-        Metric(
-            "round wire, one photo with --shadow-lift: vertex bends within 2 stated sigma",
-            rate, "%",
-        ),
+        Metric("round wire, one photo with --shadow-lift: vertex bends within 2 stated sigma",
+               st.within_2sigma_pct, "%"),
         Metric(
             "round wire, one photo with --shadow-lift: radius, bend per chord or a vertex bend "
             "off target without a part_lifted or part_end_uncertain warning",
-            f"{silent} of {len(ok)} ({len(rows) - len(ok)} refused)", "parts",
+            f"{st.silent} of {len(ok)} ({len(rows) - len(ok)} refused)", "parts",
         ),
     ]  # fmt: skip
 
