@@ -803,6 +803,15 @@ class PlaneModel:
         board = scale[:, None] * rt_rays - rt_t[None, :]
         return board[:, :2]
 
+    @property
+    def camera_centre_mm(self) -> NDArray[np.float64]:
+        """The camera's centre (3,) in the board frame, mm (``-R^T t``; its z is negative for
+        a plane from ``cvmeasure plane``: the board frame's z points away from the camera)."""
+        import cv2
+
+        rot, _ = cv2.Rodrigues(self.rvec)
+        return -rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3)
+
     def plane_to_image_px(self, points_mm: Any) -> NDArray[np.float64]:
         """Board-frame mm (N, 2) on the plane, or board-frame points (N, 3) -> photo pixels (N, 2).
 

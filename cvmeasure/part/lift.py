@@ -118,6 +118,18 @@ def points_at_heights_mm(plane: PlaneModel, points_px: np.ndarray, height_mm: An
     return at0 + h[:, None] * (at1 - at0)
 
 
+def silhouette_sides(plane: PlaneModel, xyz_mm: np.ndarray, tangent: np.ndarray) -> np.ndarray:
+    """Unit directions (M, 3) from a round wire's axis to its silhouette generators.
+
+    ``xyz_mm`` (M, 3): axis points in the board frame; ``tangent`` (M, 3): the axis'
+    direction there. The generators lie ``+-radius`` along these directions, which are
+    perpendicular to the axis and to the line of sight from the camera's centre.
+    """
+    side = np.cross(tangent, xyz_mm - plane.camera_centre_mm)
+    side /= np.maximum(np.linalg.norm(side, axis=1), 1e-12)[:, None]
+    return side
+
+
 def expected_width_px(
     plane: PlaneModel, points_mm: np.ndarray, height_mm: Any, wire_diameter_mm: float
 ) -> np.ndarray:
@@ -127,17 +139,12 @@ def expected_width_px(
     (M,)) above the plate: the two silhouette generators (the axis offset by the radius
     perpendicular to the axis and to the line of sight) projected with the lens.
     """
-    import cv2
-
     pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
     h = np.broadcast_to(np.asarray(height_mm, dtype=np.float64), (len(pts),))
     xyz = np.column_stack((pts, -h))  # board z points away from the camera
-    rot, _ = cv2.Rodrigues(plane.rvec)
-    centre = -rot.T @ plane.tvec_mm
     axis = np.gradient(xyz, axis=0)
     axis /= np.maximum(np.linalg.norm(axis, axis=1), 1e-12)[:, None]
-    side = np.cross(axis, xyz - centre)
-    side /= np.maximum(np.linalg.norm(side, axis=1), 1e-12)[:, None]
+    side = silhouette_sides(plane, xyz, axis)
     r = 0.5 * wire_diameter_mm
     both = np.vstack((xyz + r * side, xyz - r * side))
     px = plane.plane_to_image_px(both)
@@ -373,15 +380,13 @@ def estimate_lift_moved(
     standard uncertainty counts one independent sample per wire diameter along the
     part. ``axis_height_mm``: the axis' height where the part rests (the wire's radius).
     """
-    import cv2
     from scipy.optimize import least_squares
 
     p1 = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     p2 = np.asarray(points_moved_px, dtype=np.float64).reshape(-1, 2)
     q1 = points_at_heights_mm(plane, p1, axis_height_mm)
     q2 = points_at_heights_mm(plane_moved, p2, axis_height_mm)
-    rot, _ = cv2.Rodrigues(plane.rvec)
-    centre = -rot.T @ np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
+    centre = plane.camera_centre_mm
     foot, distance = centre[:2], float(abs(centre[2]))
     theta0, shift0, inside = _register_rigid(q2, q1)
     # the motion first -> second moves the foot point F to R^-1 (F - shift)

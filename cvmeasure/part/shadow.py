@@ -33,7 +33,12 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.contracts import PlaneModel
-from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, points_at_heights_mm
+from cvmeasure.part.lift import (
+    MAX_LIFT_MM,
+    LiftEstimate,
+    points_at_heights_mm,
+    silhouette_sides,
+)
 
 __all__ = [
     "ShadowEdges",
@@ -141,14 +146,10 @@ def _silhouette_on_plate_mm(
     plane: PlaneModel, axis_mm: np.ndarray, normal: np.ndarray, height_mm: float, radius_mm: float
 ) -> np.ndarray:
     """(K, 2): how far along +-normal the wire hides the plate (its silhouette's rays)."""
-    import cv2
-
-    rot, _ = cv2.Rodrigues(plane.rvec)
-    centre = -rot.T @ np.asarray(plane.tvec_mm, dtype=np.float64).reshape(3)
+    centre = plane.camera_centre_mm
     xyz = np.column_stack((axis_mm, np.full(len(axis_mm), -height_mm)))
     tangent = np.column_stack((normal[:, 1], -normal[:, 0], np.zeros(len(normal))))
-    side = np.cross(tangent, xyz - centre)
-    side /= np.maximum(np.linalg.norm(side, axis=1), 1e-12)[:, None]
+    side = silhouette_sides(plane, xyz, tangent)
     out = np.empty((len(axis_mm), 2))
     for k, sign in enumerate((1.0, -1.0)):
         limb = xyz + sign * radius_mm * side
