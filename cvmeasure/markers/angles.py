@@ -56,14 +56,27 @@ class MachineAngles:
         }
 
 
-def _dir_rad(d: np.ndarray, flip: float) -> float:
-    return math.atan2(flip * d[1], d[0])
-
-
 def _grad_dir(d: np.ndarray, flip: float) -> np.ndarray:
     """d(angle)/d(tip) of the direction of vector d (the tail gets the negative)."""
     n2 = float(d @ d)
     return np.array([-flip * d[1], flip * d[0]]) / n2
+
+
+def pin_bend_deg(centres: Mapping[str, ArrayLike], *, y_down: bool = True) -> np.ndarray:
+    """(pin, bend) angles in deg, (..., 2), wrapped to (-180, 180]: the definition
+    :func:`machine_angles` reports, for centres given per role as (..., 2) arrays (one set
+    of five or many at once). No checks: degenerate geometry gives a meaningless angle.
+    """
+    flip = -1.0 if y_down else 1.0
+    c = {r: np.asarray(centres[r], dtype=np.float64) for r in ROLES}
+
+    def direction(v: np.ndarray) -> np.ndarray:
+        return np.arctan2(flip * v[..., 1], v[..., 0])
+
+    x_axis = direction(c["origin"] - c["axis"])
+    pin = np.degrees(direction(c["pin"] - c["origin"]) - x_axis)
+    bend = np.degrees(direction(c["wire_b"] - c["wire_a"]) - x_axis)
+    return np.stack((wrap_deg(pin), wrap_deg(bend)), axis=-1)
 
 
 def machine_angles(
@@ -94,11 +107,9 @@ def machine_angles(
     for name, v in (("axis->origin", x_axis), ("origin->pin", v_pin), ("wire_a->wire_b", v_bend)):
         if float(v @ v) < 1e-18:
             raise ValueError(f"degenerate geometry: the {name} markers coincide")
-    a_x = _dir_rad(x_axis, flip)
-    pin = math.degrees(_dir_rad(v_pin, flip) - a_x)
-    bend = math.degrees(_dir_rad(v_bend, flip) - a_x)
-    if covariances is None:  # no uncertainty to propagate (the heights' bounds call this often)
-        return MachineAngles(float(wrap_deg(pin)), float(wrap_deg(bend)), 0.0, 0.0)
+    pin, bend = (float(a) for a in pin_bend_deg(c, y_down=y_down))
+    if covariances is None:  # no uncertainty to propagate
+        return MachineAngles(pin, bend, 0.0, 0.0)
 
     idx = {r: 2 * i for i, r in enumerate(ROLES)}
     g_x = _grad_dir(x_axis, flip)
@@ -121,7 +132,7 @@ def machine_angles(
                 cov[i : i + 2, i : i + 2] = np.asarray(covariances[r], dtype=np.float64)
     s_pin = math.degrees(math.sqrt(max(0.0, float(g_pin @ cov @ g_pin))))
     s_bend = math.degrees(math.sqrt(max(0.0, float(g_bend @ cov @ g_bend))))
-    return MachineAngles(float(wrap_deg(pin)), float(wrap_deg(bend)), s_pin, s_bend)
+    return MachineAngles(pin, bend, s_pin, s_bend)
 
 
 def to_machine_frame(

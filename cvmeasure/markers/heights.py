@@ -33,7 +33,7 @@ import numpy as np
 
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
-from cvmeasure.markers.angles import machine_angles
+from cvmeasure.markers.angles import pin_bend_deg
 
 __all__ = ["HeightParallax", "height_parallax", "BOUND_TILT_DEG", "fallback_focal_px"]
 
@@ -74,33 +74,6 @@ class HeightParallax:
     tilt_deg: float
 
 
-def _angles(centres: Mapping[str, np.ndarray], y_down: bool) -> np.ndarray:
-    a = machine_angles(centres, y_down=y_down)
-    return np.array([a.pin_angle_deg, a.bend_angle_deg])
-
-
-def _angles_about(
-    centres: Mapping[str, np.ndarray],
-    shrink: Mapping[str, float],
-    feet: np.ndarray,
-    y_down: bool,
-) -> np.ndarray:
-    """(pin, bend) deg, (F, 2), with every disc moved towards each foot point (F, 2) by its shrink.
-
-    :func:`cvmeasure.markers.angles.machine_angles` for F moved sets of centres at once.
-    """
-    flip = -1.0 if y_down else 1.0
-    p = {r: feet + (centres[r] - feet) * shrink[r] for r in ROLES}
-
-    def direction(v: np.ndarray) -> np.ndarray:
-        return np.arctan2(flip * v[:, 1], v[:, 0])
-
-    x_axis = direction(p["origin"] - p["axis"])
-    pin = np.degrees(direction(p["pin"] - p["origin"]) - x_axis)
-    bend = np.degrees(direction(p["wire_b"] - p["wire_a"]) - x_axis)
-    return np.column_stack((wrap_deg(pin), wrap_deg(bend)))
-
-
 def height_parallax(
     centres_px: Mapping[str, np.ndarray],
     covariances_px: Mapping[str, np.ndarray],
@@ -132,12 +105,13 @@ def height_parallax(
     shrink = {r: (d_mm - heights[r]) / d_mm for r in ROLES}
     c = {r: np.asarray(centres_px[r], dtype=np.float64).reshape(2) for r in ROLES}
 
-    raw = _angles(c, y_down)
+    raw = pin_bend_deg(c, y_down=y_down)
     reach = focal_px * math.tan(math.radians(tilt_deg))
     t = np.linspace(0.0, 2 * math.pi, _DIRECTIONS, endpoint=False)
     # the principal point first (the parallel correction), then the circle of foot points
     feet = np.vstack((pp, pp + reach * np.column_stack((np.cos(t), np.sin(t)))))
-    a = _angles_about(c, shrink, feet, y_down)
+    # the angles with every disc moved towards each foot point by its shrink
+    a = pin_bend_deg({r: feet + (c[r] - feet) * shrink[r] for r in ROLES}, y_down=y_down)
     corrected = a[0]
     worst_none = np.abs(wrap_deg(raw - a)).max(axis=0)
     worst_par = np.abs(wrap_deg(corrected - a)).max(axis=0)
