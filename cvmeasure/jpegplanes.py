@@ -159,9 +159,13 @@ class JpegPlanes:
         chroma sample away).
         """
         h, w = self.y.shape
-        rows = np.arange(0, h, step) // self.sy
-        cols = np.arange(0, w, step) // self.sx
-        cb, cr = (np.take(p[rows], cols, axis=1) for p in (self.cb, self.cr))
+        if step % self.sy == 0 and step % self.sx == 0:
+            # pixel k * step lies in chroma sample k * step / s: a strided view, no gather
+            cb, cr = (p[:: step // self.sy, :: step // self.sx] for p in (self.cb, self.cr))
+        else:
+            rows = np.arange(0, h, step) // self.sy
+            cols = np.arange(0, w, step) // self.sx
+            cb, cr = (np.take(p[rows], cols, axis=1) for p in (self.cb, self.cr))
         return self._to_bgr(self.y[::step, ::step], cb, cr)
 
     def lazy_bgr(self) -> LazyBGR:

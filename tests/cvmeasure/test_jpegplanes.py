@@ -63,6 +63,23 @@ def test_planes_give_the_full_decodes_pixels(subsampling, quality, textured_bgr)
 
 
 @needs_lib
+@pytest.mark.parametrize("subsampling", ["444", "422", "420"])
+def test_sampled_copy_takes_each_pixels_own_chroma_sample(subsampling, textured_bgr):
+    # odd sizes: the last row/column of chroma samples covers one luma row/column
+    planes = jpegplanes.read_planes(_jpeg(textured_bgr(6, (151, 203)), subsampling))
+    h, w = planes.y.shape
+    for step in (2, 3, 4, 6, 7, 10):  # strided views where step is a multiple of sx, sy
+        rows = np.arange(0, h, step) // planes.sy
+        cols = np.arange(0, w, step) // planes.sx
+        want = planes._to_bgr(
+            planes.y[::step, ::step],
+            np.ascontiguousarray(planes.cb[rows][:, cols]),
+            np.ascontiguousarray(planes.cr[rows][:, cols]),
+        )
+        np.testing.assert_array_equal(planes.sampled_bgr(step), want)
+
+
+@needs_lib
 def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image(textured_bgr):
     data = _jpeg(textured_bgr(4, (151, 203)), "420")
     full = simplejpeg.decode_jpeg(data, colorspace="BGR")
