@@ -586,10 +586,14 @@ def measure_machine_photo(
             "heights='parallel' corrects a camera-only measurement: it needs a camera and "
             "no plane (a plane pose applies the heights exactly)"
         )
-    img = np.asanyarray(bgr)  # a LazyBGR (pixels made where read) stays one
+    from cvmeasure.jpegplanes import LazyBGR
+
+    # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one
+    lazy = isinstance(bgr, LazyBGR) and not linear
+    img = bgr if lazy else np.asanyarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
-    bgr8 = to_bgr8(img, linear=linear)
+    bgr8 = img if lazy else to_bgr8(img, linear=linear)
     if plane is not None and camera is not None and plane.camera is not camera:
         if not plane.camera.same_lens(camera):
             raise InputError(

@@ -100,6 +100,29 @@ def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image(textured_bgr)
 
 
 @needs_lib
+def test_lazy_bgr_never_gives_unmade_pixels(textured_bgr):
+    # whatever reads the whole image gets its pixels (made on demand), never zeros; OpenCV,
+    # which would read memory directly, and Python's operators refuse it
+    data = _jpeg(textured_bgr(7, (151, 203)), "420")
+    planes = jpegplanes.read_planes(data)
+    h, w = planes.y.shape
+    whole = planes.region_bgr(0, h, 0, w)
+    assert whole.min(axis=(0, 1)).max() > 0  # a test image whose pixels are not all zero
+    for read in (np.asarray, np.array, lambda a: np.add(a, 0), lambda a: a[..., 1], lambda a: a[5]):
+        want = read(whole)
+        got = read(planes.lazy_bgr())
+        assert type(got) is np.ndarray
+        np.testing.assert_array_equal(got, want)
+    assert float(np.mean(planes.lazy_bgr())) == pytest.approx(float(whole.mean()))
+    with pytest.raises(cv2.error, match="not a numpy array"):
+        cv2.cvtColor(planes.lazy_bgr(), cv2.COLOR_BGR2GRAY)
+    with pytest.raises(TypeError):
+        planes.lazy_bgr() + 0
+    lazy = planes.lazy_bgr()
+    assert not isinstance(lazy, np.ndarray) and lazy.shape == (h, w, 3) and lazy.dtype == np.uint8
+
+
+@needs_lib
 def test_what_the_planes_path_does_not_take_is_left_to_the_full_decode(tmp_path, textured_bgr):
     grey = cv2.cvtColor(textured_bgr(5, (151, 203)), cv2.COLOR_BGR2GRAY)
     assert (
