@@ -114,6 +114,15 @@ def _row_medians(a: np.ndarray) -> np.ndarray:
     return (srt[:, n // 2 - 1] + srt[:, n // 2]) / 2
 
 
+def _median(a: np.ndarray) -> float:
+    """``np.median`` of a non-empty 1-D float array (the same value), by one partition."""
+    n = a.size
+    if n % 2:
+        return float(np.partition(a, n // 2)[n // 2])
+    part = np.partition(a, (n // 2 - 1, n // 2))
+    return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
+
+
 def _sorted_percentile(srt: np.ndarray, q: float) -> float:
     """The ``q`` % percentile of sorted values, linear between neighbours (numpy's default)."""
     if len(srt) == 1:
@@ -418,11 +427,11 @@ def channel_shifts_px(
     y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
     if x1 - x0 < 5 or y1 - y0 < 5:
         return {}
-    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
     radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
-    cos, sin = np.cos(phi), np.sin(phi)
-    map_x = (cx - x0 + radii[None, :] * cos[:, None]).astype(np.float32)
-    map_y = (cy - y0 + radii[None, :] * sin[:, None]).astype(np.float32)
+    cos_c, sin_c = _unit_rays(n_rays)  # (n_rays, 1)
+    cos, sin = cos_c[:, 0], sin_c[:, 0]
+    map_x = (cx - x0 + radii[None, :] * cos_c).astype(np.float32)
+    map_y = (cy - y0 + radii[None, :] * sin_c).astype(np.float32)
     roi = _linear_roi(bgr[y0:y1, x0:x1])
     if blur_px > 0:
         roi = cv2.GaussianBlur(roi, (0, 0), blur_px)
@@ -438,7 +447,7 @@ def channel_shifts_px(
         ok = np.isfinite(d)
         if ok.sum() < 0.75 * n_rays:
             continue
-        med = float(np.median(d[ok]))
+        med = _median(d[ok])
         ok &= np.abs(d - med) < 0.5  # rays crossing the wire or a neighbour
         a = basis[:, ok]
         try:
