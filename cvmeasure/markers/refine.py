@@ -281,9 +281,10 @@ def disc_edge_points(
     v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
     # the ring's samples, for ring_spread (read only on the refinement's settled pass)
-    outer = radii >= (1 + band / 2) * radius_px
+    # the samples at radii >= (1 + band / 2) r: the last ones (radii increase), a view
+    k_outer = int(np.searchsorted(radii, (1 + band / 2) * radius_px, side="left"))
     n_disc = np.count_nonzero(radii <= (1 - band / 2) * radius_px)
-    ring_samples = v[:, outer] if min(len(v) // 4, n_disc, outer.sum()) >= 2 else None
+    ring_samples = v[:, k_outer:] if min(len(v) // 4, n_disc, len(radii) - k_outer) >= 2 else None
     if local_levels:
         v = _local_levels(v, radii, radius_px, band, offset)
     rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
