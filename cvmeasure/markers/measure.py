@@ -541,7 +541,8 @@ def measure_machine_photo(
 
     Parameters
     ----------
-    bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR).
+    bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR), or a
+        :class:`cvmeasure.jpegplanes.LazyBGR` (pixels made only where they are read).
     kit : the marker kit the photo shows.
     camera : lens model; with it, lens distortion is removed from the edge points.
     plane : the marker plane (:class:`cvmeasure.contracts.PlaneModel`, from ``cvmeasure
@@ -588,8 +589,9 @@ def measure_machine_photo(
         )
     from cvmeasure.jpegplanes import LazyBGR
 
-    # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one
-    lazy = isinstance(bgr, LazyBGR) and not linear
+    # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
+    # only regions and the search's copy are read; else its whole image is made here
+    lazy = isinstance(bgr, LazyBGR) and not linear and method == "ours"
     img = bgr if lazy else np.asanyarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
