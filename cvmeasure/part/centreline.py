@@ -843,8 +843,8 @@ def _silhouette_centres(
             # clean pairs along most of the wire: the gaps are left open (the fits need no
             # centre there) rather than filled by one edge, which a shadow's or a
             # highlight's edge can stand in for over a stretch (4 px off on a lab render);
-            # but not a gap as long as a chord (a chord whose shadow joins its silhouette
-            # on a light sheet): without centres its line came from the centres
+            # but not a gap as long as a chord (no clean pair along a chord near the light's
+            # azimuth on a light sheet): without centres its line came from the centres
             # bracketing the gap, a vertex bend 0.6-1.4 deg off on dev parts
             long_gap = _long_runs(~pair, LONG_GAP_WIDTHS * width_px / step_px)
             shift = np.where(pair, 0.5 * (left + right), np.where(long_gap, shift, np.nan))
