@@ -240,6 +240,8 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_lifted_warning"] = any(w.startswith("part_lifted") for w in m.warnings)
         # an end point it cannot locate well (its cap facing its shadow) is said too
         out[f"{name}_end_warning"] = any(w.startswith("part_end_uncertain") for w in m.warnings)
+        # and a chord along which the centreline was lost (its vertex bends not measured)
+        out[f"{name}_gap_warning"] = any(w.startswith("part_centreline_gap") for w in m.warnings)
         out[f"{name}_lift"] = m.lift
         out[f"{name}_moved_unused"] = any(w.startswith("moved_photo_unused") for w in m.warnings)
     return out
@@ -448,7 +450,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
     r_worst = max((abs(r["round_radius_err_pct"]) for r in ok), default=float("nan"))
     b_worst = max((abs(r["round_segment_bend_err_deg"]) for r in ok), default=float("nan"))
     v_worst = max((r["round_vertex_err_deg"] for r in ok), default=float("nan"))
-    # silently wrong: off target and no part_lifted or part_end_uncertain warning
+    # silently wrong: off target and no part_lifted, part_end_uncertain or part_centreline_gap
     silent = sum(
         1
         for r in ok
@@ -456,7 +458,9 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             abs(r["round_radius_err_pct"]) > RADIUS_TARGET_PCT
             or r["round_vertex_err_deg"] > BEND_TARGET_DEG
         )
-        and not (r["round_lifted_warning"] or r.get("round_end_warning"))
+        and not (
+            r["round_lifted_warning"] or r.get("round_end_warning") or r.get("round_gap_warning")
+        )
     )
     held = [v for r in ok for v in r["round_within_2sigma"]]
     rate = 100.0 * float(np.mean(held)) if held else float("nan")
@@ -490,7 +494,8 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             rate, "%", "90-98", bool(90.0 <= rate <= 98.0),
         ),
         Metric(
-            "round wire: parts off target without a part_lifted or part_end_uncertain warning (silently wrong)",
+            "round wire: parts off target without a part_lifted, part_end_uncertain or "
+            "part_centreline_gap warning (silently wrong)",
             f"{silent} of {len(ok)} ({refused} refused)", "parts", "0", silent == 0,
         ),
         *_moved_metrics(rows),
@@ -516,14 +521,13 @@ class _CorrectedStats:
     vertex_worst_deg: float
     lift_err_mm: list[float]  # |lift - truth| of the parts whose lift was corrected
     within_2sigma_pct: float
-    silent: int  # parts off target without a part_lifted or part_end_uncertain warning
+    silent: int  # parts off target without a part_lifted/_end_uncertain/_centreline_gap warning
 
 
-def _corrected_stats(rows: list[dict], prefix: str, *, vertex_silent: bool) -> _CorrectedStats:
+def _corrected_stats(rows: list[dict], prefix: str) -> _CorrectedStats:
     """The figures of the rows' ``{prefix}_...`` keys (``moved``: two photos; ``shadow``: one).
 
-    ``vertex_silent``: a vertex bend off target counts as off target too (else only the
-    radius and the bend per chord do).
+    Off target: the radius, the bend per chord or any vertex bend.
     """
     ok = [r for r in rows if f"{prefix}_radius_err_pct" in r]
     nan = float("nan")
@@ -539,9 +543,13 @@ def _corrected_stats(rows: list[dict], prefix: str, *, vertex_silent: bool) -> _
         if (
             abs(r[f"{prefix}_radius_err_pct"]) > RADIUS_TARGET_PCT
             or abs(r[f"{prefix}_segment_bend_err_deg"]) > BEND_TARGET_DEG
-            or (vertex_silent and r[f"{prefix}_vertex_err_deg"] > BEND_TARGET_DEG)
+            or r[f"{prefix}_vertex_err_deg"] > BEND_TARGET_DEG
         )
-        and not (r[f"{prefix}_lifted_warning"] or r.get(f"{prefix}_end_warning"))
+        and not (
+            r[f"{prefix}_lifted_warning"]
+            or r.get(f"{prefix}_end_warning")
+            or r.get(f"{prefix}_gap_warning")
+        )
     )
     return _CorrectedStats(
         ok=ok,
@@ -558,7 +566,7 @@ def _corrected_stats(rows: list[dict], prefix: str, *, vertex_silent: bool) -> _
 
 def _moved_metrics(rows: list[dict]) -> list[Metric]:
     """The same parts with a second photo, slid MOVED_SHIFT_MM: the lift measured and corrected."""
-    st = _corrected_stats(rows, "moved", vertex_silent=False)
+    st = _corrected_stats(rows, "moved")
     r_worst, b_worst, ok = st.radius_worst_pct, st.segment_bend_worst_deg, st.ok
     return [
         Metric(
@@ -579,8 +587,8 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
         Metric("round wire, two photos: vertex bends within 2 stated sigma",
                st.within_2sigma_pct, "%"),
         Metric(
-            "round wire, two photos: radius or bend per chord off target without a "
-            "part_lifted or part_end_uncertain warning",
+            "round wire, two photos: radius, bend per chord or a vertex bend off target "
+            "without a part_lifted, part_end_uncertain or part_centreline_gap warning",
             f"{st.silent} of {len(ok)}", "parts", "0", st.silent == 0,
         ),
     ]  # fmt: skip
@@ -589,7 +597,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
 def _shadow_metrics(rows: list[dict]) -> list[Metric]:
     """The same one photo with ``shadow_lift=True``: the lift from the cast shadow (informative:
     off by default, no target of its own)."""
-    st = _corrected_stats(rows, "shadow", vertex_silent=True)
+    st = _corrected_stats(rows, "shadow")
     ok = st.ok
     return [
         Metric("round wire, one photo with --shadow-lift: radius error (worst)",
@@ -607,7 +615,7 @@ def _shadow_metrics(rows: list[dict]) -> list[Metric]:
                st.within_2sigma_pct, "%"),
         Metric(
             "round wire, one photo with --shadow-lift: radius, bend per chord or a vertex bend "
-            "off target without a part_lifted or part_end_uncertain warning",
+            "off target without a part_lifted, part_end_uncertain or part_centreline_gap warning",
             f"{st.silent} of {len(ok)} ({len(rows) - len(ok)} refused)", "parts",
         ),
     ]  # fmt: skip

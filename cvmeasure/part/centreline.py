@@ -80,6 +80,9 @@ SILHOUETTE_MIN_SHARE_OF_PATH = 0.85
 PAIR_TOLERANCE = 0.08
 #: Share of profiles with a clean edge pair from which the gaps are left open.
 PAIRS_ONLY_SHARE = 0.6
+#: A gap in the clean pairs at least this many wire widths long is filled by one edge
+#: even where pairs cover most of the wire (a chord without a centre has no line).
+LONG_GAP_WIDTHS = 3.0
 #: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
 _CLIPPED = 250.0
 
@@ -483,6 +486,16 @@ def _least_cost_path(cost: np.ndarray, reach: int) -> np.ndarray:
     return path
 
 
+def _long_runs(mask: np.ndarray, min_length: float) -> np.ndarray:
+    """True at the elements of ``mask``'s runs of True at least ``min_length`` long."""
+    out = np.zeros(len(mask), dtype=bool)
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    for start, stop in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0], strict=True):
+        if stop - start >= min_length:
+            out[start:stop] = True
+    return out
+
+
 def _despike(shift: np.ndarray, window: int) -> np.ndarray:
     """NaN where a shift departs from the running median of its neighbours along the wire.
 
@@ -829,8 +842,12 @@ def _silhouette_centres(
         if pair.mean() >= PAIRS_ONLY_SHARE:
             # clean pairs along most of the wire: the gaps are left open (the fits need no
             # centre there) rather than filled by one edge, which a shadow's or a
-            # highlight's edge can stand in for over a stretch (4 px off on a lab render)
-            shift = np.where(pair, 0.5 * (left + right), np.nan)
+            # highlight's edge can stand in for over a stretch (4 px off on a lab render);
+            # but not a gap as long as a chord (no clean pair along a chord near the light's
+            # azimuth on a light sheet): without centres its line came from the centres
+            # bracketing the gap, a vertex bend 0.6-1.4 deg off on dev parts
+            long_gap = _long_runs(~pair, LONG_GAP_WIDTHS * width_px / step_px)
+            shift = np.where(pair, 0.5 * (left + right), np.where(long_gap, shift, np.nan))
         shift = _despike(shift, window)
         ok = np.isfinite(shift)
         coverage = float(ok.mean())

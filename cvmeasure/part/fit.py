@@ -31,6 +31,7 @@ from cvmeasure.design import divide_into_chords
 from cvmeasure.geometry import CircleFit, wrap_deg
 
 __all__ = [
+    "chord_coverage",
     "ChordCount",
     "count_chords",
     "PolylineFit",
@@ -266,6 +267,45 @@ def fit_polyline(
         rms_residual_mm=rms,
         bend_sigma_deg=np.degrees(np.sqrt(var[:-1] + var[1:])),
     )
+
+
+def chord_coverage(
+    ordered_points_mm: np.ndarray,
+    vertices_mm: np.ndarray,
+    *,
+    corner_margin: float = 0.12,
+    max_step_mm: float = 1.0,
+) -> np.ndarray:
+    """The share of each chord's fitted stretch that has centreline points along it.
+
+    The stretch is the chord between its vertices less ``corner_margin`` of its length at
+    each inner vertex (what :func:`fit_polyline` fits). Points are projected on the chord
+    (those within a quarter chord of it); the covered length is the sum of the steps
+    between consecutive projections no longer than ``max_step_mm``. A chord seen along
+    little of it has a line from the few centres there, or from the centres bracketing
+    the gap: its direction, and the bends at both its vertices, are not measured.
+
+    Returns ndarray (N,), 0..1, one per chord.
+    """
+    pts = np.asarray(ordered_points_mm, dtype=np.float64)
+    v = np.asarray(vertices_mm, dtype=np.float64)
+    n = len(v) - 1
+    out = np.zeros(n)
+    for i in range(n):
+        a, b = v[i], v[i + 1]
+        length = float(np.hypot(*(b - a)))
+        if length <= 0.0:
+            continue
+        d = (b - a) / length
+        lo = corner_margin * length if i > 0 else 0.0
+        hi = length - (corner_margin * length if i < n - 1 else 0.0)
+        rel = pts - a
+        t = rel @ d
+        off = np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])
+        t = np.sort(t[(t >= lo) & (t <= hi) & (off <= 0.25 * length)])
+        steps = np.diff(t)
+        out[i] = float(steps[steps <= max_step_mm].sum()) / max(hi - lo, 1e-12)
+    return out
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ the part lies upside down.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -53,6 +54,7 @@ from cvmeasure.part.fit import (
     ChordCount,
     PolylineFit,
     arc_geometry,
+    chord_coverage,
     count_chords,
     fit_polyline,
 )
@@ -467,6 +469,41 @@ LIFT_BEND_DEG = 0.03
 END_BEND_DEG = 0.03
 
 
+#: A chord with centreline points along less than this share of its fitted stretch has
+#: no measured direction (``part_centreline_gap``).
+CHORD_MIN_COVERAGE = 0.5
+
+
+def _centreline_gaps(
+    centreline_mm: np.ndarray, poly: PolylineFit, bend_sigma: np.ndarray, wire_width_mm: float
+) -> tuple[np.ndarray, str]:
+    """The vertex bends' sigmas widened where a chord is not seen, and the warning ('' if none).
+
+    A chord seen along less than ``CHORD_MIN_COVERAGE`` of it (:func:`chord_coverage`, gaps
+    wider than the wire not counted: the centreline lost there) gets its line from the centres at the gap's ends, which lie in
+    the corners: its direction is uncertain by the angle half a wire's width subtends over
+    the chord, added (in quadrature) to the sigmas of the bends at both its vertices.
+    """
+    cover = chord_coverage(centreline_mm, poly.vertices_mm, max_step_mm=wire_width_mm)
+    lost = np.nonzero(cover < CHORD_MIN_COVERAGE)[0]
+    if len(lost) == 0:
+        return bend_sigma, ""
+    sigma = np.asarray(bend_sigma, dtype=float).copy()
+    lengths = np.asarray(poly.segment_length_mm, dtype=float)
+    for i in lost:
+        dir_sigma = math.degrees(math.atan2(0.5 * wire_width_mm, max(lengths[i], 1e-9)))
+        for j in (i - 1, i):
+            if 0 <= j < len(sigma):
+                sigma[j] = math.hypot(sigma[j], dir_sigma)
+    which = ", ".join(f"{int(i) + 1} ({100.0 * cover[i]:.0f} %)" for i in lost)
+    warning = (
+        f"part_centreline_gap: the centreline was lost along chord(s) {which} of "
+        f"{poly.divisions} (share of the chord with centres): their direction is not "
+        "measured, and the bends at their vertices may be off by degrees (their sigma widened)"
+    )
+    return sigma, warning
+
+
 def _lifted_mm(
     plane: PlaneModel, points_px: np.ndarray, base_mm: float, lift: LiftEstimate, factor: float
 ) -> np.ndarray:
@@ -871,6 +908,12 @@ def measure_part(
             lift_info = {**lift_info, "moved": moved_info}
         if shadow_info is not None:
             lift_info = {**lift_info, "shadow": shadow_info}
+    if poly is not None and bend_sigma is not None and divisions and divisions > 1:
+        bend_sigma, gap_warning = _centreline_gaps(
+            centreline_mm, poly, bend_sigma, 2.0 * centre.half_width_px * plane.mm_per_px
+        )
+        if gap_warning:
+            warnings.append(gap_warning)
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = _outline_mm(image, wire, plane)

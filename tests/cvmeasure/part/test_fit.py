@@ -136,3 +136,37 @@ def test_polyline_fit_tolerates_rounded_corners():
     fit = fit_polyline(poly, 8)
     np.testing.assert_allclose(fit.bend_deg, -15.0, atol=0.01)
     assert math.isfinite(fit.rms_residual_mm)
+
+
+def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
+    """A centreline lost along most of one chord (a 12-chord arc, R 60 mm, centres every
+    0.15 mm): that chord's coverage is what is left, the others are whole; the part's check
+    widens the sigmas of the bends at both its vertices to the angle half a width subtends
+    over the chord (3 mm wire, 12.5 mm chords: 6.8 deg) and names it."""
+    from cvmeasure.part.fit import chord_coverage
+    from cvmeasure.part.measure import _centreline_gaps
+
+    n, radius = 12, 60.0
+    angles = np.radians(np.linspace(0.0, 120.0, n + 1))
+    verts = radius * np.column_stack((np.cos(angles), np.sin(angles)))
+    pts = np.vstack(
+        [np.linspace(a, b, int(np.hypot(*(b - a)) / 0.15), endpoint=False)
+         for a, b in zip(verts[:-1], verts[1:], strict=True)] + [verts[-1:]]
+    )  # fmt: skip
+    seg = np.hypot(*np.diff(verts, axis=0).T)
+    t = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    # chord 5 (0-based 4) lost from 10 % to 90 % of its length
+    start = seg[:4].sum()
+    lost = (t > start + 0.1 * seg[4]) & (t < start + 0.9 * seg[4])
+    kept = pts[~lost]
+    cover = chord_coverage(kept, verts)
+    assert cover[4] < 0.05
+    assert np.all(np.delete(cover, 4) > 0.97)
+    poly = fit_polyline(kept, n)
+    sigma, warning = _centreline_gaps(kept, poly, np.full(n - 1, 0.01), 3.0)
+    assert warning.startswith("part_centreline_gap") and "chord(s) 5 " in warning
+    expected = np.degrees(np.arctan2(1.5, seg[4]))
+    np.testing.assert_allclose(sigma[[3, 4]], np.hypot(0.01, expected), rtol=0.02)
+    assert np.all(np.delete(sigma, [3, 4]) == 0.01)
+    _, none = _centreline_gaps(pts, fit_polyline(pts, n), np.full(n - 1, 0.01), 3.0)
+    assert none == ""
