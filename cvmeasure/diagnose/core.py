@@ -123,9 +123,6 @@ class CandidateResult:
     #: held-out residuals (deg, [loaded..., unloaded..., pin...], NaN = not measured) with
     #: the discrepancy profiled out; None when the held-out error was not computed
     cv_residual_deg: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
-    #: residual sum of squares (deg^2) after the discrepancy of the pair fitted together
-    #: with it (second round, accepted causes only; NaN otherwise): the pairs' ranking
-    joint_rss_deg2: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         fit = self.fit.to_dict()
@@ -870,11 +867,6 @@ class _Naming:
 REFORMED: tuple[str, ...] = ("camera_tilt",)
 
 
-#: The accepted second causes are fitted again together with the bounded discrepancy and
-#: ranked by what that leaves (:func:`_rejudged_with_discrepancy`).
-JOINT_PAIRS = True
-
-
 def _try_causes(
     ctx: _Context,
     named: ModelFit,
@@ -882,15 +874,12 @@ def _try_causes(
     tried: Sequence[str],
     *,
     cv_all: bool = True,
-    joint: bool = False,
 ) -> list[CandidateResult]:
     """Each cause on top of ``named``, best held-out first; ``cv_all=False`` skips the
     held-out error of causes that already fail the BIC test (they cannot be accepted).
 
     ``named_cv`` is the held-out RMSE of ``named`` with the discrepancy profiled out:
-    a cause must beat "model + discrepancy", not the model alone. With ``joint`` (the
-    second round) the accepted causes are then fitted again together with the bounded
-    discrepancy (:func:`_rejudged_with_discrepancy`)."""
+    a cause must beat "model + discrepancy", not the model alone."""
     out = []
     # the tilt's axis is not held at the grid point the tilt's own fit chose: beside a
     # second cause another axis can fit far better (once a scale takes its part), so it
@@ -923,94 +912,22 @@ def _try_causes(
         if not cv_all and dbic < ctx.min_delta_bic:
             out.append(CandidateResult(name, math.nan, fit, dbic, False))
             continue
-        out.append(_judged(ctx, named_cv, name, fit, dbic))
-    if joint and any(c.accepted for c in out):
-        out = _rejudged_with_discrepancy(ctx, named, out)
-    out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
-    return out
-
-
-def _judged(
-    ctx: _Context, named_cv: float, name: str, fit: ModelFit, dbic: float
-) -> CandidateResult:
-    """``fit`` (``name`` added) with its held-out error and its verdict against
-    ``named_cv``."""
-    held = grouped_kfold_cv(
-        ctx.trials,
-        ctx.params,
-        fit.causes,
-        ctx.fold_masks,
-        base_effects=ctx.base_effects,
-        full_fit=fit,
-    )
-    held_disc = held.residual_after_discrepancy_deg(ctx.trials)
-    cv, cv_disc = held.rmse_deg, held.rmse_after_discrepancy_deg(ctx.trials)
-    cv_gain_ok = max(cv_disc, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
-        named_cv, RESOLUTION_DEG
-    )
-    accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
-    return CandidateResult(name, cv, fit, dbic, accepted, cv_disc, held_disc)
-
-
-def _rejudged_with_discrepancy(
-    ctx: _Context, named: ModelFit, results: list[CandidateResult]
-) -> list[CandidateResult]:
-    """The accepted second causes fitted again together with the bounded discrepancy
-    (``joint_rss_deg2``, the pairs' ranking; the first cause's values as start). Fitted
-    without it, the second cause that best takes up the model-form wave wins whatever
-    the data's mechanism: on the independent bender, beside an offset where a drift
-    shifting home was hidden, a camera tilt or a scale of 0.003-0.01 was ranked first;
-    fitted with it, such a cause shrinks below its typical size (:func:`_typical_size`:
-    no longer accepted) and the drift leaves the least. The held-out errors stay those
-    of the fits without it (a joint fit costs 3-5 plain ones, its folds as many again)."""
-    general = [c for c in named.causes if c in REFORMED]
-    out = []
-    for c in results:
-        if not c.accepted:
-            out.append(c)
-            continue
-        fits = [
-            fit_model(
-                ctx.trials,
-                ctx.params,
-                c.fit.causes,
-                base_effects=ctx.base_effects,
-                start=c.fit,
-                discrepancy=True,
-                intervals=False,
-            )
-        ]
-        if c.cause == "drift" or general:
-            # a drift's whole steps are profiled on a grid, not refined by the solver,
-            # and a tilt's axis is chosen on one: both chosen again with the discrepancy
-            fits.append(
-                fit_model(
-                    ctx.trials,
-                    ctx.params,
-                    (*named.causes, c.cause),
-                    base_effects=ctx.base_effects,
-                    known={
-                        **{
-                            k: v
-                            for k, v in named.param_values_by_cause().items()
-                            if k not in general
-                        },
-                        **named.nuisance_values(),
-                    },
-                    known_shapes={
-                        k: f for k, f in named.shapes_by_cause().items() if k not in general
-                    },
-                    discrepancy=True,
-                    intervals=False,
-                )
-            )
-        # the fit that leaves the least after the discrepancy (the one without it too: a
-        # joint fit can end in a worse local minimum, e.g. a drift in its narrow form)
-        best = min([*fits, c.fit], key=lambda f: f.rss_discrepancy_deg2)
-        small = not _typical_size(best)
-        out.append(
-            dataclasses.replace(c, accepted=not small, joint_rss_deg2=best.rss_discrepancy_deg2)
+        held = grouped_kfold_cv(
+            ctx.trials,
+            ctx.params,
+            fit.causes,
+            ctx.fold_masks,
+            base_effects=ctx.base_effects,
+            full_fit=fit,
         )
+        held_disc = held.residual_after_discrepancy_deg(ctx.trials)
+        cv, cv_disc = held.rmse_deg, held.rmse_after_discrepancy_deg(ctx.trials)
+        cv_gain_ok = max(cv_disc, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
+            named_cv, RESOLUTION_DEG
+        )
+        accepted = bool(cv_gain_ok and dbic >= ctx.min_delta_bic)
+        out.append(CandidateResult(name, cv, fit, dbic, accepted, cv_disc, held_disc))
+    out.sort(key=lambda c: (math.isnan(c.cv_rmse_deg), c.cv_rmse_deg))
     return out
 
 
@@ -1041,16 +958,10 @@ def _extend(
             first.cv_discrepancy_rmse_deg,
             [n for n in ctx.names if n not in blocked],
             cv_all=False,
-            joint=JOINT_PAIRS,
         )
         # accepted on the held-out RMSE with the discrepancy profiled out, so ranked on
         # it too (the raw one also carries the model-form wave, the same for every pair)
-        more = sorted(
-            (c for c in round2 if c.accepted),
-            key=lambda c: (
-                c.joint_rss_deg2 if math.isfinite(c.joint_rss_deg2) else c.cv_discrepancy_rmse_deg
-            ),
-        )
+        more = sorted((c for c in round2 if c.accepted), key=lambda c: c.cv_discrepancy_rmse_deg)
         # a pair that explains less (evidence) than its added cause alone is a fit stuck
         # where the first cause took up the added one's signature: not a pair to name
         alone = {c.cause: c.delta_bic for c in results}

@@ -48,11 +48,9 @@ def test_a_right_pair_is_not_refused_for_the_model_form_error_it_leaves():
 @pytest.mark.parametrize(("seed", "plan"), [(620, "random"), (607, "repeats")])
 def test_a_drift_shifting_home_beside_an_offset_is_named(seed, plan):
     # an offset and a drift whose lost steps shift home (the generator's: whole steps
-    # of 0.06 deg, load-dependent): on main only the offset was named, the drift's walk
-    # missed by the second round's screen (no residual trend follows a home shift, which
-    # walks about zero on a balanced plan) or a camera tilt / scale beside the offset
-    # ranked first for taking up the model-form wave. Screened by the home-shift walk and
-    # ranked with the discrepancy fitted jointly, both are named.
+    # of 0.06 deg, load-dependent): on main only the offset was named, the second round
+    # never entered (no residual trend it screened for follows a home shift, which walks
+    # about zero on a balanced plan). Screened by the home-shift walk, both are named.
     case = pb.physical_case(seed, ("offset", "drift"), plan=plan, n_trials=60)
     offset, _ = (h.params for h in case.hidden)
     result = diagnose(case.trials)
