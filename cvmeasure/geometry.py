@@ -145,14 +145,14 @@ def _abs_median(values: np.ndarray) -> float:
     return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
-def _solve_sym3(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-    """``x`` with ``a x = b`` for a symmetric 3x3 ``a`` (Cramer's rule); None when singular.
+def _solve_sym3(g: list[list[float]]) -> tuple[float, float, float] | None:
+    """``x`` with ``a x = b`` for ``g = [a | b]``, ``a`` symmetric 3x3 (Cramer's rule); None when singular.
 
-    The circle fit's normal equations are 3x3: the explicit solution avoids
-    ``np.linalg.solve``'s per-call overhead (several times the arithmetic here).
+    ``g``: the rows of a 3x4 or 4x4 matrix as Python lists (``a`` its top left 3x3,
+    ``b`` its fourth column). The circle fit's normal equations are 3x3: the explicit
+    solution avoids ``np.linalg.solve``'s per-call overhead (several times the arithmetic).
     """
-    (a00, a01, a02), (_, a11, a12), (_, _, a22) = a.tolist()
-    b0, b1, b2 = b.tolist()
+    (a00, a01, a02, b0), (_, a11, a12, b1), (_, _, a22, b2) = g[0], g[1], g[2]
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
     c02 = a01 * a12 - a02 * a11
@@ -162,12 +162,10 @@ def _solve_sym3(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     c11 = a00 * a22 - a02 * a02
     c12 = a01 * a02 - a00 * a12
     c22 = a00 * a11 - a01 * a01
-    return np.array(
-        (
-            (c00 * b0 + c01 * b1 + c02 * b2) / det,
-            (c01 * b0 + c11 * b1 + c12 * b2) / det,
-            (c02 * b0 + c12 * b1 + c22 * b2) / det,
-        )
+    return (
+        (c00 * b0 + c01 * b1 + c02 * b2) / det,
+        (c01 * b0 + c11 * b1 + c12 * b2) / det,
+        (c02 * b0 + c12 * b1 + c22 * b2) / det,
     )
 
 
@@ -207,7 +205,7 @@ def fit_circle_robust(
         cx, cy, r = init
     else:
         (cx, cy), r = fit_circle_taubin(p)
-    theta = np.array([cx, cy, r], dtype=np.float64)
+    cx, cy, r = float(cx), float(cy), float(r)
     n = p.shape[0]
     w = np.ones(n)
     scale = 0.0
@@ -216,35 +214,37 @@ def fit_circle_robust(
     rows = np.empty((4, n))
     rows[2] = 1.0
     jac_t, res = rows[:3], rows[3]
-    d_t = np.ascontiguousarray(p.T)
+    px, py = np.ascontiguousarray(p.T)
     for it in range(iterations):
-        d = d_t - theta[:2, None]
-        dist = np.hypot(d[0], d[1])
+        dx, dy = px - cx, py - cy
+        dist = np.hypot(dx, dy)
         np.maximum(dist, 1e-12, out=dist)
-        np.subtract(dist, theta[2], out=res)
+        np.subtract(dist, r, out=res)
         if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
             mad = 1.4826 * _abs_median(res)
-            scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * theta[2])
+            scale = max(min_scale, mad) if it > 0 else max(min_scale, mad, 0.05 * r)
         w = np.square(res)  # Tukey's biweight (1 - u^2)^2, u = res / (c scale); 0 for |u| >= 1
         w *= -1.0 / (tukey_c * scale) ** 2
         w += 1.0
         np.maximum(w, 0.0, out=w)
         w *= w
         # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
-        np.divide(d, dist, out=jac_t[:2])
-        gram = (rows * w) @ rows.T
-        if gram[2, 2] < min(5, n):  # (almost) every weight 0: unweighted
+        np.divide(dx, dist, out=rows[0])
+        np.divide(dy, dist, out=rows[1])
+        gram = ((rows * w) @ rows.T).tolist()
+        if gram[2][2] < min(5, n):  # (almost) every weight 0: unweighted
             w = np.ones_like(w)
-            gram = rows @ rows.T
-        step = _solve_sym3(gram[:3, :3], gram[:3, 3])
+            gram = (rows @ rows.T).tolist()
+        step = _solve_sym3(gram)
         if step is None:
             break
-        theta = theta + step
-        if it >= 2 and np.abs(step).max() < 1e-5:
+        cx, cy, r = cx + step[0], cy + step[1], r + step[2]
+        if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < 1e-5:
             break
-    d = d_t - theta[:2, None]
+    theta = np.array([cx, cy, r])
+    d = np.stack((px - cx, py - cy))
     dist = np.maximum(np.hypot(d[0], d[1]), 1e-12)
-    res = dist - theta[2]
+    res = dist - r
     inl = w > 0
     n_in = int(np.count_nonzero(inl))
     np.divide(d, dist, out=jac_t[:2])  # the sign of J does not change J^T W J

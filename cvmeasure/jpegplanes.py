@@ -17,9 +17,10 @@ conversion of every pixel, and writes half the memory (4:2:0). On one core that 
   tests/cvmeasure/test_jpegplanes.py);
 * :meth:`JpegPlanes.sampled_bgr`: every ``step``-th pixel with the chroma sample it lies
   in (the marker search's reduced copy; different only next to colour edges);
-* :meth:`JpegPlanes.lazy_bgr`: a full-size BGR array whose pixels are made on
+* :meth:`JpegPlanes.lazy_bgr`: a full-size BGR image whose pixels are made on
   reading: ``img[y0:y1, x0:x1]`` makes that region, ``img[::s, ::s]`` the sampled copy,
-  any other indexing the whole image (so code written for arrays stays right).
+  any other indexing or ``np.asarray`` the whole image (so numpy code stays right; it
+  is no ndarray, so OpenCV functions refuse it instead of reading unmade pixels).
 
 Only what this covers is read: 8-bit baseline or extended Huffman, three YCbCr
 components, chroma 4:4:4, 4:2:2 or 4:2:0; for anything else, a damaged file (any
@@ -159,9 +160,13 @@ class JpegPlanes:
         chroma sample away).
         """
         h, w = self.y.shape
-        rows = np.arange(0, h, step) // self.sy
-        cols = np.arange(0, w, step) // self.sx
-        cb, cr = (np.take(p[rows], cols, axis=1) for p in (self.cb, self.cr))
+        if step % self.sy == 0 and step % self.sx == 0:
+            # pixel k * step lies in chroma sample k * step / s: a strided view, no gather
+            cb, cr = (p[:: step // self.sy, :: step // self.sx] for p in (self.cb, self.cr))
+        else:
+            rows = np.arange(0, h, step) // self.sy
+            cols = np.arange(0, w, step) // self.sx
+            cb, cr = (np.take(p[rows], cols, axis=1) for p in (self.cb, self.cr))
         return self._to_bgr(self.y[::step, ::step], cb, cr)
 
     def lazy_bgr(self) -> LazyBGR:
@@ -216,34 +221,52 @@ def read_planes(data: bytes | np.ndarray, *, max_pixels: int | None = None) -> J
     return JpegPlanes(planes[0][:height, :width], planes[1], planes[2], sx, sy)
 
 
-class LazyBGR(np.ndarray):
+class LazyBGR:
     """A full-size BGR uint8 image whose pixels are made from :class:`JpegPlanes` when read.
 
-    ``img[y0:y1, x0:x1]`` (slices of step 1) returns that region (a plain array; regions
-    made before are kept and reused when one holds the request); ``img[::s, ::s]`` the
-    sampled copy. Any other indexing makes the whole image into the array first. The
-    full-size array itself is zeros never written (its pages are not touched) until then.
+    Not an ndarray (so no code can read pixels that were never made): it has ``shape``
+    (H, W, 3), ``dtype`` uint8 and ``ndim``, and indexing. ``img[y0:y1, x0:x1]`` (slices
+    of step 1) returns that region as a plain array (regions made before are kept and
+    reused when one holds the request); ``img[::s, ::s]`` the sampled copy. Any other
+    indexing, and ``np.asarray(img)`` (``__array__``: every numpy function), make the
+    whole image first (once; kept). OpenCV functions refuse it (cv2.error), and so do
+    Python's operators (TypeError): give them ``np.asarray(img)`` or a region.
     """
 
-    _planes: JpegPlanes | None
-    _regions: list[tuple[int, int, int, int, np.ndarray]] | None
-    _whole: bool
+    __slots__ = ("_planes", "_regions", "_whole", "shape")
+    ndim = 3
+    dtype = np.dtype(np.uint8)
+
+    def __init__(self, planes: JpegPlanes) -> None:
+        self._planes = planes
+        self._regions: list[tuple[int, int, int, int, np.ndarray]] = []
+        self._whole: np.ndarray | None = None
+        self.shape: tuple[int, int, int] = planes.shape
 
     @classmethod
     def for_planes(cls, planes: JpegPlanes) -> LazyBGR:
-        obj = np.zeros(planes.shape, np.uint8).view(cls)
-        obj._planes = planes
-        obj._regions = []
-        obj._whole = False
-        return obj
+        return cls(planes)
 
-    def __array_finalize__(self, obj: Any) -> None:
-        self._planes = getattr(obj, "_planes", None)
-        self._regions = getattr(obj, "_regions", None)
-        self._whole = getattr(obj, "_whole", False)
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __repr__(self) -> str:
+        h, w, _ = self.shape
+        return f"LazyBGR({w}x{h}, {len(self._regions)} regions made, whole {'made' if self._whole is not None else 'not made'})"
+
+    def _whole_image(self) -> np.ndarray:
+        if self._whole is None:
+            h, w = self.shape[:2]
+            self._whole = self._planes.region_bgr(0, h, 0, w)
+        return self._whole
+
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
+        whole = self._whole_image()
+        if dtype is not None and np.dtype(dtype) != whole.dtype:
+            return whole.astype(dtype)
+        return whole.copy() if copy else whole
 
     def _region(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
-        assert self._planes is not None and self._regions is not None
         for ry0, ry1, rx0, rx1, arr in self._regions:
             if ry0 <= y0 and y1 <= ry1 and rx0 <= x0 and x1 <= rx1:
                 return arr[y0 - ry0 : y1 - ry0, x0 - rx0 : x1 - rx0]
@@ -258,8 +281,8 @@ class LazyBGR(np.ndarray):
         return arr[y0 - ry0 : y1 - ry0, x0 - rx0 : x1 - rx0]
 
     def __getitem__(self, key: Any) -> Any:
-        if self._planes is None or self._whole:
-            return super().__getitem__(key)
+        if self._whole is not None:
+            return self._whole[key]
         h, w = self.shape[:2]
         if isinstance(key, tuple) and len(key) >= 2 and all(isinstance(k, slice) for k in key[:2]):
             (y0, y1, sy), (x0, x1, sx) = key[0].indices(h), key[1].indices(w)
@@ -268,10 +291,7 @@ class LazyBGR(np.ndarray):
                 return self._region(y0, y1, x0, x1)[rest]
             if sy == sx > 1 and y0 == x0 == 0 and y1 == h and x1 == w:
                 return self._planes.sampled_bgr(sy)[rest]
-        plain = self.view(np.ndarray)
-        plain[...] = self._planes.region_bgr(0, h, 0, w)
-        self._whole = True
-        return plain[key]
+        return self._whole_image()[key]
 
 
 #: How much a region made for a request is grown on each side: (pixels, fraction of the

@@ -24,7 +24,7 @@ the colour science runs on a few thousand colours, not on every pixel.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from typing import Any, Literal
 
 import numpy as np
@@ -303,13 +303,18 @@ class ColourModel:
         object.__setattr__(self, "means", means)
         object.__setattr__(self, "covariances", covs)
 
+    @cached_property
+    def _inverses(self) -> tuple[np.ndarray, ...]:
+        """Each role's inverse covariance, once (classify_bgr8 reads them for every photo)."""
+        return tuple(np.linalg.inv(c) for c in self.covariances)
+
     def distances(self, values: np.ndarray) -> np.ndarray:
         """Mahalanobis distance of colours (N, 3) in ``space`` to every role: (N, K)."""
         v = np.asarray(values, dtype=np.float64).reshape(-1, 3)
         out = np.empty((v.shape[0], len(self.roles)))
         for k in range(len(self.roles)):
             d = v - self.means[k]
-            inv = np.linalg.inv(self.covariances[k])
+            inv = self._inverses[k]
             out[:, k] = np.sqrt(np.einsum("ni,ij,nj->n", d, inv, d))
         return out
 

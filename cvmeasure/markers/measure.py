@@ -541,7 +541,8 @@ def measure_machine_photo(
 
     Parameters
     ----------
-    bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR).
+    bgr : ndarray of shape (H, W, 3), uint8 or uint16, the photo (OpenCV BGR), or a
+        :class:`cvmeasure.jpegplanes.LazyBGR` (pixels made only where they are read).
     kit : the marker kit the photo shows.
     camera : lens model; with it, lens distortion is removed from the edge points.
     plane : the marker plane (:class:`cvmeasure.contracts.PlaneModel`, from ``cvmeasure
@@ -586,10 +587,15 @@ def measure_machine_photo(
             "heights='parallel' corrects a camera-only measurement: it needs a camera and "
             "no plane (a plane pose applies the heights exactly)"
         )
-    img = np.asanyarray(bgr)  # a LazyBGR (pixels made where read) stays one
+    from cvmeasure.jpegplanes import LazyBGR
+
+    # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
+    # only regions and the search's copy are read; else its whole image is made here
+    lazy = isinstance(bgr, LazyBGR) and not linear and method == "ours"
+    img = bgr if lazy else np.asanyarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
-    bgr8 = to_bgr8(img, linear=linear)
+    bgr8 = img if lazy else to_bgr8(img, linear=linear)
     if plane is not None and camera is not None and plane.camera is not camera:
         if not plane.camera.same_lens(camera):
             raise InputError(

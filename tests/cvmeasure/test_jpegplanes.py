@@ -63,6 +63,23 @@ def test_planes_give_the_full_decodes_pixels(subsampling, quality, textured_bgr)
 
 
 @needs_lib
+@pytest.mark.parametrize("subsampling", ["444", "422", "420"])
+def test_sampled_copy_takes_each_pixels_own_chroma_sample(subsampling, textured_bgr):
+    # odd sizes: the last row/column of chroma samples covers one luma row/column
+    planes = jpegplanes.read_planes(_jpeg(textured_bgr(6, (151, 203)), subsampling))
+    h, w = planes.y.shape
+    for step in (2, 3, 4, 6, 7, 10):  # strided views where step is a multiple of sx, sy
+        rows = np.arange(0, h, step) // planes.sy
+        cols = np.arange(0, w, step) // planes.sx
+        want = planes._to_bgr(
+            planes.y[::step, ::step],
+            np.ascontiguousarray(planes.cb[rows][:, cols]),
+            np.ascontiguousarray(planes.cr[rows][:, cols]),
+        )
+        np.testing.assert_array_equal(planes.sampled_bgr(step), want)
+
+
+@needs_lib
 def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image(textured_bgr):
     data = _jpeg(textured_bgr(4, (151, 203)), "420")
     full = simplejpeg.decode_jpeg(data, colorspace="BGR")
@@ -80,6 +97,29 @@ def test_lazy_bgr_makes_regions_sampled_copies_and_the_whole_image(textured_bgr)
     h, w = full.shape[:2]
     np.testing.assert_array_equal(row, planes.region_bgr(0, h, 0, w)[7])
     _close(np.asarray(lazy), full)
+
+
+@needs_lib
+def test_lazy_bgr_never_gives_unmade_pixels(textured_bgr):
+    # whatever reads the whole image gets its pixels (made on demand), never zeros; OpenCV,
+    # which would read memory directly, and Python's operators refuse it
+    data = _jpeg(textured_bgr(7, (151, 203)), "420")
+    planes = jpegplanes.read_planes(data)
+    h, w = planes.y.shape
+    whole = planes.region_bgr(0, h, 0, w)
+    assert whole.min(axis=(0, 1)).max() > 0  # a test image whose pixels are not all zero
+    for read in (np.asarray, np.array, lambda a: np.add(a, 0), lambda a: a[..., 1], lambda a: a[5]):
+        want = read(whole)
+        got = read(planes.lazy_bgr())
+        assert type(got) is np.ndarray
+        np.testing.assert_array_equal(got, want)
+    assert float(np.mean(planes.lazy_bgr())) == pytest.approx(float(whole.mean()))
+    with pytest.raises(cv2.error, match="not a numpy array"):
+        cv2.cvtColor(planes.lazy_bgr(), cv2.COLOR_BGR2GRAY)
+    with pytest.raises(TypeError):
+        planes.lazy_bgr() + 0
+    lazy = planes.lazy_bgr()
+    assert not isinstance(lazy, np.ndarray) and lazy.shape == (h, w, 3) and lazy.dtype == np.uint8
 
 
 @needs_lib

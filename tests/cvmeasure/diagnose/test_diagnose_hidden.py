@@ -7,6 +7,7 @@ import pytest
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.fitting import UNFITTED_PRIOR_SD
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS
+from cvmeasure_datasets import physical_bender as pb
 from cvmeasure_datasets.trials import hidden_case
 
 HIDDEN = [name for name in EFFECT_NAMES if name != "none"]
@@ -29,8 +30,10 @@ def test_hidden_effect_is_named_and_recovered(name, seed):
     # (it includes the dead zone's prior, which a nearly constant under-bend such as the
     # compliance lag is correlated with), and for play lost on every bend, which is a
     # constant under-bend like the dead zone itself, than that plus the prior's 95 % width
+    # (0.3: the interval is the hull of those about the estimate and about the joint fit
+    # with the dead zone, whose pull is the compliance's own shape: seed 12, 0.16 of 0.6)
     dead_zone = 2 * 1.96 * dict(UNFITTED_PRIOR_SD)["approach_deg"] if name == "backlash" else 0
-    assert hi - lo < 0.25 * EFFECTS[name].typical[1] + dead_zone
+    assert hi - lo < 0.3 * EFFECTS[name].typical[1] + dead_zone
     # held-out error improves, and the extended model sits near the noise floor
     assert result.extended_rmse_deg < 0.6 * result.baseline_rmse_deg
     assert result.extended_rmse_deg < 1.5 * case.noise_deg
@@ -189,3 +192,14 @@ def test_very_many_trials_are_diagnosed_on_a_stated_subset(monkeypatch):
     result = diagnose(case.trials)
     assert result.n_trials <= 150 and result.cause == "backlash"
     assert any("random subset of" in note and "400 trials" in note for note in result.notes)
+
+
+def test_a_cause_whose_interval_holds_no_effect_is_not_named_on_a_no_effect_sweep():
+    # independent physical model, nothing hidden, a sweep (development seed 310064, not
+    # the benchmark's): the model-form error beyond the discrepancy's bound passed as a
+    # scale of 0.010 (delta BIC 34, held-out gain) whose own interval, with the
+    # discrepancy carried, held 0 (-0.007 .. 0.017); it was named
+    case = pb.physical_case(310064, "none", plan="sweep", n_trials=60)
+    result = diagnose(case.trials)
+    assert not set(result.causes) & set(HIDDEN), (result.cause, result.causes)
+    assert any("holds no effect" in n for n in result.notes)

@@ -89,7 +89,9 @@ def test_tilt_about_another_axis_beside_a_scale_is_carried_in_the_scale_interval
     assert set(result.causes) == {"camera_tilt", "scale"}
     lo, hi = result.intervals["scale"]
     assert lo <= case.hidden[1].params["scale"] <= hi, (case.hidden[1].params, (lo, hi))
-    assert hi - lo < EFFECTS["scale"].typical[1]  # widened, not unbounded
+    # widened, not unbounded (seed 429: 0.062, the hull about the estimate and the joint
+    # fit with the dead zone and the tilt axis's rounding)
+    assert hi - lo < 1.25 * EFFECTS["scale"].typical[1]
 
 
 def test_errors_shared_within_a_command_are_carried_by_the_cluster_sandwich():
@@ -114,3 +116,30 @@ def test_errors_shared_within_a_command_are_carried_by_the_cluster_sandwich():
     assert se_iid == pytest.approx(sd_iid, rel=0.2)  # independent errors: the model's
     assert se_shared == pytest.approx(sd_shared, rel=0.3)  # shared: the sandwich's
     assert se_shared > 5 * se_iid
+
+
+def test_a_moved_centre_gives_the_hull_of_both_intervals():
+    # the dead zone's pull moved the centre from the estimate 0.030 to 0.025: the
+    # interval holds the t-interval about each (the joint fit's answer is right only if
+    # the model is, its pull can be model-form error)
+    t = float(fitting.special.stdtrit(40, 0.975))
+    lo, hi = fitting._interval(0.025, 0.001, 40, -0.15, 0.15, keep=0.030)
+    assert lo == pytest.approx(0.025 - t * 0.001)
+    assert hi == pytest.approx(0.030 + t * 0.001)
+    assert fitting._interval(0.025, 0.001, 40, -0.15, 0.029, keep=0.030)[1] == 0.029  # bound
+
+
+@pytest.mark.parametrize(("seed", "plan"), [(300005, "random"), (300018, "sweep")])
+def test_a_scale_on_the_independent_model_is_held_when_the_dead_zones_pull_misleads(seed, plan):
+    # development seeds (not the benchmark's): the physical model's contact differs from
+    # the simulation's, the dead zone held at nominal takes it up and its pull moved the
+    # scale's centre away from the truth; the estimate held it (before: 0.0334 outside
+    # (0.0275, 0.0322), -0.0425 outside (-0.0473, -0.0435))
+    case = pb.physical_case(seed, "scale", plan=plan, n_trials=60)
+    result = diagnose(case.trials)
+    assert result.cause == "scale"
+    truth = case.hidden[0].params["scale"]
+    lo, hi = result.intervals["scale"]
+    assert lo <= truth <= hi, (truth, (lo, hi))
+    assert lo < result.params["scale"] < hi  # the estimate inside, not at an end
+    assert hi - lo < 0.25 * EFFECTS["scale"].typical[1]  # still informative
