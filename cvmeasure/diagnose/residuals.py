@@ -36,6 +36,7 @@ COVARIATES: dict[str, tuple[str, ...]] = {
     "direction": ("offset", "axis_offset", "springback_asymmetry"),
     "bend_index": ("drift",),
     "signed_bend_index": ("drift",),
+    "home_walk": ("drift",),
     "commanded_angle": ("scale", "camera_tilt", "backlash"),
     "signed_angle": ("offset", "axis_offset", "springback_asymmetry"),
     "unloaded_minus_loaded": ("springback_asymmetry",),
@@ -75,12 +76,26 @@ def _features(trials: TrialTable) -> dict[str, NDArray[np.float64]]:
         "direction": tile(s),
         "bend_index": tile(trials.bend_index),
         "signed_bend_index": tile(s * trials.bend_index),
+        "home_walk": tile(_home_walk(s, trials.bend_index)),
         "commanded_angle": tile(mag),
         "signed_angle": tile(s * mag),
         "unloaded_minus_loaded": np.where(block == 2, np.nan, unloaded),
         "direction_x_unloaded": np.where(block == 2, np.nan, tile(s) * unloaded),
         "pin_vs_bend": (block == 2).astype(float),
     }
+
+
+def _home_walk(direction: NDArray[np.float64], bend_index: NDArray[np.float64]) -> NDArray:
+    """Signed home shift (in losses per bend) of a drift losing the same on every bend
+    and shifting home: ``-sum s_j`` over the earlier bends of the run (a re-home,
+    ``bend_index`` back to 0 or down, starts a run). Not a trend along the run: on a
+    balanced plan it walks about zero (cvmeasure.sim.model's ``home_shift`` form)."""
+    k = np.asarray(bend_index, dtype=np.float64)
+    start = (k <= np.concatenate([[np.inf], k[:-1]])) | (k == 0)
+    before = np.cumsum(direction) - direction
+    run = np.cumsum(start) - 1
+    first = np.searchsorted(run, run)
+    return -(before - before[first])
 
 
 def _pearson(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
