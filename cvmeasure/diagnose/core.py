@@ -484,6 +484,8 @@ def diagnose(
         discovered = beside
     if ext_fit.causes:
         ext_fit = _widened(ctx, ext_fit)
+        if cause not in ("none", "unexplained"):
+            ext_fit = _averaged(ctx, ext_fit, naming, results, groups)
     if mean_terms and math.isfinite(found.delta_bic):
         scores[_DISCOVERED] = found.delta_bic
     evidence = _evidence(scores)
@@ -706,6 +708,43 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
     out = []
     for c, (lo, hi), (alo, ahi) in zip(fit.causes, fit.intervals, alt.intervals, strict=True):
         out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
+    return dataclasses.replace(fit, intervals=tuple(out))
+
+
+def _averaged(
+    ctx: _Context,
+    fit: ModelFit,
+    naming: _Naming,
+    results: Sequence[CandidateResult],
+    groups: Sequence[str],
+) -> ModelFit:
+    """The widened ``fit`` (:func:`_widened`) with each cause's 95 % interval the hull of
+    its intervals (each widened too) in every explanation that explains the held-out data
+    as well as the named one (:func:`_held_out_tie`, the one-standard-error rule) and
+    holds that cause: the named single cause, the single causes and the pairs the beam
+    could name. The interval is then conditional on the cause, not on the pair: a cause
+    named beside a second cause the held-out data do not settle (a pair against its
+    first cause alone, or against a pair with another second cause) keeps the value it
+    would have without that second cause in its interval (model averaging over the
+    explanations the data do not tell apart, each with the same weight)."""
+    key = frozenset(fit.causes)
+    pool = [*results, *naming.other_pairs]
+    if naming.pair is not None:
+        pool.append(naming.pair)
+    named = next((c for c in pool if frozenset(c.fit.causes) == key), None)
+    if named is None:
+        return fit
+    others = [c for c in pool if c is not named and key & set(c.fit.causes) and c.fit.intervals]
+    by_label = {" + ".join(c.fit.causes): c for c in others}
+    tied = _held_out_tie(named, others, groups, lambda c: " + ".join(c.fit.causes))
+    out = list(fit.intervals)
+    for label in tied[1:]:
+        alt = _widened(ctx, by_label[label].fit)
+        for i, c in enumerate(fit.causes):
+            if c in alt.causes:
+                alo, ahi = alt.intervals[alt.causes.index(c)]
+                if math.isfinite(alo) and math.isfinite(ahi):
+                    out[i] = (min(out[i][0], alo), max(out[i][1], ahi))
     return dataclasses.replace(fit, intervals=tuple(out))
 
 

@@ -143,3 +143,18 @@ def test_a_scale_on_the_independent_model_is_held_when_the_dead_zones_pull_misle
     assert lo <= truth <= hi, (truth, (lo, hi))
     assert lo < result.params["scale"] < hi  # the estimate inside, not at an end
     assert hi - lo < 0.25 * EFFECTS["scale"].typical[1]  # still informative
+
+
+def test_a_cause_beside_a_second_cause_the_held_out_data_do_not_settle_keeps_its_alone_interval():
+    # development seed 330015 (not the benchmark's): a compliance, named as scale +
+    # compliance; scale alone explains the held-out data as well as the pair (one standard
+    # error over the CV groups), so the scale's interval is the hull over both
+    # explanations (before: (-0.0151, -0.0075), the pair's alone; scale alone fits -0.024)
+    case = pb.physical_case(330015, "compliance", plan="random", n_trials=60)
+    result = diagnose(case.trials)
+    assert set(result.causes) == {"scale", "compliance"}
+    alone = next(c for c in result.candidates if c.cause == "scale")
+    lo, hi = result.intervals["scale"]
+    assert lo <= alone.fit.intervals[0][0] and alone.fit.intervals[0][1] <= hi, (lo, hi)
+    assert lo <= alone.fit.values[0] <= hi
+    assert hi - lo < EFFECTS["scale"].typical[1]  # still informative
