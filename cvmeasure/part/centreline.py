@@ -1016,6 +1016,17 @@ def _cap_edge(
             k = j
         near = weak[(t[weak] <= t[k]) & (t[weak] >= t[k] - 2.0 * half_width)]
         spread = float(t[k] - t[near].min())
+        # the cap's own outline against the shadow may give no rising step at all (its dark
+        # limb meets the shadow at about the shadow's level): a stretch inside the taken
+        # step as dark as cast shadow and longer than a half-width (a cap's own dark limb
+        # lies within one half-width of its outline) has the silhouette somewhere in it
+        dark = axial < background - SHADOW_DARKER * (background - wire)
+        j = k - 1
+        while j >= 0 and dark[j]:
+            j -= 1
+        run = float(t[k] - t[j + 1]) if j + 1 < k else 0.0
+        if run > half_width:
+            spread = max(spread, run)
     g0, g1, g2 = grad[k - 1], grad[k], grad[k + 1]
     den = g0 - 2 * g1 + g2
     frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
