@@ -9,7 +9,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["wrap_deg", "direction_deg", "fit_circle_taubin", "CircleFit", "fit_circle_robust"]
+__all__ = [
+    "wrap_deg",
+    "direction_deg",
+    "fit_circle_taubin",
+    "CircleFit",
+    "fit_circle_robust",
+    "median_by_partition",
+]
 
 
 def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
@@ -135,14 +142,20 @@ def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
     return float(np.count_nonzero(np.bincount(bins, minlength=36)) / 36.0)
 
 
-def _abs_median(values: np.ndarray) -> float:
-    """``np.median(np.abs(values))`` of a 1-D array, by partition (no sort, no checks)."""
-    a = np.abs(values)
+def median_by_partition(values: np.ndarray) -> float:
+    """``np.median`` of a non-empty 1-D float array (the same value), by one partition
+    (no sort, no checks: the hot loops' median)."""
+    a = values
     n = a.size
     if n % 2:
         return float(np.partition(a, n // 2)[n // 2])
     part = np.partition(a, (n // 2 - 1, n // 2))
     return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
+
+
+def _abs_median(values: np.ndarray) -> float:
+    """``np.median(np.abs(values))`` of a 1-D array (:func:`median_by_partition`)."""
+    return median_by_partition(np.abs(values))
 
 
 def _solve_sym3(g: list[list[float]]) -> tuple[float, float, float] | None:

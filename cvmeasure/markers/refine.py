@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode, srgb_encode
+from cvmeasure.geometry import median_by_partition
 
 __all__ = [
     "EdgePoints",
@@ -112,15 +113,6 @@ def _row_medians(a: np.ndarray) -> np.ndarray:
     if n % 2:
         return srt[:, n // 2]
     return (srt[:, n // 2 - 1] + srt[:, n // 2]) / 2
-
-
-def _median(a: np.ndarray) -> float:
-    """``np.median`` of a non-empty 1-D float array (the same value), by one partition."""
-    n = a.size
-    if n % 2:
-        return float(np.partition(a, n // 2)[n // 2])
-    part = np.partition(a, (n // 2 - 1, n // 2))
-    return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
 def _sorted_percentile(srt: np.ndarray, q: float) -> float:
@@ -448,7 +440,7 @@ def channel_shifts_px(
         ok = np.isfinite(d)
         if ok.sum() < 0.75 * n_rays:
             continue
-        med = _median(d[ok])
+        med = median_by_partition(d[ok])
         ok &= np.abs(d - med) < 0.5  # rays crossing the wire or a neighbour
         a = basis[:, ok]
         try:
