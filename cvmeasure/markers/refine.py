@@ -133,6 +133,21 @@ def _unit_rays(n_rays: int) -> tuple[np.ndarray, np.ndarray]:
     return cos, sin
 
 
+def _ray_maps(
+    x_px: float, y_px: float, radius_px: float, band: float, step_px: float, n_rays: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Samples along ``n_rays`` rays from ``(x_px, y_px)`` (pixels of the region read) at
+    radii ``(1 - band) r .. (1 + band) r`` every ``step_px``: ``radii`` (K,) and the
+    ``cv2.remap`` maps ``map_x``, ``map_y`` (n_rays, K) float32 (float64 sums rounded once,
+    as ``astype`` would, without the extra pass)."""
+    radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
+    cos, sin = _unit_rays(n_rays)
+    shape = (n_rays, len(radii))
+    map_x = np.add(x_px, radii * cos, out=np.empty(shape, np.float32), casting="same_kind")
+    map_y = np.add(y_px, radii * sin, out=np.empty(shape, np.float32), casting="same_kind")
+    return radii, map_x, map_y
+
+
 def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -> np.ndarray:
     """Per channel, the median of ``lut[raw]`` over ``mask`` (uint8 data; ``n`` pixels in it).
 
@@ -261,15 +276,7 @@ def disc_edge_points(
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
 
     n_rays = min(max(round(2 * math.pi * radius_px), 48), 1440)
-    radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
-    cos, sin = _unit_rays(n_rays)
-    # float64 sums rounded once to float32 (as astype would), without the extra pass
-    map_x = np.add(
-        cx - x0, radii * cos, out=np.empty((n_rays, len(radii)), np.float32), casting="same_kind"
-    )
-    map_y = np.add(
-        cy - y0, radii * sin, out=np.empty((n_rays, len(radii)), np.float32), casting="same_kind"
-    )
+    radii, map_x, map_y = _ray_maps(cx - x0, cy - y0, radius_px, band, step_px, n_rays)
     v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
     # the ring's samples, for ring_spread (read only on the refinement's settled pass)
@@ -280,6 +287,7 @@ def disc_edge_points(
     if local_levels:
         v = _local_levels(v, radii, radius_px, band, offset)
     rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
+    cos, sin = _unit_rays(n_rays)
     points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
 
@@ -420,11 +428,9 @@ def channel_shifts_px(
     y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
     if x1 - x0 < 5 or y1 - y0 < 5:
         return {}
-    radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
+    radii, map_x, map_y = _ray_maps(cx - x0, cy - y0, radius_px, band, step_px, n_rays)
     cos_c, sin_c = _unit_rays(n_rays)  # (n_rays, 1)
     cos, sin = cos_c[:, 0], sin_c[:, 0]
-    map_x = (cx - x0 + radii[None, :] * cos_c).astype(np.float32)
-    map_y = (cy - y0 + radii[None, :] * sin_c).astype(np.float32)
     roi = _linear_roi(bgr[y0:y1, x0:x1])
     if blur_px > 0:
         roi = cv2.GaussianBlur(roi, (0, 0), blur_px)
