@@ -386,8 +386,7 @@ def outer_edges(
     for i in range(len(p)):
         # the stretches between flat ones: the wire, a penumbra, a stray line...
         busy = ~covered[i]
-        change = np.diff(np.concatenate(([False], busy, [False])).astype(np.int8))
-        starts, stops = np.nonzero(change == 1)[0], np.nonzero(change == -1)[0]
+        starts, stops = _true_runs(busy)
         if len(starts) == 0:
             continue
         width = (stops - starts) * step
@@ -486,11 +485,16 @@ def _least_cost_path(cost: np.ndarray, reach: int) -> np.ndarray:
     return path
 
 
+def _true_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops (one past the end) of a 1-D boolean ``mask``'s runs of True."""
+    change = np.diff(np.concatenate(([False], mask, [False])).astype(np.int8))
+    return np.nonzero(change == 1)[0], np.nonzero(change == -1)[0]
+
+
 def _long_runs(mask: np.ndarray, min_length: float) -> np.ndarray:
     """True at the elements of ``mask``'s runs of True at least ``min_length`` long."""
     out = np.zeros(len(mask), dtype=bool)
-    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    for start, stop in zip(np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0], strict=True):
+    for start, stop in zip(*_true_runs(mask), strict=True):
         if stop - start >= min_length:
             out[start:stop] = True
     return out
