@@ -480,9 +480,10 @@ def _centreline_gaps(
     """The vertex bends' sigmas widened where a chord is not seen, and the warning ('' if none).
 
     A chord seen along less than ``CHORD_MIN_COVERAGE`` of it (:func:`chord_coverage`, gaps
-    wider than the wire not counted: the centreline lost there) gets its line from the centres at the gap's ends, which lie in
-    the corners: its direction is uncertain by the angle half a wire's width subtends over
-    the chord, added (in quadrature) to the sigmas of the bends at both its vertices.
+    wider than the wire not counted: the centreline lost there) gets its line from the
+    centres at the gap's ends, which lie in the corners: its direction is uncertain by the
+    angle half a wire's width subtends over the chord, added (in quadrature) to the sigmas
+    of the bends at both its vertices.
     """
     cover = chord_coverage(centreline_mm, poly.vertices_mm, max_step_mm=wire_width_mm)
     lost = np.nonzero(cover < CHORD_MIN_COVERAGE)[0]
