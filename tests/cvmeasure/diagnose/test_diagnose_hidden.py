@@ -31,8 +31,13 @@ def test_hidden_effect_is_named_and_recovered(name, seed):
     # compliance lag is correlated with), and for play lost on every bend, which is a
     # constant under-bend like the dead zone itself, than that plus the prior's 95 % width
     # (0.3: the interval is the hull of those about the estimate and about the joint fit
-    # with the dead zone, whose pull is the compliance's own shape: seed 12, 0.16 of 0.6)
+    # with the dead zone, whose pull is the compliance's own shape). The compliance lag takes
+    # part of the dead zone's prior (0.25 deg): 0.155 / 0.235 wide at seeds 11 / 12 (0.118 /
+    # 0.160 with a 0.1 deg prior, 0.025 / 0.103 with the dead zone known), so its allowance
+    # is 0.2 of its typical 0.6 on top
     dead_zone = 2 * 1.96 * dict(UNFITTED_PRIOR_SD)["approach_deg"] if name == "backlash" else 0
+    if name == "compliance":
+        dead_zone = 0.2 * EFFECTS[name].typical[1]
     assert hi - lo < 0.3 * EFFECTS[name].typical[1] + dead_zone
     # held-out error improves, and the extended model sits near the noise floor
     assert result.extended_rmse_deg < 0.6 * result.baseline_rmse_deg

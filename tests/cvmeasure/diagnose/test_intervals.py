@@ -41,6 +41,10 @@ def test_an_unfitted_parameter_the_data_cannot_see_widens_by_its_prior():
     assert abs(shift) < 0.2 * se
 
 
+def _dead_zone_sd() -> float:
+    return dict(fitting.UNFITTED_PRIOR_SD)["approach_deg"]
+
+
 @pytest.mark.parametrize("seed", [31, 32])
 def test_intervals_on_data_of_the_model_itself_hold_the_truth(seed):
     held = []
@@ -50,13 +54,19 @@ def test_intervals_on_data_of_the_model_itself_hold_the_truth(seed):
         assert result.cause == name
         lo, hi = result.intervals[EFFECTS[name].param]
         held.append(lo <= case.effect.value <= hi)
-        assert hi - lo < 0.25 * EFFECTS[name].typical[1]  # informative
+        # informative: narrower than a quarter of the typical size, plus the dead zone's
+        # prior for what it is correlated with: all of it for play lost on every bend (its
+        # own signature: 1.00 deg wide at both seeds), part for the compliance lag, a nearly
+        # constant under-bend (seed 32: 0.157 wide, 0.26 of its typical 0.6; 0.025-0.10 with
+        # the dead zone known)
+        allowance = {"backlash": 2 * 1.96 * _dead_zone_sd(), "compliance": 0.2 * 0.6}
+        assert hi - lo < 0.25 * EFFECTS[name].typical[1] + allowance.get(name, 0.0)
     assert sum(held) >= 7, held  # 8 intervals: a correct 95 % interval misses 0-1
 
 
 @pytest.mark.parametrize("name", ["scale", "drift", "camera_tilt", "backlash"])
 def test_the_dead_zone_widens_only_what_the_data_cannot_tell_from_it(name, monkeypatch):
-    # simulate's own data: the dead zone's prior (0.1 deg) is marginalised, so a cause
+    # simulate's own data: the dead zone's prior (0.25 deg) is marginalised, so a cause
     # whose signature differs from a constant under-bend widens only by the part of the
     # dead zone the data cannot tell from it (the dead zone's whole bias was added), while
     # play lost on every bend, the dead zone's own signature, takes its whole prior
@@ -158,3 +168,31 @@ def test_a_cause_beside_a_second_cause_the_held_out_data_do_not_settle_keeps_its
     assert lo <= alone.fit.intervals[0][0] and alone.fit.intervals[0][1] <= hi, (lo, hi)
     assert lo <= alone.fit.values[0] <= hi
     assert hi - lo < EFFECTS["scale"].typical[1]  # still informative
+
+
+@pytest.mark.parametrize(
+    ("seed", "hidden", "plan"),
+    [
+        (350001, ("backlash",), "random"),
+        (350105, ("backlash",), "repeats"),
+        (350206, ("backlash",), "sweep"),
+        (350308, ("backlash", "springback_asymmetry"), "sweep"),
+    ],
+)
+def test_play_lost_on_every_bend_is_held_with_the_dead_zones_datasheet_prior(seed, hidden, plan):
+    # development seeds (not the benchmark's): play lost on every bend comes out 0.2-0.45
+    # deg low on the independent model (a constant under-bend where it and `simulate`
+    # differ: the dead zone's own shape). With the dead zone's prior at 0.1 deg (home
+    # switch repeatability and pin alone) these four intervals missed the truth by
+    # 0.005-0.1 deg (e.g. 350001: 2.18 .. 2.82, truth 2.823); with the switch's placement
+    # and the wire's diameter in the prior (0.25 deg) they hold it, about +-0.55 deg wide
+    case = pb.physical_case(
+        seed, hidden, plan=plan, n_trials=60, params={"backlash": {"same_direction_share": 1.0}}
+    )
+    result = diagnose(case.trials)
+    assert set(result.causes) == set(hidden)
+    truth = case.hidden[0].params["backlash_deg"]
+    lo, hi = result.intervals["backlash_deg"]
+    assert lo <= truth <= hi, (truth, (lo, hi))
+    assert 0.0 < lo  # still tells play from no play
+    assert hi - lo < 1.5  # still informative: 1.03-1.27 deg wide here (typical 0.6-3 deg)
