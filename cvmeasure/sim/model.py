@@ -298,6 +298,11 @@ def _forward(
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])
+    if params.span_bow_share:
+        # the leg beyond the pin leads the chord by (a share of) the span's elastic bow;
+        # released, that elastic curvature is part of the span term, so the bow moves
+        # the loaded and the released angle alike
+        theta_l = theta_l + params.span_bow_share * law.span_bow_deg(theta_l, lever)
     sb = np.minimum(np.maximum(affine, 0.0), theta_l)  # np.clip's values, less overhead
     loaded = direction * theta_l
     unloaded = direction * (theta_l - sb)

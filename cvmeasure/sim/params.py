@@ -66,6 +66,11 @@ class SimParams:
     span_factor : float
         c in the free-span springback term ``c * M * l / EI``: 1/2 when the
         leg beyond the pin is measured, 1/3 for the chord of the span.
+    span_bow_share : float
+        Share of the free span's elastic bow added to the loaded leg: the leg
+        beyond the pin leads the tangent construction's chord by
+        ``share * min(M l / (6 EI), theta / 2)`` (beam theory, moment falling
+        linearly from the die to the pin). 0 (default): a straight leg.
     """
 
     wire_diameter_mm: float = 3.0
@@ -82,6 +87,7 @@ class SimParams:
     head_axis_y_mm: float = 0.0
     approach_deg: float = 13.2
     span_factor: float = 0.5
+    span_bow_share: float = 0.0
 
     def __post_init__(self) -> None:
         if self.hardening not in HARDENING_LAWS:

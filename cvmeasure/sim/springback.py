@@ -157,6 +157,20 @@ class SpringbackLaw:
             self.span_factor * self.unload_curvature_per_mm * np.asarray(lever_mm, np.float64)
         )
 
+    def span_bow_deg(self, chord_deg: ArrayLike, lever_mm: ArrayLike) -> NDArray[np.float64]:
+        """Elastic bow of the loaded span (deg, >= 0): how far the leg beyond the pin
+        leads the chord of the tangent construction, ``min(M l / (6 EI), theta / 2)``.
+
+        The span's curvature ``M (1 - s / l) / EI`` (s from the die tangent point) bows
+        it off its chord; the tangent at the pin leads the chord by
+        ``(1 / l) int_0^l s kappa ds = M l / (6 EI)`` rad. Below the elastic threshold
+        the span is a cantilever whose tip leads its chord by half the chord angle.
+        ``chord_deg``: the chord's bend angle (deg, >= 0); ``lever_mm``: the span l (mm).
+        """
+        chord = np.asarray(chord_deg, dtype=np.float64)
+        full = np.degrees(self.unload_curvature_per_mm / 6.0) * np.asarray(lever_mm, np.float64)
+        return np.minimum(full, 0.5 * np.maximum(chord, 0.0))
+
     def springback_deg(self, loaded_deg: ArrayLike, lever_mm: ArrayLike) -> NDArray[np.float64]:
         """Springback (deg, >= 0) of a bend loaded to ``loaded_deg`` (>= 0) with lever l.
 

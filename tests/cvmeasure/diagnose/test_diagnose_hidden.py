@@ -208,3 +208,22 @@ def test_a_cause_whose_interval_holds_no_effect_is_not_named_on_a_no_effect_swee
     result = diagnose(case.trials)
     assert not set(result.causes) & set(HIDDEN), (result.cause, result.causes)
     assert any("holds no effect" in n for n in result.notes)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limit (docs/diagnosis.md, Limits): without the span's elastic bow the "
+    "compliance fitted on the physical model comes out at about half its value and scale "
+    "is named; fitting the bow's share fixes this case but cost a met target (measured)",
+)
+def test_a_compliance_on_the_independent_model_is_named_compliance():
+    # development seed (not the benchmark's), a random plan: a drive compliance of 0.34
+    # deg/(N m). The physical model's span bows elastically under the load (an over-bend
+    # of M l / (6 EI), 0.2-0.3 deg, largest at small bends), which the compliance's
+    # parameter takes when fitted without it (0.20); scale (-0.015) is named, no tie. With
+    # the bow's share fitted as a nuisance: compliance 0.29, named, no tie
+    case = pb.physical_case(910003, "compliance", plan="random", n_trials=60)
+    result = diagnose(case.trials)
+    assert result.cause == "compliance" and not result.tie, (result.cause, result.tie)
+    truth = case.hidden[0].params["compliance_deg_per_nm"]
+    assert result.params["compliance_deg_per_nm"] == pytest.approx(truth, rel=0.2)

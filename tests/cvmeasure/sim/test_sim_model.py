@@ -234,3 +234,46 @@ def test_camera_tilt_about_any_axis():
     assert e.shape_value("tilt_axis_deg") == 40.0
     with pytest.raises(ValueError, match="bounds"):
         Effect("camera_tilt", 15.0, (("tilt_axis_deg", 120.0),))
+
+
+def test_span_bow_is_the_beam_theory_tip_slope_over_the_chord():
+    # moment falling linearly from the die (M) to the pin (0) over the span l: the tangent
+    # at the pin leads the chord by (1 / l) int_0^l s kappa(s) ds, kappa = M (1 - s/l) / EI
+    from cvmeasure.sim.springback import springback_law
+
+    law = springback_law(SimParams())
+    lever = np.array([5.7, 8.0, 10.8])
+    s = (np.arange(20_000) + 0.5) / 20_000  # s / l
+    kappa = law.moment_nmm * (1.0 - s) / law.bending_stiffness_nmm2
+    integral = np.degrees(lever * np.mean(s * kappa))  # (1/l) int s kappa ds, l factored
+    np.testing.assert_allclose(law.span_bow_deg(90.0, lever), integral, rtol=1e-6)
+    # a cantilever below the elastic threshold: half the chord angle
+    assert law.span_bow_deg(0.1, 10.0) == pytest.approx(0.05)
+
+
+def test_span_bow_share_moves_loaded_and_released_alike():
+    cmd = np.array([-110.0, -40.0, 30.0, 95.0])
+    straight = simulate(cmd)
+    assert np.array_equal(straight.loaded_bend_deg, simulate(cmd, SimParams()).loaded_bend_deg)
+    bowed = simulate(cmd, SimParams(span_bow_share=1.0))
+    d_loaded = bowed.loaded_bend_deg - straight.loaded_bend_deg
+    d_released = bowed.unloaded_bend_deg - straight.unloaded_bend_deg
+    np.testing.assert_allclose(d_released, d_loaded, atol=1e-9)
+    assert np.all(np.sign(d_loaded) == np.sign(cmd)) and np.all(np.abs(d_loaded) > 0.1)
+    np.testing.assert_array_equal(bowed.pin_deg, straight.pin_deg)  # the head is not moved
+
+
+def test_span_bow_brings_the_loaded_angle_to_the_independent_models():
+    # the independent physical model (cvmeasure_datasets.physical_bender, nominal machine,
+    # its own hardening law) bows its span: simulate's straight leg is 0.16-0.32 deg short
+    # of its loaded angle (falling with the bend), with the bow within 0.02 deg
+    from cvmeasure_datasets import physical_bender as pb
+
+    machine = pb.Machine()
+    targets = np.array([5.0, 10.0, 20.0, 40.0, 60.0, 80.0, 100.0, 130.0])
+    cmd = np.round(pb._nominal_command(machine, targets), 1)
+    truth = pb.bend(cmd, machine).loaded_deg
+    straight = simulate(cmd).loaded_bend_deg - truth
+    bowed = simulate(cmd, SimParams(span_bow_share=1.0)).loaded_bend_deg - truth
+    assert np.all(straight < -0.15), straight
+    assert np.max(np.abs(bowed)) < 0.02, bowed
