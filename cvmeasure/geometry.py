@@ -227,10 +227,15 @@ def fit_circle_robust(
     rows = np.empty((4, n))
     rows[2] = 1.0
     jac_t, res = rows[:3], rows[3]
-    px, py = np.ascontiguousarray(p.T)
+    pts_t = np.ascontiguousarray(p.T)  # (2, N): x and y rows
+    px, py = pts_t
+    d = np.empty((2, n))  # (dx, dy) rows, made again in place each iteration
+    dist = np.empty(n)
+    centre = np.empty((2, 1))
     for it in range(iterations):
-        dx, dy = px - cx, py - cy
-        dist = np.hypot(dx, dy)
+        centre[0, 0], centre[1, 0] = cx, cy
+        np.subtract(pts_t, centre, out=d)
+        np.hypot(d[0], d[1], out=dist)
         np.maximum(dist, 1e-12, out=dist)
         np.subtract(dist, r, out=res)
         if it < 3:  # robust scale from the first iterations, then fixed (stable weights)
@@ -242,8 +247,7 @@ def fit_circle_robust(
         np.maximum(w, 0.0, out=w)
         w *= w
         # Gauss-Newton on J = -[d / dist, 1]: solve (J^T W J) step = -(J^T W res)
-        np.divide(dx, dist, out=rows[0])
-        np.divide(dy, dist, out=rows[1])
+        np.divide(d, dist, out=rows[:2])
         gram = ((rows * w) @ rows.T).tolist()
         if gram[2][2] < min(5, n):  # (almost) every weight 0: unweighted
             w = np.ones_like(w)
@@ -255,7 +259,8 @@ def fit_circle_robust(
         if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < 1e-5:
             break
     theta = np.array([cx, cy, r])
-    d = np.stack((px - cx, py - cy))
+    centre[0, 0], centre[1, 0] = cx, cy
+    np.subtract(pts_t, centre, out=d)
     dist = np.maximum(np.hypot(d[0], d[1]), 1e-12)
     res = dist - r
     inl = w > 0

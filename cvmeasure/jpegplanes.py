@@ -137,19 +137,21 @@ class JpegPlanes:
         # the chroma samples round the region, one more each side (clipped at the image's
         # edge), upsampled by cv2.resize: its bilinear output pixel x sits at (x + 0.5) / sx
         # - 0.5 of its input, as libjpeg-turbo's fancy upsampling, and it replicates the
-        # input's edge, which matters only at the image's own edge (as in libjpeg-turbo)
+        # input's edge, which matters only at the image's own edge (as in libjpeg-turbo).
+        # Cr and Cb each on its own: row-contiguous views that cv2.merge takes without the
+        # copies a 2-channel resize's strided channels need (the same pixels)
         hc, wc = self.cb.shape
         cy0, cy1 = max(0, y0 // self.sy - 1), min(hc, (y1 - 1) // self.sy + 2)
         cx0, cx1 = max(0, x0 // self.sx - 1), min(wc, (x1 - 1) // self.sx + 2)
-        crcb = cv2.merge((self.cr[cy0:cy1, cx0:cx1], self.cb[cy0:cy1, cx0:cx1]))
-        up = cv2.resize(
-            crcb,
-            ((cx1 - cx0) * self.sx, (cy1 - cy0) * self.sy),
-            interpolation=cv2.INTER_LINEAR,
-        )
+        size = ((cx1 - cx0) * self.sx, (cy1 - cy0) * self.sy)
         oy, ox = y0 - cy0 * self.sy, x0 - cx0 * self.sx
-        up = up[oy : oy + y1 - y0, ox : ox + x1 - x0]
-        return self._to_bgr(self.y[y0:y1, x0:x1], up[..., 1], up[..., 0])
+        cr, cb = (
+            cv2.resize(p[cy0:cy1, cx0:cx1], size, interpolation=cv2.INTER_LINEAR)[
+                oy : oy + y1 - y0, ox : ox + x1 - x0
+            ]
+            for p in (self.cr, self.cb)
+        )
+        return self._to_bgr(self.y[y0:y1, x0:x1], cb, cr)
 
     def sampled_bgr(self, step: int) -> np.ndarray:
         """BGR uint8 of every ``step``-th pixel from (0, 0), for a search: ~``decoded[::step, ::step]``.

@@ -270,7 +270,7 @@ def _search(
     failures: dict[str, str] = {}
     for k, role in enumerate(model.roles):
         marker = kit.by_role(role)
-        mask = (labels == k).astype(np.uint8)
+        mask = (labels == k).view(np.uint8)  # 0/1 bytes, no copy
         cands, reason = _candidates(role, mask, bright, marker.ring_mm / marker.diameter_mm, step)
         per_role[role] = cands
         if not cands:

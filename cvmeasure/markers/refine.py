@@ -138,14 +138,15 @@ def _ray_maps(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Samples along ``n_rays`` rays from ``(x_px, y_px)`` (pixels of the region read) at
     radii ``(1 - band) r .. (1 + band) r`` every ``step_px``: ``radii`` (K,) and the
-    ``cv2.remap`` maps ``map_x``, ``map_y`` (n_rays, K) float32 (float64 sums rounded once,
-    as ``astype`` would, without the extra pass)."""
+    ``cv2.remap`` maps ``map_x``, ``map_y`` (n_rays, K) float32 (float64 sums rounded once:
+    summed in place, then cast; a casting ``np.add`` into float32 buffers its scalar)."""
     radii = np.arange((1 - band) * radius_px, (1 + band) * radius_px + step_px, step_px)
     cos, sin = _unit_rays(n_rays)
-    shape = (n_rays, len(radii))
-    map_x = np.add(x_px, radii * cos, out=np.empty(shape, np.float32), casting="same_kind")
-    map_y = np.add(y_px, radii * sin, out=np.empty(shape, np.float32), casting="same_kind")
-    return radii, map_x, map_y
+    map_x = radii * cos
+    map_x += x_px
+    map_y = radii * sin
+    map_y += y_px
+    return radii, map_x.astype(np.float32), map_y.astype(np.float32)
 
 
 def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -> np.ndarray:
