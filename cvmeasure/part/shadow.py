@@ -10,7 +10,9 @@ the plate. A rigid part rests on the plate: ``H = r + h(p)``, ``h = a.p + c >= 0
 ``h = 0`` at its lowest point (``c = -min a.p``). Fitted together over the whole
 centreline: ``s`` (2) and ``a`` (2), by least squares on the shadow's outer edge
 measured across the wire (on the plate, the photo linearised from sRGB, the edge at
-half the step from the shadow's level to the plate's). The resting stretch's offset
+half the shadow's own step: one depth and penumbra fitted over all profiles beyond the
+wire's blurred silhouette, so a wire darker or brighter than the shadow does not set
+the level). The resting stretch's offset
 is ``r (n.s)`` plus the band's half width, which fixes ``s``; the lifted stretch's extra
 offset ``h (n.s)`` gives ``a``. The curved part supplies many directions ``n``.
 
