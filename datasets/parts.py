@@ -31,8 +31,8 @@ from cvmeasure_datasets.solids import (
     dense_polyline,
     flat_wire_layer,
     lamp_direction,
-    shadow_on_plane,
     tube_layer,
+    wire_cast_shadow_layer,
     wire_shadow_layer,
 )
 
@@ -411,12 +411,15 @@ def _effect_layers(
         axis3, info = np.column_stack((verts, np.zeros(len(verts)))), {"lift_mm": 0.0}
     xy = axis3[:, :2]
     lamp = lamp_direction(light.light_azimuth_deg, up=-1.0)
-    if light.shadow_strength > 0:
-        if fx.wire_3d:
-            shadow = shadow_on_plane(axis3, lamp)
-        else:
-            az = np.radians(light.light_azimuth_deg)
-            shadow = xy - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
+    if light.shadow_strength > 0 and fx.wire_3d:
+        # a cylinder's own shadow under the distant lamp: r sqrt(1 + (n . s)^2) about the
+        # axis' shadow, wider than the wire where it runs across the light
+        layers.append(
+            wire_cast_shadow_layer(axis3, r, lamp, light.shadow_strength, soft_mm=1.0, band_mm=3.0)
+        )
+    elif light.shadow_strength > 0:
+        az = np.radians(light.light_azimuth_deg)
+        shadow = xy - np.array([np.cos(az), np.sin(az)]) * 0.85 * spec.wire_diameter_mm
         layers.append(wire_shadow_layer(shadow, r, light.shadow_strength, soft_mm=1.0, band_mm=3.0))
     if fx.wire_3d:
         layers.append(tube_layer(axis3, r, lin(_WIRE), lamp))

@@ -36,6 +36,7 @@ __all__ = [
     "shadow_on_plane",
     "tube_hits",
     "wire_shadow_layer",
+    "wire_cast_shadow_layer",
 ]
 
 #: Elevation of the workshop lamp above the plate (the flat renders' shadows use
@@ -250,6 +251,87 @@ def wire_shadow_layer(
     return Layer(
         polyline_bbox(polyline_mm, radius_mm + 3.0),
         lambda w: sdf_alpha(sdf_capsules(w.u, w.v, polyline_mm, radius_mm, band_mm), soft_mm),
+        kind="shadow",
+        strength=strength,
+    )
+
+
+def cast_shadow_sdf(
+    u: np.ndarray,
+    v: np.ndarray,
+    axis_mm: np.ndarray,
+    radius_mm: float,
+    lamp: np.ndarray,
+    cap_mm: float,
+) -> np.ndarray:
+    """Signed distance (mm, in the plane z = 0) to the shadow of a round wire.
+
+    A point of the plane is in the shadow when its ray towards the (distant) lamp passes
+    within ``radius_mm`` of the axis polyline ``axis_mm`` (N, 3): the exact shadow of a
+    cylinder, a band ``r sqrt(1 + (n . s)^2)`` wide about the axis' shadow (``s`` the shadow
+    vector per mm of height, ``n`` the band's normal), wider than the wire when the wire
+    runs across the light. Per segment the ray's distance from the axis minus the radius is
+    turned into a distance in the plane (divided by the rate at which it changes across
+    the band), so the edge (0) is exact and its ramp is in mm of plane; capped at ``cap_mm``.
+    """
+    pts = np.asarray(axis_mm, dtype=np.float64)
+    lamp = np.asarray(lamp, dtype=np.float64)
+    best = np.full(np.shape(u), cap_mm)
+    ground = pts[:, :2] - (pts[:, 2] / lamp[2])[:, None] * lamp[:2]
+    ll = float(lamp @ lamp)
+    for i in range(len(pts) - 1):
+        a, b = pts[i], pts[i + 1]
+        e = b - a
+        m = np.cross(e, lamp)
+        rate = float(np.hypot(m[0], m[1]) / max(np.linalg.norm(m), 1e-12))  # |d dist / d plane|
+        pad = radius_mm / max(rate, 1e-3) + cap_mm
+        lo = np.minimum(ground[i], ground[i + 1]) - pad
+        hi = np.maximum(ground[i], ground[i + 1]) + pad
+        inside = (u >= lo[0]) & (u <= hi[0]) & (v >= lo[1]) & (v <= hi[1])
+        rows = np.nonzero(inside.any(axis=1))[0]
+        if len(rows) == 0:
+            continue
+        r0, r1 = rows[0], rows[-1] + 1
+        cols = np.nonzero(inside[r0:r1].any(axis=0))[0]
+        c0, c1 = cols[0], cols[-1] + 1
+        w = [u[r0:r1, c0:c1] - a[0], v[r0:r1, c0:c1] - a[1], np.full((r1 - r0, c1 - c0), -a[2])]
+        bb = float(lamp @ e)
+        cc = float(e @ e)
+        dw = lamp[0] * w[0] + lamp[1] * w[1] + lamp[2] * w[2]
+        ew = e[0] * w[0] + e[1] * w[1] + e[2] * w[2]
+        denom = ll * cc - bb * bb
+        t = np.clip((ll * ew - bb * dw) / denom if denom > 1e-12 else 0.0 * ew, 0.0, 1.0)
+        s_ray = np.maximum((bb * t - dw) / ll, 0.0)  # towards the lamp only
+        t = np.clip((s_ray * bb + ew) / cc, 0.0, 1.0)
+        diff = [w[k] + s_ray * lamp[k] - t * e[k] for k in range(3)]
+        dist = np.sqrt(diff[0] ** 2 + diff[1] ** 2 + diff[2] ** 2)
+        sub = best[r0:r1, c0:c1]
+        np.minimum(sub, np.minimum((dist - radius_mm) / max(rate, 1e-3), cap_mm), out=sub)
+    return best
+
+
+def wire_cast_shadow_layer(
+    axis_mm: np.ndarray,
+    radius_mm: float,
+    lamp: np.ndarray,
+    strength: float,
+    *,
+    soft_mm: float,
+    band_mm: float = 3.0,
+) -> Layer:
+    """A round wire's shadow under a distant lamp (:func:`cast_shadow_sdf`).
+
+    ``axis_mm`` (N, 3) the wire's axis (z = -height), ``lamp`` the unit vector towards the
+    lamp (:func:`lamp_direction`), ``soft_mm`` the width of its soft edge, ``band_mm`` how
+    far beyond the edge the distance is exact, ``strength`` its darkness in [0, 1].
+    """
+    ground = shadow_on_plane(axis_mm, lamp)
+    reach = radius_mm * float(np.hypot(1.0, np.hypot(*lamp[:2]) / abs(lamp[2])))
+    return Layer(
+        polyline_bbox(ground, reach + band_mm + 3.0),
+        lambda w: sdf_alpha(
+            cast_shadow_sdf(w.u, w.v, axis_mm, radius_mm, lamp, radius_mm + band_mm), soft_mm
+        ),
         kind="shadow",
         strength=strength,
     )

@@ -10,7 +10,9 @@ the plate. A rigid part rests on the plate: ``H = r + h(p)``, ``h = a.p + c >= 0
 ``h = 0`` at its lowest point (``c = -min a.p``). Fitted together over the whole
 centreline: ``s`` (2) and ``a`` (2), by least squares on the shadow's outer edge
 measured across the wire (on the plate, the photo linearised from sRGB, the edge at
-half the step from the shadow's level to the plate's). The resting stretch's offset
+half the shadow's own step: one depth and penumbra fitted over all profiles beyond the
+wire's blurred silhouette, so a wire darker or brighter than the shadow does not set
+the level). The resting stretch's offset
 is ``r (n.s)`` plus the band's half width, which fixes ``s``; the lifted stretch's extra
 offset ``h (n.s)`` gives ``a``. The curved part supplies many directions ``n``.
 
@@ -58,6 +60,11 @@ MIN_SHADOW_CONTRAST = 0.25
 #: A measured edge is used where the model puts it this far beyond the wire's silhouette
 #: on the plate (mm): nearer, the silhouette's own step joins it.
 MIN_GAP_MM = 0.35
+#: The wire's own blurred silhouette reaches this far beyond it on the plate: the larger of
+#: a length (mm) and a number of photo pixels. Only beyond it is the plate's profile the
+#: shadow's (the wire, darker than a shadow, would set the step's level there).
+WIRE_BLUR_MARGIN_MM = 0.35
+WIRE_BLUR_MARGIN_PX = 2.5
 #: Residuals are clipped at this (mm) when starts of the fit are compared.
 SCORE_CLIP_MM = 0.15
 #: The model's axis points are this far apart (mm).
@@ -95,6 +102,7 @@ class ShadowEdges:
     offset_mm: np.ndarray
     silhouette_mm: np.ndarray
     contrast: np.ndarray
+    margin_mm: float = MIN_GAP_MM
 
 
 @dataclass(frozen=True)
@@ -207,9 +215,8 @@ def measure_shadow_edges(
     lin = srgb_decode(np.clip(gray / top, 0.0, 1.0)).astype(np.float32)
     du = 0.25 * plane.mm_per_px
     u = np.arange(0.0, PROFILE_REACH_MM + 1e-9, du)
-    offsets = np.full((len(index), 2), np.nan)
-    contrast = np.zeros((len(index), 2))
     far = u >= PROFILE_REACH_MM - PLATE_STRETCH_MM
+    q = np.empty((2, len(index), len(u)))
     for k_side, sign in enumerate((1.0, -1.0)):
         where = axis[:, None, :] + sign * u[None, :, None] * normal[:, None, :]
         px = plane.plane_to_image_px(where.reshape(-1, 2)).astype(np.float32)
@@ -218,25 +225,109 @@ def measure_shadow_edges(
             cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan,
         ).astype(np.float64)  # fmt: skip
         plate = np.median(prof[:, far], axis=1)
-        seen = u[None, :] > silhouette[:, k_side, None] + 0.1
-        inner = np.where(seen & ~far[None, :], prof, np.inf)
-        dark = np.min(inner, axis=1)
-        c = (plate - dark) / np.maximum(plate, 1e-9)
-        contrast[:, k_side] = np.where(np.isfinite(c), c, 0.0)
-        mid = 0.5 * (plate + dark)
-        below = (prof < mid[:, None]) & seen
-        for i in np.nonzero(contrast[:, k_side] >= MIN_SHADOW_CONTRAST)[0]:
-            idx = np.nonzero(below[i])[0]
-            if len(idx) == 0:
-                continue
-            j = int(idx[-1])  # the outermost sample darker than the mid level
-            if j + 1 >= len(u) or far[j + 1]:
-                continue
-            f0, f1 = prof[i, j], prof[i, j + 1]
-            if not (np.isfinite(f0) and np.isfinite(f1)) or f1 <= f0:
-                continue
-            offsets[i, k_side] = u[j] + (mid[i] - f0) / (f1 - f0) * du
-    return ShadowEdges(index, axis, normal, offsets, silhouette, contrast)
+        q[k_side] = prof / np.maximum(plate, 1e-9)[:, None]
+    # the wire's own blurred edge reaches this far beyond its silhouette (mm)
+    margin = max(WIRE_BLUR_MARGIN_MM, WIRE_BLUR_MARGIN_PX * plane.mm_per_px)
+    q = _less_wire_halo(u, q, silhouette.T, margin, far)
+    offsets, contrast = _fit_shadow_ramps(u, q, silhouette.T + margin, far)
+    return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin)
+
+
+def _less_wire_halo(
+    u: np.ndarray, q: np.ndarray, silhouette_mm: np.ndarray, margin_mm: float, far: np.ndarray
+) -> np.ndarray:
+    """The profiles ``q`` (2, K, U) less the wire's own light spread onto the plate.
+
+    The wire's image leaks beyond its silhouette (blur, demosaic, JPEG ringing): on a dark
+    plate a bright wire lifts the plate's level for a millimetre or so, on a light plate a
+    dark wire lowers it, and either moves the shadow's step that starts there. The leak is
+    measured on the profiles with no shadow (the wire's lit sides: nothing darker than the
+    plate by ``MIN_SHADOW_CONTRAST / 2`` beyond ``margin_mm``), as the median excess over
+    the plate against the distance from the silhouette, and taken off every profile.
+    """
+    v = u[None, None, :] - silhouette_mm[..., None]  # mm beyond the silhouette
+    region = (v > margin_mm) & ~far[None, None, :] & np.isfinite(q)
+    low = np.where(region, q, np.inf).min(axis=2)
+    lit = np.isfinite(low) & (low > 1.0 - 0.5 * MIN_SHADOW_CONTRAST)
+    if lit.sum() < 10:
+        return q
+    step = float(u[1] - u[0])
+    bins = np.arange(0.0, float(u[~far][-1]), step)
+    leak = np.zeros(len(bins))
+    qs, vs = q[lit], v[lit]
+    for j, b in enumerate(bins):
+        vals = np.array([np.interp(b, vv, qq - 1.0) for vv, qq in zip(vs, qs, strict=True)])
+        vals = vals[np.isfinite(vals)]
+        leak[j] = float(np.median(vals)) if len(vals) else 0.0
+    leak[bins > float(u[~far][-1]) - 1.0] = 0.0
+    return q - np.interp(v, bins, leak, left=0.0, right=0.0)
+
+
+def _fit_shadow_ramps(
+    u: np.ndarray, q: np.ndarray, start_mm: np.ndarray, far: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The shadow's outer edge on every profile, with ONE depth and penumbra for all.
+
+    ``q`` (2, K, U): profiles across the wire (both sides) in linear light over the plate's
+    level; ``start_mm`` (2, K): where the plate is clear of the wire's own (blurred)
+    silhouette. A distant lamp over one plate casts a shadow of one depth ``k`` (the lamp's
+    share of the plate's light) and, the wire near the plate, one penumbra ``w``: each
+    profile beyond ``start_mm`` is ``1 - k ramp((e - u) / w)`` with its own edge ``e`` (the
+    half level of the shadow's step, not of the darker wire's). ``k``, ``w`` and the edges
+    are fitted by alternating least squares. Returns the edges (2, K), NaN where the profile
+    has no shadow edge beyond ``start_mm``, and each profile's depth (2, K).
+    """
+    region = (u[None, None, :] > start_mm[..., None]) & ~far[None, None, :]
+    region &= np.isfinite(q)
+    qz = np.where(region, q, 1.0)
+    depth = np.where(region.any(axis=2), 1.0 - np.min(np.where(region, q, np.inf), axis=2), 0.0)
+    depth = np.where(np.isfinite(depth), depth, 0.0)
+    cand = depth >= MIN_SHADOW_CONTRAST
+    edges = np.full(depth.shape, np.nan)
+    if cand.sum() < 10:
+        return edges, depth
+    k = float(np.median(depth[cand]))
+    w = 1.0
+    du = float(u[1] - u[0])
+    grid = u[::2]
+
+    def model(e: np.ndarray, kk: float, ww: float) -> np.ndarray:
+        return 1.0 - kk * np.clip(0.5 - (u[None, :] - e[:, None]) / ww, 0.0, 1.0)
+
+    qc, rc = qz[cand], region[cand]
+    for _ in range(4):
+        # each edge on a grid, then a parabola through the best three
+        ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
+        pred = 1.0 - k * ramp
+        sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
+        g = np.clip(np.argmin(sse, axis=1), 1, len(grid) - 2)
+        rows = np.arange(len(g))
+        y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
+        den = y0 - 2.0 * y1 + y2
+        shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
+        e = grid[g] + np.clip(shift, -1.0, 1.0) * (grid[1] - grid[0])
+        # then the common depth and penumbra
+        best = None
+        for ww in w * np.array([0.7, 0.85, 1.0, 1.2, 1.4]):
+            ramp_e = np.clip(0.5 - (u[None, :] - e[:, None]) / ww, 0.0, 1.0)
+            a = np.sum(rc * ramp_e * ramp_e)
+            kk = float(np.sum(rc * ramp_e * (1.0 - qc)) / max(a, 1e-12))
+            r = np.sum(rc * (qc - 1.0 + kk * ramp_e) ** 2)
+            if best is None or r < best[0]:
+                best = (r, kk, ww)
+        _, k, w = best
+        w = max(w, 2.0 * du)
+    # an edge counts where its ramp's outer half lies in the region and the profile is dark
+    # inside it: its step measured, not the wire's
+    start = start_mm[cand]
+    ok = (e > start) & (e < u[~far][-1] - 0.5 * w)
+    inner = rc & (u[None, :] < e[:, None]) & (u[None, :] > start[:, None])
+    dark_in = np.where(inner.any(axis=1), np.sum(np.where(inner, qc, 0.0), axis=1)
+                       / np.maximum(inner.sum(axis=1), 1), 1.0)  # fmt: skip
+    ok &= dark_in < 1.0 - 0.25 * k
+    out = np.where(ok, e, np.nan)
+    edges[cand] = out
+    return edges, depth
 
 
 def predict_shadow_edges_mm(
@@ -345,7 +436,7 @@ def estimate_lift_shadow(
     )
     rows = np.arange(len(k_side))
     meas = edges.offset_mm[rows, k_side]
-    clear = np.isfinite(meas) & (meas > edges.silhouette_mm[rows, k_side] + MIN_GAP_MM)
+    clear = np.isfinite(meas) & (meas > edges.silhouette_mm[rows, k_side] + edges.margin_mm)
     side = np.where(k_side == 0, 1.0, -1.0)
 
     def residual(x: np.ndarray, use: np.ndarray) -> np.ndarray:

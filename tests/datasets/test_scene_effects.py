@@ -345,3 +345,30 @@ def test_effects_parse_from_text():
     for bad in ("fog", "clutter=many", "wire_across", "bayer=maybe"):
         with pytest.raises(ValueError):
             SceneEffects.parse(bad)
+
+
+@pytest.mark.parametrize("azimuth_deg", [90.0, 0.0, 30.0])
+def test_a_round_wires_cast_shadow_is_a_cylinders(azimuth_deg):
+    """A straight 3 mm wire along x, its axis 4 mm up, under the lab's lamp (49.6 deg up): the
+    shadow's edges lie where the light's rays graze the cylinder, ``H (n . s) +- r sqrt(1 +
+    (n . s)^2)`` across the axis' shadow (``s`` the shadow vector per mm of height): a band
+    r / sin(elevation) wide when the wire runs across the light, r along it. The lab drew
+    a capsule of half-width r in both cases."""
+    from cvmeasure_datasets.solids import LAMP_ELEVATION_DEG, cast_shadow_sdf, lamp_direction
+
+    r, height = 1.5, 4.0
+    lamp = lamp_direction(azimuth_deg, up=-1.0)
+    axis = np.array([[-60.0, 0.0, -height], [60.0, 0.0, -height]])
+    y = np.linspace(-12.0, 12.0, 24001)
+    sdf = cast_shadow_sdf(np.zeros((1, len(y))), y[None, :], axis, r, lamp, r + 5.0)[0]
+    inside = y[sdf < 0]
+    s = -lamp[:2] / abs(lamp[2])  # shadow shift per mm of height
+    ns = s[1]  # the band's normal is y
+    half = r * np.hypot(1.0, ns)
+    assert inside.min() == pytest.approx(height * ns - half, abs=2e-3)
+    assert inside.max() == pytest.approx(height * ns + half, abs=2e-3)
+    if azimuth_deg == 90.0:
+        assert half == pytest.approx(r / np.sin(np.radians(LAMP_ELEVATION_DEG)), rel=1e-9)
+    # the distance is in mm of plane across the band (the soft edge's ramp)
+    k = np.searchsorted(y, height * ns + half + 1.0)
+    assert sdf[k] == pytest.approx(1.0, abs=2e-3)
