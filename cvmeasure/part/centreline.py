@@ -83,14 +83,6 @@ PAIRS_ONLY_SHARE = 0.6
 #: A gap in the clean pairs at least this many wire widths long is filled by one edge
 #: even where pairs cover most of the wire (a chord without a centre has no line).
 LONG_GAP_WIDTHS = 3.0
-#: Scale of the Gaussian derivative that re-locates each silhouette edge once the pair is
-#: chosen (px; the pair is found at 0.5 px): image noise moves a 0.5 px derivative's peak
-#: enough to turn a chord's line by a few hundredths of a degree on a dark sheet (a
-#: noise-free render of the same part: within 0.02 deg), the wider one half as much.
-EDGE_REFINE_PX = 1.0
-#: How far (px) the re-located edge may lie from the pair's: farther, the wider derivative
-#: has merged the edge with another (a shadow's, a highlight's) and the pair's is kept.
-EDGE_REFINE_REACH_PX = 0.75
 #: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
 _CLIPPED = 250.0
 
@@ -340,53 +332,7 @@ def silhouette_edges(
             continue
         a, b = np.unravel_index(np.argmax(np.where(ok, score, -np.inf)), gap.shape)
         left[i], right[i] = pos[a], pos[b]
-    if EDGE_REFINE_PX > 0.5:
-        wide = gaussian_filter1d(p, EDGE_REFINE_PX / step, axis=1, order=1)
-        # only the pair's midpoint moves: the wider derivative reads a limb's edge farther
-        # inside (a dark sheet's width 6 % narrower at half size), and the width is the
-        # pair test's and the lift's measure
-        mid = 0.5 * (
-            _refine_edges(wide, signed, offsets_px, left, EDGE_REFINE_REACH_PX)
-            + _refine_edges(wide, signed, offsets_px, right, EDGE_REFINE_REACH_PX)
-        )
-        half = 0.5 * (right - left)
-        left, right = mid - half, mid + half
     return left, right
-
-
-def _refine_edges(
-    wide: np.ndarray, signed: np.ndarray, offsets_px: np.ndarray, edge: np.ndarray, reach_px: float
-) -> np.ndarray:
-    """Each edge (P,) moved to the peak of the wider derivative ``wide`` (P, S) near it.
-
-    The peak must have the edge's sign (in ``signed``, the narrow derivative) and be a
-    local maximum inside ``reach_px`` of the edge (not the window's border: there the
-    wide derivative has merged the edge with a neighbour's); else the edge is kept.
-    Parabola-refined, pixels along the normal.
-    """
-    step = float(offsets_px[1] - offsets_px[0])
-    out = edge.copy()
-    rows = np.nonzero(np.isfinite(edge))[0]
-    if len(rows) == 0:
-        return out
-    half = int(np.ceil(reach_px / step))
-    k0 = np.clip(
-        np.round((edge[rows] - offsets_px[0]) / step).astype(int),
-        half + 1,
-        len(offsets_px) - half - 2,
-    )
-    sense = np.sign(signed[rows, k0])
-    idx = k0[:, None] + np.arange(-half, half + 1)[None, :]
-    g = wide[rows[:, None], idx] * sense[:, None]
-    j = np.argmax(g, axis=1)
-    inside = (j > 0) & (j < 2 * half) & (g[np.arange(len(rows)), j] > 0)
-    k = k0 + j - half
-    g0, g1, g2 = (wide[rows, k + d] * sense for d in (-1, 0, 1))
-    den = g0 - 2 * g1 + g2
-    frac = np.where(den < 0, 0.5 * (g0 - g2) / np.where(den < 0, den, -1.0), 0.0)
-    pos = offsets_px[k] + np.clip(frac, -0.5, 0.5) * step
-    out[rows[inside]] = pos[inside]
-    return out
 
 
 def outer_edges(

@@ -59,11 +59,9 @@ def test_silhouette_centres_follow_the_axis_not_the_side_lit_highlight(sheet):
     off_sil = _offsets_px(photo, sil.points_px[5:-5])
     # the symmetric centre follows the highlight on the lit flank (measured 1.4 px median)
     assert np.median(off_sym) > 1.0
-    # between the silhouette edges: 0.20 (light) / 0.24 (dark) px median measured, 90th
-    # percentile 0.32 / 0.60 (the edges re-located by a 1.0 px derivative; with the 0.5 px one
-    # 0.15 / 0.23 and 0.35 / 0.53: a shift alike along a chord, which turns no bend)
+    # between the silhouette edges: 0.14 (light) / 0.22 (dark) px median measured
     assert np.median(off_sil) < 0.3
-    assert np.percentile(off_sil, 90) < 0.65
+    assert np.percentile(off_sil, 90) < 0.6
     # the edges' distance is the wire's apparent width within the edges' shading bias
     assert abs(np.nanmedian(sil.edge_width_px) / width_px - 1.0) < 0.05
 
@@ -298,38 +296,31 @@ def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
     assert any(w.startswith("part_end_uncertain") for w in m.warnings), m.warnings
 
 
-def _dark_flat_part(seed: int):
+@pytest.mark.parametrize("noise", [0.0, 1.5])
+def test_a_dark_sheets_vertex_bends_are_off_by_the_noise_not_by_the_shading(noise):
     """A development part (dark sheet, lamp at 61 deg elevation, lying flat; the geometry of
-    ``benchmarks.parts._round_cases(6, 9102)[4]``, other render seeds: not the benchmark's)."""
+    ``benchmarks.parts._round_cases(6, 9102)[4]`` with another render seed: not the
+    benchmark's). The edge midpoints sit off the axis by an amount that changes from chord to
+    chord (a parallel shift: no bend turns); what the shading leaves in the bends is small:
+    without noise every vertex within 0.020 deg measured. With the renderer's noise (1.5
+    grey levels) 0.062 deg, within 1.5 stated sigma: the stated sigma (the centres' scatter
+    about each chord's line) carries it (docs/part-measurement.md)."""
     camera = cvmeasure_datasets.default_camera().scaled(SCALE)
     part = cvmeasure_datasets.arc_part(48.04144415576658, 90.0, 6, wire_diameter_mm=WIRE_MM)
     pose = Pose(
         tilt_deg=2.3048734346727957, tilt_direction_deg=247.1602727148274, distance_mm=550.0,
         offset_mm=(44.297707893477224, 1.8459737807449415),
     )  # fmt: skip
-    return render_round_wire(
+    photo = render_round_wire(
         part.placed(266.4285730641856, (0.0, 0.0)), camera=camera, pose=pose, sheet="dark",
-        light_azimuth_deg=45.64317745039895, light_elev_deg=60.54944243400179, seed=seed,
+        light_azimuth_deg=45.64317745039895, light_elev_deg=60.54944243400179, seed=9105,
+        noise=noise,
     )  # fmt: skip
-
-
-def test_a_dark_sheets_vertex_bends_are_less_turned_by_the_edges_noise():
-    """On a dark sheet the limbs barely stand out from the plate, and the image noise moved
-    each silhouette edge (the peak of a 0.5 px derivative) enough to turn a chord's line by
-    a few hundredths of a degree (a noise-free full-size render of a dev part: within
-    0.02 deg; the same with noise: 0.04-0.05 deg). Each edge is now re-located at the peak of
-    a 1.0 px derivative. This part at half size, three noise seeds: vertex errors' rms
-    0.0486 -> 0.0365 deg (worst 0.086 -> 0.078); every vertex within 3 stated sigma."""
-    err, z = [], []
-    for seed in (9105, 9106, 9107):
-        photo = _dark_flat_part(seed)
-        m = measure_part(
-            photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=6,
-            max_lift_mm=0.0,
-        )  # fmt: skip
-        e = np.asarray(m.vertex_bend_deg) - 15.0
-        err += list(e)
-        z += list(np.abs(e) / np.asarray(m.vertex_bend_sigma_deg))
-    assert np.sqrt(np.mean(np.square(err))) < 0.042, err
-    assert np.max(np.abs(err)) < 0.085, err
-    assert max(z) < 3.0, z
+    m = measure_part(
+        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=6,
+        max_lift_mm=0.0,
+    )  # fmt: skip
+    err = np.asarray(m.vertex_bend_deg) - 15.0
+    if noise == 0.0:
+        assert np.max(np.abs(err)) < 0.03, err
+    assert np.max(np.abs(err) / np.asarray(m.vertex_bend_sigma_deg)) < 2.5, err
