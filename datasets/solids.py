@@ -44,6 +44,20 @@ __all__ = [
 LAMP_ELEVATION_DEG = 49.6
 
 
+def _box_within(
+    u: np.ndarray, v: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[int, int, int, int] | None:
+    """Rows ``r0:r1`` and columns ``c0:c1`` of the grid ``(u, v)`` (mm) bounding the points
+    inside the box ``lo``..``hi`` (mm), or None when no point is inside."""
+    inside = (u >= lo[0]) & (u <= hi[0]) & (v >= lo[1]) & (v <= hi[1])
+    rows = np.nonzero(inside.any(axis=1))[0]
+    if len(rows) == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.nonzero(inside[r0:r1].any(axis=0))[0]
+    return r0, r1, int(cols[0]), int(cols[-1]) + 1
+
+
 def lamp_direction(azimuth_deg: float, up: float = 1.0) -> np.ndarray:
     """Unit vector towards the lamp (3,) in the frame, from its azimuth in the plane."""
     az, el = np.radians(azimuth_deg), np.radians(LAMP_ELEVATION_DEG)
@@ -88,13 +102,10 @@ def tube_hits(win: Window, polyline_mm: np.ndarray, radius_mm: float) -> dict[st
     for a, b in zip(pts[:-1], pts[1:], strict=True):
         lo = np.minimum(a[:2], b[:2]) - cap
         hi = np.maximum(a[:2], b[:2]) + cap
-        inside = (u >= lo[0]) & (u <= hi[0]) & (v >= lo[1]) & (v <= hi[1])
-        rows = np.nonzero(inside.any(axis=1))[0]
-        if len(rows) == 0:
+        box = _box_within(u, v, lo, hi)
+        if box is None:
             continue
-        r0, r1 = rows[0], rows[-1] + 1
-        cols = np.nonzero(inside[r0:r1].any(axis=0))[0]
-        c0, c1 = cols[0], cols[-1] + 1
+        r0, r1, c0, c1 = box
         dd = [c[r0:r1, c0:c1] for c in d]
         e = b - a
         w = [o[i] - a[i] for i in range(3)]
@@ -287,13 +298,10 @@ def cast_shadow_sdf(
         pad = radius_mm / max(rate, 1e-3) + cap_mm
         lo = np.minimum(ground[i], ground[i + 1]) - pad
         hi = np.maximum(ground[i], ground[i + 1]) + pad
-        inside = (u >= lo[0]) & (u <= hi[0]) & (v >= lo[1]) & (v <= hi[1])
-        rows = np.nonzero(inside.any(axis=1))[0]
-        if len(rows) == 0:
+        box = _box_within(u, v, lo, hi)
+        if box is None:
             continue
-        r0, r1 = rows[0], rows[-1] + 1
-        cols = np.nonzero(inside[r0:r1].any(axis=0))[0]
-        c0, c1 = cols[0], cols[-1] + 1
+        r0, r1, c0, c1 = box
         w = [u[r0:r1, c0:c1] - a[0], v[r0:r1, c0:c1] - a[1], np.full((r1 - r0, c1 - c0), -a[2])]
         bb = float(lamp @ e)
         cc = float(e @ e)
