@@ -190,6 +190,7 @@ def fit_circle_robust(
     tukey_c: float = 4.685,
     min_scale: float = 0.02,
     correlation_factor: float = 1.0,
+    stop: float = 1e-5,
 ) -> CircleFit:
     """Geometric circle fit with Tukey biweights (IRLS Gauss-Newton).
 
@@ -202,6 +203,8 @@ def fit_circle_robust(
     correlation_factor : variance inflation for correlated neighbouring points
         (1: independent points; marker edge points use 2.5, see
         :data:`cvmeasure.markers.refine.CORRELATION_FACTOR`).
+    stop : the iterations end when no step of (cx, cy, r) exceeds this, in the points'
+        units (after at least three iterations, which fix the robust scale).
 
     Returns
     -------
@@ -256,7 +259,7 @@ def fit_circle_robust(
         if step is None:
             break
         cx, cy, r = cx + step[0], cy + step[1], r + step[2]
-        if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < 1e-5:
+        if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < stop:
             break
     theta = np.array([cx, cy, r])
     centre[0, 0], centre[1, 0] = cx, cy

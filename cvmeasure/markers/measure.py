@@ -66,11 +66,13 @@ from cvmeasure.markers.detect import MarkerCandidate, find_markers
 from cvmeasure.markers.heights import BOUND_TILT_DEG, fallback_focal_px, height_parallax
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
-    CORRELATION_FACTOR,
     EDGE_MODES,
+    FIT_STOP_PX,
     UNEVEN_RING_SPREAD,
     channel_shifts_px,
     disc_edge_points,
+    edge_ray_count,
+    ray_correlation_factor,
 )
 from cvmeasure.markers.seed_baseline import seed_find_circles
 
@@ -230,7 +232,7 @@ def refine_candidate(
     while True:
         edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge, local_levels=local)
         n_points = edges.points_px.shape[0]
-        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * 2 * math.pi * radius):
+        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * edge_ray_count(radius)):
             return (
                 "too little of its edge is clear of the shadow or cover across it "
                 f"({n_points} edge points)"
@@ -240,7 +242,10 @@ def refine_candidate(
         try:
             init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
             fit = fit_circle_robust(
-                edges.points_px, init=init, correlation_factor=CORRELATION_FACTOR
+                edges.points_px,
+                init=init,
+                correlation_factor=ray_correlation_factor(radius),
+                stop=FIT_STOP_PX,
             )
         except (ValueError, np.linalg.LinAlgError):
             return "its edge points do not form a circle"
@@ -348,7 +353,7 @@ def _split_half_cov(points_px: np.ndarray, fit: CircleFit) -> np.ndarray:
             if half.sum() < MIN_EDGE_POINTS:
                 continue
             try:
-                part = fit_circle_robust(pts[half], init=(c[0], c[1], fit.radius))
+                part = fit_circle_robust(pts[half], init=(c[0], c[1], fit.radius), stop=FIT_STOP_PX)
             except (ValueError, np.linalg.LinAlgError):
                 continue
             diffs.append(np.asarray(part.centre) - c)
@@ -463,7 +468,10 @@ def _measure_ours(
             jac, c_f, pts_f = at.mapped_with_jacobian(fit.centre, edges.points_px)
             r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
             fit_f = fit_circle_robust(
-                pts_f, init=(c_f[0], c_f[1], r_f), correlation_factor=CORRELATION_FACTOR
+                pts_f,
+                init=(c_f[0], c_f[1], r_f),
+                correlation_factor=ray_correlation_factor(fit.radius),
+                stop=FIT_STOP_PX,
             )
             centres[role] = np.array(fit_f.centre)
             covs[role] = jac @ cov_img @ jac.T

@@ -34,6 +34,10 @@ __all__ = [
     "disc_edge_points",
     "channel_shifts_px",
     "CORRELATION_FACTOR",
+    "RAY_SPACING_PX",
+    "FIT_STOP_PX",
+    "ray_correlation_factor",
+    "edge_ray_count",
     "CENTRE_FLOOR_PX",
     "EDGE_MODE",
     "EDGE_MODES",
@@ -41,9 +45,35 @@ __all__ = [
 ]
 
 #: Variance inflation for neighbouring edge points that share noise (blur, JPEG
-#: blocks): the effective number of independent points is N / CORRELATION_FACTOR.
-#: Calibrated on rendered photos (benchmarks/markers.py).
+#: blocks), for rays 1 px of circumference apart: the effective number of independent
+#: points is N / CORRELATION_FACTOR. Calibrated on rendered photos (benchmarks/markers.py).
 CORRELATION_FACTOR = 2.5
+#: Arc length between neighbouring edge rays (px of circumference). Neighbouring rays
+#: read overlapping pixels (bilinear samples of a blurred image), so rays closer than
+#: the noise's correlation length add little: CORRELATION_FACTOR is per ray at 1 px and
+#: scaled to the rays' actual spacing (:func:`ray_correlation_factor`).
+RAY_SPACING_PX = 2.0
+#: The edge fits stop when no step of the centre or radius exceeds this (px): a
+#: thousandth of a pixel, far under a centre's uncertainty (about 0.005 px).
+FIT_STOP_PX = 1e-3
+#: Fewest rays round a disc (small discs: rays closer than RAY_SPACING_PX apart; with
+#: fewer, the planes path and the full decode disagreed by 0.006 deg on 0.3-scale renders).
+MIN_RAYS = 96
+
+
+def edge_ray_count(radius_px: float) -> int:
+    """Rays of :func:`disc_edge_points` round a disc of ``radius_px``: one per
+    :data:`RAY_SPACING_PX` of circumference, :data:`MIN_RAYS` to 1440."""
+    return min(max(round(2 * math.pi * radius_px / RAY_SPACING_PX), MIN_RAYS), 1440)
+
+
+def ray_correlation_factor(radius_px: float) -> float:
+    """Variance inflation of the circle fit of a disc's edge rays (``radius_px``):
+    :data:`CORRELATION_FACTOR` scaled to the rays' actual spacing (px of circumference)."""
+    spacing_px = 2 * math.pi * max(radius_px, 1e-9) / edge_ray_count(radius_px)
+    return max(1.0, CORRELATION_FACTOR / spacing_px)
+
+
 #: Standard uncertainty floor of a centre (px, per axis): what the residuals cannot
 #: see (colour fringes, print tolerance, JPEG chroma subsampling).
 CENTRE_FLOOR_PX = 0.003
@@ -276,7 +306,7 @@ def disc_edge_points(
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)
 
-    n_rays = min(max(round(2 * math.pi * radius_px), 48), 1440)
+    n_rays = edge_ray_count(radius_px)
     radii, map_x, map_y = _ray_maps(cx - x0, cy - y0, radius_px, band, step_px, n_rays)
     v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
