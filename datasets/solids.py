@@ -288,7 +288,7 @@ def cast_shadow_sdf(
     pts = np.asarray(axis_mm, dtype=np.float64)
     lamp = np.asarray(lamp, dtype=np.float64)
     best = np.full(np.shape(u), cap_mm)
-    ground = pts[:, :2] - (pts[:, 2] / lamp[2])[:, None] * lamp[:2]
+    ground = shadow_on_plane(pts, lamp)
     ll = float(lamp @ lamp)
     for i in range(len(pts) - 1):
         a, b = pts[i], pts[i + 1]
