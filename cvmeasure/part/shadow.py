@@ -291,9 +291,6 @@ def _fit_shadow_ramps(
     du = float(u[1] - u[0])
     grid = u[::2]
 
-    def model(e: np.ndarray, kk: float, ww: float) -> np.ndarray:
-        return 1.0 - kk * np.clip(0.5 - (u[None, :] - e[:, None]) / ww, 0.0, 1.0)
-
     qc, rc = qz[cand], region[cand]
     for _ in range(4):
         # each edge on a grid, then a parabola through the best three
