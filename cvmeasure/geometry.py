@@ -145,11 +145,10 @@ def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
 def median_by_partition(values: np.ndarray) -> float:
     """``np.median`` of a non-empty 1-D float array (the same value), by one partition
     (no sort, no checks: the hot loops' median)."""
-    a = values
-    n = a.size
+    n = values.size
     if n % 2:
-        return float(np.partition(a, n // 2)[n // 2])
-    part = np.partition(a, (n // 2 - 1, n // 2))
+        return float(np.partition(values, n // 2)[n // 2])
+    part = np.partition(values, (n // 2 - 1, n // 2))
     return float((part[n // 2 - 1] + part[n // 2]) / 2.0)
 
 
