@@ -109,6 +109,10 @@ class SimParams:
             raise ValueError("hardening_exponent must be in [0, 1)")
         if self.die_radius_mm < 0 or self.pin_radius_mm < 0 or self.tangent_modulus_mpa < 0:
             raise ValueError("die_radius_mm, pin_radius_mm and tangent_modulus_mpa must be >= 0")
+        if self.span_bow_share < 0:
+            raise ValueError(
+                f"span_bow_share must be >= 0 (a share of the bow), got {self.span_bow_share!r}"
+            )
         reach = self.pin_radius_mm + self.wire_diameter_mm / 2 + abs(self.head_axis_y_mm)
         if reach >= self.pin_orbit_mm:
             raise ValueError("pin_orbit_mm too small: the pin can never reach the wire")

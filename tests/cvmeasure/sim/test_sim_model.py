@@ -263,6 +263,11 @@ def test_span_bow_share_moves_loaded_and_released_alike():
     np.testing.assert_array_equal(bowed.pin_deg, straight.pin_deg)  # the head is not moved
 
 
+def test_a_negative_span_bow_share_is_refused():
+    with pytest.raises(ValueError, match="span_bow_share must be >= 0"):
+        SimParams(span_bow_share=-0.5)
+
+
 def test_span_bow_brings_the_loaded_angle_to_the_independent_models():
     # the independent physical model (cvmeasure_datasets.physical_bender, nominal machine,
     # its own hardening law) bows its span: simulate's straight leg is 0.16-0.32 deg short
