@@ -278,11 +278,18 @@ def _forward(
     phi0 = contact_angle_deg(nominal) - params.approach_deg
     phi = phi0 + r
     theta_l, lever = loaded_angle_and_lever(geom, phi)
+    # a springback that differs by direction is a wire whose strength differs by direction
+    # (coil set): the moment it takes, hence the pin's torque, differs in the same ratio
+    load = (
+        1.0 + direction * values["springback_asymmetry"]
+        if "springback_asymmetry" in values
+        else 1.0
+    )
     if "drift" in values and shapes.get("load_exponent", 0.0) > 0.0:
         # the steps a bend loses depend on its own load: iterate to the fixed point
         for _ in range(_DRIFT_ITERATIONS):
             r = _rotation(
-                cmd, values, shapes, history, _torque_nm(law, params, phi, theta_l, lever)
+                cmd, values, shapes, history, load * _torque_nm(law, params, phi, theta_l, lever)
             )
             phi = phi0 + r
             theta_l, lever = loaded_angle_and_lever(geom, phi)
@@ -290,7 +297,7 @@ def _forward(
         # the drive winds up under the pin load: torque = (M / l) * R_p cos(phi - theta); the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
-            lag = values["compliance"] * _torque_nm(law, params, phi, theta_l, lever)
+            lag = values["compliance"] * load * _torque_nm(law, params, phi, theta_l, lever)
             phi = phi0 + np.maximum(r - lag, 0.0)
             theta_l, lever = loaded_angle_and_lever(geom, phi)
         r = phi - phi0

@@ -60,3 +60,24 @@ def test_a_drift_shifting_home_beside_an_offset_is_named(seed, plan):
     assert result.params["home_shift"] == 1.0  # the general form, not the spec's helix
     # the rate of whole steps is poorly determined (typical 0.015-0.06 deg per bend)
     assert 0.0075 <= result.params["drift_deg_per_bend"] <= 0.09
+
+
+def test_play_beside_a_springback_asymmetry_on_a_sweep_is_not_named_a_compliance():
+    # play of 0.93 deg lost on every bend (a sweep reverses at every bend) beside a
+    # springback asymmetry of -0.35 (the generator's: the wire's strength differs by
+    # direction). Play and a drive compliance are both a nearly constant under-bend; with
+    # the compliance's torque the same in both directions, compliance + asymmetry was
+    # named (tied with backlash + asymmetry). A wire whose springback differs by direction
+    # takes a moment, hence a pin torque, that differs in the same ratio: the compliance's
+    # lag then differs by direction, which play does not, and the pair is backlash + asymmetry.
+    case = pb.physical_case(664, ("backlash", "springback_asymmetry"), plan="sweep", n_trials=60)
+    _, asymmetry = (h.params for h in case.hidden)
+    result = diagnose(case.trials)
+    assert set(result.causes) == {"backlash", "springback_asymmetry"}, (result.causes, result.tie)
+    assert "compliance + springback_asymmetry" not in result.tie
+    lo, hi = result.intervals["asymmetry"]
+    assert lo <= asymmetry["asymmetry"] <= hi
+    # the play comes out low (the generator's span bows ahead of the chord), within 0.5 deg
+    assert result.params["backlash_deg"] == pytest.approx(
+        case.hidden[0].params["backlash_deg"], abs=0.5
+    )

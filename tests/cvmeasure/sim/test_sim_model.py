@@ -178,6 +178,26 @@ def test_compliance_lag_follows_the_load():
     assert simulate([5.0], p, [Effect("compliance", 0.4)]).pin_deg[0] == 5.0
 
 
+def test_a_springback_asymmetry_loads_the_drive_in_the_same_ratio():
+    # springback differing by direction is a wire whose strength differs by direction:
+    # the moment, hence the pin torque and the drive's wind-up, differ in the same ratio
+    p = SimParams()
+    cmds = np.array([60.0, -60.0, 100.0, -100.0])
+    from cvmeasure.sim.springback import springback_law
+
+    alpha = 0.3
+    eff = simulate(cmds, p, [Effect("compliance", 0.4), Effect("springback_asymmetry", alpha)])
+    lag = np.abs(cmds) - np.abs(eff.pin_deg)
+    arm_mm = p.pin_orbit_mm * np.cos(np.radians(eff.pin_angle_deg - eff.loaded_bend_deg))
+    torque_nm = springback_law(p).moment_nmm / eff.lever_mm * np.abs(arm_mm) / 1e3
+    strength = 1.0 + np.sign(cmds) * alpha
+    np.testing.assert_allclose(lag, 0.4 * strength * torque_nm, rtol=1e-4)
+    assert lag[0] / lag[1] == pytest.approx(1.3 / 0.7, rel=0.05)
+    # without compliance the asymmetry moves released angles only
+    alone = simulate(cmds, p, [Effect("springback_asymmetry", alpha)])
+    np.testing.assert_array_equal(alone.loaded_bend_deg, simulate(cmds, p).loaded_bend_deg)
+
+
 def test_backlash_general_form_loses_play_on_reversals_only():
     cmds = np.array([60.0, 60.0, -60.0, -60.0, 60.0])
     every = simulate(cmds, effects=[Effect("backlash", 1.0)]).pin_deg
