@@ -15,6 +15,7 @@ __all__ = [
     "fit_circle_taubin",
     "CircleFit",
     "fit_circle_robust",
+    "fit_circles_robust",
     "median_by_partition",
 ]
 
@@ -285,3 +286,204 @@ def fit_circle_robust(
         _coverage(p[inl], theta[:2]) if n_in else 0.0,
         float(math.sqrt(max(cov[2, 2], 0.0))),
     )
+
+
+def _taubin_batch(x: np.ndarray, y: np.ndarray, valid: np.ndarray) -> list[tuple | None]:
+    """:func:`fit_circle_taubin` of each row of ``x``, ``y`` (B, N) where ``valid``: (cx, cy, r) or None.
+
+    One stacked SVD: the padding's rows of the design matrix are zeros, which leave its
+    right singular vectors as they are (the same circle up to rounding).
+    """
+    n = valid.sum(axis=1)
+    mx = np.where(valid, x, 0.0).sum(axis=1) / n
+    my = np.where(valid, y, 0.0).sum(axis=1) / n
+    xc = np.where(valid, x - mx[:, None], 0.0)
+    yc = np.where(valid, y - my[:, None], 0.0)
+    z = xc * xc + yc * yc
+    zm = z.sum(axis=1) / n
+    out: list[tuple | None] = [None] * len(n)
+    ok = zm > 0
+    root = np.sqrt(np.where(ok, zm, 1.0))
+    z0 = np.where(valid, (z - zm[:, None]) / (2.0 * root[:, None]), 0.0)
+    _, _, vt = np.linalg.svd(np.stack((z0, xc, yc), axis=2), full_matrices=False)
+    for i in np.flatnonzero(ok):
+        a = vt[i, -1]
+        zmi, rt = float(zm[i]), float(root[i])
+        a0 = a[0] / (2.0 * rt)
+        if abs(a0) < 1e-300 or abs(a0) * rt < 1e-12 * math.hypot(a[1], a[2]):
+            continue  # collinear
+        a3 = -zmi * a0
+        cx, cy = -a[1] / (2 * a0), -a[2] / (2 * a0)
+        out[i] = (
+            float(cx + mx[i]),
+            float(cy + my[i]),
+            math.sqrt(max(cx * cx + cy * cy - a3 / a0, 0.0)),
+        )
+    return out
+
+
+def fit_circles_robust(
+    point_sets: list[np.ndarray],
+    *,
+    inits: list[tuple[float, float, float] | None] | None = None,
+    iterations: int = 12,
+    tukey_c: float = 4.685,
+    min_scale: float = 0.02,
+    correlation_factors: list[float] | None = None,
+    stop: float = 1e-5,
+) -> list[CircleFit | None]:
+    """:func:`fit_circle_robust` of several point sets at once (the same fits, vectorised).
+
+    Each set's fit is the one :func:`fit_circle_robust` makes with the same arguments
+    (its own start, robust scale, weights and stop), up to rounding: the sets are padded
+    to one length with zero-weight points and iterated together, so a few small fits cost
+    about what one does (numpy's per-call overhead, not arithmetic, is most of a fit of
+    ~100 points). A set with fewer than 3 or non-finite points, or whose Taubin start
+    fails (``inits`` None for it), gives None.
+
+    Parameters
+    ----------
+    point_sets : list of (N_i, 2) arrays.
+    inits : per set, (cx, cy, r) or None (Taubin's fit).
+    correlation_factors : per set (default 1.0 each).
+    iterations, tukey_c, min_scale, stop : as :func:`fit_circle_robust`.
+    """
+    b = len(point_sets)
+    out: list[CircleFit | None] = [None] * b
+    sets = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in point_sets]
+    use = [i for i, p in enumerate(sets) if p.shape[0] >= 3 and np.all(np.isfinite(p))]
+    if not use:
+        return out
+    counts = np.array([sets[i].shape[0] for i in use])
+    n_max = int(counts.max())
+    # padded with each set's first point (finite distances; weight 0 throughout)
+    xy = np.empty((len(use), n_max, 2))
+    for k, i in enumerate(use):
+        xy[k, : counts[k]] = sets[i]
+        xy[k, counts[k] :] = sets[i][0]
+    valid = np.arange(n_max)[None, :] < counts[:, None]
+    px, py = xy[:, :, 0], xy[:, :, 1]
+    starts = [None if inits is None else inits[i] for i in use]
+    if any(s is None for s in starts):
+        taubin = _taubin_batch(px, py, valid)
+        starts = [s if s is not None else taubin[k] for k, s in enumerate(starts)]
+    keep = [k for k, s in enumerate(starts) if s is not None]
+    if len(keep) < len(use):
+        use = [use[k] for k in keep]
+        counts, valid, px, py = counts[keep], valid[keep], px[keep], py[keep]
+        starts = [starts[k] for k in keep]
+        if not use:
+            return out
+    theta = np.array(starts, dtype=np.float64)  # (B, 3): cx, cy, r
+    m = len(use)
+    validf = valid.astype(np.float64)
+    w = validf.copy()
+    scale = np.zeros(m)
+    active = np.ones(m, dtype=bool)
+    lo, hi = (counts - 1) // 2, counts // 2
+    ar = np.arange(m)
+    few = np.minimum(5, counts)
+    for it in range(iterations):
+        a = np.flatnonzero(active)
+        if not len(a):
+            break
+        dx = px[a] - theta[a, 0:1]
+        dy = py[a] - theta[a, 1:2]
+        dist = np.maximum(np.hypot(dx, dy), 1e-12)
+        res = dist - theta[a, 2:3]
+        if it < 3:  # robust scale from the first iterations, then fixed (as fit_circle_robust)
+            srt = np.sort(np.where(valid[a], np.abs(res), np.inf), axis=1)
+            mad = 1.4826 * (srt[ar[: len(a)], lo[a]] + srt[ar[: len(a)], hi[a]]) / 2.0
+            floor = np.maximum(min_scale, mad)
+            scale[a] = floor if it > 0 else np.maximum(floor, 0.05 * theta[a, 2])
+        wa = np.square(res)
+        wa *= (-1.0 / (tukey_c * scale[a]) ** 2)[:, None]
+        wa += 1.0
+        np.maximum(wa, 0.0, out=wa)
+        wa *= wa
+        wa *= validf[a]
+        ra = np.empty((len(a), 4, n_max))  # rows (d / dist, 1, res), as fit_circle_robust
+        ra[:, 2] = 1.0
+        ra[:, 0] = dx / dist
+        ra[:, 1] = dy / dist
+        ra[:, 3] = res
+        gram = (ra * wa[:, None, :]) @ ra.transpose(0, 2, 1)
+        flat = gram[:, 2, 2] < few[a]
+        if flat.any():  # (almost) every weight 0: unweighted
+            wa[flat] = validf[a][flat]
+            gram[flat] = (ra[flat] * wa[flat][:, None, :]) @ ra[flat].transpose(0, 2, 1)
+        w[a] = wa
+        step, ok = _solve_sym3_batch(gram)
+        done = ~ok
+        theta[a[ok]] += step[ok]
+        if it >= 2:
+            done |= ok & (np.abs(step).max(axis=1) < stop)
+        active[a[done]] = False
+    # the summaries at the final circles, with the last weights (as fit_circle_robust)
+    dx = px - theta[:, 0:1]
+    dy = py - theta[:, 1:2]
+    dist = np.maximum(np.hypot(dx, dy), 1e-12)
+    res = dist - theta[:, 2:3]
+    inl = w > 0
+    n_in = np.count_nonzero(inl, axis=1)
+    jac = np.stack((dx / dist, dy / dist, np.ones_like(dist)), axis=1)  # (B, 3, N)
+    jtwj = (jac * w[:, None, :]) @ jac.transpose(0, 2, 1)
+    dof = np.maximum(1.0, w.sum(axis=1) - 3.0)
+    s2 = np.einsum("bn,bn,bn->b", w, res, res) / dof
+    try:
+        inv = np.linalg.inv(jtwj)
+    except np.linalg.LinAlgError:
+        inv = np.empty_like(jtwj)
+        for k in range(m):
+            try:
+                inv[k] = np.linalg.inv(jtwj[k])
+            except np.linalg.LinAlgError:
+                inv[k] = np.inf
+    cf = (
+        np.ones(m)
+        if correlation_factors is None
+        else np.array([correlation_factors[i] for i in use], dtype=np.float64)
+    )
+    cov = inv * (s2 * cf)[:, None, None]
+    ang = np.arctan2(dy, dx)
+    bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
+    bins += 36 * np.arange(m)[:, None]
+    sectors = np.bincount(bins[inl], minlength=36 * m).reshape(m, 36)
+    coverage = np.count_nonzero(sectors, axis=1) / 36.0
+    for k, i in enumerate(use):
+        out[i] = CircleFit(
+            (float(theta[k, 0]), float(theta[k, 1])),
+            float(theta[k, 2]),
+            cov[k, :2, :2].copy(),
+            float(math.sqrt(s2[k])),
+            int(counts[k]),
+            int(n_in[k]),
+            float(coverage[k]) if n_in[k] else 0.0,
+            float(math.sqrt(max(cov[k, 2, 2], 0.0))),
+        )
+    return out
+
+
+def _solve_sym3_batch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_solve_sym3` of each (4, 4) ``g`` in a stack (B, 4, 4): ``(x (B, 3), solvable (B,))``."""
+    a00, a01, a02, b0 = g[:, 0, 0], g[:, 0, 1], g[:, 0, 2], g[:, 0, 3]
+    a11, a12, b1 = g[:, 1, 1], g[:, 1, 2], g[:, 1, 3]
+    a22, b2 = g[:, 2, 2], g[:, 2, 3]
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    ok = (det != 0) & np.isfinite(det)
+    det = np.where(ok, det, 1.0)
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    x = np.stack(
+        (
+            (c00 * b0 + c01 * b1 + c02 * b2) / det,
+            (c01 * b0 + c11 * b1 + c12 * b2) / det,
+            (c02 * b0 + c12 * b1 + c22 * b2) / det,
+        ),
+        axis=1,
+    )
+    return x, ok

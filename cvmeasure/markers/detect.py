@@ -104,9 +104,11 @@ def _ring_fraction(bright: np.ndarray, cx: float, cy: float, r: float, ring_rati
     # broadcast rows x columns (np.mgrid's full grids cost more than the annulus test)
     d = np.hypot(np.arange(x0, x1)[None, :] - cx, np.arange(y0, y1)[:, None] - cy)
     ann = (d >= inner) & (d <= outer)
-    if not ann.any():
+    n = int(np.count_nonzero(ann))
+    if not n:
         return 0.0
-    return float(bright[y0:y1, x0:x1][ann].mean())
+    # the share as float32 (the mean of a float32 0/1 image, as before: the same value)
+    return float(np.float32(np.count_nonzero(bright[y0:y1, x0:x1][ann])) / np.float32(n))
 
 
 def _partial_circle(
@@ -243,28 +245,34 @@ def find_markers(
         ``found[role]`` in full-resolution pixels, or ``failures[role]`` saying why.
         A role with two similar discs is ambiguous (a failure naming both).
     """
+    import cv2
+
     step = search_step(bgr8.shape, max_pixels)
     small = np.ascontiguousarray(bgr8[::step, ::step])
+    luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)  # the white's and the rings' grey
     if white is not None:
-        return _search(small, kit, model, white, step)
-    search = _search(small, kit, model, estimate_white(small), step)
+        return _search(small, luma, kit, model, white, step)
+    search = _search(small, luma, kit, model, estimate_white(small, gray=luma), step)
     if search.failures and search.white.clipped_fraction > CLIPPED_WHITE_FRACTION:
-        retry = _search(small, kit, model, estimate_white(small, recover_clipped=True), step)
+        white = estimate_white(small, recover_clipped=True, gray=luma)
+        retry = _search(small, luma, kit, model, white, step)
         if len(retry.failures) < len(search.failures):
             return retry
     return search
 
 
 def _search(
-    small: np.ndarray, kit: MarkerKit, model: ColourModel, white: WhiteEstimate, step: int
+    small: np.ndarray,
+    luma: np.ndarray,
+    kit: MarkerKit,
+    model: ColourModel,
+    white: WhiteEstimate,
+    step: int,
 ) -> MarkerSearch:
-    """:func:`find_markers` on the reduced copy ``small`` with a given white."""
+    """:func:`find_markers` on the reduced copy ``small`` (its grey ``luma``) with a given white."""
     labels = classify_bgr8(small, model, white)
-    import cv2
-
-    luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
     white_luma = 0.114 * white.srgb8[2] + 0.587 * white.srgb8[1] + 0.299 * white.srgb8[0]
-    bright = (luma >= 0.72 * white_luma).astype(np.float32)
+    bright = luma >= 0.72 * white_luma
 
     per_role: dict[str, list[MarkerCandidate]] = {}
     failures: dict[str, str] = {}

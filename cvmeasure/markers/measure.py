@@ -52,7 +52,7 @@ from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import CircleFit, fit_circle_robust
+from cvmeasure.geometry import CircleFit, fit_circle_robust, fit_circles_robust
 from cvmeasure.imageio import Photo, to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles
@@ -199,6 +199,29 @@ class _Transform:
         q = self(p)
         jac = np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
         return jac, q[4], q[5:]
+
+    def mapped_with_jacobians(
+        self, xys: list[tuple[float, float]], pts: list[np.ndarray], h: float = 0.5
+    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`mapped_with_jacobian` of several centres and their points, in one call
+        of the mapping (it maps each point on its own: the same values)."""
+        arrays = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in pts]
+        if self.func is None:
+            return [
+                (np.eye(2), np.array(xy, dtype=np.float64), a)
+                for xy, a in zip(xys, arrays, strict=True)
+            ]
+        parts = []
+        for (x, y), a in zip(xys, arrays, strict=True):
+            parts += [[[x + h, y], [x - h, y], [x, y + h], [x, y - h], [x, y]], a]
+        q = self(np.vstack(parts))
+        out, k = [], 0
+        for a in arrays:
+            qi = q[k : k + 5 + len(a)]
+            k += 5 + len(a)
+            jac = np.column_stack(((qi[0] - qi[1]) / (2 * h), (qi[2] - qi[3]) / (2 * h)))
+            out.append((jac, qi[4], qi[5:]))
+        return out
 
 
 def _transform(
@@ -443,11 +466,13 @@ def _measure_ours(
     delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     plane_scale: list[float] = []
     plane_shape: list[np.ndarray] = []
+    cov_imgs: dict[str, np.ndarray] = {}
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
         if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
             # partly hidden or in a shadow: what the edge's two halves disagree on, too
             cov_img = cov_img + _split_half_cov(edges.points_px, fit)
+        cov_imgs[role] = cov_img
         markers[role] = MarkerMeasurement(
             role,
             fit.centre[0],
@@ -462,24 +487,47 @@ def _measure_ours(
         if transform.func is None:
             centres[role] = np.array(fit.centre)
             covs[role] = cov_img
-        else:
-            # on a plane pose, each disc's edge goes to its own height above the plate
-            at = transform.at_height(kit.height_mm(role) if kit.has_heights else 0.0)
-            jac, c_f, pts_f = at.mapped_with_jacobian(fit.centre, edges.points_px)
-            r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
-            fit_f = fit_circle_robust(
-                pts_f,
-                init=(c_f[0], c_f[1], r_f),
-                correlation_factor=ray_correlation_factor(fit.radius),
-                stop=FIT_STOP_PX,
+        warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
+    if transform.func is not None:
+        # on a plane pose, each disc's edge goes to its own height above the plate; the
+        # discs at one height mapped in one call, their circles fitted together
+        heights = {r: kit.height_mm(r) if kit.has_heights else 0.0 for r in fits}
+        mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for height in dict.fromkeys(heights.values()):
+            group = [r for r in fits if heights[r] == height]
+            got = transform.at_height(height).mapped_with_jacobians(
+                [fits[r][0].centre for r in group], [fits[r][1].points_px for r in group]
             )
+            mapped.update(zip(group, got, strict=True))
+        roles = list(fits)
+        inits = []
+        for role in roles:
+            jac, c_f, _ = mapped[role]
+            inits.append(
+                (c_f[0], c_f[1], fits[role][0].radius * math.sqrt(abs(np.linalg.det(jac))))
+            )
+        fits_f = fit_circles_robust(
+            [mapped[r][2] for r in roles],
+            inits=inits,
+            correlation_factors=[ray_correlation_factor(fits[r][0].radius) for r in roles],
+            stop=FIT_STOP_PX,
+        )
+        for role, init, fit_f in zip(roles, inits, fits_f, strict=True):
+            fit = fits[role][0]
+            jac, _, pts_f = mapped[role]
+            if fit_f is None:  # no circle: fit_circle_robust says why
+                fit_f = fit_circle_robust(
+                    pts_f,
+                    init=init,
+                    correlation_factor=ray_correlation_factor(fit.radius),
+                    stop=FIT_STOP_PX,
+                )
             centres[role] = np.array(fit_f.centre)
-            covs[role] = jac @ cov_img @ jac.T
+            covs[role] = jac @ cov_imgs[role] @ jac.T
             if transform.name == "plane":
                 plane_scale.append(fit_f.radius / (0.5 * kit.by_role(role).diameter_mm))
                 if fit.coverage >= HIDDEN_COVERAGE:
                     plane_shape.append(_anisotropy(pts_f - np.asarray(fit_f.centre)))
-        warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
     if plane_scale:
         ratio = float(np.median(plane_scale))
         if abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
