@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -305,7 +306,14 @@ def _taubin_batch(x: np.ndarray, y: np.ndarray, valid: np.ndarray) -> list[tuple
     ok = zm > 0
     root = np.sqrt(np.where(ok, zm, 1.0))
     z0 = np.where(valid, (z - zm[:, None]) / (2.0 * root[:, None]), 0.0)
-    _, _, vt = np.linalg.svd(np.stack((z0, xc, yc), axis=2), full_matrices=False)
+    try:
+        _, _, vt = np.linalg.svd(np.stack((z0, xc, yc), axis=2), full_matrices=False)
+    except np.linalg.LinAlgError:  # one set's SVD did not converge: each on its own
+        for i in range(len(n)):
+            with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+                (cx, cy), r = fit_circle_taubin(np.column_stack((x[i], y[i]))[valid[i]])
+                out[i] = (float(cx), float(cy), float(r))
+        return out
     for i in np.flatnonzero(ok):
         a = vt[i, -1]
         zmi, rt = float(zm[i]), float(root[i])
@@ -351,16 +359,23 @@ def fit_circles_robust(
     b = len(point_sets)
     out: list[CircleFit | None] = [None] * b
     sets = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in point_sets]
-    use = [i for i, p in enumerate(sets) if p.shape[0] >= 3 and np.all(np.isfinite(p))]
+    use = [i for i, p in enumerate(sets) if p.shape[0] >= 3]
     if not use:
         return out
-    counts = np.array([sets[i].shape[0] for i in use])
-    n_max = int(counts.max())
+    n_max = max(sets[i].shape[0] for i in use)
     # padded with each set's first point (finite distances; weight 0 throughout)
     xy = np.empty((len(use), n_max, 2))
     for k, i in enumerate(use):
-        xy[k, : counts[k]] = sets[i]
-        xy[k, counts[k] :] = sets[i][0]
+        n = sets[i].shape[0]
+        xy[k, :n] = sets[i]
+        xy[k, n:] = sets[i][0]
+    finite = np.isfinite(xy).all(axis=(1, 2)).tolist()
+    if not all(finite):
+        use = [i for i, f in zip(use, finite, strict=True) if f]
+        xy = xy[finite]
+        if not use:
+            return out
+    counts = np.array([sets[i].shape[0] for i in use])
     valid = np.arange(n_max)[None, :] < counts[:, None]
     px, py = xy[:, :, 0], xy[:, :, 1]
     starts = [None if inits is None else inits[i] for i in use]
@@ -379,50 +394,67 @@ def fit_circles_robust(
     validf = valid.astype(np.float64)
     w = validf.copy()
     scale = np.zeros(m)
+    # every set iterates until all have stopped, but a stopped set's circle, scale and
+    # weights no longer change (``active``): each keeps the fit it would have alone
     active = np.ones(m, dtype=bool)
-    lo, hi = (counts - 1) // 2, counts // 2
+    rows = np.empty((m, 4, n_max))  # rows (d / dist, 1, res), as fit_circle_robust
+    rows[:, 2] = 1.0
+    rows_t = rows.transpose(0, 2, 1)
+    dist = np.empty((m, n_max))
     ar = np.arange(m)
+    lo, hi = (counts - 1) // 2, counts // 2
     few = np.minimum(5, counts)
     for it in range(iterations):
-        a = np.flatnonzero(active)
-        if not len(a):
-            break
-        dx = px[a] - theta[a, 0:1]
-        dy = py[a] - theta[a, 1:2]
-        dist = np.maximum(np.hypot(dx, dy), 1e-12)
-        res = dist - theta[a, 2:3]
+        dx = px - theta[:, 0:1]
+        dy = py - theta[:, 1:2]
+        # sqrt(dx^2 + dy^2), not np.hypot: libm's hypot is ~50x the arithmetic (the
+        # same distance to an ulp; no overflow at image or millimetre scales)
+        np.multiply(dx, dx, out=dist)
+        dist += np.square(dy)
+        np.sqrt(dist, out=dist)
+        np.maximum(dist, 1e-12, out=dist)
+        res = dist - theta[:, 2:3]
         if it < 3:  # robust scale from the first iterations, then fixed (as fit_circle_robust)
-            srt = np.sort(np.where(valid[a], np.abs(res), np.inf), axis=1)
-            mad = 1.4826 * (srt[ar[: len(a)], lo[a]] + srt[ar[: len(a)], hi[a]]) / 2.0
-            floor = np.maximum(min_scale, mad)
-            scale[a] = floor if it > 0 else np.maximum(floor, 0.05 * theta[a, 2])
-        wa = np.square(res)
-        wa *= (-1.0 / (tukey_c * scale[a]) ** 2)[:, None]
-        wa += 1.0
-        np.maximum(wa, 0.0, out=wa)
-        wa *= wa
-        wa *= validf[a]
-        ra = np.empty((len(a), 4, n_max))  # rows (d / dist, 1, res), as fit_circle_robust
-        ra[:, 2] = 1.0
-        ra[:, 0] = dx / dist
-        ra[:, 1] = dy / dist
-        ra[:, 3] = res
-        gram = (ra * wa[:, None, :]) @ ra.transpose(0, 2, 1)
-        flat = gram[:, 2, 2] < few[a]
+            srt = np.sort(np.where(valid, np.abs(res), np.inf), axis=1)
+            mad = 1.4826 * ((srt[ar, lo] + srt[ar, hi]) / 2.0)
+            new = np.maximum(min_scale, mad)
+            if it == 0:
+                new = np.maximum(new, 0.05 * theta[:, 2])
+            scale = np.where(active, new, scale)
+        wn = np.square(res)
+        wn *= (-1.0 / np.square(tukey_c * scale))[:, None]
+        wn += 1.0
+        np.maximum(wn, 0.0, out=wn)
+        wn *= wn
+        wn *= validf
+        np.divide(dx, dist, out=rows[:, 0])
+        np.divide(dy, dist, out=rows[:, 1])
+        rows[:, 3] = res
+        gram = (rows * wn[:, None, :]) @ rows_t
+        flat = gram[:, 2, 2] < few
         if flat.any():  # (almost) every weight 0: unweighted
-            wa[flat] = validf[a][flat]
-            gram[flat] = (ra[flat] * wa[flat][:, None, :]) @ ra[flat].transpose(0, 2, 1)
-        w[a] = wa
-        step, ok = _solve_sym3_batch(gram)
-        done = ~ok
-        theta[a[ok]] += step[ok]
-        if it >= 2:
-            done |= ok & (np.abs(step).max(axis=1) < stop)
-        active[a[done]] = False
+            wn[flat] = validf[flat]
+            gram[flat] = (rows[flat] * wn[flat][:, None, :]) @ rows_t[flat]
+        w = wn if active.all() else np.where(active[:, None], wn, w)
+        # each set's 3x3 solve in Python floats (as fit_circle_robust: the same arithmetic)
+        th = theta.tolist()
+        for k, g in enumerate(gram.tolist()):
+            if not active[k]:
+                continue
+            step = _solve_sym3(g)
+            if step is None:
+                active[k] = False
+                continue
+            th[k] = [th[k][0] + step[0], th[k][1] + step[1], th[k][2] + step[2]]
+            if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < stop:
+                active[k] = False
+        theta = np.array(th)
+        if not active.any():
+            break
     # the summaries at the final circles, with the last weights (as fit_circle_robust)
     dx = px - theta[:, 0:1]
     dy = py - theta[:, 1:2]
-    dist = np.maximum(np.hypot(dx, dy), 1e-12)
+    dist = np.maximum(np.sqrt(np.square(dx) + np.square(dy)), 1e-12)
     res = dist - theta[:, 2:3]
     inl = w > 0
     n_in = np.count_nonzero(inl, axis=1)
@@ -430,15 +462,7 @@ def fit_circles_robust(
     jtwj = (jac * w[:, None, :]) @ jac.transpose(0, 2, 1)
     dof = np.maximum(1.0, w.sum(axis=1) - 3.0)
     s2 = np.einsum("bn,bn,bn->b", w, res, res) / dof
-    try:
-        inv = np.linalg.inv(jtwj)
-    except np.linalg.LinAlgError:
-        inv = np.empty_like(jtwj)
-        for k in range(m):
-            try:
-                inv[k] = np.linalg.inv(jtwj[k])
-            except np.linalg.LinAlgError:
-                inv[k] = np.inf
+    inv = np.array([_inverse_sym3(g) for g in jtwj.tolist()])
     cf = (
         np.ones(m)
         if correlation_factors is None
@@ -449,7 +473,7 @@ def fit_circles_robust(
     bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
     bins += 36 * np.arange(m)[:, None]
     sectors = np.bincount(bins[inl], minlength=36 * m).reshape(m, 36)
-    coverage = np.count_nonzero(sectors, axis=1) / 36.0
+    coverage = (sectors > 0).sum(axis=1) / 36.0
     for k, i in enumerate(use):
         out[i] = CircleFit(
             (float(theta[k, 0]), float(theta[k, 1])),
@@ -464,26 +488,20 @@ def fit_circles_robust(
     return out
 
 
-def _solve_sym3_batch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`_solve_sym3` of each (4, 4) ``g`` in a stack (B, 4, 4): ``(x (B, 3), solvable (B,))``."""
-    a00, a01, a02, b0 = g[:, 0, 0], g[:, 0, 1], g[:, 0, 2], g[:, 0, 3]
-    a11, a12, b1 = g[:, 1, 1], g[:, 1, 2], g[:, 1, 3]
-    a22, b2 = g[:, 2, 2], g[:, 2, 3]
+def _inverse_sym3(a: list[list[float]]) -> list[list[float]]:
+    """The inverse of a symmetric 3x3 matrix (rows as lists), by its cofactors; inf where singular."""
+    (a00, a01, a02), (_, a11, a12), (_, _, a22) = a
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
     c02 = a01 * a12 - a02 * a11
     det = a00 * c00 + a01 * c01 + a02 * c02
-    ok = (det != 0) & np.isfinite(det)
-    det = np.where(ok, det, 1.0)
+    if not det or not math.isfinite(det):
+        return [[math.inf] * 3 for _ in range(3)]
     c11 = a00 * a22 - a02 * a02
     c12 = a01 * a02 - a00 * a12
     c22 = a00 * a11 - a01 * a01
-    x = np.stack(
-        (
-            (c00 * b0 + c01 * b1 + c02 * b2) / det,
-            (c01 * b0 + c11 * b1 + c12 * b2) / det,
-            (c02 * b0 + c12 * b1 + c22 * b2) / det,
-        ),
-        axis=1,
-    )
-    return x, ok
+    return [
+        [c00 / det, c01 / det, c02 / det],
+        [c01 / det, c11 / det, c12 / det],
+        [c02 / det, c12 / det, c22 / det],
+    ]

@@ -86,6 +86,7 @@ __all__ = [
     "measure_photo_file",
     "measure_trial",
     "refine_candidate",
+    "refine_candidates",
     "lateral_ca_estimate",
     "LATERAL_CA_THRESHOLD",
     "SEED_CENTRE_SIGMA_PX",
@@ -247,43 +248,79 @@ def refine_candidate(
     (at most three passes); where its ring is unevenly lit (a shadow across the
     marker), a last pass takes each ray's edge against that ray's own levels.
     """
-    centre, radius = cand.centre_px, cand.radius_px
-    fit = None
-    edges = None
-    local = False  # the last pass, when the ring is unevenly lit: each ray's own levels
-    passes = 0
-    while True:
-        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge, local_levels=local)
-        n_points = edges.points_px.shape[0]
-        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * edge_ray_count(radius)):
-            return (
-                "too little of its edge is clear of the shadow or cover across it "
-                f"({n_points} edge points)"
+    return refine_candidates(bgr, [cand], [ring_ratio], edge=edge)[0]
+
+
+def refine_candidates(
+    bgr: np.ndarray,
+    cands: list[MarkerCandidate],
+    ring_ratios: list[float],
+    *,
+    edge: str | None = None,
+) -> list[tuple[CircleFit, Any] | str]:
+    """:func:`refine_candidate` of several discs, their passes' circles fitted together.
+
+    Each disc's passes, circles and result are those :func:`refine_candidate` gives it
+    alone (:func:`cvmeasure.geometry.fit_circles_robust`: the same fits, one call per
+    pass for all the discs still refining).
+    """
+    n = len(cands)
+    centres = [c.centre_px for c in cands]
+    radii = [c.radius_px for c in cands]
+    fits: list[CircleFit | None] = [None] * n
+    local = [False] * n  # the last pass, when the ring is unevenly lit: each ray's own levels
+    passes = [0] * n
+    results: list[tuple[CircleFit, Any] | str | None] = [None] * n
+    pending = list(range(n))
+    while pending:
+        todo, edges_of = [], {}
+        for i in pending:
+            edges = disc_edge_points(
+                bgr, centres[i], radii[i], ring_ratios[i], edge=edge, local_levels=local[i]
             )
-        if n_points < MIN_EDGE_POINTS:
-            return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
-        try:
-            init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
-            fit = fit_circle_robust(
-                edges.points_px,
-                init=init,
-                correlation_factor=ray_correlation_factor(radius),
-                stop=FIT_STOP_PX,
-            )
-        except (ValueError, np.linalg.LinAlgError):
-            return "its edge points do not form a circle"
-        moved = math.hypot(fit.centre[0] - centre[0], fit.centre[1] - centre[1])
-        if not (0.5 * cand.radius_px < fit.radius < 1.6 * cand.radius_px):
-            return f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
-        centre, radius = fit.centre, fit.radius
-        passes += 1
-        if local:
-            break
-        if moved < 0.05 * radius or passes >= 3:
-            if edges.ring_spread < UNEVEN_RING_SPREAD:
-                break
-            local = True  # settled on a circle: its ring samples now fall on the ring
-    return fit, edges
+            n_points = edges.points_px.shape[0]
+            if local[i] and n_points < max(MIN_EDGE_POINTS, 0.3 * edge_ray_count(radii[i])):
+                results[i] = (
+                    "too little of its edge is clear of the shadow or cover across it "
+                    f"({n_points} edge points)"
+                )
+            elif n_points < MIN_EDGE_POINTS:
+                results[i] = f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
+            else:
+                todo.append(i)
+                edges_of[i] = edges
+        got = fit_circles_robust(
+            [edges_of[i].points_px for i in todo],
+            inits=[
+                None if (f := fits[i]) is None else (f.centre[0], f.centre[1], f.radius)
+                for i in todo
+            ],
+            correlation_factors=[ray_correlation_factor(radii[i]) for i in todo],
+            stop=FIT_STOP_PX,
+        )
+        pending = []
+        for i, fit in zip(todo, got, strict=True):
+            if fit is None:
+                results[i] = "its edge points do not form a circle"
+                continue
+            moved = math.hypot(fit.centre[0] - centres[i][0], fit.centre[1] - centres[i][1])
+            if not (0.5 * cands[i].radius_px < fit.radius < 1.6 * cands[i].radius_px):
+                results[i] = (
+                    f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
+                )
+                continue
+            fits[i], centres[i], radii[i] = fit, fit.centre, fit.radius
+            passes[i] += 1
+            if local[i]:
+                results[i] = (fit, edges_of[i])
+                continue
+            if moved < 0.05 * radii[i] or passes[i] >= 3:
+                if edges_of[i].ring_spread < UNEVEN_RING_SPREAD:
+                    results[i] = (fit, edges_of[i])
+                    continue
+                local[i] = True  # settled on a circle: its ring samples now fall on the ring
+            pending.append(i)
+    return results  # type: ignore[return-value]
 
 
 def _colour_delta_e(
@@ -427,11 +464,10 @@ def _measure_ours(
     covs: dict[str, np.ndarray] = {}
     warnings: list[str] = []
     fits: dict[str, tuple[CircleFit, Any]] = {}
-    for role in ROLES:
-        if role not in search.found:
-            continue
-        spec = kit.by_role(role)
-        got = refine_candidate(bgr, search.found[role], spec.ring_mm / spec.diameter_mm, edge=edge)
+    found = [role for role in ROLES if role in search.found]
+    ratios = [kit.by_role(r).ring_mm / kit.by_role(r).diameter_mm for r in found]
+    refined = refine_candidates(bgr, [search.found[r] for r in found], ratios, edge=edge)
+    for role, got in zip(found, refined, strict=True):
         if isinstance(got, str):
             failures[role] = got
         else:
