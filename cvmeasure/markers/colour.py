@@ -318,12 +318,11 @@ class ColourModel:
     def distances(self, values: np.ndarray) -> np.ndarray:
         """Mahalanobis distance of colours (N, 3) in ``space`` to every role: (N, K)."""
         v = np.asarray(values, dtype=np.float64).reshape(-1, 3)
-        out = np.empty((v.shape[0], len(self.roles)))
-        for k in range(len(self.roles)):
-            d = v - self.means[k]
-            inv = self._inverses[k]
-            out[:, k] = np.sqrt(np.einsum("ni,ij,nj->n", d, inv, d))
-        return out
+        # every role at once: d (K, N, 3), d inv (a stacked matmul), its rows dotted with d
+        d = v[None, :, :] - self.means[:, None, :]
+        q = np.matmul(d, np.asarray(self._inverses))
+        q *= d
+        return np.sqrt(q.sum(axis=2)).T
 
     def to_dict(self) -> dict[str, Any]:
         return {
