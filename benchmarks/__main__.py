@@ -20,7 +20,14 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
-from benchmarks import BENCH_DIR, REPO_ROOT, RESULTS_DIR, format_table, write_results_md
+from benchmarks import (
+    BENCH_DIR,
+    REPO_ROOT,
+    RESULTS_DIR,
+    SCHEDULE_ENV,
+    format_table,
+    write_results_md,
+)
 
 __all__ = ["discover", "main"]
 
@@ -32,10 +39,20 @@ def discover() -> list[str]:
 
 #: Benchmarks that measure several cores at once: with ``--cores`` they run alone, last.
 ALL_CORES = frozenset({"batch"})
+#: Benchmarks whose targets are ratios of CPU times taken on one core that another process on
+#: the other core skews (shared memory bandwidth and last-level cache slow a full decode and
+#: our measurement by different amounts): with ``--cores`` they run alone (pinned to one core,
+#: nothing else of this run on the others) after the parallel part, before ``ALL_CORES``.
+TIMING_ALONE = frozenset({"decode_speed"})
 
 
 def _command_of(name: str, quick: bool) -> list[str]:
     return [sys.executable, "-m", f"benchmarks.{name}"] + (["--quick"] if quick else [])
+
+
+def _env_with(schedule: str) -> dict[str, str]:
+    """This process's environment with ``SCHEDULE_ENV`` set to ``schedule``."""
+    return {**os.environ, SCHEDULE_ENV: schedule}
 
 
 def _last_line(stderr: str | None) -> str:
@@ -43,12 +60,18 @@ def _last_line(stderr: str | None) -> str:
     return err_lines[-1] if err_lines else ""
 
 
-def _run_one(name: str, quick: bool, timeout_s: float) -> tuple[int, float, str]:
+def _run_one(
+    name: str,
+    quick: bool,
+    timeout_s: float,
+    schedule: str = "alone: no other benchmark of this run at the same time",
+) -> tuple[int, float, str]:
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(
             _command_of(name, quick),
             cwd=REPO_ROOT,
+            env=_env_with(schedule),
             stderr=subprocess.PIPE,
             text=True,
             timeout=timeout_s,
@@ -81,6 +104,9 @@ def _run_pinned(
     import tempfile
 
     pending = sorted(names, key=_previous_seconds, reverse=True)
+    schedule = (
+        f"in parallel: up to {len(cores)} benchmarks at once, each pinned to a core of its own"
+    )
     free = list(cores)
     running: dict[str, tuple[subprocess.Popen[bytes], int, float, Any]] = {}
     done: dict[str, tuple[int, float, str]] = {}
@@ -93,6 +119,7 @@ def _run_pinned(
                 _command_of(name, quick),
                 cwd=REPO_ROOT,
                 stderr=err,
+                env=_env_with(schedule),
                 preexec_fn=lambda c=core: os.sched_setaffinity(0, {c}),
             )
             running[name] = (proc, core, time.perf_counter(), err)
@@ -174,7 +201,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=int,
         default=1,
         help="run up to N benchmarks at once, each pinned to a core of its own (Linux); "
-        f"{', '.join(sorted(ALL_CORES))} then run alone on every core (default 1: one at a time)",
+        f"{', '.join(sorted(TIMING_ALONE))} then run alone after them, "
+        f"{', '.join(sorted(ALL_CORES))} alone on every core, last (default 1: one at a time)",
     )
     args = p.parse_args(argv)
     available = discover()
@@ -198,9 +226,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     outcomes: dict[str, tuple[int, float, str]] = {}
     if args.cores > 1 and hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))[: args.cores]
-        alone = [n for n in names if n in ALL_CORES]
+        alone = [n for n in names if n in TIMING_ALONE] + [n for n in names if n in ALL_CORES]
         outcomes.update(
-            _run_pinned([n for n in names if n not in ALL_CORES], args.quick, args.timeout, cores)
+            _run_pinned([n for n in names if n not in alone], args.quick, args.timeout, cores)
         )
         names = alone
     for name in names:

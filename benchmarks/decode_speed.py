@@ -16,7 +16,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
-from benchmarks import Metric, Table, finish  # noqa: E402
+from benchmarks import SCHEDULE_ENV, Metric, Table, finish  # noqa: E402
 
 SECTION = "Decode vs whole measurement, one core; CLI start-up (issue 19)"
 
@@ -398,6 +398,15 @@ def main(argv: list[str] | None = None) -> dict:
         "CPU seconds (user + sys of the child) are listed beside: on a loaded machine the "
         "wall figures wait for the core, the CPU ones do not.",
     ]
+    schedule = os.environ.get(SCHEDULE_ENV)
+    ran = f"ran {schedule}" if schedule else "was run directly, not by `python -m benchmarks`"
+    notes.append(
+        f"Scheduling: this run {ran}. `python -m benchmarks --cores N` runs this benchmark "
+        "alone, after the parallel part (benchmarks/__main__.py, TIMING_ALONE): a benchmark on the other core shares the "
+        "memory bandwidth and the last-level cache and slows the full decode and our "
+        "measurement by different amounts (0.624 beside others vs 0.605 alone at 25a2a50). "
+        "Other work on the machine outside this run is not controlled."
+    )
     if not raw:
         notes.append("RAW: shared/data/real/raw/Blackmagic.dng not found; RAW rows skipped.")
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -15,6 +16,7 @@ __all__ = [
     "fit_circle_taubin",
     "CircleFit",
     "fit_circle_robust",
+    "fit_circles_robust",
     "median_by_partition",
 ]
 
@@ -285,3 +287,221 @@ def fit_circle_robust(
         _coverage(p[inl], theta[:2]) if n_in else 0.0,
         float(math.sqrt(max(cov[2, 2], 0.0))),
     )
+
+
+def _taubin_batch(x: np.ndarray, y: np.ndarray, valid: np.ndarray) -> list[tuple | None]:
+    """:func:`fit_circle_taubin` of each row of ``x``, ``y`` (B, N) where ``valid``: (cx, cy, r) or None.
+
+    One stacked SVD: the padding's rows of the design matrix are zeros, which leave its
+    right singular vectors as they are (the same circle up to rounding).
+    """
+    n = valid.sum(axis=1)
+    mx = np.where(valid, x, 0.0).sum(axis=1) / n
+    my = np.where(valid, y, 0.0).sum(axis=1) / n
+    xc = np.where(valid, x - mx[:, None], 0.0)
+    yc = np.where(valid, y - my[:, None], 0.0)
+    z = xc * xc + yc * yc
+    zm = z.sum(axis=1) / n
+    out: list[tuple | None] = [None] * len(n)
+    ok = zm > 0
+    root = np.sqrt(np.where(ok, zm, 1.0))
+    z0 = np.where(valid, (z - zm[:, None]) / (2.0 * root[:, None]), 0.0)
+    try:
+        _, _, vt = np.linalg.svd(np.stack((z0, xc, yc), axis=2), full_matrices=False)
+    except np.linalg.LinAlgError:  # one set's SVD did not converge: each on its own
+        for i in range(len(n)):
+            with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+                (cx, cy), r = fit_circle_taubin(np.column_stack((x[i], y[i]))[valid[i]])
+                out[i] = (float(cx), float(cy), float(r))
+        return out
+    for i in np.flatnonzero(ok):
+        a = vt[i, -1]
+        zmi, rt = float(zm[i]), float(root[i])
+        a0 = a[0] / (2.0 * rt)
+        if abs(a0) < 1e-300 or abs(a0) * rt < 1e-12 * math.hypot(a[1], a[2]):
+            continue  # collinear
+        a3 = -zmi * a0
+        cx, cy = -a[1] / (2 * a0), -a[2] / (2 * a0)
+        out[i] = (
+            float(cx + mx[i]),
+            float(cy + my[i]),
+            math.sqrt(max(cx * cx + cy * cy - a3 / a0, 0.0)),
+        )
+    return out
+
+
+def fit_circles_robust(
+    point_sets: list[np.ndarray],
+    *,
+    inits: list[tuple[float, float, float] | None] | None = None,
+    iterations: int = 12,
+    tukey_c: float = 4.685,
+    min_scale: float = 0.02,
+    correlation_factors: list[float] | None = None,
+    stop: float = 1e-5,
+) -> list[CircleFit | None]:
+    """:func:`fit_circle_robust` of several point sets at once (the same fits, vectorised).
+
+    Each set's fit is the one :func:`fit_circle_robust` makes with the same arguments
+    (its own start, robust scale, weights and stop), up to rounding: the sets are padded
+    to one length with zero-weight points and iterated together, so a few small fits cost
+    about what one does (numpy's per-call overhead, not arithmetic, is most of a fit of
+    ~100 points). A set with fewer than 3 or non-finite points, or whose Taubin start
+    fails (``inits`` None for it), gives None.
+
+    Parameters
+    ----------
+    point_sets : list of (N_i, 2) arrays.
+    inits : per set, (cx, cy, r) or None (Taubin's fit).
+    correlation_factors : per set (default 1.0 each).
+    iterations, tukey_c, min_scale, stop : as :func:`fit_circle_robust`.
+    """
+    b = len(point_sets)
+    out: list[CircleFit | None] = [None] * b
+    sets = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in point_sets]
+    use = [i for i, p in enumerate(sets) if p.shape[0] >= 3]
+    if not use:
+        return out
+    n_max = max(sets[i].shape[0] for i in use)
+    # padded with each set's first point (finite distances; weight 0 throughout)
+    xy = np.empty((len(use), n_max, 2))
+    for k, i in enumerate(use):
+        n = sets[i].shape[0]
+        xy[k, :n] = sets[i]
+        xy[k, n:] = sets[i][0]
+    finite = np.isfinite(xy).all(axis=(1, 2)).tolist()
+    if not all(finite):
+        use = [i for i, f in zip(use, finite, strict=True) if f]
+        xy = xy[finite]
+        if not use:
+            return out
+    counts = np.array([sets[i].shape[0] for i in use])
+    valid = np.arange(n_max)[None, :] < counts[:, None]
+    px, py = xy[:, :, 0], xy[:, :, 1]
+    starts = [None if inits is None else inits[i] for i in use]
+    if any(s is None for s in starts):
+        taubin = _taubin_batch(px, py, valid)
+        starts = [s if s is not None else taubin[k] for k, s in enumerate(starts)]
+    keep = [k for k, s in enumerate(starts) if s is not None]
+    if len(keep) < len(use):
+        use = [use[k] for k in keep]
+        counts, valid, px, py = counts[keep], valid[keep], px[keep], py[keep]
+        starts = [starts[k] for k in keep]
+        if not use:
+            return out
+    theta = np.array(starts, dtype=np.float64)  # (B, 3): cx, cy, r
+    m = len(use)
+    validf = valid.astype(np.float64)
+    w = validf.copy()
+    scale = np.zeros(m)
+    # every set iterates until all have stopped, but a stopped set's circle, scale and
+    # weights no longer change (``active``): each keeps the fit it would have alone
+    active = np.ones(m, dtype=bool)
+    rows = np.empty((m, 4, n_max))  # rows (d / dist, 1, res), as fit_circle_robust
+    rows[:, 2] = 1.0
+    rows_t = rows.transpose(0, 2, 1)
+    dist = np.empty((m, n_max))
+    ar = np.arange(m)
+    lo, hi = (counts - 1) // 2, counts // 2
+    few = np.minimum(5, counts)
+    for it in range(iterations):
+        dx = px - theta[:, 0:1]
+        dy = py - theta[:, 1:2]
+        # sqrt(dx^2 + dy^2), not np.hypot: libm's hypot is ~50x the arithmetic (the
+        # same distance to an ulp; no overflow at image or millimetre scales)
+        np.multiply(dx, dx, out=dist)
+        dist += np.square(dy)
+        np.sqrt(dist, out=dist)
+        np.maximum(dist, 1e-12, out=dist)
+        res = dist - theta[:, 2:3]
+        if it < 3:  # robust scale from the first iterations, then fixed (as fit_circle_robust)
+            srt = np.sort(np.where(valid, np.abs(res), np.inf), axis=1)
+            mad = 1.4826 * ((srt[ar, lo] + srt[ar, hi]) / 2.0)
+            new = np.maximum(min_scale, mad)
+            if it == 0:
+                new = np.maximum(new, 0.05 * theta[:, 2])
+            scale = np.where(active, new, scale)
+        wn = np.square(res)
+        wn *= (-1.0 / np.square(tukey_c * scale))[:, None]
+        wn += 1.0
+        np.maximum(wn, 0.0, out=wn)
+        wn *= wn
+        wn *= validf
+        np.divide(dx, dist, out=rows[:, 0])
+        np.divide(dy, dist, out=rows[:, 1])
+        rows[:, 3] = res
+        gram = (rows * wn[:, None, :]) @ rows_t
+        flat = gram[:, 2, 2] < few
+        if flat.any():  # (almost) every weight 0: unweighted
+            wn[flat] = validf[flat]
+            gram[flat] = (rows[flat] * wn[flat][:, None, :]) @ rows_t[flat]
+        w = wn if active.all() else np.where(active[:, None], wn, w)
+        # each set's 3x3 solve in Python floats (as fit_circle_robust: the same arithmetic)
+        th = theta.tolist()
+        for k, g in enumerate(gram.tolist()):
+            if not active[k]:
+                continue
+            step = _solve_sym3(g)
+            if step is None:
+                active[k] = False
+                continue
+            th[k] = [th[k][0] + step[0], th[k][1] + step[1], th[k][2] + step[2]]
+            if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < stop:
+                active[k] = False
+        theta = np.array(th)
+        if not active.any():
+            break
+    # the summaries at the final circles, with the last weights (as fit_circle_robust)
+    dx = px - theta[:, 0:1]
+    dy = py - theta[:, 1:2]
+    dist = np.maximum(np.sqrt(np.square(dx) + np.square(dy)), 1e-12)
+    res = dist - theta[:, 2:3]
+    inl = w > 0
+    n_in = np.count_nonzero(inl, axis=1)
+    jac = np.stack((dx / dist, dy / dist, np.ones_like(dist)), axis=1)  # (B, 3, N)
+    jtwj = (jac * w[:, None, :]) @ jac.transpose(0, 2, 1)
+    dof = np.maximum(1.0, w.sum(axis=1) - 3.0)
+    s2 = np.einsum("bn,bn,bn->b", w, res, res) / dof
+    inv = np.array([_inverse_sym3(g) for g in jtwj.tolist()])
+    cf = (
+        np.ones(m)
+        if correlation_factors is None
+        else np.array([correlation_factors[i] for i in use], dtype=np.float64)
+    )
+    cov = inv * (s2 * cf)[:, None, None]
+    ang = np.arctan2(dy, dx)
+    bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
+    bins += 36 * np.arange(m)[:, None]
+    sectors = np.bincount(bins[inl], minlength=36 * m).reshape(m, 36)
+    coverage = (sectors > 0).sum(axis=1) / 36.0
+    for k, i in enumerate(use):
+        out[i] = CircleFit(
+            (float(theta[k, 0]), float(theta[k, 1])),
+            float(theta[k, 2]),
+            cov[k, :2, :2].copy(),
+            float(math.sqrt(s2[k])),
+            int(counts[k]),
+            int(n_in[k]),
+            float(coverage[k]) if n_in[k] else 0.0,
+            float(math.sqrt(max(cov[k, 2, 2], 0.0))),
+        )
+    return out
+
+
+def _inverse_sym3(a: list[list[float]]) -> list[list[float]]:
+    """The inverse of a symmetric 3x3 matrix (rows as lists), by its cofactors; inf where singular."""
+    (a00, a01, a02), (_, a11, a12), (_, _, a22) = a
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    if not det or not math.isfinite(det):
+        return [[math.inf] * 3 for _ in range(3)]
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    return [
+        [c00 / det, c01 / det, c02 / det],
+        [c01 / det, c11 / det, c12 / det],
+        [c02 / det, c12 / det, c22 / det],
+    ]

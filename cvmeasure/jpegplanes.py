@@ -297,5 +297,8 @@ class LazyBGR:
 
 
 #: How much a region made for a request is grown on each side: (pixels, fraction of the
-#: request's size).
-REGION_MARGIN = (8, 0.1)
+#: request's size). 8 px holds a refinement's re-centred pass (a disc's search centre is
+#: within a few px) and the lateral-colour probe round the fitted centre; a request
+#: outside it makes another region (the same pixels: only time). (8, 0.1) before: the
+#: regions 1.5x the pixels, q90 4608x3072 post-decode 60.0M -> 59.2M instructions.
+REGION_MARGIN = (8, 0.0)

@@ -101,7 +101,11 @@ class WhiteEstimate:
 
 
 def estimate_white(
-    bgr8: np.ndarray, *, top_fraction: float = 0.002, recover_clipped: bool = False
+    bgr8: np.ndarray,
+    *,
+    top_fraction: float = 0.002,
+    recover_clipped: bool = False,
+    gray: np.ndarray | None = None,
 ) -> WhiteEstimate:
     """Estimate the light's white from the brightest unclipped pixels (the white rings).
 
@@ -125,6 +129,8 @@ def estimate_white(
         Share of the unclipped pixels, by luminance, averaged into the white.
     recover_clipped : bool
         Recover the colour of a clipped white (see above).
+    gray : ndarray (H, W), uint8, optional
+        ``cv2.cvtColor(bgr8, cv2.COLOR_BGR2GRAY)`` where the caller has it (made here if None).
     """
     import cv2
 
@@ -132,7 +138,8 @@ def estimate_white(
     b, g, r = cv2.split(img)
     maxc = cv2.max(cv2.max(b, g), r)
     unclipped = cv2.compare(maxc, 250, cv2.CMP_LT)  # 255 where every channel is below 250
-    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if gray is None:
+        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     # grey histograms by calcHist (no int64 copy of the image, as np.bincount makes)
     hist = cv2.calcHist([gray], [0], unclipped, [256], [0, 256]).ravel().astype(np.int64)
     hist[0] = 0
@@ -311,12 +318,11 @@ class ColourModel:
     def distances(self, values: np.ndarray) -> np.ndarray:
         """Mahalanobis distance of colours (N, 3) in ``space`` to every role: (N, K)."""
         v = np.asarray(values, dtype=np.float64).reshape(-1, 3)
-        out = np.empty((v.shape[0], len(self.roles)))
-        for k in range(len(self.roles)):
-            d = v - self.means[k]
-            inv = self._inverses[k]
-            out[:, k] = np.sqrt(np.einsum("ni,ij,nj->n", d, inv, d))
-        return out
+        # every role at once: d (K, N, 3), d inv (a stacked matmul), its rows dotted with d
+        d = v[None, :, :] - self.means[:, None, :]
+        q = np.matmul(d, np.asarray(self._inverses))
+        q *= d
+        return np.sqrt(q.sum(axis=2)).T
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -400,6 +406,8 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
     idx |= g
     idx <<= 5
     idx |= b
+    # np.bincount and np.take index with intp: one cast for both (each casts a uint16 itself)
+    idx = idx.astype(np.intp)
     used = np.flatnonzero(np.bincount(idx.ravel(), minlength=1 << 15))
     rgb8 = np.column_stack(((used >> 10) & 31, (used >> 5) & 31, used & 31)).astype(np.float64)
     rgb8 = rgb8 * (1 << _QUANT_SHIFT) + (1 << _QUANT_SHIFT) / 2 - 0.5

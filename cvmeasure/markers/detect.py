@@ -104,9 +104,11 @@ def _ring_fraction(bright: np.ndarray, cx: float, cy: float, r: float, ring_rati
     # broadcast rows x columns (np.mgrid's full grids cost more than the annulus test)
     d = np.hypot(np.arange(x0, x1)[None, :] - cx, np.arange(y0, y1)[:, None] - cy)
     ann = (d >= inner) & (d <= outer)
-    if not ann.any():
+    n = int(np.count_nonzero(ann))
+    if not n:
         return 0.0
-    return float(bright[y0:y1, x0:x1][ann].mean())
+    # the share as float32 (the mean of a float32 0/1 image, as before: the same value)
+    return float(np.float32(np.count_nonzero(bright[y0:y1, x0:x1][ann])) / np.float32(n))
 
 
 def _partial_circle(
@@ -153,22 +155,48 @@ def _partial_circle(
     return cx + x0, cy + y0, r
 
 
+def _role_boxes(labels: np.ndarray, n_roles: int) -> list[tuple[int, int, int, int, int]]:
+    """Per role index, the bounding box of its pixels in ``labels`` and their count:
+    ``(x, y, w, h, n)`` (``cv2.boundingRect`` of its mask; all 0 without pixels).
+
+    From one pass over the image (the few labelled pixels' positions), not one per role.
+    """
+    flat = np.flatnonzero(labels >= 0)
+    ks = labels.ravel()[flat]
+    ys, xs = np.divmod(flat, labels.shape[1])
+    out = []
+    for k in range(n_roles):
+        sel = ks == k
+        n = int(np.count_nonzero(sel))
+        if not n:
+            out.append((0, 0, 0, 0, 0))
+            continue
+        y, x = ys[sel], xs[sel]
+        x0, y0 = int(x.min()), int(y[0])  # positions in row-major order: y[0] is the least
+        out.append((x0, y0, int(x.max()) - x0 + 1, int(y[-1]) - y0 + 1, n))
+    return out
+
+
 def _candidates(
     role: str,
-    mask: np.ndarray,
+    labels: np.ndarray,
+    k: int,
+    box: tuple[int, int, int, int, int],
     bright: np.ndarray,
     ring_ratio: float,
     step: int,
 ) -> tuple[list[MarkerCandidate], str]:
-    """Round, ring-surrounded regions of one role's mask; the reason when there are none."""
+    """Round, ring-surrounded regions of one role's pixels (``labels == k``, inside
+    ``box``: :func:`_role_boxes`); the reason when there are none."""
     import cv2
 
-    bx, by, bw, bh = cv2.boundingRect(mask)
+    bx, by, bw, bh, n_pixels = box
     found: list[MarkerCandidate] = []
     largest = 0
     n, stats, centroids = 0, np.zeros((0, 5), int), np.zeros((0, 2))
+    mask = None  # the role's whole mask, made only for a partly hidden disc
     if bw > 0 and bh > 0:
-        crop = np.ascontiguousarray(mask[by : by + bh, bx : bx + bw])
+        crop = (labels[by : by + bh, bx : bx + bw] == k).view(np.uint8)  # 0/1 bytes
         ltype = cv2.CV_16U if crop.size < 131_000 else cv2.CV_32S
         n, _, stats, centroids = cv2.connectedComponentsWithStats(crop, connectivity=8, ltype=ltype)
         stats = stats.astype(np.int64)
@@ -190,6 +218,8 @@ def _candidates(
         if (fill < 0.68 or not 0.75 <= aspect <= 1.33) and max(w, h) >= 12:
             # large enough for its outline to tell the hidden part from the visible arc;
             # smaller regions keep their moments (the refinement walks to the true circle)
+            if mask is None:
+                mask = (labels == k).view(np.uint8)
             circle = _partial_circle(mask, x, y, w, h)
             if circle is None:
                 continue
@@ -209,7 +239,6 @@ def _candidates(
         )
     if found:
         return sorted(found, key=lambda c: -c.score), ""
-    n_pixels = int(mask.sum())
     if n_pixels == 0:
         return [], "no pixels of its colour in the photo"
     return [], (
@@ -243,35 +272,45 @@ def find_markers(
         ``found[role]`` in full-resolution pixels, or ``failures[role]`` saying why.
         A role with two similar discs is ambiguous (a failure naming both).
     """
+    import cv2
+
     step = search_step(bgr8.shape, max_pixels)
     small = np.ascontiguousarray(bgr8[::step, ::step])
+    luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)  # the white's and the rings' grey
     if white is not None:
-        return _search(small, kit, model, white, step)
-    search = _search(small, kit, model, estimate_white(small), step)
+        return _search(small, luma, kit, model, white, step)
+    search = _search(small, luma, kit, model, estimate_white(small, gray=luma), step)
     if search.failures and search.white.clipped_fraction > CLIPPED_WHITE_FRACTION:
-        retry = _search(small, kit, model, estimate_white(small, recover_clipped=True), step)
+        white = estimate_white(small, recover_clipped=True, gray=luma)
+        retry = _search(small, luma, kit, model, white, step)
         if len(retry.failures) < len(search.failures):
             return retry
     return search
 
 
 def _search(
-    small: np.ndarray, kit: MarkerKit, model: ColourModel, white: WhiteEstimate, step: int
+    small: np.ndarray,
+    luma: np.ndarray,
+    kit: MarkerKit,
+    model: ColourModel,
+    white: WhiteEstimate,
+    step: int,
 ) -> MarkerSearch:
-    """:func:`find_markers` on the reduced copy ``small`` with a given white."""
+    """:func:`find_markers` on the reduced copy ``small`` (its grey ``luma``) with a given white."""
     labels = classify_bgr8(small, model, white)
-    import cv2
-
-    luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)
     white_luma = 0.114 * white.srgb8[2] + 0.587 * white.srgb8[1] + 0.299 * white.srgb8[0]
-    bright = (luma >= 0.72 * white_luma).astype(np.float32)
+    # luma >= 0.72 white_luma for 8-bit luma, as an integer comparison (not a float64
+    # copy of the image): the smallest whole level at or above the threshold
+    level = max(0, math.ceil(0.72 * white_luma))
+    bright = luma >= level if level <= 255 else np.zeros(luma.shape, dtype=bool)
 
     per_role: dict[str, list[MarkerCandidate]] = {}
     failures: dict[str, str] = {}
+    boxes = _role_boxes(labels, len(model.roles))
     for k, role in enumerate(model.roles):
         marker = kit.by_role(role)
-        mask = (labels == k).view(np.uint8)  # 0/1 bytes, no copy
-        cands, reason = _candidates(role, mask, bright, marker.ring_mm / marker.diameter_mm, step)
+        ratio = marker.ring_mm / marker.diameter_mm
+        cands, reason = _candidates(role, labels, k, boxes[k], bright, ratio, step)
         per_role[role] = cands
         if not cands:
             failures[role] = reason

@@ -52,7 +52,7 @@ from cvmeasure.board import BoardSpec
 from cvmeasure.camera import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import CircleFit, fit_circle_robust
+from cvmeasure.geometry import CircleFit, fit_circle_robust, fit_circles_robust
 from cvmeasure.imageio import Photo, to_bgr8
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles
@@ -86,6 +86,7 @@ __all__ = [
     "measure_photo_file",
     "measure_trial",
     "refine_candidate",
+    "refine_candidates",
     "lateral_ca_estimate",
     "LATERAL_CA_THRESHOLD",
     "SEED_CENTRE_SIGMA_PX",
@@ -200,6 +201,29 @@ class _Transform:
         jac = np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
         return jac, q[4], q[5:]
 
+    def mapped_with_jacobians(
+        self, xys: list[tuple[float, float]], pts: list[np.ndarray], h: float = 0.5
+    ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`mapped_with_jacobian` of several centres and their points, in one call
+        of the mapping (it maps each point on its own: the same values)."""
+        arrays = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in pts]
+        if self.func is None:
+            return [
+                (np.eye(2), np.array(xy, dtype=np.float64), a)
+                for xy, a in zip(xys, arrays, strict=True)
+            ]
+        parts = []
+        for (x, y), a in zip(xys, arrays, strict=True):
+            parts += [[[x + h, y], [x - h, y], [x, y + h], [x, y - h], [x, y]], a]
+        q = self(np.vstack(parts))
+        out, k = [], 0
+        for a in arrays:
+            qi = q[k : k + 5 + len(a)]
+            k += 5 + len(a)
+            jac = np.column_stack(((qi[0] - qi[1]) / (2 * h), (qi[2] - qi[3]) / (2 * h)))
+            out.append((jac, qi[4], qi[5:]))
+        return out
+
 
 def _transform(
     camera: CameraModel | None, plane: PlaneModel | None, shape: tuple[int, ...], source: str
@@ -224,43 +248,79 @@ def refine_candidate(
     (at most three passes); where its ring is unevenly lit (a shadow across the
     marker), a last pass takes each ray's edge against that ray's own levels.
     """
-    centre, radius = cand.centre_px, cand.radius_px
-    fit = None
-    edges = None
-    local = False  # the last pass, when the ring is unevenly lit: each ray's own levels
-    passes = 0
-    while True:
-        edges = disc_edge_points(bgr, centre, radius, ring_ratio, edge=edge, local_levels=local)
-        n_points = edges.points_px.shape[0]
-        if local and n_points < max(MIN_EDGE_POINTS, 0.3 * edge_ray_count(radius)):
-            return (
-                "too little of its edge is clear of the shadow or cover across it "
-                f"({n_points} edge points)"
+    return refine_candidates(bgr, [cand], [ring_ratio], edge=edge)[0]
+
+
+def refine_candidates(
+    bgr: np.ndarray,
+    cands: list[MarkerCandidate],
+    ring_ratios: list[float],
+    *,
+    edge: str | None = None,
+) -> list[tuple[CircleFit, Any] | str]:
+    """:func:`refine_candidate` of several discs, their passes' circles fitted together.
+
+    Each disc's passes, circles and result are those :func:`refine_candidate` gives it
+    alone (:func:`cvmeasure.geometry.fit_circles_robust`: the same fits, one call per
+    pass for all the discs still refining).
+    """
+    n = len(cands)
+    centres = [c.centre_px for c in cands]
+    radii = [c.radius_px for c in cands]
+    fits: list[CircleFit | None] = [None] * n
+    local = [False] * n  # the last pass, when the ring is unevenly lit: each ray's own levels
+    passes = [0] * n
+    results: list[tuple[CircleFit, Any] | str | None] = [None] * n
+    pending = list(range(n))
+    while pending:
+        todo, edges_of = [], {}
+        for i in pending:
+            edges = disc_edge_points(
+                bgr, centres[i], radii[i], ring_ratios[i], edge=edge, local_levels=local[i]
             )
-        if n_points < MIN_EDGE_POINTS:
-            return f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
-        try:
-            init = None if fit is None else (fit.centre[0], fit.centre[1], fit.radius)
-            fit = fit_circle_robust(
-                edges.points_px,
-                init=init,
-                correlation_factor=ray_correlation_factor(radius),
-                stop=FIT_STOP_PX,
-            )
-        except (ValueError, np.linalg.LinAlgError):
-            return "its edge points do not form a circle"
-        moved = math.hypot(fit.centre[0] - centre[0], fit.centre[1] - centre[1])
-        if not (0.5 * cand.radius_px < fit.radius < 1.6 * cand.radius_px):
-            return f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
-        centre, radius = fit.centre, fit.radius
-        passes += 1
-        if local:
-            break
-        if moved < 0.05 * radius or passes >= 3:
-            if edges.ring_spread < UNEVEN_RING_SPREAD:
-                break
-            local = True  # settled on a circle: its ring samples now fall on the ring
-    return fit, edges
+            n_points = edges.points_px.shape[0]
+            if local[i] and n_points < max(MIN_EDGE_POINTS, 0.3 * edge_ray_count(radii[i])):
+                results[i] = (
+                    "too little of its edge is clear of the shadow or cover across it "
+                    f"({n_points} edge points)"
+                )
+            elif n_points < MIN_EDGE_POINTS:
+                results[i] = f"no clear edge around it (contrast {edges.contrast:.0f}/255)"
+            else:
+                todo.append(i)
+                edges_of[i] = edges
+        got = fit_circles_robust(
+            [edges_of[i].points_px for i in todo],
+            inits=[
+                None if (f := fits[i]) is None else (f.centre[0], f.centre[1], f.radius)
+                for i in todo
+            ],
+            correlation_factors=[ray_correlation_factor(radii[i]) for i in todo],
+            stop=FIT_STOP_PX,
+        )
+        pending = []
+        for i, fit in zip(todo, got, strict=True):
+            if fit is None:
+                results[i] = "its edge points do not form a circle"
+                continue
+            moved = math.hypot(fit.centre[0] - centres[i][0], fit.centre[1] - centres[i][1])
+            if not (0.5 * cands[i].radius_px < fit.radius < 1.6 * cands[i].radius_px):
+                results[i] = (
+                    f"its edge is not a circle of the expected size (r {fit.radius:.1f} px)"
+                )
+                continue
+            fits[i], centres[i], radii[i] = fit, fit.centre, fit.radius
+            passes[i] += 1
+            if local[i]:
+                results[i] = (fit, edges_of[i])
+                continue
+            if moved < 0.05 * radii[i] or passes[i] >= 3:
+                if edges_of[i].ring_spread < UNEVEN_RING_SPREAD:
+                    results[i] = (fit, edges_of[i])
+                    continue
+                local[i] = True  # settled on a circle: its ring samples now fall on the ring
+            pending.append(i)
+    return results  # type: ignore[return-value]
 
 
 def _colour_delta_e(
@@ -404,11 +464,10 @@ def _measure_ours(
     covs: dict[str, np.ndarray] = {}
     warnings: list[str] = []
     fits: dict[str, tuple[CircleFit, Any]] = {}
-    for role in ROLES:
-        if role not in search.found:
-            continue
-        spec = kit.by_role(role)
-        got = refine_candidate(bgr, search.found[role], spec.ring_mm / spec.diameter_mm, edge=edge)
+    found = [role for role in ROLES if role in search.found]
+    ratios = [kit.by_role(r).ring_mm / kit.by_role(r).diameter_mm for r in found]
+    refined = refine_candidates(bgr, [search.found[r] for r in found], ratios, edge=edge)
+    for role, got in zip(found, refined, strict=True):
         if isinstance(got, str):
             failures[role] = got
         else:
@@ -443,11 +502,13 @@ def _measure_ours(
     delta_e = _colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     plane_scale: list[float] = []
     plane_shape: list[np.ndarray] = []
+    cov_imgs: dict[str, np.ndarray] = {}
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
         if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
             # partly hidden or in a shadow: what the edge's two halves disagree on, too
             cov_img = cov_img + _split_half_cov(edges.points_px, fit)
+        cov_imgs[role] = cov_img
         markers[role] = MarkerMeasurement(
             role,
             fit.centre[0],
@@ -462,24 +523,47 @@ def _measure_ours(
         if transform.func is None:
             centres[role] = np.array(fit.centre)
             covs[role] = cov_img
-        else:
-            # on a plane pose, each disc's edge goes to its own height above the plate
-            at = transform.at_height(kit.height_mm(role) if kit.has_heights else 0.0)
-            jac, c_f, pts_f = at.mapped_with_jacobian(fit.centre, edges.points_px)
-            r_f = fit.radius * math.sqrt(abs(np.linalg.det(jac)))
-            fit_f = fit_circle_robust(
-                pts_f,
-                init=(c_f[0], c_f[1], r_f),
-                correlation_factor=ray_correlation_factor(fit.radius),
-                stop=FIT_STOP_PX,
+        warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
+    if transform.func is not None:
+        # on a plane pose, each disc's edge goes to its own height above the plate; the
+        # discs at one height mapped in one call, their circles fitted together
+        heights = {r: kit.height_mm(r) if kit.has_heights else 0.0 for r in fits}
+        mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for height in dict.fromkeys(heights.values()):
+            group = [r for r in fits if heights[r] == height]
+            got = transform.at_height(height).mapped_with_jacobians(
+                [fits[r][0].centre for r in group], [fits[r][1].points_px for r in group]
             )
+            mapped.update(zip(group, got, strict=True))
+        roles = list(fits)
+        inits = []
+        for role in roles:
+            jac, c_f, _ = mapped[role]
+            inits.append(
+                (c_f[0], c_f[1], fits[role][0].radius * math.sqrt(abs(np.linalg.det(jac))))
+            )
+        fits_f = fit_circles_robust(
+            [mapped[r][2] for r in roles],
+            inits=inits,
+            correlation_factors=[ray_correlation_factor(fits[r][0].radius) for r in roles],
+            stop=FIT_STOP_PX,
+        )
+        for role, init, fit_f in zip(roles, inits, fits_f, strict=True):
+            fit = fits[role][0]
+            jac, _, pts_f = mapped[role]
+            if fit_f is None:  # no circle: fit_circle_robust says why
+                fit_f = fit_circle_robust(
+                    pts_f,
+                    init=init,
+                    correlation_factor=ray_correlation_factor(fit.radius),
+                    stop=FIT_STOP_PX,
+                )
             centres[role] = np.array(fit_f.centre)
-            covs[role] = jac @ cov_img @ jac.T
+            covs[role] = jac @ cov_imgs[role] @ jac.T
             if transform.name == "plane":
                 plane_scale.append(fit_f.radius / (0.5 * kit.by_role(role).diameter_mm))
                 if fit.coverage >= HIDDEN_COVERAGE:
                     plane_shape.append(_anisotropy(pts_f - np.asarray(fit_f.centre)))
-        warnings.extend(_marker_warnings(role, fit, edges, delta_e.get(role)))
     if plane_scale:
         ratio = float(np.median(plane_scale))
         if abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:

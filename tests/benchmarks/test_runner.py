@@ -157,3 +157,43 @@ def test_pinned_runs_each_on_a_core_of_its_own(tmp_path, monkeypatch):
     for name in ("a", "b", "bad"):
         count, core = map(int, (tmp_path / name).read_text().split())
         assert count == 1 and core in cores
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_cores_run_timing_benchmarks_alone_after_the_parallel_part(bench_dirs, monkeypatch):
+    """--cores 2: decode_speed runs alone after the parallel part, batch last; each child is told."""
+    import os
+
+    import benchmarks.__main__ as runner
+
+    calls: list[tuple[str, tuple[str, ...]]] = []
+
+    def pinned(names, quick, timeout_s, cores):
+        calls.append(("parallel", tuple(names)))
+        return {n: (0, 1.0, "") for n in names}
+
+    def one(name, quick, timeout_s, schedule="alone"):
+        calls.append(("alone", (name,)))
+        return 0, 1.0, ""
+
+    monkeypatch.setattr(runner, "_run_pinned", pinned)
+    monkeypatch.setattr(runner, "_run_one", one)
+    monkeypatch.setattr(runner, "write_results_md", lambda **kw: bench_dirs / "RESULTS.md")
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("needs two cores for --cores 2")
+    assert runner.main(["--cores", "2", "batch", "decode_speed", "sim_speed", "markers"]) == 0
+    assert calls == [
+        ("parallel", ("sim_speed", "markers")),
+        ("alone", ("decode_speed",)),
+        ("alone", ("batch",)),
+    ]
+
+
+def test_finish_records_how_the_run_was_scheduled(bench_dirs, monkeypatch):
+    from benchmarks import SCHEDULE_ENV
+
+    monkeypatch.setenv(SCHEDULE_ENV, "alone: no other benchmark of this run at the same time")
+    result = finish(str(bench_dirs / "decode_speed.py"), "Decode", [], quick=True, seconds=1.0)
+    assert result["schedule"].startswith("alone")
+    text = (bench_dirs / "RESULTS.md").read_text()
+    assert "· run alone: no other benchmark of this run at the same time" in text

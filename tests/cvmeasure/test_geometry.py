@@ -39,3 +39,34 @@ def test_taubin_fit_refuses_degenerate_input():
     ]:
         with pytest.raises(ValueError, match=message):
             fit_circle_taubin(bad)
+
+
+def test_fit_circles_robust_is_each_sets_fit_circle_robust():
+    """The vectorised fits equal fit_circle_robust's, set by set (own start, scale, stop)."""
+    from cvmeasure.geometry import fit_circle_robust, fit_circles_robust
+
+    rng = np.random.default_rng(7)
+    sets, inits = [], []
+    for i in range(12):
+        n = int(rng.integers(20, 160))
+        t = rng.uniform(0, 2 * np.pi if i % 3 else np.pi, n)  # some half circles
+        c, r = rng.uniform(-50, 50, 2), rng.uniform(5, 60)
+        p = np.column_stack((c[0] + r * np.cos(t), c[1] + r * np.sin(t)))
+        p += rng.normal(0, 0.05, (n, 2))
+        out = rng.random(n) < 0.15
+        p[out] += rng.normal(0, 3, (int(out.sum()), 2))  # outliers the weights drop
+        sets.append(p)
+        inits.append(None if i % 2 else (c[0] + 0.5, c[1] - 0.3, 1.02 * r))
+    sets.append(np.zeros((2, 2)))  # too few points: None, the others unaffected
+    inits.append(None)
+    factors = [1.0 + 0.1 * i for i in range(len(sets))]
+    got = fit_circles_robust(sets, inits=inits, correlation_factors=factors, stop=1e-3)
+    assert got[-1] is None
+    for p, init, cf, g in zip(sets[:-1], inits, factors, got, strict=False):
+        f = fit_circle_robust(p, init=init, correlation_factor=cf, stop=1e-3)
+        np.testing.assert_allclose([*g.centre, g.radius], [*f.centre, f.radius], atol=1e-9)
+        np.testing.assert_allclose(g.covariance, f.covariance, rtol=1e-9, atol=1e-15)
+        assert g.n_inliers == f.n_inliers and g.n_points == f.n_points
+        assert g.coverage == f.coverage
+        assert g.rms_residual == pytest.approx(f.rms_residual, rel=1e-9)
+        assert g.radius_sigma == pytest.approx(f.radius_sigma, rel=1e-9)

@@ -139,3 +139,38 @@ def test_ring_spread_is_the_percentile_range_of_the_rays_ring_medians():
         assert edges.ring_spread == pytest.approx(expected, rel=1e-12, abs=1e-12)
         assert _sorted_percentile(np.sort(ring), 50.0) == pytest.approx(np.median(ring))
     assert EdgePoints(np.zeros((0, 2)), (0, 0, 0), (0, 0, 0), 0.0, 0.0).ring_spread == 0.0
+
+
+def test_discs_refined_together_as_each_alone():
+    """refine_candidates: every disc's circle (or failure) is refine_candidate's for it alone."""
+    from cvmeasure.markers.detect import MarkerCandidate
+    from cvmeasure.markers.measure import refine_candidate, refine_candidates
+
+    tiles = [
+        _disc_image((63.3, 64.6), 20.0, noise=2.0, seed=1, size=128),
+        _disc_image((64.1, 63.2), 19.0, noise=2.0, seed=2, size=128),
+        np.full((128, 128, 3), 120, np.uint8),  # no disc: no edge
+        _disc_image((62.8, 65.1), 24.0, noise=2.0, seed=4, size=128),
+    ]
+    img = np.ascontiguousarray(np.hstack(tiles))
+    truth = [(63.3, 64.6), (128 + 64.1, 63.2), (256 + 64.0, 64.0), (384 + 62.8, 65.1)]
+    radii = [20.0, 19.0, 18.0, 24.0]
+    # starts off by 0.4 to 3.6 px (several passes for some), radii 10 % off
+    offsets = [(0.3, -0.2), (2.0, 1.5), (1.0, 1.0), (-3.0, 2.0)]
+    cands = [
+        MarkerCandidate("x", (t[0] + o[0], t[1] + o[1]), 1.1 * r, math.pi * r * r, 0.78, 0.9)
+        for t, o, r in zip(truth, offsets, radii, strict=True)
+    ]
+    together = refine_candidates(img, cands, [1.4] * 4)
+    for cand, got, t in zip(cands, together, truth, strict=True):
+        alone = refine_candidate(img, cand, 1.4)
+        if isinstance(alone, str):
+            assert got == alone
+            continue
+        fit, fit_alone = got[0], alone[0]
+        assert fit.centre == pytest.approx(fit_alone.centre, abs=1e-9)
+        assert fit.radius == pytest.approx(fit_alone.radius, abs=1e-9)
+        np.testing.assert_allclose(fit.covariance, fit_alone.covariance, rtol=1e-9)
+        assert math.dist(fit.centre, t) < 0.05  # and right: the drawn centre
+    assert isinstance(together[2], str) and "no clear edge" in together[2]
+    assert sum(not isinstance(g, str) for g in together) == 3, together
