@@ -349,12 +349,18 @@ class _EdgeModel:
 
         Leading dimensions run over parameter sets (``shadow`` (..., 2)).
         """
-        axis3 = self.at0_mm + height_mm[..., None] * self.per_mm
-        sc = axis3 + height_mm[..., None] * shadow[..., None, :]
-        m = _unit_normals(sc)
-        ms = np.einsum("...mj,...j->...m", m, shadow)
-        side_m = np.where(ms >= 0, 1.0, -1.0)
-        edge = sc + (side_m * self.radius_mm * np.sqrt(1.0 + ms * ms))[..., None] * m
+        h = height_mm[..., None]
+        axis3 = self.at0_mm + h * self.per_mm
+        sc = axis3 + h * shadow[..., None, :]
+        # the shadow curve's unit normals (as _unit_normals, written out: called per step)
+        t = np.empty_like(sc)
+        t[..., 1:-1, :] = (sc[..., 2:, :] - sc[..., :-2, :]) / 2.0
+        t[..., 0, :] = sc[..., 1, :] - sc[..., 0, :]
+        t[..., -1, :] = sc[..., -1, :] - sc[..., -2, :]
+        t /= np.maximum(np.sqrt(t[..., 0] * t[..., 0] + t[..., 1] * t[..., 1]), 1e-12)[..., None]
+        ms = t[..., 0] * shadow[..., 1:] - t[..., 1] * shadow[..., :1]
+        scale = np.where(ms >= 0, 1.0, -1.0) * self.radius_mm * np.sqrt(1.0 + ms * ms)
+        edge = np.stack((sc[..., 0] - scale * t[..., 1], sc[..., 1] + scale * t[..., 0]), axis=-1)
         return axis3, edge
 
     def crossings(
@@ -381,8 +387,11 @@ class _EdgeModel:
         along = _along(edge[seg], edge[p[rows, cols + 1]], q[rows], d[rows], ca, cb)
         ahead = along > 0
         rows, seg, along = rows[ahead], seg[ahead], along[ahead]
-        order = np.lexsort((along, rows))
-        first = order[np.unique(rows[order], return_index=True)[1]]
+        if np.all(rows[1:] > rows[:-1]):  # one crossing per line (rows come sorted)
+            first = slice(None)
+        else:
+            order = np.lexsort((along, rows))
+            first = order[np.unique(rows[order], return_index=True)[1]]
         out = np.full(len(q), np.nan)
         out_seg = np.full(len(q), -1)
         out[rows[first]] = along[first]
