@@ -78,6 +78,8 @@ EDGE_BIAS_MM = 0.05
 OUTLIER_MM = 0.15
 #: Centreline points this close to either end are left out (the caps' own shadows), mm.
 END_MARGIN_MM = 4.0
+#: The fit's forward differences: relative step of the parameters (shadow vector, slope).
+DIFF_STEP = 1e-5
 
 
 @dataclass(frozen=True)
@@ -145,9 +147,10 @@ class ShadowLift:
 
 
 def _unit_normals(points_mm: np.ndarray) -> np.ndarray:
-    t = np.gradient(points_mm, axis=0)
-    t /= np.maximum(np.linalg.norm(t, axis=1), 1e-12)[:, None]
-    return np.column_stack((-t[:, 1], t[:, 0]))
+    """Unit normals (..., M, 2), left of travel, of polylines (..., M, 2)."""
+    t = np.gradient(points_mm, axis=-2)
+    t /= np.maximum(np.linalg.norm(t, axis=-1), 1e-12)[..., None]
+    return np.stack((-t[..., 1], t[..., 0]), axis=-1)
 
 
 def _silhouette_on_plate_mm(
@@ -327,6 +330,105 @@ def _fit_shadow_ramps(
     return edges, depth
 
 
+@dataclass(frozen=True)
+class _EdgeModel:
+    """What :func:`predict_shadow_edges_mm` needs that does not change during a fit.
+
+    ``at0_mm`` (M, 2): each centreline point's ray on the plate (height 0), board mm;
+    ``per_mm`` (M, 2): its move per mm of height (affine along the ray); the measuring
+    lines start at ``edges.axis_mm`` along ``+-edges.normal``.
+    """
+
+    at0_mm: np.ndarray
+    per_mm: np.ndarray
+    edges: ShadowEdges
+    radius_mm: float
+
+    def curve(self, height_mm: np.ndarray, shadow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The axis (..., M, 2) at its heights (..., M) and the band's outer edge (..., M, 2).
+
+        Leading dimensions run over parameter sets (``shadow`` (..., 2)).
+        """
+        h = height_mm[..., None]
+        axis3 = self.at0_mm + h * self.per_mm
+        sc = axis3 + h * shadow[..., None, :]
+        # the shadow curve's unit normals (as _unit_normals, written out: called per step)
+        t = np.empty_like(sc)
+        t[..., 1:-1, :] = (sc[..., 2:, :] - sc[..., :-2, :]) / 2.0
+        t[..., 0, :] = sc[..., 1, :] - sc[..., 0, :]
+        t[..., -1, :] = sc[..., -1, :] - sc[..., -2, :]
+        t /= np.maximum(np.sqrt(t[..., 0] * t[..., 0] + t[..., 1] * t[..., 1]), 1e-12)[..., None]
+        ms = t[..., 0] * shadow[..., 1:] - t[..., 1] * shadow[..., :1]
+        scale = np.where(ms >= 0, 1.0, -1.0) * self.radius_mm * np.sqrt(1.0 + ms * ms)
+        edge = np.stack((sc[..., 0] - scale * t[..., 1], sc[..., 1] + scale * t[..., 0]), axis=-1)
+        return axis3, edge
+
+    def crossings(
+        self, axis3: np.ndarray, edge: np.ndarray, shadow: np.ndarray, d: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Where each measuring line (K) first crosses the polyline ``edge`` (M, 2).
+
+        The line from ``edges.axis_mm`` along ``d`` (K, 2), searched over the segments near
+        each sample's own index (a window as long as the shadow's largest displacement).
+        Returns the distance along ``d`` (K,) (NaN where none) and the crossed segment's
+        first point (K,) (-1 where none).
+        """
+        q = self.edges.axis_mm
+        win = 3.0 + (self.radius_mm + 2.0 * MAX_LIFT_MM) * float(np.hypot(*shadow))
+        step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
+        kw = int(np.ceil(win / step))
+        p = np.clip(self.edges.index[:, None] + np.arange(-kw, kw + 1)[None, :], 0, len(edge) - 1)
+        ex, ey = edge[:, 0].take(p), edge[:, 1].take(p)
+        cross = (ex - q[:, :1]) * d[:, 1:] - (ey - q[:, 1:]) * d[:, :1]
+        cross_a, cross_b = cross[:, :-1], cross[:, 1:]
+        rows, cols = np.nonzero((cross_a * cross_b <= 0) & (cross_a != cross_b))
+        ca, cb = cross_a[rows, cols], cross_b[rows, cols]
+        seg = p[rows, cols]
+        along = _along(edge[seg], edge[p[rows, cols + 1]], q[rows], d[rows], ca, cb)
+        ahead = along > 0
+        rows, seg, along = rows[ahead], seg[ahead], along[ahead]
+        if np.all(rows[1:] > rows[:-1]):  # one crossing per line (rows come sorted)
+            first = slice(None)
+        else:
+            order = np.lexsort((along, rows))
+            first = order[np.unique(rows[order], return_index=True)[1]]
+        out = np.full(len(q), np.nan)
+        out_seg = np.full(len(q), -1)
+        out[rows[first]] = along[first]
+        out_seg[rows[first]] = seg[first]
+        return out, out_seg
+
+    def along_segments(self, edge: np.ndarray, seg: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Distance (..., K) along ``d`` to the lines through the segments ``seg`` (K,) of
+        ``edge`` (..., M, 2) (NaN where ``seg`` is -1): the crossing with the segment found
+        by :meth:`crossings`, followed as the curve moves (its derivative)."""
+        q = self.edges.axis_mm
+        j = np.maximum(seg, 0)
+        a, b = edge[..., j, :], edge[..., j + 1, :]
+        rel_a, rel_b = a - q, b - q
+        ca = rel_a[..., 0] * d[:, 1] - rel_a[..., 1] * d[:, 0]
+        cb = rel_b[..., 0] * d[:, 1] - rel_b[..., 1] * d[:, 0]
+        along = _along(a, b, q, d, ca, np.where(ca != cb, cb, ca + 1.0))
+        return np.where(seg >= 0, along, np.nan)
+
+
+def _along(a, b, q, d, cross_a, cross_b):
+    """Distance along ``d`` from ``q`` to where the segment ``a``-``b`` (cross products
+    ``cross_a``, ``cross_b`` of its ends with the line) meets the line."""
+    t = cross_a / (cross_a - cross_b)
+    hit = a + t[..., None] * (b - a)
+    return np.sum((hit - q) * d, axis=-1)
+
+
+def _edge_model(
+    plane: PlaneModel, points_px: np.ndarray, edges: ShadowEdges, radius_mm: float
+) -> _EdgeModel:
+    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    at0 = points_at_heights_mm(plane, pts, 0.0)
+    at1 = points_at_heights_mm(plane, pts, 1.0)
+    return _EdgeModel(at0, at1 - at0, edges, radius_mm)
+
+
 def predict_shadow_edges_mm(
     plane: PlaneModel,
     points_px: np.ndarray,
@@ -346,35 +448,31 @@ def predict_shadow_edges_mm(
     (K,): the side to measure on (default the shadow's, ``sign(n.s)``); NaN where the
     line does not meet the edge.
     """
-    pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
-    axis3 = points_at_heights_mm(plane, pts_px, height_mm)
-    sc = axis3 + height_mm[:, None] * shadow[None, :]
-    m = _unit_normals(sc)
-    ms = m @ shadow
-    side_m = np.where(ms >= 0, 1.0, -1.0)
-    edge = sc + (side_m * radius_mm * np.sqrt(1.0 + ms * ms))[:, None] * m
-    q = edges.axis_mm
-    n = edges.normal
+    model = _edge_model(plane, points_px, edges, radius_mm)
+    return _predict(model, np.asarray(height_mm, dtype=np.float64), shadow, side)[:2]
+
+
+def _predict(
+    model: _EdgeModel, height_mm: np.ndarray, shadow: np.ndarray, side: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`predict_shadow_edges_mm` on a prepared model; also the crossed segments."""
+    shadow = np.asarray(shadow, dtype=np.float64)
+    n = model.edges.normal
     if side is None:
         side = np.where(n @ shadow >= 0, 1.0, -1.0)
-    d = n * side[:, None]
-    # crossing of the line q + u d with the polyline ``edge``, near each sample's own index
-    win = 3.0 + (radius_mm + 2.0 * MAX_LIFT_MM) * float(np.hypot(*shadow))
-    step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
-    kw = int(np.ceil(win / step))
-    j = edges.index[:, None] + np.arange(-kw, kw)[None, :]
-    j = np.clip(j, 0, len(edge) - 2)
-    a, b = edge[j], edge[j + 1]
-    rel_a, rel_b = a - q[:, None, :], b - q[:, None, :]
-    cross_a = rel_a[..., 0] * d[:, None, 1] - rel_a[..., 1] * d[:, None, 0]
-    cross_b = rel_b[..., 0] * d[:, None, 1] - rel_b[..., 1] * d[:, None, 0]
-    brackets = (cross_a * cross_b <= 0) & (cross_a != cross_b)
-    t = np.where(brackets, cross_a / np.where(cross_a != cross_b, cross_a - cross_b, 1.0), 0.0)
-    hit = a + t[..., None] * (b - a)
-    along = np.einsum("ikj,ij->ik", hit - q[:, None, :], d)
-    along = np.where(brackets & (along > 0), along, np.inf)
-    out = np.min(along, axis=1)
-    return np.where(np.isfinite(out), out, np.nan), side
+    axis3, edge = model.curve(height_mm, shadow)
+    along, seg = model.crossings(axis3, edge, shadow, n * side[:, None])
+    return along, side, seg
+
+
+def _forward_steps(x: np.ndarray, rel_step: float) -> np.ndarray:
+    """The forward steps scipy's least_squares takes for ``diff_step=rel_step`` (the
+    relative step, or sqrt(eps) max(1, |x|) where that vanishes), so a Jacobian supplied
+    to it is the one it would have computed."""
+    sign = np.where(x >= 0, 1.0, -1.0)
+    step = rel_step * sign * np.abs(x)
+    fallback = np.sqrt(np.finfo(np.float64).eps) * sign * np.maximum(1.0, np.abs(x))
+    return np.where((x + step) - x == 0, fallback, step)
 
 
 def _heights(plane_mm: np.ndarray, slope: np.ndarray) -> np.ndarray:
@@ -436,11 +534,30 @@ def estimate_lift_shadow(
     clear = np.isfinite(meas) & (meas > edges.silhouette_mm[rows, k_side] + edges.margin_mm)
     side = np.where(k_side == 0, 1.0, -1.0)
 
+    model = _edge_model(plane, pts_px, edges, radius)
+    line = edges.normal * side[:, None]
+    last: dict[str, np.ndarray] = {}
+
     def residual(x: np.ndarray, use: np.ndarray) -> np.ndarray:
         h = base + _heights(centred, x[2:] * 1e-2)
-        pred, _ = predict_shadow_edges_mm(plane, pts_px, edges, h, x[:2], radius, side)
+        pred, _, seg = _predict(model, h, x[:2], side)
+        last.update(x=x.copy(), pred=pred, seg=seg)
         res = np.where(np.isfinite(pred), meas - pred, SCORE_CLIP_MM)
         return np.where(use, res, 0.0)
+
+    def jacobian(x: np.ndarray, use: np.ndarray) -> np.ndarray:
+        """``residual``'s forward differences (least_squares' own steps for a relative
+        step DIFF_STEP), each crossing followed on the segment it lies on at ``x``."""
+        if "x" not in last or not np.array_equal(last["x"], x):
+            residual(x, use)
+        pred0, seg = last["pred"], last["seg"]
+        xs = x + np.diag(_forward_steps(x, DIFF_STEP))
+        dx = np.diag(xs) - x
+        rel = (xs[:, 2:] * 1e-2) @ centred.T
+        _, edge = model.curve(base + (rel - rel.min(axis=1, keepdims=True)), xs[:, :2])
+        pred = model.along_segments(edge, seg, line)
+        jac = ((meas - pred) - (meas - pred0)) / dx[:, None]
+        return np.where(use & np.isfinite(pred0) & np.isfinite(pred), jac, 0.0).T
 
     def usable(x: np.ndarray) -> np.ndarray:
         return clear.copy()
@@ -464,14 +581,16 @@ def estimate_lift_shadow(
         for _ in range(3):  # refit: the used edges follow the shadow's side; drop outliers
             if use.sum() < 20:
                 break
-            fit = least_squares(residual, x, args=(use,), x_scale=np.array([0.05, 0.05, 0.1, 0.1]),
-                                diff_step=1e-5, loss="soft_l1", f_scale=0.1)  # fmt: skip
-            x = fit.x
+            fit = least_squares(residual, x, jacobian, args=(use,), loss="soft_l1",
+                                f_scale=0.1, x_scale=np.array([0.05, 0.05, 0.1, 0.1]))  # fmt: skip
+            x, fitted = fit.x, use
             use = usable(x)
             res = residual(x, use)
             med = float(np.median(res[use])) if use.any() else 0.0
             mad = 1.4826 * float(np.median(np.abs(res[use] - med))) + 1e-6 if use.any() else 1.0
             use &= np.abs(res - med) < max(4.0 * mad, OUTLIER_MM)
+            if np.array_equal(use, fitted):  # the same edges: a refit starts at its minimum
+                break
         return x, use
 
     def score(x: np.ndarray) -> float:
@@ -495,8 +614,8 @@ def estimate_lift_shadow(
         if best is None or sc < best[0]:
             best = (sc, x_fit, use_fit)
     _, x, use = best
-    fit = least_squares(residual, x, args=(use,), x_scale=np.array([0.05, 0.05, 0.1, 0.1]),
-                        diff_step=1e-5)  # fmt: skip
+    fit = least_squares(residual, x, jacobian, args=(use,),
+                        x_scale=np.array([0.05, 0.05, 0.1, 0.1]))  # fmt: skip
     x = fit.x
     res = fit.fun[use]
     n_used = int(use.sum())

@@ -1,0 +1,68 @@
+"""The cast-shadow fit's parts (cvmeasure/part/shadow.py) without a photo: the model's edge
+on a straight wire against its closed form, and the Jacobian's forward steps against
+least_squares' own."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+import cvmeasure_datasets
+from cvmeasure.part.lift import points_at_heights_mm
+from cvmeasure.part.shadow import (
+    ShadowEdges,
+    _forward_steps,
+    predict_shadow_edges_mm,
+)
+from cvmeasure_datasets.optics import Pose
+from cvmeasure_datasets.round_wire import true_plane
+
+
+@pytest.mark.parametrize(
+    ("height_mm", "shadow"), [(1.5, (0.6, -0.5)), (4.5, (-0.3, 0.9)), (2.0, (0.0, 1.2))]
+)
+def test_a_straight_wires_outer_edge_is_the_closed_form(height_mm, shadow):
+    """A straight wire at height H, lamp s, normal n: the band's outer edge lies
+    H (n.s) + r sqrt(1 + (n.s)^2) from the axis (exact for the model, perspective
+    included). Asserted to 1e-9 mm on every sample, on the side sign(n.s)."""
+    plane = true_plane(
+        cvmeasure_datasets.default_camera().scaled(0.5),
+        Pose(tilt_deg=2.0, tilt_direction_deg=40.0, distance_mm=550.0, offset_mm=(30.0, -20.0)),
+    )
+    radius = 1.5
+    direction = np.array([np.cos(0.4), np.sin(0.4)])
+    axis_mm = np.array([10.0, -5.0]) + np.arange(-40.0, 40.0, 0.25)[:, None] * direction
+    heights = np.full(len(axis_mm), height_mm)
+    # the photo's pixels of the axis at its height (z = -H towards the camera)
+    xyz = np.column_stack((axis_mm, -heights))
+    px = plane.plane_to_image_px(xyz)
+    back = points_at_heights_mm(plane, px, heights)
+    assert np.abs(back - axis_mm).max() < 1e-6
+    index = np.arange(20, len(axis_mm) - 20, 2)
+    normal = np.tile([-direction[1], direction[0]], (len(index), 1))
+    nan = np.full((len(index), 2), np.nan)
+    edges = ShadowEdges(index, axis_mm[index], normal, nan, nan, nan)
+    s = np.asarray(shadow)
+    pred, side = predict_shadow_edges_mm(plane, px, edges, heights, s, radius)
+    ns = float(normal[0] @ s)
+    assert np.all(side == (1.0 if ns >= 0 else -1.0))
+    expected = height_mm * abs(ns) + radius * np.sqrt(1.0 + ns * ns)
+    assert np.abs(pred - expected).max() < 1e-9
+
+
+def test_the_fits_forward_steps_are_least_squares_own():
+    """The shadow fit supplies least_squares a forward-difference Jacobian with its
+    ``diff_step`` rule (relative, or sqrt(eps) max(1, |x|) where that vanishes): the same
+    matrix as least_squares computes itself (one evaluation, x unchanged), on a
+    nonlinear function where the step shows."""
+
+    def f(x):
+        return np.array([x[0] ** 2 + x[1], np.sin(x[2]) * x[3] ** 2, x[0] * x[3] ** 3])
+
+    for x0 in (np.array([0.0, -0.37, 2.5, 1e-7]), np.array([-3.0, 0.2, -1e-12, 250.0])):
+        ref = least_squares(f, x0, diff_step=1e-5, max_nfev=1)
+        assert np.array_equal(ref.x, x0)
+        xs = x0 + np.diag(_forward_steps(x0, 1e-5))
+        jac = np.column_stack([(f(xi) - f(x0)) / (xi[i] - x0[i]) for i, xi in enumerate(xs)])
+        assert np.allclose(jac, ref.jac, rtol=1e-12, atol=0.0)
