@@ -543,7 +543,7 @@ def estimate_lift_shadow(
         slope=(float(slope[0]), float(slope[1])),
         slope_cov=slope_cov,
         lift_mm=float(height.max()),
-        lift_sigma_mm=float(np.sqrt(max(span @ slope_cov @ span, 0.0))),
+        lift_sigma_mm=_height_sigma_mm(full_centred, slope_cov, span),
         samples=n_used,
         width_scale=float("nan"),
     )
@@ -558,6 +558,19 @@ def estimate_lift_shadow(
         samples=n_used,
         length_mm=length,
     )
+
+
+def _height_sigma_mm(points_mm: np.ndarray, slope_cov: np.ndarray, span: np.ndarray) -> float:
+    """The lift's standard uncertainty: the largest of the tilt's uncertainty between any
+    two points of the part (``points_mm`` (M, 2), ``slope_cov`` (2, 2) per mm^2), at least
+    along ``span`` (lowest to highest point). Where the fitted tilt is small its direction is
+    not known, so which points are highest is not either: the lift's error is the heights'
+    error anywhere on the part, not only between the two points the estimate happens to
+    name."""
+    sub = points_mm[:: max(1, len(points_mm) // 200)]
+    d = sub[:, None, :] - sub[None, :, :]
+    q = np.einsum("ijk,kl,ijl->ij", d, slope_cov, d)
+    return float(np.sqrt(max(float(q.max()), float(span @ slope_cov @ span), 0.0)))
 
 
 def _with(base: ShadowLift, message: str) -> ShadowLift:
