@@ -395,7 +395,11 @@ def estimate_lift_shadow(
 
     ``points_px`` (M, 2): the wire's centreline in the photo (silhouette centres), ordered;
     ``axis_height_mm``: the axis' height where the part rests (default the radius). The
-    standard uncertainties count one independent edge per wire diameter along the part.
+    standard uncertainties count one independent edge per wire diameter along the part, or
+    the residuals' own correlation along the wire when it says less (a textured plate), plus
+    an edge bias (common, and drifting across the plate) no smaller than the edges' rms; the
+    Jacobian by central differences over physical steps; the lift's sigma is the tilt's
+    uncertainty between any two points of the part.
     """
     from scipy.optimize import least_squares
 
