@@ -493,7 +493,11 @@ def estimate_lift_shadow(
 
     ``points_px`` (M, 2): the wire's centreline in the photo (silhouette centres), ordered;
     ``axis_height_mm``: the axis' height where the part rests (default the radius). The
-    standard uncertainties count one independent edge per wire diameter along the part.
+    standard uncertainties count one independent edge per wire diameter along the part, or
+    the residuals' own correlation along the wire when it says less (a textured plate), plus
+    an edge bias (common, and drifting across the plate) no smaller than the edges' rms; the
+    Jacobian by central differences over physical steps; the lift's sigma is the tilt's
+    uncertainty between any two points of the part.
     """
     from scipy.optimize import least_squares
 
@@ -621,16 +625,37 @@ def estimate_lift_shadow(
     n_used = int(use.sum())
     if n_used < 20:
         return _with(empty, "too few shadow edges clear of the wire")
-    jac = fit.jac[use]
+    # the covariance's Jacobian by central differences over physical steps (a lamp's shadow
+    # vector by 0.01 mm/mm, the tilt by 0.5 mm/m): the optimiser's own forward differences
+    # at 1e-5 can land on a kink of the crossing (a column of zeros, or a jump) and state a
+    # sigma of nothing
+    steps = np.array([0.01, 0.01, 0.05, 0.05])
+    jac = np.column_stack([
+        (residual(x + h * e, use) - residual(x - h * e, use))[use] / (2.0 * h)
+        for h, e in zip(steps, np.eye(4), strict=True)
+    ])  # fmt: skip
     sigma2 = float(np.sum(res**2) / max(n_used - 4, 1))
     along = edges.axis_mm[use]
     length = float(np.sum(np.hypot(*np.diff(along, axis=0).T)))
     n_eff = max(4.0, min(n_used, length / wire_diameter_mm))
-    cov_stat = np.linalg.pinv(jac.T @ jac) * sigma2 * n_used / n_eff
-    # the edges' common bias (blur, penumbra and tone curve move every edge alike): its
-    # effect on the parameters, added as a systematic term
-    bias_shift = np.linalg.pinv(jac) @ np.full(n_used, EDGE_BIAS_MM)
-    cov = cov_stat + np.outer(bias_shift, bias_shift)
+    pinv = np.linalg.pinv(jac)
+    cov_stat = pinv @ pinv.T * sigma2 * n_used / n_eff
+    # the edges' errors are correlated along the wire where a texture (a stain, the grain)
+    # moves neighbouring edges alike: their covariance from the residuals' own correlation
+    pos = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(along, axis=0).T))))
+    cov_corr = _correlated_cov(pinv, res, pos)
+    cov_stat = np.maximum(cov_stat, cov_corr) if np.all(np.diag(cov_corr) > 0) else cov_stat
+    # the edges' bias: blur, penumbra and tone curve move every edge alike, and the plate's
+    # texture and light (vignetting, defocus) drift across it; a texture that scatters the
+    # edges by their rms moves them by as much over a stain, so the bias is not known
+    # better than that scatter (clean renders: 0.02-0.06 mm, below EDGE_BIAS_MM)
+    bias = max(EDGE_BIAS_MM, float(np.sqrt(sigma2)))
+    half = 0.5 * np.maximum(np.ptp(along, axis=0), 1e-9)
+    drift = (along - 0.5 * (along.max(axis=0) + along.min(axis=0))) / half
+    cov = cov_stat.copy()
+    for pattern in (np.ones(n_used), drift[:, 0], drift[:, 1]):
+        shift = pinv @ (bias * pattern)
+        cov += np.outer(shift, shift)
     slope = x[2:] * 1e-2
     slope_cov = cov[2:, 2:] * 1e-4
     height = _heights(full_centred, slope)
@@ -641,7 +666,7 @@ def estimate_lift_shadow(
         slope=(float(slope[0]), float(slope[1])),
         slope_cov=slope_cov,
         lift_mm=float(height.max()),
-        lift_sigma_mm=float(np.sqrt(max(span @ slope_cov @ span, 0.0))),
+        lift_sigma_mm=_height_sigma_mm(full_centred, slope_cov, span),
         samples=n_used,
         width_scale=float("nan"),
     )
@@ -658,5 +683,48 @@ def estimate_lift_shadow(
     )
 
 
+def _height_sigma_mm(points_mm: np.ndarray, slope_cov: np.ndarray, span: np.ndarray) -> float:
+    """The lift's standard uncertainty: the largest of the tilt's uncertainty between any
+    two points of the part (``points_mm`` (M, 2), ``slope_cov`` (2, 2) per mm^2), at least
+    along ``span`` (lowest to highest point). Where the fitted tilt is small its direction is
+    not known, so which points are highest is not either: the lift's error is the heights'
+    error anywhere on the part, not only between the two points the estimate happens to
+    name."""
+    sub = points_mm[:: max(1, len(points_mm) // 200)]
+    d = sub[:, None, :] - sub[None, :, :]
+    q = np.einsum("ijk,kl,ijl->ij", d, slope_cov, d)
+    return float(np.sqrt(max(float(q.max()), float(span @ slope_cov @ span), 0.0)))
+
+
 def _with(base: ShadowLift, message: str) -> ShadowLift:
     return replace(base, message=message)
+
+
+def _residual_correlation(
+    res: np.ndarray, pos_mm: np.ndarray, bin_mm: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The residuals' autocorrelation against their distance along the wire (bins of ``bin_mm``),
+    cut at its first non-positive bin."""
+    r = res - res.mean()
+    var = float(np.mean(r * r)) + 1e-18
+    lag = np.abs(pos_mm[:, None] - pos_mm[None, :])
+    b = np.floor(lag / bin_mm + 0.5).astype(int)
+    nb = int(min(b.max(), 0.5 * (pos_mm[-1] - pos_mm[0]) / bin_mm)) + 1
+    prod = r[:, None] * r[None, :]
+    sums = np.bincount(b.ravel(), weights=prod.ravel(), minlength=nb + 1)[:nb]
+    counts = np.bincount(b.ravel(), minlength=nb + 1)[:nb]
+    rho = sums / np.maximum(counts, 1) / var
+    rho[0] = 1.0
+    bad = np.nonzero(rho[1:] <= 0.0)[0]
+    if len(bad):
+        rho[bad[0] + 1 :] = 0.0
+    return np.arange(nb) * bin_mm, rho
+
+
+def _correlated_cov(pinv: np.ndarray, res: np.ndarray, pos_mm: np.ndarray) -> np.ndarray:
+    """The parameters' covariance (``pinv`` the Jacobian's pseudo-inverse) with the residuals'
+    correlation along the wire (``pos_mm``) counted."""
+    lags, rho = _residual_correlation(res, pos_mm)
+    var = float(np.mean((res - res.mean()) ** 2))
+    c = var * np.interp(np.abs(pos_mm[:, None] - pos_mm[None, :]), lags, rho, right=0.0)
+    return pinv @ c @ pinv.T
