@@ -192,14 +192,7 @@ class _Transform:
 
         One call of the mapping for all three (it maps each point on its own).
         """
-        x, y = xy
-        pts = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
-        if self.func is None:
-            return np.eye(2), np.array([x, y], dtype=np.float64), pts
-        p = np.vstack(([[x + h, y], [x - h, y], [x, y + h], [x, y - h], [x, y]], pts))
-        q = self(p)
-        jac = np.column_stack(((q[0] - q[1]) / (2 * h), (q[2] - q[3]) / (2 * h)))
-        return jac, q[4], q[5:]
+        return self.mapped_with_jacobians([xy], [pts], h)[0]
 
     def mapped_with_jacobians(
         self, xys: list[tuple[float, float]], pts: list[np.ndarray], h: float = 0.5
