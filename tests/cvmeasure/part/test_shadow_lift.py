@@ -8,12 +8,15 @@ import numpy as np
 import pytest
 
 import cvmeasure_datasets
+from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_centreline_mm
 from cvmeasure.part.shadow import estimate_lift_shadow
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
 WIRE_MM = 3.0
+#: The photo lab's board in its part scenes (real_scenes' part rows).
+LAB_BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
 POSE = Pose(tilt_deg=1.5, tilt_direction_deg=70.0, distance_mm=550.0, offset_mm=(30.0, -20.0))
 
 
@@ -100,14 +103,11 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
     assert "--shadow-lift" in capsys.readouterr().err
 
 
-def _lab_photo(seed: int, i: int, lift_mm: float):
+def _lab_render(seed: int, i: int, effects):
     """The photo lab's part scene (real_scenes' part rows' recipe at a development seed,
-    not the benchmark's 1400), half size: lamp 49.6 deg up, shadow 35 % of the light."""
-    from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure_datasets.effects import SceneEffects
-
-    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    bw, bh = board.size_mm
+    not the benchmark's 1400), half size, with ``effects``: lamp 49.6 deg up, shadow 35 %
+    of the light; a dark sheet for even ``i``, a light one for odd."""
+    bw, bh = LAB_BOARD.size_mm
     rng = np.random.default_rng([seed, 77, i])
     part = cvmeasure_datasets.arc_part(
         float(rng.uniform(45.0, 85.0)), float(rng.choice([90.0, 120.0, 150.0])),
@@ -117,12 +117,19 @@ def _lab_photo(seed: int, i: int, lift_mm: float):
         tilt_deg=float(rng.uniform(0.0, 4.0)), tilt_direction_deg=float(rng.uniform(0.0, 360.0)),
         distance_mm=900.0, offset_mm=((bw + 10.0 + 250.0 - 20.0) / 2 + 10.0, bh / 2),
     )  # fmt: skip
-    photo = cvmeasure_datasets.render_part_photo(
-        part=part, board=board, sheet="dark" if i % 2 == 0 else "light", pose=pose,
-        seed=seed + 300 + i, scale=0.5, effects=SceneEffects(wire_3d=True, part_lift_mm=lift_mm),
+    return cvmeasure_datasets.render_part_photo(
+        part=part, board=LAB_BOARD, sheet="dark" if i % 2 == 0 else "light", pose=pose,
+        seed=seed + 300 + i, scale=0.5, effects=effects,
     )  # fmt: skip
+
+
+def _lab_photo(seed: int, i: int, lift_mm: float):
+    """:func:`_lab_render` with the 3D wire lifted ``lift_mm``, and its centreline."""
+    from cvmeasure_datasets.effects import SceneEffects
+
+    photo = _lab_render(seed, i, SceneEffects(wire_3d=True, part_lift_mm=lift_mm))
     plane, _, centre, _ = measure_centreline_mm(
-        photo.bgr, board, photo.camera, wire_diameter_mm=WIRE_MM
+        photo.bgr, LAB_BOARD, photo.camera, wire_diameter_mm=WIRE_MM
     )
     return photo, plane, centre
 
@@ -149,12 +156,11 @@ def test_the_photo_labs_lifted_part_is_corrected_from_its_shadow():
     1.51 +- 0.27 mm (measured; 1.8 sigma low) and the corrected radius is -0.044 %.
     Asserted: corrected, the lift within 2 sigma + 0.1 mm of 2, the radius within issue
     14's 0.3 %."""
-    from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.part.measure import measure_part
 
     photo, _, _ = _lab_photo(2101, 1, 2.0)
     m = measure_part(
-        photo.bgr, CharucoBoardSpec(14, 10, 20.0, 15.0), photo.camera,
+        photo.bgr, LAB_BOARD, photo.camera,
         divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
     )  # fmt: skip
     assert m.lift is not None and m.lift["used"] == "correction", m.lift
@@ -199,29 +205,13 @@ def test_a_textured_lab_sheet_is_not_corrected_silently_wrong():
     2.18 +- 0.83 mm, bounded. Asserted: not corrected unless within 2 sigma of the truth."""
     from dataclasses import replace
 
-    from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.part.measure import measure_part
     from cvmeasure_datasets.effects import SceneEffects
 
-    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    bw, bh = board.size_mm
-    seed, i = 2000, 1
-    rng = np.random.default_rng([seed, 77, i])
-    part = cvmeasure_datasets.arc_part(
-        float(rng.uniform(45.0, 85.0)), float(rng.choice([90.0, 120.0, 150.0])),
-        int(rng.integers(6, 10)), wire_diameter_mm=WIRE_MM,
-    )  # fmt: skip
-    pose = Pose(
-        tilt_deg=float(rng.uniform(0.0, 4.0)), tilt_direction_deg=float(rng.uniform(0.0, 360.0)),
-        distance_mm=900.0, offset_mm=((bw + 10.0 + 250.0 - 20.0) / 2 + 10.0, bh / 2),
-    )  # fmt: skip
-    photo = cvmeasure_datasets.render_part_photo(
-        part=part, board=board, sheet="light", pose=pose, seed=seed + 300 + i, scale=0.5,
-        effects=replace(SceneEffects.all_on(), part_lift_mm=0.0),
-    )  # fmt: skip
+    photo = _lab_render(2000, 1, replace(SceneEffects.all_on(), part_lift_mm=0.0))  # light
     m = measure_part(
-        photo.bgr, board, photo.camera, divisions=part.divisions, wire_diameter_mm=WIRE_MM,
-        shadow_lift=True,
+        photo.bgr, LAB_BOARD, photo.camera,
+        divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
     )  # fmt: skip
     assert m.lift is not None
     if m.lift["used"] == "correction":
