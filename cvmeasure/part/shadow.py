@@ -147,9 +147,17 @@ class ShadowLift:
 
 
 def _unit_normals(points_mm: np.ndarray) -> np.ndarray:
-    """Unit normals (..., M, 2), left of travel, of polylines (..., M, 2)."""
-    t = np.gradient(points_mm, axis=-2)
-    t /= np.maximum(np.linalg.norm(t, axis=-1), 1e-12)[..., None]
+    """Unit normals (..., M, 2), left of travel, of polylines (..., M, 2) (M >= 2).
+
+    The tangent is ``np.gradient``'s (central differences, one-sided at the ends), written
+    out: the shadow fit calls this on every step, where np.gradient's and norm's per-call
+    overhead is most of the cost.
+    """
+    t = np.empty_like(points_mm, dtype=np.float64)
+    t[..., 1:-1, :] = (points_mm[..., 2:, :] - points_mm[..., :-2, :]) / 2.0
+    t[..., 0, :] = points_mm[..., 1, :] - points_mm[..., 0, :]
+    t[..., -1, :] = points_mm[..., -1, :] - points_mm[..., -2, :]
+    t /= np.maximum(np.sqrt(t[..., 0] * t[..., 0] + t[..., 1] * t[..., 1]), 1e-12)[..., None]
     return np.stack((-t[..., 1], t[..., 0]), axis=-1)
 
 
@@ -352,16 +360,10 @@ class _EdgeModel:
         h = height_mm[..., None]
         axis3 = self.at0_mm + h * self.per_mm
         sc = axis3 + h * shadow[..., None, :]
-        # the shadow curve's unit normals (as _unit_normals, written out: called per step)
-        t = np.empty_like(sc)
-        t[..., 1:-1, :] = (sc[..., 2:, :] - sc[..., :-2, :]) / 2.0
-        t[..., 0, :] = sc[..., 1, :] - sc[..., 0, :]
-        t[..., -1, :] = sc[..., -1, :] - sc[..., -2, :]
-        t /= np.maximum(np.sqrt(t[..., 0] * t[..., 0] + t[..., 1] * t[..., 1]), 1e-12)[..., None]
-        ms = t[..., 0] * shadow[..., 1:] - t[..., 1] * shadow[..., :1]
+        m = _unit_normals(sc)  # the shadow curve's
+        ms = m[..., 1] * shadow[..., 1:] + m[..., 0] * shadow[..., :1]
         scale = np.where(ms >= 0, 1.0, -1.0) * self.radius_mm * np.sqrt(1.0 + ms * ms)
-        edge = np.stack((sc[..., 0] - scale * t[..., 1], sc[..., 1] + scale * t[..., 0]), axis=-1)
-        return axis3, edge
+        return axis3, sc + scale[..., None] * m
 
     def crossings(
         self, axis3: np.ndarray, edge: np.ndarray, shadow: np.ndarray, d: np.ndarray
