@@ -11,6 +11,8 @@ XYZ with the white at Y = 1.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -22,6 +24,7 @@ __all__ = [
     "SRGB8_TO_LINEAR",
     "srgb_decode",
     "srgb_encode",
+    "srgb_encode_floats",
     "xyz_to_lab_d65",
     "srgb8_to_lab_d65",
 ]
@@ -51,6 +54,16 @@ def srgb_encode(v: ArrayLike, *, clip: bool = True) -> np.ndarray:
         v = v.astype(np.float64)
     v = np.clip(v, 0.0, 1.0) if clip else np.maximum(v, 0.0)
     return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055)
+
+
+def srgb_encode_floats(values: Iterable[float]) -> tuple[float, ...]:
+    """:func:`srgb_encode` (clipped to 0..1) of a few Python floats, by scalar arithmetic:
+    for a handful of values numpy's per-call overhead is most of the cost."""
+    out = []
+    for v in values:
+        v = min(max(float(v), 0.0), 1.0)
+        out.append(12.92 * v if v <= 0.0031308 else 1.055 * v ** (1 / 2.4) - 0.055)
+    return tuple(out)
 
 
 #: 8-bit gamma-encoded value -> linear, float32 (a lookup table for cv2.LUT).

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode
+from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode, srgb_encode_floats
 from cvmeasure.geometry import median_by_partition
 
 __all__ = [
@@ -137,13 +137,9 @@ class EdgePoints:
 
 
 def _encode8(linear: np.ndarray) -> tuple[float, float, float]:
-    """8-bit sRGB (0..255, float) of three linear values: ``colorimetry.srgb_encode`` (clipped to
-    0..1) times 255, by scalar arithmetic (numpy's per-call overhead is most of it for 3)."""
-    out = []
-    for v in linear.tolist():
-        v = min(max(v, 0.0), 1.0)
-        out.append(255.0 * (12.92 * v if v <= 0.0031308 else 1.055 * v ** (1 / 2.4) - 0.055))
-    return out[0], out[1], out[2]
+    """8-bit sRGB (0..255, float) of three linear values (:func:`srgb_encode_floats`)."""
+    r, g, b = (255.0 * e for e in srgb_encode_floats(linear.tolist()))
+    return r, g, b
 
 
 def _row_medians(a: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ from cvmeasure.colorimetry import (
     srgb8_to_lab_d65,
     srgb_decode,
     srgb_encode,
+    srgb_encode_floats,
     xyz_to_lab_d65,
 )
 
@@ -19,6 +20,13 @@ def test_transfer_functions_match_colour_science_and_invert():
     np.testing.assert_allclose(SRGB8_TO_LINEAR, srgb_decode(np.arange(256) / 255), atol=1e-7)
     assert srgb_decode(np.float32([0.5])).dtype == np.float32
     assert srgb_encode(np.array([2.0]), clip=False)[0] > 1.0
+
+
+def test_the_scalar_encode_is_the_array_encode():
+    """srgb_encode_floats (a few Python floats, the marker refinement's disc and ring
+    colours) agrees with srgb_encode, clipping included, to 1e-15."""
+    v = np.concatenate(([-0.5, 0.0, 0.0031308, 1.0, 1.7], np.linspace(0.0, 1.0, 997)))
+    np.testing.assert_allclose(srgb_encode_floats(v.tolist()), srgb_encode(v), rtol=0, atol=1e-15)
 
 
 def test_lab_matches_colour_science_on_random_colours():
