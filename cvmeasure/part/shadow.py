@@ -264,14 +264,34 @@ def _less_wire_halo(
         return q
     step = float(u[1] - u[0])
     bins = np.arange(0.0, float(u[~far][-1]), step)
-    leak = np.zeros(len(bins))
-    qs, vs = q[lit], v[lit]
-    for j, b in enumerate(bins):
-        vals = np.array([np.interp(b, vv, qq - 1.0) for vv, qq in zip(vs, qs, strict=True)])
-        vals = vals[np.isfinite(vals)]
-        leak[j] = float(np.median(vals)) if len(vals) else 0.0
+    vals = _interp_rows(bins, v[lit], q[lit] - 1.0)  # (lit profiles, bins)
+    finite = np.isfinite(vals)
+    # the median over the profiles with a value at each bin (0 where none has one)
+    ordered = np.sort(np.where(finite, vals, np.inf), axis=0)
+    count = finite.sum(axis=0)
+    cols = np.arange(len(bins))
+    lo = ordered[np.maximum((count - 1) // 2, 0), cols]
+    hi = ordered[np.maximum(count // 2, 0), cols]
+    leak = np.where(count > 0, 0.5 * (lo + hi), 0.0)
     leak[bins > float(u[~far][-1]) - 1.0] = 0.0
     return q - np.interp(v, bins, leak, left=0.0, right=0.0)
+
+
+def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """``np.interp(x, xp[i], fp[i])`` for every row ``i`` at once: (N, X) from ``x`` (X,)
+    and ``xp``, ``fp`` (N, P), each ``xp`` row increasing. As np.interp: the end values
+    outside ``xp``, NaN where a bracketing value is NaN."""
+    n, p = xp.shape
+    j = np.empty((n, len(x)), dtype=np.intp)
+    for i in range(n):  # one searchsorted per row (not per point)
+        j[i] = np.searchsorted(xp[i], x, side="right") - 1
+    jc = np.clip(j, 0, p - 2)
+    rows = np.arange(n)[:, None]
+    x0, x1 = xp[rows, jc], xp[rows, jc + 1]
+    f0, f1 = fp[rows, jc], fp[rows, jc + 1]
+    out = (f1 - f0) / (x1 - x0) * (x[None, :] - x0) + f0
+    out = np.where(j < 0, fp[:, :1], out)
+    return np.where(j >= p - 1, fp[:, -1:], out)
 
 
 def _fit_shadow_ramps(
