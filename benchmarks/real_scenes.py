@@ -329,6 +329,8 @@ def _part_rows(args, scale, camera, n):
     for row, fx in rows_fx.items():
         radius_err, bend_err, refused, warned, z, bound = [], [], 0, [], [], []
         moved = {"radius": [], "bend": [], "refused": 0, "warned": [], "lift": []}
+        width = {"radius": [], "bend": [], "refused": 0, "warned": []}
+        shadow_read = []  # the default's lift: corrected from the shadow (mm) or "bound"
         for i in range(n):
             rng = np.random.default_rng([args.seed, 77, i])
             part = arc_part(
@@ -375,8 +377,30 @@ def _part_rows(args, scale, camera, n):
                 z += list(np.abs(vb_err) / np.asarray(m.vertex_bend_sigma_deg))
             if m.lift is not None:
                 bound.append(float(m.lift["effect_radius_pct"]))
+                shadow_read.append(
+                    round(float(m.lift["lift_mm"]), 2)
+                    if m.lift.get("source") == "shadow"
+                    else "bound"
+                )
             if not fx.wire_3d:
                 continue
+            # the same photo with the lift only bounded from the width (--no-shadow-lift)
+            try:
+                m0 = measure_part(
+                    photo.bgr, board, camera, divisions=part.divisions, axis_height_mm=None,
+                    wire_diameter_mm=part.wire_diameter_mm, shadow_lift=False,
+                )  # fmt: skip
+            except InputError as exc:
+                print(f"part {row} photo {i} with --no-shadow-lift: refused ({exc})", flush=True)
+                width["refused"] += 1
+            else:
+                width["warned"] += [
+                    w.split(":")[0] for w in m0.warnings if w.split(":")[0] in PART_WARNINGS
+                ]
+                width["radius"].append(100.0 * (m0.result.radius_mm / truth["radius_mm"] - 1.0))
+                width["bend"].append(
+                    m0.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions
+                )
             # the same part slid on the sheet: the two-photo lift (same seed: same placement)
             second = render_part_photo(
                 part=part, board=board, sheet="dark" if i % 2 == 0 else "light", pose=pose,
@@ -412,6 +436,8 @@ def _part_rows(args, scale, camera, n):
             "z": z,
             "lift_bound_radius_pct": bound,
             "moved": moved,
+            "width": width,
+            "shadow_read": shadow_read,
         }
         print(f"part {row}: radius {radius_err} bend {bend_err} warned {warned}", flush=True)
     return out
@@ -494,6 +520,10 @@ def main(argv: list[str] | None = None) -> dict:
                 _worst(r["moved"]["bend"]),
                 ", ".join(r["moved"]["warned"]) or "-",
                 ", ".join(str(v) for v in r["moved"]["lift"]) or "-",
+                ", ".join(str(v) for v in r["shadow_read"]) or "-",
+                _worst(r["width"]["radius"]),
+                _worst(r["width"]["bend"]),
+                ", ".join(r["width"]["warned"]) or "-",
             ]
         )
     occ_table = [
@@ -583,6 +613,17 @@ def main(argv: list[str] | None = None) -> dict:
             "deg",
             BEND_TARGET_DEG,
         ),
+        Metric(
+            "part radius error (worst), all effects together, one photo with --no-shadow-lift",
+            _worst(part_all["width"]["radius"]),
+            "%",
+        ),
+        Metric(
+            "part segment bend error (worst), all effects together, one photo with "
+            "--no-shadow-lift",
+            _worst(part_all["width"]["bend"]),
+            "deg",
+        ),
         Metric.at_most(
             f"part radius error (worst), all effects together, two photos (slid "
             f"{PART_SHIFT_MM:.0f} mm)",
@@ -666,6 +707,10 @@ def main(argv: list[str] | None = None) -> dict:
                     "two photos: segment bend err deg",
                     "two photos: warned",
                     "two photos: lift read mm",
+                    "one photo: lift from the shadow mm (or bound)",
+                    "--no-shadow-lift: radius err %",
+                    "--no-shadow-lift: segment bend err deg",
+                    "--no-shadow-lift: warned",
                 ],
                 part_table,
             ),
@@ -722,7 +767,9 @@ def main(argv: list[str] | None = None) -> dict:
             "silently wrong: |error| > 3 sigma and no warning at all.",
             "parts: measure_part with the chord count and, when the wire is round, its "
             "3 mm diameter (centreline between the silhouette edges, axis at the wire's "
-            "radius, lift bounded from the edges' width); 'warned' lists round_wire_edges_lost, "
+            "radius; the default: the lift read from the wire's cast shadow and corrected when "
+            "its 2 sigma <= 1 mm, else bounded from the edges' width); '--no-shadow-lift': the "
+            "same photos with shadow_lift=False (the lift only bounded); 'warned' lists round_wire_edges_lost, "
             "part_lifted and part_end_uncertain; the lifted part's truth is the rigid part's own "
             "radius and bends. 'two photos': the round-wire rows measured again with a second "
             f"photo of the part slid {PART_SHIFT_MM:.0f} mm along the board's y "

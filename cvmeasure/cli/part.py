@@ -65,13 +65,25 @@ def register(sub: argparse._SubParsersAction) -> None:
         "views' perspective difference and corrected (needs the wire's diameter); when the "
         "part was not moved, a warning says so and the lift is only bounded",
     )
-    p.add_argument(
+    shadow = p.add_mutually_exclusive_group()
+    shadow.add_argument(
         "--shadow-lift",
-        action="store_true",
+        dest="shadow_lift",
+        action="store_const",
+        const=True,
+        default=None,
         help="one photo: measure the part's lift from the wire's cast shadow (lamp and tilt "
         "fitted over the whole wire) and correct it when its 2 sigma is at most 1 mm, else "
-        "bound it as without (needs the wire's diameter; not with --moved; off by default: "
-        "checked on ray-traced renders only, docs/part-measurement.md)",
+        "bound it as without (needs the wire's diameter; not with --moved). The default "
+        "with the wire's diameter and one photo; this flag only insists on it",
+    )
+    shadow.add_argument(
+        "--no-shadow-lift",
+        dest="shadow_lift",
+        action="store_const",
+        const=False,
+        help="one photo: do not read the lift from the cast shadow; only bound it from the "
+        "wire's apparent width (the behaviour before the shadow was the default)",
     )
     p.add_argument(
         "--axis-height-mm",
@@ -149,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         wire_diameter_mm=diameter,
         moved_image=moved,
         plane=plane,
-        shadow_lift=args.shadow_lift,
+        shadow_lift=args.shadow_lift is not False,
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:

@@ -712,7 +712,7 @@ def measure_part(
     max_lift_mm: float = MAX_LIFT_MM,
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
-    shadow_lift: bool = False,
+    shadow_lift: bool = True,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -734,12 +734,13 @@ def measure_part(
     wire_diameter_mm : the wire's diameter (e.g. the kit's ``wire_diameter_mm``).
         With it the centreline lies between the wire's two silhouette edges (not
         on a side-lit highlight or a shadow's edge) and the part's lift off the
-        plate is estimated from the wire's apparent width and bounded
-        (:mod:`cvmeasure.part.lift`, ``max_lift_mm``): the worst effect of that lift
-        on the radius and the bends is reported under ``lift``, half of it is added
-        to the vertex bends' sigmas, and it is warned about (``part_lifted``) when it
-        exceeds 0.3 % or 0.03 deg. Not corrected: neither the width nor the cast
-        shadow measures a lift of 0-3 mm well enough (docs/part-measurement.md).
+        plate is measured from the wire's cast shadow and corrected where that is
+        good enough (``shadow_lift``), else estimated from the wire's apparent width
+        and bounded (:mod:`cvmeasure.part.lift`, ``max_lift_mm``): the worst effect of
+        the lift (or of its correction's uncertainty) on the radius and the bends is
+        reported under ``lift``, half of it is added to the vertex bends' sigmas, and it
+        is warned about (``part_lifted``) when it exceeds 0.3 % or 0.03 deg
+        (docs/part-measurement.md).
     plane : the plane measured elsewhere (``cvmeasure plane``); then ``board`` is
         only left out of the wire search and may be None, ``camera`` is unused.
     max_lift_mm : with ``wire_diameter_mm``, the largest lift the part may rock to
@@ -755,8 +756,8 @@ def measure_part(
     shadow_lift : with ``wire_diameter_mm`` and one photo (no ``moved_image``), measure the
         lift from the wire's cast shadow (:func:`cvmeasure.part.shadow.estimate_lift_shadow`)
         and correct it when its 2 sigma is at most :data:`SHADOW_MAX_2SIGMA_MM`; else (no
-        clear shadow, a wider uncertainty) the lift is bounded as without it. Off by
-        default: measured on development renders only (docs/part-measurement.md).
+        clear shadow, a wider uncertainty, e.g. a textured sheet) the lift is bounded as
+        without it. On by default; False bounds the lift from the width only.
     moved_plane : the second photo's plane (default: ``plane`` when given, else measured
         from the board in ``moved_image``).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or

@@ -96,6 +96,10 @@ class ShadowEdges:
     silhouette_mm : (K, 2) where the plate starts to be seen beyond the wire on each side
         (the silhouette generators' rays on the plate), mm along ``+-normal``.
     contrast : (K, 2) (plate - shadow) / plate, linear light.
+    texture_mm : (K, D) the sheet's own contribution to each sample's edge, D draws (mm):
+        a shadow step like the fitted one (depth, penumbra, gap beyond the silhouette)
+        laid on the bare sheet beside the wire (the profile's lit side) and measured
+        the same way, less where it was laid; NaN where not measured.
     """
 
     index: np.ndarray
@@ -105,6 +109,7 @@ class ShadowEdges:
     silhouette_mm: np.ndarray
     contrast: np.ndarray
     margin_mm: float = MIN_GAP_MM
+    texture_mm: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -240,8 +245,66 @@ def measure_shadow_edges(
     # the wire's own blurred edge reaches this far beyond its silhouette (mm)
     margin = max(WIRE_BLUR_MARGIN_MM, WIRE_BLUR_MARGIN_PX * plane.mm_per_px)
     q = _less_wire_halo(u, q, silhouette.T, margin, far)
-    offsets, contrast = _fit_shadow_ramps(u, q, silhouette.T + margin, far)
-    return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin)
+    start = silhouette.T + margin
+    offsets, contrast, k_w = _fit_ramps(u, q, start, far)
+    texture = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
+    return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin, texture)
+
+
+#: The sheet's own edge errors (:func:`_texture_edge_errors`) are clipped at this (mm) before
+#: they widen the fit's uncertainty: a laid step lost in clutter or in another shadow says
+#: no more than a large error. 0.15 mm (the outlier limit) left the textured lab sheets' lifts
+#: 4-7 sigma off (dev seeds 2000-2020); 1 mm keeps what a dark textured sheet does (0.2-0.5 mm).
+TEXTURE_CLIP_MM = 1.0
+#: The texture draws: the synthetic step's gap beyond the silhouette moved by these (mm),
+#: each laid on the lit side of its own sample and of the sample mirrored along the wire.
+TEXTURE_GAP_SHIFTS_MM = (-0.6, 0.0, 0.6)
+
+
+def _texture_edge_errors(
+    u: np.ndarray,
+    q: np.ndarray,
+    start_mm: np.ndarray,
+    far: np.ndarray,
+    offsets: np.ndarray,
+    contrast: np.ndarray,
+    k_w: tuple[float, float] | None,
+) -> np.ndarray | None:
+    """(K, D): the edge errors the sheet itself makes, from its bare stretch beside the wire.
+
+    Each sample's lit side (the side without the shadow's edge) is bare sheet (less the
+    wire's halo) beyond ``start_mm``: the fitted shadow step (depth and penumbra ``k_w``) is
+    laid on it at the shadow side's gap beyond the silhouette (moved by
+    :data:`TEXTURE_GAP_SHIFTS_MM`; once with the sample's own lit profile, once with the
+    profile of the sample mirrored along the wire), all are measured by the same fit (its
+    own depth and penumbra) and the measured edges less the laid ones are returned: the
+    texture's and light's share of the edges' errors, at the wire's own positions. None
+    when there is no shadow."""
+    if k_w is None:
+        return None
+    k, w = k_w
+    n = offsets.shape[1]
+    have = np.isfinite(offsets)
+    shadow_side = np.where(have[0] & (~have[1] | (contrast[0] >= contrast[1])), 0, 1)
+    rows = np.arange(n)
+    gap = offsets[shadow_side, rows] - start_mm[shadow_side, rows]
+    if not np.isfinite(gap).any():
+        return None
+    gap = np.where(np.isfinite(gap), gap, np.nanmedian(gap))
+    draws = []
+    for pair in (rows, rows[::-1]):
+        lit = 1 - shadow_side[pair]
+        q_lit = q[lit, pair]  # (K, U)
+        start_lit = start_mm[lit, pair]
+        for shift in TEXTURE_GAP_SHIFTS_MM:
+            e_syn = start_lit + np.maximum(gap + shift, 0.5 * w)
+            ramp = np.clip(0.5 - (u[None, :] - e_syn[:, None]) / w, 0.0, 1.0)
+            q_inj = np.full((2, *q_lit.shape), np.nan)
+            q_inj[0] = q_lit * (1.0 - k * ramp)
+            starts = np.stack((start_lit, np.full(n, np.inf)))
+            e_fit, _, _ = _fit_ramps(u, q_inj, starts, far, min_depth=0.5 * k)
+            draws.append(e_fit[0] - e_syn)
+    return np.column_stack(draws)
 
 
 def _less_wire_halo(
@@ -264,19 +327,43 @@ def _less_wire_halo(
         return q
     step = float(u[1] - u[0])
     bins = np.arange(0.0, float(u[~far][-1]), step)
-    leak = np.zeros(len(bins))
-    qs, vs = q[lit], v[lit]
-    for j, b in enumerate(bins):
-        vals = np.array([np.interp(b, vv, qq - 1.0) for vv, qq in zip(vs, qs, strict=True)])
-        vals = vals[np.isfinite(vals)]
-        leak[j] = float(np.median(vals)) if len(vals) else 0.0
+    vals = _interp_rows(bins, v[lit], q[lit] - 1.0)  # (lit profiles, bins)
+    finite = np.isfinite(vals)
+    # the median over the profiles with a value at each bin (0 where none has one)
+    ordered = np.sort(np.where(finite, vals, np.inf), axis=0)
+    count = finite.sum(axis=0)
+    cols = np.arange(len(bins))
+    lo = ordered[np.maximum((count - 1) // 2, 0), cols]
+    hi = ordered[np.maximum(count // 2, 0), cols]
+    leak = np.where(count > 0, 0.5 * (lo + hi), 0.0)
     leak[bins > float(u[~far][-1]) - 1.0] = 0.0
     return q - np.interp(v, bins, leak, left=0.0, right=0.0)
 
 
-def _fit_shadow_ramps(
-    u: np.ndarray, q: np.ndarray, start_mm: np.ndarray, far: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+def _interp_rows(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """``np.interp(x, xp[i], fp[i])`` for every row ``i`` at once: (N, X) from ``x`` (X,)
+    and ``xp``, ``fp`` (N, P), each ``xp`` row increasing. As np.interp: the end values
+    outside ``xp``, NaN where a bracketing value is NaN."""
+    n, p = xp.shape
+    j = np.empty((n, len(x)), dtype=np.intp)
+    for i in range(n):  # one searchsorted per row (not per point)
+        j[i] = np.searchsorted(xp[i], x, side="right") - 1
+    jc = np.clip(j, 0, p - 2)
+    rows = np.arange(n)[:, None]
+    x0, x1 = xp[rows, jc], xp[rows, jc + 1]
+    f0, f1 = fp[rows, jc], fp[rows, jc + 1]
+    out = (f1 - f0) / (x1 - x0) * (x[None, :] - x0) + f0
+    out = np.where(j < 0, fp[:, :1], out)
+    return np.where(j >= p - 1, fp[:, -1:], out)
+
+
+def _fit_ramps(
+    u: np.ndarray,
+    q: np.ndarray,
+    start_mm: np.ndarray,
+    far: np.ndarray,
+    min_depth: float = MIN_SHADOW_CONTRAST,
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
     """The shadow's outer edge on every profile, with ONE depth and penumbra for all.
 
     ``q`` (2, K, U): profiles across the wire (both sides) in linear light over the plate's
@@ -286,17 +373,18 @@ def _fit_shadow_ramps(
     profile beyond ``start_mm`` is ``1 - k ramp((e - u) / w)`` with its own edge ``e`` (the
     half level of the shadow's step, not of the darker wire's). ``k``, ``w`` and the edges
     are fitted by alternating least squares. Returns the edges (2, K), NaN where the profile
-    has no shadow edge beyond ``start_mm``, and each profile's depth (2, K).
+    has no shadow edge beyond ``start_mm``, each profile's depth (2, K) and the fitted
+    ``(k, w)`` (None when no profile is darker than ``min_depth``).
     """
     region = (u[None, None, :] > start_mm[..., None]) & ~far[None, None, :]
     region &= np.isfinite(q)
     qz = np.where(region, q, 1.0)
     depth = np.where(region.any(axis=2), 1.0 - np.min(np.where(region, q, np.inf), axis=2), 0.0)
     depth = np.where(np.isfinite(depth), depth, 0.0)
-    cand = depth >= MIN_SHADOW_CONTRAST
+    cand = depth >= min_depth
     edges = np.full(depth.shape, np.nan)
     if cand.sum() < 10:
-        return edges, depth
+        return edges, depth, None
     k = float(np.median(depth[cand]))
     w = 1.0
     du = float(u[1] - u[0])
@@ -335,7 +423,7 @@ def _fit_shadow_ramps(
     ok &= dark_in < 1.0 - 0.25 * k
     out = np.where(ok, e, np.nan)
     edges[cand] = out
-    return edges, depth
+    return edges, depth, (k, w)
 
 
 @dataclass(frozen=True)
@@ -497,8 +585,9 @@ def estimate_lift_shadow(
     ``axis_height_mm``: the axis' height where the part rests (default the radius). The
     standard uncertainties count one independent edge per wire diameter along the part, or
     the residuals' own correlation along the wire when it says less (a textured plate), plus
-    an edge bias (common, and drifting across the plate) no smaller than the edges' rms; the
-    Jacobian by central differences over physical steps; the lift's sigma is the tilt's
+    an edge bias (common, and drifting across the plate) no smaller than the edges' rms nor
+    than the sheet's own edge errors (a shadow step laid on its bare stretch beside the
+    wire and measured), plus those errors taken through the fit; the Jacobian by central differences over physical steps; the lift's sigma is the tilt's
     uncertainty between any two points of the part.
     """
     from scipy.optimize import least_squares
@@ -650,14 +739,19 @@ def estimate_lift_shadow(
     # the edges' bias: blur, penumbra and tone curve move every edge alike, and the plate's
     # texture and light (vignetting, defocus) drift across it; a texture that scatters the
     # edges by their rms moves them by as much over a stain, so the bias is not known
-    # better than that scatter (clean renders: 0.02-0.06 mm, below EDGE_BIAS_MM)
-    bias = max(EDGE_BIAS_MM, float(np.sqrt(sigma2)))
+    # better than that scatter (clean renders: 0.02-0.06 mm, below EDGE_BIAS_MM); nor than
+    # the sheet's own share of the edges' errors (a shadow step laid on its bare stretch
+    # beside the wire and measured, _texture_edge_errors): the fit absorbs the smooth part
+    # of a texture's errors into the lamp and the tilt, so its residuals understate them
+    bias = max(EDGE_BIAS_MM, float(np.sqrt(sigma2)), _texture_rms_mm(edges.texture_mm, use))
     half = 0.5 * np.maximum(np.ptp(along, axis=0), 1e-9)
     drift = (along - 0.5 * (along.max(axis=0) + along.min(axis=0))) / half
     cov = cov_stat.copy()
     for pattern in (np.ones(n_used), drift[:, 0], drift[:, 1]):
         shift = pinv @ (bias * pattern)
         cov += np.outer(shift, shift)
+    # and those errors themselves, at the wire's own positions, taken through the fit
+    cov += _texture_cov(pinv, edges.texture_mm, use)
     slope = x[2:] * 1e-2
     slope_cov = cov[2:, 2:] * 1e-4
     height = _heights(full_centred, slope)
@@ -683,6 +777,30 @@ def estimate_lift_shadow(
         samples=n_used,
         length_mm=length,
     )
+
+
+def _texture_cov(pinv: np.ndarray, texture_mm: np.ndarray | None, use: np.ndarray) -> np.ndarray:
+    """The parameters' covariance from the sheet's own edge errors (``texture_mm`` (K, D),
+    :func:`_texture_edge_errors`) on the used samples: the mean of the D draws' shifts'
+    outer products (each draw's errors taken through ``pinv``, clipped at
+    :data:`TEXTURE_CLIP_MM`, none where not measured)."""
+    p = pinv.shape[0]
+    if texture_mm is None:
+        return np.zeros((p, p))
+    t = texture_mm[use]
+    t = np.clip(np.where(np.isfinite(t), t, 0.0), -TEXTURE_CLIP_MM, TEXTURE_CLIP_MM)
+    shifts = pinv @ t  # (P, D)
+    return shifts @ shifts.T / t.shape[1]
+
+
+def _texture_rms_mm(texture_mm: np.ndarray | None, use: np.ndarray) -> float:
+    """The rms of the sheet's own edge errors on the used samples (clipped as in
+    :func:`_texture_cov`), mm; 0 with fewer than 10 measured."""
+    if texture_mm is None:
+        return 0.0
+    t = texture_mm[use]
+    t = np.clip(t[np.isfinite(t)], -TEXTURE_CLIP_MM, TEXTURE_CLIP_MM)
+    return float(np.sqrt(np.mean(t * t))) if len(t) >= 10 else 0.0
 
 
 def _height_sigma_mm(points_mm: np.ndarray, slope_cov: np.ndarray, span: np.ndarray) -> float:
