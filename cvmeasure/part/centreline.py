@@ -109,6 +109,10 @@ class Centreline:
         the whole wire.
     edge_width_px : with silhouette edges, ndarray (M,): the distance between the
         two edges at each point (NaN at the end points), pixels; else None.
+    lit_points_px : with silhouette edges and the shadow's side seen, ndarray (M, 2): the
+        same centres with each pair's midpoint replaced by the lit side's edge moved by
+        half the wire's width (:func:`_silhouette_centres`); for the bend at each vertex,
+        which the shadow side's edge bends on a lifted part. Else None.
     end_uncertainty_px : (2,) how far inside each end point a weaker step could be the
         cap's silhouette instead (pixels, along the axis; 0 where none): at an end facing
         away from the light on a light sheet, where the shadow's far edge and the cap's
@@ -125,6 +129,7 @@ class Centreline:
     centre_from: str = "symmetry"
     edge_width_px: np.ndarray | None = None
     end_uncertainty_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    lit_points_px: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         widths = self.edge_width_px
@@ -655,6 +660,7 @@ def measure_centreline(
     centre_from = "symmetry"
     widths = None
     shadow = None
+    lit = None
     if wire_width_px is not None:
         # from the mask's path, not the symmetric centres: those may have lost a
         # stretch of the wire (a clipped highlight), which could not come back
@@ -675,7 +681,7 @@ def measure_centreline(
             else SILHOUETTE_MIN_SHARE_OF_PATH * _length(path)
         )
         if found is not None and _length(found[0]) >= reach_px:
-            centres, prof_ok, widths, coverage, shadow = found
+            centres, prof_ok, widths, coverage, shadow, lit = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
@@ -707,6 +713,7 @@ def measure_centreline(
         inward = inward / max(np.hypot(*inward), 1e-12)
         keep[idx] &= ((centres[idx] - end) @ inward) >= 0.5 * half_width
     inner = centres[keep]
+    lit_points = None if lit is None else np.vstack((ends[:1], lit[keep], ends[1:]))
     edge_width = None
     if widths is not None:
         edge_width = np.concatenate(([np.nan], widths[keep], [np.nan]))
@@ -721,6 +728,7 @@ def measure_centreline(
         centre_from=centre_from,
         edge_width_px=edge_width,
         end_uncertainty_px=end_uncertainty,
+        lit_points_px=lit_points,
     )
 
 
@@ -771,7 +779,7 @@ def _silhouette_centres(
     step_px: float,
     smooth_px: float,
     window: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
     The edges are the strongest gradient pair a width apart (within 8 %, or 0.5 px;
@@ -788,12 +796,22 @@ def _silhouette_centres(
     direction, and so the bends, unchanged; a chord measured partly by pairs and
     partly by one edge would not be.
 
+    But not along a lifted part: there the shadow parts from the wire as it rises, and
+    the shadow side's edge shifts with the gap (0.4 px at half size over two chords of a
+    dev part lifted 3 mm, lit at 50 deg elevation), which bends the pairs' midpoints at
+    the vertices (0.05-0.13 deg at full size on dev parts R 42-50 mm, 120 deg, N 7). So
+    the lit centres are returned too: where the shadow's side is known, each pair's
+    midpoint replaced by the lit side's edge moved by half the median width (the same
+    rule along two widths of wire); noisier by up to sqrt(2), free of the shadow.
+
     Returns the centres, their profiles, the edge widths (px, NaN where only one
-    edge was used), the share of profiles with a centre and the image direction in
-    which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen).
+    edge was used), the share of profiles with a centre, the image direction in
+    which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen)
+    and the lit centres (None when the shadow's side is not seen).
     """
     coverage = 1.0
     widths = np.zeros(0)
+    lit = None
     # the edges' distance is the width within 5 %, or half a pixel on a thin wire (a
     # blurred 6 px wire's limbs read 4-5 % wide)
     tol = max(PAIR_TOLERANCE, 0.5 / width_px)
@@ -857,6 +875,17 @@ def _silhouette_centres(
         coverage = float(ok.mean())
         if ok.sum() < 5:
             raise ValueError("no silhouette edges of the wire's width along the path")
+        if final and shadow is not None:
+            # the lit side's edge moved by half the width, where a pair's midpoint is used
+            lit_rule = np.where(np.abs(towards) > 0.05, np.where(towards > 0, 1, 2), 0)
+            lit_rule = _majority(lit_rule, max(3, int(round(2.0 * width_px / step_px))))
+            lit_edge = np.where(
+                lit_rule == 1, from_left, np.where(lit_rule == 2, from_right, np.nan)
+            )
+            # every centre (not only the pairs' midpoints: a chord would mix the two)
+            swap = np.isfinite(lit_edge) & (np.abs(lit_edge) <= 0.25 * width_px)
+            delta = np.where(swap & np.isfinite(shift), lit_edge - shift, 0.0)
+            lit = (centres + (shift + delta)[:, None] * normals)[ok]
         centres = (centres + shift[:, None] * normals)[ok]
         widths = np.where(pair, width, np.nan)[ok]
         if not final:
@@ -868,9 +897,10 @@ def _silhouette_centres(
     hi = int(gap[-1]) + 1 if len(gap) and _length(centres[gap[-1] + 1 :]) < width_px else None
     if len(centres[lo:hi]) >= 5:
         centres, widths = centres[lo:hi], widths[lo:hi]
+        lit = None if lit is None else lit[lo:hi]
     # the last profiles, re-centred on the edges' midpoints (for the end points)
     normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
-    return centres, profiles_at(centres, normals), widths, coverage, shadow
+    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit
 
 
 def _end_point(
