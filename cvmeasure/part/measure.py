@@ -835,15 +835,15 @@ def measure_part(
             "wire, so the centreline is the profiles' centre of symmetry, which a side-lit "
             "highlight or a shadow can pull off the axis; the lift was not bounded"
         )
+    base_mm = _axis_height(axis_height_mm, wire_diameter_mm)
     lift = None
     if wire_diameter_mm is not None and centre.edge_width_px is not None:
-        base = _axis_height(axis_height_mm, wire_diameter_mm)
         lift = estimate_lift(
             plane,
             centre.points_px,
             centre.edge_width_px,
             wire_diameter_mm=wire_diameter_mm,
-            axis_height_mm=base,
+            axis_height_mm=base_mm,
         )
     chords = count_chords(centreline_mm)
     divisions_from = "--divisions" if divisions is not None else None
@@ -864,7 +864,6 @@ def measure_part(
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
-    base_mm = _axis_height(axis_height_mm, wire_diameter_mm)
     vpoly = poly  # the lit side's centres only on a part measured lifted (LIT_MIN_LIFT_MM)
     bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     lift_info = None
@@ -882,7 +881,7 @@ def measure_part(
     elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
         shadow = estimate_lift_shadow(
             image, plane, centre.points_px, wire_diameter_mm=wire_diameter_mm,
-            axis_height_mm=_axis_height(axis_height_mm, wire_diameter_mm),
+            axis_height_mm=base_mm,
         )  # fmt: skip
         shadow_info = shadow.to_dict()
         if shadow.lift is not None and 2.0 * shadow.lift.lift_sigma_mm <= SHADOW_MAX_2SIGMA_MM:
@@ -894,25 +893,22 @@ def measure_part(
             )
     if corrected is not None:
         flat = (ours, poly)
-        centreline_mm = _lifted_mm(
-            plane, centre.points_px, _axis_height(axis_height_mm, wire_diameter_mm),
-            corrected.lift, 1.0,
-        )  # fmt: skip
+        measured = corrected.lift
+
+        def lifted_mm(points_px: np.ndarray) -> np.ndarray:
+            return _lifted_mm(plane, points_px, base_mm, measured, 1.0)
+
+        centreline_mm = lifted_mm(centre.points_px)
         try:
             ours, circle, poly = arc_from_points(centreline_mm, divisions)
         except ValueError as exc:
             raise InputError(source, f"cannot fit the part ({exc})") from None
         vpoly = poly
         if corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
-            vpoly = _vertex_polyline(
-                centre.lit_points_px,
-                lambda px: _lifted_mm(plane, px, base_mm, corrected.lift, 1.0),
-                divisions, poly,
-            )  # fmt: skip
+            vpoly = _vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
         bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
         lift_info, extra_sigma, _ = _lift_effects(
-            plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions,
-            _axis_height(axis_height_mm, wire_diameter_mm),
+            plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions, base_mm,
             2.0 * corrected.lift.lift_sigma_mm,
         )  # fmt: skip
         by_shadow = shadow_info is not None
@@ -938,8 +934,8 @@ def measure_part(
         # a round wire on the plate may rock: its lift is bounded (the width's estimate
         # where it is good enough, else the largest lift a part rocks to)
         lift_info, extra_sigma, lift_warning = _lift_effects(
-            plane, centre.points_px, centreline_mm, lift, ours, poly, divisions,
-            _axis_height(axis_height_mm, wire_diameter_mm), max_lift_mm,
+            plane, centre.points_px, centreline_mm, lift, ours, poly, divisions, base_mm,
+            max_lift_mm,
         )  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
