@@ -328,14 +328,10 @@ def _less_wire_halo(
     step = float(u[1] - u[0])
     bins = np.arange(0.0, float(u[~far][-1]), step)
     vals = _interp_rows(bins, v[lit], q[lit] - 1.0)  # (lit profiles, bins)
-    finite = np.isfinite(vals)
     # the median over the profiles with a value at each bin (0 where none has one)
-    ordered = np.sort(np.where(finite, vals, np.inf), axis=0)
-    count = finite.sum(axis=0)
-    cols = np.arange(len(bins))
-    lo = ordered[np.maximum((count - 1) // 2, 0), cols]
-    hi = ordered[np.maximum(count // 2, 0), cols]
-    leak = np.where(count > 0, 0.5 * (lo + hi), 0.0)
+    leak = np.zeros(len(bins))
+    some = np.isfinite(vals).any(axis=0)
+    leak[some] = np.nanmedian(vals[:, some], axis=0)
     leak[bins > float(u[~far][-1]) - 1.0] = 0.0
     return q - np.interp(v, bins, leak, left=0.0, right=0.0)
 
