@@ -31,7 +31,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="plane JSON (`cvmeasure plane -o`) of the plate the part lies on, measured from "
         "another photo by the same camera in the same pose (no board in this photo)",
     )
-    p.add_argument("--camera", type=Path, required=True, help="camera JSON (cvmeasure calibrate)")
+    p.add_argument(
+        "--camera",
+        type=Path,
+        help="camera JSON (cvmeasure calibrate); needed with --board (a plane JSON carries "
+        "its own camera; given with --plane, it must be that camera)",
+    )
     p.add_argument(
         "--divisions", type=int_in(1, 1000), help="number of chords the part was bent in"
     )
@@ -122,7 +127,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.plot and not args.design:
         raise InputError("--plot", "the deviation plot needs --design")
-    camera = load_camera(args.camera)
+    if args.board and args.camera is None:
+        raise InputError("--board", "finding the board's plane needs --camera")
+    camera = load_camera(args.camera) if args.camera else None
     board = load_board(args.board) if args.board else None
     plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
     design = load_design(args.design).wire() if args.design else None

@@ -129,6 +129,25 @@ def test_part_table_output(files, capsys):
     assert "radius_mm" in text and "[ellipse]" in text and "[sagitta]" in text
 
 
+def test_part_with_a_plane_json_needs_no_camera(files, capsys):
+    """``part PHOTO --plane P`` reads the camera from the plane JSON (as ``measure`` does):
+    the same radius as through the board to 1e-9, and within 0.4 % of the render's truth;
+    ``--board`` without ``--camera`` is one line naming --board, exit 2."""
+    plane = files["folder"] / "plane.json"
+    board_cam = ["--board", str(files["board"]), "--camera", str(files["camera"])]
+    assert main(["plane", str(files["jpg"]), *board_cam, "-o", str(plane)]) == 0
+    capsys.readouterr()
+    assert main(["part", str(files["jpg"]), *board_cam, "--json"]) == 0
+    via_board = json.loads(capsys.readouterr().out)
+    assert main(["part", str(files["jpg"]), "--plane", str(plane), "--json"]) == 0
+    via_plane = json.loads(capsys.readouterr().out)
+    assert via_plane["radius_mm"] == pytest.approx(via_board["radius_mm"], rel=1e-9)
+    assert via_plane["radius_mm"] == pytest.approx(files["truth"]["radius_mm"], rel=0.004)
+    assert main(["part", str(files["jpg"]), "--board", str(files["board"])]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--board" in err and "--camera" in err
+
+
 @pytest.mark.parametrize(
     ("photo_key", "message"),
     [("no_wire", "no wire found"), ("no_board", "")],
