@@ -25,7 +25,7 @@ from scipy import optimize, special
 from cvmeasure.contracts import BLOCKS, TrialTable
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
-from cvmeasure.sim.model import apply_camera_tilt_deg, simulate
+from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
 from cvmeasure.sim.params import SimParams
 
 __all__ = [
@@ -560,11 +560,43 @@ class _PointMemo:
 
 
 def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Measured minus ``predicted`` (stacked by blocks); pin angles wrapped as directions."""
+    """Measured minus ``predicted`` (stacked by blocks along the last axis; leading axes:
+    several predictions); pin angles wrapped as directions."""
     r = trials.observations() - predicted
     n = len(trials)
-    r[2 * n :] = wrap_deg(r[2 * n :])  # pin angles are directions
+    r[..., 2 * n :] = wrap_deg(r[..., 2 * n :])  # pin angles are directions
     return r
+
+
+def _drift_rate_residuals(
+    trials: TrialTable,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    causes: Causes,
+    x: NDArray[np.float64],
+    m: int,
+    index: int,
+    rates: NDArray[np.float64],
+    shapes: Sequence[Shape],
+) -> NDArray[np.float64]:
+    """(K, 3 N): :func:`residuals` at the point ``x`` of :func:`fit_model` (strength, ``m``
+    nuisance values, the causes' values) with ``x[index]``, a drift's rate, at each of
+    ``rates`` (clipped to the drift's bounds as :func:`_effects` clips it): the same
+    numbers from one vectorised simulation (:func:`simulate_drift_rates`) instead of K."""
+    spec = EFFECTS["drift"]
+    effects = _effects(base_effects, causes, x[1 + m :], shapes)
+    clipped = [min(max(float(v), spec.lower), spec.upper) for v in rates]
+    res = simulate_drift_rates(
+        trials.commanded_pin_deg,
+        _scaled(params, x[0], x[1 : 1 + m]),
+        effects,
+        clipped,
+        bend_index=trials.bend_index,
+    )
+    predicted = np.concatenate(
+        [res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg], axis=-1
+    )
+    return _observed_minus(trials, predicted)
 
 
 #: A measurement-stage cause: it changes only how the camera sees the simulated angles,
@@ -725,6 +757,19 @@ def fit_model(
         resid_seen.put(x, forms, out)
         return out
 
+    def resid_rates(
+        x: NDArray[np.float64], index: int, rates: NDArray[np.float64]
+    ) -> list[NDArray[np.float64]]:
+        """``resid`` at ``x`` with ``x[index]`` (a drift's rate) at each of ``rates``, the
+        same numbers from one simulation for them all (a whole-step drift's profile)."""
+        full = _drift_rate_residuals(trials, params, base_effects, names, x, m, index, rates, forms)
+        out = []
+        for v, row in zip(rates, full, strict=True):
+            point = x.copy()
+            point[index] = v
+            out.append(with_priors(point, row[keep]))
+        return out
+
     def fd_jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
         if (
             _seed is not None
@@ -810,11 +855,12 @@ def fit_model(
         shape = dict(forms[i])
         # a drift alone, its form chosen on the grid here: every home-shifting form on an
         # absolute grid of rates too (beside another cause only the form it fitted, about
-        # its rate: the absolute grid costs 0.1-0.3 s of CPU per fit at 100 trials)
+        # its rate: the absolute grid cost 0.1-0.3 s of CPU per fit at 100 trials rate by
+        # rate; each form's grid in one simulation (resid_rates) it is ~0.03 s)
         wide = len(names) == 1 and start is None and c not in (known or {})
         if c == "drift" and not shape.get("step_deg") and (shape.get("home_shift") or wide):
             quantised = _profile_quantised_drift(
-                resid, sol, 1 + m + i, forms, i, lower, upper, scale, wide=wide
+                resid, sol, 1 + m + i, forms, i, lower, upper, scale, wide=wide, rows=resid_rates
             )
             if quantised is not None:
                 sol = quantised
@@ -1032,6 +1078,29 @@ def _least_squares(
     return fit
 
 
+#: ``rows(x, index, rates)``: the least-squares residuals at ``x`` with ``x[index]`` at each
+#: of ``rates`` (one array per rate).
+RateResiduals = Callable[
+    [NDArray[np.float64], int, NDArray[np.float64]], Sequence[NDArray[np.float64]]
+]
+
+
+def _per_rate(resid: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> RateResiduals:
+    """:data:`RateResiduals` by one ``resid`` call per rate (the reference form)."""
+
+    def rows(
+        x: NDArray[np.float64], index: int, rates: NDArray[np.float64]
+    ) -> list[NDArray[np.float64]]:
+        out = []
+        for v in rates:
+            point = x.copy()
+            point[index] = v
+            out.append(resid(point))
+        return out
+
+    return rows
+
+
 def _profile_quantised_drift(
     resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     sol: optimize.OptimizeResult,
@@ -1043,6 +1112,7 @@ def _profile_quantised_drift(
     scale: NDArray[np.float64],
     *,
     wide: bool = True,
+    rows: RateResiduals | None = None,
 ) -> optimize.OptimizeResult | None:
     """The fit with the drift's steps lost whole, if it is better than ``sol`` (its
     continuous fit), else None; ``forms[cause]`` is set to the form kept. ``wide``:
@@ -1055,7 +1125,10 @@ def _profile_quantised_drift(
     the other parameters at the continuous fit: :data:`_DRIFT_RATE_FACTORS` times the
     continuous rate and the absolute :data:`_DRIFT_RATE_GRID`. The best point is
     refitted (the other parameters) and its rate profiled again on a finer grid about
-    it."""
+    it. ``rows(x, index, rates)``: ``resid`` at ``x`` with ``x[index]`` at each rate (the
+    grid's evaluations; default one ``resid`` call per rate)."""
+    if rows is None:
+        rows = _per_rate(resid)
     rate = float(sol.x[index])
     continuous = forms[cause]
     # every home-shifting form: the continuous forms cannot choose among them on a plan
@@ -1068,13 +1141,11 @@ def _profile_quantised_drift(
     )
     rates = np.minimum(rates, upper[index])
     best: tuple[float, float, Shape] | None = None
-    x = sol.x.copy()
     for base in bases:
         for step in DRIFT_STEPS_DEG:
             forms[cause] = (*base, ("step_deg", step))
-            for v in rates:
-                x[index] = v
-                cost = float(np.sum(resid(x) ** 2))
+            for v, r in zip(rates, rows(sol.x, index, rates), strict=True):
+                cost = float(np.sum(r**2))
                 if best is None or cost < best[0]:
                     best = (cost, float(v), forms[cause])
     assert best is not None
@@ -1086,10 +1157,7 @@ def _profile_quantised_drift(
     fit = _least_squares(resid, x, lower, upper, scale, [index])
     x = fit.x.copy()
     fine = best[1] * (1.0 + np.linspace(-0.06, 0.06, 13))
-    costs = []
-    for v in fine:
-        x[index] = min(v, upper[index])
-        costs.append(float(np.sum(resid(x) ** 2)))
+    costs = [float(np.sum(r**2)) for r in rows(x, index, np.minimum(fine, upper[index]))]
     x[index] = min(float(fine[int(np.argmin(costs))]), upper[index])
     x = np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
     fit = _least_squares(resid, x, lower, upper, scale, [index])

@@ -22,6 +22,7 @@ bend measures it: ``dir * (phi_contact - approach_deg + |r|)``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -38,6 +39,7 @@ from cvmeasure.sim.springback import SpringbackLaw, springback_law
 __all__ = [
     "SimResult",
     "simulate",
+    "simulate_drift_rates",
     "pin_command_for_angle",
     "effect_values",
     "apply_camera_tilt_deg",
@@ -182,10 +184,11 @@ class _History:
         return out
 
     def accumulated(self, step: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``sum step_j`` over the earlier bends of each bend's run."""
-        before = np.cumsum(step) - step
+        """``sum step_j`` over the earlier bends of each bend's run (along the last axis:
+        leading axes, if any, are independent simulations of the same plan)."""
+        before = np.cumsum(step, axis=-1) - step
         first = np.searchsorted(self.run, self.run)  # index of each run's first bend
-        return before - before[first]
+        return before - before[..., first]
 
     def home_shift(self, loss_deg: NDArray[np.float64]) -> NDArray[np.float64]:
         """Signed home shift of each bend: ``-sum s_j loss_j`` over earlier bends of its run."""
@@ -224,7 +227,7 @@ def _rotation(
             r = r - values["drift"] * history.bend_index
         else:
             if p == 0.0 or torque_nm is None:
-                loss = np.full(r.shape, values["drift"])
+                loss = values["drift"] + np.zeros(r.shape)  # (a batch of rates: (K, N))
             else:
                 t = np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM
                 loss = values["drift"] * t**p
@@ -374,6 +377,45 @@ def simulate(
     values = effect_values(effects)
     k = _bend_index(bend_index, cmd.size)
     return _forward(cmd, params, values, k, springback_law(params), shapes=_shapes(effects))
+
+
+def simulate_drift_rates(
+    commanded_pin_deg: ArrayLike,
+    params: SimParams,
+    effects: Iterable[Effect],
+    rates: ArrayLike,
+    *,
+    bend_index: ArrayLike | None = None,
+) -> SimResult:
+    """:func:`simulate` at many values of the drift at once, in one vectorised run.
+
+    ``effects`` must include ``drift`` (its form is kept, its value replaced): row ``k``
+    of every angle array, of shape (K, N), is what :func:`simulate` gives with the drift
+    at ``rates[k]`` (deg per bend, within the drift's bounds), the same numbers (every
+    operation is elementwise along the rates, the run sums along the bends). For a fit
+    that profiles a drift losing whole steps over a grid of rates: one simulation instead
+    of K.
+    """
+    cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
+    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
+        raise ValueError("commanded_pin_deg must be a finite 1-D array")
+    effects = tuple(effects)
+    values: dict[str, Any] = dict(effect_values(effects))
+    if "drift" not in values:
+        raise ValueError("simulate_drift_rates needs the drift among the effects")
+    values["drift"] = np.asarray(rates, dtype=np.float64).reshape(-1, 1)
+    k = _bend_index(bend_index, cmd.size)
+    shapes = _shapes(effects)
+    res = _forward(cmd, params, values, k, springback_law(params), shapes=shapes)
+    rows = values["drift"].shape[0]
+    return dataclasses.replace(
+        res,
+        **{
+            f.name: np.broadcast_to(getattr(res, f.name), (rows, cmd.size))
+            for f in dataclasses.fields(res)
+            if f.name != "commanded_pin_deg"
+        },
+    )
 
 
 def max_reachable_deg(params: SimParams | None = None, effects: Iterable[Effect] = ()) -> float:

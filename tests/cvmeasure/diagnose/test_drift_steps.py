@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvmeasure.diagnose import diagnose
-from cvmeasure.diagnose.fitting import discrepancy_basis, residuals
+from cvmeasure.diagnose import diagnose, fitting
+from cvmeasure.diagnose.fitting import discrepancy_basis, fit_model, residuals
 from cvmeasure.sim.params import SimParams
 from cvmeasure_datasets import physical_bender as pb
 
@@ -87,3 +87,46 @@ def test_an_offset_on_a_sweep_is_still_named_offset():
     truth = case.hidden[0].params["offset_deg"]
     lo, hi = result.intervals["offset_deg"]
     assert lo <= truth <= hi, (lo, hi, truth)
+
+
+@pytest.mark.parametrize(("seed", "plan"), [(530008, "sweep"), (530011, "random")])
+def test_the_profile_over_rates_in_one_simulation_is_the_profile_rate_by_rate(
+    monkeypatch, seed, plan
+):
+    # the whole-step profile evaluates each form's grid of rates in one vectorised
+    # simulation; with one residuals call per rate instead (the form it replaced) the
+    # fit is the very same: form, values, intervals
+    case = pb.physical_case(seed, "drift", plan=plan, n_trials=60)
+    batched = fit_model(case.trials, SimParams(), "drift")
+    grids = []
+
+    def rate_by_rate(trials, params, base_effects, causes, x, m, index, rates, shapes):
+        grids.append(len(rates))
+        out = []
+        for v in rates:
+            point = x.copy()
+            point[index] = v
+            out.append(
+                residuals(
+                    trials,
+                    params,
+                    base_effects,
+                    causes,
+                    point[0],
+                    point[1 + m :],
+                    nuisance=point[1 : 1 + m],
+                    shapes=shapes,
+                )
+            )
+        return np.array(out)
+
+    monkeypatch.setattr(fitting, "_drift_rate_residuals", rate_by_rate)
+    reference = fit_model(case.trials, SimParams(), "drift")
+    # the wide profile ran: two home-shifting forms by three steps, then the fine grid
+    assert len(grids) == 7 and sum(grids) >= 6 * len(fitting._DRIFT_RATE_GRID)
+    assert batched.shapes == reference.shapes
+    assert batched.values == reference.values
+    assert batched.strength_scale == reference.strength_scale
+    assert batched.nuisance == reference.nuisance
+    assert batched.intervals == reference.intervals
+    assert batched.rss_deg2 == reference.rss_deg2

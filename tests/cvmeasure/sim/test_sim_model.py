@@ -15,6 +15,7 @@ from cvmeasure.sim import (
     simulate,
 )
 from cvmeasure.sim.kinematics import head_geometry, pin_angle_for_loaded_deg
+from cvmeasure.sim.model import simulate_drift_rates
 
 CMDS = np.array([-120.0, -60.0, -25.0, 25.0, 60.0, 120.0])
 
@@ -302,3 +303,34 @@ def test_span_bow_brings_the_loaded_angle_to_the_independent_models():
     bowed = simulate(cmd, SimParams(span_bow_share=1.0)).loaded_bend_deg - truth
     assert np.all(straight < -0.15), straight
     assert np.max(np.abs(bowed)) < 0.02, bowed
+
+
+@pytest.mark.parametrize(
+    "shape",
+    [
+        (),
+        (("home_shift", 1.0),),
+        (("home_shift", 1.0), ("step_deg", 0.06)),
+        (("home_shift", 1.0), ("load_exponent", 1.0), ("step_deg", 0.03)),
+        (("home_shift", 0.5), ("load_exponent", 2.0), ("step_deg", 0.12)),
+    ],
+)
+def test_simulate_drift_rates_is_simulate_at_each_rate(shape):
+    # the batched form a whole-step drift's profile uses: each row the very numbers of
+    # simulate at that rate (a plan of mixed directions re-homed twice, beside other
+    # effects and the span's bow)
+    rng = np.random.default_rng(4)
+    cmd = rng.choice([-1.0, 1.0], 40) * rng.uniform(20.0, 140.0, 40)
+    index = np.concatenate([np.arange(15), np.arange(10), np.arange(15)]).astype(float)
+    params = SimParams().replace(span_bow_share=1.0)
+    rest = (Effect("camera_tilt", 2.0, (("tilt_axis_deg", 30.0),)), Effect("compliance", 0.002))
+    rates = np.concatenate([np.geomspace(0.01, 0.5, 17), [0.0, 0.045, 0.09]])
+    batch = simulate_drift_rates(
+        cmd, params, (*rest, Effect("drift", 0.1, shape)), rates, bend_index=index
+    )
+    for k, rate in enumerate(rates):
+        one = simulate(cmd, params, (*rest, Effect("drift", float(rate), shape)), bend_index=index)
+        for name in ("pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "pin_angle_deg"):
+            np.testing.assert_array_equal(getattr(batch, name)[k], getattr(one, name))
+    with pytest.raises(ValueError, match="drift"):
+        simulate_drift_rates(cmd, params, rest, rates, bend_index=index)
