@@ -172,6 +172,9 @@ class Diagnosis:
     #: library's order-dependent terms (outside the catalogue, e.g. ``warm_up_45``) that
     #: reproduce the named causes' change on this plan; empty when none
     tie: tuple[str, ...] = field(default=())
+    #: held-out RMSE (deg, discrepancy profiled out) of the terms discovered in the
+    #: baseline's residuals (NaN: none)
+    discovered_rmse_deg: float = field(default=math.nan, repr=False)
 
     @property
     def gain(self) -> float:
@@ -315,6 +318,165 @@ def diagnose(
     max_causes: int = 2,
 ) -> Diagnosis:
     """Diagnose measured trials against the simulation.
+
+    When the data leave a drive compliance and a scale the two best explanations, the
+    span's elastic bow decides between them (:func:`_bow_decides`): the two differ by
+    the bow's shape, so with the leg straight the bow's over-bend makes a compliance
+    look like a scale.
+
+    Parameters
+    ----------
+    trials : TrialTable
+        Measured bends (both directions and loaded angles give the best power).
+    params : SimParams, optional
+        Nominal simulation parameters (defaults built in).
+    base_effects : sequence of Effect
+        Effects already part of the model (from a params JSON); kept fixed
+        unless a candidate of the same name refits them.
+    candidates : sequence of str, optional
+        Effect names to try (default: the whole catalogue).
+    folds : int
+        K of the grouped K-fold cross-validation.
+    min_cv_gain, min_delta_bic : float
+        Acceptance thresholds (see module notes).
+    max_causes : int
+        1 names at most one cause; 2 (default) then tries a second cause on
+        top of the first, accepted by the same rule against the one-cause model.
+
+    Raises
+    ------
+    ValueError
+        With fewer than ``MIN_TRIALS`` trials or an unknown candidate name.
+    """
+    params = params or SimParams()
+    kwargs: dict[str, Any] = dict(
+        base_effects=base_effects,
+        candidates=candidates,
+        folds=folds,
+        min_cv_gain=min_cv_gain,
+        min_delta_bic=min_delta_bic,
+        max_causes=max_causes,
+    )
+    result = _diagnose_once(trials, params, **kwargs)
+    bow = _bow_decides(trials, params, result, tuple(base_effects), folds, min_cv_gain)
+    if bow is None:
+        return result
+    if bow.use_bow:
+        result = _diagnose_once(trials, dataclasses.replace(params, span_bow_share=1.0), **kwargs)
+    notes = (*result.notes, bow.note)
+    other = bow.straight if bow.use_bow else bow.bowed
+    if bow.tied and result.causes == (result.cause,) and result.cause in BOW_RIVALS:
+        if other != result.cause and other not in result.tie:
+            tie = (*(result.tie or (result.cause,)), other)
+            return dataclasses.replace(result, tie=tie, notes=notes)
+    return dataclasses.replace(result, notes=notes)
+
+
+#: Causes whose signatures differ by the span's elastic bow: a drive's lag, nearly
+#: constant from first contact and rising as the lever shortens, less the bow's
+#: over-bend (largest at small bends, falling with the lever) is a scale's shape.
+BOW_RIVALS: tuple[str, str] = ("compliance", "scale")
+
+
+@dataclass(frozen=True)
+class _BowDecision:
+    """The straight leg against the span's bow, each with its better rival (deg)."""
+
+    straight: str  # the better rival with the leg straight
+    bowed: str  # the better rival with the bow
+    use_bow: bool
+    tied: bool  # within TIE_STANDARD_ERRORS held out: the data do not tell them apart
+    note: str
+
+
+def _bow_decides(
+    trials: TrialTable,
+    params: SimParams,
+    result: Diagnosis,
+    base_effects: tuple[Effect, ...],
+    folds: int,
+    min_cv_gain: float = MIN_CV_GAIN,
+) -> _BowDecision | None:
+    """Whether the span's elastic bow (beam theory, share 1) belongs in the model; None
+    when not asked.
+
+    Asked only of a straight-leg model (``span_bow_share`` 0) that named one of
+    :data:`BOW_RIVALS` (or nothing, terms outside the catalogue preferred), whose best
+    accepted single cause is one of them with the other accepted too. Both are refitted
+    with the bow, and the better bowed fit is compared with the better straight one
+    held out (mean squared error, discrepancy profiled out, per CV group): the bow is
+    used when it explains the held-out data better (and, when terms discovered outside
+    the catalogue were preferred to the straight rivals, better than those by
+    ``min_cv_gain``, the margin by which they replaced the name); within
+    :data:`TIE_STANDARD_ERRORS` standard errors the two are a tie."""
+    if params.span_bow_share > 0 or len(trials) > MAX_TRIALS:
+        return None
+    singles = {
+        c.cause: c
+        for c in result.candidates
+        if len(c.fit.causes) == 1 and c.accepted and math.isfinite(c.cv_discrepancy_rmse_deg)
+    }
+    if not singles or not all(n in singles for n in BOW_RIVALS):
+        return None
+    best = min(singles.values(), key=lambda c: c.cv_discrepancy_rmse_deg)
+    if best.cause not in BOW_RIVALS or result.cause not in (*BOW_RIVALS, "unexplained"):
+        return None
+    straight = min((singles[n] for n in BOW_RIVALS), key=lambda c: c.cv_discrepancy_rmse_deg)
+    if straight.cv_residual_deg is None:
+        return None
+    bowed_params = dataclasses.replace(params, span_bow_share=1.0)
+    groups, _ = cv_groups(trials)
+    masks = group_folds(groups, folds)
+    bowed, bowed_res = {}, {}
+    for name in BOW_RIVALS:
+        fit = fit_model(trials, bowed_params, name, base_effects=base_effects)
+        held = grouped_kfold_cv(
+            trials, bowed_params, (name,), masks, base_effects=base_effects, full_fit=fit
+        )
+        bowed_res[name] = held.residual_after_discrepancy_deg(trials)
+        bowed[name] = held.rmse_after_discrepancy_deg(trials)
+    best_bowed = min(BOW_RIVALS, key=lambda n: bowed[n])
+    excess = _held_out_excess(straight.cv_residual_deg, bowed_res[best_bowed], groups)
+    if excess is None:
+        return None
+    # two models of the machine, each with its better rival: the one whose rival explains
+    # the held-out data better is used (the bow is beam theory, not a fitted shape, so
+    # choosing it adds no parameter); terms outside the catalogue preferred to the straight
+    # rivals must be beaten too
+    use_bow = excess[0] < 0.0
+    if result.cause == "unexplained" and not (
+        bowed[best_bowed] <= (1.0 - min_cv_gain) * result.discovered_rmse_deg
+    ):
+        use_bow = False  # the terms replaced the name by min_cv_gain: so must the name them
+    tied = abs(excess[0]) <= TIE_STANDARD_ERRORS * excess[1]
+    note = (
+        f"the span's elastic bow (beam theory, M l / 6 EI) {'is' if use_bow else 'is not'} "
+        "in the model: a compliance and a scale differ by the bow's shape; held out "
+        f"(discrepancy profiled out) with the bow {', '.join(f'{n} {bowed[n]:.4f}' for n in BOW_RIVALS)}, "
+        f"with the leg straight {', '.join(f'{n} {singles[n].cv_discrepancy_rmse_deg:.4f}' for n in BOW_RIVALS)} deg"
+        + (
+            f"; {best_bowed} with the bow and {straight.cause} with the leg straight are within "
+            f"{TIE_STANDARD_ERRORS:g} standard error over the CV groups: the data do not tell "
+            "them apart"
+            if tied and best_bowed != straight.cause
+            else ""
+        )
+    )
+    return _BowDecision(straight.cause, best_bowed, use_bow, tied, note)
+
+
+def _diagnose_once(
+    trials: TrialTable,
+    params: SimParams | None = None,
+    *,
+    base_effects: Sequence[Effect] = (),
+    candidates: Sequence[str] | None = None,
+    folds: int = 5,
+    min_cv_gain: float = MIN_CV_GAIN,
+    min_delta_bic: float = MIN_DELTA_BIC,
+    max_causes: int = 2,
+) -> Diagnosis:
+    """One diagnosis against ``params`` as given (:func:`diagnose` without the bow's decision).
 
     Parameters
     ----------
@@ -571,6 +733,7 @@ def diagnose(
         discovered=tuple(discovered),
         evidence=evidence,
         tie=tie,
+        discovered_rmse_deg=found.rmse_after_deg if mean_terms else math.nan,
     )
 
 
@@ -795,6 +958,27 @@ def _order_confounded(
 TIE_STANDARD_ERRORS = 1.0
 
 
+def _held_out_excess(
+    named_deg: NDArray[np.float64], other_deg: NDArray[np.float64], groups: Sequence[str]
+) -> tuple[float, float] | None:
+    """(mean, standard error) per observation of ``other``'s squared held-out residuals less
+    ``named``'s (deg^2): the differences summed per CV group and the standard error
+    cluster-robust over the groups; None with fewer than two groups."""
+    labels = np.unique(np.asarray(groups), return_inverse=True)[1]
+    rows = np.tile(labels, named_deg.size // labels.size)
+    n_groups = int(labels.max()) + 1
+    ok = np.isfinite(named_deg) & np.isfinite(other_deg)
+    diff = other_deg[ok] ** 2 - named_deg[ok] ** 2
+    per_group = np.bincount(rows[ok], weights=diff, minlength=n_groups)
+    count = np.bincount(rows[ok], minlength=n_groups).astype(float)
+    mean = float(diff.sum() / max(ok.sum(), 1))
+    g = int(np.count_nonzero(count))
+    if g < 2:
+        return None
+    dev = per_group - count * mean
+    return mean, math.sqrt(g / (g - 1) * float(np.sum(dev**2))) / float(ok.sum())
+
+
 def _held_out_tie(
     named: CandidateResult,
     others: Sequence[CandidateResult],
@@ -810,24 +994,12 @@ def _held_out_tie(
     compared with its cluster-robust standard error over the groups."""
     if named.cv_residual_deg is None:
         return ()
-    labels = np.unique(np.asarray(groups), return_inverse=True)[1]
-    rows = np.tile(labels, named.cv_residual_deg.size // labels.size)
-    n_groups = int(labels.max()) + 1
     tied = []
     for c in others:
         if c is named or not c.accepted or c.cv_residual_deg is None:
             continue
-        ok = np.isfinite(named.cv_residual_deg) & np.isfinite(c.cv_residual_deg)
-        diff = c.cv_residual_deg[ok] ** 2 - named.cv_residual_deg[ok] ** 2
-        per_group = np.bincount(rows[ok], weights=diff, minlength=n_groups)
-        count = np.bincount(rows[ok], minlength=n_groups).astype(float)
-        mean = float(diff.sum() / max(ok.sum(), 1))
-        g = int(np.count_nonzero(count))
-        if g < 2:
-            continue
-        dev = per_group - count * mean
-        se = math.sqrt(g / (g - 1) * float(np.sum(dev**2))) / float(ok.sum())
-        if mean <= TIE_STANDARD_ERRORS * se:
+        excess = _held_out_excess(named.cv_residual_deg, c.cv_residual_deg, groups)
+        if excess is not None and excess[0] <= TIE_STANDARD_ERRORS * excess[1]:
             tied.append(label(c))
     return (label(named), *tied) if tied else ()
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from cvmeasure.diagnose import diagnose, fitting
+from cvmeasure.diagnose import core, diagnose, fitting
 from cvmeasure.diagnose.fitting import UNFITTED_PRIOR_SD
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS, SimParams
 from cvmeasure_datasets import physical_bender as pb
@@ -210,23 +210,53 @@ def test_a_cause_whose_interval_holds_no_effect_is_not_named_on_a_no_effect_swee
     assert any("holds no effect" in n for n in result.notes)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known limit (docs/diagnosis.md, Limits): without the span's elastic bow the "
-    "compliance fitted on the physical model comes out at about half its value and scale "
-    "is named; fitting the bow's share fixes this case but cost a met target (measured)",
+@pytest.mark.parametrize(
+    ("seed", "plan", "held"),
+    [
+        (910003, "random", True),
+        (1500003, "random", False),
+        (1501000, "sweep", True),
+        (1502002, "repeats", True),
+    ],
 )
-def test_a_compliance_on_the_independent_model_is_named_compliance():
-    # development seed (not the benchmark's), a random plan: a drive compliance of 0.34
-    # deg/(N m). The physical model's span bows elastically under the load (an over-bend
-    # of M l / (6 EI), 0.2-0.3 deg, largest at small bends), which the compliance's
-    # parameter takes when fitted without it (0.20); scale (-0.015) is named, no tie. With
-    # the bow's share fitted as a nuisance: compliance 0.29, named, no tie
-    case = pb.physical_case(910003, "compliance", plan="random", n_trials=60)
+def test_a_compliance_on_the_independent_model_is_named_compliance(seed, plan, held):
+    # development seeds (not the benchmark's): a drive compliance of 0.34-0.51 deg/(N m).
+    # The physical model's span bows elastically under the load (an over-bend of
+    # M l / (6 EI), 0.16-0.32 deg, largest at small bends); with the leg straight the
+    # compliance's parameter takes it (about half its value) and what is left is a scale's
+    # shape: the straight-leg diagnosis names scale (910003, 1500003, 1502002) or ties
+    # compliance with scale (1501000). Refitted with the bow (beam theory, share 1) both
+    # rivals, the bowed compliance explains the held-out data better than either straight
+    # fit, so the diagnosis is made with the bow: compliance, no tie (fitted 0.28 / 0.36 /
+    # 0.36 / 0.40 for 0.34 / 0.51 / 0.43 / 0.49); the interval holds the truth but at
+    # 1500003 (0.264 .. 0.5105 for 0.5113: the lag still comes out low, Limits)
+    case = pb.physical_case(seed, "compliance", plan=plan, n_trials=60)
+    straight = core._diagnose_once(case.trials, SimParams())
+    assert straight.cause != "compliance" or straight.tie, (straight.cause, straight.tie)
     result = diagnose(case.trials)
     assert result.cause == "compliance" and not result.tie, (result.cause, result.tie)
+    assert result.causes == ("compliance",)
+    assert any("elastic bow" in n and "is in the model" in n for n in result.notes)
     truth = case.hidden[0].params["compliance_deg_per_nm"]
-    assert result.params["compliance_deg_per_nm"] == pytest.approx(truth, rel=0.2)
+    lo, hi = result.intervals["compliance_deg_per_nm"]
+    assert lo <= truth <= hi or not held, (lo, hi, truth)
+    assert result.params["compliance_deg_per_nm"] == pytest.approx(truth, rel=0.35)
+
+
+@pytest.mark.parametrize(("seed", "tied"), [(11, True), (31, False)])
+def test_a_scale_on_the_models_own_data_keeps_the_straight_leg(seed, tied):
+    # `simulate`'s own data (straight leg): a hidden scale is refitted with the bow too
+    # (compliance is accepted beside it), and the straight scale explains the held-out data
+    # better, so the bow is not used and scale is named. Seed 11: the bowed compliance is
+    # within one standard error of the straight scale held out (0.0762 vs 0.0753 deg, 0.7
+    # standard error): the result reports the tie; seed 31: 2.2 standard errors, no tie
+    case = hidden_case(seed, effect="scale", n_trials=40)
+    result = diagnose(case.trials)
+    assert result.cause == "scale" and result.causes == ("scale",)
+    assert any("elastic bow" in n and "is not in the model" in n for n in result.notes)
+    assert (result.tie == ("scale", "compliance")) is tied, result.tie
+    lo, hi = result.intervals["scale"]
+    assert lo <= case.effect.value <= hi
 
 
 def test_a_compliance_is_named_with_the_span_bow_known_and_its_tolerance_carried(monkeypatch):
