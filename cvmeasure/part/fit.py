@@ -131,6 +131,10 @@ class PolylineFit:
     bend_sigma_deg : ndarray (N-1,), one standard uncertainty of each bend from
         the scatter of the centreline about its two lines (sampling only: not
         calibration, not a systematic centreline bias).
+    direction_deg : ndarray (N,), each chord's fitted direction (atan2 of its unit
+        vector, board frame), degrees; ``direction_sigma_deg`` its standard uncertainty
+        from the same scatter (the two of a vertex are independent: their fits share no
+        point), so ``bend_sigma_deg`` is the pairs' quadrature sum.
     """
 
     vertices_mm: np.ndarray
@@ -138,6 +142,8 @@ class PolylineFit:
     segment_length_mm: np.ndarray
     rms_residual_mm: float
     bend_sigma_deg: np.ndarray | None = None
+    direction_deg: np.ndarray | None = None
+    direction_sigma_deg: np.ndarray | None = None
 
     @property
     def divisions(self) -> int:
@@ -266,6 +272,8 @@ def fit_polyline(
         segment_length_mm=np.hypot(*np.diff(verts, axis=0).T),
         rms_residual_mm=rms,
         bend_sigma_deg=np.degrees(np.sqrt(var[:-1] + var[1:])),
+        direction_deg=np.degrees(np.arctan2(dirs[:, 1], dirs[:, 0])),
+        direction_sigma_deg=np.degrees(np.sqrt(var)),
     )
 
 

@@ -648,32 +648,76 @@ def _moved_lift(
 
 
 #: A part whose lift is measured (two photos, the shadow) at least this high (mm) has its
-#: vertex bends fitted to the lit side's centres (:func:`_vertex_polyline`). The pairs'
-#: midpoints drift with the shadow's gap in proportion to the lift (0.05-0.13 deg at 3 mm on
-#: full-size dev parts); the lit edge alone has a shading error of its own (0.071 deg on a
-#: flat noise-free dev part at half size where the pairs gave 0.020), so a part lying about
-#: flat keeps the pairs.
+#: vertex bends from the pairs' and the lit side's chords combined (:func:`_vertex_polyline`).
+#: The pairs' midpoints drift with the shadow's gap in proportion to the lift (0.05-0.13 deg
+#: at 3 mm on full-size dev parts); the lit edge alone has a shading error of its own (0.071
+#: deg on a flat noise-free dev part at half size where the pairs gave 0.020), which the
+#: combination would read as the pairs' drift, so a part lying about flat keeps the pairs.
 LIT_MIN_LIFT_MM = 2.0
 
 
 def _vertex_polyline(
     lit_points_px: np.ndarray | None, to_mm: Any, divisions: int | None, poly: PolylineFit | None
 ) -> PolylineFit | None:
-    """The polyline whose bends are the vertex bends: fitted to the lit side's centres.
+    """The polyline whose bends are the vertex bends: the pairs' and the lit side's chords.
 
     A round wire's centres between its silhouette edges bend where a lifted part's shadow
     parts from it (the shadow side's edge shifts with the gap;
     :func:`cvmeasure.part.centreline._silhouette_centres`); the centres on the lit side's
-    edge (``lit_points_px``, mapped to mm by ``to_mm``) do not. The radius and the bend per
-    chord keep ``poly`` (the pairs' midpoints: less noisy, their bias a parallel shift).
-    ``poly`` when there are no lit centres.
+    edge (``lit_points_px``, mapped to mm by ``to_mm``) do not, but carry one edge's noise
+    instead of two's. Each chord's direction is combined from both fits
+    (:func:`_combine_chords`). ``poly`` (the pairs' midpoints) when there are no lit
+    centres.
     """
     if poly is None or lit_points_px is None or not divisions:
         return poly
     try:
-        return fit_polyline(to_mm(lit_points_px), divisions)
+        lit = fit_polyline(to_mm(lit_points_px), divisions)
     except ValueError:
         return poly
+    return _combine_chords(poly, lit)
+
+
+def _combine_chords(pairs: PolylineFit, lit: PolylineFit) -> PolylineFit:
+    """Each chord's direction from the pairs' fit and the lit side's, by their errors.
+
+    With ``S``, ``L`` the two edges' noise on a chord's direction and ``b`` the shadow
+    side's bias (halved in the pairs' midpoints), the pairs read ``b + (S + L) / 2``
+    (variance ``sp^2``) and the lit side ``L`` (``sl^2``), so their difference ``D`` is ``b``
+    plus noise of variance ``sp^2`` (``S`` and ``L`` independent). The direction
+    ``lit + w (pairs - lit)`` has the mean square error
+    ``(1 - w/2)^2 sl^2 + w^2 ss^2 / 4 + w^2 b^2`` (``ss^2 = 4 sp^2 - sl^2``, the shadow
+    side's noise), least at ``w = (sl^2 / 2) / (sp^2 + b^2)``; ``b^2`` is estimated as
+    ``max(D^2 - sp^2, 0)``, so a chord whose two fits agree within their noise takes
+    about the pairs (less noise) and one whose pairs drift with the shadow takes the lit
+    edge. The bend's sigma is the two chords' errors (their fits share no point) in
+    quadrature. The vertices and the rest are the lit fit's.
+    """
+    if (
+        pairs.direction_deg is None
+        or lit.direction_deg is None
+        or pairs.direction_sigma_deg is None
+        or lit.direction_sigma_deg is None
+        or len(pairs.direction_deg) != len(lit.direction_deg)
+    ):
+        return lit
+    sp2 = np.radians(pairs.direction_sigma_deg) ** 2
+    sl2 = np.radians(lit.direction_sigma_deg) ** 2
+    diff = np.radians((pairs.direction_deg - lit.direction_deg + 180.0) % 360.0 - 180.0)
+    if not (np.all(np.isfinite(sp2)) and np.all(np.isfinite(sl2)) and np.all(sp2 > 0)):
+        return lit
+    b2 = np.maximum(diff**2 - sp2, 0.0)
+    w = np.clip(0.5 * sl2 / (sp2 + b2), 0.0, 1.0)
+    ss2 = np.maximum(4.0 * sp2 - sl2, 0.0)
+    mse = (1.0 - 0.5 * w) ** 2 * sl2 + 0.25 * w**2 * ss2 + w**2 * b2
+    turn = np.degrees(w * diff)  # each chord's direction moved from the lit fit's
+    return replace(
+        lit,
+        bend_deg=lit.bend_deg + np.diff(turn),
+        bend_sigma_deg=np.degrees(np.sqrt(mse[:-1] + mse[1:])),
+        direction_deg=lit.direction_deg + turn,
+        direction_sigma_deg=np.degrees(np.sqrt(mse)),
+    )
 
 
 def _net_turn_deg(points_mm: np.ndarray) -> float:
