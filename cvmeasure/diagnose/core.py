@@ -1318,7 +1318,17 @@ def _name_causes(
     ]
     best, ext = min(plausible, key=lambda o: o[1].cv_rmse_deg)
     ext_fit = ext.fit
-    single_cv = {c.cause: c.cv_rmse_deg for c in results}
+    # a named pair's first cause is the one that alone predicts held-out data best with
+    # the discrepancy profiled out (as the pair itself is ranked): the raw held-out RMSE
+    # also carries the baseline's model-form wave along the angle, which on a repeats
+    # plan (whole commands held out) a cause even in the direction (camera tilt, scale)
+    # partly takes and an odd one (springback asymmetry, orthogonal to it there) cannot
+    single_cv = {
+        c.cause: c.cv_discrepancy_rmse_deg
+        if math.isfinite(c.cv_discrepancy_rmse_deg)
+        else c.cv_rmse_deg
+        for c in results
+    }
     if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
         ext_fit = ext_fit.reordered(ext_fit.causes[::-1])
     close = [

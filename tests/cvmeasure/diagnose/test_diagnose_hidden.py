@@ -280,3 +280,29 @@ def test_a_compliance_is_named_with_the_span_bow_known_and_its_tolerance_carried
     assert carried[0] < exact[0] and carried[1] > exact[1], (carried, exact)
     assert carried[0] <= truth <= carried[1] and not exact[0] <= truth <= exact[1]
     assert fitting.unfitted_priors(SimParams()) == fitting.UNFITTED_PRIOR_SD  # default: as before
+
+
+def test_a_springback_asymmetry_on_repeats_is_named_before_an_even_cause_beside_it():
+    # a springback asymmetry of -0.26 (the generator's: the wire's strength differs by
+    # direction) on a repeats plan (10 angles, each bent 3 times each way; whole commands
+    # held out together). Alone it is far the best held out with the discrepancy profiled
+    # out (0.12 deg against the tilt's 0.25) and in evidence (delta BIC 209 against 28),
+    # but not on the raw held-out RMSE (0.35 against 0.31): that also carries the
+    # baseline's model-form wave along the angle, which a cause even in the direction (a
+    # camera tilt, a scale) partly takes and the asymmetry, odd in it, cannot. The pair's
+    # order followed the raw RMSE and named the tilt first. Development seed (not the
+    # benchmark's), the asymmetry set to the low end of its drawn range.
+    case = pb.physical_case(
+        2001012,
+        "springback_asymmetry",
+        plan="repeats",
+        n_trials=60,
+        params={"springback_asymmetry": {"asymmetry": -0.26}},
+    )
+    result = diagnose(case.trials)
+    assert result.cause == "springback_asymmetry", (result.causes, result.notes)
+    lo, hi = result.intervals["asymmetry"]
+    # the generator's asymmetry is of strength, the catalogue's of springback: same sign,
+    # size within a few tenths (fitted -0.24 here)
+    assert lo < 0 and hi < 0
+    assert result.params["asymmetry"] == pytest.approx(-0.26, abs=0.1)
