@@ -76,6 +76,17 @@ EDGE_BIAS_MM = 0.05
 #: An edge is an outlier (a centreline defect, clutter) only beyond this from the fit (mm),
 #: however tight the others: several times the edges' bias.
 OUTLIER_MM = 0.15
+#: From the second round of the ramps' fit on, each profile is fitted only from this far
+#: inside its ramp (mm) outward: nearer the wire its halo, not the shadow, sets the level
+#: (dark lab sheets, plain: the common depth 0.23-0.25 for the lab's 0.35, edges +0.25 mm
+#: outside the true ones; with it 0.30-0.33, +0.10..+0.13 mm). None: the whole profile.
+RAMP_WINDOW_MM: float | None = 0.5
+#: Rounds of the ramps' alternating fit (edges, then the common depth and penumbra).
+ROUNDS = 6
+#: Each edge is finally refitted with its own sheet levels inside and outside the step
+#: (:func:`_refine_local_levels`), from RAMP_WINDOW_MM inside the ramp to this far beyond
+#: it (mm): the sheet's local albedo, not the far plate's, sets the half step. None: not.
+LOCAL_OUT_MM: float | None = 1.5
 #: Centreline points this close to either end are left out (the caps' own shadows), mm.
 END_MARGIN_MM = 4.0
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
@@ -246,7 +257,7 @@ def measure_shadow_edges(
     margin = max(WIRE_BLUR_MARGIN_MM, WIRE_BLUR_MARGIN_PX * plane.mm_per_px)
     q = _less_wire_halo(u, q, silhouette.T, margin, far)
     start = silhouette.T + margin
-    offsets, contrast, k_w = _fit_ramps(u, q, start, far)
+    offsets, contrast, k_w = _fit_ramps(u, q, start, far, window_mm=RAMP_WINDOW_MM)
     texture = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
     return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin, texture)
 
@@ -302,7 +313,9 @@ def _texture_edge_errors(
             q_inj = np.full((2, *q_lit.shape), np.nan)
             q_inj[0] = q_lit * (1.0 - k * ramp)
             starts = np.stack((start_lit, np.full(n, np.inf)))
-            e_fit, _, _ = _fit_ramps(u, q_inj, starts, far, min_depth=0.5 * k)
+            e_fit, _, _ = _fit_ramps(
+                u, q_inj, starts, far, min_depth=0.5 * k, window_mm=RAMP_WINDOW_MM
+            )
             draws.append(e_fit[0] - e_syn)
     return np.column_stack(draws)
 
@@ -359,6 +372,7 @@ def _fit_ramps(
     start_mm: np.ndarray,
     far: np.ndarray,
     min_depth: float = MIN_SHADOW_CONTRAST,
+    window_mm: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
     """The shadow's outer edge on every profile, with ONE depth and penumbra for all.
 
@@ -368,7 +382,9 @@ def _fit_ramps(
     share of the plate's light) and, the wire near the plate, one penumbra ``w``: each
     profile beyond ``start_mm`` is ``1 - k ramp((e - u) / w)`` with its own edge ``e`` (the
     half level of the shadow's step, not of the darker wire's). ``k``, ``w`` and the edges
-    are fitted by alternating least squares. Returns the edges (2, K), NaN where the profile
+    are fitted by alternating least squares; with ``window_mm`` each profile from the second
+    round on only from ``window_mm`` inside its ramp outward, and its edge finally refitted
+    with its own sheet levels (:data:`LOCAL_OUT_MM`). Returns the edges (2, K), NaN where the profile
     has no shadow edge beyond ``start_mm``, each profile's depth (2, K) and the fitted
     ``(k, w)`` (None when no profile is darker than ``min_depth``).
     """
@@ -386,12 +402,21 @@ def _fit_ramps(
     du = float(u[1] - u[0])
     grid = u[::2]
 
-    qc, rc = qz[cand], region[cand]
-    for _ in range(4):
+    qc, rc_all = qz[cand], region[cand]
+    rc = rc_all
+    local = False
+    for it in range(ROUNDS if window_mm is not None else 4):
         # each edge on a grid, then a parabola through the best three
         ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
         pred = 1.0 - k * ramp
-        sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
+        if local:
+            # each profile's own level (the sheet just outside its shadow) free: the
+            # squares left after the best level, less the constant sum q^2
+            sqm = (qc * rc) @ pred.T
+            smm = rc.astype(float) @ (pred**2).T
+            sse = -(sqm**2) / np.maximum(smm, 1e-12)
+        else:
+            sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
         g = np.clip(np.argmin(sse, axis=1), 1, len(grid) - 2)
         rows = np.arange(len(g))
         y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
@@ -399,16 +424,28 @@ def _fit_ramps(
         shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
         e = grid[g] + np.clip(shift, -1.0, 1.0) * (grid[1] - grid[0])
         # then the common depth and penumbra
+        qn = qc
+        if local:
+            outside = rc & (u[None, :] > (e + 0.5 * w)[:, None])
+            lvl = np.sum(np.where(outside, qc, 0.0), axis=1) / np.maximum(outside.sum(axis=1), 1)
+            qn = qc / np.where(outside.sum(axis=1) >= 3, lvl, 1.0)[:, None]
         best = None
         for ww in w * np.array([0.7, 0.85, 1.0, 1.2, 1.4]):
             ramp_e = np.clip(0.5 - (u[None, :] - e[:, None]) / ww, 0.0, 1.0)
             a = np.sum(rc * ramp_e * ramp_e)
-            kk = float(np.sum(rc * ramp_e * (1.0 - qc)) / max(a, 1e-12))
-            r = np.sum(rc * (qc - 1.0 + kk * ramp_e) ** 2)
+            kk = float(np.sum(rc * ramp_e * (1.0 - qn)) / max(a, 1e-12))
+            r = np.sum(rc * (qn - 1.0 + kk * ramp_e) ** 2)
             if best is None or r < best[0]:
                 best = (r, kk, ww)
         _, k, w = best
         w = max(w, 2.0 * du)
+        if window_mm is not None and it >= 1:
+            # from the second round on, each profile only about its own edge: the plate
+            # beyond it and the shadow's plateau up to window_mm inside its ramp (nearer the
+            # wire its halo, not the shadow, sets the level)
+            rc = rc_all & (u[None, :] > (e - 0.5 * w - window_mm)[:, None])
+    if window_mm is not None and LOCAL_OUT_MM is not None:
+        e = _refine_local_levels(u, qc, rc_all, e, k, w, window_mm, LOCAL_OUT_MM)
     # an edge counts where its ramp's outer half lies in the region and the profile is dark
     # inside it: its step measured, not the wire's
     start = start_mm[cand]
@@ -420,6 +457,58 @@ def _fit_ramps(
     out = np.where(ok, e, np.nan)
     edges[cand] = out
     return edges, depth, (k, w)
+
+
+def _refine_local_levels(
+    u: np.ndarray,
+    q: np.ndarray,
+    region: np.ndarray,
+    e: np.ndarray,
+    k: float,
+    w: float,
+    inside_mm: float,
+    outside_mm: float,
+    reach_mm: float = 0.6,
+) -> np.ndarray:
+    """Each edge ``e`` (K,) refitted with its own sheet levels on both sides of the step.
+
+    The profile ``q`` (K, U) about its edge (from ``inside_mm`` inside the ramp to
+    ``outside_mm`` beyond it) is ``a ramp + b (1 - ramp)`` with the common penumbra ``w``:
+    the levels ``a`` (the shadow) and ``b`` (the sheet just outside it) free per profile, so
+    the sheet's local albedo (a stain, the grain's slow swell, the light's falloff) does not
+    move the half step as it does against the far plate's level. The edge is searched
+    within ``reach_mm`` of ``e``; kept where the step's own depth ``1 - a / b`` is within
+    half of ``k``, else the common-depth edge stays."""
+    du = float(u[1] - u[0])
+    offs = np.arange(-reach_mm, reach_mm + 0.5 * du, du)
+    m = (region & (u[None, :] > (e - 0.5 * w - inside_mm)[:, None])
+         & (u[None, :] < (e + 0.5 * w + outside_mm)[:, None])).astype(float)  # fmt: skip
+    qm = np.where(m > 0, q, 0.0)
+    cand = e[:, None] + offs[None, :]  # (K, G)
+    r = np.clip(0.5 - (u[None, None, :] - cand[..., None]) / w, 0.0, 1.0)  # (K, G, U)
+    s_rr = np.einsum("kgu,ku->kg", r * r, m)
+    s_r = np.einsum("kgu,ku->kg", r, m)
+    s_n = m.sum(axis=1)[:, None]
+    s_qr = np.einsum("kgu,ku->kg", r, qm)
+    s_q = qm.sum(axis=1)[:, None]
+    # q = a r + b (1 - r) = b + (a - b) r: least squares in (b, c = a - b)
+    det = s_n * s_rr - s_r * s_r
+    ok_det = det > 1e-9
+    det = np.where(ok_det, det, 1.0)
+    b = (s_rr * s_q - s_r * s_qr) / det
+    c = (s_n * s_qr - s_r * s_q) / det
+    sse = -(b * s_q + c * s_qr)  # less the constant sum q^2
+    sse = np.where(ok_det, sse, 1e30)
+    g = np.clip(np.argmin(sse, axis=1), 1, len(offs) - 2)
+    rows = np.arange(len(e))
+    y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
+    den = y0 - 2.0 * y1 + y2
+    shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
+    e_new = cand[rows, g] + np.clip(shift, -1.0, 1.0) * du
+    bb, cc = b[rows, g], c[rows, g]
+    depth = np.where(bb > 0, -cc / np.where(bb > 0, bb, 1.0), 0.0)
+    keep = ok_det[rows, g] & (np.abs(depth - k) < 0.5 * k) & (m.sum(axis=1) >= 8)
+    return np.where(keep, e_new, e)
 
 
 @dataclass(frozen=True)
