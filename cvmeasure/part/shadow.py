@@ -87,6 +87,9 @@ ROUNDS = 6
 #: (:func:`_refine_local_levels`), from RAMP_WINDOW_MM inside the ramp to this far beyond
 #: it (mm): the sheet's local albedo, not the far plate's, sets the half step. None: not.
 LOCAL_OUT_MM: float | None = 1.5
+#: A first fit lifted by more than this (mm) has its edges measured again beyond the
+#: silhouette of the axis at the fitted heights (None: never).
+REMEASURE_LIFT_MM: float | None = 0.25
 #: Centreline points this close to either end are left out (the caps' own shadows), mm.
 END_MARGIN_MM = 4.0
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
@@ -178,11 +181,21 @@ def _unit_normals(points_mm: np.ndarray) -> np.ndarray:
 
 
 def _silhouette_on_plate_mm(
-    plane: PlaneModel, axis_mm: np.ndarray, normal: np.ndarray, height_mm: float, radius_mm: float
+    plane: PlaneModel,
+    axis_mm: np.ndarray,
+    normal: np.ndarray,
+    height_mm: Any,
+    radius_mm: float,
+    axis_at_height_mm: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(K, 2): how far along +-normal the wire hides the plate (its silhouette's rays)."""
+    """(K, 2): how far along +-normal from ``axis_mm`` the wire hides the plate (its
+    silhouette's rays). ``height_mm`` (scalar or (K,)): the axis' height; the axis itself
+    at ``axis_at_height_mm`` (K, 2) when given (a lifted point seen along its ray), else at
+    ``axis_mm``."""
     centre = plane.camera_centre_mm
-    xyz = np.column_stack((axis_mm, np.full(len(axis_mm), -height_mm)))
+    h = np.broadcast_to(np.asarray(height_mm, dtype=np.float64), (len(axis_mm),))
+    at = axis_mm if axis_at_height_mm is None else axis_at_height_mm
+    xyz = np.column_stack((at, -h))
     tangent = np.column_stack((normal[:, 1], -normal[:, 0], np.zeros(len(normal))))
     side = silhouette_sides(plane, xyz, tangent)
     out = np.empty((len(axis_mm), 2))
@@ -192,7 +205,13 @@ def _silhouette_on_plate_mm(
         ray = limb - centre
         t = -centre[2] / ray[:, 2]
         ground = centre[:2] + t[:, None] * ray[:, :2]
-        out[:, k] = np.abs(np.einsum("ij,ij->i", ground - axis_mm, normal))
+        if axis_at_height_mm is None:
+            out[:, k] = np.abs(np.einsum("ij,ij->i", ground - axis_mm, normal))
+        else:  # the generator on the +normal side is the one farther along +normal
+            along = np.einsum("ij,ij->i", ground - axis_mm, normal)
+            out[:, k] = along
+    if axis_at_height_mm is not None:
+        out = np.column_stack((np.maximum(out.max(axis=1), 0.0), np.maximum(-out.min(axis=1), 0.0)))
     return out
 
 
@@ -204,6 +223,7 @@ def measure_shadow_edges(
     wire_diameter_mm: float,
     axis_height_mm: float,
     step_mm: float = 0.5,
+    heights_mm: np.ndarray | None = None,
 ) -> ShadowEdges:
     """The cast shadow's outer edge across the wire (both sides), every ``step_mm`` along it.
 
@@ -236,7 +256,12 @@ def measure_shadow_edges(
     axis = axis_all[index]
     normal = smooth[index]
     radius = 0.5 * wire_diameter_mm
-    silhouette = _silhouette_on_plate_mm(plane, axis, normal, axis_height_mm, radius)
+    if heights_mm is None:
+        silhouette = _silhouette_on_plate_mm(plane, axis, normal, axis_height_mm, radius)
+    else:  # a lifted axis point is seen along its ray: its silhouette from there
+        h = np.asarray(heights_mm, dtype=np.float64)[index]
+        at_h = points_at_heights_mm(plane, pts_px[index], h)
+        silhouette = _silhouette_on_plate_mm(plane, axis, normal, h, radius, at_h)
     gray = gray_float(image)
     top = 255.0 if gray.max() > 1.5 else 1.0
     lin = srgb_decode(np.clip(gray / top, 0.0, 1.0)).astype(np.float32)
@@ -681,9 +706,25 @@ def estimate_lift_shadow(
     base = radius if axis_height_mm is None else float(axis_height_mm)
     pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     if edges is None:
+        kw = {"wire_diameter_mm": wire_diameter_mm, "axis_height_mm": axis_height_mm}
         edges = measure_shadow_edges(
             image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base
         )
+        first = estimate_lift_shadow(image, plane, pts_px, **kw, edges=edges)
+        if (
+            REMEASURE_LIFT_MM is None
+            or first.lift is None
+            or first.lift.lift_mm < REMEASURE_LIFT_MM
+        ):
+            return first
+        # the wire's silhouette on the plate from the fitted heights (a lifted end is seen
+        # along its ray, so its silhouette reaches farther out on the side facing away from
+        # the camera), the edges measured again beyond it, and fitted again
+        edges = measure_shadow_edges(
+            image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base,
+            heights_mm=base + first.lift.height_mm,
+        )  # fmt: skip
+        return estimate_lift_shadow(image, plane, pts_px, **kw, edges=edges)
     flat_mm = points_at_heights_mm(plane, pts_px, base)
     centred = flat_mm - flat_mm.mean(axis=0)
     nan2 = (float("nan"), float("nan"))
