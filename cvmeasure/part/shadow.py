@@ -429,19 +429,11 @@ def _fit_ramps(
 
     qc, rc_all = qz[cand], region[cand]
     rc = rc_all
-    local = False
     for it in range(ROUNDS if window_mm is not None else 4):
         # each edge on a grid, then a parabola through the best three
         ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
         pred = 1.0 - k * ramp
-        if local:
-            # each profile's own level (the sheet just outside its shadow) free: the
-            # squares left after the best level, less the constant sum q^2
-            sqm = (qc * rc) @ pred.T
-            smm = rc.astype(float) @ (pred**2).T
-            sse = -(sqm**2) / np.maximum(smm, 1e-12)
-        else:
-            sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
+        sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
         g = np.clip(np.argmin(sse, axis=1), 1, len(grid) - 2)
         rows = np.arange(len(g))
         y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
@@ -449,17 +441,12 @@ def _fit_ramps(
         shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
         e = grid[g] + np.clip(shift, -1.0, 1.0) * (grid[1] - grid[0])
         # then the common depth and penumbra
-        qn = qc
-        if local:
-            outside = rc & (u[None, :] > (e + 0.5 * w)[:, None])
-            lvl = np.sum(np.where(outside, qc, 0.0), axis=1) / np.maximum(outside.sum(axis=1), 1)
-            qn = qc / np.where(outside.sum(axis=1) >= 3, lvl, 1.0)[:, None]
         best = None
         for ww in w * np.array([0.7, 0.85, 1.0, 1.2, 1.4]):
             ramp_e = np.clip(0.5 - (u[None, :] - e[:, None]) / ww, 0.0, 1.0)
             a = np.sum(rc * ramp_e * ramp_e)
-            kk = float(np.sum(rc * ramp_e * (1.0 - qn)) / max(a, 1e-12))
-            r = np.sum(rc * (qn - 1.0 + kk * ramp_e) ** 2)
+            kk = float(np.sum(rc * ramp_e * (1.0 - qc)) / max(a, 1e-12))
+            r = np.sum(rc * (qc - 1.0 + kk * ramp_e) ** 2)
             if best is None or r < best[0]:
                 best = (r, kk, ww)
         _, k, w = best
@@ -495,15 +482,16 @@ def _refine_local_levels(
     outside_mm: float,
     reach_mm: float = 0.6,
 ) -> np.ndarray:
-    """Each edge ``e`` (K,) refitted with its own sheet levels on both sides of the step.
+    """Each edge ``e`` (K,) refitted against the sheet's own level just outside it.
 
     The profile ``q`` (K, U) about its edge (from ``inside_mm`` inside the ramp to
-    ``outside_mm`` beyond it) is ``a ramp + b (1 - ramp)`` with the common penumbra ``w``:
-    the levels ``a`` (the shadow) and ``b`` (the sheet just outside it) free per profile, so
-    the sheet's local albedo (a stain, the grain's slow swell, the light's falloff) does not
-    move the half step as it does against the far plate's level. The edge is searched
-    within ``reach_mm`` of ``e``; kept where the step's own depth ``1 - a / b`` is within
-    half of ``k``, else the common-depth edge stays."""
+    ``outside_mm`` beyond it) is ``b (1 - k ramp)`` with the common depth ``k`` and
+    penumbra ``w`` and the level ``b`` free per profile: the shadow is a ratio of the sheet
+    it falls on, so the sheet's local albedo (a stain, the grain's slow swell, the light's
+    falloff) does not move the half step as it does against the far plate's level. The
+    edge is searched within ``reach_mm`` of ``e`` (kept where at least 8 samples lie in the
+    window, else the common edge stays). (Both levels free, the shadow's too,
+    scattered the edges on plain lab sheets: a flat part corrected to a 1 mm lift.)"""
     du = float(u[1] - u[0])
     offs = np.arange(-reach_mm, reach_mm + 0.5 * du, du)
     m = (region & (u[None, :] > (e - 0.5 * w - inside_mm)[:, None])
@@ -516,23 +504,20 @@ def _refine_local_levels(
     s_n = m.sum(axis=1)[:, None]
     s_qr = np.einsum("kgu,ku->kg", r, qm)
     s_q = qm.sum(axis=1)[:, None]
-    # q = a r + b (1 - r) = b + (a - b) r: least squares in (b, c = a - b)
-    det = s_n * s_rr - s_r * s_r
-    ok_det = det > 1e-9
-    det = np.where(ok_det, det, 1.0)
-    b = (s_rr * s_q - s_r * s_qr) / det
-    c = (s_n * s_qr - s_r * s_q) / det
-    sse = -(b * s_q + c * s_qr)  # less the constant sum q^2
-    sse = np.where(ok_det, sse, 1e30)
+    # q = b (1 - k r): the sheet's level b just outside the shadow free, the shadow's depth
+    # the common one (the ratio of shadowed to bare sheet)
+    s_mm = s_n - 2.0 * k * s_r + k * k * s_rr
+    s_qm = s_q - k * s_qr
+    ok_det = s_mm > 1e-9
+    s_mm = np.where(ok_det, s_mm, 1.0)
+    sse = np.where(ok_det, -(s_qm**2) / s_mm, 1e30)  # less the constant sum q^2
     g = np.clip(np.argmin(sse, axis=1), 1, len(offs) - 2)
     rows = np.arange(len(e))
     y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
     den = y0 - 2.0 * y1 + y2
     shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
     e_new = cand[rows, g] + np.clip(shift, -1.0, 1.0) * du
-    bb, cc = b[rows, g], c[rows, g]
-    depth = np.where(bb > 0, -cc / np.where(bb > 0, bb, 1.0), 0.0)
-    keep = ok_det[rows, g] & (np.abs(depth - k) < 0.5 * k) & (m.sum(axis=1) >= 8)
+    keep = ok_det[rows, g] & (m.sum(axis=1) >= 8)
     return np.where(keep, e_new, e)
 
 

@@ -274,3 +274,79 @@ def test_the_sheets_own_edge_errors_come_from_its_bare_side():
         tex = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
         rms = float(np.sqrt(np.nanmean(tex**2)))
         assert low <= rms < high, (stain, rms)
+
+
+def _true_edge_residuals_mm(photo, plane, centre) -> tuple[np.ndarray, np.ndarray]:
+    """The measured shadow edges less the true ones (the render's lamp and axis heights
+    through :func:`predict_shadow_edges_mm`), and each edge's gap beyond the silhouette."""
+    from cvmeasure.part.lift import points_at_heights_mm
+    from cvmeasure.part.shadow import measure_shadow_edges, predict_shadow_edges_mm
+    from cvmeasure_datasets.solids import lamp_direction
+
+    lamp = lamp_direction(photo.truth["lighting"]["light_azimuth_deg"], up=-1.0)
+    s_true = -lamp[:2] / abs(lamp[2])
+    axis3 = np.array(photo.truth["part"]["centreline_3d_mm"])
+    pts = centre.points_px
+    flat = points_at_heights_mm(plane, pts, 0.5 * WIRE_MM)
+    nearest = np.argmin(np.linalg.norm(flat[:, None, :] - axis3[None, :, :2], axis=2), axis=1)
+    heights = -axis3[nearest, 2]
+    edges = measure_shadow_edges(
+        photo.bgr, plane, pts, wire_diameter_mm=WIRE_MM, axis_height_mm=0.5 * WIRE_MM,
+        heights_mm=heights,
+    )  # fmt: skip
+    have = np.isfinite(edges.offset_mm)
+    k = np.where(have[:, 0] & (~have[:, 1] | (edges.contrast[:, 0] >= edges.contrast[:, 1])), 0, 1)
+    rows = np.arange(len(k))
+    meas = edges.offset_mm[rows, k]
+    side = np.where(k == 0, 1.0, -1.0)
+    pred, _ = predict_shadow_edges_mm(plane, pts, edges, heights, s_true, 0.5 * WIRE_MM, side)
+    res = meas - pred
+    ok = np.isfinite(res) & (np.abs(res) < 1.0)
+    return res[ok], (meas - edges.silhouette_mm[rows, k])[ok]
+
+
+def test_a_dark_textured_sheets_shadow_edges_sit_on_the_true_ones():
+    """The lab's part lifted 2.5 mm on a dark textured sheet, all effects (dev seed 2009,
+    half size), against the render's truth (the edges measured beyond the silhouette of
+    the axis at its true heights, as the fit's second pass does at the fitted ones). The
+    common depth had been fitted over the whole profile, where the wire's halo lifts the
+    shadow near the wire, and the plate's level taken far out, where the sheet's albedo
+    differs: +0.33 mm outside the true edges on average. Each profile fitted about its
+    edge, with its own sheet levels: +0.045 mm median (measured). Asserted: within 0.12 mm."""
+    from dataclasses import replace
+
+    from cvmeasure_datasets.effects import SceneEffects
+
+    photo = _lab_render(2009, 0, replace(SceneEffects.all_on(), part_lift_mm=2.5))  # dark
+    plane, _, centre, _ = measure_centreline_mm(
+        photo.bgr, LAB_BOARD, photo.camera, wire_diameter_mm=WIRE_MM
+    )
+    res, _ = _true_edge_residuals_mm(photo, plane, centre)
+    assert len(res) > 100
+    assert abs(float(np.median(res))) < 0.12, float(np.median(res))
+
+
+def test_a_stray_discs_outline_is_not_taken_for_the_wire():
+    """The lab's part lifted 1 mm on a light textured cluttered sheet (dev seed 2004, half
+    size): a large stray disc's outline has a longer skeleton (143 px at the mask's scale)
+    than the 90 mm wire (128 px), and was taken for it ("no wire found"). The wire is now
+    the component whose filled mask has the longest path: the centreline lies 0.14 mm from
+    the truth's axis at most (on the plate, at the resting height), 98.6 mm long for 98.4
+    (measured). Asserted: within 0.5 mm, and at least 80 % of the part's length."""
+    from dataclasses import replace
+
+    from cvmeasure_datasets.effects import SceneEffects
+
+    photo = _lab_render(2004, 1, replace(SceneEffects.all_on(), part_lift_mm=1.0))  # light
+    _, _, _, centre_mm = measure_centreline_mm(
+        photo.bgr, LAB_BOARD, photo.camera, wire_diameter_mm=WIRE_MM
+    )
+    truth = np.array(photo.truth["part"]["projected_centreline_mm"])
+    fine = np.concatenate([
+        a + np.linspace(0.0, 1.0, 50)[:, None] * (b - a)
+        for a, b in zip(truth[:-1], truth[1:], strict=True)
+    ])  # fmt: skip
+    dist = np.min(np.linalg.norm(centre_mm[:, None, :] - fine[None, :, :], axis=2), axis=1)
+    assert float(np.max(dist)) < 0.5, float(np.max(dist))
+    length = float(np.sum(np.hypot(*np.diff(centre_mm, axis=0).T)))
+    assert length > 0.8 * float(np.sum(np.hypot(*np.diff(truth, axis=0).T)))
