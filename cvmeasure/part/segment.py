@@ -8,7 +8,9 @@ photo and its local background, a median filter a few wire widths wide (a
 median keeps the sheet's and board's large step edges, so only thin structures
 stand out). The threshold sits well above the noise (a shadow joined to the
 wire does no harm: the mask is only a guide); the wire is the connected
-component with the longest skeleton outside the board. The mask only gives the wire's topology and a
+component outside the board with the longest path through its filled mask (of the
+longest skeletons: a stray disc's outline has a long skeleton, no long path). The mask only
+gives the wire's topology and a
 first centre line: :mod:`cvmeasure.part.centreline` measures it sub-pixel.
 
 Frame: image pixels (OpenCV: x right, y down, pixel centres at integers).
