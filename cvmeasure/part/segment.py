@@ -8,7 +8,9 @@ photo and its local background, a median filter a few wire widths wide (a
 median keeps the sheet's and board's large step edges, so only thin structures
 stand out). The threshold sits well above the noise (a shadow joined to the
 wire does no harm: the mask is only a guide); the wire is the connected
-component with the longest skeleton outside the board. The mask only gives the wire's topology and a
+component outside the board with the longest path through its filled mask (of the
+longest skeletons: a stray disc's outline has a long skeleton, no long path). The mask only
+gives the wire's topology and a
 first centre line: :mod:`cvmeasure.part.centreline` measures it sub-pixel.
 
 Frame: image pixels (OpenCV: x right, y down, pixel centres at integers).
@@ -25,6 +27,10 @@ import numpy as np
 __all__ = ["WireMask", "segment_wire", "gray_float", "longest_skeleton_path"]
 
 Sheet = Literal["dark", "light"]
+
+#: The wire is chosen among this many components with the longest skeletons (by the
+#: longest path through each once its holes are filled).
+CANDIDATES = 6
 
 
 @dataclass(frozen=True)
@@ -186,7 +192,7 @@ def segment_wire(
     count, labels, stats, _ = cv2.connectedComponentsWithStats(
         cand.astype(np.uint8), connectivity=8
     )
-    best: tuple[float, int, np.ndarray] | None = None
+    found: list[tuple[float, int]] = []
     for lab in range(1, count):
         x, y, w, h, area = stats[lab]
         if max(w, h) < min_length_px * factor * 0.5:
@@ -196,18 +202,27 @@ def segment_wire(
         length = float(skel.sum())
         if area / max(length, 1.0) > wide:
             continue  # wider than any wire: a strip of table, a sheet's edge
-        if best is None or length > best[0]:
-            best = (length, lab, np.array([x, y]))
-    if best is None:
+        found.append((length, lab))
+    if not found:
         return None
-    _, lab, _ = best
-    comp_small = (labels == lab).astype(np.uint8)
-    # fill holes (a specular crest can split the mask along the wire)
-    contours, _ = cv2.findContours(comp_small, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    filled = np.zeros_like(comp_small)
-    cv2.drawContours(filled, contours, -1, 1, thickness=cv2.FILLED)
-    path_small = longest_skeleton_path(skeletonize(filled.astype(bool)))
-    path_len = float(np.sum(np.hypot(*np.diff(path_small, axis=0).T)))
+    # of the longest skeletons, the one with the longest path once its holes are filled:
+    # a stray disc's or ring's outline has a long skeleton but, filled, no long path
+    best: tuple[float, np.ndarray, np.ndarray] | None = None
+    for _, lab in sorted(found, reverse=True)[:CANDIDATES]:
+        x, y, w, h, _ = stats[lab]
+        comp_box = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
+        # fill holes (a specular crest can split the mask along the wire)
+        contours, _ = cv2.findContours(comp_box, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        filled_box = np.zeros_like(comp_box)
+        cv2.drawContours(filled_box, contours, -1, 1, thickness=cv2.FILLED)
+        path_box = longest_skeleton_path(skeletonize(filled_box.astype(bool)))
+        plen = float(np.sum(np.hypot(*np.diff(path_box, axis=0).T)))
+        if best is None or plen > best[0]:
+            filled = np.zeros(labels.shape, dtype=np.uint8)
+            filled[y : y + h, x : x + w] = filled_box
+            best = (plen, filled, path_box + np.array([x, y], dtype=np.float64))
+    assert best is not None
+    path_len, filled, path_small = best
     if path_len / factor < min_length_px:
         return None
     # back to full size

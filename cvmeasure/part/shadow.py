@@ -76,6 +76,20 @@ EDGE_BIAS_MM = 0.05
 #: An edge is an outlier (a centreline defect, clutter) only beyond this from the fit (mm),
 #: however tight the others: several times the edges' bias.
 OUTLIER_MM = 0.15
+#: From the second round of the ramps' fit on, each profile is fitted only from this far
+#: inside its ramp (mm) outward: nearer the wire its halo, not the shadow, sets the level
+#: (dark lab sheets, plain: the common depth 0.23-0.25 for the lab's 0.35, edges +0.25 mm
+#: outside the true ones; with it 0.30-0.33, +0.10..+0.13 mm). None: the whole profile.
+RAMP_WINDOW_MM: float | None = 0.5
+#: Rounds of the ramps' alternating fit (edges, then the common depth and penumbra).
+ROUNDS = 6
+#: Each edge is finally refitted with its own sheet levels inside and outside the step
+#: (:func:`_refine_local_levels`), from RAMP_WINDOW_MM inside the ramp to this far beyond
+#: it (mm): the sheet's local albedo, not the far plate's, sets the half step. None: not.
+LOCAL_OUT_MM: float | None = 1.5
+#: A first fit lifted by more than this (mm) has its edges measured again beyond the
+#: silhouette of the axis at the fitted heights (None: never).
+REMEASURE_LIFT_MM: float | None = 0.25
 #: Centreline points this close to either end are left out (the caps' own shadows), mm.
 END_MARGIN_MM = 4.0
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
@@ -167,11 +181,21 @@ def _unit_normals(points_mm: np.ndarray) -> np.ndarray:
 
 
 def _silhouette_on_plate_mm(
-    plane: PlaneModel, axis_mm: np.ndarray, normal: np.ndarray, height_mm: float, radius_mm: float
+    plane: PlaneModel,
+    axis_mm: np.ndarray,
+    normal: np.ndarray,
+    height_mm: Any,
+    radius_mm: float,
+    axis_at_height_mm: np.ndarray | None = None,
 ) -> np.ndarray:
-    """(K, 2): how far along +-normal the wire hides the plate (its silhouette's rays)."""
+    """(K, 2): how far along +-normal from ``axis_mm`` the wire hides the plate (its
+    silhouette's rays). ``height_mm`` (scalar or (K,)): the axis' height; the axis itself
+    at ``axis_at_height_mm`` (K, 2) when given (a lifted point seen along its ray), else at
+    ``axis_mm``."""
     centre = plane.camera_centre_mm
-    xyz = np.column_stack((axis_mm, np.full(len(axis_mm), -height_mm)))
+    h = np.broadcast_to(np.asarray(height_mm, dtype=np.float64), (len(axis_mm),))
+    at = axis_mm if axis_at_height_mm is None else axis_at_height_mm
+    xyz = np.column_stack((at, -h))
     tangent = np.column_stack((normal[:, 1], -normal[:, 0], np.zeros(len(normal))))
     side = silhouette_sides(plane, xyz, tangent)
     out = np.empty((len(axis_mm), 2))
@@ -181,7 +205,13 @@ def _silhouette_on_plate_mm(
         ray = limb - centre
         t = -centre[2] / ray[:, 2]
         ground = centre[:2] + t[:, None] * ray[:, :2]
-        out[:, k] = np.abs(np.einsum("ij,ij->i", ground - axis_mm, normal))
+        if axis_at_height_mm is None:
+            out[:, k] = np.abs(np.einsum("ij,ij->i", ground - axis_mm, normal))
+        else:  # the generator on the +normal side is the one farther along +normal
+            along = np.einsum("ij,ij->i", ground - axis_mm, normal)
+            out[:, k] = along
+    if axis_at_height_mm is not None:
+        out = np.column_stack((np.maximum(out.max(axis=1), 0.0), np.maximum(-out.min(axis=1), 0.0)))
     return out
 
 
@@ -193,6 +223,7 @@ def measure_shadow_edges(
     wire_diameter_mm: float,
     axis_height_mm: float,
     step_mm: float = 0.5,
+    heights_mm: np.ndarray | None = None,
 ) -> ShadowEdges:
     """The cast shadow's outer edge across the wire (both sides), every ``step_mm`` along it.
 
@@ -225,7 +256,12 @@ def measure_shadow_edges(
     axis = axis_all[index]
     normal = smooth[index]
     radius = 0.5 * wire_diameter_mm
-    silhouette = _silhouette_on_plate_mm(plane, axis, normal, axis_height_mm, radius)
+    if heights_mm is None:
+        silhouette = _silhouette_on_plate_mm(plane, axis, normal, axis_height_mm, radius)
+    else:  # a lifted axis point is seen along its ray: its silhouette from there
+        h = np.asarray(heights_mm, dtype=np.float64)[index]
+        at_h = points_at_heights_mm(plane, pts_px[index], h)
+        silhouette = _silhouette_on_plate_mm(plane, axis, normal, h, radius, at_h)
     gray = gray_float(image)
     top = 255.0 if gray.max() > 1.5 else 1.0
     lin = srgb_decode(np.clip(gray / top, 0.0, 1.0)).astype(np.float32)
@@ -246,7 +282,7 @@ def measure_shadow_edges(
     margin = max(WIRE_BLUR_MARGIN_MM, WIRE_BLUR_MARGIN_PX * plane.mm_per_px)
     q = _less_wire_halo(u, q, silhouette.T, margin, far)
     start = silhouette.T + margin
-    offsets, contrast, k_w = _fit_ramps(u, q, start, far)
+    offsets, contrast, k_w = _fit_ramps(u, q, start, far, window_mm=RAMP_WINDOW_MM)
     texture = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
     return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin, texture)
 
@@ -302,7 +338,9 @@ def _texture_edge_errors(
             q_inj = np.full((2, *q_lit.shape), np.nan)
             q_inj[0] = q_lit * (1.0 - k * ramp)
             starts = np.stack((start_lit, np.full(n, np.inf)))
-            e_fit, _, _ = _fit_ramps(u, q_inj, starts, far, min_depth=0.5 * k)
+            e_fit, _, _ = _fit_ramps(
+                u, q_inj, starts, far, min_depth=0.5 * k, window_mm=RAMP_WINDOW_MM
+            )
             draws.append(e_fit[0] - e_syn)
     return np.column_stack(draws)
 
@@ -359,6 +397,7 @@ def _fit_ramps(
     start_mm: np.ndarray,
     far: np.ndarray,
     min_depth: float = MIN_SHADOW_CONTRAST,
+    window_mm: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
     """The shadow's outer edge on every profile, with ONE depth and penumbra for all.
 
@@ -368,7 +407,9 @@ def _fit_ramps(
     share of the plate's light) and, the wire near the plate, one penumbra ``w``: each
     profile beyond ``start_mm`` is ``1 - k ramp((e - u) / w)`` with its own edge ``e`` (the
     half level of the shadow's step, not of the darker wire's). ``k``, ``w`` and the edges
-    are fitted by alternating least squares. Returns the edges (2, K), NaN where the profile
+    are fitted by alternating least squares; with ``window_mm`` each profile from the second
+    round on only from ``window_mm`` inside its ramp outward, and its edge finally refitted
+    with its own sheet levels (:data:`LOCAL_OUT_MM`). Returns the edges (2, K), NaN where the profile
     has no shadow edge beyond ``start_mm``, each profile's depth (2, K) and the fitted
     ``(k, w)`` (None when no profile is darker than ``min_depth``).
     """
@@ -386,8 +427,9 @@ def _fit_ramps(
     du = float(u[1] - u[0])
     grid = u[::2]
 
-    qc, rc = qz[cand], region[cand]
-    for _ in range(4):
+    qc, rc_all = qz[cand], region[cand]
+    rc = rc_all
+    for it in range(ROUNDS if window_mm is not None else 4):
         # each edge on a grid, then a parabola through the best three
         ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
         pred = 1.0 - k * ramp
@@ -409,6 +451,13 @@ def _fit_ramps(
                 best = (r, kk, ww)
         _, k, w = best
         w = max(w, 2.0 * du)
+        if window_mm is not None and it >= 1:
+            # from the second round on, each profile only about its own edge: the plate
+            # beyond it and the shadow's plateau up to window_mm inside its ramp (nearer the
+            # wire its halo, not the shadow, sets the level)
+            rc = rc_all & (u[None, :] > (e - 0.5 * w - window_mm)[:, None])
+    if window_mm is not None and LOCAL_OUT_MM is not None:
+        e = _refine_local_levels(u, qc, rc_all, e, k, w, window_mm, LOCAL_OUT_MM)
     # an edge counts where its ramp's outer half lies in the region and the profile is dark
     # inside it: its step measured, not the wire's
     start = start_mm[cand]
@@ -420,6 +469,56 @@ def _fit_ramps(
     out = np.where(ok, e, np.nan)
     edges[cand] = out
     return edges, depth, (k, w)
+
+
+def _refine_local_levels(
+    u: np.ndarray,
+    q: np.ndarray,
+    region: np.ndarray,
+    e: np.ndarray,
+    k: float,
+    w: float,
+    inside_mm: float,
+    outside_mm: float,
+    reach_mm: float = 0.6,
+) -> np.ndarray:
+    """Each edge ``e`` (K,) refitted against the sheet's own level just outside it.
+
+    The profile ``q`` (K, U) about its edge (from ``inside_mm`` inside the ramp to
+    ``outside_mm`` beyond it) is ``b (1 - k ramp)`` with the common depth ``k`` and
+    penumbra ``w`` and the level ``b`` free per profile: the shadow is a ratio of the sheet
+    it falls on, so the sheet's local albedo (a stain, the grain's slow swell, the light's
+    falloff) does not move the half step as it does against the far plate's level. The
+    edge is searched within ``reach_mm`` of ``e`` (kept where at least 8 samples lie in the
+    window, else the common edge stays). (Both levels free, the shadow's too,
+    scattered the edges on plain lab sheets: a flat part corrected to a 1 mm lift.)"""
+    du = float(u[1] - u[0])
+    offs = np.arange(-reach_mm, reach_mm + 0.5 * du, du)
+    m = (region & (u[None, :] > (e - 0.5 * w - inside_mm)[:, None])
+         & (u[None, :] < (e + 0.5 * w + outside_mm)[:, None])).astype(float)  # fmt: skip
+    qm = np.where(m > 0, q, 0.0)
+    cand = e[:, None] + offs[None, :]  # (K, G)
+    r = np.clip(0.5 - (u[None, None, :] - cand[..., None]) / w, 0.0, 1.0)  # (K, G, U)
+    s_rr = np.einsum("kgu,ku->kg", r * r, m)
+    s_r = np.einsum("kgu,ku->kg", r, m)
+    s_n = m.sum(axis=1)[:, None]
+    s_qr = np.einsum("kgu,ku->kg", r, qm)
+    s_q = qm.sum(axis=1)[:, None]
+    # q = b (1 - k r): the sheet's level b just outside the shadow free, the shadow's depth
+    # the common one (the ratio of shadowed to bare sheet)
+    s_mm = s_n - 2.0 * k * s_r + k * k * s_rr
+    s_qm = s_q - k * s_qr
+    ok_det = s_mm > 1e-9
+    s_mm = np.where(ok_det, s_mm, 1.0)
+    sse = np.where(ok_det, -(s_qm**2) / s_mm, 1e30)  # less the constant sum q^2
+    g = np.clip(np.argmin(sse, axis=1), 1, len(offs) - 2)
+    rows = np.arange(len(e))
+    y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
+    den = y0 - 2.0 * y1 + y2
+    shift = np.where(den > 0, 0.5 * (y0 - y2) / np.where(den > 0, den, 1.0), 0.0)
+    e_new = cand[rows, g] + np.clip(shift, -1.0, 1.0) * du
+    keep = ok_det[rows, g] & (m.sum(axis=1) >= 8)
+    return np.where(keep, e_new, e)
 
 
 @dataclass(frozen=True)
@@ -592,9 +691,25 @@ def estimate_lift_shadow(
     base = radius if axis_height_mm is None else float(axis_height_mm)
     pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     if edges is None:
+        kw = {"wire_diameter_mm": wire_diameter_mm, "axis_height_mm": axis_height_mm}
         edges = measure_shadow_edges(
             image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base
         )
+        first = estimate_lift_shadow(image, plane, pts_px, **kw, edges=edges)
+        if (
+            REMEASURE_LIFT_MM is None
+            or first.lift is None
+            or first.lift.lift_mm < REMEASURE_LIFT_MM
+        ):
+            return first
+        # the wire's silhouette on the plate from the fitted heights (a lifted end is seen
+        # along its ray, so its silhouette reaches farther out on the side facing away from
+        # the camera), the edges measured again beyond it, and fitted again
+        edges = measure_shadow_edges(
+            image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base,
+            heights_mm=base + first.lift.height_mm,
+        )  # fmt: skip
+        return estimate_lift_shadow(image, plane, pts_px, **kw, edges=edges)
     flat_mm = points_at_heights_mm(plane, pts_px, base)
     centred = flat_mm - flat_mm.mean(axis=0)
     nan2 = (float("nan"), float("nan"))

@@ -148,8 +148,9 @@ def test_the_photo_labs_flat_part_reads_no_lift_from_its_shadow(seed, i):
     sheet and 14x brighter than a dark one. The edge at half of the darkest level's step
     was the wire's: a flat part read 5.8 +- 1.8 mm (light) and 1.8 +- 0.9 mm (dark). The
     edge at half the shadow's own step (one depth and penumbra for all profiles): 0.16 +-
-    0.13 (light) and 0.10 +- 0.34 mm (dark) measured with the benchmark's calibrated lens.
-    Asserted: within 2 sigma of 0 (+ 0.1 mm) and the lamp within 5 deg."""
+    0.13 (light) and 0.10 +- 0.34 mm (dark) measured with the benchmark's calibrated lens;
+    with each edge fitted against the sheet just outside it (part14m) 0.13 +- 0.31 and
+    0.18 +- 0.42. Asserted: within 2 sigma of 0 (+ 0.1 mm) and the lamp within 5 deg."""
     photo, plane, centre = _lab_photo(seed, i, 0.0)
     fit = estimate_lift_shadow(photo.bgr, plane, centre.points_px, wire_diameter_mm=WIRE_MM)
     assert fit.lift is not None, fit.message
@@ -161,7 +162,8 @@ def test_the_photo_labs_flat_part_reads_no_lift_from_its_shadow(seed, i):
 
 def test_the_photo_labs_lifted_part_is_corrected_from_its_shadow():
     """The lab's part lifted 2 mm at one end, light sheet (dev seed 2101): the shadow reads
-    1.51 +- 0.27 mm (measured; 1.8 sigma low) and the corrected radius is -0.044 %.
+    1.51 +- 0.27 mm (measured; 1.8 sigma low) and the corrected radius is -0.044 %; since
+    part14m 2.27 +- 0.15 mm (1.8 sigma high), +0.032 %.
     Asserted: corrected, the lift within 2 sigma + 0.1 mm of 2, the radius within issue
     14's 0.3 %."""
     from cvmeasure.part.measure import measure_part
@@ -210,7 +212,7 @@ def test_a_textured_lab_sheet_is_not_corrected_silently_wrong():
     renders) and the lamp comes out 17 deg off. Before (the optimiser's forward-difference
     Jacobian for the covariance, a fixed 0.05 mm bias, the sigma between the two points the
     fit names highest and lowest): 2.18 +- 0.33 mm, corrected (6.6 sigma). Measured now:
-    2.18 +- 0.83 mm, bounded. Asserted: not corrected unless within 2 sigma of the truth."""
+    2.18 +- 0.83 mm, bounded (part14m: 3.00 +- 1.43, bounded). Asserted: not corrected unless within 2 sigma of the truth."""
     from dataclasses import replace
 
     from cvmeasure.part.measure import measure_part
@@ -233,7 +235,9 @@ def test_a_dark_textured_lab_sheet_widens_the_shadow_lift():
     size; its edges sit 0.42 mm outside the true ones on average, 0.1 mm more per mm of
     height). Before the sheet's own edge errors were counted: 5.92 +- 0.41 mm, corrected
     (7.1 sigma off). Measured now: 5.92 +- 0.94 mm, bounded (the laid steps' errors rms
-    0.5 mm on this sheet). Asserted: not corrected unless within 3 sigma (issue 14's dev
+    0.5 mm on this sheet). Since part14m (each edge fitted about itself, against the sheet
+    just outside it; the edges measured again beyond the lifted axis' silhouette) 3.49 +-
+    0.72 mm, bounded. Asserted: not corrected unless within 3 sigma (issue 14's dev
     target: no corrected fit beyond 3 sigma), and the sigma at least 0.6 mm."""
     from dataclasses import replace
 
@@ -274,3 +278,80 @@ def test_the_sheets_own_edge_errors_come_from_its_bare_side():
         tex = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
         rms = float(np.sqrt(np.nanmean(tex**2)))
         assert low <= rms < high, (stain, rms)
+
+
+def _true_edge_residuals_mm(photo, plane, centre) -> tuple[np.ndarray, np.ndarray]:
+    """The measured shadow edges less the true ones (the render's lamp and axis heights
+    through :func:`predict_shadow_edges_mm`), and each edge's gap beyond the silhouette."""
+    from cvmeasure.part.lift import points_at_heights_mm
+    from cvmeasure.part.shadow import measure_shadow_edges, predict_shadow_edges_mm
+    from cvmeasure_datasets.solids import lamp_direction
+
+    lamp = lamp_direction(photo.truth["lighting"]["light_azimuth_deg"], up=-1.0)
+    s_true = -lamp[:2] / abs(lamp[2])
+    axis3 = np.array(photo.truth["part"]["centreline_3d_mm"])
+    pts = centre.points_px
+    flat = points_at_heights_mm(plane, pts, 0.5 * WIRE_MM)
+    nearest = np.argmin(np.linalg.norm(flat[:, None, :] - axis3[None, :, :2], axis=2), axis=1)
+    heights = -axis3[nearest, 2]
+    edges = measure_shadow_edges(
+        photo.bgr, plane, pts, wire_diameter_mm=WIRE_MM, axis_height_mm=0.5 * WIRE_MM,
+        heights_mm=heights,
+    )  # fmt: skip
+    have = np.isfinite(edges.offset_mm)
+    k = np.where(have[:, 0] & (~have[:, 1] | (edges.contrast[:, 0] >= edges.contrast[:, 1])), 0, 1)
+    rows = np.arange(len(k))
+    meas = edges.offset_mm[rows, k]
+    side = np.where(k == 0, 1.0, -1.0)
+    pred, _ = predict_shadow_edges_mm(plane, pts, edges, heights, s_true, 0.5 * WIRE_MM, side)
+    res = meas - pred
+    ok = np.isfinite(res) & (np.abs(res) < 1.0)
+    return res[ok], (meas - edges.silhouette_mm[rows, k])[ok]
+
+
+def test_a_dark_textured_sheets_shadow_edges_sit_on_the_true_ones():
+    """The lab's part lifted 2.5 mm on a dark textured sheet, all effects (dev seed 2009,
+    half size), against the render's truth (the edges measured beyond the silhouette of
+    the axis at its true heights, as the fit's second pass does at the fitted ones). The
+    common depth had been fitted over the whole profile, where the wire's halo lifts the
+    shadow near the wire, and the plate's level taken far out, where the sheet's albedo
+    differs: +0.33 mm outside the true edges on average. Each profile fitted about its
+    edge, against the sheet's own level just outside it: +0.051 mm median (measured).
+    Asserted: within 0.12 mm."""
+    from dataclasses import replace
+
+    from cvmeasure_datasets.effects import SceneEffects
+
+    photo = _lab_render(2009, 0, replace(SceneEffects.all_on(), part_lift_mm=2.5))  # dark
+    plane, _, centre, _ = measure_centreline_mm(
+        photo.bgr, LAB_BOARD, photo.camera, wire_diameter_mm=WIRE_MM
+    )
+    res, _ = _true_edge_residuals_mm(photo, plane, centre)
+    assert len(res) > 100
+    assert abs(float(np.median(res))) < 0.12, float(np.median(res))
+
+
+def test_a_stray_discs_outline_is_not_taken_for_the_wire():
+    """The lab's part lifted 1 mm on a light textured cluttered sheet (dev seed 2004, half
+    size): a large stray disc's outline has a longer skeleton (143 px at the mask's scale)
+    than the 90 mm wire (128 px), and was taken for it ("no wire found"). The wire is now
+    the component whose filled mask has the longest path: the centreline lies 0.14 mm from
+    the truth's axis at most (on the plate, at the resting height), 98.6 mm long for 98.4
+    (measured). Asserted: within 0.5 mm, and at least 80 % of the part's length."""
+    from dataclasses import replace
+
+    from cvmeasure_datasets.effects import SceneEffects
+
+    photo = _lab_render(2004, 1, replace(SceneEffects.all_on(), part_lift_mm=1.0))  # light
+    _, _, _, centre_mm = measure_centreline_mm(
+        photo.bgr, LAB_BOARD, photo.camera, wire_diameter_mm=WIRE_MM
+    )
+    truth = np.array(photo.truth["part"]["projected_centreline_mm"])
+    fine = np.concatenate([
+        a + np.linspace(0.0, 1.0, 50)[:, None] * (b - a)
+        for a, b in zip(truth[:-1], truth[1:], strict=True)
+    ])  # fmt: skip
+    dist = np.min(np.linalg.norm(centre_mm[:, None, :] - fine[None, :, :], axis=2), axis=1)
+    assert float(np.max(dist)) < 0.5, float(np.max(dist))
+    length = float(np.sum(np.hypot(*np.diff(centre_mm, axis=0).T)))
+    assert length > 0.8 * float(np.sum(np.hypot(*np.diff(truth, axis=0).T)))
