@@ -478,29 +478,7 @@ def _diagnose_once(
 ) -> Diagnosis:
     """One diagnosis against ``params`` as given (:func:`diagnose` without the bow's decision).
 
-    Parameters
-    ----------
-    trials : TrialTable
-        Measured bends (both directions and loaded angles give the best power).
-    params : SimParams, optional
-        Nominal simulation parameters (defaults built in).
-    base_effects : sequence of Effect
-        Effects already part of the model (from a params JSON); kept fixed
-        unless a candidate of the same name refits them.
-    candidates : sequence of str, optional
-        Effect names to try (default: the whole catalogue).
-    folds : int
-        K of the grouped K-fold cross-validation.
-    min_cv_gain, min_delta_bic : float
-        Acceptance thresholds (see module notes).
-    max_causes : int
-        1 names at most one cause; 2 (default) then tries a second cause on
-        top of the first, accepted by the same rule against the one-cause model.
-
-    Raises
-    ------
-    ValueError
-        With fewer than ``MIN_TRIALS`` trials or an unknown candidate name.
+    Parameters and errors as :func:`diagnose`.
     """
     params = params or SimParams()
     if len(trials) < MIN_TRIALS:
