@@ -523,6 +523,7 @@ def _lift_effects(
     divisions: int | None,
     base_mm: float,
     max_lift_mm: float = MAX_LIFT_MM,
+    standard: bool = False,
 ) -> tuple[dict[str, Any], np.ndarray | None, str]:
     """The lift's bound, the bends' extra sigma (deg) and a warning ('' when none).
 
@@ -531,7 +532,10 @@ def _lift_effects(
     the radius and of each vertex bend when the part, rocked that much towards any of
     16 directions, is measured with each point on the plane of its own height (the
     tilted plane unrolled into the part's own) instead of flat. Half the worst change
-    of each vertex bend is added to its sigma (so 2 sigma covers the bound).
+    of each vertex bend is added to its sigma (so 2 sigma covers the bound); with
+    ``standard`` (a measured lift whose 2 sigma is ``max_lift_mm``) half the rms change
+    over the 16 directions instead: the standard uncertainty of a tilt error of one
+    sigma in a direction not known (part14n).
     """
 
     def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
@@ -547,6 +551,7 @@ def _lift_effects(
 
     bound = lift_bound_mm(lift, max_lift_mm)
     worst_r, worst_s, worst_b = 0.0, 0.0, None
+    changes: list[np.ndarray] = []
     if bound > 0:
         for direction in np.arange(0.0, 360.0, 22.5):
             rocked = rocked_lift(used_mm, float(direction), bound)
@@ -556,6 +561,7 @@ def _lift_effects(
             worst_r, worst_s = max(worst_r, abs(d_r)), max(worst_s, abs(d_s))
             if d_b is not None:
                 worst_b = d_b if worst_b is None else np.maximum(worst_b, d_b)
+                changes.append(d_b)
     worst_vertex = float(np.max(worst_b)) if worst_b is not None and len(worst_b) else 0.0
     info = {
         **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
@@ -582,7 +588,11 @@ def _lift_effects(
             "the part flat, or press it down, to measure it within "
             f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg"
         )
-    return info, None if worst_b is None else 0.5 * worst_b, warning
+    if worst_b is None:
+        return info, None, warning
+    if standard:
+        return info, 0.5 * np.sqrt(np.mean(np.square(changes), axis=0)), warning
+    return info, 0.5 * worst_b, warning
 
 
 #: The shadow's lift (one photo, ``shadow_lift=True``) is corrected when its 2 sigma is at
@@ -811,7 +821,8 @@ def measure_part(
         good enough (``shadow_lift``), else estimated from the wire's apparent width
         and bounded (:mod:`cvmeasure.part.lift`, ``max_lift_mm``): the worst effect of
         the lift (or of its correction's uncertainty) on the radius and the bends is
-        reported under ``lift``, half of it is added to the vertex bends' sigmas, and it
+        reported under ``lift``, half of it (of a corrected lift: half the rms over the
+        rocking directions) is added to the vertex bends' sigmas, and it
         is warned about (``part_lifted``) when it exceeds 0.3 % or 0.03 deg
         (docs/part-measurement.md).
     plane : the plane measured elsewhere (``cvmeasure plane``); then ``board`` is
@@ -953,7 +964,7 @@ def measure_part(
         bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
         lift_info, extra_sigma, _ = _lift_effects(
             plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions, base_mm,
-            2.0 * corrected.lift.lift_sigma_mm,
+            2.0 * corrected.lift.lift_sigma_mm, standard=True,
         )  # fmt: skip
         by_shadow = shadow_info is not None
         lift_info = {**lift_info, **(shadow_info if by_shadow else moved_info),
