@@ -550,8 +550,8 @@ def _lift_effects(
         return d_r, d_s, np.abs(np.asarray(p.bend_deg) - np.asarray(poly.bend_deg))
 
     bound = lift_bound_mm(lift, max_lift_mm)
-    worst_r, worst_s, worst_b = 0.0, 0.0, None
-    changes: list[np.ndarray] = []
+    worst_r, worst_s = 0.0, 0.0
+    changes: list[np.ndarray] = []  # each direction's change of every vertex bend
     if bound > 0:
         for direction in np.arange(0.0, 360.0, 22.5):
             rocked = rocked_lift(used_mm, float(direction), bound)
@@ -560,8 +560,8 @@ def _lift_effects(
                 continue
             worst_r, worst_s = max(worst_r, abs(d_r)), max(worst_s, abs(d_s))
             if d_b is not None:
-                worst_b = d_b if worst_b is None else np.maximum(worst_b, d_b)
                 changes.append(d_b)
+    worst_b = np.max(changes, axis=0) if changes else None
     worst_vertex = float(np.max(worst_b)) if worst_b is not None and len(worst_b) else 0.0
     info = {
         **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
