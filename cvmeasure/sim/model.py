@@ -342,6 +342,14 @@ def _bend_index(bend_index: ArrayLike | None, n: int) -> NDArray[np.float64]:
     return k
 
 
+def _commands(commanded_pin_deg: ArrayLike) -> NDArray[np.float64]:
+    """The signed pin commands (deg) as a finite 1-D float array; ValueError otherwise."""
+    cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
+    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
+        raise ValueError("commanded_pin_deg must be a finite 1-D array")
+    return cmd
+
+
 def simulate(
     commanded_pin_deg: ArrayLike,
     params: SimParams | None = None,
@@ -370,9 +378,7 @@ def simulate(
         them (measurement effects included).
     """
     params = params or SimParams()
-    cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
-    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
-        raise ValueError("commanded_pin_deg must be a finite 1-D array")
+    cmd = _commands(commanded_pin_deg)
     effects = tuple(effects)
     values = effect_values(effects)
     k = _bend_index(bend_index, cmd.size)
@@ -396,9 +402,7 @@ def simulate_drift_rates(
     that profiles a drift losing whole steps over a grid of rates: one simulation instead
     of K.
     """
-    cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
-    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
-        raise ValueError("commanded_pin_deg must be a finite 1-D array")
+    cmd = _commands(commanded_pin_deg)
     effects = tuple(effects)
     values: dict[str, Any] = dict(effect_values(effects))
     if "drift" not in values:
