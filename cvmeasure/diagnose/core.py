@@ -421,7 +421,7 @@ def _bow_decides(
     best = min(singles.values(), key=lambda c: c.cv_discrepancy_rmse_deg)
     if best.cause not in BOW_RIVALS or result.cause not in (*BOW_RIVALS, "unexplained"):
         return None
-    straight = min((singles[n] for n in BOW_RIVALS), key=lambda c: c.cv_discrepancy_rmse_deg)
+    straight = best  # the better straight rival: the best single cause is one of them
     if straight.cv_residual_deg is None:
         return None
     bowed_params = dataclasses.replace(params, span_bow_share=1.0)
