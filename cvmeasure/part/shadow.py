@@ -79,17 +79,17 @@ OUTLIER_MM = 0.15
 #: From the second round of the ramps' fit on, each profile is fitted only from this far
 #: inside its ramp (mm) outward: nearer the wire its halo, not the shadow, sets the level
 #: (dark lab sheets, plain: the common depth 0.23-0.25 for the lab's 0.35, edges +0.25 mm
-#: outside the true ones; with it 0.30-0.33, +0.10..+0.13 mm). None: the whole profile.
-RAMP_WINDOW_MM: float | None = 0.5
+#: outside the true ones; with it 0.30-0.33, +0.10..+0.13 mm).
+RAMP_WINDOW_MM = 0.5
 #: Rounds of the ramps' alternating fit (edges, then the common depth and penumbra).
 ROUNDS = 6
 #: Each edge is finally refitted with its own sheet levels inside and outside the step
 #: (:func:`_refine_local_levels`), from RAMP_WINDOW_MM inside the ramp to this far beyond
-#: it (mm): the sheet's local albedo, not the far plate's, sets the half step. None: not.
-LOCAL_OUT_MM: float | None = 1.5
+#: it (mm): the sheet's local albedo, not the far plate's, sets the half step.
+LOCAL_OUT_MM = 1.5
 #: A first fit lifted by more than this (mm) has its edges measured again beyond the
-#: silhouette of the axis at the fitted heights (None: never).
-REMEASURE_LIFT_MM: float | None = 0.25
+#: silhouette of the axis at the fitted heights.
+REMEASURE_LIFT_MM = 0.25
 #: Centreline points this close to either end are left out (the caps' own shadows), mm.
 END_MARGIN_MM = 4.0
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
@@ -282,7 +282,7 @@ def measure_shadow_edges(
     margin = max(WIRE_BLUR_MARGIN_MM, WIRE_BLUR_MARGIN_PX * plane.mm_per_px)
     q = _less_wire_halo(u, q, silhouette.T, margin, far)
     start = silhouette.T + margin
-    offsets, contrast, k_w = _fit_ramps(u, q, start, far, window_mm=RAMP_WINDOW_MM)
+    offsets, contrast, k_w = _fit_ramps(u, q, start, far)
     texture = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
     return ShadowEdges(index, axis, normal, offsets.T, silhouette, contrast.T, margin, texture)
 
@@ -338,9 +338,7 @@ def _texture_edge_errors(
             q_inj = np.full((2, *q_lit.shape), np.nan)
             q_inj[0] = q_lit * (1.0 - k * ramp)
             starts = np.stack((start_lit, np.full(n, np.inf)))
-            e_fit, _, _ = _fit_ramps(
-                u, q_inj, starts, far, min_depth=0.5 * k, window_mm=RAMP_WINDOW_MM
-            )
+            e_fit, _, _ = _fit_ramps(u, q_inj, starts, far, min_depth=0.5 * k)
             draws.append(e_fit[0] - e_syn)
     return np.column_stack(draws)
 
@@ -397,7 +395,7 @@ def _fit_ramps(
     start_mm: np.ndarray,
     far: np.ndarray,
     min_depth: float = MIN_SHADOW_CONTRAST,
-    window_mm: float | None = None,
+    window_mm: float = RAMP_WINDOW_MM,
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
     """The shadow's outer edge on every profile, with ONE depth and penumbra for all.
 
@@ -407,7 +405,7 @@ def _fit_ramps(
     share of the plate's light) and, the wire near the plate, one penumbra ``w``: each
     profile beyond ``start_mm`` is ``1 - k ramp((e - u) / w)`` with its own edge ``e`` (the
     half level of the shadow's step, not of the darker wire's). ``k``, ``w`` and the edges
-    are fitted by alternating least squares; with ``window_mm`` each profile from the second
+    are fitted by alternating least squares (:data:`ROUNDS`), each profile from the second
     round on only from ``window_mm`` inside its ramp outward, and its edge finally refitted
     with its own sheet levels (:data:`LOCAL_OUT_MM`). Returns the edges (2, K), NaN where the profile
     has no shadow edge beyond ``start_mm``, each profile's depth (2, K) and the fitted
@@ -429,7 +427,7 @@ def _fit_ramps(
 
     qc, rc_all = qz[cand], region[cand]
     rc = rc_all
-    for it in range(ROUNDS if window_mm is not None else 4):
+    for it in range(ROUNDS):
         # each edge on a grid, then a parabola through the best three
         ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
         pred = 1.0 - k * ramp
@@ -451,13 +449,12 @@ def _fit_ramps(
                 best = (r, kk, ww)
         _, k, w = best
         w = max(w, 2.0 * du)
-        if window_mm is not None and it >= 1:
+        if it >= 1:
             # from the second round on, each profile only about its own edge: the plate
             # beyond it and the shadow's plateau up to window_mm inside its ramp (nearer the
             # wire its halo, not the shadow, sets the level)
             rc = rc_all & (u[None, :] > (e - 0.5 * w - window_mm)[:, None])
-    if window_mm is not None and LOCAL_OUT_MM is not None:
-        e = _refine_local_levels(u, qc, rc_all, e, k, w, window_mm, LOCAL_OUT_MM)
+    e = _refine_local_levels(u, qc, rc_all, e, k, w, window_mm, LOCAL_OUT_MM)
     # an edge counts where its ramp's outer half lies in the region and the profile is dark
     # inside it: its step measured, not the wire's
     start = start_mm[cand]
@@ -696,11 +693,7 @@ def estimate_lift_shadow(
             image, plane, pts_px, wire_diameter_mm=wire_diameter_mm, axis_height_mm=base
         )
         first = estimate_lift_shadow(image, plane, pts_px, **kw, edges=edges)
-        if (
-            REMEASURE_LIFT_MM is None
-            or first.lift is None
-            or first.lift.lift_mm < REMEASURE_LIFT_MM
-        ):
+        if first.lift is None or first.lift.lift_mm < REMEASURE_LIFT_MM:
             return first
         # the wire's silhouette on the plate from the fitted heights (a lifted end is seen
         # along its ray, so its silhouette reaches farther out on the side facing away from
