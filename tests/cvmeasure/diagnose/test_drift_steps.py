@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvmeasure.diagnose import diagnose, fitting
+from cvmeasure.diagnose import core, diagnose, fitting
 from cvmeasure.diagnose.fitting import discrepancy_basis, fit_model, residuals
 from cvmeasure.sim.params import SimParams
 from cvmeasure_datasets import physical_bender as pb
@@ -130,3 +130,26 @@ def test_the_profile_over_rates_in_one_simulation_is_the_profile_rate_by_rate(
     assert batched.nuisance == reference.nuisance
     assert batched.intervals == reference.intervals
     assert batched.rss_deg2 == reference.rss_deg2
+
+
+@pytest.mark.parametrize("seed", [1502000, 1502005])
+def test_a_drift_on_repeats_is_named_drift_shifting_home_in_whole_steps(seed):
+    # development seeds 1502000 / 1502005 of the independent generator (a drift alone,
+    # repeats plan; the benchmark's seeds start at 700,000): the drift is named without a
+    # tie, in a home-shifting form losing whole steps, and every accepted single rival is
+    # more than one standard error behind it held out (the tie rule of step 3)
+    case = pb.physical_case(seed, "drift", plan="repeats", n_trials=60)
+    result = diagnose(case.trials)
+    assert result.cause == "drift" and result.causes == ("drift",), result.causes
+    assert not result.tie, result.tie
+    assert result.params["home_shift"] == 1.0 and result.params["step_deg"] > 0.0
+    groups, _ = core.cv_groups(case.trials)
+    singles = {
+        c.cause: c
+        for c in result.candidates
+        if len(c.fit.causes) == 1 and c.accepted and c.cv_residual_deg is not None
+    }
+    named = singles.pop("drift")
+    for rival in singles.values():
+        excess = core._held_out_excess(named.cv_residual_deg, rival.cv_residual_deg, groups)
+        assert excess is not None and excess[0] > core.TIE_STANDARD_ERRORS * excess[1]
