@@ -129,8 +129,9 @@ class PolylineFit:
     segment_length_mm : ndarray (N,), vertex-to-vertex lengths, mm.
     rms_residual_mm : RMS distance of the inlier points to their segment, mm.
     bend_sigma_deg : ndarray (N-1,), one standard uncertainty of each bend from
-        the scatter of the centreline about its two lines (sampling only: not
-        calibration, not a systematic centreline bias).
+        the scatter of the centreline about its two lines, counting the scatter's
+        correlation along each line (:func:`_correlation_factor`; sampling only: not
+        calibration, not a bias common to a whole chord).
     direction_deg : ndarray (N,), each chord's fitted direction (atan2 of its unit
         vector, board frame), degrees; ``direction_sigma_deg`` its standard uncertainty
         from the same scatter (the two of a vertex are independent: their fits share no
@@ -178,6 +179,34 @@ def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             break
         keep = new
     return mean, direction, keep
+
+
+#: Longest lag (share of a chord's points) over which the residuals' correlation is summed.
+MAX_LAG_SHARE = 0.25
+
+
+def _correlation_factor(residuals: np.ndarray) -> float:
+    """How much a line's direction variance grows because its residuals are correlated.
+
+    The TLS direction variance ``sigma^2 / sum (t - mean t)^2`` counts every centre as an
+    independent sample; neighbouring centres are not (the blur, the profiles' sampling and
+    a shading bump span several of them). The factor ``1 + 2 sum_k rho_k`` (the residuals'
+    autocorrelation at lags ``k``, ordered along the chord, summed up to its first
+    non-positive value and at most ``MAX_LAG_SHARE`` of the points) is the number of
+    centres per independent one; at least 1.
+    """
+    r = np.asarray(residuals, dtype=float)
+    r = r - r.mean()
+    power = float(r @ r)
+    if len(r) < 8 or power <= 0.0:
+        return 1.0
+    total = 1.0
+    for lag in range(1, max(2, int(MAX_LAG_SHARE * len(r)))):
+        rho = float(r[:-lag] @ r[lag:]) / power
+        if rho <= 0.0:
+            break
+        total += 2.0 * rho
+    return max(1.0, total)
 
 
 def _intersect(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -> np.ndarray:
@@ -253,7 +282,8 @@ def fit_polyline(
             along = (pts[sel][inl] - p0) @ d
             spread = float(np.sum((along - along.mean()) ** 2))
             dof = max(int(inl.sum()) - 2, 1)
-            dir_var.append(float(off @ off) / dof / spread if spread > 0 else math.inf)
+            white = float(off @ off) / dof / spread if spread > 0 else math.inf
+            dir_var.append(white * _correlation_factor(off))
         rms = math.sqrt(sq / max(count, 1))
         new = [lines[0][0] + np.dot(pts[0] - lines[0][0], lines[0][1]) * lines[0][1]]
         for i in range(divisions - 1):
