@@ -393,12 +393,15 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
         (2.2, 0.8, 3.0, True),  # informative: 2 sigma 1.6 mm < the 3 mm bound
         (6.39, 1.20, 3.0, False),  # a gross miss of a 3 mm lift: 2.0 sigma above the bound
         (7.75, 6.15, 3.0, False),  # 2 sigma wider than the bound: tells nothing more
+        (3.00, 1.43, 3.0, False),  # 2 sigma 2.9 mm: over SHADOW_WIDE_MAX_2SIGMA_MM
+        (1.0, 0.99, 3.0, True),
         (0.5, 0.7, 1.2, False),  # the width's bound is tighter than the shadow's 2 sigma
     ],
 )
 def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm, usable):
-    """An uncertain shadow lift is used only when its 2 sigma is below the bound otherwise
-    used and it is within 2 sigma of that bound (the dev reads of part14j/m)."""
+    """An uncertain shadow lift is used only when its 2 sigma is at most 2 mm and below the
+    bound otherwise used, and it is within 2 sigma of that bound (dev reads of part14j/m,
+    and the flat dev-seed-2000 part on a textured light sheet that read 3.00 +- 1.43 mm)."""
     from cvmeasure.part.lift import LiftEstimate
     from cvmeasure.part.measure import _shadow_unusable
 
