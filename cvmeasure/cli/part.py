@@ -78,8 +78,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         const=True,
         default=None,
         help="one photo: measure the part's lift from the wire's cast shadow (lamp and tilt "
-        "fitted over the whole wire) and correct it when its 2 sigma is at most 1 mm, else "
-        "bound it as without (needs the wire's diameter; not with --moved). The default "
+        "fitted over the whole wire) and correct it when its 2 sigma is at most 1 mm, or "
+        "below the lift bound and consistent with it (its 2 sigma then stated as the lift's "
+        "effect), else bound it as without (needs the wire's diameter; not with --moved). The default "
         "with the wire's diameter and one photo; this flag only insists on it",
     )
     shadow.add_argument(
