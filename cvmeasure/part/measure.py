@@ -631,6 +631,12 @@ def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> str:
     return ""
 
 
+def _shadow_lift_scale(shadow: LiftEstimate, bound_mm: float) -> float:
+    """The factor an uncertain shadow's lift is corrected with (1, or less when the lift is
+    read above ``bound_mm``, the lift bound otherwise used: it is then scaled down to it)."""
+    return min(1.0, bound_mm / max(shadow.lift_mm, 1e-9))
+
+
 #: Two views of a slid part whose registered centrelines differ by more than this rms
 #: (photo pixels) disagree beyond their noise (a centreline defect in one of them, e.g. an
 #: edge lost to a shadow): their lift is not used. Measured on the round-wire renders at
@@ -993,7 +999,7 @@ def measure_part(
         uncertain = shadow_info is not None and 2.0 * measured.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM
         scale = 1.0
         if uncertain:
-            scale = min(1.0, lift_bound_mm(lift, max_lift_mm) / max(measured.lift_mm, 1e-9))
+            scale = _shadow_lift_scale(measured, lift_bound_mm(lift, max_lift_mm))
 
         def lifted_mm(points_px: np.ndarray) -> np.ndarray:
             return _lifted_mm(plane, points_px, base_mm, measured, scale)
@@ -1022,10 +1028,15 @@ def measure_part(
             or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
             or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
         ):
+            corrected_as = "corrected"
+            if scale < 1.0:  # read above the bound: corrected at the bound
+                corrected_as = (
+                    f"above the lift bound: corrected at {scale * corrected.lift.lift_mm:.2f} mm"
+                )
             warnings.append(
                 f"part_lifted: the {'shadow' if by_shadow else 'two photos'} put the lift "
                 f"at {corrected.lift.lift_mm:.2f} +- "
-                f"{corrected.lift.lift_sigma_mm:.2f} mm (corrected); its uncertainty (2 "
+                f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
                 f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
                 f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
                 f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"

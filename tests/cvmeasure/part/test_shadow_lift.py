@@ -407,3 +407,19 @@ def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm,
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, sigma_mm, 3, 1.0)
     assert (_shadow_unusable(est, bound_mm) == "") is usable
+
+
+@pytest.mark.parametrize(
+    ("lift_mm", "bound_mm", "used_mm"),
+    [(2.5, 3.0, 2.5), (3.0, 3.0, 3.0), (4.2, 3.5, 3.5), (0.0, 3.0, 0.0)],
+)
+def test_an_uncertain_shadow_lift_read_above_the_bound_is_corrected_at_the_bound(
+    lift_mm, bound_mm, used_mm
+):
+    """The lift corrected with is the shadow's, or the bound where the shadow reads above it
+    (a reading within 2 sigma of the bound; _shadow_unusable rejects one farther above)."""
+    from cvmeasure.part.lift import LiftEstimate
+    from cvmeasure.part.measure import _shadow_lift_scale
+
+    est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, 0.8, 3, 1.0)
+    assert _shadow_lift_scale(est, bound_mm) * lift_mm == pytest.approx(used_mm, abs=1e-9)
