@@ -964,6 +964,10 @@ def measure_part(
     moved_info = None
     shadow_info = None
     corrected = None  # a lift measured and corrected: from the moved photo or the shadow
+    # an uncertain shadow's lift (2 sigma above SHADOW_MAX_2SIGMA_MM) corrected: read above
+    # the bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
+    # direction), not as the standard tilt error of a well-measured lift
+    uncertain, scale = False, 1.0
     if wire_diameter_mm is not None and moved_image is not None:
         moved_info, corrected, moved_warning = _moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
@@ -981,7 +985,8 @@ def measure_part(
         if shadow.lift is not None and 2.0 * shadow.lift.lift_sigma_mm <= SHADOW_MAX_2SIGMA_MM:
             corrected = shadow
         elif shadow.lift is not None:
-            why = _shadow_unusable(shadow.lift, lift_bound_mm(lift, max_lift_mm))
+            bound_mm = lift_bound_mm(lift, max_lift_mm)
+            why = _shadow_unusable(shadow.lift, bound_mm)
             if why:
                 shadow_info["message"] = (
                     f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
@@ -989,17 +994,10 @@ def measure_part(
                 )
             else:  # uncertain but better than the bound: corrected, its sigma carried
                 corrected = shadow
+                uncertain, scale = True, _shadow_lift_scale(shadow.lift, bound_mm)
     if corrected is not None:
         flat = (ours, poly)
         measured = corrected.lift
-
-        # an uncertain shadow's lift (2 sigma above SHADOW_MAX_2SIGMA_MM): read above the
-        # bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
-        # direction), not as the standard tilt error of a well-measured lift
-        uncertain = shadow_info is not None and 2.0 * measured.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM
-        scale = 1.0
-        if uncertain:
-            scale = _shadow_lift_scale(measured, lift_bound_mm(lift, max_lift_mm))
 
         def lifted_mm(points_px: np.ndarray) -> np.ndarray:
             return _lifted_mm(plane, points_px, base_mm, measured, scale)
