@@ -8,10 +8,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "wrap_deg",
+    "mod_positive",
     "direction_deg",
     "fit_circle_taubin",
     "CircleFit",
@@ -19,6 +20,16 @@ __all__ = [
     "fit_circles_robust",
     "median_by_partition",
 ]
+
+
+def mod_positive(x: NDArray[np.float64], period: float) -> NDArray[np.float64]:
+    """``np.mod(x, period)`` for ``period > 0``, the same numbers (up to the sign of a
+    zero result, which the callers' ``c - result`` and ``result - c`` make the same
+    value) at a fraction of the time: numpy's float remainder is C ``fmod`` plus
+    ``period`` when the two differ in sign, and computes the floor quotient it then
+    drops; ``fmod`` is exact, so the sum is the same rounding either way."""
+    m = np.fmod(x, period)
+    return np.where(m < 0.0, m + period, m)
 
 
 def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
@@ -30,7 +41,7 @@ def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
     [0.0, 90.0]
     """
     a = np.asarray(angle_deg, dtype=np.float64)
-    wrapped = 180.0 - np.mod(180.0 - a, 360.0)
+    wrapped = 180.0 - mod_positive(180.0 - a, 360.0)
     return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cvmeasure.geometry import wrap_deg
+from cvmeasure.geometry import mod_positive, wrap_deg
 from cvmeasure.sim.effects import Effect
 from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, loaded_angle_and_lever
 from cvmeasure.sim.params import SimParams
@@ -151,7 +151,7 @@ def apply_camera_tilt_deg(
 
 def wrap_rad(a: NDArray[np.float64]) -> NDArray[np.float64]:
     """Angles (rad) wrapped to [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+    return mod_positive(np.asarray(a) + np.pi, 2 * np.pi) - np.pi
 
 
 @dataclass(frozen=True)

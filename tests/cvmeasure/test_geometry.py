@@ -1,13 +1,33 @@
 import numpy as np
 import pytest
 
-from cvmeasure.geometry import direction_deg, fit_circle_taubin, wrap_deg
+from cvmeasure.geometry import direction_deg, fit_circle_taubin, mod_positive, wrap_deg
 
 
 def test_wrap_deg_range_is_half_open():
     a = wrap_deg(np.array([180.0, -180.0, 190.0, -190.0, 0.0, 720.0, 539.0]))
     np.testing.assert_allclose(a, [180, 180, -170, 170, 0, 0, 179])
     assert wrap_deg(-180.0) == 180.0
+
+
+def test_mod_positive_gives_numpys_remainder_and_wrap_the_same_bits():
+    # the fmod form must be numpy's float remainder exactly (the diagnosis' results are
+    # pinned byte for byte through wrap_deg and the simulation's wrap_rad)
+    rng = np.random.default_rng(5)
+    x = np.concatenate(
+        [
+            rng.normal(0.0, 1e3, 20_000),
+            rng.normal(0.0, 1e-15, 2_000),
+            np.logspace(-320, 4, 500),
+            -np.logspace(-320, 4, 500),
+            [0.0, -0.0, 360.0, -360.0, -720.0, 359.99999999999994, -359.99999999999994, 1e300],
+        ]
+    )
+    for period in (360.0, 2 * np.pi):
+        np.testing.assert_array_equal(mod_positive(x, period), np.mod(x, period))
+    old = 180.0 - np.mod(180.0 - x, 360.0)
+    assert np.array_equal(wrap_deg(x).view(np.int64), old.view(np.int64))
+    assert np.isnan(wrap_deg(np.nan))
 
 
 def test_direction_deg_quadrants():

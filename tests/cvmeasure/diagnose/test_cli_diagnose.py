@@ -161,3 +161,16 @@ def test_max_causes_option(tmp_path, capsys):
     assert set(json.loads(capsys.readouterr().out)["causes"]) == {"offset", "drift"}
     assert main(["diagnose", str(path), "--json", "--max-causes", "1"]) == 0
     assert len(json.loads(capsys.readouterr().out)["causes"]) == 1
+
+
+def test_cli_json_is_the_library_result(offset_trials, capsys):
+    # the CLI (lazy imports, its garbage-collector settings) prints what diagnose() returns,
+    # byte for byte
+    from cvmeasure.contracts import TrialTable
+    from cvmeasure.diagnose import diagnose
+    from cvmeasure.fileio import to_jsonable
+
+    assert main(["diagnose", str(offset_trials), "--json"]) == 0
+    printed = capsys.readouterr().out
+    expected = to_jsonable(diagnose(TrialTable.read_csv(offset_trials)).to_dict())
+    assert printed == json.dumps(expected, indent=2) + "\n"
