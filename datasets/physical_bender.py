@@ -50,6 +50,7 @@ __all__ = [
     "draw_machine",
     "plan_commands",
     "physical_case",
+    "run_follow_up",
 ]
 
 #: Catalogue causes the generator can hide (general forms).
@@ -495,3 +496,33 @@ def physical_case(
         measured_l = np.full(cmd.size, np.nan)
     trials = TrialTable.from_arrays(cmd, measured_l, measured_u, source="physical")
     return PhysicalCase(trials, tuple(drawn), mach, noise, shared, plan, seed)
+
+
+def run_follow_up(case: PhysicalCase, commands_deg: NDArray[np.float64], seed: int) -> PhysicalCase:
+    """``case`` with bends at ``commands_deg`` run after its own on the same machine.
+
+    The machine's state continues: the whole sequence is bent in order (trial count,
+    direction history, steps lost shifting home, warm-up), so the case's own trials keep
+    their true angles and the new ones follow them; the new bends' noise (the case's
+    size and loaded/released share) is drawn from ``seed``. Stochastic mechanisms
+    (springback scatter) are drawn afresh for the new bends.
+    """
+    rng = np.random.default_rng(seed)
+    old = case.trials
+    new = np.round(np.asarray(commands_deg, dtype=np.float64), 1)
+    cmd = np.concatenate([old.commanded_pin_deg, new])
+    true = bend(cmd, case.machine, case.hidden, rng)
+    n, m = len(old), new.size
+    common = rng.normal(0.0, case.noise_deg * math.sqrt(case.shared_share), m)
+    own = case.noise_deg * math.sqrt(1.0 - case.shared_share)
+    measured_l = true.loaded_deg[n:] + common + rng.normal(0.0, own, m)
+    measured_u = true.unloaded_deg[n:] + common + rng.normal(0.0, own, m)
+    if not old.has_loaded:
+        measured_l = np.full(m, np.nan)
+    trials = TrialTable.from_arrays(
+        cmd,
+        np.concatenate([old.loaded_bend_deg, measured_l]),
+        np.concatenate([old.unloaded_bend_deg, measured_u]),
+        source="physical",
+    )
+    return replace(case, trials=trials)

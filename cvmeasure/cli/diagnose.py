@@ -35,6 +35,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="write the extended model (params JSON with the fitted strength and the named effect)",
     )
     p.add_argument(
+        "--follow-up-csv",
+        type=Path,
+        metavar="PLAN",
+        help="when the result reports a tie, write the bends proposed to separate the tied "
+        "explanations as a plan CSV (trial, commanded_pin_deg; rows in the order to run, "
+        "after the trials), as `cvmeasure simulate` reads; not written when there is no tie",
+    )
+    p.add_argument(
         "--folds", type=int_in(2, 100), default=5, help="K of grouped K-fold CV (default 5)"
     )
     p.add_argument(
@@ -66,6 +74,17 @@ def _summary(result: dict) -> str:
         )
     for note in result["notes"]:
         lines.append(f"note: {note}")
+    plan = result.get("follow_up")
+    if plan:
+        lines.append(
+            f"follow-up: {plan['n_trials']} bends ({plan['design']}) expected to separate "
+            f"{', '.join(plan['rivals'])} by {plan['expected_separation_se']:.1f} standard errors"
+            + (
+                f", plan written to {result['follow_up_csv']}"
+                if result.get("follow_up_csv")
+                else ""
+            )
+        )
     if result["recommended_experiment"]:
         lines.append(f"recommended experiment: {result['recommended_experiment']}")
     return "\n".join(lines)
@@ -121,6 +140,15 @@ def run(args: argparse.Namespace) -> int:
             },
         )
         out["saved_params"] = str(args.save_params)
+    if args.follow_up_csv:
+        out["follow_up_csv"] = None
+        if result.follow_up is not None:
+            from cvmeasure.fileio import write_csv_rows
+
+            write_csv_rows(
+                args.follow_up_csv, result.follow_up.rows(), ("trial", "commanded_pin_deg")
+            )
+            out["follow_up_csv"] = str(args.follow_up_csv)
     if args.json:
         print(json.dumps(out, indent=2))
     else:

@@ -37,7 +37,7 @@ import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,6 +71,9 @@ from cvmeasure.diagnose.residuals import (
 )
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
+
+if TYPE_CHECKING:
+    from cvmeasure.diagnose.follow_up import FollowUp, Rival
 
 __all__ = [
     "MIN_DELTA_BIC",
@@ -175,6 +178,11 @@ class Diagnosis:
     #: held-out RMSE (deg, discrepancy profiled out) of the terms discovered in the
     #: baseline's residuals (NaN: none)
     discovered_rmse_deg: float = field(default=math.nan, repr=False)
+    #: bends proposed to separate the explanations of a held-out tie (None: no tie, or
+    #: fewer than two rivals the catalogue can predict); see :mod:`.follow_up`
+    follow_up: FollowUp | None = None
+    #: the other pairs the beam could name (the rivals of a named pair's tie)
+    other_pairs: tuple[CandidateResult, ...] = field(default=(), repr=False, compare=False)
 
     @property
     def gain(self) -> float:
@@ -247,6 +255,7 @@ class Diagnosis:
             "discovered": [t.to_dict() for t in self.discovered],
             "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
             "tie": list(self.tie),
+            "follow_up": None if self.follow_up is None else self.follow_up.to_dict(),
         }
 
 
@@ -316,6 +325,7 @@ def diagnose(
     min_cv_gain: float = MIN_CV_GAIN,
     min_delta_bic: float = MIN_DELTA_BIC,
     max_causes: int = 2,
+    follow_up: bool = True,
 ) -> Diagnosis:
     """Diagnose measured trials against the simulation.
 
@@ -342,6 +352,9 @@ def diagnose(
     max_causes : int
         1 names at most one cause; 2 (default) then tries a second cause on
         top of the first, accepted by the same rule against the one-cause model.
+    follow_up : bool
+        When the result reports a held-out tie of explanations the catalogue predicts,
+        propose the bends that would separate them (``Diagnosis.follow_up``).
 
     Raises
     ------
@@ -360,7 +373,8 @@ def diagnose(
     result = _diagnose_once(trials, params, **kwargs)
     bow = _bow_decides(trials, params, result, tuple(base_effects), folds, min_cv_gain)
     if bow is None:
-        return result
+        return _with_follow_up(trials, result, base_effects, follow_up)
+    straight = result
     if bow.use_bow:
         result = _diagnose_once(trials, dataclasses.replace(params, span_bow_share=1.0), **kwargs)
     notes = (*result.notes, bow.note)
@@ -368,8 +382,63 @@ def diagnose(
     if bow.tied and result.causes == (result.cause,) and result.cause in BOW_RIVALS:
         if other != result.cause and other not in result.tie:
             tie = (*(result.tie or (result.cause,)), other)
-            return dataclasses.replace(result, tie=tie, notes=notes)
-    return dataclasses.replace(result, notes=notes)
+            result = dataclasses.replace(result, tie=tie, notes=notes)
+            # the rival added is fitted in the other model of the machine
+            if bow.use_bow:
+                other_fit = _single_fit(straight, other)
+                other_params = params
+            else:
+                other_fit = bow.bowed_fits.get(other)
+                other_params = dataclasses.replace(params, span_bow_share=1.0)
+            overrides = {} if other_fit is None else {other: (other_fit, other_params)}
+            return _with_follow_up(trials, result, base_effects, follow_up, overrides)
+    result = dataclasses.replace(result, notes=notes)
+    return _with_follow_up(trials, result, base_effects, follow_up)
+
+
+def _single_fit(result: Diagnosis, label: str) -> ModelFit | None:
+    """The fit of ``result``'s candidate explaining the data by ``label`` (a cause, or a
+    pair ``a + b``), first round or second; None when not tried."""
+    causes = set(label.split(" + "))
+    for c in (*result.candidates, *result.second_candidates, *result.other_pairs):
+        if set(c.fit.causes) == causes:
+            return c.fit
+    return None
+
+
+def _with_follow_up(
+    trials: TrialTable,
+    result: Diagnosis,
+    base_effects: Sequence[Effect],
+    enabled: bool,
+    overrides: dict[str, tuple[ModelFit, SimParams]] | None = None,
+) -> Diagnosis:
+    """``result`` with the follow-up plan that separates its tie's catalogue rivals (each
+    as fitted to the data; ``overrides``: a rival fitted in another model of the machine).
+    Only computed when there is a tie of two such rivals."""
+    if not enabled or not result.tie or len(trials) != result.n_trials:
+        return result
+    from cvmeasure.diagnose.follow_up import Rival, propose_follow_up
+
+    rivals: list[Rival] = []
+    for label in result.tie:
+        if not all(c in EFFECTS for c in label.split(" + ")):
+            continue  # a term outside the catalogue: no forward model to plan with
+        fit, fitted_on = (overrides or {}).get(label, (None, result.nominal_params))
+        fit = fit or _single_fit(result, label)
+        if fit is not None:
+            rivals.append(Rival(label, fit, fitted_on))
+    if len(rivals) < 2:
+        return result
+    plan = propose_follow_up(trials, rivals, tuple(base_effects))
+    if plan is None:
+        return result
+    note = (
+        f"follow-up: {plan.n_trials} bends ({plan.design}) after the data are expected to "
+        f"separate {', '.join(plan.rivals)} by {plan.expected_separation_se:.1f} standard "
+        "errors (each rival refitted); run them, append and diagnose again"
+    )
+    return dataclasses.replace(result, follow_up=plan, notes=(*result.notes, note))
 
 
 #: Causes whose signatures differ by the span's elastic bow: a drive's lag, nearly
@@ -387,6 +456,7 @@ class _BowDecision:
     use_bow: bool
     tied: bool  # within TIE_STANDARD_ERRORS held out: the data do not tell them apart
     note: str
+    bowed_fits: dict[str, ModelFit] = field(default_factory=dict)  # each rival with the bow
 
 
 def _bow_decides(
@@ -427,9 +497,10 @@ def _bow_decides(
     bowed_params = dataclasses.replace(params, span_bow_share=1.0)
     groups, _ = cv_groups(trials)
     masks = group_folds(groups, folds)
-    bowed, bowed_res = {}, {}
+    bowed, bowed_res, bowed_fits = {}, {}, {}
     for name in BOW_RIVALS:
         fit = fit_model(trials, bowed_params, name, base_effects=base_effects)
+        bowed_fits[name] = fit
         held = grouped_kfold_cv(
             trials, bowed_params, (name,), masks, base_effects=base_effects, full_fit=fit
         )
@@ -462,7 +533,7 @@ def _bow_decides(
             else ""
         )
     )
-    return _BowDecision(straight.cause, best_bowed, use_bow, tied, note)
+    return _BowDecision(straight.cause, best_bowed, use_bow, tied, note, bowed_fits)
 
 
 def _diagnose_once(
@@ -695,6 +766,7 @@ def _diagnose_once(
         extended_rmse_deg=ext_cv,
         candidates=tuple(results),
         second_candidates=naming.second_round,
+        other_pairs=naming.other_pairs,
         baseline_fit=base_fit,
         extended_fit=ext_fit,
         baseline_residual_deg=base_res,
