@@ -40,6 +40,7 @@ from cvmeasure.part.centreline import (
     Centreline,
     EndShape,
     measure_centreline,
+    profile_polyline,
 )
 from cvmeasure.part.compare import (
     BendComparison,
@@ -724,6 +725,23 @@ def _vertex_polyline(
     return _combine_chords(poly, lit)
 
 
+def _profile_vertices(
+    image: np.ndarray, centre: Centreline, to_mm: Any, poly: PolylineFit | None
+) -> PolylineFit | None:
+    """The vertex bends' polyline from each chord's whole cross-profile (lit side).
+
+    :func:`cvmeasure.part.centreline.profile_polyline` on a centreline between silhouette
+    edges (``poly`` splits it into chords); None when there are no silhouette edges or the
+    fit fails (the caller keeps its edge-based polyline).
+    """
+    widths = centre.edge_width_px
+    if poly is None or widths is None or not np.isfinite(widths).any():
+        return None
+    return profile_polyline(
+        gray_float(image), centre.points_px, to_mm, poly, width_px=float(np.nanmedian(widths))
+    )
+
+
 def _combine_chords(pairs: PolylineFit, lit: PolylineFit) -> PolylineFit:
     """Each chord's direction from the pairs' fit and the lit side's, by their errors.
 
@@ -958,7 +976,11 @@ def measure_part(
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
-    vpoly = poly  # the lit side's centres only on a part measured lifted (LIT_MIN_LIFT_MM)
+    # a round wire's vertex bends from each chord's whole cross-profile (part14s)
+    vpoly = _profile_vertices(
+        image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly
+    )
+    vpoly = poly if vpoly is None else vpoly
     bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     lift_info = None
     moved_info = None
@@ -1007,9 +1029,11 @@ def measure_part(
             ours, circle, poly = arc_from_points(centreline_mm, divisions)
         except ValueError as exc:
             raise InputError(source, f"cannot fit the part ({exc})") from None
-        vpoly = poly
-        if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
-            vpoly = _vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
+        vpoly = _profile_vertices(image, centre, lifted_mm, poly)
+        if vpoly is None:  # no silhouette edges' profile fit: the edges' centres
+            vpoly = poly
+            if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
+                vpoly = _vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
         bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
         lift_info, extra_sigma, _ = _lift_effects(
             plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions, base_mm,

@@ -70,8 +70,8 @@ def test_lit_centres_keep_a_lifted_parts_chords_straight():
 
 def test_lifted_parts_vertex_bends_hold_their_sigma():
     """measure_part on the same photo (the shadow's lift, corrected): each chord's direction
-    from the pairs and the lit edge combined, against the true bend (the rigid part's own,
-    120 / 7 deg at every vertex)."""
+    from its whole cross-profile, lit side (:func:`cvmeasure.part.centreline.profile_polyline`),
+    against the true bend (the rigid part's own, 120 / 7 deg at every vertex)."""
     from cvmeasure.part.measure import measure_part
 
     photo = _photo()
@@ -81,9 +81,10 @@ def test_lifted_parts_vertex_bends_hold_their_sigma():
     assert m.lift["used"] == "correction" and m.lift["lift_mm"] >= 2.0  # measured 2.78 +- 0.21
     err = np.asarray(m.vertex_bend_deg) - 120.0 / DIVISIONS
     sigma = np.asarray(m.vertex_bend_sigma_deg)
-    # measured: -0.037 -0.023 0.021 0.052 -0.013 0.182 deg at sigmas 0.044-0.078 (at most
-    # 2.3 sigma: the last vertex, where the lit edge turns too); the pairs alone 0.355 deg
-    # worst (0.31 at 0.082), the lit edge alone 0.202 worst
-    assert np.all(np.abs(err) < 2.5 * sigma), (err, sigma)
-    assert np.abs(err).max() < 0.25
-    assert np.abs(err[:-1]).max() < 0.07
+    # measured: -0.009 0.002 0.003 0.002 0.046 -0.028 deg at sigmas 0.012-0.018 (part14s; the
+    # edges' combination before: -0.037 -0.023 0.021 0.052 -0.013 0.182 at 0.044-0.078). The
+    # fifth vertex is at 3.8 sigma: the lifted end's chords carry a bias the sampling sigma
+    # does not see (half size: a 19 px wire); the others within 2.5 sigma
+    assert np.sum(np.abs(err) >= 2.5 * sigma) <= 1, (err, sigma)
+    assert np.abs(err).max() < 0.07
+    assert np.abs(err[:-2]).max() < 0.02
