@@ -878,12 +878,14 @@ def measure_part(
         is bounded as with one photo.
     shadow_lift : with ``wire_diameter_mm`` and one photo (no ``moved_image``), measure the
         lift from the wire's cast shadow (:func:`cvmeasure.part.shadow.estimate_lift_shadow`)
-        and correct it when its 2 sigma is at most :data:`SHADOW_MAX_2SIGMA_MM`, or, wider
-        (e.g. a textured sheet), when :func:`_shadow_unusable` finds it below the lift
-        bound and consistent with it (its 2 sigma then carried as a bound, in any
-        direction, into the stated effects and the vertex bends' sigmas; ``part_lifted``);
-        else (no clear shadow, no better than the bound, or inconsistent with it) the lift
-        is bounded as without it. On by default; False bounds the lift from the width only.
+        and correct it when it is consistent with the lift bound (not more than 2 sigma
+        above it; read above it, corrected at the bound) and its 2 sigma is at most
+        :data:`SHADOW_MAX_2SIGMA_MM`, or, wider (e.g. a textured sheet), below the bound
+        (:func:`_shadow_unusable`; its 2 sigma then carried as a bound, in any direction,
+        into the stated effects and the vertex bends' sigmas; ``part_lifted``); else (no
+        clear shadow, no better than the bound, or inconsistent with it: ``part_lifted``
+        says why) the lift is bounded as without it. On by default; False bounds the lift
+        from the width only.
     moved_plane : the second photo's plane (default: ``plane`` when given, else measured
         from the board in ``moved_image``).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or

@@ -464,8 +464,8 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
     SHADOW_MAX_2SIGMA_MM, so before part14r it was corrected with that reading: that
     part's vertex bends came out 0.15-0.20 deg off, 4.7-5.6 sigma, unwarned). Asserted:
     not corrected, the lift bounded (source "width", bound 3 mm) and a part_lifted warning
-    that says the shadow was not used and why. The shadow's own reading (2.91 +- 0.13 mm,
-    measured) is still corrected: lift within 0.3 mm, radius within issue 14's 0.3 %."""
+    that says the shadow was not used and why. The shadow's own reading (2.9 mm, as in
+    test_cli_part_shadow_lift) is still corrected: lift within 0.3 mm, radius within issue 14's 0.3 %."""
     import cvmeasure.part.measure as measure
 
     photo, plane = dark_lifted_photo
