@@ -612,23 +612,26 @@ SHADOW_WIDE_MAX_2SIGMA_MM = 2.0
 
 
 def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> str:
-    """Why a shadow's lift wider than :data:`SHADOW_MAX_2SIGMA_MM` is not corrected ('' if
-    it is: corrected, its 2 sigma carried into the radius and bends' uncertainties).
+    """Why a shadow's lift is not corrected ('' if it is).
 
     ``bound_mm``: the lift bound otherwise used (the width's estimate + 2 sigma, at most
-    the largest lift a part rocks to). Not corrected when the shadow's 2 sigma is no
-    smaller than that bound (it tells nothing the bound does not), or when its lift is
-    more than 2 sigma above the bound (inconsistent with it: a shadow edge taken for
-    another, e.g. a full-size 3 mm lift once read 6.39 +- 1.20 mm), or when its 2 sigma
-    is over :data:`SHADOW_WIDE_MAX_2SIGMA_MM`.
+    the largest lift a part rocks to), what the photo says about the lift without the
+    shadow. Any reading more than 2 sigma above it is inconsistent with it and not used (a
+    shadow edge taken for another: a full-size 3 mm lift once read 6.39 +- 1.20 mm, and a
+    confident 7.42 +- 0.29 mm, part14r). A reading wider than :data:`SHADOW_MAX_2SIGMA_MM`
+    is also not corrected when its 2 sigma is no smaller than that bound (it tells nothing
+    the bound does not), or over :data:`SHADOW_WIDE_MAX_2SIGMA_MM`.
     """
     two_sigma = 2.0 * shadow.lift_sigma_mm
     if not np.isfinite(two_sigma) or two_sigma > SHADOW_WIDE_MAX_2SIGMA_MM:
         return f"too uncertain to correct (2 sigma over {SHADOW_WIDE_MAX_2SIGMA_MM:.1f} mm)"
-    if two_sigma >= bound_mm:
-        return f"too uncertain to correct (2 sigma is not below the bound of {bound_mm:.1f} mm)"
     if shadow.lift_mm - two_sigma > bound_mm:
-        return f"inconsistent with the bound of {bound_mm:.1f} mm (not corrected)"
+        return (
+            f"more than 2 sigma above the lift bound of {bound_mm:.1f} mm, inconsistent with "
+            "it (a shadow edge taken for another?): not corrected"
+        )
+    if two_sigma > SHADOW_MAX_2SIGMA_MM and two_sigma >= bound_mm:
+        return f"too uncertain to correct (2 sigma is not below the bound of {bound_mm:.1f} mm)"
     return ""
 
 
@@ -893,12 +896,14 @@ def measure_part(
         is bounded as with one photo.
     shadow_lift : with ``wire_diameter_mm`` and one photo (no ``moved_image``), measure the
         lift from the wire's cast shadow (:func:`cvmeasure.part.shadow.estimate_lift_shadow`)
-        and correct it when its 2 sigma is at most :data:`SHADOW_MAX_2SIGMA_MM`, or, wider
-        (e.g. a textured sheet), when :func:`_shadow_unusable` finds it below the lift
-        bound and consistent with it (its 2 sigma then carried as a bound, in any
-        direction, into the stated effects and the vertex bends' sigmas; ``part_lifted``);
-        else (no clear shadow, no better than the bound, or inconsistent with it) the lift
-        is bounded as without it. On by default; False bounds the lift from the width only.
+        and correct it when it is consistent with the lift bound (not more than 2 sigma
+        above it; read above it, corrected at the bound) and its 2 sigma is at most
+        :data:`SHADOW_MAX_2SIGMA_MM`, or, wider (e.g. a textured sheet), below the bound
+        (:func:`_shadow_unusable`; its 2 sigma then carried as a bound, in any direction,
+        into the stated effects and the vertex bends' sigmas; ``part_lifted``); else (no
+        clear shadow, no better than the bound, or inconsistent with it: ``part_lifted``
+        says why) the lift is bounded as without it. On by default; False bounds the lift
+        from the width only.
     moved_plane : the second photo's plane (default: ``plane`` when given, else measured
         from the board in ``moved_image``).
     end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
@@ -990,6 +995,7 @@ def measure_part(
     # the bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
     # direction), not as the standard tilt error of a well-measured lift
     uncertain, scale = False, 1.0
+    shadow_why = ""  # why a shadow's lift was read but not used
     if wire_diameter_mm is not None and moved_image is not None:
         moved_info, corrected, moved_warning = _moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
@@ -1004,19 +1010,21 @@ def measure_part(
             axis_height_mm=base_mm,
         )  # fmt: skip
         shadow_info = shadow.to_dict()
-        if shadow.lift is not None and 2.0 * shadow.lift.lift_sigma_mm <= SHADOW_MAX_2SIGMA_MM:
-            corrected = shadow
-        elif shadow.lift is not None:
+        if shadow.lift is not None:
+            # every reading is checked against the lift bound (what the photo says without
+            # the shadow); one read above it, within 2 sigma, is corrected at the bound
             bound_mm = lift_bound_mm(lift, max_lift_mm)
             why = _shadow_unusable(shadow.lift, bound_mm)
             if why:
+                shadow_why = why
                 shadow_info["message"] = (
                     f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
                     f"{shadow.lift.lift_sigma_mm:.2f} mm: {why}"
                 )
-            else:  # uncertain but better than the bound: corrected, its sigma carried
+            else:  # corrected; wider than SHADOW_MAX_2SIGMA_MM, its sigma carried as a bound
                 corrected = shadow
-                uncertain, scale = True, _shadow_lift_scale(shadow.lift, bound_mm)
+                uncertain = 2.0 * shadow.lift.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM
+                scale = _shadow_lift_scale(shadow.lift, bound_mm)
     if corrected is not None:
         flat = (ours, poly)
         measured = corrected.lift
@@ -1072,6 +1080,12 @@ def measure_part(
         )  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
+        if shadow_why and (lift_warning or shadow_why.startswith("more than")):
+            # a shadow read but not used: the bound's warning says why (one inconsistent
+            # with the bound is warned about whatever the bound's effect: an edge misread)
+            lift_warning = (
+                lift_warning or "part_lifted: the part may not lie flat"
+            ) + f"; the cast shadow was not used: {shadow_info['message']}"
         if lift_warning:
             warnings.append(lift_warning)
         if moved_info is not None:
