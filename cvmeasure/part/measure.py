@@ -506,6 +506,63 @@ def _centreline_gaps(
     return sigma, warning
 
 
+#: The arc's bend per chord and the vertex bends' mean may differ by this much (deg: the
+#: bend per chord's target) plus three sigmas of the mean before they are warned about
+#: (``part_arc_inconsistent``).
+ARC_BEND_DISAGREE_DEG = 0.03
+
+
+def _arc_consistency(
+    ours: ArcResult,
+    poly: PolylineFit | None,
+    vpoly: PolylineFit | None,
+    bend_sigma: np.ndarray | None,
+) -> str:
+    """The warning ('' if none) when the arc's bend per chord disagrees with the vertex bends.
+
+    The circle through the chords' vertices gives the radius, the arc angle, the chord
+    width and the height; on an arc of N equal chords its bend per chord
+    (``arc_angle_deg / N``) is the mean of the N - 1 vertex bends. The vertex bends come
+    from each chord's direction, the vertices from where neighbouring lines meet and from
+    the end points: a centreline stretch off the wire (on its shadow, with the wire's
+    width) shifts a chord's line sideways and moves its vertices along the chords by
+    about the shift over the bend's sine, which the bends do not see (dev part B4: the
+    last chord's centres 2.3 mm off on the shadow, radius -12.9 %, bend per chord
+    +1.87 deg, every vertex bend within 0.26 deg); an end point placed wrong along its
+    chord does the same on a smaller scale. A disagreement beyond
+    ``ARC_BEND_DISAGREE_DEG`` plus three sigmas of the bends' mean (their sigmas taken as
+    independent) is warned about; S-curves (no single arc) are not checked. ``poly`` is the
+    polyline whose vertices the circle went through, ``vpoly`` the vertex bends' with their
+    sigmas ``bend_sigma``.
+    """
+    if (
+        poly is None
+        or vpoly is None
+        or bend_sigma is None
+        or _shape(poly) != "arc"
+        or ours.segment_bend_deg is None
+    ):
+        return ""
+    bends = np.asarray(vpoly.bend_deg, dtype=float)
+    sig = np.asarray(bend_sigma, dtype=float)
+    if len(bends) < 1 or not (np.all(np.isfinite(bends)) and np.all(np.isfinite(sig))):
+        return ""
+    mean = float(bends.mean())
+    mean_sigma = float(np.sqrt(np.sum(sig**2))) / len(bends)
+    diff = float(ours.segment_bend_deg) - mean
+    if abs(diff) <= ARC_BEND_DISAGREE_DEG + 3.0 * mean_sigma:
+        return ""
+    lengths = np.asarray(poly.segment_length_mm, dtype=float)
+    return (
+        f"part_arc_inconsistent: the circle through the chords' vertices turns "
+        f"{ours.segment_bend_deg:.3f} deg per chord where the vertex bends average "
+        f"{mean:.3f} +- {mean_sigma:.3f} deg (chords {lengths.min():.1f}-{lengths.max():.1f} "
+        "mm): an end point or a stretch of the centreline is misplaced (e.g. on the wire's "
+        f"shadow), and radius_mm, arc_angle_deg (by about {len(lengths) * diff:+.2f} deg), "
+        "chord_width_mm and height_mm carry that error; the vertex bends do not"
+    )
+
+
 def _lifted_mm(
     plane: PlaneModel, points_px: np.ndarray, base_mm: float, lift: LiftEstimate, factor: float
 ) -> np.ndarray:
@@ -1098,6 +1155,9 @@ def measure_part(
         )
         if gap_warning:
             warnings.append(gap_warning)
+    arc_warning = _arc_consistency(ours, poly, vpoly, bend_sigma)
+    if arc_warning:
+        warnings.append(arc_warning)
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = _outline_mm(image, wire, plane)
