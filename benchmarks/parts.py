@@ -250,6 +250,8 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_end_warning"] = any(w.startswith("part_end_uncertain") for w in m.warnings)
         # and a chord along which the centreline was lost (its vertex bends not measured)
         out[f"{name}_gap_warning"] = any(w.startswith("part_centreline_gap") for w in m.warnings)
+        # and a circle whose bend per chord disagrees with the vertex bends (part14t)
+        out[f"{name}_arc_warning"] = any(w.startswith("part_arc_inconsistent") for w in m.warnings)
         out[f"{name}_lift"] = m.lift
         out[f"{name}_moved_unused"] = any(w.startswith("moved_photo_unused") for w in m.warnings)
     return out
@@ -464,7 +466,7 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
     r_worst = max((abs(r["round_radius_err_pct"]) for r in ok), default=float("nan"))
     b_worst = max((abs(r["round_segment_bend_err_deg"]) for r in ok), default=float("nan"))
     v_worst = max((r["round_vertex_err_deg"] for r in ok), default=float("nan"))
-    # silently wrong: off target and no part_lifted, part_end_uncertain or part_centreline_gap
+    # silently wrong: off target and no part_lifted, part_end_uncertain, part_centreline_gap or part_arc_inconsistent
     silent = sum(
         1
         for r in ok
@@ -473,7 +475,10 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             or r["round_vertex_err_deg"] > BEND_TARGET_DEG
         )
         and not (
-            r["round_lifted_warning"] or r.get("round_end_warning") or r.get("round_gap_warning")
+            r["round_lifted_warning"]
+            or r.get("round_end_warning")
+            or r.get("round_gap_warning")
+            or r.get("round_arc_warning")
         )
     )
     held = [v for r in ok for v in r["round_within_2sigma"]]
@@ -509,8 +514,8 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
             rate, "%", "90-98", bool(90.0 <= rate <= 98.0),
         ),
         Metric(
-            "round wire: parts off target without a part_lifted, part_end_uncertain or "
-            "part_centreline_gap warning (silently wrong)",
+            "round wire: parts off target without a part_lifted, part_end_uncertain, "
+            "part_centreline_gap or part_arc_inconsistent warning (silently wrong)",
             f"{silent} of {len(ok)} ({refused} refused)", "parts", "0", silent == 0,
         ),
         Metric(
@@ -569,6 +574,7 @@ def _corrected_stats(rows: list[dict], prefix: str) -> _CorrectedStats:
             r[f"{prefix}_lifted_warning"]
             or r.get(f"{prefix}_end_warning")
             or r.get(f"{prefix}_gap_warning")
+            or r.get(f"{prefix}_arc_warning")
         )
     )
     return _CorrectedStats(
@@ -608,7 +614,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
                st.within_2sigma_pct, "%"),
         Metric(
             "round wire, two photos: radius, bend per chord or a vertex bend off target "
-            "without a part_lifted, part_end_uncertain or part_centreline_gap warning",
+            "without a part_lifted, part_end_uncertain, part_centreline_gap or part_arc_inconsistent warning",
             f"{st.silent} of {len(ok)}", "parts", "0", st.silent == 0,
         ),
     ]  # fmt: skip
@@ -627,7 +633,7 @@ def _width_metrics(rows: list[dict]) -> list[Metric]:
         Metric(f"{head}: vertex bends within 2 stated sigma", st.within_2sigma_pct, "%"),
         Metric(
             f"{head}: radius, bend per chord or a vertex bend off target without a "
-            "part_lifted, part_end_uncertain or part_centreline_gap warning",
+            "part_lifted, part_end_uncertain, part_centreline_gap or part_arc_inconsistent warning",
             f"{st.silent} of {len(ok)} ({len(rows) - len(ok)} refused)", "parts",
         ),
     ]  # fmt: skip

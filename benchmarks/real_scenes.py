@@ -302,7 +302,13 @@ def _occlusion_rows(args, scale, camera, kit, n):
 
 
 #: the part warnings that say a round wire's centreline or lift is in doubt
-PART_WARNINGS = ("round_wire_edges_lost", "part_lifted", "part_end_uncertain")
+PART_WARNINGS = (
+    "round_wire_edges_lost",
+    "part_lifted",
+    "part_end_uncertain",
+    "part_centreline_gap",
+    "part_arc_inconsistent",
+)
 #: The round-wire part rows' second photo: the part slid this far on the sheet (board y, mm,
 #: alternately up and down), measured with ``measure_part(moved_image=...)`` (the two-photo
 #: lift, ``cvmeasure part --moved``) beside the one-photo figures. Along y: the 250 mm sheet
@@ -768,10 +774,11 @@ def main(argv: list[str] | None = None) -> dict:
             "parts: measure_part with the chord count and, when the wire is round, its "
             "3 mm diameter (centreline between the silhouette edges, axis at the wire's "
             "radius; the default: the lift read from the wire's cast shadow and corrected when "
-            "its 2 sigma <= 1 mm, or below the lift bound and consistent with it (its 2 sigma "
-            "then the stated effect), else bounded from the edges' width); '--no-shadow-lift': the "
-            "same photos with shadow_lift=False (the lift only bounded); 'warned' lists round_wire_edges_lost, "
-            "part_lifted and part_end_uncertain; the lifted part's truth is the rigid part's own "
+            "its 2 sigma <= 2 mm and it is consistent with the lift bound (no more than 2 sigma "
+            "above it; above it, corrected at the bound; a 2 sigma over 1 mm then the stated "
+            "effect), else bounded from the edges' width); '--no-shadow-lift': the same photos "
+            "with shadow_lift=False (the lift only bounded); 'warned' lists "
+            f"{', '.join(PART_WARNINGS)}; the lifted part's truth is the rigid part's own "
             "radius and bends. 'two photos': the round-wire rows measured again with a second "
             f"photo of the part slid {PART_SHIFT_MM:.0f} mm along the board's y "
             "(render_part_photo(part_shift_mm=...), measure_part(moved_image=...)): the lift "
