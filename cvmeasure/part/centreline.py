@@ -58,6 +58,9 @@ __all__ = [
 ]
 
 _STEP_PX = 0.05
+#: How far the first pass of the pair search looks from the mask's path for the pair's
+#: midpoint, in wire widths (:func:`_silhouette_centres`).
+FIRST_PASS_REACH = 1.0
 #: An end whose outward axis is within 60 deg of the shadow's direction faces away from
 #: the light (:func:`_end_point`).
 INTO_SHADOW_COS = 0.5
@@ -822,9 +825,15 @@ def _silhouette_centres(
     for n_pass, final in enumerate((False, False, True)):
         normals = _normals(_smooth(centres, max(2.0, smooth_px) / step_px))
         prof = profiles_at(centres, normals)
-        # the mask's path can lie half a width off the axis (a shadow joined to the mask):
-        # the first pass looks for the pair's midpoint within half a width of it
-        near = 0.5 if n_pass == 0 else 0.2
+        # the mask's path can lie half a width off the axis or more (a shadow joined to the
+        # mask, wider where a lifted end's shadow parts from the wire): the first pass looks
+        # for the pair's midpoint within a width of it (FIRST_PASS_REACH). Within half a
+        # width, the shadow's own band (as wide as the wire, the wire's edge on one side) was
+        # the only pair in reach beside a dark sheet's shadow, and the wire's pair, whose
+        # summed gradient is the larger (the plate's edge to the lit wire against the
+        # shadow's soft outer edge), was not searched (issue 14: dev B4's last 12 mm on the
+        # shadow, A6's last 10 mm without pairs)
+        near = FIRST_PASS_REACH if n_pass == 0 else 0.2
         # the strongest pair of gradient peaks a width apart about the centre; where there
         # is none (a penumbra joined to one side blurs its edge), the edges found from
         # inside (:func:`outer_edges`). Not the other way round: on a light sheet a dark
