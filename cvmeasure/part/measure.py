@@ -693,8 +693,8 @@ def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> str:
 
 
 def _shadow_lift_scale(shadow: LiftEstimate, bound_mm: float) -> float:
-    """The factor an uncertain shadow's lift is corrected with (1, or less when the lift is
-    read above ``bound_mm``, the lift bound otherwise used: it is then scaled down to it)."""
+    """The factor a shadow's lift is corrected with (1, or less when the lift is read above
+    ``bound_mm``, the lift bound otherwise used: it is then scaled down to it)."""
     return min(1.0, bound_mm / max(shadow.lift_mm, 1e-9))
 
 
@@ -1038,12 +1038,6 @@ def measure_part(
         ours, circle, poly = arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
-    # a round wire's vertex bends from each chord's whole cross-profile (part14s)
-    vpoly = _profile_vertices(
-        image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly
-    )
-    vpoly = poly if vpoly is None else vpoly
-    bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     lift_info = None
     moved_info = None
     shadow_info = None
@@ -1128,6 +1122,13 @@ def measure_part(
                 f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
                 f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"
             )
+    else:  # measured on the plate (a lift, if any, bounded below), not re-fitted lifted
+        # a round wire's vertex bends from each chord's whole cross-profile (part14s)
+        vpoly = _profile_vertices(
+            image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly
+        )
+        vpoly = poly if vpoly is None else vpoly
+        bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     if wire_diameter_mm is not None and lift_info is None:
         # a round wire on the plate may rock: its lift is bounded (the width's estimate
         # where it is good enough, else the largest lift a part rocks to)
