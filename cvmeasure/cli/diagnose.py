@@ -74,17 +74,9 @@ def _summary(result: dict) -> str:
         )
     for note in result["notes"]:
         lines.append(f"note: {note}")
-    plan = result.get("follow_up")
-    if plan:
-        lines.append(
-            f"follow-up: {plan['n_trials']} bends ({plan['design']}) expected to separate "
-            f"{', '.join(plan['rivals'])} by {plan['expected_separation_se']:.1f} standard errors"
-            + (
-                f", plan written to {result['follow_up_csv']}"
-                if result.get("follow_up_csv")
-                else ""
-            )
-        )
+    # the follow-up itself is one of the notes above; only where its plan went is new
+    if result.get("follow_up_csv"):
+        lines.append(f"follow-up plan written to {result['follow_up_csv']}")
     if result["recommended_experiment"]:
         lines.append(f"recommended experiment: {result['recommended_experiment']}")
     return "\n".join(lines)
