@@ -856,7 +856,8 @@ def fit_model(
         # a drift alone, its form chosen on the grid here: every home-shifting form on an
         # absolute grid of rates too (beside another cause only the form it fitted, about
         # its rate: the absolute grid cost 0.1-0.3 s of CPU per fit at 100 trials rate by
-        # rate; each form's grid in one simulation (resid_rates) it is ~0.03 s)
+        # rate; each form's grid in one simulation (resid_rates) it is ~0.03 s, but beside a
+        # backlash there its two refits far from the fit cost 0.6 s: docs/diagnosis.md)
         wide = len(names) == 1 and start is None and c not in (known or {})
         if c == "drift" and not shape.get("step_deg") and (shape.get("home_shift") or wide):
             quantised = _profile_quantised_drift(
