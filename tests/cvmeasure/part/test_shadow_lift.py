@@ -410,10 +410,16 @@ def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm,
     bound otherwise used, and it is within 2 sigma of that bound (dev reads of part14j/m,
     and the flat dev-seed-2000 part on a textured light sheet that read 3.00 +- 1.43 mm)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import _shadow_unusable
+    from cvmeasure.part.measure import SHADOW_WIDE_MAX_2SIGMA_MM, _shadow_unusable
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, sigma_mm, 3, 1.0)
-    assert (_shadow_unusable(est, bound_mm) == "") is usable
+    refusal = _shadow_unusable(est, bound_mm)
+    assert (refusal is None) is usable
+    # inconsistent (more than 2 sigma above the bound) where a reading not too uncertain is
+    if refusal is not None:
+        two_sigma = 2.0 * sigma_mm
+        inconsistent = two_sigma <= SHADOW_WIDE_MAX_2SIGMA_MM and lift_mm - two_sigma > bound_mm
+        assert refusal.inconsistent is inconsistent, refusal
 
 
 @pytest.mark.parametrize(
