@@ -184,8 +184,10 @@ class PartMeasurement:
         (vertices found on the centreline) or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
-        (:mod:`cvmeasure.part.lift`): the width's estimate ``lift_mm``,
-        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``, or ``"correction"``
+        (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
+        the lift corrected with, the reading or the bound it was read above, the reading
+        itself in ``read_lift_mm``), ``lift_sigma_mm`` (the estimate's or the reading's; None
+        without one), ``used`` (``"bound"``, or ``"correction"``
         when a lift was measured and corrected), ``source`` (where the lift came from:
         ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
         ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
@@ -1117,9 +1119,13 @@ def measure_part(
             2.0 * corrected.lift.lift_sigma_mm, standard=not uncertain,
         )  # fmt: skip
         by_shadow = shadow_info is not None
+        # lift_mm: the lift corrected with (the reading, or the bound it was read above);
+        # read_lift_mm: the shadow's or the two photos' own reading
         lift_info = {**lift_info, **(shadow_info if by_shadow else moved_info),
                      "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
-                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
+                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
+                     "lift_mm": scale * corrected.lift.lift_mm,
+                     "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
         if (
