@@ -241,9 +241,11 @@ def _print_summary(m, out) -> None:
             )
     if m.lift is not None and m.lift["used"] == "correction":
         seen = {"shadow": "the cast shadow"}.get(m.lift.get("source"), "the moved photo")
+        read = m.lift.get("read_lift_mm", m.lift["lift_mm"])
+        at = "" if read == m.lift["lift_mm"] else f" at the lift bound, {m.lift['lift_mm']:.2f} mm"
         print(
-            f"  lift off the plate (from {seen}): {m.lift['lift_mm']:.2f} +- "
-            f"{m.lift['lift_sigma_mm']:.2f} mm, corrected",
+            f"  lift off the plate (from {seen}): {read:.2f} +- "
+            f"{m.lift['lift_sigma_mm']:.2f} mm, corrected{at}",
             file=out,
         )
     elif m.lift is not None and m.lift.get("lift_mm") is not None:

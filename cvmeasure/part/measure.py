@@ -184,8 +184,10 @@ class PartMeasurement:
         (vertices found on the centreline) or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
-        (:mod:`cvmeasure.part.lift`): the width's estimate ``lift_mm``,
-        ``lift_sigma_mm`` (None without one), ``used`` (``"bound"``, or ``"correction"``
+        (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
+        the lift corrected with, the reading or the bound it was read above, the reading
+        itself in ``read_lift_mm``), ``lift_sigma_mm`` (the estimate's or the reading's; None
+        without one), ``used`` (``"bound"``, or ``"correction"``
         when a lift was measured and corrected), ``source`` (where the lift came from:
         ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
         ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
@@ -668,8 +670,21 @@ SHADOW_MAX_2SIGMA_MM = 1.0
 SHADOW_WIDE_MAX_2SIGMA_MM = 2.0
 
 
-def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> str:
-    """Why a shadow's lift is not corrected ('' if it is).
+@dataclass(frozen=True)
+class ShadowRefusal:
+    """Why a shadow's lift reading is not corrected (:func:`_shadow_unusable`).
+
+    ``message``: the reason in words; ``inconsistent``: the reading is more than 2 sigma
+    above the lift bound (an edge misread), warned about whatever the bound's effect, where
+    a reading only too uncertain to correct is named in the bound's own warning, if any.
+    """
+
+    message: str
+    inconsistent: bool
+
+
+def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> ShadowRefusal | None:
+    """Why a shadow's lift is not corrected (None if it is).
 
     ``bound_mm``: the lift bound otherwise used (the width's estimate + 2 sigma, at most
     the largest lift a part rocks to), what the photo says about the lift without the
@@ -681,15 +696,21 @@ def _shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> str:
     """
     two_sigma = 2.0 * shadow.lift_sigma_mm
     if not np.isfinite(two_sigma) or two_sigma > SHADOW_WIDE_MAX_2SIGMA_MM:
-        return f"too uncertain to correct (2 sigma over {SHADOW_WIDE_MAX_2SIGMA_MM:.1f} mm)"
+        return ShadowRefusal(
+            f"too uncertain to correct (2 sigma over {SHADOW_WIDE_MAX_2SIGMA_MM:.1f} mm)", False
+        )
     if shadow.lift_mm - two_sigma > bound_mm:
-        return (
+        return ShadowRefusal(
             f"more than 2 sigma above the lift bound of {bound_mm:.1f} mm, inconsistent with "
-            "it (a shadow edge taken for another?): not corrected"
+            "it (a shadow edge taken for another?): not corrected",
+            True,
         )
     if two_sigma > SHADOW_MAX_2SIGMA_MM and two_sigma >= bound_mm:
-        return f"too uncertain to correct (2 sigma is not below the bound of {bound_mm:.1f} mm)"
-    return ""
+        return ShadowRefusal(
+            f"too uncertain to correct (2 sigma is not below the bound of {bound_mm:.1f} mm)",
+            False,
+        )
+    return None
 
 
 def _shadow_lift_scale(shadow: LiftEstimate, bound_mm: float) -> float:
@@ -1046,7 +1067,7 @@ def measure_part(
     # the bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
     # direction), not as the standard tilt error of a well-measured lift
     uncertain, scale = False, 1.0
-    shadow_why = ""  # why a shadow's lift was read but not used
+    refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
     if wire_diameter_mm is not None and moved_image is not None:
         moved_info, corrected, moved_warning = _moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
@@ -1065,12 +1086,11 @@ def measure_part(
             # every reading is checked against the lift bound (what the photo says without
             # the shadow); one read above it, within 2 sigma, is corrected at the bound
             bound_mm = lift_bound_mm(lift, max_lift_mm)
-            why = _shadow_unusable(shadow.lift, bound_mm)
-            if why:
-                shadow_why = why
+            refusal = _shadow_unusable(shadow.lift, bound_mm)
+            if refusal is not None:
                 shadow_info["message"] = (
                     f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
-                    f"{shadow.lift.lift_sigma_mm:.2f} mm: {why}"
+                    f"{shadow.lift.lift_sigma_mm:.2f} mm: {refusal.message}"
                 )
             else:  # corrected; wider than SHADOW_MAX_2SIGMA_MM, its sigma carried as a bound
                 corrected = shadow
@@ -1099,9 +1119,13 @@ def measure_part(
             2.0 * corrected.lift.lift_sigma_mm, standard=not uncertain,
         )  # fmt: skip
         by_shadow = shadow_info is not None
+        # lift_mm: the lift corrected with (the reading, or the bound it was read above);
+        # read_lift_mm: the shadow's or the two photos' own reading
         lift_info = {**lift_info, **(shadow_info if by_shadow else moved_info),
                      "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
-                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm}  # fmt: skip
+                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
+                     "lift_mm": scale * corrected.lift.lift_mm,
+                     "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
         if (
@@ -1138,7 +1162,7 @@ def measure_part(
         )  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
-        if shadow_why and (lift_warning or shadow_why.startswith("more than")):
+        if refusal is not None and (lift_warning or refusal.inconsistent):
             # a shadow read but not used: the bound's warning says why (one inconsistent
             # with the bound is warned about whatever the bound's effect: an edge misread)
             lift_warning = (

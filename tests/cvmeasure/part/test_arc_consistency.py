@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import cvmeasure_datasets
 from cvmeasure.part.fit import fit_polyline
 from cvmeasure.part.measure import _arc_consistency, arc_from_points
 
@@ -18,19 +19,18 @@ SHADOW_MM, GAP_MM = 2.3, 3.0
 
 
 def _centres(rng: np.random.Generator, on_shadow: bool) -> np.ndarray:
-    turn = np.radians(ARC_DEG / DIVISIONS)
-    chord = 2.0 * RADIUS_MM * np.sin(0.5 * turn)
-    heads = np.arange(DIVISIONS) * turn
-    verts = np.vstack(([0.0, 0.0], np.cumsum(chord * np.c_[np.cos(heads), np.sin(heads)], 0)))
+    verts = cvmeasure_datasets.arc_part(RADIUS_MM, ARC_DEG, DIVISIONS).vertices_mm
     out = []
-    for k, h in enumerate(heads):
+    for k, (a, b) in enumerate(zip(verts[:-1], verts[1:], strict=True)):
+        chord = float(np.hypot(*(b - a)))
+        e = (b - a) / chord
+        n = np.array([-e[1], e[0]])  # towards the circle's centre (the arc turns left)
         t = np.arange(0.0, chord, STEP_MM)
-        e, n = np.array([np.cos(h), np.sin(h)]), np.array([-np.sin(h), np.cos(h)])
         off = rng.normal(0.0, EDGE_SIGMA_MM, len(t))
         if on_shadow and k == DIVISIONS - 1:  # towards the centre, after a gap
             keep = t > GAP_MM
             t, off = t[keep], off[keep] + SHADOW_MM
-        out.append(verts[k] + t[:, None] * e + off[:, None] * n)
+        out.append(a + t[:, None] * e + off[:, None] * n)
     return np.vstack(out)
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import cvmeasure_datasets
 from cvmeasure.part.fit import _correlation_factor, fit_polyline
 
 RADIUS_MM, ARC_DEG, DIVISIONS = 46.0, 120.0, 7
@@ -24,16 +25,15 @@ def _ar1(rng: np.random.Generator, n: int, rho: float) -> np.ndarray:
 
 
 def _centres(rng: np.random.Generator, rho: float) -> np.ndarray:
-    turn = np.radians(ARC_DEG / DIVISIONS)
-    chord = 2.0 * RADIUS_MM * np.sin(0.5 * turn)
-    heads = np.arange(DIVISIONS) * turn
-    verts = np.vstack(([0.0, 0.0], np.cumsum(chord * np.c_[np.cos(heads), np.sin(heads)], 0)))
+    verts = cvmeasure_datasets.arc_part(RADIUS_MM, ARC_DEG, DIVISIONS).vertices_mm
     pts = []
-    for k, h in enumerate(heads):
+    for a, b in zip(verts[:-1], verts[1:], strict=True):
+        chord = float(np.hypot(*(b - a)))
+        e = (b - a) / chord
+        n = np.array([-e[1], e[0]])
         t = np.arange(0.0, chord, STEP_MM)
-        e, n = np.array([np.cos(h), np.sin(h)]), np.array([-np.sin(h), np.cos(h)])
         off = SCATTER_MM * _ar1(rng, len(t), rho)
-        pts.append(verts[k] + t[:, None] * e + off[:, None] * n)
+        pts.append(a + t[:, None] * e + off[:, None] * n)
     return np.vstack(pts)
 
 

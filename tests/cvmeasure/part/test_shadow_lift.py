@@ -410,10 +410,16 @@ def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm,
     bound otherwise used, and it is within 2 sigma of that bound (dev reads of part14j/m,
     and the flat dev-seed-2000 part on a textured light sheet that read 3.00 +- 1.43 mm)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import _shadow_unusable
+    from cvmeasure.part.measure import SHADOW_WIDE_MAX_2SIGMA_MM, _shadow_unusable
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, sigma_mm, 3, 1.0)
-    assert (_shadow_unusable(est, bound_mm) == "") is usable
+    refusal = _shadow_unusable(est, bound_mm)
+    assert (refusal is None) is usable
+    # inconsistent (more than 2 sigma above the bound) where a reading not too uncertain is
+    if refusal is not None:
+        two_sigma = 2.0 * sigma_mm
+        inconsistent = two_sigma <= SHADOW_WIDE_MAX_2SIGMA_MM and lift_mm - two_sigma > bound_mm
+        assert refusal.inconsistent is inconsistent, refusal
 
 
 @pytest.mark.parametrize(
@@ -456,7 +462,8 @@ def dark_lifted_photo():
 
 
 @pytest.mark.parametrize(
-    ("lift_mm", "sigma_mm", "used"), [(7.42, 0.29, "bound"), (None, None, "correction")]
+    ("lift_mm", "sigma_mm", "used"),
+    [(7.42, 0.29, "bound"), (None, None, "correction"), (3.3, 0.2, "correction")],
 )
 def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
     monkeypatch, dark_lifted_photo, lift_mm, sigma_mm, used
@@ -467,7 +474,9 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
     part's vertex bends came out 0.15-0.20 deg off, 4.7-5.6 sigma, unwarned). Asserted:
     not corrected, the lift bounded (source "width", bound 3 mm) and a part_lifted warning
     that says the shadow was not used and why. The shadow's own reading (2.9 mm, as in
-    test_cli_part_shadow_lift) is still corrected: lift within 0.3 mm, radius within issue 14's 0.3 %."""
+    test_cli_part_shadow_lift) is still corrected: lift within 0.3 mm, radius within issue 14's 0.3 %.
+    Read 3.3 +- 0.2 mm (above the 3 mm bound within 2 sigma) it is corrected at the bound:
+    ``lift_mm`` says 3.0, ``read_lift_mm`` the reading."""
     import cvmeasure.part.measure as measure
 
     photo, plane = dark_lifted_photo
@@ -490,4 +499,9 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
     else:
         assert m.lift["source"] == "shadow"
         assert m.lift["lift_mm"] == pytest.approx(3.0, abs=0.3)
+        if lift_mm is not None:  # read above the bound: the lift used is the bound
+            assert m.lift["lift_mm"] == pytest.approx(3.0)
+            assert m.lift["read_lift_mm"] == pytest.approx(lift_mm)
+        else:
+            assert m.lift["read_lift_mm"] == m.lift["lift_mm"]
         assert abs(100.0 * (m.result.radius_mm / 60.0 - 1.0)) < 0.3
