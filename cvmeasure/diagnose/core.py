@@ -934,14 +934,16 @@ def _averaged(
     """The widened ``fit`` (:func:`_widened`) with each cause's 95 % interval the hull of
     its intervals (each widened too) in every explanation that explains the held-out data
     as well as the named one (:func:`_held_out_tie`, the one-standard-error rule) and
-    holds that cause: the named single cause, the single causes and the pairs the beam
-    could name. The interval is then conditional on the cause, not on the pair: a cause
+    holds that cause: the named single cause, the single causes, the pairs the beam
+    could name and those it refused for a cause beyond its typical size (rivals all the
+    same: :func:`_settle_pair`; on a sweep an offset beside a drift the plan cannot size
+    moves with that drift's rate: docs/diagnosis.md, Limits). The interval is then conditional on the cause, not on the pair: a cause
     named beside a second cause the held-out data do not settle (a pair against its
     first cause alone, or against a pair with another second cause) keeps the value it
     would have without that second cause in its interval (model averaging over the
     explanations the data do not tell apart, each with the same weight)."""
     key = frozenset(fit.causes)
-    pool = [*results, *naming.other_pairs]
+    pool = [*results, *naming.other_pairs, *naming.unsized_pairs]
     if naming.pair is not None:
         pool.append(naming.pair)
     named = next((c for c in pool if frozenset(c.fit.causes) == key), None)
@@ -1124,6 +1126,9 @@ class _Extension:
     #: the pairs this first cause could name (accepted, not stuck, of plausible size),
     #: best held out first: the named one (when ``fit`` is a pair), then the others
     pairs: tuple[CandidateResult, ...] = ()
+    #: the accepted pairs not named for a cause beyond its typical size (rivals of the
+    #: named pair's held-out tie all the same: see :func:`_settle_pair`)
+    unsized: tuple[CandidateResult, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -1142,6 +1147,9 @@ class _Naming:
     #: the beam could name, for the held-out tie
     pair: CandidateResult | None = None
     other_pairs: tuple[CandidateResult, ...] = ()
+    #: the pairs any first cause of the beam could not name for their size
+    #: (:attr:`_Extension.unsized`)
+    unsized_pairs: tuple[CandidateResult, ...] = ()
 
 
 #: First causes whose grid-rounded shape (:data:`~cvmeasure.diagnose.fitting.FORMS`) is
@@ -1233,6 +1241,7 @@ def _extend(
     blocked = {first.cause, *(i.causes[1] for i in ident if not i.separable)}
     fit, cv, round2, notes = first.fit, first.cv_rmse_deg, [], []
     pairs: list[CandidateResult] = []
+    unsized: list[CandidateResult] = []
     cv_disc = first.cv_discrepancy_rmse_deg
     if max_causes > 1 and _structure_left(
         ctx.trials, first.fit, ctx.params, ctx.base_effects, masks
@@ -1261,6 +1270,7 @@ def _extend(
                 f"{', '.join(stuck)} alone (delta BIC): the pair is not named"
             )
         more = [c for c in more if c.cause not in stuck]
+        unsized = [c for c in more if not _plausible(c.fit)]
         # a pair with a cause far beyond its typical size takes the place of a mechanism
         # the catalogue lacks: the next accepted pair is tried, at most BEAM_WIDTH of them.
         # (Structure left beyond the discrepancy no longer refuses a pair: on the
@@ -1289,42 +1299,59 @@ def _extend(
                 f"a second cause, {more[0].cause}, improves the held-out RMSE further "
                 f"({first.cv_rmse_deg:.3f} -> {more[0].cv_rmse_deg:.3f} deg)"
             )
-    return _Extension(fit, cv, ident, tuple(round2), tuple(notes), cv_disc, tuple(pairs))
+    return _Extension(
+        fit, cv, ident, tuple(round2), tuple(notes), cv_disc, tuple(pairs), tuple(unsized)
+    )
 
 
 def _settle_pair(
     naming: _Naming, results: Sequence[CandidateResult], groups: Sequence[str]
 ) -> tuple[_Naming, tuple[str, ...]]:
     """A named pair checked for held-out ties with the other pairs the beam could name
-    (the one-standard-error rule of :func:`_held_out_tie`): the naming and the tie.
+    and those it could not name for a cause beyond its typical size (the
+    one-standard-error rule of :func:`_held_out_tie`): the naming and the tie.
 
     When every pair that ties holds the named pair's first cause, the data settle the
     first cause but not the second: a forward step adds only a cause it can pick, so the
     first cause is named alone (its own ties are checked as any single cause's). When
     the pairs that tie differ in the first cause (play lost on every bend or a drive
     compliance beside the same springback asymmetry: both a nearly constant
-    under-bend), the pair is named and the tie reported."""
+    under-bend), the pair is named and the tie reported.
+
+    A pair refused for its size is a rival all the same: it explains the held-out data,
+    and a size beyond the typical one can be a size the plan does not determine (on a
+    sweep a drift's home shift is undone by the next reverse bend, so its rate runs to
+    its bound along offset + constant) or a mechanism the catalogue lacks; either way
+    the second cause named beside it is not settled."""
     named = naming.pair
     if named is None or set(named.fit.causes) != set(naming.fit.causes):
         return naming, ()
     order = naming.fit.causes
+    rivals = (*naming.other_pairs, *naming.unsized_pairs)
     tie = _held_out_tie(
         named,
-        naming.other_pairs,
+        rivals,
         groups,
         lambda c: " + ".join(order if c is named else c.fit.causes),
     )
     if not tie:
         return naming, ()
     first = named.fit.causes[0]
-    tied = [c for c in naming.other_pairs if " + ".join(c.fit.causes) in tie[1:]]
+    tied = [c for c in rivals if " + ".join(c.fit.causes) in tie[1:]]
     alone = next((c for c in results if c.fit.causes == (first,)), None)
     if alone is None or not all(first in c.fit.causes for c in tied):
         return naming, tie
+    unsized = [c.cause for c in tied if c in naming.unsized_pairs]
     note = (
         f"{', '.join(c.cause for c in (named, *tied))} on top of {first} explain the "
         f"held-out data equally well (within {TIE_STANDARD_ERRORS:g} standard error over "
-        f"the CV groups): the second cause is not settled and not named"
+        f"the CV groups"
+        + (
+            f"; {', '.join(unsized)} beyond {PAIR_PLAUSIBLE_RATIO:g} times a typical size"
+            if unsized
+            else ""
+        )
+        + "): the second cause is not settled and not named"
     )
     single = dataclasses.replace(
         naming,
@@ -1417,15 +1444,20 @@ def _name_causes(
         return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
     pair = ext.pairs[0] if len(ext_fit.causes) == 2 and ext.pairs else None
     named_set = set(ext_fit.causes)
-    other_pairs: dict[frozenset[str], CandidateResult] = {}
-    for _, o in outcomes:  # every pair the beam could name, each set of causes once
-        for c in o.pairs:
+
+    def each_once(kept: Sequence[CandidateResult]) -> tuple[CandidateResult, ...]:
+        # each set of causes once (the one best held out), the named set left out
+        best: dict[frozenset[str], CandidateResult] = {}
+        for c in kept:
             key = frozenset(c.fit.causes)
             if key != named_set and (
-                key not in other_pairs
-                or c.cv_discrepancy_rmse_deg < other_pairs[key].cv_discrepancy_rmse_deg
+                key not in best or c.cv_discrepancy_rmse_deg < best[key].cv_discrepancy_rmse_deg
             ):
-                other_pairs[key] = c
+                best[key] = c
+        return tuple(best.values())
+
+    other_pairs = each_once([c for _, o in outcomes for c in o.pairs])
+    unsized = each_once([c for _, o in outcomes for c in o.unsized])
     return _Naming(
         ext_fit.causes[0],
         ext_fit,
@@ -1436,5 +1468,6 @@ def _name_causes(
         tuple(notes),
         ext.cv_discrepancy_rmse_deg,
         pair,
-        tuple(other_pairs.values()),
+        other_pairs,
+        unsized,
     )

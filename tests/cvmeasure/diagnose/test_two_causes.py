@@ -81,3 +81,24 @@ def test_play_beside_a_springback_asymmetry_on_a_sweep_is_not_named_a_compliance
     assert result.params["backlash_deg"] == pytest.approx(
         case.hidden[0].params["backlash_deg"], abs=0.5
     )
+
+
+@pytest.mark.parametrize("seed", [900, 912])
+def test_a_second_cause_is_not_named_where_a_drift_beside_the_offset_ties_it(seed):
+    # an offset and a drift on a sweep (each angle bent ccw then cw): the next reverse
+    # bend undoes a drift's home shift, so its rate runs far beyond a typical size along
+    # offset + constant and the pair is refused; on main the next pair, an axis offset
+    # (900) or a scale (912) beside the offset, was named with no tie. The refused pair
+    # explains the held-out data as well (one-standard-error rule), so the second cause
+    # is not settled: the offset is named alone, with a note naming the drift, and its
+    # interval (the hull over the tied explanations, the drift's pair among them) holds
+    # the truth (the estimate is 0.11-0.33 deg off: the offset moves with the drift's
+    # rate, which a sweep does not determine)
+    case = pb.physical_case(seed, ("offset", "drift"), plan="sweep", n_trials=60)
+    offset, _ = (h.params for h in case.hidden)
+    result = diagnose(case.trials, follow_up=False)
+    assert result.causes == ("offset",), (result.causes, result.tie, result.notes)
+    assert any("not settled" in n and "drift" in n for n in result.notes), result.notes
+    lo, hi = result.intervals["offset_deg"]
+    assert lo <= offset["offset_deg"] <= hi, (lo, hi, offset)
+    assert result.params["offset_deg"] == pytest.approx(offset["offset_deg"], abs=0.5)
