@@ -937,11 +937,12 @@ def _averaged(
     holds that cause: the named single cause, the single causes, the pairs the beam
     could name and those it refused for a cause beyond its typical size (rivals all the
     same: :func:`_settle_pair`; on a sweep an offset beside a drift the plan cannot size
-    moves with that drift's rate: docs/diagnosis.md, Limits). The interval is then conditional on the cause, not on the pair: a cause
-    named beside a second cause the held-out data do not settle (a pair against its
-    first cause alone, or against a pair with another second cause) keeps the value it
-    would have without that second cause in its interval (model averaging over the
-    explanations the data do not tell apart, each with the same weight)."""
+    moves with that drift's rate: docs/diagnosis.md, Limits). The interval is then
+    conditional on the cause, not on the pair: a cause named beside a second cause the
+    held-out data do not settle (a pair against its first cause alone, or against a pair
+    with another second cause) keeps the value it would have without that second cause in
+    its interval (model averaging over the explanations the data do not tell apart, each
+    with the same weight)."""
     key = frozenset(fit.causes)
     pool = [*results, *naming.other_pairs, *naming.unsized_pairs]
     if naming.pair is not None:
