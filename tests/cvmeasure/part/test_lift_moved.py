@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -72,20 +73,25 @@ def test_a_second_photo_not_moved_says_so_instead_of_a_noisy_estimate():
 
 
 def _lab(lift_mm: float, seed: int, sheet: str, shift_mm: tuple[float, float]):
+    return [_lab_photo(lift_mm, seed, sheet, shift) for shift in ((0.0, 0.0), shift_mm)]
+
+
+@functools.cache
+def _lab_photo(lift_mm: float, seed: int, sheet: str, shift_mm: tuple[float, float]):
+    """One photo of the lab's part, made once per session (read-only: tests share it)."""
     part = cvmeasure_datasets.arc_part(62.0, 120.0, 8, wire_diameter_mm=WIRE_MM)
-    return [
-        cvmeasure_datasets.render_part_photo(
-            part=part,
-            board=BOARD,
-            sheet=sheet,
-            seed=seed,
-            scale=0.5,
-            pose=POSE,
-            effects=SceneEffects(wire_3d=True, part_lift_mm=lift_mm),
-            part_shift_mm=shift,
-        )  # fmt: skip
-        for shift in ((0.0, 0.0), shift_mm)
-    ]
+    photo = cvmeasure_datasets.render_part_photo(
+        part=part,
+        board=BOARD,
+        sheet=sheet,
+        seed=seed,
+        scale=0.5,
+        pose=POSE,
+        effects=SceneEffects(wire_3d=True, part_lift_mm=lift_mm),
+        part_shift_mm=shift_mm,
+    )  # fmt: skip
+    photo.bgr.setflags(write=False)
+    return photo
 
 
 @pytest.mark.parametrize(

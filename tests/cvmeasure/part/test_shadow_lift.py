@@ -4,6 +4,8 @@ ray-traced generator (datasets/round_wire.py), half size, development seeds 9102
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -20,7 +22,9 @@ LAB_BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
 POSE = Pose(tilt_deg=1.5, tilt_direction_deg=70.0, distance_mm=550.0, offset_mm=(30.0, -20.0))
 
 
+@functools.cache
 def _photo(sheet: str, lift_mm: float, elev_deg: float, az_deg: float, seed: int):
+    """The render and its centreline, made once per session (read-only: tests share them)."""
     part = cvmeasure_datasets.arc_part(60.0, 100.0, 7, wire_diameter_mm=WIRE_MM)
     verts = part.placed(35.0, (0.0, 0.0))
     pose = POSE
@@ -33,7 +37,19 @@ def _photo(sheet: str, lift_mm: float, elev_deg: float, az_deg: float, seed: int
     _, _, centre, _ = measure_centreline_mm(
         photo.bgr, None, None, wire_diameter_mm=WIRE_MM, plane=photo.plane
     )
+    photo.bgr.setflags(write=False)
+    centre.points_px.setflags(write=False)
     return photo, centre
+
+
+@functools.cache
+def _dark_lifted_plane():
+    """The plane of :func:`_photo`'s dark-plate part lifted 3 mm (seed 9104) as a user
+    measures it: a board photo from the same pose (made once per session)."""
+    from benchmarks._calibrated import plane_for_pose
+
+    photo, _ = _photo("dark", 3.0, 55.0, 300.0, 9104)
+    return plane_for_pose(POSE, photo.plane.camera, scale=0.5, seed=9104, frame="board")
 
 
 @pytest.mark.parametrize(
@@ -79,7 +95,6 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
 
     import cv2
 
-    from benchmarks._calibrated import plane_for_pose
     from cvmeasure.camera import save_camera
     from cvmeasure.cli import main
 
@@ -88,7 +103,7 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
     cv2.imwrite(str(path), photo.bgr)
     save_camera(camera, photo.plane.camera)
     # the plate's plane as a user measures it: a board photo from the same pose
-    plane_for_pose(POSE, photo.plane.camera, scale=0.5, seed=9104, frame="board").save(plane)
+    _dark_lifted_plane().save(plane)
     base = ["part", str(path), "--plane", str(plane), "--camera", str(camera), "--divisions", "7"]
     argv = [*base, "--wire-diameter-mm", "3"]
     assert main([*argv, "--shadow-lift", "--json"]) == 0
@@ -113,10 +128,12 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
     assert "--no-shadow-lift" in capsys.readouterr().err
 
 
+@functools.cache
 def _lab_render(seed: int, i: int, effects):
     """The photo lab's part scene (real_scenes' part rows' recipe at a development seed,
     not the benchmark's 1400), half size, with ``effects``: lamp 49.6 deg up, shadow 35 %
-    of the light; a dark sheet for even ``i``, a light one for odd."""
+    of the light; a dark sheet for even ``i``, a light one for odd. Made once per session,
+    its image read-only (tests share it)."""
     bw, bh = LAB_BOARD.size_mm
     rng = np.random.default_rng([seed, 77, i])
     part = cvmeasure_datasets.arc_part(
@@ -127,10 +144,12 @@ def _lab_render(seed: int, i: int, effects):
         tilt_deg=float(rng.uniform(0.0, 4.0)), tilt_direction_deg=float(rng.uniform(0.0, 360.0)),
         distance_mm=900.0, offset_mm=((bw + 10.0 + 250.0 - 20.0) / 2 + 10.0, bh / 2),
     )  # fmt: skip
-    return cvmeasure_datasets.render_part_photo(
+    photo = cvmeasure_datasets.render_part_photo(
         part=part, board=LAB_BOARD, sheet="dark" if i % 2 == 0 else "light", pose=pose,
         seed=seed + 300 + i, scale=0.5, effects=effects,
     )  # fmt: skip
+    photo.bgr.setflags(write=False)
+    return photo
 
 
 def _lab_photo(seed: int, i: int, lift_mm: float):
@@ -455,10 +474,7 @@ def _faked_shadow(shadow, lift_mm: float, sigma_mm: float):
 def dark_lifted_photo():
     """:func:`_photo`'s dark-plate part lifted 3 mm (seed 9104) and the plate's plane as a
     user measures it (a board photo from the same pose)."""
-    from benchmarks._calibrated import plane_for_pose
-
-    photo, _ = _photo("dark", 3.0, 55.0, 300.0, 9104)
-    return photo, plane_for_pose(POSE, photo.plane.camera, scale=0.5, seed=9104, frame="board")
+    return _photo("dark", 3.0, 55.0, 300.0, 9104)[0], _dark_lifted_plane()
 
 
 @pytest.mark.parametrize(
