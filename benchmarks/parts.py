@@ -537,19 +537,17 @@ def _round_metrics(rows: list[dict]) -> list[Metric]:
 #: ``effect_segment_bend_deg``, ``effect_bend_deg``) reaches: a warning that a lift may
 #: move a vertex bend by up to 0.07 deg does not excuse one 5.5 deg off (dev 9203).
 _COVERS = {
-    "radius": ("arc", "effect_radius_pct"),
-    "segment": ("arc", "effect_segment_bend_deg"),
-    "vertex": ("gap", "effect_bend_deg"),
+    "radius": (("arc",), "effect_radius_pct"),
+    "segment": (("arc", "end"), "effect_segment_bend_deg"),
+    "vertex": (("gap",), "effect_bend_deg"),
 }
 
 
 def _covered(r: dict, prefix: str, quantity: str, error: float) -> bool:
     """Whether the row's ``{prefix}_`` warnings cover ``quantity`` off by ``error`` (its
     absolute error: %, deg) (:data:`_COVERS`)."""
-    warning, effect = _COVERS[quantity]
-    if r.get(f"{prefix}_{warning}_warning"):
-        return True
-    if quantity == "segment" and r.get(f"{prefix}_end_warning"):
+    warnings, effect = _COVERS[quantity]
+    if any(r.get(f"{prefix}_{w}_warning") for w in warnings):
         return True
     lift = r.get(f"{prefix}_lift") or {}
     return bool(r.get(f"{prefix}_lifted_warning")) and (lift.get(effect) or 0.0) >= error
