@@ -87,7 +87,7 @@ def test_play_beside_a_springback_asymmetry_on_a_sweep_is_not_named_a_compliance
 def test_a_second_cause_is_not_named_where_a_drift_beside_the_offset_ties_it(seed):
     # an offset and a drift on a sweep (each angle bent ccw then cw): the next reverse
     # bend undoes a drift's home shift, so its rate runs far beyond a typical size along
-    # offset + constant and the pair is refused; on main the next pair, an axis offset
+    # offset + constant and the pair is refused; before f8a404c the next pair, an axis offset
     # (900) or a scale (912) beside the offset, was named with no tie. The refused pair
     # explains the held-out data as well (one-standard-error rule), so the second cause
     # is not settled: the offset is named alone, with a note naming the drift, and its
