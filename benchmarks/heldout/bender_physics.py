@@ -50,12 +50,13 @@ from benchmarks.heldout.machine import (
     machine_with,
     parse_effects,
 )
-from benchmarks.heldout.mechanics import BendGeometry, BendResult, bend
+from benchmarks.heldout.mechanics import BendGeometry, BendResult, bend, residual_zone
 from benchmarks.heldout.wire_section import SectionTable, section_table
 
 __all__ = [
     "MACHINES",
     "BenderRun",
+    "BentZone",
     "Effects",
     "ExecutedBend",
     "Machine",
@@ -71,7 +72,8 @@ class ExecutedBend:
     ``head_deg`` is the head's rotation from its nominal home while loaded;
     ``pin_angle_deg`` the angle of the pin's centre seen from the origin marker (the
     die centre); ``loaded_deg``/``unloaded_deg`` the bent leg's direction from +x
-    (the wire's coil set over the markers' distance included).
+    (the wire's coil set over the markers' distance included); ``bend_deg`` the
+    released bend of the zone alone (springback included, coil set not).
     """
 
     commanded_deg: float
@@ -85,6 +87,22 @@ class ExecutedBend:
     wrap_deg: float
     lever_mm: float
     slipped_deg: float
+    bend_deg: float
+
+
+@dataclass(frozen=True)
+class BentZone:
+    """The wire a bend formed, released (machine frame, counter-clockwise positive).
+
+    ``curvature_per_mm`` at ``distance_mm`` downstream of the die exit is the residual
+    curvature less the wire's own, ``natural_curvature_per_mm`` (its coil set);
+    ``rotation_deg`` its integral (the released bend), exact where the samples are not.
+    """
+
+    distance_mm: np.ndarray
+    curvature_per_mm: np.ndarray
+    natural_curvature_per_mm: float
+    rotation_deg: float
 
 
 @dataclass(frozen=True)
@@ -201,6 +219,10 @@ class BenderRun:
     # -- one bend ---------------------------------------------------------------------
     def execute(self, commanded_deg: float) -> ExecutedBend:
         """Bend to ``commanded_deg`` (head rotation from home, signed), photograph, release."""
+        return self.execute_zone(commanded_deg)[0]
+
+    def execute_zone(self, commanded_deg: float) -> tuple[ExecutedBend, BentZone]:
+        """:meth:`execute`, with the released curvature of the wire the bend formed."""
         fx, m = self.effects, self.machine
         if commanded_deg != 0.0:
             self._side = 1 if commanded_deg > 0.0 else -1  # a duck move switches the pin's side
@@ -241,10 +263,15 @@ class BenderRun:
             wrap_deg=result.wrap_deg,
             lever_mm=result.lever_mm,
             slipped_deg=slip,
+            bend_deg=side * result.unloaded_deg,
+        )
+        distance, curvature = residual_zone(self._geometry(side, loaded_head), table, result)
+        zone = BentZone(
+            distance, side * curvature, side * table.natural_curvature_per_mm, executed.bend_deg
         )
         self._release()
         self._warm(result)
-        return executed
+        return executed, zone
 
     def _pin_angle_seen(self, side: int, head_deg: float) -> float:
         geom = self._geometry(side, head_deg)
@@ -282,7 +309,7 @@ class BenderRun:
         return _wrap180(math.degrees(project(a) - project(0.0)))
 
 
-def _machine(machine: Machine | str) -> Machine:
+def resolve_machine(machine: Machine | str) -> Machine:
     if isinstance(machine, Machine):
         return machine
     if machine not in MACHINES:
@@ -319,7 +346,7 @@ def simulate_trials(
         (origin marker to pin, from +x, as the camera reads it); at home the pin sits at
         ``-side * park_angle_deg`` (the head axis on the die centre).
     """
-    mach = _machine(machine)
+    mach = resolve_machine(machine)
     run = BenderRun(mach, effects or Effects())
     rng = np.random.default_rng(seed)
     rows = []
@@ -405,7 +432,7 @@ def truth_record(
     }
 
 
-def _atomic_write(path: Path, text: str) -> None:
+def atomic_write(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
@@ -495,7 +522,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.plan}: {exc}", file=sys.stderr)
         return 2
     try:
-        machine = machine_with(_machine(args.machine), args.machine_param)
+        machine = machine_with(resolve_machine(args.machine), args.machine_param)
         effects = parse_effects(args.effect)
         if not (math.isfinite(args.noise_deg) and args.noise_deg >= 0.0):
             raise ValueError(f"--noise-deg {args.noise_deg}: must be >= 0")
@@ -505,8 +532,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = simulate_trials(plan, machine, effects, args.noise_deg, args.seed)
     truth = truth_record(rows, machine, effects, args.noise_deg, args.seed)
     truth_path = args.out.with_name(args.out.stem + ".truth.json")
-    _atomic_write(truth_path, json.dumps(truth, indent=1) + "\n")
-    _atomic_write(args.out, trials_csv(rows))
+    atomic_write(truth_path, json.dumps(truth, indent=1) + "\n")
+    atomic_write(args.out, trials_csv(rows))
     print(f"wrote {args.out} ({len(rows)} trials) and {truth_path}")
     return 0
 

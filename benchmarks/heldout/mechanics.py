@@ -146,3 +146,32 @@ def _torque(geom: BendGeometry, pin_angle_rad: float, theta_c: float, force_n: f
     nx, ny = -math.sin(theta_c), math.cos(theta_c)  # the leg's left normal
     # The wire pushes the pin along -n; the drive holds the opposite torque.
     return abs(force_n * ((px - ox) * ny - (py - oy) * nx))
+
+
+def residual_zone(
+    geom: BendGeometry, table: SectionTable, result: BendResult, points: int = 40
+) -> tuple[np.ndarray, np.ndarray]:
+    """Released curvature of a bend's zone along the wire (mirrored frame).
+
+    Returns
+    -------
+    distance_mm : numpy.ndarray
+        Distance downstream of the die exit, over the wrap then the free span.
+    curvature_per_mm : numpy.ndarray
+        Residual curvature there, less the wire's own natural curvature.
+    """
+    if not result.contact:
+        return np.zeros(0), np.zeros(0)
+    k0 = table.natural_curvature_per_mm
+    a_d = geom.die_centreline_radius_mm
+    wrap_len = a_d * math.radians(result.wrap_deg)
+    k_die = 1.0 / a_d + k0
+    n_wrap = max(2, int(points * wrap_len / max(wrap_len + result.lever_mm, 1e-9)))
+    d_wrap = np.linspace(0.0, wrap_len, n_wrap, endpoint=False)
+    c_wrap = np.full(n_wrap, float(table.residual(k_die)) - k0)
+    if wrap_len == 0.0:
+        d_wrap, c_wrap = d_wrap[:0], c_wrap[:0]
+    u = np.linspace(1.0, 0.0, points)  # moment share, from the root to the pin
+    d_span = wrap_len + (1.0 - u) * result.lever_mm
+    c_span = table.residual(table.curvature(result.root_moment_nmm * u)) - k0
+    return np.concatenate([d_wrap, d_span]), np.concatenate([c_wrap, c_span])
