@@ -159,7 +159,7 @@ class BenderRun:
         m, fx = self.machine, self.effects
         r_w = m.wire_diameter_mm / 2.0
         a_d = max(m.die_radius_mm + fx.die_radius_error_mm, 0.0) + r_w
-        factor = round((1.0 - softening) / 0.0025) * 0.0025
+        factor = round((1.0 - softening) / 0.01) * 0.01  # 1 % steps: few tables
         coil = 2.0 / m.spool_diameter_mm if fx.coil_set_per_m != 0.0 else 0.0
         return section_table(
             m.wire_material.softened(factor),
@@ -207,13 +207,16 @@ class BenderRun:
         return lagged, result
 
     def reference_torque_nm(self) -> float:
-        """Largest torque of a nominal bend of this machine (N m), over head rotations to 150 deg."""
+        """Largest torque of a nominal bend of this machine (N m), over head rotations to 150 deg.
+
+        Also sets the reference plastic work of warming: a nominal 90 deg head rotation's.
+        """
         if self._reference_torque is None:
             nominal = BenderRun(self.machine)
             table = nominal._table(1)
             torques = [nominal._at(1, h, table)[0] for h in np.linspace(5.0, 150.0, 30)]
             self._reference_torque = max(r.torque_nmm for r in torques) / 1000.0
-            self._reference_work = max(r.plastic_work_nmm for r in torques)
+            self._reference_work = nominal._at(1, 90.0, table)[0].plastic_work_nmm
         return self._reference_torque
 
     # -- one bend ---------------------------------------------------------------------

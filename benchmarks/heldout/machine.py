@@ -157,8 +157,10 @@ class Effects:
     - ``coil_set_per_m``: the fed wire keeps this curvature (1/m) from its spool: it
       was coiled (spool diameter of the machine), straightened by a reverse bend, and
       carries the straightening's Bauschinger state into every bend.
-    - ``thermal_softening``: flow stress lost at steady state as the die and wire warm
-      with the plastic work of a run (time constant ``thermal_bends`` bends).
+    - ``thermal_softening``: share of the flow stress lost as the die and wire warm with
+      the plastic work of a run: the steady state of repeated 90 deg head rotations
+      (warmth follows each bend's plastic work with a time constant of
+      ``thermal_bends`` bends).
     - ``feed_slip``: share of every commanded feed the rolls do not deliver (parts only).
     - ``die_radius_error_mm``: the die edge radius off its nominal value.
     - ``orbit_eccentricity_mm``: the head's bearing runs out: the orbit centre wobbles
