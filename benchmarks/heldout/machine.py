@@ -74,8 +74,9 @@ class Machine:
 
 
 MACHINES: dict[str, Machine] = {
-    # DIWire-class desktop bender, 3 mm low-carbon steel.
-    "diwire": Machine("diwire", 3.0, "low_carbon_steel", 1.5, 12.0, 5.0, 31.5),
+    # DIWire-class desktop bender, 3 mm low-carbon steel; parked so that the dead angle
+    # is 13.2 deg, the +220 steps the DIWire firmware adds to absorb it.
+    "diwire": Machine("diwire", 3.0, "low_carbon_steel", 1.5, 12.0, 5.0, 32.67),
     # A small jewellery / model bender, 1 mm half-hard copper.
     "jewel": Machine(
         "jewel",

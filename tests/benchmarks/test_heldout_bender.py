@@ -242,3 +242,27 @@ def test_cli_writes_trials_and_truth_and_refuses_bad_input(tmp_path):
         and "warp" in done.stderr
         and len(done.stderr.strip().splitlines()) == 1
     )
+
+
+def _imports(path: Path) -> set[str]:
+    import ast
+
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+    return names
+
+
+def test_the_model_and_the_code_under_test_stay_apart():
+    own = ["bender_physics", "bend_job", "machine", "mechanics", "wire_section"]
+    for name in own:
+        found = _imports(ROOT / "benchmarks" / "heldout" / f"{name}.py")
+        assert not [n for n in found if n.split(".")[0] in ("cvmeasure", "cvmeasure_datasets")], (
+            name
+        )
+    for tree in ("cvmeasure", "datasets"):
+        for path in (ROOT / tree).rglob("*.py"):
+            assert not [n for n in _imports(path) if n.startswith("benchmarks")], path
