@@ -227,6 +227,11 @@ class BenderRun:
     def execute_zone(self, commanded_deg: float) -> tuple[ExecutedBend, BentZone]:
         """:meth:`execute`, with the released curvature of the wire the bend formed."""
         fx, m = self.effects, self.machine
+        if not abs(commanded_deg) <= m.max_head_deg:
+            raise ValueError(
+                f"head rotation {commanded_deg:g} deg is beyond the {m.name} machine's "
+                f"{m.max_head_deg:g} deg"
+            )
         if commanded_deg != 0.0:
             self._side = 1 if commanded_deg > 0.0 else -1  # a duck move switches the pin's side
         side = self._side
@@ -345,6 +350,11 @@ def simulate_trials(
     Returns
     -------
     list of TrialRow
+
+    Raises
+    ------
+    ValueError
+        A command beyond the machine's largest head rotation.
         ``measured_pin_deg`` is the pin angle on the loaded photo in the machine frame
         (origin marker to pin, from +x, as the camera reads it); at home the pin sits at
         ``-side * park_angle_deg`` (the head axis on the die centre).
@@ -532,7 +542,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"option: {exc}", file=sys.stderr)
         return 2
-    rows = simulate_trials(plan, machine, effects, args.noise_deg, args.seed)
+    try:
+        rows = simulate_trials(plan, machine, effects, args.noise_deg, args.seed)
+    except ValueError as exc:
+        print(f"{args.plan}: {exc}", file=sys.stderr)
+        return 2
     truth = truth_record(rows, machine, effects, args.noise_deg, args.seed)
     truth_path = args.out.with_name(args.out.stem + ".truth.json")
     atomic_write(truth_path, json.dumps(truth, indent=1) + "\n")

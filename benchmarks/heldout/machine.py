@@ -40,6 +40,9 @@ class Machine:
         Turns of the drive pinion per head revolution (the period of its runout).
     head_step_deg : float
         One motor full step at the head (whole steps are what a stepper loses).
+    max_head_deg : float
+        Largest head rotation the machine takes (beyond it the pin would reach the
+        feed guide): a larger command is refused.
     """
 
     name: str
@@ -55,6 +58,7 @@ class Machine:
     head_step_deg: float = 0.36
     spool_diameter_mm: float = 300.0
     orbit_about_die: bool = False
+    max_head_deg: float = 170.0
 
     @property
     def wire_material(self) -> Material:
