@@ -186,3 +186,44 @@ def test_job_header_carries_the_polygon_to_part_and_correct(tmp_path, capsys):
     assert plan.from_job
     np.testing.assert_allclose(chord_lengths_mm(plan.vertices_mm), [30, 42, 25, 36], atol=1e-3)
     np.testing.assert_allclose(plan.turns_deg, [20, -35, 15], atol=1e-3)
+
+
+def _session(angles):
+    """A calibration session of these wanted loaded angles on the nominal simulated bender."""
+    from cvmeasure.contracts import Trial
+    from cvmeasure.driver.session import nominal_pin_for_loaded_deg
+    from cvmeasure.material.calibration import fit_calibration
+    from cvmeasure.sim import simulate
+
+    pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]
+    r = simulate(pins)
+    samples = [
+        Trial(str(i), float(p), float(r.loaded_bend_deg[i]), float(r.unloaded_bend_deg[i]))
+        for i, p in enumerate(pins)
+    ]
+    return fit_calibration(samples, mode="custom", angles_deg=angles)
+
+
+def test_seed_saddle_is_refused_naming_the_session_then_bent_from_it(tmp_path, capsys):
+    import cvmeasure_datasets
+    from cvmeasure.driver.gcode import SHALLOW_SESSION_ANGLES_DEG
+    from cvmeasure.material.calibration import MODES, save_calibration
+    from cvmeasure.sim import simulate
+
+    verts = cvmeasure_datasets.saddle_part(200.0, 20.0, 13).vertices_mm
+    svg = _write(tmp_path, "saddle.svg", _polyline_svg([(100 + x, 100 - y) for x, y in verts]))
+    out = tmp_path / "saddle.gcode"
+    save_calibration(tmp_path / "high.json", _session(MODES["high"]))
+    assert main(["gcode", str(svg), "-o", str(out), "--material", str(tmp_path / "high.json")]) == 2
+    err = capsys.readouterr().err
+    assert "0.91 deg" in err and "cvmeasure session --angles 1.2,1.9,2.5," in err
+    assert not out.exists()
+    save_calibration(tmp_path / "shallow.json", _session(SHALLOW_SESSION_ANGLES_DEG))
+    args = ["gcode", str(svg), "-o", str(out), "--material", str(tmp_path / "shallow.json")]
+    assert main([*args, "--json"]) == 0
+    job = json.loads(capsys.readouterr().out)
+    want = np.array([s["bend_deg"] for s in job["bend_list"][:-1]])
+    made = simulate(job["pin_deg"]).unloaded_bend_deg
+    # the nominal machine bends what the session calibrated: within 0.05 deg, 0.91 included
+    assert np.min(np.abs(want)) == pytest.approx(0.91, abs=0.01)
+    np.testing.assert_allclose(made, want, atol=0.05)
