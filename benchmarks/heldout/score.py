@@ -108,10 +108,11 @@ def _judge_line(move: JobMove, recs: list[Executed], out: JobScore) -> bool:
         over = any(
             abs(total[a]) > abs(v) + _TOL_MM and total[a] * v > 0 for a, v in move.named.items()
         )
-        if over and n not in out.ran_twice:
+        if over and len(recs) > 1 and n not in out.ran_twice:
             out.ran_twice.append(n)
         complete = all(abs(total[a] - v) <= _TOL_MM for a, v in move.named.items())
-        if done and not complete and not over and n not in out.corrupted:
+        # one execution of the wrong length is a corrupted line, not a repeat
+        if done and not complete and (len(recs) == 1 or not over) and n not in out.corrupted:
             out.corrupted.append(n)
         return complete or over
     hits = [recs[i] for i in done]

@@ -66,3 +66,9 @@ def test_stopped_job_does_not_count_the_unrun_tail_as_lost():
     assert s.lost == [] and s.feed_error_mm is None
     s = score_job(expected_job(JOB), TruthLog(executed=CLEAN[:2]), finished=True)
     assert s.lost == [5, 6]
+
+
+def test_one_feed_of_the_wrong_length_is_corrupted_not_twice():
+    log = [rec(3, 0, 10.01, 0, 0)] + CLEAN[1:]  # a garbled digit: Y10.01 instead of Y10
+    s = score_job(expected_job(JOB), TruthLog(executed=log), finished=True)
+    assert s.corrupted == [3] and s.ran_twice == [] and abs(s.feed_error_mm - 0.01) < 1e-9
