@@ -51,7 +51,6 @@ __all__ = [
     "pin_commands",
     "gcode_lines",
     "design_job",
-    "wire_polyline",
     "MIN_SEGMENT_MM",
     "MAX_BEND_DEG",
     "SHALLOW_SESSION_ANGLES_DEG",
@@ -253,74 +252,6 @@ def bend_list(
     steps = [BendStep(float(feeds[i]), float(bends[i])) for i in range(len(bends))]
     steps.append(BendStep(float(feeds[-1]), 0.0))
     return BendList(tuple(steps), source)
-
-
-def wire_polyline(
-    points_mm: ArrayLike,
-    *,
-    min_segment_mm: float = MIN_SEGMENT_MM,
-    divisions: int | None = None,
-    arcs: Sequence[Any] = (),
-) -> np.ndarray:
-    """The design's polyline with its curves divided into equal chords the bender can make.
-
-    A run of consecutive chords shorter than ``min_segment_mm`` is a flattened
-    curve (arc, circle piece, spline, Bezier): it is replaced by ``divisions``
-    equal chords (:func:`cvmeasure.design.divide_into_chords`), or by as many
-    as fit with each at least ``min_segment_mm`` long. Straight pieces keep
-    their vertices (the seed paper's Wireware splits curves the same way).
-
-    Parameters
-    ----------
-    points_mm : ndarray of shape (N, 2), the flattened design path, mm.
-    min_segment_mm : shortest chord wanted.
-    divisions : chords per curve (None = the most that are all >= ``min_segment_mm``).
-    arcs : the path's exact circular arcs (:class:`cvmeasure.design.DesignArc`);
-        a curve that is one of them is divided on the true circle, not on its
-        flattened polyline.
-
-    Returns
-    -------
-    ndarray of shape (M, 2)
-    """
-    from cvmeasure.design import chord_lengths_mm, divide_into_chords
-
-    pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-    if len(pts) < 3:
-        return pts
-    seg = chord_lengths_mm(pts)
-    short = seg < min_segment_mm
-    out = [pts[0]]
-    i = 0
-    while i < len(seg):
-        if not short[i]:
-            out.append(pts[i + 1])
-            i += 1
-            continue
-        j = i
-        while j < len(seg) and short[j]:
-            j += 1
-        run = pts[i : j + 1]
-        length = float(seg[i:j].sum())
-        if j - i == 1:
-            out.append(pts[j])  # a lone short segment: left for the rules to name
-        else:
-            n = divisions if divisions is not None else max(1, int(length // min_segment_mm))
-            exact = _matching_arc(arcs, run[0], run[-1])
-            if exact is not None:
-                out.extend(exact.points_mm(chords=n)[1:])
-            else:
-                out.extend(divide_into_chords(run, n)[1:])
-        i = j
-    return np.asarray(out)
-
-
-def _matching_arc(arcs: Sequence[Any], start: np.ndarray, end: np.ndarray) -> Any:
-    for arc in arcs:
-        ends = arc.points_mm(chords=1)
-        if np.allclose(ends[0], start, atol=1e-6) and np.allclose(ends[-1], end, atol=1e-6):
-            return arc
-    return None
 
 
 def pin_commands(
