@@ -62,9 +62,15 @@ def test_unequal_chords_measured_against_the_polygon_bent(name):
     assert m.result.divisions == len(SHAPES[name][0])
 
 
-def test_equal_chords_of_the_design_misread_the_same_zigzag():
-    """The old reference (the design in equal chords) errs by degrees: the test can fail."""
+def test_without_a_plan_the_corners_are_kept_and_equal_chords_misread():
+    """A design with corners and a chord count (no job) is compared with its corners too;
+    the old reference (the design in equal chords) errs by degrees: the test can fail."""
     verts, photo = _photo("zigzag")
     design = DesignPath(verts, False, "polyline", "zigzag")
     m = measure_part(photo.bgr, BOARD, photo.camera, divisions=4, design=design, allow_mirror=False)
-    assert m.comparison.bends.max_abs_error_deg > 1.0
+    assert m.comparison.bends.max_abs_error_deg < VERTEX_BEND_DEG
+    old = measure_part(
+        photo.bgr, BOARD, photo.camera, design=design, allow_mirror=False,
+        reference_mm=design.chords(4),
+    )  # fmt: skip
+    assert old.comparison.bends.max_abs_error_deg > 1.0
