@@ -258,3 +258,27 @@ def test_seed_saddle_from_the_shallow_session_is_calibrated(tmp_path, capsys):
     # the nominal machine bends what the session calibrated: within 0.05 deg, 0.91 included
     assert np.min(np.abs(want)) == pytest.approx(0.91, abs=0.01)
     np.testing.assert_allclose(made, want, atol=0.05)
+
+
+def test_scale_on_request_prints_before_and_after(tmp_path, capsys):
+    svg = _write(tmp_path, "sjog.svg", _polyline_svg(_sjog_points(), "sjog"))
+    out = tmp_path / "sjog.gcode"
+    assert main(["gcode", str(svg), "-o", str(out), "--scale", "1.6", "--json"]) == 0
+    job = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose([s["feed_mm"] for s in job["bend_list"]], 12.8, atol=1e-3)
+    np.testing.assert_allclose(
+        [-s["bend_deg"] for s in job["bend_list"][:-1]], [-45, 45, 45, -45], atol=1e-3
+    )
+    assert [c["what"] for c in job["plan"]["changes"]] == ["scaled"]
+    assert "; scaled: " in out.read_text() and "->" in out.read_text()
+
+
+def test_a_job_without_its_plan_must_bend_as_often_as_the_design(tmp_path):
+    verts = polygon_from_chords([30, 42, 25, 36], [20, -35, 15])
+    svg = _write(tmp_path, "j.svg", _polyline_svg([(20 + x, 150 - y) for x, y in verts]))
+    foreign = _write(tmp_path, "other.gcode", "G21\nG91 G1 Y30\nG90 G1 X20\nG0 X0\nG91 G1 Y40\n")
+    with pytest.raises(InputError, match="the job bends 1 times but the design's plan has 3"):
+        plan_for_part(svg, job=foreign)
+    same = "G21\n" + "".join(f"G91 G1 Y{c}\nG90 G1 X10\nG0 X0\n" for c in (30, 42, 25))
+    plan = plan_for_part(svg, job=_write(tmp_path, "same.gcode", same + "G91 G1 Y36\n"))
+    assert not plan.from_job and plan.divisions == 4
