@@ -13,7 +13,8 @@ Mapping onto the machine:
   photographed nowhere, then released (the dialect always follows it with
   ``G0 X<home>``); moves to ``X0`` are the release; ``Z`` moves switch the pin's
   side, which the bend's sign already decides, so they change nothing else;
-- a ``Y`` feed pushes ``feed * (1 - feed_slip)`` mm of wire out of the die;
+- a ``Y`` feed pushes ``feed * (1 - slip)`` mm of wire out of the die, ``slip``
+  scattered about ``feed_slip`` (see :func:`bend_job`);
 - the part is the wire from its first-fed end to the die exit after the last feed
   (cut there). Each bend leaves its released curvature (wrap and free span,
   :func:`benchmarks.heldout.mechanics.residual_zone`) on the wire just downstream
@@ -142,15 +143,16 @@ def bend_job(
     machine : Machine or str
     effects : Effects, optional
     seed : int
-        Unused by the deterministic physics today; kept so a caller can vary a
-        run (the part depends on nothing random).
+        Seed of the feed rolls' scatter: with ``feed_slip`` on, each feed slips
+        ``feed_slip * (1 + 0.25 z)`` (``z`` standard normal, never below zero); the
+        rest of the physics is deterministic.
 
     Returns
     -------
     BentPart
     """
-    del seed
     fx = effects or Effects()
+    rng = np.random.default_rng(seed)
     run = BenderRun(resolve_machine(machine), fx)
     fed = 0.0
     zones: list[tuple[float, BentZone]] = []  # (material coordinate at the die exit, zone)
@@ -160,7 +162,10 @@ def bend_job(
     natural = 0.0
     for step in parse_job(gcode_text):
         if step.kind == "feed":
-            fed += step.value * (1.0 - fx.feed_slip)
+            slip = (
+                fx.feed_slip * max(1.0 + 0.25 * rng.standard_normal(), 0.0) if fx.feed_slip else 0.0
+            )
+            fed += step.value * (1.0 - slip)
             feeds[-1] += step.value
             continue
         done, zone = run.execute_zone(step.value)

@@ -159,7 +159,7 @@ class BenderRun:
         m, fx = self.machine, self.effects
         r_w = m.wire_diameter_mm / 2.0
         a_d = max(m.die_radius_mm + fx.die_radius_error_mm, 0.0) + r_w
-        factor = round((1.0 - softening) / 0.0025) * 0.0025
+        factor = round((1.0 - softening) / 0.01) * 0.01  # 1 % steps: few tables
         coil = 2.0 / m.spool_diameter_mm if fx.coil_set_per_m != 0.0 else 0.0
         return section_table(
             m.wire_material.softened(factor),
@@ -207,13 +207,16 @@ class BenderRun:
         return lagged, result
 
     def reference_torque_nm(self) -> float:
-        """Largest torque of a nominal bend of this machine (N m), over head rotations to 150 deg."""
+        """Largest torque of a nominal bend of this machine (N m), over head rotations to 150 deg.
+
+        Also sets the reference plastic work of warming: a nominal 90 deg head rotation's.
+        """
         if self._reference_torque is None:
             nominal = BenderRun(self.machine)
             table = nominal._table(1)
             torques = [nominal._at(1, h, table)[0] for h in np.linspace(5.0, 150.0, 30)]
             self._reference_torque = max(r.torque_nmm for r in torques) / 1000.0
-            self._reference_work = max(r.plastic_work_nmm for r in torques)
+            self._reference_work = nominal._at(1, 90.0, table)[0].plastic_work_nmm
         return self._reference_torque
 
     # -- one bend ---------------------------------------------------------------------
@@ -224,6 +227,11 @@ class BenderRun:
     def execute_zone(self, commanded_deg: float) -> tuple[ExecutedBend, BentZone]:
         """:meth:`execute`, with the released curvature of the wire the bend formed."""
         fx, m = self.effects, self.machine
+        if not abs(commanded_deg) <= m.max_head_deg:
+            raise ValueError(
+                f"head rotation {commanded_deg:g} deg is beyond the {m.name} machine's "
+                f"{m.max_head_deg:g} deg"
+            )
         if commanded_deg != 0.0:
             self._side = 1 if commanded_deg > 0.0 else -1  # a duck move switches the pin's side
         side = self._side
@@ -342,6 +350,11 @@ def simulate_trials(
     Returns
     -------
     list of TrialRow
+
+    Raises
+    ------
+    ValueError
+        A command beyond the machine's largest head rotation.
         ``measured_pin_deg`` is the pin angle on the loaded photo in the machine frame
         (origin marker to pin, from +x, as the camera reads it); at home the pin sits at
         ``-side * park_angle_deg`` (the head axis on the die centre).
@@ -529,7 +542,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"option: {exc}", file=sys.stderr)
         return 2
-    rows = simulate_trials(plan, machine, effects, args.noise_deg, args.seed)
+    try:
+        rows = simulate_trials(plan, machine, effects, args.noise_deg, args.seed)
+    except ValueError as exc:
+        print(f"{args.plan}: {exc}", file=sys.stderr)
+        return 2
     truth = truth_record(rows, machine, effects, args.noise_deg, args.seed)
     truth_path = args.out.with_name(args.out.stem + ".truth.json")
     atomic_write(truth_path, json.dumps(truth, indent=1) + "\n")

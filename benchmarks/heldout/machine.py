@@ -40,6 +40,9 @@ class Machine:
         Turns of the drive pinion per head revolution (the period of its runout).
     head_step_deg : float
         One motor full step at the head (whole steps are what a stepper loses).
+    max_head_deg : float
+        Largest head rotation the machine takes (beyond it the pin would reach the
+        feed guide): a larger command is refused.
     """
 
     name: str
@@ -55,6 +58,7 @@ class Machine:
     head_step_deg: float = 0.36
     spool_diameter_mm: float = 300.0
     orbit_about_die: bool = False
+    max_head_deg: float = 170.0
 
     @property
     def wire_material(self) -> Material:
@@ -74,8 +78,9 @@ class Machine:
 
 
 MACHINES: dict[str, Machine] = {
-    # DIWire-class desktop bender, 3 mm low-carbon steel.
-    "diwire": Machine("diwire", 3.0, "low_carbon_steel", 1.5, 12.0, 5.0, 31.5),
+    # DIWire-class desktop bender, 3 mm low-carbon steel; parked so that the dead angle
+    # is 13.2 deg, the +220 steps the DIWire firmware adds to absorb it.
+    "diwire": Machine("diwire", 3.0, "low_carbon_steel", 1.5, 12.0, 5.0, 32.67),
     # A small jewellery / model bender, 1 mm half-hard copper.
     "jewel": Machine(
         "jewel",
@@ -157,8 +162,10 @@ class Effects:
     - ``coil_set_per_m``: the fed wire keeps this curvature (1/m) from its spool: it
       was coiled (spool diameter of the machine), straightened by a reverse bend, and
       carries the straightening's Bauschinger state into every bend.
-    - ``thermal_softening``: flow stress lost at steady state as the die and wire warm
-      with the plastic work of a run (time constant ``thermal_bends`` bends).
+    - ``thermal_softening``: share of the flow stress lost as the die and wire warm with
+      the plastic work of a run: the steady state of repeated 90 deg head rotations
+      (warmth follows each bend's plastic work with a time constant of
+      ``thermal_bends`` bends).
     - ``feed_slip``: share of every commanded feed the rolls do not deliver (parts only).
     - ``die_radius_error_mm``: the die edge radius off its nominal value.
     - ``orbit_eccentricity_mm``: the head's bearing runs out: the orbit centre wobbles
