@@ -17,6 +17,7 @@ part; the tool never sees them.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -179,7 +180,19 @@ def _segment_error(vertices_mm, made, target) -> tuple[float, float]:
     return abs(want - got), 100.0 * abs(want - got) / abs(want) if want else 0.0
 
 
+def _task(job):
+    """One design's loop in a worker process: its session, then its parts."""
+    design, parts, machine, effects, seed, camera, scale = job
+    cal = session_calibration(machine, effects, seed=seed)
+    return run_design(
+        design, parts, params=machine, effects=effects, cal=cal,
+        camera=camera, scale=scale, seed=seed,
+    )  # fmt: skip
+
+
 def _run_all(args, folder):
+    from concurrent.futures import ProcessPoolExecutor
+
     from benchmarks._calibrated import calibrated_camera
 
     scale = args.scale
@@ -192,31 +205,23 @@ def _run_all(args, folder):
     )
     stability = 4 if args.quick else 20
     designs = draw_designs(rng, folder, counts)
-    runs: dict[str, list[dict]] = {}
+    jobs = []
     for i, design in enumerate(seed_designs(folder)):
-        params, effects = hidden_machine(rng)
-        # a calibration session on this very machine, measured (0.05 deg noise)
-        cal = session_calibration(params, effects, seed=i)
-        runs[design.name] = run_design(
-            design, 3 + stability, params=params, effects=effects, cal=cal,
-            camera=camera, scale=scale, seed=i,
-        )  # fmt: skip
-    loop_runs = []
+        machine, effects = hidden_machine(rng)
+        jobs.append((design, 3 + stability, machine, effects, i, camera, scale))
     for j, design in enumerate(designs):
-        params, effects = hidden_machine(rng)
-        loop_runs.append(
-            run_design(
-                design,
-                3,
-                params=params,
-                effects=effects,
-                cal=session_calibration(params, effects, seed=100 + j),
-                camera=camera,
-                scale=scale,
-                seed=100 + j,
-            )  # fmt: skip
-        )
-    return runs, loop_runs, calibration, stability
+        machine, effects = hidden_machine(rng)
+        jobs.append((design, 3, machine, effects, 100 + j, camera, scale))
+    # designs are independent (each its own machine and calibration): one per worker
+    with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
+        done = []
+        for k, records in enumerate(pool.map(_task, jobs), start=1):
+            done.append(records)
+            worst = records[min(2, len(records) - 1)]["worst_true_err_deg"]
+            print(f"[{k}/{len(jobs)}] {records[0]['design']}: part 2 worst {worst:.3f} deg",
+                  file=sys.stderr, flush=True)  # fmt: skip
+    runs = {d[0].name: r for d, r in zip(jobs[:2], done[:2], strict=True)}
+    return runs, done[2:], calibration, stability
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -224,6 +229,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--quick", action="store_true", help="fewer designs and parts (< 3 min)")
     p.add_argument("--seed", type=int, default=36, help="seed of the machines and designs")
     p.add_argument("--scale", type=float, default=0.5, help="photo scale (1 = full size)")
+    p.add_argument("--workers", type=int, default=4, help="designs run in parallel processes")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
