@@ -34,7 +34,7 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -122,7 +122,6 @@ class WirePlan:
     changes: tuple[DesignChange, ...] = ()
     before_mm: np.ndarray | None = None
     from_job: bool = False
-    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def divisions(self) -> int:
@@ -298,8 +297,7 @@ def plan_design(
     before = drawn if (scale != 1.0 or bridged > 0 or (short.size and rechord)) else None
     _check_bends(src, design, corners, max_bend_deg, scale)
     _check_contact(src, design, corners, clearance_mm, scale)
-    options = {"min_segment_mm": min_segment_mm, "divisions": divisions, "rechord": rechord}
-    return WirePlan(src, design.units, corners, tuple(changes), before, False, options)
+    return WirePlan(src, design.units, corners, tuple(changes), before, False)
 
 
 def bent_polygon(
