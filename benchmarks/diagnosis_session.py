@@ -485,6 +485,12 @@ def main(argv: list[str] | None = None) -> dict:
                 per_cause,
             ),
             Table(
+                "identifiability: each cause's signature with the machine's strength, die "
+                "radius and dead zone projected out: share left, nearest other cause (|cosine|)",
+                ["mode", "plan", "cause", "left", "nearest", "|cosine|"],
+                identifiability_rows(),
+            ),
+            Table(
                 "end-to-end process chain per mode (session --simulate -> fit -> diagnose)",
                 ["mode", "effect", "diagnosis", "fit", "follow-up plan", "session s", "diagnose s"],
                 chains,
@@ -504,3 +510,58 @@ def main(argv: list[str] | None = None) -> dict:
 
 if __name__ == "__main__":
     main()
+
+
+#: The causes and general forms compared on each plan (name, value, shape).
+_VARIANTS: tuple[tuple[str, str, float, tuple], ...] = (
+    ("backlash", "backlash", 1.5, ()),
+    ("backlash on reversals", "backlash", 1.5, (("same_direction_share", 0.0),)),
+    ("offset", "offset", 1.5, ()),
+    ("scale", "scale", 0.03, ()),
+    ("drift", "drift", 0.04, ()),
+    ("drift shifting home", "drift", 0.04, (("home_shift", 1.0),)),
+    ("springback_asymmetry", "springback_asymmetry", 0.4, ()),
+    ("camera_tilt", "camera_tilt", 18.0, ()),
+    ("axis_offset", "axis_offset", 0.3, ()),
+    ("compliance", "compliance", 0.4, ()),
+)
+
+
+def _signature(cmd: np.ndarray, params: SimParams, effects: tuple[Effect, ...]) -> np.ndarray:
+    r = simulate(cmd, params, effects)
+    return np.concatenate([r.loaded_bend_deg, r.unloaded_bend_deg, r.pin_angle_deg])
+
+
+def identifiability_rows() -> list[list]:
+    """Per mode and plan, each cause's signature (its change of every measured angle) with
+    the machine's own parameters (strength, die radius, dead zone) projected out: the
+    share of it left (0: the machine's tolerances explain it) and its largest |cosine|
+    with another cause's (1: the plan cannot tell them apart, whatever the noise)."""
+    rows = []
+    p0 = SimParams()
+    for mode in MODES_RUN:
+        for swept in (False, True):
+            cmd = session_commands(mode, swept=swept)
+            ref = _signature(cmd, p0, ())
+            nuisance = np.column_stack(
+                [
+                    _signature(cmd, p0.replace(yield_mpa=308.0, uts_mpa=440.0), ()) - ref,
+                    _signature(cmd, p0.replace(die_radius_mm=1.7), ()) - ref,
+                    _signature(cmd, p0.replace(approach_deg=13.45), ()) - ref,
+                ]
+            )
+            q, _ = np.linalg.qr(nuisance)
+            sigs, left = {}, {}
+            for label, name, value, shape in _VARIANTS:
+                v = _signature(cmd, p0, (Effect(name, value, shape),)) - ref
+                w = v - q @ (q.T @ v)
+                left[label] = float(np.linalg.norm(w) / max(np.linalg.norm(v), 1e-12))
+                sigs[label] = (name, w / max(np.linalg.norm(w), 1e-12))
+            for label, (name, v) in sigs.items():
+                rival, cos = max(
+                    ((k, abs(float(v @ w))) for k, (n, w) in sigs.items() if n != name),
+                    key=lambda t: t[1],
+                )
+                plan = "swept" if swept else "session"
+                rows.append([mode, plan, label, round(left[label], 3), rival, round(cos, 3)])
+    return rows
