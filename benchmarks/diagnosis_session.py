@@ -221,6 +221,7 @@ def run_case(case: Case) -> dict:
         "tie": list(d["tie"]),
         "discovered": [t["term"] for t in d["discovered"]],
         "unnamed_flag": bool(d["leftover"]["unnamed_discrepancy"]),
+        "refused": bool(d["lack_of_fit"] and d["lack_of_fit"]["refused"]),
         "seconds": seconds,
         "covered": None,
         "after": None,
@@ -266,9 +267,11 @@ def _pct(x: float) -> float:
 
 def outside_flagged(row: dict) -> bool:
     """A mechanism outside the catalogue said to be there: unexplained, a discovered term,
-    a term outside the catalogue in a tie, or the leftover discrepancy flagged."""
+    a term outside the catalogue in a tie, the leftover discrepancy flagged, or the
+    simulation said not to describe the machine."""
     return (
         row["cause"] == "unexplained"
+        or row["refused"]
         or bool(row["discovered"])
         or row["unnamed_flag"]
         or any(not all(p in EFFECTS for p in t.split(" + ")) for t in row["tie"])

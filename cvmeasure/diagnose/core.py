@@ -63,6 +63,7 @@ from cvmeasure.diagnose.identify import (
     Identifiability,
     check_identifiability,
 )
+from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
 from cvmeasure.diagnose.residuals import (
     LeftoverCheck,
     ResidualTrend,
@@ -183,6 +184,9 @@ class Diagnosis:
     follow_up: FollowUp | None = None
     #: the other pairs the beam could name (the rivals of a named pair's tie)
     other_pairs: tuple[CandidateResult, ...] = field(default=(), repr=False, compare=False)
+    #: the best explanation against the scatter of repeated bends (None: no repeats);
+    #: ``misfit.refused``: the simulation does not describe this machine, nothing named
+    misfit: Misfit | None = None
 
     @property
     def gain(self) -> float:
@@ -256,6 +260,7 @@ class Diagnosis:
             "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
             "tie": list(self.tie),
             "follow_up": None if self.follow_up is None else self.follow_up.to_dict(),
+            "lack_of_fit": None if self.misfit is None else self.misfit.to_dict(),
         }
 
 
@@ -750,6 +755,23 @@ def _diagnose_once(
             f"not a pick; {ORDER_EXPERIMENT}"
         )
         experiment = experiment or ORDER_EXPERIMENT
+    if cause == "unexplained":
+        n_terms = sum(len(t.coefficients_deg) for t in found.terms)
+        misfit = lack_of_fit_residuals(trials, ext_res, base_fit.n_params + n_terms)
+    else:
+        misfit = lack_of_fit(trials, ext_fit if ext_fit.causes else base_fit)
+    if misfit is not None and misfit.refused:
+        # the least bad of wrong models is no name: the machine is not what the params say
+        notes.append(misfit.note())
+        cause, ext_fit, ext_res, ext_cv, discovered, tie = (
+            "none",
+            base_fit,
+            base_res,
+            base_cv,
+            (),
+            (),
+        )
+        experiment = "describe the machine with --params (its geometry and wire) and diagnose again"
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -784,6 +806,7 @@ def _diagnose_once(
         evidence=evidence,
         tie=tie,
         discovered_rmse_deg=found.rmse_after_deg if mean_terms else math.nan,
+        misfit=misfit,
     )
 
 
