@@ -791,15 +791,11 @@ def _diagnose_once(
         misfit = lack_of_fit(trials, ext_fit if ext_fit.causes else base_fit)
     if misfit is not None and misfit.refused:
         # the least bad of wrong models is no name: the machine is not what the params say
+        # (terms outside the catalogue found stay reported, as what is left unexplained)
         notes.append(misfit.note())
-        cause, ext_fit, ext_res, ext_cv, discovered, tie = (
-            "none",
-            base_fit,
-            base_res,
-            base_cv,
-            (),
-            (),
-        )
+        if cause != "unexplained":
+            cause, ext_fit, ext_res, ext_cv, discovered = "none", base_fit, base_res, base_cv, ()
+        tie = ()
         experiment = "describe the machine with --params (its geometry and wire) and diagnose again"
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
