@@ -47,6 +47,7 @@ from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
 from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Machine",
@@ -60,6 +61,7 @@ __all__ = [
     "session_gcode",
     "run_session",
     "read_session_log",
+    "session_warnings_json",
 ]
 
 LOG_NAME = "session.jsonl"
@@ -151,8 +153,13 @@ class SessionStep:
             ),
             photo_loaded=self.photo_loaded,
             photo_unloaded=self.photo_unloaded,
-            warnings=(),
         )
+
+    def photo_warnings(self) -> list[tuple[str, StageWarning]]:
+        """Every warning of this bend's two photos, with the photo it was given on."""
+        return [(self.photo_loaded, w) for w in self.loaded.warnings] + [
+            (self.photo_unloaded, w) for w in self.unloaded.warnings
+        ]
 
     def to_dict(self) -> dict[str, Any]:
         d = {
@@ -469,6 +476,10 @@ def run_session(
         )
     except ValueError as exc:
         raise InputError(log_path, f"cannot fit a calibration to this session: {exc}") from None
+    calibration = replace(
+        calibration,
+        provenance={**calibration.provenance, "warnings": session_warnings_json(steps)},
+    )
     return SessionResult(
         steps=steps,
         calibration=calibration,
@@ -476,6 +487,12 @@ def run_session(
         resumed=resumed,
         log_path=log_path,
     )
+
+
+def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:
+    """Every photo warning of a session for the calibration's ``provenance.warnings``:
+    each warning's JSON object (code, message, subject) with the ``photo`` it was given on."""
+    return [{**w.to_json(), "photo": photo} for s in steps for photo, w in s.photo_warnings()]
 
 
 def _bend_and_measure(
