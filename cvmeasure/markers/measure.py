@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -93,6 +94,8 @@ __all__ = [
     "measure_machine_photo",
     "measure_photo_file",
     "measure_trial",
+    "FrameCentres",
+    "frame_centres",
     "refine_candidate",
     "refine_candidates",
     "lateral_ca_estimate",
@@ -391,6 +394,77 @@ def measure_machine_photo(
             "heights='parallel' corrects a camera-only measurement: it needs a camera and "
             "no plane (a plane pose applies the heights exactly)"
         )
+    got = _centres(
+        bgr, kit, camera, plane, method, space, colour_model, linear, edge, heights, source
+    )
+    transform, markers, centres, covs, warnings = (
+        got.frame,
+        got.markers,
+        got.centres,
+        got.covariances,
+        got.warnings,
+    )
+    height_state, height_bound = got.height_state, got.height_bound
+    try:
+        angles = machine_angles(centres, covs, y_down=transform.y_down)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
+    sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
+    if height_state == "plane" and transform.plane is not None:
+        # the kit's height uncertainties (measured or stated) carried into the angles
+        var = height_angle_variance_deg2(
+            centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
+        )
+        sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
+    return MachinePhotoResult(
+        angles.pin_angle_deg,
+        angles.bend_angle_deg,
+        markers,
+        sigma,
+        tuple(warnings),
+        photo,
+        method,
+        space,
+        transform.name,
+        height_state,
+        height_bound,
+    )
+
+
+@dataclass(frozen=True)
+class FrameCentres:
+    """The discs' centres in the angles' frame, before the angles (see :func:`frame_centres`).
+
+    ``frame`` the frame (``frame.name``: "image", "undistorted" or "plane", mm);
+    ``centres`` and ``covariances`` each role's centre (2,) and covariance (2, 2) in it
+    (on a plane pose: each disc's centre on the plane at its kit height);
+    ``markers`` the centres in the photo's own pixels; ``warnings`` as the result's.
+    """
+
+    frame: MeasureFrame
+    markers: dict[str, MarkerMeasurement]
+    centres: dict[str, np.ndarray]
+    covariances: dict[str, np.ndarray]
+    warnings: list[StageWarning]
+    height_state: str | None = None
+    height_bound: dict[str, float] | None = None
+
+
+def _centres(
+    bgr: Any,
+    kit: MarkerKit,
+    camera: CameraModel | None,
+    plane: Any,
+    method: str,
+    space: str,
+    colour_model: ColourModel | None,
+    linear: bool,
+    edge: str | None,
+    heights: str,
+    source: str,
+) -> FrameCentres:
+    """The markers found, refined and mapped into the angles' frame (options checked by
+    :func:`measure_machine_photo`)."""
     from cvmeasure.jpegplanes import LazyBGR
 
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
@@ -433,30 +507,23 @@ def measure_machine_photo(
             height_state, height_bound = _heights_without_pose(
                 centres, covs, markers, kit, camera, img.shape, transform, heights, warnings
             )
-    try:
-        angles = machine_angles(centres, covs, y_down=transform.y_down)
-    except ValueError as exc:
-        raise InputError(source, str(exc)) from None
-    sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
-    if height_state == "plane" and transform.plane is not None:
-        # the kit's height uncertainties (measured or stated) carried into the angles
-        var = height_angle_variance_deg2(
-            centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
-        )
-        sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
-    return MachinePhotoResult(
-        angles.pin_angle_deg,
-        angles.bend_angle_deg,
-        markers,
-        sigma,
-        tuple(warnings),
-        photo,
-        method,
-        space,
-        transform.name,
-        height_state,
-        height_bound,
-    )
+    return FrameCentres(transform, markers, centres, covs, warnings, height_state, height_bound)
+
+
+def frame_centres(
+    bgr: Any,
+    kit: MarkerKit,
+    *,
+    camera: CameraModel | None = None,
+    plane: Any = None,
+    linear: bool = False,
+    edge: str | None = None,
+    source: str = "photo",
+) -> FrameCentres:
+    """The discs' centres of one photo in the angles' frame (on a plane pose: the plate,
+    mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
+    for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
+    return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
 
 
 def _heights_without_pose(
