@@ -1,7 +1,8 @@
 """The automatic calibration session: bend, photograph, release, photograph, measure.
 
-For each calibration angle and direction (:func:`~cvmeasure.material.calibration.calibration_plan`)
-a session:
+For each bend of its plan (:func:`SessionConfig.plan`: a mode's angles twice each way in
+the order :mod:`cvmeasure.driver.plan` makes for the diagnosis; custom angles once each
+way) a session:
 
 1. feeds fresh straight wire (``G91 G1 Y<feed>``),
 2. bends: the pin goes to the nominal command for the wanted *loaded* angle
@@ -42,13 +43,10 @@ from typing import Any, Protocol
 
 from cvmeasure.contracts import MachinePhotoResult, Trial
 from cvmeasure.driver.camera import Camera
+from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
-from cvmeasure.material.calibration import (
-    Calibration,
-    calibration_plan,
-    fit_calibration,
-)
+from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -105,7 +103,14 @@ class SessionConfig:
     duck: bool = True
 
     def plan(self) -> list[tuple[str, float]]:
-        return calibration_plan(self.angles_deg if self.mode == "custom" else self.mode)
+        """The bends ``(direction, angle_deg)`` in execution order: a mode's angles in the
+        diagnosis' order (:func:`~cvmeasure.driver.plan.diagnosis_plan`, each angle twice
+        each way), custom angles each once per direction, as listed."""
+        if self.mode == "custom":
+            return swept_plan(self.angles_deg)
+        if self.mode not in MODES:
+            raise ValueError(f"unknown mode {self.mode!r}; valid: {', '.join(MODES)}, custom")
+        return diagnosis_plan(MODES[self.mode])
 
     def to_dict(self) -> dict[str, Any]:
         return {
