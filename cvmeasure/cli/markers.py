@@ -57,7 +57,13 @@ def _register_heights(msub: argparse._SubParsersAction) -> None:
         "height_covariance_mm2; `measure --kit` carries those uncertainties into every "
         "angle's.",
     )
-    h.add_argument("photos", nargs="+", type=Path, metavar="PHOTO", help="bend photos")
+    h.add_argument("photos", nargs="*", type=Path, metavar="PHOTO", help="bend photos")
+    h.add_argument(
+        "--session",
+        type=Path,
+        help="a calibration session's folder (or its session.jsonl): its loaded photos are "
+        "the bend photos (the session photographs them from one pose)",
+    )
     h.add_argument(
         "--plane",
         type=Path,
@@ -126,7 +132,10 @@ def run_heights(args: argparse.Namespace) -> int:
     kit = load_kit(args.kit) if args.kit else default_kit()
     plane = PlaneModel.load(args.plane)
     sweep, failed, y_down = [], 0, True
-    shots = [(p, False) for p in args.photos] + [(p, True) for p in args.straight]
+    bends = list(args.photos) + (_session_loaded_photos(args.session) if args.session else [])
+    if not bends:
+        raise InputError("markers heights", "no bend photos (PHOTO... or --session)")
+    shots = [(p, False) for p in bends] + [(p, True) for p in args.straight]
     for path, straight in shots:
         try:
             photo = read_photo(path)
@@ -161,3 +170,22 @@ def run_heights(args: argparse.Namespace) -> int:
             print(f"! {w}")
         print(f"wrote {args.out}")
     return 2 if failed else 0
+
+
+def _session_loaded_photos(path: Path) -> list[Path]:
+    """The loaded photos of a calibration session's log (paths relative to its folder)."""
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import read_jsonl
+
+    log = path / "session.jsonl" if path.is_dir() else path
+    if not log.is_file():
+        raise InputError(path, "no session log here (session.jsonl)")
+    records = read_jsonl(log, skip_partial_last=True)
+    photos = [
+        log.parent / str(r["photo_loaded"])
+        for r in records
+        if isinstance(r, dict) and r.get("event") == "sample" and r.get("photo_loaded")
+    ]
+    if not photos:
+        raise InputError(log, "not a session log with bends (no 'sample' records)")
+    return photos

@@ -87,6 +87,20 @@ def test_heights_measured_from_a_sweep_through_the_cli(tmp_path, capsys):
     said = json.loads(capsys.readouterr().out)
     assert said["n_photos"] == 10 and said["n_straight"] == 2 and not said["warnings"]
     measured = load_kit(out)
+    # the same bends from a calibration session's log (its loaded photos)
+    log = tmp_path / "session.jsonl"
+    log.write_text(
+        "".join(
+            json.dumps({"event": "sample", "step": i, "photo_loaded": paths[s].name}) + "\n"
+            for i, s in enumerate(SWEEP)
+        )
+    )
+    again = tmp_path / "kit_session.json"
+    straight = [a for s in STRAIGHT for a in ("--straight", str(paths[s]))]
+    cmd = ["markers", "heights", "--session", str(tmp_path), "--plane", str(plane_json)]
+    assert main([*cmd, *straight, "-o", str(again)]) == 0
+    assert load_kit(again).to_dict() == measured.to_dict()
+    capsys.readouterr()
     got = {r: measured.height_mm(r) for r in ROLES}
     want = {r: true_kit.height_mm(r) for r in ROLES}
     # what the angles depend on, the heights against one another: within 0.1 mm
