@@ -212,16 +212,51 @@ def _pose_run(work: Path, i: int, pose, camera: Path, board: Path, args, rng, sc
     out["off, nominal kit"] = _score(_measure(paths, plane, []), truths)
     measured_kit = folder / "kit_heights.json"
     t0 = time.perf_counter()
-    done = _ok(_cli("markers", "heights", *map(str, sweep),
-                    *[a for s in straight for a in ("--straight", str(s))],
-                    "--plane", str(plane), "-o", str(measured_kit), "--json"))  # fmt: skip
+    done = _cli("markers", "heights", *map(str, sweep),
+                *[a for s in straight for a in ("--straight", str(s))],
+                "--plane", str(plane), "-o", str(measured_kit), "--json")  # fmt: skip
+    if done.returncode not in (0, 2) or not measured_kit.exists():
+        raise RuntimeError(f"markers heights: exit {done.returncode}: {done.stderr}")
     heights = json.loads(done.stdout)
+    heights["photos_refused"] = done.stderr.count("cvmeasure markers heights:")
     heights["seconds"] = time.perf_counter() - t0
     heights["true_mm"] = {m.role: m.height_mm for m in off.markers}
     out["off, measured heights"] = _score(_measure(paths, plane, ["--kit", str(measured_kit)]),
                                           truths)  # fmt: skip
     out["heights"] = heights
     return out
+
+
+def _surfacing(work: Path) -> dict:
+    """Every photo warning of a simulated calibration session, looked for where the operator
+    looks: the console summary, the calibration JSON (provenance.warnings) and the HTML
+    report; and `report` on the session log."""
+    (work / "surf").mkdir()
+    cal = work / "surf" / "cal.json"
+    done = _ok(_cli("session", "--simulate", "-o", str(cal), "--angles", "10,30,60",
+                    "--scale", "0.2", "--quiet"))  # fmt: skip
+    log = [json.loads(line) for line in (work / "surf" / "cal_session" / "session.jsonl").open()]
+    produced = [
+        (r[f"photo_{w}"], x["code"])
+        for r in log
+        if r.get("event") == "sample"
+        for w in ("loaded", "unloaded")
+        for x in r[w]["warnings"]
+    ]
+    doc = json.loads(cal.read_text())
+    in_cal = {(x["photo"], x["code"]) for x in doc["provenance"].get("warnings", [])}
+    report = cal.with_suffix(".html").read_text()
+    page = work / "surf" / "log.html"
+    _ok(_cli("report", str(work / "surf" / "cal_session" / "session.jsonl"), "-o", str(page),
+             "--quiet"))  # fmt: skip
+    log_page = page.read_text()
+    missing = {
+        "console": sum(code not in done.stdout for _, code in produced),
+        "calibration JSON": sum((p, c) not in in_cal for p, c in produced),
+        "session report": sum(c not in report or p not in report for p, c in produced),
+        "report of the log": sum(c not in log_page for _, c in produced),
+    }
+    return {"produced": len(produced), "missing": missing}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -253,6 +288,7 @@ def main(argv: list[str] | None = None) -> dict:
         camera = work / "camera.json"
         _ok(_cli("calibrate", *map(str, sorted((work / "views").glob("*.jpg"))),
                  "--board", str(board), "-o", str(camera)))  # fmt: skip
+        surfacing = _surfacing(work)
         for i, pose_kw in enumerate(POSES):
             run = _pose_run(work, i, Pose(**pose_kw), camera, board, args, rng, "discs3d")
             runs.append(("discs3d", run))
@@ -260,7 +296,7 @@ def main(argv: list[str] | None = None) -> dict:
         for i, pose_kw in enumerate(PHOTOLAB_POSES[: 1 if args.quick else None]):
             run = _pose_run(work, i, Pose(**pose_kw), camera, board, lab, rng, "photolab")
             runs.append(("photolab", run))
-    return _report(runs, args, argv, time.perf_counter() - t0)
+    return _report(runs, surfacing, args, argv, time.perf_counter() - t0)
 
 
 def _pool(runs: list[tuple[str, dict]], kinds: list[str]) -> dict:
@@ -276,7 +312,7 @@ def _pool(runs: list[tuple[str, dict]], kinds: list[str]) -> dict:
     return pooled
 
 
-def _report(runs: list[tuple[str, dict]], args, argv, seconds: float) -> dict:
+def _report(runs: list[tuple[str, dict]], surfacing: dict, args, argv, seconds: float) -> dict:
     kinds = ["flat", "3d", "off, nominal kit", "off, measured heights"]
     pooled = _pool(runs, kinds)
     right_false = sum(run[k]["warned"] for _, run in runs for k in ("flat", "3d"))
@@ -320,6 +356,10 @@ def _report(runs: list[tuple[str, dict]], args, argv, seconds: float) -> dict:
                           target=">= 95", met=share >= 0.95))  # fmt: skip
     metrics.append(Metric("right kit warned kit_heights_mismatch (false)", right_false,
                           f"of {right_n} photos", target="0", met=right_false == 0))  # fmt: skip
+    lost = sum(surfacing["missing"].values())
+    metrics.append(Metric("session warnings missing from console, cal.json or reports", lost,
+                          f"of {surfacing['produced']} x 4 places", target="0",
+                          met=lost == 0))  # fmt: skip
     height_rows = []
     for i, (scenes, run) in enumerate(runs):
         h = run["heights"]
