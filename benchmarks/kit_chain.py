@@ -262,14 +262,14 @@ def _surfacing(work: Path) -> dict:
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.kit_chain", description=__doc__)
     p.add_argument("--quick", action="store_true", help="fewer photos per pose (about 3 min)")
-    p.add_argument("--photos", type=int, help="check photos per pose and kind (default 20)")
+    p.add_argument("--photos", type=int, help="check photos per pose and kind (default 12)")
     p.add_argument(
-        "--photolab-photos", type=int, help="the same in the photo lab's scenes (default 8)"
+        "--photolab-photos", type=int, help="the same in the photo lab's scenes (default 5)"
     )
     p.add_argument("--seed", type=int, default=42)
     args = p.parse_args(argv)
-    args.photos = args.photos or (6 if args.quick else 20)
-    args.photolab_photos = args.photolab_photos or (3 if args.quick else 8)
+    args.photos = args.photos or (6 if args.quick else 12)
+    args.photolab_photos = args.photolab_photos or (3 if args.quick else 5)
     from cvmeasure_datasets.optics import Pose
 
     rng = np.random.default_rng(args.seed)

@@ -234,9 +234,10 @@ def _on_frame(
         centres[role] = np.array(fit_f.centre)
         covs[role] = jac @ cov_imgs[role] @ jac.T
         if frame.name == "plane":
-            whole = fit.coverage >= HIDDEN_COVERAGE
-            shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if whole else None
-            discs.append(PlaneDisc(role, float(fit_f.radius), shape))
+            seen = fit.coverage >= HIDDEN_COVERAGE
+            shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if seen else None
+            whole = seen and fits[role][1].ring_spread < UNEVEN_RING_SPREAD
+            discs.append(PlaneDisc(role, float(fit_f.radius), shape, whole))
     return centres, covs, discs
 
 
