@@ -71,6 +71,7 @@ from cvmeasure.markers.frame import MeasureFrame, measure_frame
 from cvmeasure.markers.heights import (
     BOUND_TILT_DEG,
     fallback_focal_px,
+    height_angle_jacobian,
     height_angle_variance_deg2,
     height_parallax,
 )
@@ -111,6 +112,9 @@ HeightMode = Literal["none", "parallel"]
 HEIGHT_MODES: tuple[str, ...] = ("none", "parallel")
 #: Height bounds (deg) below this are not warned about (the heights barely matter).
 HEIGHT_WARN_DEG = 1e-3
+#: How far printed caps may stand off a kit's nominal heights (a share of each height):
+#: the bound stated beside the sigma while the heights are not measured.
+NOMINAL_HEIGHT_TOLERANCE = 0.10
 
 #: Centre standard uncertainty (px per axis) stated for the seed method's Hough centres.
 SEED_CENTRE_SIGMA_PX = 0.5
@@ -417,6 +421,10 @@ def measure_machine_photo(
             centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
         )
         sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
+        if not np.any(kit.height_cov_mm2()):  # nominal heights: bounded beside the sigma
+            height_bound = _nominal_heights_bound(
+                centres, kit, transform.plane.camera_centre_mm, transform.y_down, warnings
+            )
     return MachinePhotoResult(
         angles.pin_angle_deg,
         angles.bend_angle_deg,
@@ -525,6 +533,37 @@ def frame_centres(
     mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
     for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
     return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
+
+
+def _nominal_heights_bound(
+    centres: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    warnings: list[StageWarning],
+) -> dict[str, float] | None:
+    """What caps standing up to :data:`NOMINAL_HEIGHT_TOLERANCE` off a kit's nominal
+    (unmeasured) heights can do to the angles, deg; warned about beside the sigma."""
+    jac = height_angle_jacobian(centres, kit, camera_centre_mm, y_down=y_down)
+    tol = np.array([NOMINAL_HEIGHT_TOLERANCE * kit.height_mm(r) for r in ROLES])
+    bound = {
+        "pin_angle_deg": float(np.abs(jac[0]) @ tol),
+        "bend_angle_deg": float(np.abs(jac[1]) @ tol),
+    }
+    if max(bound.values()) < HEIGHT_WARN_DEG:
+        return None
+    warnings.append(
+        StageWarning(
+            "heights_nominal",
+            f"the +- leaves out the kit's heights, which are nominal, not measured: caps "
+            f"standing up to {100 * NOMINAL_HEIGHT_TOLERANCE:.0f} % off them can add up to "
+            f"{bound['pin_angle_deg']:.3f} deg (pin) and {bound['bend_angle_deg']:.3f} deg "
+            "(bend) of error (height_bound_deg): measure them once with `cvmeasure markers "
+            "heights` (or give each height_sigma_mm) to remove this bound",
+            "kit",
+        )
+    )
+    return bound
 
 
 def _heights_without_pose(
