@@ -55,6 +55,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
+    p.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="the markers are flat stickers on the plate: the kit's heights removed",
+    )
     p.add_argument("--camera-model", type=Path, help="camera JSON (lens model) for measuring")
     p.add_argument(
         "--plane",
@@ -142,6 +147,10 @@ def run(args: argparse.Namespace) -> int:
         from cvmeasure.kit import load_kit
 
         kit = load_kit(args.kit)
+    if args.flat_kit:
+        from cvmeasure.kit import default_kit
+
+        kit = (kit or default_kit()).flat()
     options = {}
     if args.camera_model:
         from cvmeasure.camera import load_camera

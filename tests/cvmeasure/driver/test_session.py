@@ -319,3 +319,14 @@ def test_session_refuses_a_lens_json_as_the_camera(tmp_path, capsys):
     assert "--camera-model" in err and "camera.json" in err
     assert main(["session", "--simulate", "-o", out, "--camera", "folder:///tmp"]) == 2
     assert "simulated camera" in capsys.readouterr().err
+
+
+def test_session_flat_kit_measures_flat_stickers(tmp_path):
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", "10,30", "--scale", "0.2"]
+    assert main([*args, "--flat-kit", "--quiet"]) == 0
+    log = read_session_log(tmp_path / "cal_session" / "session.jsonl")
+    heights = {
+        r[w].get("heights") for r in log if r["event"] == "sample" for w in ("loaded", "unloaded")
+    }
+    assert heights == {"flat"}
