@@ -139,9 +139,12 @@ def test_resume_refuses_another_plan(tmp_path, capsys):
     assert main([*args, "--angles", "20,40", "--stop-after", "1", "--quiet"]) == 3
     assert main([*args, "--angles", "20,50", "--quiet"]) == 2
     assert "session.jsonl: session log belongs to another plan" in capsys.readouterr().err
-    assert main([*args, "--angles", "abc"]) == 2
-    assert main([*args, "--angles", "20"]) == 2
-    assert "at least 2 different angles" in capsys.readouterr().err
+    for bad in ("abc", "20", ""):  # refused as the option is parsed: a usage error
+        with pytest.raises(SystemExit) as exit_info:
+            main([*args, "--angles", bad])
+        assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --angles" in err and "at least 2 different angles" in err
 
 
 def test_double_behind_the_streamer_shows_loaded_then_unloaded():
