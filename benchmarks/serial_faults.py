@@ -80,24 +80,55 @@ class RunResult:
         return self.finished and wrong and not (self.warned or self.forced)
 
 
+def planned_lengths(job: list[str]) -> dict[int, float]:
+    """Length of each line's move (its own small G-code reader: G90/G91, X Y Z A words)."""
+    pos = {"X": 0.0, "Y": 0.0, "Z": 0.0, "A": 0.0}
+    relative = False
+    out: dict[int, float] = {}
+    for text in job:
+        words = text.upper().split()
+        number = int(words[0][1:])
+        if "G91" in words:
+            relative = True
+        if "G90" in words:
+            relative = False
+        moved = 0.0
+        for w in words[1:]:
+            axis = w[:1]
+            if axis in pos:
+                value = float(w[1:])
+                new = pos[axis] + value if relative else value
+                moved += (new - pos[axis]) ** 2
+                pos[axis] = new
+        out[number] = moved**0.5
+    return out
+
+
 def score(job: list[str], executed: list[tuple[int, float]]) -> tuple[list, list, list]:
-    """(lines run twice, lines never run, lines out of order) from (line, share) pairs."""
-    motion = {int(t.split()[0][1:]) for t in job if " G0 " in f" {t} " or " G1 " in f" {t} "}
-    share: Counter[int] = Counter()
+    """(lines run twice, lines never run, lines out of order) from (line, distance moved).
+
+    A line's moves (a cut one and the move that completed it) must add up to its
+    planned length: more is a second run, less a line lost.
+    """
+    lengths = planned_lengths(job)
+    moved: Counter[int] = Counter()
     order: list[int] = []
-    for line, fraction in executed:
-        share[line] += fraction
-        if fraction > 1e-6:
+    for line, distance in executed:
+        moved[line] += distance
+        if distance > 1e-6:
             order.append(line)
-    twice = sorted(n for n, s in share.items() if s > 1.0 + 1e-3)
-    lost = sorted(n for n in motion if share.get(n, 0.0) < 1.0 - 1e-3)
-    out_of_order = []
-    high = -1
+    twice = sorted(n for n, d in moved.items() if d > lengths.get(n, 0.0) + 1e-2)
+    lost = sorted(n for n, length in lengths.items() if length > 1e-6 and moved[n] < length - 1e-2)
+    return twice, lost, _out_of_order(order)
+
+
+def _out_of_order(order: list[int]) -> list[int]:
+    out, high = [], -1
     for n in order:
         if n < high:
-            out_of_order.append(n)
+            out.append(n)
         high = max(high, n)
-    return twice, lost, sorted(set(out_of_order))
+    return sorted(set(out))
 
 
 def _bend(job: Path, port: str, extra: list[str], env: dict[str, str]) -> tuple[int, str]:
@@ -156,7 +187,10 @@ def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> 
         board.wait_idle(timeout_s=30)
         truth = board.truth()
     run.seconds = time.perf_counter() - t0
-    executed = [(e.line, e.fraction) for e in truth.executed]
+    # a truth entry's end is where the move stopped: its distance is what ran
+    executed = [
+        (e.line, sum((e.end[a] - e.start[a]) ** 2 for a in e.end) ** 0.5) for e in truth.executed
+    ]
     run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
         run.lost = []  # a refused run finished nothing: nothing is claimed done
@@ -203,21 +237,21 @@ def run_double(
         time.sleep(0.2)
         completed, partial = board.executed_lines()
     run.seconds = time.perf_counter() - t0
-    numbers = [int(t.split()[0][1:]) for t in job]
-    executed = [(n, 1.0) for n in completed if n in numbers] + [
-        (n, 0.5) for n in partial if n in numbers
-    ]
-    run.twice, run.lost, run.out_of_order = score(job, executed)
+    lengths = planned_lengths(job)
+    done = Counter(n for n in completed if n in lengths)
+    run.twice = sorted(n for n, c in done.items() if c > 1)
+    run.lost = sorted(n for n, length in lengths.items() if length > 1e-6 and done[n] == 0)
+    run.out_of_order = _out_of_order([n for n in completed if n in lengths])
     if not run.finished:
         run.lost = []
     return run
 
 
-def fault_plan(n_runs: int, n_lines: int, seed: int) -> list[str]:
+def fault_plan(n_runs: int, n_lines: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[str]:
     rng = random.Random(seed)
     out = []
     for i in range(n_runs):
-        kind = KINDS[i % len(KINDS)]
+        kind = kinds[i % len(kinds)]
         line = rng.randrange(50, n_lines - 50)
         arg = {"stall": ":6", "xoff": ":3", "gone": ":1.5"}.get(kind, "")
         out.append(f"{kind}@{line}{arg}")
@@ -234,7 +268,6 @@ def main(argv: list[str] | None = None) -> dict:
     args = p.parse_args(argv)
     n_runs = args.runs or (14 if args.quick else 63)
     n_lines = args.lines or (400 if args.quick else 2000)
-    plan = args.faults.split(",") if args.faults else fault_plan(n_runs, n_lines, seed=43)
     env = dict(os.environ)
     results: list[RunResult] = []
     models = [m for m in args.models.split(",") if m]
@@ -243,6 +276,8 @@ def main(argv: list[str] | None = None) -> dict:
         if model == "heldout" and not heldout:
             print("no benchmarks/heldout: skipping the held-out controller")
             continue
+        kinds = KINDS if model == "heldout" else tuple(_DOUBLE_FAULTS)
+        plan = args.faults.split(",") if args.faults else fault_plan(n_runs, n_lines, 43, kinds)
         for i, fault in enumerate(plan):
             job = make_job(n_lines, seed=i)
             with tempfile.TemporaryDirectory(prefix="cvm_serial_") as tmp:

@@ -94,7 +94,7 @@ log = logging.getLogger(__name__)
 SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
     {"ej": 1},
     {"js": 1},
-    {"jv": 1},
+    {"jv": 5},  # verbose: each G-code ack echoes the block, so a garbled byte shows
     {"ee": 0},
     {"ec": 0},
     {"sv": 1},
@@ -349,6 +349,14 @@ def _handle(run: _Run, msg: Message) -> None:
                 f"the board consumed {msg.nbytes} bytes for a {head.nbytes}-byte line "
                 "(a byte was lost or garbled on the way)",
             )
+        echo = msg.body.get("gc")
+        if isinstance(echo, str) and _squeeze(echo) != _squeeze(head.text):
+            _stop(
+                run,
+                "desync",
+                head,
+                f"the board read {echo.strip()!r} for {head.text!r} (a byte garbled on the way)",
+            )
         if msg.status != 0:
             text = STATUS_TEXT.get(msg.status, "")
             _stop(
@@ -370,6 +378,11 @@ def _handle(run: _Run, msg: Message) -> None:
         _stop(run, "malformed", head, f"unreadable reply {msg.text!r} ({msg.reason})")
     elif isinstance(msg, (QueueReport, RxReport)):
         pass
+
+
+def _squeeze(text: str) -> str:
+    """A G-code block as the board may echo it: upper case, no spaces."""
+    return "".join(text.split()).upper()
 
 
 def _index_of(job: Sequence[JobLine], number: Any) -> int:
