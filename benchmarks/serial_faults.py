@@ -24,6 +24,7 @@ modes, through ``sim://``-less pty access).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import random
 import subprocess
@@ -194,7 +195,20 @@ def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> 
     run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
         run.lost = []  # a refused run finished nothing: nothing is claimed done
+    if run.twice or run.lost or run.out_of_order:
+        _keep_evidence(run, work, truth.to_json())
     return run
+
+
+def _keep_evidence(run: RunResult, work: Path, truth: dict) -> None:
+    """A failed run's journal and truth log, kept for a look (under the temp folder)."""
+    keep = Path(tempfile.gettempdir()) / "cvm_serial_failures" / run.fault.replace(":", "_")
+    keep.mkdir(parents=True, exist_ok=True)
+    journal = work / "job.nc.journal.jsonl"
+    if journal.exists():
+        (keep / "journal.jsonl").write_text(journal.read_text())
+    (keep / "truth.json").write_text(json.dumps(truth))
+    (keep / "stderr.txt").write_text("\n---\n".join(run.stderr))
 
 
 _DOUBLE_FAULTS = {

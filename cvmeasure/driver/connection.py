@@ -140,26 +140,44 @@ class BoardConnection:
                 )
 
     def hold(self, *, timeout_s: float) -> dict[str, Any] | None:
-        """Feedhold; the status fields the board reports *after* it, once stopped; or None.
+        """Feedhold; the status the board reports *after* it, once nothing runs; or None.
 
-        Read before any queue flush, ``line`` is the line the machine was running
-        (after a flush TinyG reports the last line it parsed). Only a report that
-        arrives after the ``!`` counts: the last state seen before it may be old (a
-        board whose reports stalled while its machine ran on). A machine that was not
-        moving is asked (``{"sr":null}``); None when no fresh report says it stopped.
+        Read before any queue flush, ``line`` is then exact: the runtime's line while
+        held (stat 6), or, idle, the last line parsed with nothing left to run. Only a
+        report that arrives after the ``!`` counts: the last state seen before it may
+        be old (a board whose reports stalled while its machine ran on). A machine
+        that was idle is asked (``{"sr":null}``), and the answer comes after the lines
+        still in flight were parsed: if they started it, it is held again.
         """
-        self.write(FEEDHOLD)
         deadline = time.monotonic() + timeout_s
-        if self.state.get("stat") not in _MOVING:
-            self.drain(0.02)
-            try:
-                state = self.query_status(timeout_s=max(0.1, min(timeout_s, 2.0)))
-            except DeviceError:
-                return None
-            return state if state.get("stat") not in _MOVING else self._await_stop(deadline)
-        return self._await_stop(deadline)
+        self.write(FEEDHOLD)
+        if self.state.get("stat") in _MOVING:
+            state = self._await_stop(deadline)
+            if state is None or state.get("stat") == MachineStat.HOLD:
+                return state
+        for _ in range(2):
+            state = self._ask_status(deadline)
+            if state is None or state.get("stat") not in _MOVING:
+                return state
+            self.write(FEEDHOLD)  # lines in flight started it after the first hold
+            state = self._await_stop(deadline)
+            if state is None or state.get("stat") == MachineStat.HOLD:
+                return state
+        return None
+
+    def _ask_status(self, deadline: float) -> dict[str, Any] | None:
+        """Send ``{"sr":null}``; the full status once its answer arrives (None: no answer)."""
+        self.write(encode_json({"sr": None}))
+        while time.monotonic() < deadline:
+            if self.error is not None:
+                raise self.error
+            msg = self.next_message(deadline - time.monotonic())
+            if isinstance(msg, Response) and isinstance(msg.body.get("sr"), dict):
+                return dict(self.state)
+        return None
 
     def _await_stop(self, deadline: float) -> dict[str, Any] | None:
+        """The status once a report received from now on says the machine is not moving."""
         while time.monotonic() < deadline:
             if self.error is not None:
                 raise self.error
