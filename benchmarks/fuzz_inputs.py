@@ -175,12 +175,12 @@ def _first_number_to(text: str, new: str) -> str:
 
 
 def _drop_first_key(text: str) -> str:
+    """The object without its bulkiest key (its data: a matrix, the markers, the samples)."""
     obj = json.loads(text)
     if isinstance(obj, dict) and obj:
-        key = next(iter(obj))
-        optional = ("format", "provenance", "source", "name", "created_utc", "generated_by")
-        key = next((k for k in obj if k not in optional), key)
-        obj.pop(key)
+        optional = ("provenance", "calibration", "std_devs", "per_view", "views")
+        keys = [k for k in obj if k not in optional] or list(obj)
+        obj.pop(max(keys, key=lambda k: len(json.dumps(obj[k]))))
     return json.dumps(obj)
 
 

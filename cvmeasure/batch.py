@@ -295,9 +295,11 @@ def done_keys(output: str | os.PathLike[str]) -> set[str]:
 def drop_failed_records(output: str | os.PathLike[str], keys: set[str]) -> int:
     """Rewrite ``output`` (atomically) without the failed records of ``keys``; how many went.
 
-    Before a re-run retries failed photos, so that the results file keeps one record
-    per photo: its latest.
+    A key's file is its resolved path (the part before the size and time): a photo
+    fixed since (a new size or time) drops its old failed record too. Before a re-run
+    retries failed photos, so that the results file keeps one record per photo: its latest.
     """
+    files = {k.rsplit("|", 2)[0] for k in keys}
     path = Path(output)
     if not path.exists() or not keys:
         return 0
@@ -309,7 +311,8 @@ def drop_failed_records(output: str | os.PathLike[str], keys: set[str]) -> int:
         except json.JSONDecodeError:
             kept.append(line)
             continue
-        if isinstance(record, dict) and record.get("photo_key") in keys and not record.get("ok"):
+        key = record.get("photo_key") if isinstance(record, dict) else None
+        if isinstance(key, str) and key.rsplit("|", 2)[0] in files and not record.get("ok"):
             dropped += 1
         else:
             kept.append(line)
