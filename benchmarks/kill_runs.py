@@ -88,8 +88,18 @@ def _records(path: Path) -> list[dict]:
 def session_run(work: Path, seed: int, env: dict[str, str]) -> dict:
     rng = random.Random(seed)
     out = work / f"cal{seed}.json"
-    argv = [EXE, "session", "--simulate", "-o", str(out), "--angles", ANGLES, "--quiet",
-            "--seed", str(seed)]
+    argv = [
+        EXE,
+        "session",
+        "--simulate",
+        "-o",
+        str(out),
+        "--angles",
+        ANGLES,
+        "--quiet",
+        "--seed",
+        str(seed),
+    ]
     log = work / f"cal{seed}_session" / "session.jsonl"
     proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     # kill when the log has grown to a random number of records (a random moment in the plan)
@@ -135,8 +145,18 @@ def session_run(work: Path, seed: int, env: dict[str, str]) -> dict:
 def batch_run(work: Path, photos: list[Path], seed: int, env: dict[str, str]) -> dict:
     rng = random.Random(seed)
     out = work / f"batch{seed}.jsonl"
-    argv = [EXE, "batch", *map(str, photos), "--kind", "machine", "-o", str(out),
-            "--workers", "2", "--quiet"]
+    argv = [
+        EXE,
+        "batch",
+        *map(str, photos),
+        "--kind",
+        "machine",
+        "-o",
+        str(out),
+        "--workers",
+        "2",
+        "--quiet",
+    ]
     proc = subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     kids: set[int] = set()
     deadline = time.monotonic() + 120
@@ -191,8 +211,13 @@ def main(argv: list[str] | None = None) -> dict:
     rows = []
     try:
         if n_batches:
-            subprocess.run([EXE, "demo", "-o", str(work / "demo")], env=env, check=True,
-                           capture_output=True, timeout=600)
+            subprocess.run(
+                [EXE, "demo", "-o", str(work / "demo")],
+                env=env,
+                check=True,
+                capture_output=True,
+                timeout=600,
+            )
             photos = sorted((work / "demo" / "session" / "photos").glob("*.jpg"))[:10]
         for i in range(n_batches):
             rows.append(batch_run(work, photos, 100 + i, env))
@@ -219,25 +244,48 @@ def _report(rows: list[dict], argv: list[str] | None, quick: bool) -> dict:
         argv,
         quick=quick,
         metrics=[
-            Metric("session kills", sum(r["killed"] for r in sessions), "", target=None,
-                   met=None),
+            Metric("session kills", sum(r["killed"] for r in sessions), "", target=None, met=None),
             Metric("batch kills", sum(r["killed"] for r in batches), "", target=None, met=None),
             Metric("records lost", lost, "", target="= 0", met=lost == 0),
             Metric("records doubled", doubled, "", target="= 0", met=doubled == 0),
             Metric("steps bent twice on the same wire", twice, "", target="= 0", met=twice == 0),
-            Metric("worker processes left after a killed batch", left, "", target="= 0",
-                   met=left == 0),
-            Metric("runs not finished by the re-run", unfinished, "", target="= 0",
-                   met=unfinished == 0),
+            Metric(
+                "worker processes left after a killed batch", left, "", target="= 0", met=left == 0
+            ),
+            Metric(
+                "runs not finished by the re-run", unfinished, "", target="= 0", met=unfinished == 0
+            ),
         ],
         tables=[
             Table(
                 "runs",
-                ["kind", "seed", "killed", "kill after records", "exit", "lost", "doubled",
-                 "bent twice", "re-bent on fresh wire", "workers left"],
-                [[r["kind"], r["seed"], r["killed"], r["kill_after_records"], r["exit"],
-                  r["lost"], r["doubled"], r["bent_twice"], r["steps_rebent_on_fresh_wire"],
-                  r["left_over"]] for r in rows],
+                [
+                    "kind",
+                    "seed",
+                    "killed",
+                    "kill after records",
+                    "exit",
+                    "lost",
+                    "doubled",
+                    "bent twice",
+                    "re-bent on fresh wire",
+                    "workers left",
+                ],
+                [
+                    [
+                        r["kind"],
+                        r["seed"],
+                        r["killed"],
+                        r["kill_after_records"],
+                        r["exit"],
+                        r["lost"],
+                        r["doubled"],
+                        r["bent_twice"],
+                        r["steps_rebent_on_fresh_wire"],
+                        r["left_over"],
+                    ]
+                    for r in rows
+                ],
             )
         ],
         notes=[
