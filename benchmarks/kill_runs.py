@@ -200,12 +200,12 @@ def batch_run(work: Path, photos: list[Path], seed: int, env: dict[str, str]) ->
 
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.kill_runs", description=__doc__)
-    p.add_argument("--quick", action="store_true", help="3 session and 3 batch kills")
+    p.add_argument("--quick", action="store_true", help="1 session and 2 batch kills")
     p.add_argument("--sessions", type=int, help="session kills (default 11)")
     p.add_argument("--batches", type=int, help="batch kills (default 9)")
     args = p.parse_args(argv)
-    n_sessions = args.sessions if args.sessions is not None else (3 if args.quick else 11)
-    n_batches = args.batches if args.batches is not None else (3 if args.quick else 9)
+    n_sessions = args.sessions if args.sessions is not None else (1 if args.quick else 11)
+    n_batches = args.batches if args.batches is not None else (2 if args.quick else 9)
     work = Path(tempfile.mkdtemp(prefix="cvm_kill_"))
     env = dict(os.environ, MPLCONFIGDIR=str(work / "mpl"))
     rows = []

@@ -274,13 +274,13 @@ def fault_plan(n_runs: int, n_lines: int, seed: int, kinds: tuple[str, ...] = KI
 
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.serial_faults", description=__doc__)
-    p.add_argument("--quick", action="store_true", help="14 runs of 400-line jobs per model")
-    p.add_argument("--runs", type=int, help="fault runs per model (default 63; quick 14)")
+    p.add_argument("--quick", action="store_true", help="7 runs of 400-line jobs per model")
+    p.add_argument("--runs", type=int, help="fault runs per model (default 63; quick 7)")
     p.add_argument("--lines", type=int, help="lines per job (default 2000; quick 400)")
     p.add_argument("--models", default="heldout,double-parsed", help="comma-separated models")
     p.add_argument("--faults", help="comma-separated fault specs instead of the random plan")
     args = p.parse_args(argv)
-    n_runs = args.runs or (14 if args.quick else 63)
+    n_runs = args.runs or (7 if args.quick else 63)
     n_lines = args.lines or (400 if args.quick else 2000)
     env = dict(os.environ)
     results: list[RunResult] = []
