@@ -7,6 +7,7 @@ values (dataclasses of :mod:`cvmeasure.app.state` or library types), never dicts
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -284,6 +285,7 @@ def correct_next_part(
     return correct_from_part(calibration, check.measurement, design, design_name=design_name)
 
 
+@functools.lru_cache(maxsize=1)
 def default_calibration() -> Any:
     """The nominal simulated machine's calibration (a start before any material session)."""
     from cvmeasure.contracts import Trial

@@ -63,6 +63,10 @@ class Bending:
         for item in st.queue:  # the journals and the finished-part log are the truth
             item.done = sum(1 for r in self._history() if r.get("item") == item.id)
         self._restore_job()
+        history = self._history()
+        if history:
+            last = history[-1]
+            self._last_part = (str(last["item"]), str(last["design"]), int(last["part"]))
         parts = self.op.folder / "parts.jsonl"
         if parts.is_file():
             from cvmeasure.fileio import read_jsonl
@@ -167,6 +171,7 @@ class Bending:
         item = self._next_item()
         if item is None:
             raise InputError("queue", "nothing left to bend: add a design to the queue")
+        self.op.ensure_connected()
         rig = self.op.need_rig()
         part = item.done + 1
         if self.job.status == "interrupted" and self.job.item == item.id:
@@ -189,8 +194,7 @@ class Bending:
         j = self.job
         if j.status != "lost":
             raise InputError("job", "no stopped part to continue")
-        if self.op.state.connection.state == "lost":
-            self.op.reconnect()
+        self.op.ensure_connected()
         rig = self.op.need_rig()
         item = next(q for q in self.op.state.queue if q.id == j.item)
         text = (self.jobs / item.id / f"part{j.part}.gcode").read_text(encoding="ascii")

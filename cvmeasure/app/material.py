@@ -79,15 +79,15 @@ class Material:
         s.plan = [(str(d), float(a)) for d, a in start["plan"]]
         s.steps = [self._step(adapter.session_step_from_record(r)) for r in records
                    if r.get("event") == "sample"]  # fmt: skip
-        done = {st.step for st in s.steps}
-        missing = [i for i in range(len(s.plan)) if i not in done]
+        done = {st.step for st in s.steps}  # 1-based
+        missing = [i + 1 for i in range(len(s.plan)) if i + 1 not in done]
         if not missing and self.op.calibration_path.is_file():
             s.status = "done"
             s.calibration = str(self.op.calibration_path)
             s.message = f"session complete: {len(s.steps)} bends"
             self._result_from_file()
             return
-        s.next_bend = (missing[0] + 1) if missing else len(s.plan)
+        s.next_bend = missing[0] if missing else len(s.plan)
         s.status = "interrupted"
         s.message = (
             f"the session stopped before its end ({len(done)} of {len(s.plan)} bends logged): "
@@ -152,9 +152,7 @@ class Material:
         """Home, then continue from the first bend the log does not hold."""
         if self.state.status not in ("interrupted", "lost", "stopped"):
             raise InputError("session", "there is no unfinished session to continue")
-        if self.op.state.connection.state == "lost":
-            self.op.reconnect()
-        self.op.need_rig()
+        self.op.ensure_connected()
         self._run()
 
     def discard(self) -> None:

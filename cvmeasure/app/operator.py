@@ -133,6 +133,7 @@ class Operator:
             port, camera = "sim://", "simulated"
         rig = open_rig(port, camera, self.folder, simulate=self.simulate, scale=self.scale)
         self.rig = rig
+        atomic_write_json(self.folder / "connection.json", {"port": port, "camera": camera})
         c = self.state.connection
         c.state, c.port, c.camera, c.simulated = "operational", port, camera, rig.simulated
         c.message = "bender and camera connected" + (" (simulated)" if rig.simulated else "")
@@ -154,6 +155,14 @@ class Operator:
         c = self.state.connection
         c.state, c.message = "lost", f"the link to the bender was lost {where}"
         self.publish("connection")
+
+    def ensure_connected(self) -> None:
+        """Connect again to the last bench used (after a restart), or reopen a lost link."""
+        if self.state.connection.state == "lost":
+            self.reconnect()
+        elif self.rig is None and (self.folder / "connection.json").is_file():
+            last = read_json(self.folder / "connection.json")
+            self.connect(str(last.get("port", "")), str(last.get("camera", "")))
 
     def reconnect(self) -> None:
         if self.rig is None:
