@@ -193,7 +193,8 @@ def solve_lens(detections: Sequence[Any], image_size_px: tuple[int, int]) -> Len
     from cvmeasure.calibration.pipeline import calibrate_detections
 
     report = calibrate_detections(list(detections), image_size_px, source="the views taken")
-    problems = tuple(str(w) for w in report.warnings)
+    # dropping a few outlier corners is the solve doing its job, not a reason to redo it
+    problems = tuple(str(w) for w in report.warnings if "outlier corner" not in str(w))
     return LensSolve(
         camera=report.camera,
         rms_px=float(report.result.rms_px),
@@ -247,15 +248,20 @@ def measure_finished_part(
     """Measure a part photo against its design, vertex by vertex (as ``cvmeasure part``)."""
     from cvmeasure.part.measure import measure_part
 
-    m = measure_part(
-        bgr,
-        BOARD,
-        camera,
-        divisions=divisions,
-        design=design,
-        source=source,
-        allow_mirror=False,  # the part lies as it left the machine
-    )
+    try:
+        m = measure_part(
+            bgr,
+            BOARD,
+            camera,
+            divisions=divisions,
+            design=design,
+            source=source,
+            allow_mirror=False,  # the part lies as it left the machine
+        )
+    except InputError:
+        raise
+    except ValueError as exc:  # e.g. a design whose vertices fit no circle
+        raise InputError(source, f"the part could not be compared with its design: {exc}") from None
     if m.comparison is None or m.comparison.bends is None:
         raise InputError(source, "the part could not be compared with its design")
     b = m.comparison.bends

@@ -47,5 +47,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(args.dir, "--dir must be a folder")
     op = Operator(args.dir, simulate=args.simulate, scale=args.scale)
     print(f"cvmeasure ui: http://{args.host}:{args.port}/ (workspace {args.dir})", flush=True)
-    uvicorn.run(create_app(op), host=args.host, port=args.port, log_level="warning")
+    uvicorn.run(
+        create_app(op),
+        host=args.host,
+        port=args.port,
+        log_level="warning",
+        timeout_graceful_shutdown=1,  # open event streams must not hold a stop up
+    )
     return 0

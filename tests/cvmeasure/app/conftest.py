@@ -20,11 +20,12 @@ pytest.importorskip("fastapi", reason="the app needs the [app] extra (fastapi)")
 httpx = pytest.importorskip("httpx", reason="the app tests need httpx")
 
 #: Render scale of the simulated photos in the tests (small: fast, still measurable).
-SCALE = 0.25
-#: A quarter circle of R 40 mm: 4 bends of 18 deg, each chord 12.5 mm (equal chords).
+SCALE = 0.2
+#: A polygon arc: 5 chords of 40 mm, 4 bends of 20 deg (equal chords, as the correction needs).
 ARC_SVG = (
-    '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="120mm" viewBox="0 0 200 120">'
-    '<path id="arc" d="M 20 100 A 40 40 0 0 1 60 60" fill="none" stroke="black"/></svg>\n'
+    '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" viewBox="0 0 200 200">'
+    '<path id="arc" d="M 10 180 L 50 180 L 87.588 166.319 L 118.229 140.608 L 138.229 105.967 '
+    'L 145.175 66.575" fill="none" stroke="black"/></svg>\n'
 )
 
 
