@@ -46,15 +46,15 @@ class Operator:
     Parameters
     ----------
     folder : the workspace: session log, job journals, queue, calibration and camera files.
-    simulate : run against the TinyG double and the photo lab.
-    scale : render scale of the simulated photos.
+    simulated : makes the simulated bench (``--simulate``: the TinyG double and the photo
+        lab, ``cvmeasure_datasets.simrig.SimRig``); None for a real bench only.
     """
 
-    def __init__(self, folder: Path, *, simulate: bool = False, scale: float = 0.25) -> None:
+    def __init__(self, folder: Path, *, simulated: Callable[[], Rig] | None = None) -> None:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
-        self.simulate = simulate
-        self.scale = scale
+        self.simulated = simulated
+        self.simulate = simulated is not None
         self.state = AppState()
         self.bus = EventBus()
         self.control = Control()
@@ -131,7 +131,7 @@ class Operator:
             self.disconnect()
         if self.simulate and not port:
             port, camera = "sim://", "simulated"
-        rig = open_rig(port, camera, self.folder, simulate=self.simulate, scale=self.scale)
+        rig = open_rig(port, camera, self.folder, simulated=self.simulated)
         self.rig = rig
         atomic_write_json(self.folder / "connection.json", {"port": port, "camera": camera})
         c = self.state.connection

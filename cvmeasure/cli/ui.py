@@ -45,7 +45,14 @@ def run(args: argparse.Namespace) -> int:
         ) from None
     if args.dir.exists() and not args.dir.is_dir():
         raise InputError(args.dir, "--dir must be a folder")
-    op = Operator(args.dir, simulate=args.simulate, scale=args.scale)
+    simulated = None
+    if args.simulate:
+        from cvmeasure_datasets.simrig import SimRig
+
+        def simulated() -> SimRig:
+            return SimRig(scale=args.scale)
+
+    op = Operator(args.dir, simulated=simulated)
     print(f"cvmeasure ui: http://{args.host}:{args.port}/ (workspace {args.dir})", flush=True)
     uvicorn.run(
         create_app(op),
