@@ -183,13 +183,18 @@ class SimRig(Rig):
             self.double.reconnect()
         self.link = adapter.open_link("sim://", double=self.double)
 
-    def lose_link(self) -> None:
-        """Pull the double's cable a few lines from now (the simulated serial loss)."""
+    def lose_link(self, after_lines: int = 3) -> None:
+        """Pull the double's cable ``after_lines`` lines from now (the simulated serial loss)."""
         from cvmeasure.driver.double import Fault
 
         with self.double._lock:
-            line = self.double.stats.lines_received + 3
+            line = self.double.stats.lines_received + after_lines
             self.double._faults.append(Fault("vanish", at_line=line))
+
+    def truth(self) -> list[dict[str, Any]]:
+        """Every bend the double executed (line number, pin, loaded and final angles): the
+        simulation's truth that tests and benchmarks score the app against."""
+        return [b.to_dict() for b in self.double.machine_state().bends]
 
     def close(self) -> None:
         try:

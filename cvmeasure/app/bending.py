@@ -181,7 +181,7 @@ class Bending:
         text = self._job_text(item.design)
         gcode = self.jobs / item.id / f"part{part}.gcode"
         atomic_write_bytes(gcode, text.encode("ascii"))
-        self._launch(rig, item, part, text, resume=False)
+        self._launch(rig, item, part, text, resume=False, fresh=True)
 
     def _job_text(self, design: str) -> str:
         corrected = self.designs / f"{design}.next.gcode"
@@ -198,9 +198,13 @@ class Bending:
         rig = self.op.need_rig()
         item = next(q for q in self.op.state.queue if q.id == j.item)
         text = (self.jobs / item.id / f"part{j.part}.gcode").read_text(encoding="ascii")
-        self._launch(rig, item, j.part, text, resume=True)
+        # no journal: the link went before the first line of the part was sent
+        journal = self.jobs / item.id / f"part{j.part}.journal.jsonl"
+        self._launch(rig, item, j.part, text, resume=journal.is_file(), fresh=False)
 
-    def _launch(self, rig: Any, item: QueueItem, part: int, text: str, *, resume: bool) -> None:
+    def _launch(
+        self, rig: Any, item: QueueItem, part: int, text: str, *, resume: bool, fresh: bool
+    ) -> None:
         if self.op.machine_busy():
             raise Busy("the machine is busy; wait for it or stop what it is doing")
         lines = adapter.job_line_numbers(text)
@@ -214,7 +218,7 @@ class Bending:
             item.quantity,
         )
         j.bends_total = len(strokes)
-        if not resume:
+        if fresh:
             j.bends_done, j.elapsed_s = 0, 0.0
             rig.mark_part()
         j.message = f"bending part {part} of {item.quantity}: {item.design}"
@@ -255,8 +259,9 @@ class Bending:
             else:
                 j.status = "lost"
                 j.message = (
-                    f"the link was lost at bend {j.bends_done + 1} of {j.bends_total} ({exc}). "
-                    f"Reconnect, then continue part {part} from bend {j.bends_done + 1}"
+                    f"the link was lost at bend {j.bends_done + 1} of {j.bends_total} "
+                    f"({reason or 'port gone'}). Reconnect, then continue part {part} from "
+                    f"bend {j.bends_done + 1}"
                 )
                 self.op.link_lost(f"during part {part} of {item.design}")
             self.op.publish("job")

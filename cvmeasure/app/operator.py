@@ -295,10 +295,6 @@ class Operator:
         self.state.kit = KitCheck(done=True, markers=checks, verdict=verdict, good=good)
         self.publish("kit")
 
-    def lose_link(self) -> None:
-        """Simulated serial loss (``--simulate`` only)."""
-        self.need_rig().lose_link()
-
     def as_dict(self) -> dict[str, Any]:
         return asdict(self.state)
 

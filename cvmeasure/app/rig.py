@@ -52,11 +52,15 @@ class Rig:
         """Open the link again after a loss."""
         raise NotImplementedError
 
-    def lose_link(self) -> None:
+    def lose_link(self, after_lines: int = 3) -> None:
         raise InputError("serial loss", "only a simulated bender can be made to lose its link")
 
     def mark_part(self) -> None:
         pass
+
+    def truth(self) -> list[dict[str, Any]]:
+        """The bends really made (a simulated bench only)."""
+        raise InputError("truth", "only a simulated bench knows the bends it made")
 
     def close(self) -> None:
         if self.link is not None:

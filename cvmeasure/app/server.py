@@ -58,6 +58,7 @@ class Command(BaseModel):
     quantity: int | None = None
     item: str | None = None
     tolerance_deg: float | None = None
+    after_lines: int | None = None
 
 
 def _error(status: int, message: str) -> JSONResponse:
@@ -182,8 +183,8 @@ def create_app(op: Operator) -> FastAPI:
             await asyncio.to_thread(op.disconnect)
         elif cmd.command == "reconnect":
             await asyncio.to_thread(op.reconnect)
-        elif cmd.command == "lose" and op.simulate:
-            op.lose_link()
+        elif cmd.command == "lose" and op.simulate:  # the simulated serial loss
+            op.need_rig().lose_link(cmd.after_lines or 3)
         else:
             raise InputError("command", f"unknown connection command {cmd.command!r}")
         return Response(status_code=204)
@@ -377,6 +378,12 @@ def create_app(op: Operator) -> FastAPI:
         return Response(
             control_chart_svg(ins.history, ins.tolerance_deg), media_type="image/svg+xml"
         )
+
+    if op.simulate:
+
+        @app.get("/api/sim/bends", summary="Simulation only: every bend the double executed")
+        async def sim_bends() -> dict[str, Any]:
+            return {"bends": op.need_rig().truth()}
 
     hops_routes(app, op)
     return app

@@ -14,7 +14,7 @@ import pytest
 
 from cvmeasure.sim import simulate
 
-from .conftest import Server, httpx
+from .conftest import Server, httpx, wait_for
 
 A = {"X-Client-Id": "operator-a"}
 B = {"X-Client-Id": "operator-b"}
@@ -157,3 +157,33 @@ def test_events_stream_sends_the_state_then_changes(server):
         "job",
         "inspect",
     }
+
+
+def test_serial_loss_mid_part_then_continue_bends_each_bend_once(server):
+    """The double's executed bends are the truth: after the loss and the continue, every bend
+    stroke of the job ran exactly once and made its 20 deg."""
+    hdr = {"X-Client-Id": "operator-b"}  # in control since the control test
+    api = server.url + "/api"
+    httpx.post(api + "/control", headers=hdr)
+    assert (
+        httpx.post(api + "/connection", headers=hdr, json={"command": "connect"}).status_code == 204
+    )
+    before = len(httpx.get(api + "/sim/bends").json()["bends"])
+    r = httpx.post(api + "/connection", headers=hdr, json={"command": "lose", "after_lines": 24})
+    assert r.status_code == 204
+    assert httpx.post(api + "/job", headers=hdr, json={"command": "start"}).status_code == 204
+    job = wait_for(lambda: _job_in(api, ("lost", "done", "failed")), 60, "the part to stop")
+    assert job["state"] == "lost", job
+    assert "continue part 1" in job["message"]
+    assert httpx.post(api + "/job", headers=hdr, json={"command": "continue"}).status_code == 204
+    job = wait_for(lambda: _job_in(api, ("lost", "done", "failed")), 60, "the part to finish")
+    assert job["state"] == "done" and job["progress"]["bends_done"] == 4
+    bends = httpx.get(api + "/sim/bends").json()["bends"][before:]
+    lines = [b["line_number"] for b in bends]
+    assert len(lines) == 4 and len(set(lines)) == 4  # no bend lost, none repeated
+    assert np.abs(np.abs([b["unloaded_bend_deg"] for b in bends]) - 20.0).max() < 0.05
+
+
+def _job_in(api, states):
+    job = httpx.get(api + "/job").json()
+    return job if job["state"] in states else None
