@@ -187,3 +187,21 @@ def test_serial_loss_mid_part_then_continue_bends_each_bend_once(server):
 def _job_in(api, states):
     job = httpx.get(api + "/job").json()
     return job if job["state"] in states else None
+
+
+def test_rhino_example_script_calls_the_same_endpoints(server):
+    """docs/examples' stdlib-only Rhino 8 script, run as a plain script against the server."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[3] / "docs" / "examples" / "rhino8_cvmeasure_hops.py"
+    proc = subprocess.run(
+        [sys.executable, "-I", str(script), server.url], capture_output=True, text=True, timeout=60
+    )
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    made = simulate(out["pins"])
+    assert np.abs(np.abs(made.unloaded_bend_deg) - 20.0).max() < 0.05  # the script's 20 deg bends
+    assert simulate([out["pin_for_angle"]]).unloaded_bend_deg[0] == pytest.approx(45.0, abs=0.05)
+    assert out["gcode"].count("G90 G1 X") == 3
