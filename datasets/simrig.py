@@ -30,13 +30,20 @@ class SimRig(Rig):
 
     simulated = True
 
-    def __init__(self, *, scale: float = 0.25, speedup: float = 400.0, seed: int = 0) -> None:
+    def __init__(
+        self,
+        *,
+        scale: float = 0.25,
+        speedup: float = 400.0,
+        seed: int = 0,
+        effects: tuple[Any, ...] = (),
+    ) -> None:
         import cvmeasure_datasets
         from cvmeasure.driver.double import FakeTinyG
 
         self.scale = scale
         self.seed = seed
-        self.double = FakeTinyG(speedup=speedup).start()
+        self.double = FakeTinyG(speedup=speedup, sim_effects=effects).start()
         self.link = adapter.open_link("sim://", double=self.double)
         self.camera_model = cvmeasure_datasets.default_camera().scaled(scale)
         self.image_size_px = tuple(self.camera_model.image_size_px)

@@ -28,6 +28,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--scale", type=positive_float, default=0.25, help="render scale of simulated photos"
     )
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a machine effect the simulated bender has and the app must find, e.g. "
+        "backlash=0.5 (repeatable; --simulate)",
+    )
     p.set_defaults(func=run)
 
 
@@ -46,11 +54,19 @@ def run(args: argparse.Namespace) -> int:
     if args.dir.exists() and not args.dir.is_dir():
         raise InputError(args.dir, "--dir must be a folder")
     simulated = None
+    if args.effect and not args.simulate:
+        raise InputError("--effect", "machine effects are for the simulated bender (--simulate)")
     if args.simulate:
+        from cvmeasure.sim import parse_effect
         from cvmeasure_datasets.simrig import SimRig
 
+        try:
+            effects = tuple(parse_effect(t) for t in args.effect)
+        except ValueError as exc:
+            raise InputError("--effect", str(exc)) from None
+
         def simulated() -> SimRig:
-            return SimRig(scale=args.scale)
+            return SimRig(scale=args.scale, effects=effects)
 
     op = Operator(args.dir, simulated=simulated)
     print(f"cvmeasure ui: http://{args.host}:{args.port}/ (workspace {args.dir})", flush=True)
