@@ -28,6 +28,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     learn.add_argument("photo", type=Path, help="reference photo with all five markers")
     learn.add_argument("-o", "--out", type=Path, required=True, help="learnt kit JSON to write")
     learn.add_argument("--kit", type=Path, help="nominal kit JSON (default: the built-in kit)")
+    learn.add_argument(
+        "--flat",
+        action="store_true",
+        help="the markers are flat stickers on the plate: write the kit without heights "
+        "(default: the nominal kit's heights are kept)",
+    )
     learn.add_argument("--space", choices=("lab", "rgb"), default="lab", help="default lab")
     learn.add_argument("--name", help="name of the learnt kit (default <kit>-learnt)")
     learn.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -42,6 +48,8 @@ def run_learn(args: argparse.Namespace) -> int:
 
     kit = load_kit(args.kit) if args.kit else default_kit()
     photo = read_photo(args.photo)
+    if args.flat:
+        kit = kit.flat()
     learnt = learn_kit(photo.bgr8(), kit, space=args.space, source=str(args.photo), name=args.name)
     atomic_write_json(args.out, learnt.kit.to_dict())
     if args.json:
@@ -53,5 +61,6 @@ def run_learn(args: argparse.Namespace) -> int:
             f"Delta E {learnt.delta_e[marker.role]:5.1f} from the nominal kit  "
             f"({learnt.n_pixels[marker.role]} px)"
         )
+    print(f"heights above the plate: {learnt.kit.heights_text()}")
     print(f"wrote {args.out}")
     return 0

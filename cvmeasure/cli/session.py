@@ -94,6 +94,27 @@ def _angles(text: str) -> tuple[float, ...]:
     return angles
 
 
+def _check_camera_option(args: argparse.Namespace) -> None:
+    """Refuse a --camera that is not a camera URL: a lens JSON belongs to --camera-model."""
+    from cvmeasure.errors import InputError
+
+    if args.camera is None:
+        return
+    if args.simulate:
+        raise InputError(
+            "--camera",
+            "--simulate photographs with the simulated camera: give no --camera (a lens "
+            "model JSON is --camera-model)",
+        )
+    if Path(args.camera).suffix.lower() == ".json" or Path(args.camera).is_file():
+        raise InputError(
+            "--camera",
+            f"{args.camera} is a file (a camera JSON is the lens model: give it as "
+            "--camera-model); --camera is the camera that takes the photos, "
+            "gphoto2://[port] or folder:///path",
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.contracts import TrialTable
     from cvmeasure.driver.camera import open_camera
@@ -110,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.material.calibration import save_calibration
     from cvmeasure.provenance import provenance
 
+    _check_camera_option(args)
     session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
     angles = _angles(args.angles) if args.angles else ()
     config = SessionConfig(
@@ -165,10 +187,12 @@ def run(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int, step) -> None:
         if not args.quiet:
+            codes = sorted({w.code for _, w in step.photo_warnings()})
             print(
                 f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
                 f"loaded {step.loaded.bend_angle_deg:8.3f}  unloaded "
-                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg",
+                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg"
+                + (f"  ! {', '.join(codes)}" if codes else ""),
                 file=sys.stderr,
                 flush=True,
             )
@@ -196,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
     calibration = result.calibration
     from dataclasses import replace
 
-    calibration = replace(calibration, provenance=provenance())
+    calibration = replace(calibration, provenance={**provenance(), **calibration.provenance})
     save_calibration(args.out, calibration)
     trials_path = session_dir / "trials.csv"
     TrialTable(calibration.samples).write_csv(trials_path)
@@ -212,6 +236,7 @@ def run(args: argparse.Namespace) -> int:
         "bends": len(result.steps),
         "model": calibration.model,
         "scores": calibration.scores,
+        "warnings": calibration.provenance.get("warnings", []),
     }
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -223,4 +248,11 @@ def run(args: argparse.Namespace) -> int:
                 f"{len(result.bent_this_run)} bent this run"
             )
         print(f"wrote {args.out}, {report} ({len(result.steps)} bends, model {calibration.model})")
+    from cvmeasure.report.console import warning_summary
+
+    lines = warning_summary(
+        [pw for s in result.steps for pw in s.photo_warnings()], n_photos=2 * len(result.steps)
+    )
+    for line in lines:
+        print(line, file=sys.stderr if args.json else sys.stdout)
     return 0

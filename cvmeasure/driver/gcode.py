@@ -54,6 +54,7 @@ __all__ = [
     "wire_polyline",
     "MIN_SEGMENT_MM",
     "MAX_BEND_DEG",
+    "SHALLOW_SESSION_ANGLES_DEG",
 ]
 
 #: Shortest straight segment the DIWire can grip and bend (seed paper, Wireware).
@@ -62,6 +63,14 @@ MIN_SEGMENT_MM = 12.0
 MAX_BEND_DEG = 135.0
 #: Turns smaller than this are treated as straight (no bend emitted), degrees.
 MIN_BEND_DEG = 0.01
+#: The calibration session for shallow parts (wanted loaded angles, both directions):
+#: the standard angles plus 1.2, 1.9 and 2.5 deg, whose final bends (about 0.3, 1.0 and
+#: 1.6 deg on a 3 mm steel wire) lie far enough apart to be separate calibration points.
+#: It calibrates the seed paper's saddle (end bends of 0.91 deg); a bend below the
+#: calibrated range is refused with this session's command rather than extrapolated.
+SHALLOW_SESSION_ANGLES_DEG = (
+    1.2, 1.9, 2.5, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 75.0, 90.0, 110.0, 130.0,
+)  # fmt: skip
 
 
 class Compensator(Protocol):
@@ -340,9 +349,29 @@ def pin_commands(
             out.append(float(fn(float(target))))  # type: ignore[operator]
         except ValueError as exc:
             raise InputError(
-                bends.source, f"bend {i} of {target:.2f} deg cannot be made: {exc}"
+                bends.source,
+                f"bend {i} of {target:.2f} deg cannot be made: {exc}{_shallow_advice(comp, target)}",
             ) from None
     return tuple(out)
+
+
+def _shallow_advice(compensation: Any, target_deg: float) -> str:
+    """The session to run when a bend lies below the calibration's range ('' otherwise)."""
+    domain = getattr(getattr(compensation, "compensation", compensation), "domain_deg", None)
+    if domain is None or target_deg == 0:
+        return ""
+    try:
+        low = float(domain("cw" if target_deg < 0 else "ccw")[0])
+    except (KeyError, TypeError, ValueError):
+        return ""
+    if abs(target_deg) >= low:
+        return ""
+    angles = ",".join(f"{a:g}" for a in SHALLOW_SESSION_ANGLES_DEG)
+    return (
+        f"; it is below the calibrated {low:.2f} deg: calibrate shallow bends with "
+        f"cvmeasure session --angles {angles} (final bends from about 0.3 deg) and pass "
+        "its calibration as --material"
+    )
 
 
 def _num(value: float) -> str:

@@ -15,6 +15,7 @@ from typing import Any
 
 from cvmeasure.report import plots
 from cvmeasure.report.thumbnails import find_photo, overlay_thumbnail
+from cvmeasure.warning import StageWarning
 
 __all__ = ["build_report", "data_uri", "table_columns"]
 
@@ -227,7 +228,7 @@ def build_report(
         cells.append(f"<td class=name title='{_e(rec.get('photo', ''))}'>{_e(name)}</td>")
         cells.append(f"<td>{_e(rec.get('kind', ''))}</td>")
         cells += [f"<td class=num>{_fmt(rec.get(c))}</td>" for c in columns]
-        notes = [str(w) for w in rec.get("warnings") or []]
+        notes = [str(StageWarning.from_json(w)) for w in rec.get("warnings") or []]
         if rec.get("error"):
             notes.insert(0, str(rec["error"]))
         cells.append(f"<td class=notes>{'<br>'.join(_e(n) for n in notes)}</td>")
