@@ -330,7 +330,7 @@ class Bending:
             "part", f"{Path(design_name).stem}-part{part}", self.op.folder / "inspect", part
         )
         bgr = cv2.imread(str(path))
-        design = adapter.design_polyline(self.designs / design_name)
+        design = self.designs / design_name
         bends = next((f.bends for f in self.op.state.files if f.name == design_name), 0)
         check = adapter.measure_finished_part(
             bgr, self.op.camera_model, design, bends + 1, path.name
@@ -369,7 +369,7 @@ class Bending:
         if self._check is None:
             raise InputError("part", "inspect a part first")
         check, design, name = self._check
-        cal, corr, job = adapter.correct_next_part(self.op.calibration(), check, design, name)
+        cal, corr, job = adapter.correct_next_part(self.op.calibration(), check, design)
         adapter.save_calibration(self.op.calibration_path, cal)
         header = f"; cvmeasure ui: {name} corrected after part {self.op.state.inspect.part}\n"
         atomic_write_bytes(

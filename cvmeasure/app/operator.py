@@ -62,6 +62,7 @@ class Operator:
         self.kit = adapter.default_kit()
         self._machine = threading.Lock()  # one machine activity at a time
         self._detections: list[Any] = []
+        self._view_photos: list[Path] = []
         self.camera_model: Any = None
         from cvmeasure.app.bending import Bending
         from cvmeasure.app.material import Material
@@ -205,6 +206,7 @@ class Operator:
                 usable = bool(getattr(det, "ok", True)) and len(det.corners_px) > 0
                 if usable:
                     self._detections.append(det)
+                    self._view_photos.append(path)
                 note = f"{len(det.corners_px)} corners" if usable else "board not found"
                 lens.views.append(LensView(index + 1, len(det.corners_px), usable, note))
                 lens.guidance = adapter.coverage_guidance(self._detections, rig.image_size_px)
@@ -222,7 +224,7 @@ class Operator:
         self.background("lens-view", work, machine=False)
 
     def solve_lens(self) -> None:
-        rig = self.need_rig()
+        self.need_rig()
         lens = self.state.lens
         if len(self._detections) < adapter.MIN_LENS_VIEWS:
             raise Busy(f"take at least {adapter.MIN_LENS_VIEWS} usable views first")
@@ -233,7 +235,7 @@ class Operator:
         def work() -> None:
             self.publish("lens")
             try:
-                solved = adapter.solve_lens(self._detections, rig.image_size_px)
+                solved = adapter.solve_lens(self._view_photos)
                 lens.rms_px = solved.rms_px
                 lens.good = not solved.problems
                 if lens.good:
