@@ -71,6 +71,9 @@ class Server:
         with (self.folder.parent / "server.log").open("ab") as err:
             self.proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
         for _ in range(600):
+            if self.proc.poll() is not None:
+                log = (self.folder.parent / "server.log").read_text()[-500:]
+                raise RuntimeError(f"the server exited: {log}")
             try:
                 if httpx.get(self.url + "/api/state", timeout=2).status_code == 200:
                     return

@@ -49,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
     if args.effect and not args.simulate:
         raise InputError("--effect", "machine effects are for the simulated bender (--simulate)")
     with socket.socket() as probe:  # a port in use is the operator's to fix: say so, exit 2
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
         try:
             probe.bind((args.host, args.port))
         except OSError as exc:
