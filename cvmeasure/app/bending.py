@@ -329,6 +329,7 @@ class Bending:
         path = rig.capture(
             "part", f"{Path(design_name).stem}-part{part}", self.op.folder / "inspect", part
         )
+        cpu0 = time.thread_time()  # the verdict's own work, from the photo on disk
         bgr = cv2.imread(str(path))
         design = self.designs / design_name
         bends = next((f.bends for f in self.op.state.files if f.name == design_name), 0)
@@ -359,6 +360,7 @@ class Bending:
             )
         ]
         ins.message = f"{design_name} part {part} measured"
+        ins.measure_cpu_s = time.thread_time() - cpu0
         record = {"design": design_name, "part": part, "worst_deg": check.worst_deg,
                   "passed": passed, "errors_deg": list(check.error_deg)}  # fmt: skip
         append_jsonl(self.op.folder / "parts.jsonl", record)
