@@ -36,6 +36,8 @@ __all__ = ["Operator", "Busy"]
 
 log = logging.getLogger(__name__)
 
+#: How long a command waits for an activity that is just ending to free the machine (s).
+BUSY_WAIT_S = 2.0
 #: The plate may lean this much before the plane check says "not square" (deg).
 PLANE_TOLERANCE_DEG = 0.5
 
@@ -103,7 +105,7 @@ class Operator:
 
     def background(self, name: str, work: Callable[[], None], *, machine: bool = True) -> None:
         """Run ``work`` in a thread; with ``machine`` it holds the machine until done."""
-        if machine and not self._machine.acquire(blocking=False):
+        if machine and not self._machine.acquire(timeout=BUSY_WAIT_S):
             raise Busy("the machine is busy; wait for it or stop what it is doing")
 
         def run() -> None:
@@ -118,7 +120,8 @@ class Operator:
         threading.Thread(target=run, name=f"app-{name}", daemon=True).start()
 
     def machine_busy(self) -> bool:
-        if self._machine.acquire(blocking=False):
+        """Whether another activity holds the machine (one that is just ending is waited for)."""
+        if self._machine.acquire(timeout=BUSY_WAIT_S):
             self._machine.release()
             return False
         return True

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from .conftest import Server, wait_for
+from .conftest import Server
 
 CHROMIUM = Path("/usr/bin/chromium")
 if not CHROMIUM.is_file():
@@ -170,12 +170,16 @@ def test_operator_day(chromium, browser, server, designs):
 
 def test_server_killed_mid_session_resumes_from_the_page(browser, server):
     page = browser.new_page()
+    page.goto(server.url + "/ui/setup")
+    page.click("#btn-connect")  # (again, when the walk ran first: a fresh simulated bench)
+    page.wait_for_selector("#badge-conn:has-text('connected (simulated)')")
     page.goto(server.url + "/ui/material")
     page.fill("#angles", "10,35,60")
     page.click("#btn-start-session")
+    page.wait_for_function(
+        "S.material.plan.length === 6 && S.material.steps.length >= 2", timeout=60000
+    )
     log_path = server.folder / "material" / "session.jsonl"
-    wait_for(lambda: log_path.is_file() and log_path.read_text().count('"sample"') >= 2,
-             60, "2 bends logged")  # fmt: skip
     server.kill()
     page.wait_for_selector("#badge-live:has-text('reconnecting')")
     server.start()
