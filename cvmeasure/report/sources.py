@@ -51,8 +51,8 @@ def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
         raise InputError(p, f"cannot read: {exc.strerror or exc}") from None
     try:
         doc = json.loads(text)
-    except json.JSONDecodeError:
-        doc = None  # JSON Lines (or broken): read line by line below
+    except (json.JSONDecodeError, RecursionError):
+        doc = None  # JSON Lines (or broken, or nested too deeply): read line by line below
     if isinstance(doc, dict) and len(text.strip().splitlines()) > 1:
         kind = sniff_kind(p) or "a JSON document"
         if kind.startswith("a calibration JSON"):
