@@ -32,6 +32,9 @@ __all__ = [
     "project_points",
     "render_bender",
     "render_board",
+    "render_part",
+    "PartScene",
+    "part_truth",
 ]
 
 _SHEET_DPI = 300.0
@@ -412,3 +415,90 @@ def render_board(scene: BoardScene, board_png: Path, cache_dir: Path) -> Path:
         d["sheet"] = _sheet_shape(mi, Path(board_png), scene.rvec, scene.shift_mm)
         _write_jpeg(mi, mi.render(mi.load_dict(d)), jpg)
     return jpg
+
+
+@dataclass(frozen=True)
+class PartScene:
+    """A finished part: a round wire bent to one circular arc, lying on a white matte sheet
+    beside the board sheet (the photo ``cvmeasure part`` takes). Lengths in mm."""
+
+    radius_mm: float = 40.0
+    arc_angle_deg: float = 120.0
+    wire_diameter_mm: float = 2.0
+    yaw_deg: float = 20.0
+    rig: CameraRig = field(
+        default_factory=lambda: CameraRig(eye_mm=(0.0, -30.0, 700.0), target_mm=(0.0, 0.0, 0.0))
+    )
+    spp: int = 16
+
+
+def part_truth(scene: PartScene) -> dict:
+    """The arc's radius, chord, sagitta and arc angle on the wire centreline (mm, deg)."""
+    half = math.radians(scene.arc_angle_deg) / 2.0
+    r = scene.radius_mm
+    return {
+        "radius_mm": r,
+        "chord_width_mm": 2.0 * r * math.sin(half),
+        "height_mm": r * (1.0 - math.cos(half)),
+        "arc_angle_deg": scene.arc_angle_deg,
+        "wire_diameter_mm": scene.wire_diameter_mm,
+    }
+
+
+def _arc_shapes(
+    scene: PartScene, centre_xy: tuple[float, float], sheet_z_mm: float
+) -> dict[str, dict]:
+    rw = scene.wire_diameter_mm / 2.0
+    z = sheet_z_mm + rw
+    half = math.radians(scene.arc_angle_deg) / 2.0
+    yaw = math.radians(scene.yaw_deg)
+    n = max(8, int(scene.arc_angle_deg / 3.0))
+    ang = yaw + np.linspace(-half, half, n + 1)
+    pts = [
+        [
+            centre_xy[0] + scene.radius_mm * math.cos(a),
+            centre_xy[1] + scene.radius_mm * math.sin(a),
+            z,
+        ]
+        for a in ang
+    ]
+    steel = _metal("Fe", 0.25)
+    shapes: dict[str, dict] = {}
+    for i in range(n):
+        shapes[f"arc{i}"] = {
+            "type": "cylinder",
+            "p0": pts[i],
+            "p1": pts[i + 1],
+            "radius": rw,
+            "bsdf": steel,
+        }
+    for i, p in enumerate(pts):
+        shapes[f"arcj{i}"] = {"type": "sphere", "center": p, "radius": rw, "bsdf": steel}
+    return shapes
+
+
+def render_part(scene: PartScene, board_png: Path, cache_dir: Path) -> tuple[Path, dict]:
+    """Render a finished part beside the board (cached); return the JPEG path and its truth."""
+    mi = _mi()
+    key = _key("part", asdict(scene), [Path(board_png)])
+    cache_dir = Path(cache_dir)
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    jpg = cache_dir / f"part_{key}.jpg"
+    truth = part_truth(scene)
+    if not jpg.exists():
+        tf = mi.ScalarTransform4f
+        d = _base_scene(mi, scene.rig, scene.spp, (300.0, 200.0, 150.0))
+        d["sheet"] = _sheet_shape(mi, Path(board_png), (0.0, 0.0, 0.0), (-110.0, 0.0, 0.0))
+        d["matte"] = {
+            "type": "rectangle",
+            "to_world": tf().translate([140.0, 0.0, 0.05]).scale([100.0, 80.0, 1.0]),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.8, 0.8, 0.8]}},
+        }
+        # the arc's midpoint sits over the matte sheet's centre
+        mid = math.radians(scene.yaw_deg)
+        back = scene.radius_mm - truth["height_mm"] / 2.0
+        centre = (140.0 - back * math.cos(mid), -back * math.sin(mid))
+        d.update(_arc_shapes(scene, centre, 0.05))
+        _write_jpeg(mi, mi.render(mi.load_dict(d)), jpg)
+        jpg.with_suffix(".json").write_text(json.dumps(truth, indent=1))
+    return jpg, truth
