@@ -97,6 +97,9 @@ class BenderScene:
     spp: int = 16
     lamp_mm: tuple[float, float, float] = (260.0, 160.0, 120.0)
     with_board: bool = False
+    # reconstruction filter width: a real lens and demosaic blur about a pixel, which also
+    # keeps few-sample Monte Carlo speckle from cutting a small cap into pieces
+    filter_stddev_px: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -259,7 +262,9 @@ def _marker_shapes(mi, scene: BenderScene, kit: dict, layout: dict) -> dict[str,
     return shapes
 
 
-def _base_scene(mi, rig: CameraRig, spp: int, lamp_mm, plate_z_mm: float = 0.0) -> dict:
+def _base_scene(
+    mi, rig: CameraRig, spp: int, lamp_mm, plate_z_mm: float = 0.0, filter_stddev_px: float = 0.5
+) -> dict:
     tf = mi.ScalarTransform4f
     return {
         "type": "scene",
@@ -278,7 +283,7 @@ def _base_scene(mi, rig: CameraRig, spp: int, lamp_mm, plate_z_mm: float = 0.0) 
                 "width": rig.width_px,
                 "height": rig.height_px,
                 "pixel_format": "rgb",
-                "rfilter": {"type": "gaussian"},
+                "rfilter": {"type": "gaussian", "stddev": filter_stddev_px},
             },
             "sampler": {"type": "independent", "sample_count": spp},
         },
@@ -391,7 +396,7 @@ def render_bender(
     layout = machine_layout(scene, kit)
     truth = _truth_bender(scene, kit, layout)
     if not jpg.exists():
-        d = _base_scene(mi, scene.rig, scene.spp, scene.lamp_mm)
+        d = _base_scene(mi, scene.rig, scene.spp, scene.lamp_mm, 0.0, scene.filter_stddev_px)
         d.update(_wire_shapes(mi, scene))
         d.update(_marker_shapes(mi, scene, kit, layout))
         if scene.with_board:
