@@ -100,6 +100,10 @@ class BenderScene:
     # reconstruction filter width: a real lens and demosaic blur about a pixel, which also
     # keeps few-sample Monte Carlo speckle from cutting a small cap into pieces
     filter_stddev_px: float = 1.0
+    # the soft light stands off to the side, as a lab lights a glossy subject: overhead, its
+    # mirror image would sit in every cap top and wash the colours out (see the README)
+    ceiling_mm: tuple[float, float, float] = (-320.0, -220.0, 560.0)
+    cap_alpha: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -251,7 +255,7 @@ def _marker_shapes(mi, scene: BenderScene, kit: dict, layout: dict) -> dict[str,
             [x, y, h - _INLAY_MM],
             [x, y, h],
             m["diameter_mm"] / 2.0,
-            _plastic(_linear(m["srgb"])),
+            _plastic(_linear(m["srgb"]), scene.cap_alpha),
         )
         shapes.update({f"{role}_ring_{k}": v for k, v in ring.items()})
         shapes.update({f"{role}_cap_{k}": v for k, v in cap.items()})
@@ -263,7 +267,13 @@ def _marker_shapes(mi, scene: BenderScene, kit: dict, layout: dict) -> dict[str,
 
 
 def _base_scene(
-    mi, rig: CameraRig, spp: int, lamp_mm, plate_z_mm: float = 0.0, filter_stddev_px: float = 0.5
+    mi,
+    rig: CameraRig,
+    spp: int,
+    lamp_mm,
+    plate_z_mm: float = 0.0,
+    filter_stddev_px: float = 0.5,
+    ceiling_mm: tuple[float, float, float] = (0.0, 0.0, 700.0),
 ) -> dict:
     tf = mi.ScalarTransform4f
     return {
@@ -396,7 +406,9 @@ def render_bender(
     layout = machine_layout(scene, kit)
     truth = _truth_bender(scene, kit, layout)
     if not jpg.exists():
-        d = _base_scene(mi, scene.rig, scene.spp, scene.lamp_mm, 0.0, scene.filter_stddev_px)
+        d = _base_scene(
+            mi, scene.rig, scene.spp, scene.lamp_mm, 0.0, scene.filter_stddev_px, scene.ceiling_mm
+        )
         d.update(_wire_shapes(mi, scene))
         d.update(_marker_shapes(mi, scene, kit, layout))
         if scene.with_board:
