@@ -23,6 +23,7 @@ from benchmarks.heldout.mitsuba_scenes import (
     BenderScene,
     BoardScene,
     CameraRig,
+    bender_truth,
     render_bender,
     render_board,
 )
@@ -57,16 +58,29 @@ def _run(args: list[str], out: Path | None = None) -> str:
     return res.stdout
 
 
-def _scenes(n: int, rig: CameraRig, spp: int, seed: int = 41) -> list[BenderScene]:
+def _in_frame(scene: BenderScene, kit: Path, margin_px: float = 40.0) -> bool:
+    """Every marker well inside the photo (a cap cut by the frame edge is rightly refused)."""
+    rig = scene.rig
+    for m in bender_truth(scene, kit)["markers"].values():
+        if not (margin_px <= m["x_px"] <= rig.width_px - margin_px):
+            return False
+        if not (margin_px <= m["y_px"] <= rig.height_px - margin_px):
+            return False
+    return True
+
+
+def _scenes(n: int, rig: CameraRig, spp: int, kit: Path, seed: int = 41) -> list[BenderScene]:
     rng = np.random.default_rng(seed)
-    out = []
-    for i in range(n):
-        sign = 1.0 if i % 2 == 0 else -1.0
+    out: list[BenderScene] = []
+    while len(out) < n:
+        sign = 1.0 if len(out) % 2 == 0 else -1.0
         pin = sign * float(rng.uniform(10.0, 80.0))
         bend = pin - sign * float(rng.uniform(1.0, 6.0))
         yaw = float(rng.uniform(-15.0, 15.0))
         shift = (float(rng.uniform(-10.0, 10.0)), float(rng.uniform(-10.0, 10.0)))
-        out.append(BenderScene(round(pin, 3), round(bend, 3), round(yaw, 3), shift, rig, 2 * spp))
+        scene = BenderScene(round(pin, 3), round(bend, 3), round(yaw, 3), shift, rig, 2 * spp)
+        if _in_frame(scene, kit):
+            out.append(scene)
     return out
 
 
@@ -197,7 +211,7 @@ def main(argv: list[str] | None = None) -> dict:
     plane_photo = render_board(BoardScene(rig=rig, spp=spp), board_png, args.cache)
     plane = work / "plane.json"
     _run(["plane", str(plane_photo), "--board", str(board), "--camera", str(cam), "-o", str(plane)])
-    shots = [render_bender(s, kit, args.cache) for s in _scenes(n, rig, spp)]
+    shots = [render_bender(s, kit, args.cache) for s in _scenes(n, rig, spp, kit)]
     described = _described_kit(kit, work / "kit_described.json")
     tables, metrics = [], []
     for label, kit_file, target in (

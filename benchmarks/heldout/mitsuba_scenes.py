@@ -27,6 +27,7 @@ import numpy as np
 
 __all__ = [
     "BenderScene",
+    "bender_truth",
     "BoardScene",
     "CameraRig",
     "project_points",
@@ -386,6 +387,12 @@ def _truth_bender(scene: BenderScene, kit: dict, layout: dict) -> dict:
         },
         "kit": kit["name"],
     }
+
+
+def bender_truth(scene: BenderScene, kit_json: Path) -> dict:
+    """The truth of a bender scene without rendering it (angles, marker centres, camera)."""
+    kit = json.loads(Path(kit_json).read_text())
+    return _truth_bender(scene, kit, machine_layout(scene, kit))
 
 
 def render_bender(
