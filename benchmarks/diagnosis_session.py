@@ -584,10 +584,6 @@ def main(argv: list[str] | None = None) -> dict:
     )
 
 
-if __name__ == "__main__":
-    main()
-
-
 #: The causes and general forms compared on each plan (name, value, shape).
 _VARIANTS: tuple[tuple[str, str, float, tuple], ...] = (
     ("backlash", "backlash", 1.5, ()),
@@ -648,3 +644,7 @@ def identifiability_rows() -> list[list]:
                     [mode, plan, label, round(share, 3), round(rms, 3), rival, round(cos, 3)]
                 )
     return rows
+
+
+if __name__ == "__main__":
+    main()
