@@ -72,6 +72,7 @@ from cvmeasure.part.lift import (
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 from cvmeasure.part.shadow import estimate_lift_shadow
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Method",
@@ -210,7 +211,7 @@ class PartMeasurement:
     wire: dict[str, Any]
     seed_arcs: dict[str, SeedArc] = field(default_factory=dict)
     comparison: DesignComparison | None = None
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[StageWarning, ...] = ()
     shape: str = "arc"
     divisions_from: str | None = None
     chords_found: ChordCount | None = None
@@ -246,7 +247,7 @@ class PartMeasurement:
         )
         out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
         out["lift"] = self.lift
-        out["warnings"] = list(self.warnings)
+        out["warnings"] = [w.to_json() for w in self.warnings]
         return out
 
 
@@ -479,8 +480,8 @@ CHORD_MIN_COVERAGE = 0.5
 
 def _centreline_gaps(
     centreline_mm: np.ndarray, poly: PolylineFit, bend_sigma: np.ndarray, wire_width_mm: float
-) -> tuple[np.ndarray, str]:
-    """The vertex bends' sigmas widened where a chord is not seen, and the warning ('' if none).
+) -> tuple[np.ndarray, StageWarning | None]:
+    """The vertex bends' sigmas widened where a chord is not seen, and the warning (or None).
 
     A chord seen along less than ``CHORD_MIN_COVERAGE`` of it (:func:`chord_coverage`, gaps
     wider than the wire not counted: the centreline lost there) gets its line from the
@@ -491,7 +492,7 @@ def _centreline_gaps(
     cover = chord_coverage(centreline_mm, poly.vertices_mm, max_step_mm=wire_width_mm)
     lost = np.nonzero(cover < CHORD_MIN_COVERAGE)[0]
     if len(lost) == 0:
-        return bend_sigma, ""
+        return bend_sigma, None
     sigma = np.asarray(bend_sigma, dtype=float).copy()
     lengths = np.asarray(poly.segment_length_mm, dtype=float)
     for i in lost:
@@ -500,10 +501,11 @@ def _centreline_gaps(
             if 0 <= j < len(sigma):
                 sigma[j] = math.hypot(sigma[j], dir_sigma)
     which = ", ".join(f"{int(i) + 1} ({100.0 * cover[i]:.0f} %)" for i in lost)
-    warning = (
-        f"part_centreline_gap: the centreline was lost along chord(s) {which} of "
+    warning = StageWarning(
+        "part_centreline_gap",
+        f"the centreline was lost along chord(s) {which} of "
         f"{poly.divisions} (share of the chord with centres): their direction is not "
-        "measured, and the bends at their vertices may be off by degrees (their sigma widened)"
+        "measured, and the bends at their vertices may be off by degrees (their sigma widened)",
     )
     return sigma, warning
 
@@ -519,8 +521,8 @@ def _arc_consistency(
     poly: PolylineFit | None,
     vpoly: PolylineFit | None,
     bend_sigma: np.ndarray | None,
-) -> str:
-    """The warning ('' if none) when the arc's bend per chord disagrees with the vertex bends.
+) -> StageWarning | None:
+    """The warning (or None) when the arc's bend per chord disagrees with the vertex bends.
 
     The circle through the chords' vertices gives the radius, the arc angle, the chord
     width and the height; on an arc of N equal chords its bend per chord
@@ -544,24 +546,25 @@ def _arc_consistency(
         or _shape(poly) != "arc"
         or ours.segment_bend_deg is None
     ):
-        return ""
+        return None
     bends = np.asarray(vpoly.bend_deg, dtype=float)
     sig = np.asarray(bend_sigma, dtype=float)
     if len(bends) < 1 or not (np.all(np.isfinite(bends)) and np.all(np.isfinite(sig))):
-        return ""
+        return None
     mean = float(bends.mean())
     mean_sigma = float(np.sqrt(np.sum(sig**2))) / len(bends)
     diff = float(ours.segment_bend_deg) - mean
     if abs(diff) <= ARC_BEND_DISAGREE_DEG + 3.0 * mean_sigma:
-        return ""
+        return None
     lengths = np.asarray(poly.segment_length_mm, dtype=float)
-    return (
-        f"part_arc_inconsistent: the circle through the chords' vertices turns "
+    return StageWarning(
+        "part_arc_inconsistent",
+        f"the circle through the chords' vertices turns "
         f"{ours.segment_bend_deg:.3f} deg per chord where the vertex bends average "
         f"{mean:.3f} +- {mean_sigma:.3f} deg (chords {lengths.min():.1f}-{lengths.max():.1f} "
         "mm): an end point or a stretch of the centreline is misplaced (e.g. on the wire's "
         f"shadow), and radius_mm, arc_angle_deg (by about {len(lengths) * diff:+.2f} deg), "
-        "chord_width_mm and height_mm carry that error; the vertex bends do not"
+        "chord_width_mm and height_mm carry that error; the vertex bends do not",
     )
 
 
@@ -584,8 +587,8 @@ def _lift_effects(
     base_mm: float,
     max_lift_mm: float = MAX_LIFT_MM,
     standard: bool = False,
-) -> tuple[dict[str, Any], np.ndarray | None, str]:
-    """The lift's bound, the bends' extra sigma (deg) and a warning ('' when none).
+) -> tuple[dict[str, Any], np.ndarray | None, StageWarning | None]:
+    """The lift's bound, the bends' extra sigma (deg) and a warning (None when none).
 
     The lift is bounded by :func:`cvmeasure.part.lift.lift_bound_mm` (the width's
     estimate + 2 sigma, at most ``max_lift_mm``); its effect is the largest change of
@@ -595,7 +598,7 @@ def _lift_effects(
     of each vertex bend is added to its sigma (so 2 sigma covers the bound); with
     ``standard`` (a measured lift whose 2 sigma is ``max_lift_mm``) half the rms change
     over the 16 directions instead: the standard uncertainty of a tilt error of one
-    sigma in a direction not known (part14n).
+    sigma in a direction not known.
     """
 
     def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
@@ -632,7 +635,7 @@ def _lift_effects(
         "effect_segment_bend_deg": worst_s,
         "effect_bend_deg": worst_vertex,
     }
-    warning = ""
+    warning = None
     if worst_r > LIFT_RADIUS_PCT or worst_s > LIFT_BEND_DEG or worst_vertex > LIFT_BEND_DEG:
         seen = (
             "the wire's apparent width gives no usable estimate"
@@ -640,13 +643,14 @@ def _lift_effects(
             else f"the wire's apparent width puts it at {lift.lift_mm:.2f} +- "
             f"{lift.lift_sigma_mm:.2f} mm"
         )
-        warning = (
-            f"part_lifted: the part may not lie flat and its lift is not measured ({seen}); "
+        warning = StageWarning(
+            "part_lifted",
+            f"the part may not lie flat and its lift is not measured ({seen}); "
             f"a lift of up to {bound:.1f} mm at one end would move the radius by up to "
             f"{worst_r:.2f} %, the bend per chord by up to {worst_s:.3f} deg and a vertex bend "
             f"by up to {worst_vertex:.3f} deg (half of it is in the vertex bends' sigmas): lay "
             "the part flat, or press it down, to measure it within "
-            f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg"
+            f"{LIFT_RADIUS_PCT} % / {LIFT_BEND_DEG} deg",
         )
     if worst_b is None:
         return info, None, warning
@@ -738,7 +742,7 @@ def _moved_lift(
     axis_height_mm: float | None,
     end_shape: EndShape,
     centre_from: str,
-) -> tuple[dict[str, Any], Any, str]:
+) -> tuple[dict[str, Any], Any, StageWarning | None]:
     """The lift from a second photo of the slid part: (info, the MovedLift when usable, warning)."""
     plane2, _, centre2, _ = measure_centreline_mm(
         moved_image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
@@ -748,11 +752,14 @@ def _moved_lift(
         return (
             {"lift_mm": None, "message": "silhouette edges lost"},
             None,
-            "moved_photo_unused: the wire's silhouette edges were not found along the whole wire "
-            "in "
-            + ("the first photo" if centre_from != "silhouette" else "the moved photo")
-            + ": the profiles' centre of symmetry follows the highlight, which moves with the "
-            "view, so the two views' difference is not the lift; the lift is bounded instead",
+            StageWarning(
+                "moved_photo_unused",
+                "the wire's silhouette edges were not found along the whole wire in "
+                + ("the first photo" if centre_from != "silhouette" else "the moved photo")
+                + ": the profiles' centre of symmetry follows the highlight, which moves with "
+                "the view, so the two views' difference is not the lift; the lift is bounded "
+                "instead",
+            ),
         )
     moved = estimate_lift_moved(
         plane, points_px, plane2, centre2.points_px,
@@ -761,18 +768,25 @@ def _moved_lift(
     )  # fmt: skip
     info = moved.to_dict()
     if moved.lift is None:
-        return info, None, f"moved_photo_unused: {moved.message}; the lift is bounded instead"
+        return (
+            info,
+            None,
+            StageWarning("moved_photo_unused", f"{moved.message}; the lift is bounded instead"),
+        )
     rms_px = moved.residual_rms_mm / plane.mm_per_px
     info["residual_rms_px"] = rms_px
     if rms_px > MOVED_MAX_RMS_PX:
         return (
             info,
             None,
-            f"moved_photo_unused: the two views of the part disagree ({rms_px:.2f} px rms after "
-            f"registration > {MOVED_MAX_RMS_PX} px: a centreline defect in one of them), so their "
-            f"lift ({moved.lift.lift_mm:.2f} mm) is not used; the lift is bounded instead",
+            StageWarning(
+                "moved_photo_unused",
+                f"the two views of the part disagree ({rms_px:.2f} px rms after registration > "
+                f"{MOVED_MAX_RMS_PX} px: a centreline defect in one of them), so their lift "
+                f"({moved.lift.lift_mm:.2f} mm) is not used; the lift is bounded instead",
+            ),
         )
-    return info, moved, ""
+    return info, moved, None
 
 
 #: A part whose lift is measured (two photos, the shadow) at least this high (mm) has its
@@ -1023,12 +1037,15 @@ def measure_part(
             edge_width_px=widths,
             end_uncertainty_px=centre.end_uncertainty_px[::-1],
         )
-    warnings: list[str] = []
+    warnings: list[StageWarning] = []
     if wire_diameter_mm is not None and centre.centre_from != "silhouette":
         warnings.append(
-            "round_wire_edges_lost: the wire's silhouette edges were not found along the whole "
-            "wire, so the centreline is the profiles' centre of symmetry, which a side-lit "
-            "highlight or a shadow can pull off the axis; the lift was not bounded"
+            StageWarning(
+                "round_wire_edges_lost",
+                "the wire's silhouette edges were not found along the whole wire, so the "
+                "centreline is the profiles' centre of symmetry, which a side-lit highlight or "
+                "a shadow can pull off the axis; the lift was not bounded",
+            )
         )
     base_mm = _axis_height(axis_height_mm, wire_diameter_mm)
     lift = None
@@ -1046,13 +1063,19 @@ def measure_part(
         divisions, divisions_from = chords.divisions, "photo"
     elif divisions is not None and chords.divisions not in (None, divisions):
         warnings.append(
-            f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
-            f"({chords.reason}); measured with {divisions}"
+            StageWarning(
+                "divisions_mismatch",
+                f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
+                f"({chords.reason}); measured with {divisions}",
+            )
         )
     elif divisions is not None and chords.divisions is None:
         warnings.append(
-            f"--divisions {divisions}, but no chord vertices were found in the photo "
-            f"({chords.reason})"
+            StageWarning(
+                "divisions_not_found",
+                f"--divisions {divisions}, but no chord vertices were found in the photo "
+                f"({chords.reason})",
+            )
         )
     flat_mm = centreline_mm
     try:
@@ -1139,12 +1162,15 @@ def measure_part(
                     f"above the lift bound: corrected at {scale * corrected.lift.lift_mm:.2f} mm"
                 )
             warnings.append(
-                f"part_lifted: the {'shadow' if by_shadow else 'two photos'} put the lift "
-                f"at {corrected.lift.lift_mm:.2f} +- "
-                f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
-                f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
-                f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
-                f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg"
+                StageWarning(
+                    "part_lifted",
+                    f"the {'shadow' if by_shadow else 'two photos'} put the lift "
+                    f"at {corrected.lift.lift_mm:.2f} +- "
+                    f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
+                    f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
+                    f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
+                    f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg",
+                )
             )
     else:  # measured on the plate (a lift, if any, bounded below), not re-fitted lifted
         # a round wire's vertex bends from each chord's whole cross-profile (part14s)
@@ -1165,9 +1191,11 @@ def measure_part(
         if refusal is not None and (lift_warning or refusal.inconsistent):
             # a shadow read but not used: the bound's warning says why (one inconsistent
             # with the bound is warned about whatever the bound's effect: an edge misread)
-            lift_warning = (
-                lift_warning or "part_lifted: the part may not lie flat"
-            ) + f"; the cast shadow was not used: {shadow_info['message']}"
+            lift_warning = StageWarning(
+                "part_lifted",
+                (lift_warning.message if lift_warning else "the part may not lie flat")
+                + f"; the cast shadow was not used: {shadow_info['message']}",
+            )
         if lift_warning:
             warnings.append(lift_warning)
         if moved_info is not None:
@@ -1190,7 +1218,9 @@ def measure_part(
         try:
             arc = fn(outline)
         except ValueError as exc:
-            warnings.append(f"the seed's {name} method failed: {exc}")
+            warnings.append(
+                StageWarning("seed_method_failed", f"the seed's {name} method failed: {exc}")
+            )
             continue
         seed_arcs[name] = arc
         methods[name] = ArcResult(
@@ -1201,16 +1231,22 @@ def measure_part(
     for name, arc in methods.items():
         if name != "ours" and abs(arc.arc_angle_deg - ours.arc_angle_deg) > ARC_DISAGREE_DEG:
             warnings.append(
-                f"the seed's {name} method gives an arc of {arc.arc_angle_deg:.1f} deg where the "
-                f"centreline spans {ours.arc_angle_deg:.1f} deg: its figures do not describe "
-                "this part"
+                StageWarning(
+                    "seed_method_disagrees",
+                    f"the seed's {name} method gives an arc of {arc.arc_angle_deg:.1f} deg where "
+                    f"the centreline spans {ours.arc_angle_deg:.1f} deg: its figures do not "
+                    "describe this part",
+                )
             )
     shape = _shape(poly)
     if shape == "s-curve":
         warnings.append(
-            "the bends change sign along the wire (a saddle / S-curve): radius_mm and "
-            "arc_angle_deg are of the one circle nearest to it and describe no real arc; read "
-            "chord_width_mm, height_mm and the bend at each vertex"
+            StageWarning(
+                "part_s_curve",
+                "the bends change sign along the wire (a saddle / S-curve): radius_mm and "
+                "arc_angle_deg are of the one circle nearest to it and describe no real arc; "
+                "read chord_width_mm, height_mm and the bend at each vertex",
+            )
         )
     end_px = float(np.max(centre.end_uncertainty_px))
     if end_px > 0.0 and ours.radius_mm > 0.0:
@@ -1221,24 +1257,36 @@ def measure_part(
         per_chord = turn_deg / divisions if divisions else turn_deg
         if per_chord > END_BEND_DEG:
             warnings.append(
-                f"part_end_uncertain: an end of the wire faces its shadow on a light plate and "
-                f"its cap's outline could lie up to {end_mm:.2f} mm farther in; the arc angle "
-                f"may be up to {turn_deg:.2f} deg and the bend per chord {per_chord:.3f} deg "
-                "smaller (the vertex bends are not affected)"
+                StageWarning(
+                    "part_end_uncertain",
+                    f"an end of the wire faces its shadow on a light plate and "
+                    f"its cap's outline could lie up to {end_mm:.2f} mm farther in; the arc angle "
+                    f"may be up to {turn_deg:.2f} deg and the bend per chord {per_chord:.3f} deg "
+                    "smaller (the vertex bends are not affected)",
+                )
             )
     cut = _ends_at_a_boundary(centre.ends_px, board, plane, image.shape[:2], wire.width_px)
     if cut:
         warnings.append(
-            f"the wire ends next to {cut}: it may go on there, hidden (the part is measured "
-            "only as far as it is seen)"
+            StageWarning(
+                "part_cut_off",
+                f"the wire ends next to {cut}: it may go on there, hidden (the part is measured "
+                "only as far as it is seen)",
+            )
         )
     if ours.arc_angle_deg < 30.0:
         warnings.append(
-            f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined"
+            StageWarning(
+                "arc_too_short",
+                f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined",
+            )
         )
     if not plane.affine_ok:
         warnings.append(
-            f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)"
+            StageWarning(
+                "plane_tilted",
+                f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)",
+            )
         )
     vertex_bends = None if vpoly is None else vpoly.bend_deg
     comparison = None

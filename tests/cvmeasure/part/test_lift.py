@@ -8,6 +8,7 @@ import pytest
 import cvmeasure_datasets
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, lift_bound_mm, rocked_lift
 from cvmeasure.part.measure import _lifted_mm, arc_from_points, measure_part
+from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.parts import lifted_centreline
 from cvmeasure_datasets.round_wire import true_plane
@@ -94,6 +95,6 @@ def test_a_lifted_lab_part_is_warned_about_and_within_its_stated_bound():
     assert m.lift is not None and m.lift["bound_mm"] == pytest.approx(MAX_LIFT_MM)
     assert abs(radius_err_pct) <= m.lift["effect_radius_pct"] + 0.1
     assert m.lift["effect_radius_pct"] < 2.0  # a bound, not a shrug
-    assert any(w.startswith("part_lifted") for w in m.warnings)
+    assert has_code(m.warnings, "part_lifted")
     vertex_err = np.abs(np.asarray(m.vertex_bend_deg)) - 15.0
     assert np.all(np.abs(vertex_err) < 2.0 * np.asarray(m.vertex_bend_sigma_deg))

@@ -13,6 +13,7 @@ import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_centreline_mm
 from cvmeasure.part.shadow import estimate_lift_shadow
+from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
@@ -118,7 +119,7 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
     assert main([*argv, "--no-shadow-lift", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["lift"]["used"] == "bound" and out["lift"]["source"] == "width"
-    assert any(w.startswith("part_lifted") for w in out["warnings"])
+    assert any(w["code"] == "part_lifted" for w in out["warnings"])
     assert main([*argv, "--shadow-lift"]) == 0
     assert "from the cast shadow" in capsys.readouterr().out
     assert main([*base, "--shadow-lift"]) == 2
@@ -401,7 +402,7 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     assert m.lift["source"] == "shadow"
     assert 2.0 * m.lift["lift_sigma_mm"] > SHADOW_MAX_2SIGMA_MM  # the case this is about
     assert abs(m.lift["lift_mm"] - 3.0) < 2.0 * m.lift["lift_sigma_mm"]
-    assert any(w.startswith("part_lifted") for w in m.warnings)
+    assert has_code(m.warnings, "part_lifted")
     radius_err = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
     assert abs(radius_err) < min(0.3, m.lift["effect_radius_pct"])
     bend_err = m.result.segment_bend_deg - photo.truth["arc_angle_deg"] / n
@@ -506,7 +507,7 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
         photo.bgr, None, None, plane=plane, wire_diameter_mm=WIRE_MM, divisions=7
     )
     assert m.lift is not None and m.lift["used"] == used, m.lift
-    lifted = [w for w in m.warnings if w.startswith("part_lifted")]
+    lifted = [str(w) for w in m.warnings if w.code == "part_lifted"]
     if used == "bound":
         assert m.lift["source"] == "width" and m.lift["bound_mm"] == pytest.approx(3.0)
         assert m.lift["shadow"]["lift_mm"] == pytest.approx(7.42)
