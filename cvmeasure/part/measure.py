@@ -35,13 +35,8 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, fit_circle_robust
-from cvmeasure.part.centreline import (
-    SYMMETRIC_WIRE_MAX,
-    Centreline,
-    EndShape,
-    measure_centreline,
-    profile_polyline,
-)
+from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
+from cvmeasure.part.chord_profiles import profile_polyline
 from cvmeasure.part.compare import (
     BendComparison,
     Deviation,
@@ -50,6 +45,7 @@ from cvmeasure.part.compare import (
     deviation_profile,
     register_to_design,
 )
+from cvmeasure.part.ends import EndShape
 from cvmeasure.part.fit import (
     ArcGeometry,
     ChordCount,
@@ -825,7 +821,7 @@ def _profile_vertices(
 ) -> PolylineFit | None:
     """The vertex bends' polyline from each chord's whole cross-profile (lit side).
 
-    :func:`cvmeasure.part.centreline.profile_polyline` on a centreline between silhouette
+    :func:`cvmeasure.part.chord_profiles.profile_polyline` on a centreline between silhouette
     edges (``poly`` splits it into chords); None when there are no silhouette edges or the
     fit fails (the caller keeps its edge-based polyline).
     """
