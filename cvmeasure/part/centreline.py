@@ -21,7 +21,7 @@ repeats the half-profile across the wire; the end point is where the axial
 profile best matches the mean cross half-profile.
 
 With the wire's expected width in pixels (from its diameter through the
-calibrated plane, :func:`cvmeasure.part.measure.measure_centreline_mm`), the
+calibrated plane, :func:`cvmeasure.part.locate.measure_centreline_mm`), the
 centres are instead taken between the wire's two **silhouette edges**
 (:func:`cvmeasure.part.profiles.silhouette_edges`): the symmetry above holds only for light from
 straight above; a light from one side puts the specular highlight on the lit

@@ -7,7 +7,8 @@ import pytest
 
 import cvmeasure_datasets
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, lift_bound_mm, rocked_lift
-from cvmeasure.part.measure import _lifted_mm, arc_from_points, measure_part
+from cvmeasure.part.lift_use import lifted_points_mm
+from cvmeasure.part.measure import arc_from_points, measure_part
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.parts import lifted_centreline
@@ -55,13 +56,13 @@ def test_points_at_their_true_heights_give_the_rigid_parts_shape():
     dense = _dense(axis3)
     px = plane.plane_to_image_px(dense)
     heights = -dense[:, 2] - WIRE_MM / 2
-    flat, _, _ = arc_from_points(_lifted_mm(plane, px, WIRE_MM / 2, rocked_lift(
+    flat, _, _ = arc_from_points(lifted_points_mm(plane, px, WIRE_MM / 2, rocked_lift(
         dense[:, :2], 0.0, 0.0), 1.0), 8)  # fmt: skip
     # the true lift as a rigid plane through the points
     a = np.column_stack((dense[:, :2], np.ones(len(dense))))
     coef = np.linalg.lstsq(a, heights, rcond=None)[0]
     true = LiftEstimate(heights, (coef[0], coef[1]), np.zeros((2, 2)), 2.0, 0.0, len(px), 1.0)
-    fixed, _, poly = arc_from_points(_lifted_mm(plane, px, WIRE_MM / 2, true, 1.0), 8)
+    fixed, _, poly = arc_from_points(lifted_points_mm(plane, px, WIRE_MM / 2, true, 1.0), 8)
     assert info["lift_mm"] == 2.0
     assert abs(100.0 * (flat.radius_mm / 62.0 - 1.0)) > 0.3
     assert abs(100.0 * (fixed.radius_mm / 62.0 - 1.0)) < 0.005

@@ -390,7 +390,8 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     within its stated effect, the bend per chord within its stated effect."""
     from dataclasses import replace
 
-    from cvmeasure.part.measure import SHADOW_MAX_2SIGMA_MM, measure_part
+    from cvmeasure.part.lift_use import SHADOW_MAX_2SIGMA_MM
+    from cvmeasure.part.measure import measure_part
     from cvmeasure_datasets.effects import SceneEffects
 
     photo = _lab_render(2002, 0, replace(SceneEffects.all_on(), part_lift_mm=3.0))  # dark
@@ -430,10 +431,10 @@ def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm,
     bound otherwise used, and it is within 2 sigma of that bound (dev reads of part14j/m,
     and the flat dev-seed-2000 part on a textured light sheet that read 3.00 +- 1.43 mm)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import SHADOW_WIDE_MAX_2SIGMA_MM, _shadow_unusable
+    from cvmeasure.part.lift_use import SHADOW_WIDE_MAX_2SIGMA_MM, shadow_unusable
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, sigma_mm, 3, 1.0)
-    refusal = _shadow_unusable(est, bound_mm)
+    refusal = shadow_unusable(est, bound_mm)
     assert (refusal is None) is usable
     # inconsistent (more than 2 sigma above the bound) where a reading not too uncertain is
     if refusal is not None:
@@ -450,12 +451,12 @@ def test_an_uncertain_shadow_lift_read_above_the_bound_is_corrected_at_the_bound
     lift_mm, bound_mm, used_mm
 ):
     """The lift corrected with is the shadow's, or the bound where the shadow reads above it
-    (a reading within 2 sigma of the bound; _shadow_unusable rejects one farther above)."""
+    (a reading within 2 sigma of the bound; shadow_unusable rejects one farther above)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import _shadow_lift_scale
+    from cvmeasure.part.lift_use import shadow_lift_scale
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, 0.8, 3, 1.0)
-    assert _shadow_lift_scale(est, bound_mm) * lift_mm == pytest.approx(used_mm, abs=1e-9)
+    assert shadow_lift_scale(est, bound_mm) * lift_mm == pytest.approx(used_mm, abs=1e-9)
 
 
 def _faked_shadow(shadow, lift_mm: float, sigma_mm: float):
