@@ -23,7 +23,8 @@ the part lies upside down.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,9 @@ from cvmeasure.camera import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import fit_circle_robust
+from cvmeasure.geometry import CircleFit, fit_circle_robust
 from cvmeasure.part.arc import arc_from_points, chord_and_height_mm, net_turn_deg, part_shape
+from cvmeasure.part.centreline import Centreline
 from cvmeasure.part.checks import (
     END_BEND_DEG,
     arc_consistency_warning,
@@ -46,15 +48,8 @@ from cvmeasure.part.compare import (
     register_to_design,
 )
 from cvmeasure.part.ends import EndShape
-from cvmeasure.part.fit import (
-    arc_geometry,
-    count_chords,
-)
-from cvmeasure.part.lift import (
-    MAX_LIFT_MM,
-    estimate_lift,
-    lift_bound_mm,
-)
+from cvmeasure.part.fit import ChordCount, PolylineFit, arc_geometry, count_chords
+from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
     LIFT_BEND_DEG,
     LIFT_RADIUS_PCT,
@@ -69,6 +64,7 @@ from cvmeasure.part.lift_use import (
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
 from cvmeasure.part.result import METHODS, ArcResult, DesignComparison, Method, PartMeasurement
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
+from cvmeasure.part.segment import WireMask
 from cvmeasure.part.shadow import estimate_lift_shadow
 from cvmeasure.part.vertices import LIT_MIN_LIFT_MM, profile_vertices, vertex_polyline
 from cvmeasure.warning import StageWarning
@@ -90,6 +86,13 @@ __all__ = [
 
 #: A seed method's arc angle this far (deg) from the centreline's is warned about.
 ARC_DISAGREE_DEG = 10.0
+
+_EDGES_LOST = StageWarning(
+    "round_wire_edges_lost",
+    "the wire's silhouette edges were not found along the whole wire, so the centreline is "
+    "the profiles' centre of symmetry, which a side-lit highlight or a shadow can pull off "
+    "the axis; the lift was not bounded",
+)
 
 
 def compare_with_design(
@@ -155,112 +158,222 @@ def measure_part(
     Parameters
     ----------
     image : ndarray (H, W, 3) BGR, uint8 or uint16, at the camera's calibrated size.
-    board : the board lying in the part's plane.
-    camera : the calibrated camera.
-    divisions : the number of chords N the part was bent in; None finds the
-        vertices on the centreline (:func:`cvmeasure.part.fit.count_chords`). Given,
-        it is used, with a warning when the photo shows another count.
-    design : the design wire (:meth:`cvmeasure.design.Design.wire`), optional.
-    method : which method gives the headline values.
-    axis_height_mm : height of the wire's axis above the board's plane (mm,
-        towards the camera) where the part rests. None: the wire's radius with
-        ``wire_diameter_mm`` (a part lying on the plate), else 0 (the board's plane,
-        the flat photo lab's convention). Ignoring a raised axis scales the part by
-        about height / distance (0.1-0.3 %).
-    wire_diameter_mm : the wire's diameter (e.g. the kit's ``wire_diameter_mm``).
-        With it the centreline lies between the wire's two silhouette edges (not
-        on a side-lit highlight or a shadow's edge) and the part's lift off the
-        plate is measured from the wire's cast shadow and corrected where that is
-        good enough (``shadow_lift``), else estimated from the wire's apparent width
-        and bounded (:mod:`cvmeasure.part.lift`, ``max_lift_mm``): the worst effect of
-        the lift (or of its correction's uncertainty) on the radius and the bends is
-        reported under ``lift``, half of it (of a corrected lift: half the rms over the
-        rocking directions) is added to the vertex bends' sigmas, and it
-        is warned about (``part_lifted``) when it exceeds 0.3 % or 0.03 deg
-        (docs/part-measurement.md).
-    plane : the plane measured elsewhere (``cvmeasure plane``); then ``board`` is
-        only left out of the wire search and may be None, ``camera`` is unused.
-    max_lift_mm : with ``wire_diameter_mm``, the largest lift the part may rock to
-        when the width does not bound it better (mm; 0 for a part pressed flat).
-    moved_image : with ``wire_diameter_mm``, a second photo of the same part slid on the
-        plate (tens of mm, keeping its pose; same camera): its lift is then measured from
-        the two views' perspective difference
-        (:func:`cvmeasure.part.lift.estimate_lift_moved`) and corrected (each point on the
-        plane of its own height, unrolled); only its uncertainty (2 sigma, any direction)
-        is bounded and warned about. When the part was not moved, or the two centrelines
-        disagree (residual above :data:`MOVED_MAX_RMS_PX`), a warning says so and the lift
-        is bounded as with one photo.
-    shadow_lift : with ``wire_diameter_mm`` and one photo (no ``moved_image``), measure the
-        lift from the wire's cast shadow (:func:`cvmeasure.part.shadow.estimate_lift_shadow`)
-        and correct it when it is consistent with the lift bound (not more than 2 sigma
-        above it; read above it, corrected at the bound) and its 2 sigma is at most
-        :data:`SHADOW_MAX_2SIGMA_MM`, or, wider (e.g. a textured sheet), below the bound
-        (:func:`shadow_unusable`; its 2 sigma then carried as a bound, in any direction,
-        into the stated effects and the vertex bends' sigmas; ``part_lifted``); else (no
-        clear shadow, no better than the bound, or inconsistent with it: ``part_lifted``
-        says why) the lift is bounded as without it. On by default; False bounds the lift
-        from the width only.
-    moved_plane : the second photo's plane (default: ``plane`` when given, else measured
-        from the board in ``moved_image``).
-    end_shape : ``"round"`` wire ends (hemispherical, as rendered) or
-        ``"flat"`` (square-cut); decides where the centreline's end points are.
-    source : the photo's name, used in errors.
-    allow_mirror : the part may lie upside down (the design comparison tries the
-        mirror image); False when it lies as it left the machine.
+    board, camera : the board lying in the part's plane and the calibrated camera; or
+        ``plane``, measured elsewhere (``cvmeasure plane``: ``board`` is then only left
+        out of the wire search and may be None, ``camera`` is unused).
+    divisions : the chord count N bent; None finds the vertices (:func:`count_chords`);
+        given, a warning says when the photo shows another count.
+    design, design_source, allow_mirror : the design wire, its name, and whether the
+        comparison may try the mirror image. ``method``: the headline (:data:`METHODS`).
+    axis_height_mm : the wire axis' height above the board's plane (mm, towards the
+        camera); None: the wire's radius with ``wire_diameter_mm``, else 0.
+    wire_diameter_mm : the wire's diameter. With it the centreline lies between the
+        wire's silhouette edges and the part's lift off the plate is read and used
+        (:mod:`cvmeasure.part.lift_use`): from ``moved_image`` (a second photo of the part
+        slid on the plate; its plane ``moved_plane``, default ``plane`` or its board), else
+        from the cast shadow (``shadow_lift``), corrected when consistent with the lift
+        bound, else bounded (at most ``max_lift_mm``); its effect goes into ``lift``, the
+        vertex bends' sigmas and ``part_lifted`` (docs/part-measurement.md).
+    end_shape : ``"round"`` or ``"flat"`` wire ends. ``source``: the photo's name.
 
-    Raises
-    ------
-    InputError
-        No board, no wire, or a part that the given divisions cannot describe.
-    ValueError
-        An unknown ``method`` or ``divisions < 1``.
+    Raises InputError (no board, no wire, a part the divisions cannot describe) or
+    ValueError (an unknown ``method``, ``divisions < 1``).
     """
-    moved_given = plane is not None
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
     if divisions is not None and divisions < 1:
         raise ValueError(f"divisions must be >= 1, got {divisions}")
+    moved_given = plane is not None
     plane, wire, centre, centreline_mm = measure_centreline_mm(
-        image,
-        board,
-        camera,
-        axis_height_mm=axis_height_mm,
-        end_shape=end_shape,
-        source=source,
-        wire_diameter_mm=wire_diameter_mm,
-        plane=plane,
-    )
-    if net_turn_deg(centreline_mm) < 0:  # run so that the part turns counter-clockwise
-        centreline_mm = centreline_mm[::-1]
-        widths = None if centre.edge_width_px is None else centre.edge_width_px[::-1]
-        centre = replace(
-            centre,
-            points_px=centre.points_px[::-1],
-            lit_points_px=None if centre.lit_points_px is None else centre.lit_points_px[::-1],
-            ends_px=centre.ends_px[::-1],
-            edge_width_px=widths,
-            end_uncertainty_px=centre.end_uncertainty_px[::-1],
-        )
+        image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
+        source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
+    )  # fmt: skip
+    centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
     warnings: list[StageWarning] = []
     if wire_diameter_mm is not None and centre.centre_from != "silhouette":
-        warnings.append(
-            StageWarning(
-                "round_wire_edges_lost",
-                "the wire's silhouette edges were not found along the whole wire, so the "
-                "centreline is the profiles' centre of symmetry, which a side-lit highlight or "
-                "a shadow can pull off the axis; the lift was not bounded",
-            )
-        )
+        warnings.append(_EDGES_LOST)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = None
     if wire_diameter_mm is not None and centre.edge_width_px is not None:
         lift = estimate_lift(
-            plane,
-            centre.points_px,
-            centre.edge_width_px,
-            wire_diameter_mm=wire_diameter_mm,
+            plane, centre.points_px, centre.edge_width_px, wire_diameter_mm=wire_diameter_mm,
             axis_height_mm=base_mm,
+        )  # fmt: skip
+    chords, divisions, divisions_from = _chord_count(centreline_mm, divisions, warnings)
+    ours, circle, poly = _fit_arc(centreline_mm, divisions, source)
+    flat = _Fit(centreline_mm, ours, circle, poly)
+    reading = _LiftReading()
+    if wire_diameter_mm is not None and moved_image is not None:
+        reading.moved_info, reading.corrected, moved_warning = moved_lift(
+            moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
+            board, camera, plane, centre.points_px, wire_diameter_mm, axis_height_mm, end_shape,
+            centre.centre_from,
+        )  # fmt: skip
+        warnings += [moved_warning] if moved_warning else []
+    elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
+        bound_mm = lift_bound_mm(lift, max_lift_mm)
+        reading = _shadow_reading(image, plane, centre, wire_diameter_mm, base_mm, bound_mm)
+    fit = _with_lift(image, plane, centre, flat, reading, divisions, base_mm, source, warnings)
+    if wire_diameter_mm is not None and fit.lift_info is None:
+        _bound_lift(fit, plane, centre, lift, reading, divisions, base_mm, max_lift_mm, warnings)
+    ours, poly, vpoly = fit.ours, fit.poly, fit.vpoly
+    bend_sigma = _checked_sigma(fit, centre, plane, divisions, warnings)
+    methods, seed_arcs = _seed_methods(image, wire, plane, ours, divisions, warnings)
+    if method not in methods:
+        raise InputError(source, f"the {method} method failed on this part")
+    shape = part_shape(poly)
+    warnings += _result_warnings(methods, shape, centre, wire, board, plane, image, divisions)
+    comparison = None
+    if design is not None:
+        comparison = compare_with_design(
+            fit.centreline_mm, None if vpoly is None else vpoly.bend_deg, methods[method],
+            design, design_source=design_source, allow_mirror=allow_mirror,
+        )  # fmt: skip
+    return _assemble(
+        source, methods[method], shape, divisions_from, chords, methods, fit, bend_sigma,
+        plane, centre, wire, seed_arcs, comparison, warnings,
+    )  # fmt: skip
+
+
+def _checked_sigma(
+    fit: _Fit,
+    centre: Centreline,
+    plane: PlaneModel,
+    divisions: int | None,
+    warnings: list[StageWarning],
+) -> np.ndarray | None:
+    """The vertex bends' sigmas, widened where a chord was not seen; the fit's checks warned."""
+    poly, bend_sigma = fit.poly, fit.sigma
+    if poly is not None and bend_sigma is not None and divisions and divisions > 1:
+        bend_sigma, gap_warning = widen_for_centreline_gaps(
+            fit.centreline_mm, poly, bend_sigma, 2.0 * centre.half_width_px * plane.mm_per_px
         )
+        if gap_warning:
+            warnings.append(gap_warning)
+    arc_warning = arc_consistency_warning(fit.ours, poly, fit.vpoly, bend_sigma)
+    if arc_warning:
+        warnings.append(arc_warning)
+    return bend_sigma
+
+
+def _with_lift(
+    image: np.ndarray,
+    plane: PlaneModel,
+    centre: Centreline,
+    flat: _Fit,
+    reading: _LiftReading,
+    divisions: int | None,
+    base_mm: float,
+    source: str,
+    warnings: list[StageWarning],
+) -> _Fit:
+    """Refitted at the measured lift when one is used, else the part on the plate."""
+    if reading.corrected is None:  # on the plate (a lift, if any, bounded after)
+        return _flat_fit(image, plane, centre, flat, base_mm)
+    fit = _corrected_fit(image, plane, centre, flat, reading, divisions, base_mm, source)
+    if fit.warning is not None:
+        warnings.append(fit.warning)
+    return fit
+
+
+def _assemble(
+    source: str,
+    result: ArcResult,
+    shape: str,
+    divisions_from: str | None,
+    chords: ChordCount,
+    methods: dict[str, ArcResult],
+    fit: _Fit,
+    bend_sigma: np.ndarray | None,
+    plane: PlaneModel,
+    centre: Centreline,
+    wire: WireMask,
+    seed_arcs: dict[str, SeedArc],
+    comparison: DesignComparison | None,
+    warnings: list[StageWarning],
+) -> PartMeasurement:
+    """The :class:`PartMeasurement` of the steps' results."""
+    poly, vpoly = fit.poly, fit.vpoly
+    return PartMeasurement(
+        source=source,
+        result=result,
+        shape=shape,
+        divisions_from=divisions_from,
+        chords_found=chords,
+        methods=methods,
+        vertex_bend_deg=None if vpoly is None else vpoly.bend_deg,
+        vertex_bend_sigma_deg=bend_sigma,
+        vertices_mm=None if poly is None else poly.vertices_mm,
+        vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
+        centreline_mm=fit.centreline_mm,
+        centreline_px=centre.points_px,
+        wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,
+        circle=fit.circle,
+        plane={
+            "tilt_deg": plane.tilt_deg,
+            "mm_per_px": plane.mm_per_px,
+            "rms_px": plane.rms_px,
+            "corner_count": plane.corner_count,
+        },
+        wire={**wire.to_dict(), **centre.to_dict()},
+        lift=fit.lift_info,
+        seed_arcs=seed_arcs,
+        comparison=comparison,
+        warnings=tuple(warnings),
+    )
+
+
+@dataclass
+class _Fit:
+    """The part's fit at one stage: its centreline (mm), arc, chords and vertex bends."""
+
+    centreline_mm: np.ndarray
+    ours: ArcResult
+    circle: CircleFit
+    poly: PolylineFit | None
+    vpoly: PolylineFit | None = None
+    sigma: np.ndarray | None = None  # the vertex bends' sigmas, deg
+    lift_info: dict[str, Any] | None = None
+    warning: StageWarning | None = None
+
+
+@dataclass
+class _LiftReading:
+    """A lift read from a second photo or the shadow, and whether and how it is used."""
+
+    moved_info: dict[str, Any] | None = None
+    shadow_info: dict[str, Any] | None = None
+    corrected: Any = None  # a lift measured and corrected: the moved photo's or the shadow's
+    # an uncertain shadow's lift (2 sigma above SHADOW_MAX_2SIGMA_MM) corrected: read above
+    # the bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
+    # direction), not as the standard tilt error of a well-measured lift
+    uncertain: bool = False
+    scale: float = 1.0
+    refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
+
+
+def _counter_clockwise(
+    centre: Centreline, centreline_mm: np.ndarray
+) -> tuple[Centreline, np.ndarray]:
+    """The centreline run so that the part turns counter-clockwise (positive bends on an arc)."""
+    if net_turn_deg(centreline_mm) >= 0:
+        return centre, centreline_mm
+    widths = None if centre.edge_width_px is None else centre.edge_width_px[::-1]
+    centre = replace(
+        centre,
+        points_px=centre.points_px[::-1],
+        lit_points_px=None if centre.lit_points_px is None else centre.lit_points_px[::-1],
+        ends_px=centre.ends_px[::-1],
+        edge_width_px=widths,
+        end_uncertainty_px=centre.end_uncertainty_px[::-1],
+    )
+    return centre, centreline_mm[::-1]
+
+
+def _chord_count(
+    centreline_mm: np.ndarray, divisions: int | None, warnings: list[StageWarning]
+) -> tuple[ChordCount, int | None, str | None]:
+    """The chord count found in the photo; the one used and where it came from."""
     chords = count_chords(centreline_mm)
     divisions_from = "--divisions" if divisions is not None else None
     if divisions is None and chords.divisions is not None:
@@ -281,140 +394,173 @@ def measure_part(
                 f"({chords.reason})",
             )
         )
-    flat_mm = centreline_mm
+    return chords, divisions, divisions_from
+
+
+def _fit_arc(
+    centreline_mm: np.ndarray, divisions: int | None, source: str
+) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
+    """:func:`arc_from_points`, a part it cannot describe refused naming the photo."""
     try:
-        ours, circle, poly = arc_from_points(centreline_mm, divisions)
+        return arc_from_points(centreline_mm, divisions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
-    lift_info = None
-    moved_info = None
-    shadow_info = None
-    corrected = None  # a lift measured and corrected: from the moved photo or the shadow
-    # an uncertain shadow's lift (2 sigma above SHADOW_MAX_2SIGMA_MM) corrected: read above
-    # the bound, it is scaled down to it; its 2 sigma is carried as a bound is (the worst
-    # direction), not as the standard tilt error of a well-measured lift
-    uncertain, scale = False, 1.0
-    refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
-    if wire_diameter_mm is not None and moved_image is not None:
-        moved_info, corrected, moved_warning = moved_lift(
-            moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
-            board, camera, plane, centre.points_px, wire_diameter_mm, axis_height_mm, end_shape,
-            centre.centre_from,
-        )  # fmt: skip
-        if moved_warning:
-            warnings.append(moved_warning)
-    elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
-        shadow = estimate_lift_shadow(
-            image, plane, centre.points_px, wire_diameter_mm=wire_diameter_mm,
-            axis_height_mm=base_mm,
-        )  # fmt: skip
-        shadow_info = shadow.to_dict()
-        if shadow.lift is not None:
-            # every reading is checked against the lift bound (what the photo says without
-            # the shadow); one read above it, within 2 sigma, is corrected at the bound
-            bound_mm = lift_bound_mm(lift, max_lift_mm)
-            refusal = shadow_unusable(shadow.lift, bound_mm)
-            if refusal is not None:
-                shadow_info["message"] = (
-                    f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
-                    f"{shadow.lift.lift_sigma_mm:.2f} mm: {refusal.message}"
-                )
-            else:  # corrected; wider than SHADOW_MAX_2SIGMA_MM, its sigma carried as a bound
-                corrected = shadow
-                uncertain = 2.0 * shadow.lift.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM
-                scale = shadow_lift_scale(shadow.lift, bound_mm)
-    if corrected is not None:
-        flat = (ours, poly)
-        measured = corrected.lift
 
-        def lifted_mm(points_px: np.ndarray) -> np.ndarray:
-            return lifted_points_mm(plane, points_px, base_mm, measured, scale)
 
-        centreline_mm = lifted_mm(centre.points_px)
-        try:
-            ours, circle, poly = arc_from_points(centreline_mm, divisions)
-        except ValueError as exc:
-            raise InputError(source, f"cannot fit the part ({exc})") from None
-        vpoly = profile_vertices(image, centre, lifted_mm, poly)
-        if vpoly is None:  # no silhouette edges' profile fit: the edges' centres
-            vpoly = poly
-            if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
-                vpoly = vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
-        bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
-        lift_info, extra_sigma, _ = lift_effects(
-            plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions, base_mm,
-            2.0 * corrected.lift.lift_sigma_mm, standard=not uncertain,
-        )  # fmt: skip
-        by_shadow = shadow_info is not None
-        # lift_mm: the lift corrected with (the reading, or the bound it was read above);
-        # read_lift_mm: the shadow's or the two photos' own reading
-        lift_info = {**lift_info, **(shadow_info if by_shadow else moved_info),
-                     "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
-                     "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
-                     "lift_mm": scale * corrected.lift.lift_mm,
-                     "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
-        if bend_sigma is not None and extra_sigma is not None:
-            bend_sigma = np.hypot(bend_sigma, extra_sigma)
-        if (
-            lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
-            or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
-            or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
-        ):
-            corrected_as = "corrected"
-            if scale < 1.0:  # read above the bound: corrected at the bound
-                corrected_as = (
-                    f"above the lift bound: corrected at {scale * corrected.lift.lift_mm:.2f} mm"
-                )
-            warnings.append(
-                StageWarning(
-                    "part_lifted",
-                    f"the {'shadow' if by_shadow else 'two photos'} put the lift "
-                    f"at {corrected.lift.lift_mm:.2f} +- "
-                    f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
-                    f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
-                    f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
-                    f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg",
-                )
-            )
-    else:  # measured on the plate (a lift, if any, bounded below), not re-fitted lifted
-        # a round wire's vertex bends from each chord's whole cross-profile (part14s)
-        vpoly = profile_vertices(
-            image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly
+def _shadow_reading(
+    image: np.ndarray,
+    plane: PlaneModel,
+    centre: Centreline,
+    wire_diameter_mm: float,
+    base_mm: float,
+    bound_mm: float,
+) -> _LiftReading:
+    """The lift from the wire's cast shadow, checked against the lift bound before use."""
+    shadow = estimate_lift_shadow(
+        image, plane, centre.points_px, wire_diameter_mm=wire_diameter_mm,
+        axis_height_mm=base_mm,
+    )  # fmt: skip
+    reading = _LiftReading(shadow_info=shadow.to_dict())
+    if shadow.lift is None:
+        return reading
+    # every reading is checked against the lift bound (what the photo says without the
+    # shadow); one read above it, within 2 sigma, is corrected at the bound
+    reading.refusal = shadow_unusable(shadow.lift, bound_mm)
+    if reading.refusal is not None:
+        reading.shadow_info["message"] = (
+            f"the shadow puts the lift at {shadow.lift.lift_mm:.2f} +- "
+            f"{shadow.lift.lift_sigma_mm:.2f} mm: {reading.refusal.message}"
         )
-        vpoly = poly if vpoly is None else vpoly
-        bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
-    if wire_diameter_mm is not None and lift_info is None:
-        # a round wire on the plate may rock: its lift is bounded (the width's estimate
-        # where it is good enough, else the largest lift a part rocks to)
-        lift_info, extra_sigma, lift_warning = lift_effects(
-            plane, centre.points_px, centreline_mm, lift, ours, poly, divisions, base_mm,
-            max_lift_mm,
-        )  # fmt: skip
-        if bend_sigma is not None and extra_sigma is not None:
-            bend_sigma = np.hypot(bend_sigma, extra_sigma)
-        if refusal is not None and (lift_warning or refusal.inconsistent):
-            # a shadow read but not used: the bound's warning says why (one inconsistent
-            # with the bound is warned about whatever the bound's effect: an edge misread)
-            lift_warning = StageWarning(
-                "part_lifted",
-                (lift_warning.message if lift_warning else "the part may not lie flat")
-                + f"; the cast shadow was not used: {shadow_info['message']}",
+    else:  # corrected; wider than SHADOW_MAX_2SIGMA_MM, its sigma carried as a bound
+        reading.corrected = shadow
+        reading.uncertain = 2.0 * shadow.lift.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM
+        reading.scale = shadow_lift_scale(shadow.lift, bound_mm)
+    return reading
+
+
+def _corrected_fit(
+    image: np.ndarray,
+    plane: PlaneModel,
+    centre: Centreline,
+    flat: _Fit,
+    reading: _LiftReading,
+    divisions: int | None,
+    base_mm: float,
+    source: str,
+) -> _Fit:
+    """The part refitted with each point at its measured height, the lift's remaining bound."""
+    corrected, scale = reading.corrected, reading.scale
+    measured = corrected.lift
+
+    def lifted_mm(points_px: np.ndarray) -> np.ndarray:
+        return lifted_points_mm(plane, points_px, base_mm, measured, scale)
+
+    centreline_mm = lifted_mm(centre.points_px)
+    ours, circle, poly = _fit_arc(centreline_mm, divisions, source)
+    vpoly = profile_vertices(image, centre, lifted_mm, poly)
+    if vpoly is None:  # no silhouette edges' profile fit: the edges' centres
+        vpoly = poly
+        if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
+            vpoly = vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
+    bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
+    lift_info, extra_sigma, _ = lift_effects(
+        plane, centre.points_px, flat.centreline_mm, None, flat.ours, flat.poly, divisions,
+        base_mm, 2.0 * corrected.lift.lift_sigma_mm, standard=not reading.uncertain,
+    )  # fmt: skip
+    by_shadow = reading.shadow_info is not None
+    # lift_mm: the lift corrected with (the reading, or the bound it was read above);
+    # read_lift_mm: the shadow's or the two photos' own reading
+    lift_info = {**lift_info, **(reading.shadow_info if by_shadow else reading.moved_info),
+                 "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
+                 "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
+                 "lift_mm": scale * corrected.lift.lift_mm,
+                 "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
+    if bend_sigma is not None and extra_sigma is not None:
+        bend_sigma = np.hypot(bend_sigma, extra_sigma)
+    fit = _Fit(centreline_mm, ours, circle, poly, vpoly, bend_sigma, lift_info)
+    if (
+        lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
+        or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
+        or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
+    ):
+        corrected_as = "corrected"
+        if scale < 1.0:  # read above the bound: corrected at the bound
+            corrected_as = (
+                f"above the lift bound: corrected at {scale * corrected.lift.lift_mm:.2f} mm"
             )
-        if lift_warning:
-            warnings.append(lift_warning)
-        if moved_info is not None:
-            lift_info = {**lift_info, "moved": moved_info}
-        if shadow_info is not None:
-            lift_info = {**lift_info, "shadow": shadow_info}
-    if poly is not None and bend_sigma is not None and divisions and divisions > 1:
-        bend_sigma, gap_warning = widen_for_centreline_gaps(
-            centreline_mm, poly, bend_sigma, 2.0 * centre.half_width_px * plane.mm_per_px
+        fit.warning = StageWarning(
+            "part_lifted",
+            f"the {'shadow' if by_shadow else 'two photos'} put the lift "
+            f"at {corrected.lift.lift_mm:.2f} +- "
+            f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
+            f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
+            f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
+            f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg",
         )
-        if gap_warning:
-            warnings.append(gap_warning)
-    arc_warning = arc_consistency_warning(ours, poly, vpoly, bend_sigma)
-    if arc_warning:
-        warnings.append(arc_warning)
+    return fit
+
+
+def _flat_fit(
+    image: np.ndarray, plane: PlaneModel, centre: Centreline, flat: _Fit, base_mm: float
+) -> _Fit:
+    """The part on the plate: a round wire's vertex bends from each chord's cross-profile."""
+    vpoly = profile_vertices(
+        image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), flat.poly
+    )
+    vpoly = flat.poly if vpoly is None else vpoly
+    bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
+    return replace(flat, vpoly=vpoly, sigma=bend_sigma)
+
+
+def _bound_lift(
+    fit: _Fit,
+    plane: PlaneModel,
+    centre: Centreline,
+    lift: LiftEstimate | None,
+    reading: _LiftReading,
+    divisions: int | None,
+    base_mm: float,
+    max_lift_mm: float,
+    warnings: list[StageWarning],
+) -> None:
+    """A round wire on the plate may rock: its lift bounded, the bound's effect in the sigmas.
+
+    The bound is the width's estimate where it is good enough, else the largest lift a
+    part rocks to; a shadow read but not used is named in the bound's warning.
+    """
+    lift_info, extra_sigma, lift_warning = lift_effects(
+        plane, centre.points_px, fit.centreline_mm, lift, fit.ours, fit.poly, divisions,
+        base_mm, max_lift_mm,
+    )  # fmt: skip
+    if fit.sigma is not None and extra_sigma is not None:
+        fit.sigma = np.hypot(fit.sigma, extra_sigma)
+    refusal = reading.refusal
+    if refusal is not None and (lift_warning or refusal.inconsistent):
+        # a shadow read but not used: the bound's warning says why (one inconsistent
+        # with the bound is warned about whatever the bound's effect: an edge misread)
+        lift_warning = StageWarning(
+            "part_lifted",
+            (lift_warning.message if lift_warning else "the part may not lie flat")
+            + f"; the cast shadow was not used: {reading.shadow_info['message']}",
+        )
+    if lift_warning:
+        warnings.append(lift_warning)
+    if reading.moved_info is not None:
+        lift_info = {**lift_info, "moved": reading.moved_info}
+    if reading.shadow_info is not None:
+        lift_info = {**lift_info, "shadow": reading.shadow_info}
+    fit.lift_info = lift_info
+
+
+def _seed_methods(
+    image: np.ndarray,
+    wire: WireMask,
+    plane: PlaneModel,
+    ours: ArcResult,
+    divisions: int | None,
+    warnings: list[StageWarning],
+) -> tuple[dict[str, ArcResult], dict[str, SeedArc]]:
+    """The seed paper's ellipse and sagitta methods on the wire's outline, beside ours."""
     methods: dict[str, ArcResult] = {"ours": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = outline_mm(image, wire, plane)
@@ -430,8 +576,23 @@ def measure_part(
         methods[name] = ArcResult(
             name, arc.radius_mm, arc.chord_width_mm, arc.height_mm, arc.arc_angle_deg, divisions
         )
-    if method not in methods:
-        raise InputError(source, f"the {method} method failed on this part")
+    return methods, seed_arcs
+
+
+def _result_warnings(
+    methods: dict[str, ArcResult],
+    shape: str,
+    centre: Centreline,
+    wire: WireMask,
+    board: BoardSpec | None,
+    plane: PlaneModel,
+    image: np.ndarray,
+    divisions: int | None,
+) -> list[StageWarning]:
+    """What the result's reader must know: seed methods that disagree, an S-curve, uncertain
+    or cut ends, a short arc, a tilted plane."""
+    ours = methods["ours"]
+    warnings: list[StageWarning] = []
     for name, arc in methods.items():
         if name != "ours" and abs(arc.arc_angle_deg - ours.arc_angle_deg) > ARC_DISAGREE_DEG:
             warnings.append(
@@ -442,7 +603,6 @@ def measure_part(
                     "describe this part",
                 )
             )
-    shape = part_shape(poly)
     if shape == "s-curve":
         warnings.append(
             StageWarning(
@@ -492,41 +652,4 @@ def measure_part(
                 f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)",
             )
         )
-    vertex_bends = None if vpoly is None else vpoly.bend_deg
-    comparison = None
-    if design is not None:
-        comparison = compare_with_design(
-            centreline_mm,
-            vertex_bends,
-            methods[method],
-            design,
-            design_source=design_source,
-            allow_mirror=allow_mirror,
-        )
-    return PartMeasurement(
-        source=source,
-        result=methods[method],
-        shape=shape,
-        divisions_from=divisions_from,
-        chords_found=chords,
-        methods=methods,
-        vertex_bend_deg=vertex_bends,
-        vertex_bend_sigma_deg=bend_sigma,
-        vertices_mm=None if poly is None else poly.vertices_mm,
-        vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
-        centreline_mm=centreline_mm,
-        centreline_px=centre.points_px,
-        wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,
-        circle=circle,
-        plane={
-            "tilt_deg": plane.tilt_deg,
-            "mm_per_px": plane.mm_per_px,
-            "rms_px": plane.rms_px,
-            "corner_count": plane.corner_count,
-        },
-        wire={**wire.to_dict(), **centre.to_dict()},
-        lift=lift_info,
-        seed_arcs=seed_arcs,
-        comparison=comparison,
-        warnings=tuple(warnings),
-    )
+    return warnings

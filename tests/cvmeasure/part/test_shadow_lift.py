@@ -277,12 +277,12 @@ def test_a_dark_textured_lab_sheet_widens_the_shadow_lift():
 
 
 def test_the_sheets_own_edge_errors_come_from_its_bare_side():
-    """:func:`_texture_edge_errors` on synthetic profiles: a shadow step (depth 0.35,
+    """:func:`texture_edge_errors` on synthetic profiles: a shadow step (depth 0.35,
     penumbra 1 mm) on one side of each profile, the other side bare. Measured: a plain
     sheet (noise 0.005) 0.003 mm rms of laid-step errors, a sheet with stains along the
     profile (a +-10 % sinusoid, 3 mm period) 0.15 mm. Asserted: below 0.02 mm, and 0.05 mm
     or more."""
-    from cvmeasure.part.shadow import _fit_ramps, _texture_edge_errors
+    from cvmeasure.part.shadow_edges import fit_ramps, texture_edge_errors
 
     rng = np.random.default_rng(11)
     u = np.arange(0.0, 11.0 + 1e-9, 0.05)
@@ -295,9 +295,9 @@ def test_the_sheets_own_edge_errors_come_from_its_bare_side():
         phase = rng.uniform(0.0, 2.0 * np.pi, (2, n, 1))
         q *= 1.0 + stain * np.sin(2.0 * np.pi * u[None, None, :] / 3.0 + phase)
         q[0] *= 1.0 - 0.35 * np.clip(0.5 - (u[None, :] - edge_true[:, None]) / 1.0, 0.0, 1.0)
-        offsets, contrast, k_w = _fit_ramps(u, q, start, far)
+        offsets, contrast, k_w = fit_ramps(u, q, start, far)
         assert k_w is not None and np.isfinite(offsets[0]).all()
-        tex = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
+        tex = texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
         rms = float(np.sqrt(np.nanmean(tex**2)))
         assert low <= rms < high, (stain, rms)
 
@@ -306,7 +306,8 @@ def _true_edge_residuals_mm(photo, plane, centre) -> tuple[np.ndarray, np.ndarra
     """The measured shadow edges less the true ones (the render's lamp and axis heights
     through :func:`predict_shadow_edges_mm`), and each edge's gap beyond the silhouette."""
     from cvmeasure.part.lift import points_at_heights_mm
-    from cvmeasure.part.shadow import measure_shadow_edges, predict_shadow_edges_mm
+    from cvmeasure.part.shadow_edges import measure_shadow_edges
+    from cvmeasure.part.shadow_model import predict_shadow_edges_mm
     from cvmeasure_datasets.solids import lamp_direction
 
     lamp = lamp_direction(photo.truth["lighting"]["light_azimuth_deg"], up=-1.0)
