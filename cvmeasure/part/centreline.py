@@ -393,9 +393,9 @@ def _silhouette_centres(
     partly by one edge would not be.
 
     But not along a lifted part: there the shadow parts from the wire as it rises, and
-    the shadow side's edge shifts with the gap (0.4 px at half size over two chords of a
-    dev part lifted 3 mm, lit at 50 deg elevation), which bends the pairs' midpoints at
-    the vertices (0.05-0.13 deg at full size on dev parts R 42-50 mm, 120 deg, N 7). So
+    the shadow side's edge shifts with the gap (about 0.4 px at half size over two chords of
+    a part lifted 3 mm, lit at 50 deg elevation), which bends the pairs' midpoints at the
+    vertices (0.05-0.13 deg at full size on parts of R 42-50 mm, 120 deg, N 7). So
     the lit centres are returned too: where the shadow's side is known, each pair's
     midpoint replaced by the lit side's edge moved by half the median width (the same
     rule along two widths of wire); noisier by up to sqrt(2), free of the shadow.
@@ -420,8 +420,8 @@ def _silhouette_centres(
         # width, the shadow's own band (as wide as the wire, the wire's edge on one side) was
         # the only pair in reach beside a dark sheet's shadow, and the wire's pair, whose
         # summed gradient is the larger (the plate's edge to the lit wire against the
-        # shadow's soft outer edge), was not searched (issue 14: dev B4's last 12 mm on the
-        # shadow, A6's last 10 mm without pairs)
+        # shadow's soft outer edge), was not searched: the last centimetre of a lifted end
+        # then lay on the shadow, or had no pairs
         near = FIRST_PASS_REACH if n_pass == 0 else 0.2
         # the strongest pair of gradient peaks a width apart about the centre; where there
         # is none (a penumbra joined to one side blurs its edge), the edges found from
@@ -469,7 +469,7 @@ def _silhouette_centres(
             # highlight's edge can stand in for over a stretch (4 px off on a lab render);
             # but not a gap as long as a chord (no clean pair along a chord near the light's
             # azimuth on a light sheet): without centres its line came from the centres
-            # bracketing the gap, a vertex bend 0.6-1.4 deg off on dev parts
+            # bracketing the gap, a vertex bend off by a degree or more
             long_gap = long_runs(~pair, LONG_GAP_WIDTHS * width_px / step_px)
             shift = np.where(pair, 0.5 * (left + right), np.where(long_gap, shift, np.nan))
         shift = despike(shift, window)

@@ -122,9 +122,9 @@ def arc_consistency_warning(
     from each chord's direction, the vertices from where neighbouring lines meet and from
     the end points: a centreline stretch off the wire (on its shadow, with the wire's
     width) shifts a chord's line sideways and moves its vertices along the chords by
-    about the shift over the bend's sine, which the bends do not see (dev part B4: the
-    last chord's centres 2.3 mm off on the shadow, radius -12.9 %, bend per chord
-    +1.87 deg, every vertex bend within 0.26 deg); an end point placed wrong along its
+    about the shift over the bend's sine, which the bends do not see (a last chord's
+    centres 2.3 mm off on the shadow gave a radius 12.9 % low and a bend per chord 1.87 deg
+    high while every vertex bend was within 0.26 deg); an end point placed wrong along its
     chord does the same on a smaller scale. A disagreement beyond
     ``ARC_BEND_DISAGREE_DEG`` plus three sigmas of the bends' mean (their sigmas taken as
     independent) is warned about; S-curves (no single arc) are not checked. ``poly`` is the

@@ -153,10 +153,9 @@ SHADOW_MAX_2SIGMA_MM = 1.0
 
 #: A shadow's lift wider than :data:`SHADOW_MAX_2SIGMA_MM` is still corrected when its 2
 #: sigma is at most this (mm) (and :func:`shadow_unusable` finds it consistent): wider,
-#: its stated effect on the radius (0.5-1.4 % on the dev parts, 2 sigma 2-3 mm) is over
-#: issue 14's 0.3 % anyway, and the bound covers the lift by construction where the shadow
-#: covers it at 2 sigma only (a flat lab part on a textured sheet, dev seed 2000, read
-#: 3.00 +- 1.43 mm).
+#: its stated effect on the radius (0.5-1.4 % for 2 sigma of 2-3 mm) is over the 0.3 %
+#: target anyway, and the bound covers the lift by construction where the shadow covers it
+#: at 2 sigma only (a flat part on a textured sheet can read 3.00 +- 1.43 mm).
 SHADOW_WIDE_MAX_2SIGMA_MM = 2.0
 
 
@@ -180,7 +179,7 @@ def shadow_unusable(shadow: LiftEstimate, bound_mm: float) -> ShadowRefusal | No
     the largest lift a part rocks to), what the photo says about the lift without the
     shadow. Any reading more than 2 sigma above it is inconsistent with it and not used (a
     shadow edge taken for another: a full-size 3 mm lift once read 6.39 +- 1.20 mm, and a
-    confident 7.42 +- 0.29 mm, part14r). A reading wider than :data:`SHADOW_MAX_2SIGMA_MM`
+    confident 7.42 +- 0.29 mm). A reading wider than :data:`SHADOW_MAX_2SIGMA_MM`
     is also not corrected when its 2 sigma is no smaller than that bound (it tells nothing
     the bound does not), or over :data:`SHADOW_WIDE_MAX_2SIGMA_MM`.
     """

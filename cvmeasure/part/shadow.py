@@ -51,8 +51,8 @@ SCORE_CLIP_MM = 0.15
 #: The model's axis points are this far apart (mm).
 MODEL_STEP_MM = 0.25
 
-#: The shadow edges' common bias, mm: on the ray-traced round wires (development seeds,
-#: full and half size) the measured edges sat -0.05..+0.05 mm from the true ones on
+#: The shadow edges' common bias, mm: on the ray-traced round wires (full and half size)
+#: the measured edges sat -0.05..+0.05 mm from the true ones on
 #: average (negative on light plates, positive on dark ones).
 EDGE_BIAS_MM = 0.05
 

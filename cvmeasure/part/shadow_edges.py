@@ -234,8 +234,8 @@ def measure_shadow_edges(
 
 #: The sheet's own edge errors (:func:`texture_edge_errors`) are clipped at this (mm) before
 #: they widen the fit's uncertainty: a laid step lost in clutter or in another shadow says
-#: no more than a large error. 0.15 mm (the outlier limit) left the textured lab sheets' lifts
-#: 4-7 sigma off (dev seeds 2000-2020); 1 mm keeps what a dark textured sheet does (0.2-0.5 mm).
+#: no more than a large error. Clipped at the outlier limit (0.15 mm) the textured sheets'
+#: lifts were stated far too precisely; 1 mm keeps what a dark textured sheet does (0.2-0.5 mm).
 TEXTURE_CLIP_MM = 1.0
 
 #: The texture draws: the synthetic step's gap beyond the silhouette moved by these (mm),

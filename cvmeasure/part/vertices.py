@@ -26,8 +26,8 @@ __all__ = ["LIT_MIN_LIFT_MM", "vertex_polyline", "profile_vertices", "combine_ch
 #: A part whose lift is measured (two photos, the shadow) at least this high (mm) has its
 #: vertex bends from the pairs' and the lit side's chords combined (:func:`vertex_polyline`).
 #: The pairs' midpoints drift with the shadow's gap in proportion to the lift (0.05-0.13 deg
-#: at 3 mm on full-size dev parts); the lit edge alone has a shading error of its own (0.071
-#: deg on a flat noise-free dev part at half size where the pairs gave 0.020), which the
+#: at 3 mm at full size); the lit edge alone has a shading error of its own (0.07 deg on a
+#: flat noise-free part at half size where the pairs gave 0.02), which the
 #: combination would read as the pairs' drift, so a part lying about flat keeps the pairs.
 LIT_MIN_LIFT_MM = 2.0
 
