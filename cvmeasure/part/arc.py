@@ -37,13 +37,17 @@ def part_shape(poly: PolylineFit | None) -> str:
 
 
 def arc_from_points(
-    points_mm: np.ndarray, divisions: int | None
+    points_mm: np.ndarray, divisions: int | None, fractions: np.ndarray | None = None
 ) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
-    """Our arc quantities from an ordered centreline in mm (see the module notes)."""
+    """Our arc quantities from an ordered centreline in mm (see the module notes).
+
+    ``fractions``: where the polygon bent has its vertices (shares of its length, in the
+    centreline's order; :func:`cvmeasure.part.fit.fit_polyline`), default equal chords.
+    """
     pts = np.asarray(points_mm, dtype=np.float64)
     poly = None
     if divisions:
-        poly = fit_polyline(pts, divisions)
+        poly = fit_polyline(pts, divisions, fractions=fractions)
         circle = fit_circle_robust(poly.vertices_mm)
         geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
         chord, height = chord_and_height_mm(poly.vertices_mm)

@@ -74,6 +74,7 @@ def lift_effects(
     base_mm: float,
     max_lift_mm: float = MAX_LIFT_MM,
     standard: bool = False,
+    fractions: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], np.ndarray | None, StageWarning | None]:
     """The lift's bound, the bends' extra sigma (deg) and a warning (None when none).
 
@@ -90,7 +91,7 @@ def lift_effects(
 
     def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
         try:
-            res, _, p = arc_from_points(other_mm, divisions)
+            res, _, p = arc_from_points(other_mm, divisions, fractions)
         except ValueError:
             return float("nan"), float("nan"), None
         d_r = 100.0 * (res.radius_mm / ours.radius_mm - 1.0)

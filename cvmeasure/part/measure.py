@@ -48,7 +48,7 @@ from cvmeasure.part.compare import (
     register_to_design,
 )
 from cvmeasure.part.ends import EndShape
-from cvmeasure.part.fit import ChordCount, PolylineFit, arc_geometry, count_chords
+from cvmeasure.part.fit import ChordCount, PolylineFit, arc_geometry, count_chords, fit_polyline
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
     LIFT_BEND_DEG,
@@ -68,6 +68,7 @@ from cvmeasure.part.segment import WireMask
 from cvmeasure.part.shadow import estimate_lift_shadow
 from cvmeasure.part.vertices import LIT_MIN_LIFT_MM, profile_vertices, vertex_polyline
 from cvmeasure.warning import StageWarning
+from cvmeasure.wireplan import bent_polygon
 
 __all__ = [
     "Method",
@@ -103,18 +104,29 @@ def compare_with_design(
     *,
     design_source: str = "design",
     allow_mirror: bool = True,
+    reference_mm: np.ndarray | None = None,
 ) -> DesignComparison:
     """Register a board-frame centreline to a design and compare (see the module notes).
 
-    With divisions N the reference is the design divided into N equal chords
-    (the polygon the machine is asked to bend), otherwise the design curve.
-    ``allow_mirror=False`` refuses the mirror image (the part lies as it left the
-    machine): a design symmetric end to end is then matched vertex for vertex.
+    The reference is the polygon the machine was asked to bend (``reference_mm``,
+    design frame: :attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, whose chord count
+    must be the result's); without it, with divisions N, the polygon of N chords the
+    planner makes of the design (:func:`cvmeasure.wireplan.bent_polygon`: drawn corners
+    kept, curves in equal chords), else the design curve. ``allow_mirror=False`` refuses the mirror
+    image (the part lies as it left the machine): a design symmetric end to end is
+    then matched vertex for vertex.
     """
     seen = np.asarray(centreline_mm, dtype=np.float64) * np.array([1.0, -1.0])
     n = result.divisions
-    # with N chords the shape meant is the design divided into N equal chords
-    verts = design.chords(n) if n else design.points_mm
+    if reference_mm is not None:
+        verts = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
+        if n and n != len(verts) - 1:
+            raise ValueError(
+                f"the part was fitted with {n} chords, the polygon bent has {len(verts) - 1}"
+            )
+    else:
+        # the polygon the planner makes of this wire in n chords (drawn corners kept)
+        verts = bent_polygon(design, n) if n else design.points_mm
     reg = register_to_design(seen, verts, allow_mirror=allow_mirror)
     dev = deviation_profile(seen, verts, reg)
     d_geo = arc_geometry(fit_circle_robust(verts), verts)
@@ -152,6 +164,7 @@ def measure_part(
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
     shadow_lift: bool = True,
+    reference_mm: np.ndarray | None = None,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -167,14 +180,15 @@ def measure_part(
         comparison may try the mirror image. ``method``: the headline (:data:`METHODS`).
     axis_height_mm : the wire axis' height above the board's plane (mm, towards the
         camera); None: the wire's radius with ``wire_diameter_mm``, else 0.
-    wire_diameter_mm : the wire's diameter. With it the centreline lies between the
-        wire's silhouette edges and the part's lift off the plate is read and used
-        (:mod:`cvmeasure.part.lift_use`): from ``moved_image`` (a second photo of the part
-        slid on the plate; its plane ``moved_plane``, default ``plane`` or its board), else
-        from the cast shadow (``shadow_lift``), corrected when consistent with the lift
-        bound, else bounded (at most ``max_lift_mm``); its effect goes into ``lift``, the
-        vertex bends' sigmas and ``part_lifted`` (docs/part-measurement.md).
+    wire_diameter_mm : the wire's diameter: the centreline between its silhouette edges,
+        and the lift off the plate read (:mod:`cvmeasure.part.lift_use`) from
+        ``moved_image`` (the part slid; its plane ``moved_plane``) or the cast shadow
+        (``shadow_lift``), corrected when consistent with the bound, else bounded (at most
+        ``max_lift_mm``); reported in ``lift``, the sigmas and ``part_lifted``.
     end_shape : ``"round"`` or ``"flat"`` wire ends. ``source``: the photo's name.
+    reference_mm : (N+1, 2) the polygon bent (design frame, mm; ``WirePlan.vertices_mm``):
+        the part is fitted with its N chords, vertices starting where it has them, and
+        compared with it. Default: the planner's polygon of ``design`` in N chords.
 
     Raises InputError (no board, no wire, a part the divisions cannot describe) or
     ValueError (an unknown ``method``, ``divisions < 1``).
@@ -193,15 +207,12 @@ def measure_part(
     if wire_diameter_mm is not None and centre.centre_from != "silhouette":
         warnings.append(_EDGES_LOST)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
-    lift = None
-    if wire_diameter_mm is not None and centre.edge_width_px is not None:
-        lift = estimate_lift(
-            plane, centre.points_px, centre.edge_width_px, wire_diameter_mm=wire_diameter_mm,
-            axis_height_mm=base_mm,
-        )  # fmt: skip
-    chords, divisions, divisions_from = _chord_count(centreline_mm, divisions, warnings)
-    ours, circle, poly = _fit_arc(centreline_mm, divisions, source)
-    flat = _Fit(centreline_mm, ours, circle, poly)
+    lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
+    planned = reference_mm is not None
+    chords, divisions, divisions_from = _chord_count(centreline_mm, divisions, planned, warnings)
+    reference_mm, fractions = _bent(centreline_mm, design, divisions, reference_mm)
+    ours, circle, poly = _fit_arc(centreline_mm, divisions, source, fractions)
+    flat = _Fit(centreline_mm, ours, circle, poly, fractions=fractions)
     reading = _LiftReading()
     if wire_diameter_mm is not None and moved_image is not None:
         reading.moved_info, reading.corrected, moved_warning = moved_lift(
@@ -228,6 +239,7 @@ def measure_part(
         comparison = compare_with_design(
             fit.centreline_mm, None if vpoly is None else vpoly.bend_deg, methods[method],
             design, design_source=design_source, allow_mirror=allow_mirror,
+            reference_mm=reference_mm,
         )  # fmt: skip
     return _assemble(
         source, methods[method], shape, divisions_from, chords, methods, fit, bend_sigma,
@@ -335,6 +347,8 @@ class _Fit:
     sigma: np.ndarray | None = None  # the vertex bends' sigmas, deg
     lift_info: dict[str, Any] | None = None
     warning: StageWarning | None = None
+    # where the polygon bent has its vertices (shares of its length), None: equal chords
+    fractions: np.ndarray | None = None
 
 
 @dataclass
@@ -350,6 +364,57 @@ class _LiftReading:
     uncertain: bool = False
     scale: float = 1.0
     refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
+
+
+def _width_lift(
+    plane: PlaneModel, centre: Centreline, wire_diameter_mm: float | None, base_mm: float
+) -> LiftEstimate | None:
+    """The lift estimated from the wire's apparent width (for the bound), where measured."""
+    if wire_diameter_mm is None or centre.edge_width_px is None:
+        return None
+    return estimate_lift(
+        plane, centre.points_px, centre.edge_width_px, wire_diameter_mm=wire_diameter_mm,
+        axis_height_mm=base_mm,
+    )  # fmt: skip
+
+
+def _bent(
+    centreline_mm: np.ndarray,
+    design: DesignPath | None,
+    divisions: int | None,
+    reference_mm: np.ndarray | None,
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The polygon bent (given, or the planner's for a design with drawn corners) and its
+    vertex positions in the centreline's order (None: equal chords)."""
+    if reference_mm is None and design is not None and divisions and not design.curve_mask.all():
+        # a design with drawn corners: the polygon the planner bends in that many chords
+        reference_mm = bent_polygon(design, divisions)
+    if reference_mm is None:
+        return None, None
+    return reference_mm, _reference_fractions(centreline_mm, reference_mm)
+
+
+def _reference_fractions(centreline_mm: np.ndarray, reference_mm: np.ndarray) -> np.ndarray:
+    """The polygon bent's vertex positions (shares of its length) in the centreline's order.
+
+    The centreline runs either way along the part; the order whose chord fit leaves the
+    smaller residual is the part's (a polygon symmetric end to end gives the same).
+    """
+    ref = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
+    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))))
+    f = cum / cum[-1]
+    if len(ref) < 3:
+        return f
+    back = 1.0 - f[::-1]
+    if np.allclose(f, back, atol=1e-9):
+        return f
+    fits = []
+    for cand in (f, back):
+        try:
+            fits.append(fit_polyline(centreline_mm, len(ref) - 1, fractions=cand).rms_residual_mm)
+        except ValueError:
+            fits.append(np.inf)
+    return f if fits[0] <= fits[1] else back
 
 
 def _counter_clockwise(
@@ -371,18 +436,26 @@ def _counter_clockwise(
 
 
 def _chord_count(
-    centreline_mm: np.ndarray, divisions: int | None, warnings: list[StageWarning]
+    centreline_mm: np.ndarray,
+    divisions: int | None,
+    planned: bool,
+    warnings: list[StageWarning],
 ) -> tuple[ChordCount, int | None, str | None]:
-    """The chord count found in the photo; the one used and where it came from."""
+    """The chord count found in the photo; the one used and where it came from.
+
+    ``planned``: ``divisions`` is the chord count of the polygon bent (the plan's).
+    """
     chords = count_chords(centreline_mm)
-    divisions_from = "--divisions" if divisions is not None else None
+    given = "plan" if planned else "--divisions"
+    divisions_from = given if divisions is not None else None
+    what = "the polygon bent has" if planned else "--divisions"
     if divisions is None and chords.divisions is not None:
         divisions, divisions_from = chords.divisions, "photo"
     elif divisions is not None and chords.divisions not in (None, divisions):
         warnings.append(
             StageWarning(
                 "divisions_mismatch",
-                f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
+                f"{what} {divisions}, but the photo shows {chords.divisions} chords "
                 f"({chords.reason}); measured with {divisions}",
             )
         )
@@ -390,7 +463,7 @@ def _chord_count(
         warnings.append(
             StageWarning(
                 "divisions_not_found",
-                f"--divisions {divisions}, but no chord vertices were found in the photo "
+                f"{what} {divisions}, but no chord vertices were found in the photo "
                 f"({chords.reason})",
             )
         )
@@ -398,11 +471,14 @@ def _chord_count(
 
 
 def _fit_arc(
-    centreline_mm: np.ndarray, divisions: int | None, source: str
+    centreline_mm: np.ndarray,
+    divisions: int | None,
+    source: str,
+    fractions: np.ndarray | None = None,
 ) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
     """:func:`arc_from_points`, a part it cannot describe refused naming the photo."""
     try:
-        return arc_from_points(centreline_mm, divisions)
+        return arc_from_points(centreline_mm, divisions, fractions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
 
@@ -455,17 +531,19 @@ def _corrected_fit(
     def lifted_mm(points_px: np.ndarray) -> np.ndarray:
         return lifted_points_mm(plane, points_px, base_mm, measured, scale)
 
+    fractions = flat.fractions
     centreline_mm = lifted_mm(centre.points_px)
-    ours, circle, poly = _fit_arc(centreline_mm, divisions, source)
-    vpoly = profile_vertices(image, centre, lifted_mm, poly)
+    ours, circle, poly = _fit_arc(centreline_mm, divisions, source, fractions)
+    vpoly = profile_vertices(image, centre, lifted_mm, poly, fractions)
     if vpoly is None:  # no silhouette edges' profile fit: the edges' centres
         vpoly = poly
         if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
-            vpoly = vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
+            vpoly = vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly, fractions)
     bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     lift_info, extra_sigma, _ = lift_effects(
         plane, centre.points_px, flat.centreline_mm, None, flat.ours, flat.poly, divisions,
         base_mm, 2.0 * corrected.lift.lift_sigma_mm, standard=not reading.uncertain,
+        fractions=fractions,
     )  # fmt: skip
     by_shadow = reading.shadow_info is not None
     # lift_mm: the lift corrected with (the reading, or the bound it was read above);
@@ -477,7 +555,7 @@ def _corrected_fit(
                  "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
     if bend_sigma is not None and extra_sigma is not None:
         bend_sigma = np.hypot(bend_sigma, extra_sigma)
-    fit = _Fit(centreline_mm, ours, circle, poly, vpoly, bend_sigma, lift_info)
+    fit = _Fit(centreline_mm, ours, circle, poly, vpoly, bend_sigma, lift_info, None, fractions)
     if (
         lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
         or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
@@ -505,8 +583,9 @@ def _flat_fit(
 ) -> _Fit:
     """The part on the plate: a round wire's vertex bends from each chord's cross-profile."""
     vpoly = profile_vertices(
-        image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), flat.poly
-    )
+        image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), flat.poly,
+        flat.fractions,
+    )  # fmt: skip
     vpoly = flat.poly if vpoly is None else vpoly
     bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
     return replace(flat, vpoly=vpoly, sigma=bend_sigma)
@@ -530,7 +609,7 @@ def _bound_lift(
     """
     lift_info, extra_sigma, lift_warning = lift_effects(
         plane, centre.points_px, fit.centreline_mm, lift, fit.ours, fit.poly, divisions,
-        base_mm, max_lift_mm,
+        base_mm, max_lift_mm, fractions=fit.fractions,
     )  # fmt: skip
     if fit.sigma is not None and extra_sigma is not None:
         fit.sigma = np.hypot(fit.sigma, extra_sigma)

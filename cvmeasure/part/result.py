@@ -109,8 +109,9 @@ class PartMeasurement:
     warnings : things a user should know (e.g. arcs too short for a stable radius).
     shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
         sign, so radius and arc angle describe no real arc).
-    divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
-        (vertices found on the centreline) or None (none: a smooth curve).
+    divisions_from : where the chord count came from: ``"--divisions"``, ``"plan"`` (the
+        polygon bent, ``reference_mm``), ``"photo"`` (vertices found on the centreline)
+        or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:

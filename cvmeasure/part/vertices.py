@@ -33,7 +33,11 @@ LIT_MIN_LIFT_MM = 2.0
 
 
 def vertex_polyline(
-    lit_points_px: np.ndarray | None, to_mm: Any, divisions: int | None, poly: PolylineFit | None
+    lit_points_px: np.ndarray | None,
+    to_mm: Any,
+    divisions: int | None,
+    poly: PolylineFit | None,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit | None:
     """The polyline whose bends are the vertex bends: the pairs' and the lit side's chords.
 
@@ -48,14 +52,18 @@ def vertex_polyline(
     if poly is None or lit_points_px is None or not divisions:
         return poly
     try:
-        lit = fit_polyline(to_mm(lit_points_px), divisions)
+        lit = fit_polyline(to_mm(lit_points_px), divisions, fractions=fractions)
     except ValueError:
         return poly
     return combine_chords(poly, lit)
 
 
 def profile_vertices(
-    image: np.ndarray, centre: Centreline, to_mm: Any, poly: PolylineFit | None
+    image: np.ndarray,
+    centre: Centreline,
+    to_mm: Any,
+    poly: PolylineFit | None,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit | None:
     """The vertex bends' polyline from each chord's whole cross-profile (lit side).
 
@@ -67,7 +75,12 @@ def profile_vertices(
     if poly is None or widths is None or not np.isfinite(widths).any():
         return None
     return profile_polyline(
-        gray_float(image), centre.points_px, to_mm, poly, width_px=float(np.nanmedian(widths))
+        gray_float(image),
+        centre.points_px,
+        to_mm,
+        poly,
+        width_px=float(np.nanmedian(widths)),
+        fractions=fractions,
     )
 
 
