@@ -1,7 +1,8 @@
 """The automatic calibration session: bend, photograph, release, photograph, measure.
 
-For each calibration angle and direction (:func:`~cvmeasure.material.calibration.calibration_plan`)
-a session:
+For each bend of its plan (:func:`SessionConfig.plan`: a mode's angles twice each way in
+the order :mod:`cvmeasure.driver.plan` makes for the diagnosis; custom angles once each
+way) a session:
 
 1. feeds fresh straight wire (``G91 G1 Y<feed>``),
 2. bends: the pin goes to the nominal command for the wanted *loaded* angle
@@ -25,10 +26,12 @@ state the photo lab's simulated camera
 (:class:`cvmeasure_datasets.simcamera.SimulatedCamera`) renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
-"config": {...}}``, ``{"event": "bend", "step": i, ...}`` (written before
-the bend is sent), ``{"event": "sample", "step": i, ...}`` (a completed
-angle), ``{"event": "resume", "done": n}``, ``{"event": "failed", "step": i,
-"error": "..."}``.
+"config": {...}}``, ``{"event": "fed", "step": i, "feed_mm": ..., "refeed": ...}``
+(fresh wire is out), ``{"event": "bend", "step": i, ...}`` (written before the
+bend is sent), ``{"event": "sample", "step": i, ...}`` (a completed angle),
+``{"event": "resume", "done": n, "interrupted": [...]}``, ``{"event": "failed",
+"step": i, "error": "..."}``. Every ``bend`` follows a ``fed`` of its step: a step
+cut after its bend was sent is bent again only on wire fed since.
 """
 
 from __future__ import annotations
@@ -42,13 +45,11 @@ from typing import Any, Protocol
 
 from cvmeasure.contracts import MachinePhotoResult, Trial
 from cvmeasure.driver.camera import Camera
+from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
-from cvmeasure.material.calibration import (
-    Calibration,
-    calibration_plan,
-    fit_calibration,
-)
+from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Machine",
@@ -62,6 +63,7 @@ __all__ = [
     "session_gcode",
     "run_session",
     "read_session_log",
+    "session_warnings_json",
 ]
 
 LOG_NAME = "session.jsonl"
@@ -103,7 +105,14 @@ class SessionConfig:
     duck: bool = True
 
     def plan(self) -> list[tuple[str, float]]:
-        return calibration_plan(self.angles_deg if self.mode == "custom" else self.mode)
+        """The bends ``(direction, angle_deg)`` in execution order: a mode's angles in the
+        diagnosis' order (:func:`~cvmeasure.driver.plan.diagnosis_plan`, each angle twice
+        each way), custom angles each once per direction, as listed."""
+        if self.mode == "custom":
+            return swept_plan(self.angles_deg)
+        if self.mode not in MODES:
+            raise ValueError(f"unknown mode {self.mode!r}; valid: {', '.join(MODES)}, custom")
+        return diagnosis_plan(MODES[self.mode])
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -146,8 +155,13 @@ class SessionStep:
             ),
             photo_loaded=self.photo_loaded,
             photo_unloaded=self.photo_unloaded,
-            warnings=(),
         )
+
+    def photo_warnings(self) -> list[tuple[str, StageWarning]]:
+        """Every warning of this bend's two photos, with the photo it was given on."""
+        return [(self.photo_loaded, w) for w in self.loaded.warnings] + [
+            (self.photo_unloaded, w) for w in self.unloaded.warnings
+        ]
 
     def to_dict(self) -> dict[str, Any]:
         d = {
@@ -393,6 +407,7 @@ def run_session(
     plan_json = [[d, a] for d, a in plan]
     done: dict[int, SessionStep] = {}
     resumed = log_path.exists()
+    interrupted: set[int] = set()
     if resumed:
         records = read_session_log(log_path)
         start = next((r for r in records if r.get("event") == "start"), None)
@@ -403,7 +418,18 @@ def run_session(
         for r in records:
             if r.get("event") == "sample":
                 done[int(r["step"])] = SessionStep.from_dict(r)
-        append_jsonl(log_path, {"event": "resume", "done": len(done), "time_utc": _now()})
+        # a step whose bend was sent but not recorded may have bent the wire at the pin:
+        # it is bent again only after fresh wire is fed past that bend
+        interrupted = {int(r["step"]) for r in records if r.get("event") == "bend"} - set(done)
+        append_jsonl(
+            log_path,
+            {
+                "event": "resume",
+                "done": len(done),
+                "interrupted": sorted(interrupted),
+                "time_utc": _now(),
+            },
+        )
     else:
         append_jsonl(
             log_path,
@@ -419,17 +445,6 @@ def run_session(
         if stop_after is not None and len(bent) >= stop_after:
             raise SessionInterrupted(f"stopped after {len(bent)} bends as asked")
         pin = round(nominal_pin_for_loaded_deg(angle, direction, params), 3)  # as sent
-        append_jsonl(
-            log_path,
-            {
-                "event": "bend",
-                "step": step,
-                "direction": direction,
-                "target_deg": angle,
-                "commanded_pin_deg": pin,
-                "time_utc": _now(),
-            },
-        )
         bent.append(step)
         try:
             record = _bend_and_measure(
@@ -444,6 +459,8 @@ def run_session(
                 config=config,
                 kit=kit,
                 options=options,
+                log_path=log_path,
+                refeed=step in interrupted,
             )
         except CvmeasureError as exc:
             append_jsonl(log_path, {"event": "failed", "step": step, "error": str(exc)})
@@ -464,6 +481,10 @@ def run_session(
         )
     except ValueError as exc:
         raise InputError(log_path, f"cannot fit a calibration to this session: {exc}") from None
+    calibration = replace(
+        calibration,
+        provenance={**calibration.provenance, "warnings": session_warnings_json(steps)},
+    )
     return SessionResult(
         steps=steps,
         calibration=calibration,
@@ -471,6 +492,12 @@ def run_session(
         resumed=resumed,
         log_path=log_path,
     )
+
+
+def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:
+    """Every photo warning of a session for the calibration's ``provenance.warnings``:
+    each warning's JSON object (code, message, subject) with the ``photo`` it was given on."""
+    return [{**w.to_json(), "photo": photo} for s in steps for photo, w in s.photo_warnings()]
 
 
 def _bend_and_measure(
@@ -486,11 +513,39 @@ def _bend_and_measure(
     config: SessionConfig,
     kit: Any,
     options: Mapping[str, Any],
+    log_path: Path,
+    refeed: bool = False,
 ) -> SessionStep:
-    """Feed, bend, photograph loaded, release, photograph unloaded, measure both."""
+    """Feed, bend, photograph loaded, release, photograph unloaded, measure both.
+
+    The log gets ``fed`` once the fresh wire is out (``refeed`` true when the step's
+    previous attempt was cut after its bend was sent: that wire may be bent) and
+    ``bend`` before the bend is sent, so a resume knows which wire a bend was on.
+    """
     from cvmeasure.markers.measure import measure_photo_file
 
     machine.run(session_gcode("feed", config))
+    append_jsonl(
+        log_path,
+        {
+            "event": "fed",
+            "step": step,
+            "feed_mm": config.feed_mm,
+            "refeed": refeed,
+            "time_utc": _now(),
+        },
+    )
+    append_jsonl(
+        log_path,
+        {
+            "event": "bend",
+            "step": step,
+            "direction": direction,
+            "target_deg": angle,
+            "commanded_pin_deg": pin,
+            "time_utc": _now(),
+        },
+    )
     machine.run(session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction))
     shot_loaded = camera.capture(_photo_name(step, direction, angle, "loaded"))
     machine.run(session_gcode("release", config))
