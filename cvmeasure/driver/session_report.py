@@ -59,7 +59,11 @@ def _figure_png(calibration: Calibration) -> bytes:
                 continue
             score = curve.loao_rmse_deg
             label = f"{model} (LOAO RMS {score:.3f} deg)" if score is not None else model
-            top.plot(grid, curve.springback_deg(grid), color=_COLOURS[model], label=label)
+            # drawn over the curve's own domain: a repeated angle's extreme sample can lie
+            # just outside the range the curve was fitted over (per-angle means)
+            lo, hi = curve.domain_deg
+            inside = grid[(grid >= lo) & (grid <= hi)]
+            top.plot(inside, curve.springback_deg(inside), color=_COLOURS[model], label=label)
             if curve.loao_errors_deg:
                 bottom.plot(
                     np.array(curve.final_deg[1:-1]),

@@ -190,3 +190,17 @@ def test_a_job_cut_short_is_refused(tmp_path, capsys):
     assert main(["bend", str(job), "--port", "sim://", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert str(job) in err and "looks cut short" in err
+
+
+def test_fit_plots_a_calibration_whose_extreme_sample_is_outside_the_fitted_range(tmp_path):
+    # repeated angles with measurement noise: the curve is fitted over per-angle means, so
+    # the smallest single final angle lies below its domain; the plot must still be drawn
+    plan = tmp_path / "plan.csv"
+    angles = [40, 60, 80, 100, 120]
+    rows = [(i + 1, s * a) for i, (a, s) in enumerate((a, s) for s in (1, -1) for a in angles * 3)]
+    plan.write_text("trial,commanded_pin_deg\n" + "".join(f"{t},{c}\n" for t, c in rows))
+    trials = tmp_path / "trials.csv"
+    assert main(["simulate", str(plan), "-o", str(trials), "--noise-deg", "0.1"]) == 0
+    out, png = tmp_path / "cal.json", tmp_path / "cal.png"
+    assert main(["fit", str(trials), "-o", str(out), "--plot", str(png)]) == 0
+    assert out.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
