@@ -1,123 +1,121 @@
-"""Closed loop in simulation: bend, photograph, measure, correct, bend the next part (issue 15).
+"""Closed loop in simulation: design file -> job -> bent part -> photo -> correction (issues 15, 36).
 
-The machine is the TinyG double (:class:`cvmeasure.driver.double.FakeTinyG`) with
-effects hidden from the tool: gear backlash, a home offset, lost steps bend
-after bend (drift) and a wire whose yield stress differs from the model's
-(springback not the calibrated one). The tool starts from a default
-calibration (the nominal simulated bender, ``high`` mode angles, no effects),
-streams each job to the double, and the photo lab renders the part the double
-actually bent (:meth:`FakeTinyG.wire_shape_mm`, through
-``cvmeasure_datasets.render_part_photo``); ``measure_part`` measures it through
-a camera calibrated from rendered board photos (``benchmarks/_calibrated.py``)
-and :func:`cvmeasure.material.correct.correct_from_part` corrects the
-calibration and the job for the next part. The double's executed bends are
-the truth that scores every part; the tool never sees them.
+Designs of every shape an operator draws (equal and unequal chords, arcs, S-curves,
+the seed's half circle and saddle; ``benchmarks/_loop_shapes.py``) are planned as
+``cvmeasure gcode`` plans them (:mod:`cvmeasure.wireplan`) and streamed to the TinyG
+double (:class:`cvmeasure.driver.double.FakeTinyG`) with effects hidden from the tool:
+gear backlash, a home offset, lost steps bend after bend (drift) and a wire whose yield
+stress differs from the model's. The photo lab renders the part the double actually
+bent (:meth:`FakeTinyG.wire_shape_mm`, through ``cvmeasure_datasets.render_part_photo``);
+``measure_part`` measures it, against the polygon in the job's header, through a camera
+calibrated from rendered board photos (``benchmarks/_calibrated.py``) and
+:func:`cvmeasure.material.correct.correct_from_part` corrects the calibration and the
+job for the next part. The double's executed bends are the truth that scores every
+part; the tool never sees them.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
 from benchmarks import Metric, Table, finish
+from benchmarks._loop_shapes import SHALLOW_ANGLES, draw_designs, hidden_machine, seed_designs
 
 SECTION = "Closed loop: measure the finished part, correct the next one"
 
 #: Every vertex within this of the design (deg) after at most 2 corrections.
 TARGET_DEG = 0.1
-#: On at least this share of random designs.
+#: On at least this share of designs.
 TARGET_SHARE = 0.95
 #: The seed paper's half circle and saddle (relative %, absolute deg of the bend per chord).
 SEED_BASELINE = {"half circle": (7.14, 0.64), "saddle": (45.68, 1.59)}
+#: The seed's tolerance of a part: 1 deg absolute and 10 % relative, of the bend per chord.
+SEED_TOLERANCE = (1.0, 10.0)
 
 
-def default_calibration():
-    """The calibration a fresh machine starts from: the nominal simulated bender, no effects."""
+def session_calibration(machine, effects, *, noise_deg=0.05, seed=0):
+    """A calibration session of the shallow angle list run on the machine, as measured.
+
+    The session bends every angle of :data:`SHALLOW_ANGLES` both ways (pins from the
+    tool's nominal geometry, as ``cvmeasure session --angles`` does) on the held-out
+    machine; its loaded and final bends are read with ``noise_deg`` standard noise (the
+    session's camera). A bend below the noise (the pin never reached the wire) is no bend.
+    """
+    from benchmarks.heldout.bender_physics import simulate_trials
     from cvmeasure.contracts import Trial
     from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-    from cvmeasure.material.calibration import MODES, fit_calibration
-    from cvmeasure.sim import simulate
+    from cvmeasure.material.calibration import fit_calibration
 
-    angles = MODES["high"]
+    angles = SHALLOW_ANGLES
     pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]
-    r = simulate(pins)
+    rows = simulate_trials(pins, machine, effects, noise_deg=noise_deg, seed=seed)
     samples = [
         Trial(
-            trial=str(i),
-            commanded_pin_deg=float(p),
-            loaded_bend_deg=float(r.loaded_bend_deg[i]),
-            unloaded_bend_deg=float(r.unloaded_bend_deg[i]),
+            trial=str(r.trial),
+            commanded_pin_deg=float(r.commanded_pin_deg),
+            loaded_bend_deg=float(r.loaded_bend_deg),
+            unloaded_bend_deg=float(r.unloaded_bend_deg),
             target_deg=float(angles[i % len(angles)]),
         )
-        for i, p in enumerate(pins)
+        for i, r in enumerate(rows)
+        if abs(r.loaded_bend_deg) > 4.0 * noise_deg
+        and np.sign(r.loaded_bend_deg) == np.sign(r.commanded_pin_deg)
     ]
-    return fit_calibration(samples, mode="high", name="default (nominal machine)")
-
-
-def hidden_machine(rng: np.random.Generator) -> tuple[object, tuple]:
-    """A machine unlike the model: wire, backlash, home offset, drift (drawn)."""
-    from cvmeasure.sim import Effect, SimParams
-
-    params = SimParams(yield_mpa=float(rng.uniform(240.0, 330.0)))
-    effects = (
-        Effect("backlash", float(rng.uniform(0.5, 2.0))),
-        Effect("offset", float(rng.uniform(-1.5, 1.5))),
-        Effect("drift", float(rng.uniform(0.005, 0.04))),
+    return fit_calibration(
+        samples, mode="custom", angles_deg=angles, name="shallow session on this machine"
     )
-    return params, effects
 
 
-def random_design(rng: np.random.Generator) -> np.ndarray:
-    """Equal chords (16-22 mm, 6-10 of them) with bends of 3-25 deg of either sign."""
-    n = int(rng.integers(6, 11))
-    chord = float(rng.uniform(16.0, 22.0))
-    bends = rng.uniform(3.0, 25.0, n - 1) * rng.choice([-1.0, 1.0], n - 1)
-    heading = np.concatenate([[0.0], np.cumsum(np.radians(bends))])
-    steps = chord * np.column_stack([np.cos(heading), np.sin(heading)])
-    pts = np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)])
-    return pts - pts.mean(axis=0)
-
-
-def bend_on_double(lines, params, effects) -> tuple[np.ndarray, np.ndarray]:
-    """Stream a job to a freshly homed double; (executed final bends (machine deg), wire shape)."""
+def bend_on_machine(lines, machine, effects, seed) -> tuple[np.ndarray, np.ndarray]:
+    """Stream a job to a freshly homed TinyG double (the stream must go through), and bend it
+    on the held-out machine: (true final bends (machine deg), the part's centreline (mm))."""
+    from benchmarks.heldout.bend_job import bend_job
     from cvmeasure.driver.double import FakeTinyG
     from cvmeasure.driver.stream import stream_job
     from cvmeasure.driver.transport import open_link
 
-    with FakeTinyG(speedup=2000.0, sim_params=params, sim_effects=effects) as board:
+    with FakeTinyG(speedup=2000.0) as board:
         link = open_link(board.port)
         try:
             stream_job(link, list(lines), source="job")
         finally:
             link.close()
-        bends = np.array([b.unloaded_bend_deg for b in board.machine_state().bends])
-        return bends, board.wire_shape_mm()
+    part = bend_job("\n".join(lines), machine, effects, seed)
+    centre = part.centreline_mm[:: max(1, int(round(0.5 / 0.25)))]
+    return np.asarray(part.bend_deg, float), np.vstack((centre, part.centreline_mm[-1:]))
 
 
-def run_design(name, vertices_mm, parts, *, params, effects, camera, scale, seed):
-    """Bend ``parts`` parts of one design, correcting after each; per-part records."""
+def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
+    """Bend ``parts`` parts of one design file, correcting after each; per-part records.
+
+    The chain an operator runs: the design is planned and written as a job (``gcode``);
+    the job streams to the double; the part is photographed, measured against the
+    polygon in the job's header (``part``/``correct --job``) and the next job written.
+    """
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.design import DesignPath
     from cvmeasure.driver.gcode import bend_list, gcode_lines
-    from cvmeasure.material.correct import (
-        correct_from_part,
-        corrected_pin_commands,
-        job_vertex_offsets,
-    )
+    from cvmeasure.material.correct import correct_from_part, corrected_pin_commands
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.wireplan import load_plan, plan_from_job
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    design = DesignPath(vertices_mm, closed=False, kind="polyline", element=name)
-    bl = bend_list(design.chords(len(vertices_mm) - 1), source=name)
+    plan = load_plan(design.path, divisions=design.divisions)
+    name = design.name
+    bl = bend_list(plan.vertices_mm, source=name)
     target = bl.bends_deg
-    cal = default_calibration()
     pins = corrected_pin_commands(cal, target)
+    lines = gcode_lines(bl, pins, title=name)
+    header = plan.header_lines()
     records = []
     for k in range(parts):
-        made, shape = bend_on_double(gcode_lines(bl, pins, title=name), params, effects)
+        made, shape = bend_on_machine(lines, params, effects, seed * 1000 + k)
         photo = cvmeasure_datasets.render_part_photo(
             # the part lies design face up: the board frame has y down, the design y up
             part=cvmeasure_datasets.polyline_part(shape * np.array([1.0, -1.0])),
@@ -125,120 +123,175 @@ def run_design(name, vertices_mm, parts, *, params, effects, camera, scale, seed
             seed=seed * 1000 + k,
             scale=scale,
         )
-        # the tool knows the job it sent: its chord count (the photo's may miss tiny bends)
+        # the tool reads the polygon bent from the job it sent (its header)
+        ref = plan_from_job("\n".join([*header, *lines]), name)
         m = measure_part(
             photo.bgr,
             board,
             camera,
-            divisions=len(target) + 1,
-            design=design,
+            design=ref.as_path(),
             source=f"{name} part {k}",
             allow_mirror=False,  # the part lies as it left the machine
+            reference_mm=ref.vertices_mm,
         )
-        cal, corr, job = correct_from_part(cal, m, design, design_name=name)
+        cal, corr, job = correct_from_part(
+            cal, m, ref.as_path(), design_name=name, reference_mm=ref.vertices_mm
+        )
         measured = np.asarray(corr.measured_deg)
         bends = m.comparison.bends
         records.append(
             {
                 "design": name,
+                "family": design.family,
+                "unequal": design.unequal,
                 "part": k,
+                "bends": len(target),
+                "chords_mm": [round(float(c), 3) for c in plan.chords_mm],
                 "true_err_deg": (made - target).tolist(),
                 "worst_true_err_deg": float(np.max(np.abs(made - target))),
                 "meas_err_deg": (measured - made).tolist(),
                 "made_deg": made.tolist(),
                 "seed_relative_pct": abs(bends.seed_relative_error_pct),
                 "seed_absolute_deg": abs(bends.seed_absolute_error_deg),
+                "true_segment_err_deg": _segment_error(plan.vertices_mm, made, target),
                 "response_ratio": corr.response_ratio,
+                # the polygon the part was reported against is the one bent
+                "same_polygon": bool(
+                    np.allclose(-np.asarray(bends.design_bend_deg), target, atol=1e-3)
+                ),
+                "feeds_kept": bool(
+                    np.allclose(
+                        [st.feed_mm for st in job.bends.steps],
+                        [st.feed_mm for st in bl.steps],
+                        atol=1e-9,
+                    )
+                ),
             }
         )
-        pins = job.pin_deg
-        assert np.allclose(
-            pins, corrected_pin_commands(cal, target, job_vertex_offsets(cal, name, len(target)))
-        )
+        lines = job.lines
     return records
+
+
+def _segment_error(vertices_mm, made, target) -> tuple[float, float]:
+    """The seed's error of the bend per chord (arc / N), truth: (absolute deg, relative %)."""
+    n = len(vertices_mm) - 1
+    want = float(np.sum(target)) / n
+    got = float(np.sum(made)) / n
+    return abs(want - got), 100.0 * abs(want - got) / abs(want) if want else 0.0
+
+
+def _task(job):
+    """One design's loop in a worker process: its session, then its parts."""
+    design, parts, machine, effects, seed, camera, scale = job
+    cal = session_calibration(machine, effects, seed=seed)
+    return run_design(
+        design, parts, params=machine, effects=effects, cal=cal,
+        camera=camera, scale=scale, seed=seed,
+    )  # fmt: skip
+
+
+def _run_all(args, folder):
+    from concurrent.futures import ProcessPoolExecutor
+
+    from benchmarks._calibrated import calibrated_camera
+
+    scale = args.scale
+    camera, calibration = calibrated_camera(scale)
+    rng = np.random.default_rng(args.seed)
+    counts = (
+        {"equal": 2, "unequal": 3, "arc": 1, "s": 1}
+        if args.quick
+        else {"equal": 8, "unequal": 20, "arc": 5, "s": 5}
+    )
+    stability = 4 if args.quick else 20
+    designs = draw_designs(rng, folder, counts)
+    jobs = []
+    for i, design in enumerate(seed_designs(folder)):
+        machine, effects = hidden_machine(rng)
+        # the saddle (the shallower, harder part) also runs the stability check
+        parts = 3 + stability if design.name == "saddle" else 3
+        jobs.append((design, parts, machine, effects, i, camera, scale))
+    for j, design in enumerate(designs):
+        machine, effects = hidden_machine(rng)
+        jobs.append((design, 3, machine, effects, 100 + j, camera, scale))
+    # designs are independent (each its own machine and calibration): one per worker
+    with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
+        done = []
+        for k, records in enumerate(pool.map(_task, jobs), start=1):
+            done.append(records)
+            worst = records[min(2, len(records) - 1)]["worst_true_err_deg"]
+            print(f"[{k}/{len(jobs)}] {records[0]['design']}: part 2 worst {worst:.3f} deg",
+                  file=sys.stderr, flush=True)  # fmt: skip
+    runs = {d[0].name: r for d, r in zip(jobs[:2], done[:2], strict=True)}
+    return runs, done[2:], calibration, stability
 
 
 def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.closed_loop", description=__doc__)
-    p.add_argument("--quick", action="store_true", help="fewer designs and parts (< 2 min)")
-    p.add_argument("--seed", type=int, default=15, help="seed of the machines and designs")
+    p.add_argument("--quick", action="store_true", help="fewer designs and parts (< 3 min)")
+    p.add_argument("--seed", type=int, default=36, help="seed of the machines and designs")
+    p.add_argument("--scale", type=float, default=0.4, help="photo scale (1 = full size)")
+    p.add_argument("--workers", type=int, default=6, help="designs run in parallel processes")
     args = p.parse_args(argv)
-    import cvmeasure_datasets
-    from benchmarks._calibrated import calibrated_camera
-
-    scale = 0.5
-    camera, calibration = calibrated_camera(scale)
-    randoms = 5 if args.quick else 40
-    stability = 4 if args.quick else 20
-    rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
-    seed_parts = {
-        "half circle": cvmeasure_datasets.arc_part(85.0, 180.0, 20).vertices_mm,
-        "saddle": cvmeasure_datasets.saddle_part(200.0, 20.0, 13).vertices_mm,
-    }
-    runs: dict[str, list[dict]] = {}
-    for i, (name, verts) in enumerate(seed_parts.items()):
-        params, effects = hidden_machine(rng)
-        runs[name] = run_design(
-            name,
-            verts,
-            3 + 4 + stability,
-            params=params,
-            effects=effects,
-            camera=camera,
-            scale=scale,
-            seed=i,
-        )
-    random_runs = []
-    for j in range(randoms):
-        params, effects = hidden_machine(rng)
-        random_runs.append(
-            run_design(
-                f"random {j}",
-                random_design(rng),
-                3,
-                params=params,
-                effects=effects,
-                camera=camera,
-                scale=scale,
-                seed=100 + j,
-            )
-        )
+    with tempfile.TemporaryDirectory() as tmp:
+        runs, loop_runs, calibration, stability = _run_all(args, Path(tmp))
     seconds = time.perf_counter() - t0
-    within = [r[2]["worst_true_err_deg"] <= TARGET_DEG for r in random_runs]
+    every = [*runs.values(), *loop_runs]
+    within = [r[2]["worst_true_err_deg"] <= TARGET_DEG for r in every]
     share = float(np.mean(within))
-    meas = np.concatenate(
-        [np.abs(rec["meas_err_deg"]) for run in [*runs.values(), *random_runs] for rec in run]
-    )
+    unequal = [r[2]["worst_true_err_deg"] <= TARGET_DEG for r in loop_runs if r[0]["unequal"]]
+    meas = np.concatenate([np.abs(rec["meas_err_deg"]) for run in every for rec in run])
     noise_p95 = float(np.percentile(meas, 95))
-    # stability: parts 7.. of the seed designs against part 6 (converged after 6 corrections)
+    # stability: parts 3.. of the seed designs against part 2 (after 2 corrections)
     changes = []
     for run in runs.values():
-        ref = np.asarray(run[6]["made_deg"])
-        changes += [float(np.max(np.abs(np.asarray(r["made_deg"]) - ref))) for r in run[7:]]
+        if len(run) <= 3:
+            continue
+        ref = np.asarray(run[2]["made_deg"])
+        changes += [float(np.max(np.abs(np.asarray(r["made_deg"]) - ref))) for r in run[3:]]
     stab = max(changes)
+    other_polygon = sum(not rec["same_polygon"] for run in every for rec in run)
+    feeds_changed = sum(not rec["feeds_kept"] for run in every for rec in run)
     metrics = [
         Metric(
-            "random designs with every vertex within 0.1 deg after 2 corrections",
+            f"designs of every shape ({len(every)}, {len(unequal)} of unequal chords) with every "
+            "vertex within 0.1 deg after 2 corrections",
             100.0 * share,
             "%",
             target=f">= {100 * TARGET_SHARE:.0f}",
-            met=share >= TARGET_SHARE,
+            met=share >= TARGET_SHARE and len(every) >= (40 if not args.quick else 0),
         ),
         Metric(
-            "half circle (20 chords, 9 deg): worst vertex after 2 corrections",
-            runs["half circle"][2]["worst_true_err_deg"],
-            "deg",
-            target=f"<= {TARGET_DEG}",
-            met=runs["half circle"][2]["worst_true_err_deg"] <= TARGET_DEG,
+            "unequal-chord designs within 0.1 deg after 2 corrections",
+            100.0 * float(np.mean(unequal)),
+            "%",
+            target=f">= {100 * TARGET_SHARE:.0f}",
+            met=float(np.mean(unequal)) >= TARGET_SHARE,
         ),
-        Metric(
-            "saddle (13 chords, 3.48 deg): worst vertex after 2 corrections",
-            runs["saddle"][2]["worst_true_err_deg"],
-            "deg",
-            target=f"<= {TARGET_DEG}",
-            met=runs["saddle"][2]["worst_true_err_deg"] <= TARGET_DEG,
-        ),
+    ]
+    for name, run in runs.items():
+        seg_abs, seg_rel = run[0]["true_segment_err_deg"]
+        first_ok = seg_abs <= SEED_TOLERANCE[0] or seg_rel <= SEED_TOLERANCE[1]
+        metrics.append(
+            Metric(
+                f"{name}: first part's bend per chord error (session on the machine), deg",
+                seg_abs,
+                "deg",
+                target=f"<= {SEED_TOLERANCE[0]:g} deg or {SEED_TOLERANCE[1]:g} %",
+                met=first_ok,
+            )
+        )
+        metrics.append(
+            Metric(
+                f"{name}: worst vertex after 2 corrections",
+                run[2]["worst_true_err_deg"],
+                "deg",
+                target=f"<= {TARGET_DEG}",
+                met=run[2]["worst_true_err_deg"] <= TARGET_DEG,
+            )
+        )
+    metrics += [
         Metric(
             f"stability: largest change of any vertex over {stability} further corrections",
             stab,
@@ -246,6 +299,20 @@ def main(argv: list[str] | None = None) -> dict:
             target=f"<= measurement noise (p95 {noise_p95:.3f} deg)",
             met=stab <= noise_p95,
         ),
+        Metric(
+            "parts reported against a polygon other than the one bent",
+            other_polygon,
+            "",
+            target="0",
+            met=other_polygon == 0,
+        ),  # fmt: skip
+        Metric(
+            "corrected jobs whose feeds differ from the design's",
+            feeds_changed,
+            "",
+            target="0",
+            met=feeds_changed == 0,
+        ),  # fmt: skip
         Metric("measurement noise of a vertex bend, p95 |measured - executed|", noise_p95, "deg"),
         Metric("wall time", seconds, "s"),
     ]
@@ -259,23 +326,23 @@ def main(argv: list[str] | None = None) -> dict:
                 ab,
                 run[0]["seed_relative_pct"],
                 run[0]["seed_absolute_deg"],
-                run[2]["seed_relative_pct"],
-                run[2]["seed_absolute_deg"],
+                run[0]["true_segment_err_deg"][0],
                 run[0]["worst_true_err_deg"],
                 run[1]["worst_true_err_deg"],
                 run[2]["worst_true_err_deg"],
             ]
         )
-    random_rows = [
+    loop_rows = [
         [
             run[0]["design"],
-            len(run[0]["made_deg"]),
+            run[0]["bends"],
+            f"{min(run[0]['chords_mm']):.1f}-{max(run[0]['chords_mm']):.1f}",
             run[0]["worst_true_err_deg"],
             run[1]["worst_true_err_deg"],
             run[2]["worst_true_err_deg"],
             run[1]["response_ratio"],
         ]
-        for run in random_runs
+        for run in loop_runs
     ]
     return finish(
         __file__,
@@ -285,7 +352,7 @@ def main(argv: list[str] | None = None) -> dict:
         metrics=metrics,
         tables=[
             Table(
-                "the seed's parts: the seed's errors (its Table, bend per chord) beside ours; "
+                "the seed's parts: the seed's errors (its Table, bend per chord) beside ours (measured, and true); "
                 "worst vertex |executed - design| per part (deg)",
                 [
                     "part",
@@ -293,32 +360,42 @@ def main(argv: list[str] | None = None) -> dict:
                     "seed_abs_deg",
                     "ours_part0_rel_%",
                     "ours_part0_abs_deg",
-                    "ours_part2_rel_%",
-                    "ours_part2_abs_deg",
+                    "true_part0_abs_deg",
                     "worst_part0",
                     "worst_part1",
                     "worst_part2",
                 ],
                 seed_rows,
-            ),
+            ),  # fmt: skip
             Table(
-                "random designs: worst vertex |executed - design| (deg) per part",
-                ["design", "bends", "part0", "part1", "part2", "response_ratio"],
-                random_rows,
+                "designs of every shape: worst vertex |executed - design| (deg) per part",
+                ["design", "bends", "chords_mm", "part0", "part1", "part2", "response_ratio"],
+                loop_rows,
             ),
         ],
         notes=[
-            "hidden machine per design (seeded): wire yield 240-330 MPa (model 280), backlash "
-            "0.5-2 deg, home offset -1.5..1.5 deg, drift 0.005-0.04 deg/bend; a fresh double "
-            "(homed) per part",
-            "part 0 is bent with the default calibration, part 1 after 1 correction, part 2 "
-            "after 2; the errors are the double's executed final bends against the design "
-            "(truth), never shown to the tool",
-            f"photos rendered at scale {scale}, measured through a camera calibrated from "
-            f"{calibration['views']} rendered board photos (RMS {calibration['rms_px']:.3f} px); "
-            "the seed's relative/absolute errors are of the bend per chord (arc / N) as in its "
-            "Source code 1, measured by our part measurement on our parts",
-            "stability: the executed bends of parts 7.. compared with part 6 of the same job",
+            "designs are SVG files (mm documents) planned by cvmeasure.wireplan exactly as "
+            "`cvmeasure gcode` plans them: polylines keep their corners (equal chords 16-22 mm; "
+            "unequal chords 15-40 mm, bends 3-60 deg of both signs), arcs and S-curves (two "
+            "tangent arcs) are divided into equal chords >= 12 mm; the seed's half circle "
+            "(R 100 mm, --divisions 20) and saddle (its 13-chord polygon)",
+            "the machine is the held-out bender model (benchmarks/heldout, bend_job: its own "
+            "wire, die and drive physics, nothing shared with cvmeasure.sim), one per design "
+            "(seeded) with hidden backlash 0.5-2 deg, home offset -1.5..1.5 deg, drift "
+            "0.005-0.04 deg/bend and springback asymmetry -0.05..0.05; each job also streams "
+            "through the TinyG double; a freshly homed machine per part",
+            "every design starts from a calibration session of the shallow angle list "
+            f"({', '.join(f'{a:g}' for a in SHALLOW_ANGLES)} deg, both ways) run on its own "
+            "hidden machine, its bends read with 0.05 deg noise",
+            "part 0 is bent with the starting calibration, part 1 after 1 correction, part 2 "
+            "after 2; errors are the double's executed final bends against the plan (truth), "
+            "never shown to the tool; each part is measured against the polygon in the header "
+            "of the job it was bent from",
+            f"photos rendered at scale {args.scale:g} (reduced to keep the loop within the "
+            f"session on a shared 2-core machine), measured through a camera calibrated from "
+            f"{calibration['views']} rendered board photos (RMS {calibration['rms_px']:.3f} px)",
+            f"stability: the saddle's true bends of parts 3..{2 + stability} (after 3 to "
+            f"{2 + stability} corrections) compared with part 2's",
         ],
     )
 

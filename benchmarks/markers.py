@@ -73,7 +73,7 @@ def _ca_rows(n: int, scale: float, seed0: int, ca: float, camera) -> list[list]:
         for mode in errs:
             edge = None if mode == "auto" else mode
             res = measure_machine_photo(photo.bgr, default_kit(), camera=camera, edge=edge)
-            flagged += mode == "auto" and any("chromatic" in w for w in res.warnings)
+            flagged += mode == "auto" and any(w.code == "lateral_colour" for w in res.warnings)
             for key in ("pin_angle_deg", "bend_angle_deg"):
                 errs[mode].append(abs(getattr(res, key) - photo.truth[key]))
     return [

@@ -124,7 +124,12 @@ def _score(res, truth) -> dict:
         err = (float(getattr(res, key) - truth[key]) + 180.0) % 360.0 - 180.0
         errs.append(err)
         zs.append(abs(err) / max(float(res.uncertainty_deg[key]), 1e-12))
-    return {"refused": None, "errors": errs, "z": zs, "warnings": list(res.warnings)}
+    return {
+        "refused": None,
+        "errors": errs,
+        "z": zs,
+        "warnings": [str(w) for w in res.warnings if w.code != "heights_nominal"],
+    }
 
 
 def _worst(v):
@@ -230,7 +235,7 @@ def _coverage_rows(args, scale, camera, kit, n):
                 acc[way]["refused"] += 1
                 continue
             a = acc[way]
-            a["warned"] += any("marker heights" not in w for w in res.warnings)
+            a["warned"] += any(not w.code.startswith("heights_") for w in res.warnings)
             for key in KEYS:
                 err = (float(getattr(res, key) - photo.truth[key]) + 180.0) % 360.0 - 180.0
                 a["e"].append(err)

@@ -2,8 +2,11 @@
 
 One A4 page: for each role, ``copies`` discs of the kit's colour on their
 white rings (a thin grey cut line at the ring's outer edge), labelled with the
-role, colour name, sRGB, a naive CMYK breakdown for the print shop and the
-sizes; the kit JSON; and a 100 mm print-check ruler. Print at 100 % ("actual
+role, colour name, sRGB, a naive CMYK breakdown for the print shop, the
+sizes and, for a kit with heights, the height of each disc's face above the top
+plate (the spec: markers stand on caps at those heights; a kit without heights
+is flat stickers, and its sheet says so); the kit JSON; and a 100 mm
+print-check ruler. Print at 100 % ("actual
 size") and check the ruler.
 
 The kit's colours are moderate-chroma sRGB values chosen to print on ordinary
@@ -67,6 +70,17 @@ def kit_sheet_positions_mm(kit: MarkerKit, copies: int = 3) -> list[tuple[str, f
     return out
 
 
+def _mounting(kit: MarkerKit) -> str:
+    """How to mount the cut markers: at the kit's heights, or flat (a kit without heights)."""
+    if kit.has_heights:
+        return (
+            "\nglue each on its cap: its face stands at the height printed beside it above "
+            "the top plate\n(measure yours: cvmeasure markers heights); for flat stickers print "
+            "the flat kit instead (targets markers --flat-kit)"
+        )
+    return "\nglue flat on the top plate, all markers in one plane (a flat kit: no heights)"
+
+
 def render_kit_sheet(
     kit: MarkerKit, fmt: SheetFormat, *, dpi: float = 300.0, copies: int = 3
 ) -> bytes:
@@ -92,8 +106,7 @@ def render_kit_sheet(
     ax.text(
         _MARGIN_MM,
         _MARGIN_MM,
-        f"cvmeasure marker kit '{kit.name}' -- cut along the grey circles; "
-        "glue flat, all markers in one plane",
+        f"cvmeasure marker kit '{kit.name}' -- cut along the grey circles; " + _mounting(kit),
         fontsize=7,
         va="top",
     )
@@ -115,7 +128,8 @@ def render_kit_sheet(
             f"{m.role} -- {m.name}\n"
             f"sRGB {list(m.srgb)}, CIELAB D65 {[round(float(v), 1) for v in m.lab_d65]}\n"
             f"naive CMYK {c:g}/{mg:g}/{ye:g}/{k:g} %\n"
-            f"disc {m.diameter_mm:g} mm on a {m.ring_mm:g} mm white ring",
+            f"disc {m.diameter_mm:g} mm on a {m.ring_mm:g} mm white ring"
+            + (f", face {m.height_mm:g} mm above the plate" if m.height_mm is not None else ""),
             fontsize=6.5,
             va="center",
         )

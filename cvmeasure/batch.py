@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 
 from cvmeasure import __version__
 from cvmeasure.errors import CvmeasureError, InputError
+from cvmeasure.extras import require
 from cvmeasure.fileio import append_jsonl, atomic_write_text, read_jsonl, repair_jsonl_tail
 
 if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used, not on import
@@ -586,10 +587,7 @@ def _run_processes(
 
 
 def _dask_client(scheduler: str) -> Any:
-    try:
-        from distributed import Client
-    except ImportError as exc:  # pragma: no cover - dask is a dependency
-        raise CvmeasureError(f"--scheduler needs dask[distributed]: {exc}") from None
+    Client = require("distributed", "cluster", "--scheduler").Client
     try:
         return Client(scheduler, timeout="20s", set_as_default=False)
     except (OSError, TimeoutError) as exc:

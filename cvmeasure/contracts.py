@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from cvmeasure.camera import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.kit import ROLES
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "BLOCKS",
@@ -100,7 +101,7 @@ class Trial:
     photo_unloaded: str | None = None
     source: str = "csv"
     extra: Mapping[str, str] = field(default_factory=dict)
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[StageWarning, ...] = ()
 
     def __post_init__(self) -> None:
         for name in (
@@ -235,7 +236,7 @@ class Trial:
         if self.extra:
             d["extra"] = dict(self.extra)
         if self.warnings:
-            d["warnings"] = list(self.warnings)
+            d["warnings"] = [w.to_json() for w in self.warnings]
         return d
 
     @classmethod
@@ -261,7 +262,7 @@ class Trial:
             photo_unloaded=d.get("photo_unloaded"),
             source=str(d.get("source", "csv")),
             extra={str(k): str(v) for k, v in (d.get("extra") or {}).items()},
-            warnings=tuple(str(w) for w in d.get("warnings") or ()),
+            warnings=tuple(StageWarning.from_json(w) for w in d.get("warnings") or ()),
         )
 
 
@@ -609,7 +610,7 @@ class MachinePhotoResult:
     bend_angle_deg: float
     markers: Mapping[str, MarkerMeasurement]
     uncertainty_deg: Mapping[str, float]
-    warnings: tuple[str, ...] = ()
+    warnings: tuple[StageWarning, ...] = ()
     photo: str | None = None
     method: str = "ours"
     space: str = "lab"
@@ -632,7 +633,7 @@ class MachinePhotoResult:
                     if r in self.markers
                 },
                 "uncertainty_deg": {k: round(v, 6) for k, v in self.uncertainty_deg.items()},
-                "warnings": list(self.warnings),
+                "warnings": [w.to_json() for w in self.warnings],
             }
         )
         if self.frame != "image":
@@ -657,7 +658,7 @@ class MachinePhotoResult:
                     for role, m in dict(d["markers"]).items()
                 },
                 uncertainty_deg={k: float(v) for k, v in dict(d["uncertainty_deg"]).items()},
-                warnings=tuple(str(w) for w in d.get("warnings", ())),
+                warnings=tuple(StageWarning.from_json(w) for w in d.get("warnings", ())),
                 photo=d.get("photo"),
                 method=str(d.get("method", "ours")),
                 frame=str(d.get("frame", "image")),

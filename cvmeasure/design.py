@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -138,6 +138,12 @@ class DesignPath:
         The element it came from, for messages (``"<circle id=c1>"``, ``"DXF ARC #2A"``).
     arcs : tuple of DesignArc
         The circular arcs (and circles) the path contains, in path order.
+    curve : tuple of bool, optional
+        Per segment (``points_mm[i]`` to ``points_mm[i+1]``), whether it is a piece of a
+        flattened curve (arc, Bézier, spline, ellipse) rather than a drawn straight
+        line. None: from ``kind`` (arcs, circles, ellipses and splines are curves).
+        The G-code generator divides curves into chords; straight lines keep their
+        corners (:mod:`cvmeasure.wireplan`).
     """
 
     points_mm: np.ndarray
@@ -145,10 +151,24 @@ class DesignPath:
     kind: PathKind
     element: str = ""
     arcs: tuple[DesignArc, ...] = field(default=())
+    curve: tuple[bool, ...] | None = None
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.points_mm, dtype=np.float64).reshape(-1, 2)
         object.__setattr__(self, "points_mm", pts)
+        if self.curve is not None:
+            flags = tuple(bool(c) for c in self.curve)
+            if len(flags) != max(len(pts) - 1, 0):
+                raise ValueError(f"{len(flags)} curve flags for {len(pts) - 1} segments")
+            object.__setattr__(self, "curve", flags)
+
+    @property
+    def curve_mask(self) -> np.ndarray:
+        """Per open segment (N-1,), whether it is a piece of a flattened curve."""
+        if self.curve is not None:
+            return np.array(self.curve, dtype=bool)
+        is_curve = self.kind in ("arc", "circle", "ellipse", "spline")
+        return np.full(max(len(self.points_mm) - 1, 0), is_curve, dtype=bool)
 
     @property
     def length_mm(self) -> float:
@@ -176,15 +196,21 @@ class DesignPath:
             "element": self.element,
             "points_mm": self.points_mm.tolist(),
             "arcs": [a.to_dict() for a in self.arcs],
+            "curve": self.curve_mask.tolist(),
         }
 
 
 @dataclass(frozen=True)
 class Design:
-    """A design drawing: its source file and its paths (design frame, mm)."""
+    """A design drawing: its source file, its paths (design frame, mm) and its units.
+
+    ``units`` says where the millimetres came from (``"mm (width=100mm)"``,
+    ``"px at 96 per inch (Inkscape)"``, ``"in ($INSUNITS 1)"``...).
+    """
 
     source: str
     paths: tuple[DesignPath, ...]
+    units: str = "mm"
 
     def wire(self, *, join_tolerance_mm: float = 0.05) -> DesignPath:
         """The design as ONE wire: all paths chained end to end.
@@ -203,7 +229,11 @@ class Design:
         return joined[0]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"source": self.source, "paths": [p.to_dict() for p in self.paths]}
+        return {
+            "source": self.source,
+            "units": self.units,
+            "paths": [p.to_dict() for p in self.paths],
+        }
 
 
 # ---------------------------------------------------------------------------
@@ -390,6 +420,7 @@ def join_paths(paths: Sequence[DesignPath], *, tolerance_mm: float = 0.05) -> li
         used[i] = True
         chain = [first]
         pts = first.points_mm
+        flags = first.curve_mask
         grown = True
         while grown:
             grown = False
@@ -397,19 +428,21 @@ def join_paths(paths: Sequence[DesignPath], *, tolerance_mm: float = 0.05) -> li
                 if used[j]:
                     continue
                 q = other.points_mm
+                qf = other.curve_mask
                 arcs = other.arcs
+                # a gap within the tolerance is closed by moving the joining end point
                 if np.hypot(*(q[0] - pts[-1])) <= tolerance_mm:
-                    pts = np.vstack((pts, q[1:]))
+                    pts, flags = np.vstack((pts, q[1:])), np.concatenate((flags, qf))
                 elif np.hypot(*(q[-1] - pts[-1])) <= tolerance_mm:
-                    pts = np.vstack((pts, q[::-1][1:]))
+                    pts, flags = np.vstack((pts, q[::-1][1:])), np.concatenate((flags, qf[::-1]))
                     arcs = tuple(_reversed_arc(a) for a in arcs[::-1])
                 elif np.hypot(*(q[-1] - pts[0])) <= tolerance_mm:
-                    pts = np.vstack((q[:-1], pts))
+                    pts, flags = np.vstack((q[:-1], pts)), np.concatenate((qf, flags))
                     chain.insert(0, other)
                     used[j] = grown = True
                     continue
                 elif np.hypot(*(q[0] - pts[0])) <= tolerance_mm:
-                    pts = np.vstack((q[::-1][:-1], pts))
+                    pts, flags = np.vstack((q[::-1][:-1], pts)), np.concatenate((qf[::-1], flags))
                     chain.insert(0, _reversed_path(other))
                     used[j] = grown = True
                     continue
@@ -427,6 +460,7 @@ def join_paths(paths: Sequence[DesignPath], *, tolerance_mm: float = 0.05) -> li
                     "path",
                     " + ".join(p.element for p in chain),
                     tuple(a for p in chain for a in p.arcs),
+                    tuple(bool(f) for f in flags),
                 )
             )
     return out
@@ -443,6 +477,7 @@ def _reversed_path(path: DesignPath) -> DesignPath:
         path.kind,
         path.element,
         tuple(_reversed_arc(a) for a in path.arcs[::-1]),
+        tuple(bool(f) for f in path.curve_mask[::-1]),
     )
 
 
@@ -455,6 +490,7 @@ def load_design(
     *,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     ignore_unknown: bool = False,
+    units: str | None = None,
 ) -> Design:
     """Read an SVG or DXF design (chosen by the file suffix).
 
@@ -463,6 +499,8 @@ def load_design(
     path : the ``.svg`` or ``.dxf`` file.
     tolerance_mm : largest chord-to-curve distance when curves are flattened, mm.
     ignore_unknown : skip unsupported elements (text, images, blocks) instead of failing.
+    units : the unit of a drawing that declares none (a key of :data:`UNIT_MM`); such a
+        drawing is refused without it.
 
     Raises
     ------
@@ -474,10 +512,16 @@ def load_design(
     suffix = path.suffix.lower()
     if not path.is_file():
         raise InputError(path, "design file not found")
+    if units is not None and units not in UNIT_MM:
+        raise InputError("--units", f"unknown unit {units!r}; valid: {', '.join(UNIT_MM)}")
     if suffix == ".svg":
-        design = read_svg(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
+        design = read_svg(
+            path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown, units=units
+        )
     elif suffix == ".dxf":
-        design = read_dxf(path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown)
+        design = read_dxf(
+            path, tolerance_mm=tolerance_mm, ignore_unknown=ignore_unknown, units=units
+        )
     else:
         raise InputError(path, f"unknown design format {suffix or '(no suffix)'}; use .svg or .dxf")
     check_design_coordinates(design)
@@ -546,20 +590,72 @@ _SVG_GEOMETRY_ATTRIBUTES = (
 _NON_NUMBER = re.compile(r"(?<![a-z])(nan|inf|infinity)(?![a-z])", re.IGNORECASE)
 
 
-def _refuse_non_numbers(path: Path) -> None:
-    """InputError naming the element when a geometry attribute holds nan or inf."""
+def _refuse_non_numbers(path: Path) -> dict[str, str] | None:
+    """InputError naming the element when a geometry attribute holds nan or inf.
+
+    Returns the root element's attributes (None when the XML does not parse).
+    """
     import xml.etree.ElementTree as ET
 
     try:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError, ValueError):
-        return  # the SVG parser says what is wrong
+        return None  # the SVG parser says what is wrong
     for element in root.iter():
         for name in _SVG_GEOMETRY_ATTRIBUTES:
             value = element.attrib.get(name)
             if value and _NON_NUMBER.search(value):
                 tag = element.tag.rsplit("}", 1)[-1]
                 raise InputError(path, f"<{tag}> {name}={value[:60]!r}: not a finite number")
+    return dict(root.attrib)
+
+
+#: Millimetres per unit a drawing may be in (``units=`` of the readers, ``--units``).
+UNIT_MM = {
+    "mm": 1.0,
+    "cm": 10.0,
+    "in": 25.4,
+    "pt": 25.4 / 72.0,
+    "pc": 25.4 / 6.0,
+    "px": 25.4 / 96.0,
+}
+_SVG_LENGTH = re.compile(r"^\s*([-+0-9.eE]+)\s*([a-zA-Z%]*)\s*$")
+
+
+def _svg_units(path: Path, root_attrib: Mapping[str, str], units: str | None) -> tuple[float, str]:
+    """Scale onto svgelements' 96-per-inch reading, and where the units came from.
+
+    A document whose ``width`` carries a physical unit (mm, cm, in, pt, pc) is read in
+    it (viewBox applied). One in px, or unitless, has a physical size only when the
+    program that wrote it declares it: Adobe Illustrator's px are points (72 per inch),
+    Inkscape's are CSS px (96 per inch). Otherwise ``units`` (the operator's word) or
+    an InputError: no design is read at a guessed scale.
+    """
+    width = root_attrib.get("width", "")
+    match = _SVG_LENGTH.match(width)
+    unit = match.group(2).lower() if match else ""
+    if unit in ("mm", "cm", "in", "pt", "pc", "q"):
+        return 1.0, f"{unit} (width={width.strip()})"
+    try:
+        head = path.read_text(encoding="utf-8", errors="replace")[:6000]
+    except OSError:
+        head = ""
+    described = f"width={width.strip()}" if width else "no width"
+    if "Adobe Illustrator" in head:
+        return 96.0 / 72.0, f"pt: px at 72 per inch (Adobe Illustrator, {described})"
+    if "inkscape.org/namespaces/inkscape" in head or "sodipodi" in head:
+        return 1.0, f"px at 96 per inch (Inkscape, {described})"
+    if units is not None:
+        return UNIT_MM[units] / UNIT_MM[
+            "px"
+        ], f"{units} (given by --units; the file has {described})"
+    raise InputError(
+        path,
+        f"no physical units: the drawing's size is {width.strip() or 'not given'} (px or "
+        "unitless) and no drawing program declares its px size; re-export in mm, or pass "
+        "--units px (96 per inch: Inkscape, browsers), --units pt (72 per inch: Illustrator) "
+        "or --units mm",
+    )
 
 
 def read_svg(
@@ -567,16 +663,24 @@ def read_svg(
     *,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     ignore_unknown: bool = False,
+    units: str | None = None,
 ) -> Design:
-    """Read an SVG drawing with svgelements (units, viewBox and transforms applied)."""
+    """Read an SVG drawing with svgelements (units, viewBox and transforms applied).
+
+    ``units``: the unit of a drawing that declares no physical size (see
+    :func:`_svg_units`); refused without it.
+    """
     import svgelements as se
 
     path = Path(path)
-    _refuse_non_numbers(path)
+    root = _refuse_non_numbers(path)
     try:
         svg = se.SVG.parse(str(path), reify=True)
     except Exception as exc:  # svgelements raises assorted parser errors
         raise InputError(path, f"unreadable SVG: {exc}") from None
+    if root is None:
+        raise InputError(path, "unreadable SVG: not well-formed XML")
+    scale, unit_text = _svg_units(path, root, units)
 
     structural = (
         (se.SVG, se.Group, se.Desc, se.Title)
@@ -588,6 +692,8 @@ def read_svg(
         if isinstance(element, structural):
             continue
         name = _svg_name(element)
+        if not isinstance(element, se.Shape) and _svg_not_drawn(element):
+            continue  # an editor's metadata (Inkscape's sodipodi:namedview), styles, defs
         if not isinstance(element, se.Shape):
             if ignore_unknown:
                 continue
@@ -595,10 +701,25 @@ def read_svg(
         if element.values.get("visibility") == "hidden" or element.values.get("display") == "none":
             continue
         kind = _svg_kind(element)
-        paths.extend(_svg_shape_paths(se.Path(element), kind, name, tolerance_mm))
+        paths.extend(_svg_shape_paths(se.Path(element), kind, name, tolerance_mm, scale))
     if not paths:
         raise InputError(path, "no drawable geometry in the SVG")
-    return Design(str(path), tuple(paths))
+    return Design(str(path), tuple(paths), unit_text)
+
+
+#: SVG elements that draw nothing themselves.
+_SVG_NOT_DRAWN = {
+    "metadata", "style", "defs", "title", "desc", "symbol", "marker", "clippath", "mask",
+    "pattern", "lineargradient", "radialgradient", "stop", "filter", "script", "namedview",
+}  # fmt: skip
+
+
+def _svg_not_drawn(element: Any) -> bool:
+    """Metadata, styles and definitions, or an element of another program's namespace."""
+    tag = str(element.values.get("tag", "")) if hasattr(element, "values") else ""
+    if tag.startswith("{") and not tag.startswith("{http://www.w3.org/2000/svg}"):
+        return True
+    return tag.rsplit("}", 1)[-1].lower() in _SVG_NOT_DRAWN
 
 
 def _svg_name(element: Any) -> str:
@@ -644,47 +765,54 @@ def _svg_xy(points_px: np.ndarray) -> np.ndarray:
 
 
 def _svg_shape_paths(
-    svg_path: Any, kind: PathKind, name: str, tolerance_mm: float
+    svg_path: Any, kind: PathKind, name: str, tolerance_mm: float, scale: float = 1.0
 ) -> list[DesignPath]:
     import svgelements as se
 
     out: list[DesignPath] = []
     pts: list[np.ndarray] = []
+    flags: list[bool] = []  # per point after the first: is the segment ending there a curve
     arcs: list[DesignArc] = []
     closed = False
 
+    def xy(points_px: Any) -> np.ndarray:
+        return _svg_xy(points_px) * scale
+
     def flush() -> None:
-        nonlocal pts, arcs, closed
+        nonlocal pts, arcs, closed, flags
         if pts:
-            joined = _dedupe(np.vstack(pts))
+            joined, curve = _dedupe_flagged(np.vstack(pts), np.array(flags, dtype=bool))
             if closed and len(joined) > 1 and np.hypot(*(joined[0] - joined[-1])) < 1e-9:
-                joined = joined[:-1]
+                joined, curve = joined[:-1], curve[:-1]
             if len(joined) >= 2:
-                out.append(DesignPath(joined, closed, kind, name, tuple(arcs)))
-        pts, arcs, closed = [], [], False
+                out.append(DesignPath(joined, closed, kind, name, tuple(arcs), tuple(curve)))
+        pts, arcs, closed, flags = [], [], False, []
 
     for seg in svg_path:
         if isinstance(seg, se.Move):
             flush()
-            pts = [_svg_xy([seg.end.x, seg.end.y])]
+            pts = [xy([seg.end.x, seg.end.y])]
             continue
         if isinstance(seg, se.Close):
             if seg.start is not None and seg.end is not None:
-                pts.append(_svg_xy([seg.end.x, seg.end.y]))
+                pts.append(xy([seg.end.x, seg.end.y]))
+                flags.append(False)
             closed = True
             continue
         if isinstance(seg, se.Line):
-            pts.append(_svg_xy([seg.end.x, seg.end.y]))
+            pts.append(xy([seg.end.x, seg.end.y]))
+            flags.append(False)
             continue
-        curve = _flatten(lambda t, s=seg: _svg_xy(s.npoint(t)), tolerance_mm)
+        curve = _flatten(lambda t, s=seg: xy(s.npoint(t)), tolerance_mm)
         pts.append(curve[1:])
+        flags.extend([True] * (len(curve) - 1))
         if isinstance(seg, se.Arc) and math.isclose(float(seg.rx), float(seg.ry), rel_tol=1e-9):
-            centre = _svg_xy([seg.center.x, seg.center.y])[0]
+            centre = xy([seg.center.x, seg.center.y])[0]
             start = curve[0] - centre
             arcs.append(
                 DesignArc(
                     (float(centre[0]), float(centre[1])),
-                    float(seg.rx) / _svg_px_per_mm(),
+                    float(seg.rx) / _svg_px_per_mm() * scale,
                     float(np.degrees(np.arctan2(start[1], start[0]))),
                     -float(np.degrees(seg.sweep)),
                 )
@@ -699,8 +827,17 @@ def _svg_shape_paths(
             "circle",
             name,
             (DesignArc(a0.centre_mm, a0.radius_mm, a0.start_deg, sweep),),
+            out[0].curve,
         )
     return out
+
+
+def _dedupe_flagged(points: np.ndarray, flags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop repeated points and the flags of the zero-length segments ending at them."""
+    if len(points) < 2:
+        return points, flags[:0]
+    keep = np.concatenate(([True], np.hypot(*np.diff(points, axis=0).T) > 1e-9))
+    return points[keep], flags[keep[1:]]
 
 
 def _dedupe(points: np.ndarray, eps: float = 1e-9) -> np.ndarray:
@@ -710,6 +847,8 @@ def _dedupe(points: np.ndarray, eps: float = 1e-9) -> np.ndarray:
     return points[keep]
 
 
+_DXF_UNIT_NAME = {1: "in", 2: "ft", 4: "mm", 5: "cm", 6: "m", 8: "microinch", 9: "mil",
+                  10: "yd", 13: "um", 14: "dm"}  # fmt: skip
 _DXF_SUPPORTED = {"LINE", "LWPOLYLINE", "POLYLINE", "ARC", "CIRCLE", "ELLIPSE", "SPLINE"}
 _DXF_KIND: dict[str, PathKind] = {
     "LINE": "line",
@@ -727,8 +866,13 @@ def read_dxf(
     *,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
     ignore_unknown: bool = False,
+    units: str | None = None,
 ) -> Design:
-    """Read the model space of a DXF drawing with ezdxf (scaled to mm by ``$INSUNITS``)."""
+    """Read the model space of a DXF drawing with ezdxf (scaled to mm by ``$INSUNITS``).
+
+    A drawing without units (``$INSUNITS`` 0) is refused unless ``units`` says
+    what they are (``"mm"``, ``"in"``, ...).
+    """
     import ezdxf
 
     path = Path(path)
@@ -745,10 +889,19 @@ def read_dxf(
     ) as exc:
         # a truncated file makes ezdxf's reader run out of tags (StopIteration)
         raise InputError(path, f"unreadable DXF: {exc or type(exc).__name__}") from None
-    units = int(doc.header.get("$INSUNITS", 0) or 0)
-    if units not in _DXF_UNIT_MM:
-        raise InputError(path, f"unsupported DXF drawing units ($INSUNITS = {units})")
-    scale = _DXF_UNIT_MM[units]
+    code = int(doc.header.get("$INSUNITS", 0) or 0)
+    if code not in _DXF_UNIT_MM:
+        raise InputError(path, f"unsupported DXF drawing units ($INSUNITS = {code})")
+    scale = _DXF_UNIT_MM[code]
+    unit_text = f"{_DXF_UNIT_NAME.get(code, 'units')} ($INSUNITS {code})"
+    if code == 0:
+        if units is None:
+            raise InputError(
+                path,
+                "no drawing units ($INSUNITS 0, unitless): set the drawing's units in the CAD "
+                "program, or pass --units mm (or in, cm)",
+            )
+        scale, unit_text = UNIT_MM[units], f"{units} (given by --units; $INSUNITS 0)"
     paths: list[DesignPath] = []
     for entity in doc.modelspace():
         kind_name = entity.dxftype()
@@ -763,19 +916,19 @@ def read_dxf(
         if kind_name == "ELLIPSE" and math.isclose(entity.dxf.ratio, 1.0, rel_tol=1e-9):
             kind = "circle" if _ellipse_full(entity) else "arc"
         try:
-            pts, arcs, closed = _dxf_geometry(entity, tolerance_mm / scale)
+            pts, arcs, closed, flags = _dxf_geometry(entity, tolerance_mm / scale)
         except (TypeError, ValueError, ZeroDivisionError) as exc:
             raise InputError(path, f"cannot read DXF entity {name}: {exc}") from None
-        pts = _dedupe(pts * scale)
+        pts, flags = _dedupe_flagged(pts * scale, np.asarray(flags, dtype=bool))
         arcs = tuple(_scaled_arc(a, scale) for a in arcs)
         if closed and len(pts) > 1 and np.hypot(*(pts[0] - pts[-1])) < 1e-9:
-            pts = pts[:-1]
+            pts, flags = pts[:-1], flags[:-1]
         if len(pts) < 2:
             continue
-        paths.append(DesignPath(pts, closed, kind, name, arcs))
+        paths.append(DesignPath(pts, closed, kind, name, arcs, tuple(flags)))
     if not paths:
         raise InputError(path, "no drawable geometry in the DXF model space")
-    return Design(str(path), tuple(paths))
+    return Design(str(path), tuple(paths), unit_text)
 
 
 def _ellipse_full(entity: Any) -> bool:
@@ -790,8 +943,10 @@ def _scaled_arc(arc: DesignArc, scale: float) -> DesignArc:
     )
 
 
-def _dxf_geometry(entity: Any, tolerance: float) -> tuple[np.ndarray, tuple[DesignArc, ...], bool]:
-    """Exact points (drawing units), circular arcs and closed flag of one DXF entity.
+def _dxf_geometry(
+    entity: Any, tolerance: float
+) -> tuple[np.ndarray, tuple[DesignArc, ...], bool, list[bool]]:
+    """Exact points (drawing units), circular arcs, closed flag and curve flags of an entity.
 
     Arcs and bulges are sampled on the true circle (ezdxf's path conversion
     would approximate them by Bézier curves); ellipses and splines are
@@ -800,12 +955,13 @@ def _dxf_geometry(entity: Any, tolerance: float) -> tuple[np.ndarray, tuple[Desi
     kind = entity.dxftype()
     if kind == "LINE":
         s, e = entity.dxf.start, entity.dxf.end
-        return np.array([[s.x, s.y], [e.x, e.y]], dtype=np.float64), (), False
+        return np.array([[s.x, s.y], [e.x, e.y]], dtype=np.float64), (), False, [False]
     if kind in ("ARC", "CIRCLE"):
         (arc,) = _dxf_arcs(entity, 1.0) or (None,)
         if arc is None:
             raise ValueError("arc not in the xy plane")
-        return arc.points_mm(tolerance_mm=tolerance), (arc,), kind == "CIRCLE"
+        pts = arc.points_mm(tolerance_mm=tolerance)
+        return pts, (arc,), kind == "CIRCLE", [True] * (len(pts) - 1)
     if kind == "LWPOLYLINE":
         xyb = np.array([(x, y, b) for x, y, b in entity.get_points("xyb")], dtype=np.float64)
         mirror = float(entity.dxf.extrusion.z) < 0
@@ -827,32 +983,36 @@ def _dxf_geometry(entity: Any, tolerance: float) -> tuple[np.ndarray, tuple[Desi
             return np.array([(v.x, v.y) for v in ellipse.vertices(start + span * t)])
 
         full = _ellipse_full(entity)
-        return _flatten(on_ellipse, tolerance, min_chords=8), (), full
+        pts = _flatten(on_ellipse, tolerance, min_chords=8)
+        return pts, (), full, [True] * (len(pts) - 1)
     if kind == "SPLINE":
         spline = entity.construction_tool()
 
         def on_spline(t: np.ndarray) -> np.ndarray:
             return np.array([(v.x, v.y) for v in spline.points(t * spline.max_t)])
 
-        return _flatten(on_spline, tolerance, min_chords=8), (), bool(entity.closed)
+        pts = _flatten(on_spline, tolerance, min_chords=8)
+        return pts, (), bool(entity.closed), [True] * (len(pts) - 1)
     raise ValueError(f"unsupported entity {kind}")
 
 
 def _bulge_polyline(
     xyb: np.ndarray, closed: bool, mirror: bool, tolerance: float
-) -> tuple[np.ndarray, tuple[DesignArc, ...], bool]:
+) -> tuple[np.ndarray, tuple[DesignArc, ...], bool, list[bool]]:
     """Vertices with DXF bulges (tan of a quarter of each arc's included angle) -> points, arcs."""
     if mirror:  # OCS with extrusion -z: x mirrored, arcs turn the other way
         xyb = xyb * np.array([-1.0, 1.0, -1.0])
     n = len(xyb)
     pts: list[np.ndarray] = [xyb[:1, :2]]
     arcs: list[DesignArc] = []
+    flags: list[bool] = []
     last = n if closed else n - 1
     for i in range(last):
         p0, p1, bulge = xyb[i, :2], xyb[(i + 1) % n, :2], xyb[i, 2]
         chord = float(np.hypot(*(p1 - p0)))
         if abs(bulge) < 1e-12 or chord == 0.0:
             pts.append(p1[None])
+            flags.append(False)
             continue
         theta = 4.0 * math.atan(bulge)  # signed included angle, CCW positive
         d = (p1 - p0) / chord
@@ -863,7 +1023,8 @@ def _bulge_polyline(
         arc = DesignArc((float(centre[0]), float(centre[1])), radius, start, math.degrees(theta))
         arcs.append(arc)
         pts.append(arc.points_mm(tolerance_mm=tolerance)[1:])
-    return np.vstack(pts), tuple(arcs), closed
+        flags.extend([True] * len(pts[-1]))
+    return np.vstack(pts), tuple(arcs), closed, flags
 
 
 def _dxf_arcs(entity: Any, scale: float) -> tuple[DesignArc, ...]:

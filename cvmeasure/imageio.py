@@ -26,6 +26,7 @@ import numpy as np
 
 from cvmeasure.colorimetry import srgb_decode, srgb_encode
 from cvmeasure.errors import InputError
+from cvmeasure.extras import require
 
 __all__ = [
     "Photo",
@@ -261,7 +262,7 @@ def decode_jpeg(
 
 
 def _read_raw(path: Path, *, half_size: bool) -> np.ndarray:
-    import rawpy
+    rawpy = require("rawpy", "raw", str(path))
 
     try:
         with rawpy.imread(str(path)) as raw:

@@ -38,8 +38,11 @@ class MarkerSpec:
     ``height_mm`` is the height of the disc's printed face above the bender's top
     plate (the measurement plane, where the board lies for ``cvmeasure plane``), mm,
     measured along the plate's normal towards the camera. ``None`` means the kit
-    JSON did not say (a kit written before heights existed): such a kit is taken as
-    flat, all discs on the plate, and a measurement says so.
+    JSON did not say: the markers are flat stickers on the plate (the spec's rule).
+    ``height_sigma_mm`` is the height's standard uncertainty, mm (a nominal height's
+    tolerance, or what ``cvmeasure markers heights`` measured); a measurement on a
+    plane pose carries it into the angles' stated uncertainty. ``None``: no stated
+    uncertainty (taken as exact).
     """
 
     role: str
@@ -50,6 +53,7 @@ class MarkerSpec:
     lab_sigma: tuple[float, float, float] | None = None
     rgb_sigma: tuple[float, float, float] | None = None
     height_mm: float | None = None
+    height_sigma_mm: float | None = None
 
     @property
     def lab_d65(self) -> np.ndarray:
@@ -74,6 +78,8 @@ class MarkerSpec:
             out["rgb_sigma"] = [round(float(v), 2) for v in self.rgb_sigma]
         if self.height_mm is not None:
             out["height_mm"] = self.height_mm
+        if self.height_sigma_mm is not None:
+            out["height_sigma_mm"] = self.height_sigma_mm
         return out
 
 
@@ -84,12 +90,17 @@ class MarkerKit:
     ``wire_diameter_mm`` is the wire's diameter; ``wire_axis_height_mm`` the height
     of the wire's axis above the top plate (where the guides hold it), mm. ``None``
     means the kit JSON did not say (a flat kit, see :class:`MarkerSpec`).
+    ``height_covariance_mm2`` is the 5 x 5 covariance of the markers' heights in
+    :data:`ROLES` order, mm^2, when they were measured together (``cvmeasure markers
+    heights``: their errors are correlated); None: the per-marker
+    ``height_sigma_mm``, independent.
     """
 
     name: str
     markers: tuple[MarkerSpec, ...]
     wire_diameter_mm: float | None = None
     wire_axis_height_mm: float | None = None
+    height_covariance_mm2: tuple[tuple[float, ...], ...] | None = None
 
     def __post_init__(self) -> None:
         roles = [m.role for m in self.markers]
@@ -106,12 +117,27 @@ class MarkerKit:
         height = self.by_role(role).height_mm
         return 0.0 if height is None else float(height)
 
+    def height_cov_mm2(self) -> np.ndarray:
+        """The heights' covariance (5, 5) in :data:`ROLES` order, mm^2 (zeros: exact or flat)."""
+        if self.height_covariance_mm2 is not None:
+            return np.asarray(self.height_covariance_mm2, dtype=np.float64)
+        sig = [self.by_role(r).height_sigma_mm or 0.0 for r in ROLES]
+        return np.diag(np.square(sig))
+
+    def heights_text(self) -> str:
+        """The heights for a message: ``"origin 12, axis 12, pin 18, ... mm"`` or ``"flat"``."""
+        if not self.has_heights:
+            return "none (flat stickers)"
+        return ", ".join(f"{r} {self.height_mm(r):g}" for r in ROLES) + " mm"
+
     def flat(self) -> MarkerKit:
-        """The same kit without heights: every disc on the plate (a flat-plane measurement)."""
+        """The same kit without heights: flat stickers, every disc on the plate."""
         return replace(
             self,
-            markers=tuple(replace(m, height_mm=None) for m in self.markers),
+            name=self.name if self.name.endswith("-flat") else f"{self.name}-flat",
+            markers=tuple(replace(m, height_mm=None, height_sigma_mm=None) for m in self.markers),
             wire_axis_height_mm=None,
+            height_covariance_mm2=None,
         )
 
     def by_role(self, role: str) -> MarkerSpec:
@@ -126,6 +152,10 @@ class MarkerKit:
             out["wire_diameter_mm"] = self.wire_diameter_mm
         if self.wire_axis_height_mm is not None:
             out["wire_axis_height_mm"] = self.wire_axis_height_mm
+        if self.height_covariance_mm2 is not None:
+            out["height_covariance_mm2"] = [
+                [round(float(v), 6) for v in row] for row in self.height_covariance_mm2
+            ]
         return out
 
     @classmethod
@@ -148,6 +178,9 @@ class MarkerKit:
                     lab_sigma=_sigma(m.get("lab_sigma")),
                     rgb_sigma=_sigma(m.get("rgb_sigma")),
                     height_mm=_length(m.get("height_mm"), "height_mm", minimum=0.0),
+                    height_sigma_mm=_length(
+                        m.get("height_sigma_mm"), "height_sigma_mm", minimum=0.0
+                    ),
                 )
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(source, f"marker #{i} is malformed: {exc}") from None
@@ -165,7 +198,8 @@ class MarkerKit:
         try:
             wire_d = _length(data.get("wire_diameter_mm"), "wire_diameter_mm", minimum=1e-6)
             wire_h = _length(data.get("wire_axis_height_mm"), "wire_axis_height_mm", minimum=0.0)
-            return cls(str(data.get("name", "kit")), tuple(markers), wire_d, wire_h)
+            cov = _covariance(data.get("height_covariance_mm2"))
+            return cls(str(data.get("name", "kit")), tuple(markers), wire_d, wire_h, cov)
         except ValueError as exc:
             raise InputError(source, str(exc)) from None
 
@@ -180,6 +214,28 @@ def _length(value: Any, name: str, *, minimum: float) -> float | None:
     if not np.isfinite(length) or length < minimum:
         raise ValueError(f"{name} must be a finite length >= {minimum:g} mm, got {value!r}")
     return length
+
+
+def _covariance(value: Any) -> tuple[tuple[float, ...], ...] | None:
+    """An optional 5 x 5 symmetric, positive semi-definite covariance (mm^2)."""
+    if value is None:
+        return None
+    try:
+        cov = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("height_covariance_mm2 must be a 5 x 5 matrix of numbers") from None
+    n = len(ROLES)
+    if (
+        cov.shape != (n, n)
+        or not np.all(np.isfinite(cov))
+        or not np.allclose(cov, cov.T, atol=1e-9)
+        or np.linalg.eigvalsh(cov).min() < -1e-9
+    ):
+        raise ValueError(
+            f"height_covariance_mm2 must be a symmetric positive semi-definite {n} x {n} "
+            f"matrix in the role order {', '.join(ROLES)}"
+        )
+    return tuple(tuple(float(v) for v in row) for row in cov)
 
 
 def _sigma(value: Any) -> tuple[float, float, float] | None:

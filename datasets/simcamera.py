@@ -78,9 +78,13 @@ class SimulatedCamera:
 
 
 def double_photo_state(double: Any, params: Any = None) -> PhotoState:
-    """What a photo of the TinyG double's machine shows right now (see :func:`photo_state`)."""
+    """What a photo of the TinyG double's machine shows right now (see :func:`photo_state`).
+
+    The pin is drawn where the head really is: the command less the machine's command
+    effects (play lost, an offset, a drift), as a camera sees it, not at the controller's X.
+    """
     state = double.machine_state()
-    return photo_state(state.pin_deg, state.bend_angle_deg, params)
+    return photo_state(state.head_deg, state.bend_angle_deg, params)
 
 
 def photo_state(pin_deg: float, bend_angle_deg: float, params: Any = None) -> PhotoState:

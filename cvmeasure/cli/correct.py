@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.design_options import add_plan_options, plan_from_args
 from cvmeasure.cli.options import non_negative_float, positive_float
 
 __all__ = ["register", "run"]
@@ -28,12 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--material", type=Path, required=True, help="calibration JSON it was bent with")
     p.add_argument("--board", type=Path, required=True, help="board JSON")
     p.add_argument("--camera", type=Path, required=True, help="camera JSON")
-    p.add_argument(
-        "--job",
-        type=Path,
-        help="the G-code the part was bent with: its bend count sets the chords measured "
-        "(default: the count found in the photo)",
-    )
+    add_plan_options(p, job=True)
     p.add_argument(
         "--flipped",
         action="store_true",
@@ -59,57 +54,48 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-_STROKE = re.compile(r"G90\s+G1\s+X(-?[\d.]+)")
-
-
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
     from cvmeasure.camera import load_camera
-    from cvmeasure.design import load_design
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_text, to_jsonable
     from cvmeasure.imageio import read_photo
     from cvmeasure.material.calibration import load_calibration, save_calibration
     from cvmeasure.material.correct import correct_from_part
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.warning import StageWarning
 
     if args.gain > 1:
         raise InputError("--gain", f"must be in (0, 1], got {args.gain}")
+    plan = plan_from_args(args, args.design)
     cal = load_calibration(args.material)
-    design = load_design(args.design).wire()
-    divisions = None
-    if args.job is not None:
-        try:
-            strokes = _STROKE.findall(args.job.read_text(encoding="utf-8", errors="replace"))
-        except OSError as exc:
-            raise InputError(args.job, f"cannot read: {exc.strerror or exc}") from None
-        if not strokes:
-            raise InputError(args.job, "no bend strokes (G90 G1 X...) in the job")
-        divisions = len(strokes) + 1
+    design = plan.as_path()
     m = measure_part(
         read_photo(args.photo).bgr,
         load_board(args.board),
         load_camera(args.camera),
-        divisions=divisions,
         design=design,
         design_source=str(args.design),
         source=str(args.photo),
         allow_mirror=args.flipped,
+        reference_mm=plan.vertices_mm,
     )
-    if divisions is not None and m.chords_found is not None:
-        found = m.chords_found.divisions
-        if found is not None and found != divisions:
-            print(
-                f"warning: {args.photo}: the photo shows {found} chords, the job bends "
-                f"{divisions}; measured with {divisions}",
-                file=sys.stderr,
-            )
+    found = None if m.chords_found is None else m.chords_found.divisions
+    if found is not None and found != plan.divisions:
+        warning = StageWarning(
+            "part_chords_differ",
+            f"the photo shows {found} chords, the job bends {plan.divisions}; measured with "
+            f"{plan.divisions}",
+            str(args.photo),
+        )
+        print(f"warning: {warning}", file=sys.stderr)
     try:
         cal2, corr, job = correct_from_part(
             cal,
             m,
             design,
             design_name=args.design.name,
+            reference_mm=plan.vertices_mm,
             gain=args.gain,
             deadband_sigma=args.deadband_sigma,
         )
@@ -120,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
     save_calibration(args.out, cal2)
     header = f"; cvmeasure correct: {args.design.name} after {args.photo.name}, gain {args.gain:g}"
     header = "".join(c for c in header if c.isprintable() and c not in "!~%$?")
-    atomic_write_text(args.gcode, header + "\n" + job.text())
+    lines = [header, *plan.header_lines()]
+    atomic_write_text(args.gcode, "\n".join(lines) + "\n" + job.text())
     if args.json:
         print(json.dumps(to_jsonable(corr.to_dict()), indent=2, allow_nan=False))
     else:

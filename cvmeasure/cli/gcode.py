@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
-from cvmeasure.cli.options import positive_float, positive_int
+from cvmeasure.cli.design_options import add_plan_options, plan_from_args
+from cvmeasure.cli.options import positive_float
 
 __all__ = ["register", "run"]
 
@@ -15,12 +17,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "gcode",
         help="turn an SVG/DXF wire design into bender G-code",
-        description="Read one open wire path from an SVG or DXF design, divide its curves "
-        "into chords of at least --min-segment-mm, check the bender's rules (no closed "
-        "shapes, segments >= 12 mm, bends within range), compensate springback through the "
-        "calibration (--material) or the simulation's model, and write numbered TinyG "
-        "G-code (G21; X pin deg, Y feed mm relative, Z pin duck). Nothing is written when "
-        "the design breaks a rule (exit 2, the element named).",
+        description="Read one open wire path from an SVG or DXF design (in its own physical "
+        "units), keep its drawn corners, divide its curves into equal chords of at least "
+        "--min-segment-mm, check the bender's rules (one connected open path, no gaps, no "
+        "self-contact, straight segments >= 12 mm, bends within range), compensate springback "
+        "through the calibration (--material) or the simulation's model, and write numbered "
+        "TinyG G-code (G21; X pin deg, Y feed mm relative, Z pin duck) whose header keeps the "
+        "polygon bent. Nothing is written when the design breaks a rule (exit 2, the element "
+        "and the number named); --rechord / --scale change it on request, printing the "
+        "before/after bend table.",
     )
     p.add_argument("design", type=Path, help="design drawing (.svg or .dxf)")
     p.add_argument("-o", "--out", type=Path, required=True, help="G-code file to write")
@@ -28,14 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--params", type=Path, help="simulation params JSON, used when there is no --material"
     )
-    p.add_argument(
-        "--divisions",
-        type=positive_int,
-        help="chords per curve (default: as many as fit, each >= 12 mm)",
-    )
-    p.add_argument(
-        "--min-segment-mm", type=positive_float, default=12.0, help="shortest segment (mm)"
-    )
+    add_plan_options(p, job=False)
     p.add_argument("--max-bend-deg", type=positive_float, default=135.0, help="largest bend (deg)")
     p.add_argument(
         "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
@@ -46,20 +44,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure import __version__
-    from cvmeasure.design import load_design
-    from cvmeasure.driver.gcode import SimCompensator, design_job, wire_polyline
-    from cvmeasure.errors import InputError
+    from cvmeasure.driver.gcode import SimCompensator, design_job
     from cvmeasure.fileio import atomic_write_text
 
-    if args.divisions is not None and args.divisions < 1:
-        raise InputError("--divisions", f"must be >= 1, got {args.divisions}")
-    design = load_design(args.design)
-    path = design.wire()
-    if path.closed:
-        raise InputError(
-            args.design,
-            f"closed shape {path.element or path.kind}: a wire part needs two free ends",
-        )
+    plan = plan_from_args(args, args.design)
     if args.material is not None:
         from cvmeasure.material.calibration import load_calibration
 
@@ -71,14 +59,8 @@ def run(args: argparse.Namespace) -> int:
         compensation = SimCompensator(params, tuple(effects))
     else:
         compensation = SimCompensator()
-    points = wire_polyline(
-        path.points_mm,
-        min_segment_mm=args.min_segment_mm,
-        divisions=args.divisions,
-        arcs=path.arcs,
-    )
     job = design_job(
-        points,
+        plan.vertices_mm,
         source=str(args.design),
         compensation=compensation,
         min_segment_mm=args.min_segment_mm,
@@ -91,10 +73,16 @@ def run(args: argparse.Namespace) -> int:
         f"; {len(job.pin_deg)} bends, wire {job.bends.total_feed_mm:.3f} mm, compensation: {model}",
     ]
     header = ["".join(c for c in h if c.isprintable() and c not in "!~%$?") for h in header]
+    header += plan.header_lines()
+    header += ["; warning: " + "".join(c for c in str(w) if c not in "!~%$?") for w in job.warnings]
+    for w in job.warnings:
+        print(f"warning: {w}", file=sys.stderr)
     atomic_write_text(args.out, "\n".join(header) + "\n" + job.text())
     if args.json:
-        print(json.dumps({"out": str(args.out), **job.to_dict()}, indent=2))
+        print(json.dumps({"out": str(args.out), **job.to_dict(), "plan": plan.to_dict()}, indent=2))
     else:
+        if plan.requested_change or plan.changes:
+            print("\n".join(plan.table_lines()))
         print(
             f"wrote {args.out}: {len(job.lines)} lines, {len(job.pin_deg)} bends, "
             f"{job.bends.total_feed_mm:.1f} mm of wire"

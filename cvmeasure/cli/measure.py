@@ -27,7 +27,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--kit",
         type=Path,
         help="kit JSON (spec; `targets markers --format json` prints the built-in one, "
-        "`markers learn` fits your print's colours); default the built-in kit",
+        "`markers learn` fits your print's colours); default the built-in kit, whose "
+        "markers stand at heights above the plate",
+    )
+    p.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="the markers are flat stickers on the plate: measure with the kit's heights "
+        "removed (a kit JSON without height_mm means the same)",
     )
     p.add_argument("--camera", type=Path, help="camera JSON: remove lens distortion")
     g = p.add_mutually_exclusive_group()
@@ -115,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.markers.overlay import draw_overlay
 
     kit = load_kit(args.kit) if args.kit else default_kit()
+    if args.flat_kit:
+        kit = kit.flat()
     camera = load_camera(args.camera) if args.camera else None
     if args.method == "seed" and (camera is not None or args.plane or args.board):
         raise InputError(
@@ -214,6 +223,13 @@ def run(args: argparse.Namespace) -> int:
             TrialTable(tuple(measured_trials)).write_csv(args.out)
         else:
             atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
+    from cvmeasure.report.console import warning_summary
+
+    summary = warning_summary(
+        ((str(p), w) for p, r in results.items() for w in r.warnings), n_photos=len(photos)
+    )
+    for line in summary:
+        print(line, file=sys.stderr if args.json else sys.stdout)
     return 2 if failed else 0
 
 
@@ -228,9 +244,13 @@ def _emit(record: dict[str, Any], as_json: bool) -> None:
             f"{record['springback_deg']:+.3f} +- {record['uncertainty_deg']['springback_deg']:.3f} deg"
         )
         return
+    from cvmeasure.warning import StageWarning
+
     u = record["uncertainty_deg"]
-    warn = f"  [{'; '.join(record['warnings'])}]" if record["warnings"] else ""
     print(
         f"{record.get('photo', '-')}: pin {record['pin_angle_deg']:+.3f} +- {u['pin_angle_deg']:.3f}"
-        f"  bend {record['bend_angle_deg']:+.3f} +- {u['bend_angle_deg']:.3f} deg{warn}"
+        f"  bend {record['bend_angle_deg']:+.3f} +- {u['bend_angle_deg']:.3f} deg"
+        " (one standard uncertainty)"
     )
+    for w in record["warnings"]:
+        print(f"  ! {StageWarning.from_json(w)}")

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from cvmeasure.cli.design_options import add_plan_options, plan_from_args
 from cvmeasure.cli.options import int_in, non_negative_float, positive_float
 
 __all__ = ["register", "run"]
@@ -38,9 +39,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "its own camera; given with --plane, it must be that camera)",
     )
     p.add_argument(
-        "--divisions", type=int_in(1, 1000), help="number of chords the part was bent in"
+        "--divisions",
+        type=int_in(1, 1000),
+        help="number of chords the part was bent in; with --design, chords per curve of the "
+        "design, as cvmeasure gcode's --divisions",
     )
-    p.add_argument("--design", type=Path, help="the design the part was bent from (.svg or .dxf)")
+    p.add_argument(
+        "--design",
+        type=Path,
+        help="the design the part was bent from (.svg or .dxf), planned by cvmeasure gcode's "
+        "rules: the part is compared with the polygon bent (or --job's)",
+    )
+    add_plan_options(p, job=True, divisions=False)
     p.add_argument(
         "--method",
         choices=("ours", "ellipse", "sagitta"),
@@ -119,7 +129,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
     from cvmeasure.camera import load_camera
     from cvmeasure.contracts import PlaneModel
-    from cvmeasure.design import load_design
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
     from cvmeasure.imageio import read_photo
@@ -128,12 +137,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.plot and not args.design:
         raise InputError("--plot", "the deviation plot needs --design")
+    if args.job and not args.design:
+        raise InputError("--job", "comparing with the job's polygon needs --design")
+    # the design first: a design the rules refuse is refused before any photo is read
+    plan = plan_from_args(args, args.design) if args.design else None
     if args.board and args.camera is None:
         raise InputError("--board", "finding the board's plane needs --camera")
     camera = load_camera(args.camera) if args.camera else None
     board = load_board(args.board) if args.board else None
     plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
-    design = load_design(args.design).wire() if args.design else None
+    design = None if plan is None else plan.as_path()
     diameter = args.wire_diameter_mm
     if diameter is None and args.kit:
         from cvmeasure.kit import load_kit
@@ -159,9 +172,10 @@ def run(args: argparse.Namespace) -> int:
         photo.bgr,
         board,
         camera,
-        divisions=args.divisions,
+        divisions=args.divisions if plan is None else None,
         design=design,
         design_source=str(args.design) if args.design else "design",
+        reference_mm=None if plan is None else plan.vertices_mm,
         method=args.method,
         axis_height_mm=args.axis_height_mm,
         end_shape=args.ends,
@@ -198,6 +212,7 @@ def _print_summary(m, out) -> None:
     chords = {
         "--divisions": f"{r.divisions} chords (--divisions)",
         "photo": f"{r.divisions} chords (vertices found in the photo)",
+        "plan": f"{r.divisions} chords (the polygon bent, from the design or --job)",
         None: "no chord vertices found (a smooth curve)",
     }[m.divisions_from]
     print(f"{m.source}  (method {r.method}; {chords})", file=out)

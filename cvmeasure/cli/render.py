@@ -53,7 +53,8 @@ def _common(p: argparse.ArgumentParser) -> None:
         metavar="SPEC",
         help="real-scene effects (bender and part): 'all' or names, comma-separated, optionally "
         "NAME=VALUE, e.g. marker_heights,supports,wire_3d or all,clutter=12,wire_across=wire_b "
-        "or wire_3d,part_lift_mm=2 (cvmeasure_datasets.SceneEffects; default: the flat scene)",
+        "or wire_3d,part_lift_mm=2 (cvmeasure_datasets.SceneEffects; default: the flat scene, "
+        "but `render bender` always draws the discs at the kit's heights)",
     )
     p.add_argument("--linear", action="store_true", help="also write a 16-bit linear RGB TIFF")
     p.add_argument("--json", action="store_true", help="print what was written as JSON")
@@ -73,7 +74,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     b = rsub.add_parser("bender", help="the bender's top plate with the five kit markers")
     b.add_argument("--pin-deg", type=float, required=True, help="pin angle from +x, degrees")
     b.add_argument("--bend-deg", type=float, required=True, help="bend angle from +x, degrees")
-    b.add_argument("--kit", type=Path, help="kit JSON (default: the built-in kit)")
+    b.add_argument(
+        "--kit",
+        type=Path,
+        help="kit JSON (default: the built-in kit); its discs are drawn at the kit's heights "
+        "above the plate (a kit without heights: flat stickers)",
+    )
+    b.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="draw the kit's markers as flat stickers on the plate (its heights removed)",
+    )
     b.add_argument(
         "--occlude",
         action="append",
@@ -184,12 +195,28 @@ def _occlusions(items: list[str]) -> dict[str, float]:
     return out
 
 
+def _bender_kit(args: argparse.Namespace, effects: Any) -> tuple[Any, Any]:
+    """The kit to draw and the effects: the discs always at the kit's heights (spec: the
+    renderer's default tells the kit's story), flat with ``--flat-kit`` or a flat kit."""
+    import dataclasses
+
+    import cvmeasure_datasets
+    from cvmeasure.kit import default_kit, load_kit
+
+    kit = load_kit(args.kit) if args.kit else default_kit()
+    if args.flat_kit:
+        kit = kit.flat()
+    effects = effects or cvmeasure_datasets.SceneEffects()
+    if kit.has_heights and not effects.marker_heights:
+        effects = dataclasses.replace(effects, marker_heights=True)
+    return kit, effects
+
+
 def run(args: argparse.Namespace) -> int:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec, load_board
     from cvmeasure.camera import load_camera
     from cvmeasure.errors import InputError
-    from cvmeasure.kit import load_kit
 
     if args.count < 1 or args.scale <= 0:
         raise InputError("command line", "--count must be >= 1 and --scale > 0")
@@ -203,7 +230,6 @@ def run(args: argparse.Namespace) -> int:
     if args.kind == "board":
         poses = cvmeasure_datasets.random_board_poses(args.count, args.seed, board=board)
     occlude = _occlusions(args.occlude) if args.kind == "bender" else {}
-    kit = load_kit(args.kit) if args.kind == "bender" and args.kit else None
     effects = None
     if args.effects is not None:
         if args.kind == "board":
@@ -212,6 +238,9 @@ def run(args: argparse.Namespace) -> int:
             effects = cvmeasure_datasets.SceneEffects.parse(args.effects)
         except ValueError as exc:
             raise InputError("--effects", str(exc)) from None
+    kit = None
+    if args.kind == "bender":
+        kit, effects = _bender_kit(args, effects)
     for i in range(args.count):
         seed = args.seed + i
         light = _lighting(args, seed)

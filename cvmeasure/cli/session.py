@@ -59,6 +59,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
+    p.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="the markers are flat stickers on the plate: the kit's heights removed",
+    )
     p.add_argument("--camera-model", type=Path, help="camera JSON (lens model) for measuring")
     p.add_argument(
         "--plane",
@@ -114,12 +119,31 @@ def angle_list(text: str) -> tuple[float, ...]:
     return angles
 
 
+def _check_camera_option(args: argparse.Namespace) -> None:
+    """Refuse a --camera that is not a camera URL: a lens JSON belongs to --camera-model."""
+    from cvmeasure.errors import InputError
+
+    if args.camera is None:
+        return
+    if args.simulate:
+        raise InputError(
+            "--camera",
+            "--simulate photographs with the simulated camera: give no --camera (a lens "
+            "model JSON is --camera-model)",
+        )
+    if Path(args.camera).suffix.lower() == ".json" or Path(args.camera).is_file():
+        raise InputError(
+            "--camera",
+            f"{args.camera} is a file (a camera JSON is the lens model: give it as "
+            "--camera-model); --camera is the camera that takes the photos, "
+            "gphoto2://[port] or folder:///path",
+        )
+
+
 def _check_options(args: argparse.Namespace) -> None:
     """Options that are wrong together (each is fine alone)."""
     from cvmeasure.errors import InputError
 
-    if args.simulate and args.camera:
-        raise InputError("--camera", "--simulate uses the simulated camera; drop --camera")
     if args.simulate and args.port:
         raise InputError("--port", "--simulate uses the TinyG double; drop --port")
     if args.plane and not args.camera_model:
@@ -144,6 +168,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.material.calibration import save_calibration
     from cvmeasure.provenance import provenance
 
+    _check_camera_option(args)
     _check_options(args)
     session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
     angles = args.angles or ()
@@ -155,6 +180,10 @@ def run(args: argparse.Namespace) -> int:
         from cvmeasure.kit import load_kit
 
         kit = load_kit(args.kit)
+    if args.flat_kit:
+        from cvmeasure.kit import default_kit
+
+        kit = (kit or default_kit()).flat()
     options = {}
     if args.camera_model:
         from cvmeasure.camera import load_camera
@@ -200,10 +229,12 @@ def run(args: argparse.Namespace) -> int:
 
     def progress(done: int, total: int, step) -> None:
         if not args.quiet:
+            codes = sorted({w.code for _, w in step.photo_warnings()})
             print(
                 f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
                 f"loaded {step.loaded.bend_angle_deg:8.3f}  unloaded "
-                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg",
+                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg"
+                + (f"  ! {', '.join(codes)}" if codes else ""),
                 file=sys.stderr,
                 flush=True,
             )
@@ -231,7 +262,7 @@ def run(args: argparse.Namespace) -> int:
     calibration = result.calibration
     from dataclasses import replace
 
-    calibration = replace(calibration, provenance=provenance())
+    calibration = replace(calibration, provenance={**provenance(), **calibration.provenance})
     save_calibration(args.out, calibration)
     trials_path = session_dir / "trials.csv"
     TrialTable(calibration.samples).write_csv(trials_path)
@@ -247,6 +278,7 @@ def run(args: argparse.Namespace) -> int:
         "bends": len(result.steps),
         "model": calibration.model,
         "scores": calibration.scores,
+        "warnings": calibration.provenance.get("warnings", []),
     }
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -258,4 +290,11 @@ def run(args: argparse.Namespace) -> int:
                 f"{len(result.bent_this_run)} bent this run"
             )
         print(f"wrote {args.out}, {report} ({len(result.steps)} bends, model {calibration.model})")
+    from cvmeasure.report.console import warning_summary
+
+    lines = warning_summary(
+        [pw for s in result.steps for pw in s.photo_warnings()], n_photos=2 * len(result.steps)
+    )
+    for line in lines:
+        print(line, file=sys.stderr if args.json else sys.stdout)
     return 0

@@ -54,7 +54,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Write the marker kit (default: the built-in seed-5 kit) as a printable "
         "sheet, or with --format json print (or write) the kit JSON of the spec.",
     )
-    m.add_argument("--kit", type=Path, help="kit JSON (default: the built-in kit)")
+    m.add_argument(
+        "--kit",
+        type=Path,
+        help="kit JSON (default: the built-in kit, its markers on caps at heights above the plate)",
+    )
+    m.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="the kit without heights: flat stickers glued on the plate",
+    )
     m.add_argument("-o", "--out", type=Path, help="file to write (required unless --format json)")
     m.add_argument("--format", choices=("pdf", "svg", "png", "json"), help="output format")
     m.add_argument("--dpi", type=positive_float, default=300.0, help="PNG resolution (default 300)")
@@ -118,6 +127,8 @@ def run_markers(args: argparse.Namespace) -> int:
     if not 0 < args.dpi <= MAX_DPI:
         raise InputError("--dpi", f"must be in (0, {MAX_DPI:g}]")
     kit = load_kit(args.kit) if args.kit else default_kit()
+    if args.flat_kit:
+        kit = kit.flat()
     fmt = args.format or (args.out.suffix.lstrip(".").lower() if args.out else "json")
     if fmt == "json":
         if args.out:

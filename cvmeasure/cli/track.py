@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from cvmeasure.cli.design_options import add_plan_options, plan_from_args
 from cvmeasure.cli.options import int_in
 
 __all__ = ["register", "run"]
@@ -23,7 +24,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "CUSUM). Exit 0 also when an alarm is raised (it is in the output).",
     )
     p.add_argument("inputs", nargs="+", type=Path, help="RESULTS.jsonl or part photos, in order")
-    p.add_argument("--design", type=Path, required=True, help="the parts' design (.svg/.dxf)")
+    p.add_argument(
+        "--design",
+        type=Path,
+        required=True,
+        help="the parts' design (.svg/.dxf), planned by cvmeasure gcode's rules",
+    )
+    add_plan_options(p, job=True)
     p.add_argument("--board", type=Path, help="board JSON (to measure photos)")
     p.add_argument("--camera", type=Path, help="camera JSON (to measure photos)")
     p.add_argument(
@@ -38,7 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _records(args: argparse.Namespace, design) -> list[dict]:
+def _records(args: argparse.Namespace, plan) -> list[dict]:
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import read_jsonl
 
@@ -61,15 +68,16 @@ def _records(args: argparse.Namespace, design) -> list[dict]:
                 read_photo(photo).bgr,
                 board,
                 camera,
-                design=design,
+                design=plan.as_path(),
                 design_source=str(args.design),
                 source=str(photo),
+                reference_mm=plan.vertices_mm,
             )
             records.append(m.to_dict())
-    return [_with_comparison(r, design, str(args.design)) for r in records]
+    return [_with_comparison(r, plan, str(args.design)) for r in records]
 
 
-def _with_comparison(record: dict, design, design_source: str) -> dict:
+def _with_comparison(record: dict, plan, design_source: str) -> dict:
     """A record without a design comparison but with vertex bends: compare it here."""
     if (record.get("comparison") or {}).get("bends") or not record.get("vertex_bend_deg"):
         return record
@@ -85,24 +93,26 @@ def _with_comparison(record: dict, design, design_source: str) -> dict:
         float(record["arc_angle_deg"]),
         int(record["divisions"]),
     )
+    if arc.divisions != plan.divisions:
+        return record  # not bent as this plan: left without a comparison (skipped)
     comp = compare_with_design(
         np.asarray(record["centreline_mm"], float),
         np.asarray(record["vertex_bend_deg"], float),
         arc,
-        design,
+        plan.as_path(),
         design_source=design_source,
+        reference_mm=plan.vertices_mm,
     )
     return {**record, "comparison": comp.to_dict()}
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvmeasure.design import load_design
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
     from cvmeasure.part.track import bends_from_records, track_bends, tracking_png
 
-    design = load_design(args.design).wire()
-    records = _records(args, design)
+    plan = plan_from_args(args, args.design)
+    records = _records(args, plan)
     try:
         names, design_deg, measured = bends_from_records(records)
         result = track_bends(measured, design_deg, parts=names, baseline_parts=args.baseline)

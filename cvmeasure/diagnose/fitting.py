@@ -56,12 +56,33 @@ class Nuisance:
     lower: float
     upper: float
     prior_sd: float
+    #: the value the bounds and the tolerance are given for (a DIWire's); a machine
+    #: described with another value has them in proportion (:func:`nuisance_for`)
+    reference: float = 1.0
+
+    def scaled_to(self, value: float) -> Nuisance:
+        """Bounds and tolerance of a machine whose nominal value is ``value``."""
+        f = value / self.reference
+        return dataclasses.replace(
+            self, lower=self.lower * f, upper=self.upper * f, prior_sd=self.prior_sd * f
+        )
 
 
 #: Geometry fitted beside the strength: the die edge radius decides where the pin meets
 #: the wire and the shape of the loaded angle along the bend. (The hardening law's
 #: shape is left to the discrepancy: its exponent and the strength are not separable.)
-NUISANCE: tuple[Nuisance, ...] = (Nuisance("die_radius_mm", 0.8, 2.6, 0.2),)
+#: Given for a DIWire's 1.5 mm die: 0.8-2.6 mm, tolerance 0.2 mm; another machine's
+#: (the user's params) has them in proportion to its own radius.
+NUISANCE: tuple[Nuisance, ...] = (Nuisance("die_radius_mm", 0.8, 2.6, 0.2, reference=1.5),)
+
+
+def nuisance_for(params: SimParams) -> tuple[Nuisance, ...]:
+    """:data:`NUISANCE` about the user's machine: bounds and prior in proportion to its
+    nominal values, so that the diagnosis does not depend on the machine's size (a die
+    of 4 mm is not pulled into a DIWire's 0.8-2.6 mm)."""
+    return tuple(n.scaled_to(float(getattr(params, n.key))) for n in NUISANCE)
+
+
 #: Angle noise (deg) that scales the priors' residuals (mid of the 0.02-0.1 deg range).
 PRIOR_NOISE_DEG = 0.05
 #: Machine parameters kept at their nominal values but not known exactly, with their
@@ -357,7 +378,8 @@ class ModelFit:
         directions in which a refit of the machine moves the model."""
         cols = []
         base = [self.strength_scale, *self.nuisance]
-        for j, step in enumerate([0.01, *(0.05 * n.prior_sd for n in NUISANCE)][: len(base)]):
+        steps = [0.01, *(0.05 * n.prior_sd for n in nuisance_for(params))]
+        for j, step in enumerate(steps[: len(base)]):
             out = []
             for sign in (1.0, -1.0):
                 x = list(base)
@@ -693,7 +715,7 @@ def fit_model(
     """
     names = _as_causes(causes)
     specs = [EFFECTS[c] for c in names]
-    nuis = NUISANCE if nuisance else ()
+    nuis = nuisance_for(params) if nuisance else ()
     m = len(nuis)
 
     keep = np.tile(np.ones(len(trials), dtype=bool) if rows is None else np.asarray(rows), 3)

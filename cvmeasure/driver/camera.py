@@ -32,6 +32,7 @@ from typing import Any, Protocol, runtime_checkable
 from urllib.parse import unquote, urlparse
 
 from cvmeasure.errors import DeviceError, DeviceTimeoutError
+from cvmeasure.extras import require
 from cvmeasure.fileio import atomic_write_bytes
 
 __all__ = [
@@ -99,7 +100,7 @@ def virtual_camera_env(folder: str | os.PathLike[str]) -> Iterator[Path]:
     :class:`GPhoto2Camera` objects then find a "Nikon DSC D750" whose captures
     are copies of the first JPEG in ``folder``. The environment is restored on exit.
     """
-    import gphoto2  # noqa: F401  (sets IOLIBS/CAMLIBS on import)
+    require("gphoto2", "camera", "gphoto2 virtual camera")  # sets IOLIBS/CAMLIBS on import
 
     folder = Path(folder)
     saved = {k: os.environ.get(k) for k in ("VCAMERADIR", "IOLIBS")}
@@ -149,7 +150,7 @@ class GPhoto2Camera:
         settings: Mapping[str, str] | None = None,
         delete_after_download: bool = False,
     ) -> None:
-        import gphoto2 as gp
+        gp = require("gphoto2", "camera", f"gphoto2://{port or ''}")
 
         self._gp = gp
         self.out_dir = Path(out_dir)

@@ -181,6 +181,9 @@ class MachineState:
     line : ``sr.line``, the N word of the executing (or last executed) block.
     bend_angle_deg : the wire leg's angle at the die right now (loaded while the
         pin holds it, unloaded after release, 0 after a feed), deg.
+    head_deg : the head's real rotation from home (signed, deg): while the pin holds a
+        bend, X after the machine's command effects (play lost, an offset, a drift), where
+        a photo sees the pin; X otherwise.
     holding : the pin is pressing the wire.
     bends : every bend executed so far.
     planner_depth : moves queued (including the executing one).
@@ -197,6 +200,7 @@ class MachineState:
     bends: tuple[BendRecord, ...]
     planner_depth: int
     rx_bytes: int
+    head_deg: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         d = dict(self.__dict__)
@@ -290,7 +294,9 @@ class FakeTinyG:
         # the machine (physical; survives resets and reconnects)
         self._bends: list[BendRecord] = []
         self._feed_since_bend = 0.0
-        self._holding: tuple[float, float, float] | None = None  # pin, loaded, unloaded
+        self._holding: tuple[float, float, float, float] | None = (
+            None  # pin, loaded, unloaded, head
+        )
         self._bend_at_die = 0.0
         self._bend_line: int | None = None
         self._vanished = False
@@ -399,6 +405,7 @@ class FakeTinyG:
                 bends=tuple(self._bends),
                 planner_depth=len(self._planner),
                 rx_bytes=len(self._ring),
+                head_deg=self._pos["x"] if self._holding is None else self._holding[3],
             )
 
     def wire_shape_mm(self) -> np.ndarray:
@@ -804,13 +811,14 @@ class FakeTinyG:
 
     # ------------------------------------------------------------------ machine (simulation)
 
-    def _simulate(self, pin_deg: float) -> tuple[float, float]:
+    def _simulate(self, pin_deg: float) -> tuple[float, float, float]:
+        """Loaded and unloaded bend and the head's real rotation (deg) for the command X."""
         from cvmeasure.sim import simulate
 
         res = simulate(
             [pin_deg], self._sim_params, self._sim_effects, bend_index=[len(self._bends)]
         )
-        return float(res.loaded_bend_deg[0]), float(res.unloaded_bend_deg[0])
+        return float(res.loaded_bend_deg[0]), float(res.unloaded_bend_deg[0]), float(res.pin_deg[0])
 
     def _machine_move_start(self, move: _Move) -> None:
         if move.start is not None and move.target["y"] != move.start["y"]:
@@ -831,11 +839,11 @@ class FakeTinyG:
             # a retreating pin presses nothing: a return to home cut by two stops
             # (its fix-up ending off home) is not a new bend
             return
-        loaded, unloaded = self._simulate(pin)
+        loaded, unloaded, head = self._simulate(pin)
         if loaded != 0.0 and (held is None or abs(loaded) > abs(held[1]) + 1e-9):
             if held is not None and math.copysign(1, loaded) != math.copysign(1, held[1]):
                 self._release()
-            self._holding = (pin, loaded, unloaded)
+            self._holding = (pin, loaded, unloaded, head)
             self._bend_at_die = loaded
             self._bend_line = move.line_number
         elif held is not None and abs(loaded) < abs(held[1]) - 1e-9:
@@ -844,7 +852,7 @@ class FakeTinyG:
     def _release(self) -> None:
         if self._holding is None:
             return
-        pin, loaded, unloaded = self._holding
+        pin, loaded, unloaded, _ = self._holding
         self._bends.append(
             BendRecord(self._bend_line, self._feed_since_bend, pin, loaded, unloaded)
         )

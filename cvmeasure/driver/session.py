@@ -1,7 +1,8 @@
 """The automatic calibration session: bend, photograph, release, photograph, measure.
 
-For each calibration angle and direction (:func:`~cvmeasure.material.calibration.calibration_plan`)
-a session:
+For each bend of its plan (:func:`SessionConfig.plan`: a mode's angles twice each way in
+the order :mod:`cvmeasure.driver.plan` makes for the diagnosis; custom angles once each
+way) a session:
 
 1. feeds fresh straight wire (``G91 G1 Y<feed>``),
 2. bends: the pin goes to the nominal command for the wanted *loaded* angle
@@ -44,13 +45,11 @@ from typing import Any, Protocol
 
 from cvmeasure.contracts import MachinePhotoResult, Trial
 from cvmeasure.driver.camera import Camera
+from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
-from cvmeasure.material.calibration import (
-    Calibration,
-    calibration_plan,
-    fit_calibration,
-)
+from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Machine",
@@ -64,6 +63,7 @@ __all__ = [
     "session_gcode",
     "run_session",
     "read_session_log",
+    "session_warnings_json",
 ]
 
 LOG_NAME = "session.jsonl"
@@ -105,7 +105,14 @@ class SessionConfig:
     duck: bool = True
 
     def plan(self) -> list[tuple[str, float]]:
-        return calibration_plan(self.angles_deg if self.mode == "custom" else self.mode)
+        """The bends ``(direction, angle_deg)`` in execution order: a mode's angles in the
+        diagnosis' order (:func:`~cvmeasure.driver.plan.diagnosis_plan`, each angle twice
+        each way), custom angles each once per direction, as listed."""
+        if self.mode == "custom":
+            return swept_plan(self.angles_deg)
+        if self.mode not in MODES:
+            raise ValueError(f"unknown mode {self.mode!r}; valid: {', '.join(MODES)}, custom")
+        return diagnosis_plan(MODES[self.mode])
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -148,8 +155,13 @@ class SessionStep:
             ),
             photo_loaded=self.photo_loaded,
             photo_unloaded=self.photo_unloaded,
-            warnings=(),
         )
+
+    def photo_warnings(self) -> list[tuple[str, StageWarning]]:
+        """Every warning of this bend's two photos, with the photo it was given on."""
+        return [(self.photo_loaded, w) for w in self.loaded.warnings] + [
+            (self.photo_unloaded, w) for w in self.unloaded.warnings
+        ]
 
     def to_dict(self) -> dict[str, Any]:
         d = {
@@ -449,6 +461,10 @@ def run_session(
         )
     except ValueError as exc:
         raise InputError(log_path, f"cannot fit a calibration to this session: {exc}") from None
+    calibration = replace(
+        calibration,
+        provenance={**calibration.provenance, "warnings": session_warnings_json(steps)},
+    )
     return SessionResult(
         steps=steps,
         calibration=calibration,
@@ -484,6 +500,12 @@ def _read_resume(
         },
     )
     return done, interrupted
+
+
+def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:
+    """Every photo warning of a session for the calibration's ``provenance.warnings``:
+    each warning's JSON object (code, message, subject) with the ``photo`` it was given on."""
+    return [{**w.to_json(), "photo": photo} for s in steps for photo, w in s.photo_warnings()]
 
 
 def _bend_and_measure(

@@ -22,6 +22,7 @@ import numpy as np
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
 from cvmeasure.material.calibration import Calibration
 from cvmeasure.material.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
+from cvmeasure.warning import StageWarning
 
 __all__ = ["plot_calibration", "write_session_report"]
 
@@ -51,7 +52,6 @@ def _figure_png(calibration: Calibration) -> bytes:
         unc = np.array([s.uncertainty_deg.get("springback_deg", 0.0) for s in samples])
         top, bottom = axes[0, col], axes[1, col]
         top.errorbar(final, loaded - final, yerr=unc, fmt="ko", ms=4, label="measured", zorder=5)
-        grid = np.linspace(final.min(), final.max(), 300)
         for model in SPRINGBACK_MODELS:
             try:
                 curve = fit_springback(final, loaded, model=model, direction=direction)  # type: ignore[arg-type]
@@ -59,11 +59,10 @@ def _figure_png(calibration: Calibration) -> bytes:
                 continue
             score = curve.loao_rmse_deg
             label = f"{model} (LOAO RMS {score:.3f} deg)" if score is not None else model
-            # drawn over the curve's own domain: a repeated angle's extreme sample can lie
-            # just outside the range the curve was fitted over (per-angle means)
-            lo, hi = curve.domain_deg
-            inside = grid[(grid >= lo) & (grid <= hi)]
-            top.plot(inside, curve.springback_deg(inside), color=_COLOURS[model], label=label)
+            # over the curve's own domain: repeated bends are averaged into one angle, so
+            # the lowest single bend can lie just below it
+            grid = np.linspace(*curve.domain_deg, 300)
+            top.plot(grid, curve.springback_deg(grid), color=_COLOURS[model], label=label)
             if curve.loao_errors_deg:
                 bottom.plot(
                     np.array(curve.final_deg[1:-1]),
@@ -154,6 +153,7 @@ def write_session_report(
             f"<td class=num>{'' if u is None else f'{u:.4f}'}</td></tr>"
         )
     parts.append("</table>")
+    parts += _warnings_section(calibration)
     if steps and session_dir is not None:
         parts.append("<h2>Overlays (measured markers)</h2>")
         picks = sorted(
@@ -177,3 +177,24 @@ def write_session_report(
                     parts.append(f" {which}: bend {rec.bend_angle_deg:.3f} deg ")
             parts.append("</p>")
     return atomic_write_text(path, html_page(f"Calibration {calibration.name}", parts))
+
+
+def _warnings_section(calibration: Calibration) -> list[str]:
+    """The session's photo warnings (``provenance.warnings``), one row per photo and code."""
+    e = html.escape
+    rows = calibration.provenance.get("warnings") or []
+    if not rows:
+        return ["<h2>Warnings</h2><p>No warnings on any photo.</p>"]
+    out = [
+        f"<h2>Warnings</h2><p>{len(rows)} warning(s) on "
+        f"{len({r.get('photo') for r in rows})} photo(s).</p>",
+        "<table><tr><th>photo</th><th>code</th><th>subject</th><th>message</th></tr>",
+    ]
+    for r in rows:
+        w = StageWarning.from_json(r)
+        out.append(
+            f"<tr><td>{e(str(r.get('photo', '')))}</td><td>{e(w.code)}</td>"
+            f"<td>{e(w.subject)}</td><td>{e(w.message)}</td></tr>"
+        )
+    out.append("</table>")
+    return out

@@ -35,7 +35,15 @@ from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import pin_bend_deg
 
-__all__ = ["HeightParallax", "height_parallax", "BOUND_TILT_DEG", "fallback_focal_px"]
+__all__ = [
+    "HeightParallax",
+    "height_parallax",
+    "BOUND_TILT_DEG",
+    "fallback_focal_px",
+    "height_angle_jacobian",
+    "height_angle_variance_deg2",
+    "move_to_heights",
+]
 
 #: The camera tilt (deg, optical axis from the plate's normal) the no-pose bounds allow:
 #: the camera's foot point anywhere within ``f tan(BOUND_TILT_DEG)`` of the principal point.
@@ -124,3 +132,72 @@ def height_parallax(
         {k: float(v) for k, v in zip(keys, worst_par, strict=True)},
         float(tilt_deg),
     )
+
+
+def move_to_heights(
+    centres_mm: Mapping[str, np.ndarray],
+    from_mm: Mapping[str, float],
+    to_mm: Mapping[str, float],
+    camera_centre_mm: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """Plate-frame centres measured at heights ``from_mm`` moved to heights ``to_mm``.
+
+    Along each pixel's ray, the planes at heights ``a`` and ``b`` above the plate are a
+    homothety about the camera's foot point with factor ``(Z - b) / (Z - a)`` (``Z`` the
+    camera's height above the plate): a circle's centre maps exactly. ``camera_centre_mm``
+    is the camera's centre in the plate frame (``PlaneModel.camera_centre_mm``; its z
+    sign does not matter).
+    """
+    c = np.asarray(camera_centre_mm, dtype=np.float64).reshape(3)
+    foot, z = c[:2], abs(float(c[2]))
+    return {
+        r: foot + (np.asarray(p, dtype=np.float64) - foot) * (z - to_mm[r]) / (z - from_mm[r])
+        for r, p in centres_mm.items()
+    }
+
+
+def height_angle_jacobian(
+    centres_mm: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    *,
+    y_down: bool = True,
+    step_mm: float = 0.5,
+) -> np.ndarray:
+    """d(pin, bend angle)/d(height) (2, 5), deg/mm, for the heights in :data:`ROLES` order.
+
+    ``centres_mm`` are the centres on the plate measured at the kit's heights.
+    Central differences of ``step_mm`` (the angles are near linear in the heights).
+    """
+    heights = {r: kit.height_mm(r) for r in ROLES}
+    jac = np.zeros((2, len(ROLES)))
+    for j, role in enumerate(ROLES):
+        ends = []
+        for sign in (1.0, -1.0):
+            to = dict(heights)
+            to[role] = heights[role] + sign * step_mm
+            moved = move_to_heights({role: centres_mm[role]}, heights, to, camera_centre_mm)
+            ends.append(pin_bend_deg({**centres_mm, **moved}, y_down=y_down))
+        jac[:, j] = wrap_deg(ends[0] - ends[1]) / (2 * step_mm)
+    return jac
+
+
+def height_angle_variance_deg2(
+    centres_mm: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    *,
+    y_down: bool = True,
+) -> dict[str, float]:
+    """The angles' variance (deg^2) the kit's height uncertainties cause, on a plane pose.
+
+    ``J C J^T`` with ``J`` from :func:`height_angle_jacobian` and ``C`` the kit's height
+    covariance (:meth:`cvmeasure.kit.MarkerKit.height_cov_mm2`; zeros for exact or flat
+    heights). Keys ``pin_angle_deg`` and ``bend_angle_deg``.
+    """
+    cov = kit.height_cov_mm2()
+    if not np.any(cov):
+        return {"pin_angle_deg": 0.0, "bend_angle_deg": 0.0}
+    jac = height_angle_jacobian(centres_mm, kit, camera_centre_mm, y_down=y_down)
+    var = np.diag(jac @ cov @ jac.T)
+    return {"pin_angle_deg": float(var[0]), "bend_angle_deg": float(var[1])}

@@ -719,6 +719,7 @@ def correct_from_part(
     design: Any,
     *,
     design_name: str = "design",
+    reference_mm: Any = None,
     gain: float = DEFAULT_GAIN,
     deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
@@ -730,8 +731,12 @@ def correct_from_part(
     measurement : a :class:`~cvmeasure.part.measure.PartMeasurement` measured with
         ``design`` (its ``comparison.bends`` are used; the chord count N is the one
         found in the photo).
-    design : the design wire (:class:`cvmeasure.design.DesignPath`); the job bends
-        its N equal chords, fed from its first point.
+    design : the design wire (:class:`cvmeasure.design.DesignPath`).
+    reference_mm : ndarray (N+1, 2), the polygon the part was bent as
+        (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, the one the measurement was
+        compared with): the next job bends it again, same feeds, only the pins corrected.
+        None: the polygon the planner makes of ``design`` in the N chords measured
+        (:func:`cvmeasure.wireplan.bent_polygon`).
 
     Returns
     -------
@@ -744,6 +749,7 @@ def correct_from_part(
     """
     from cvmeasure.driver.gcode import GcodeJob, bend_list, gcode_lines
     from cvmeasure.errors import InputError
+    from cvmeasure.wireplan import bent_polygon
 
     comp = measurement.comparison
     if comp is None or comp.bends is None:
@@ -756,7 +762,11 @@ def correct_from_part(
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
     measured, sigma, turned = orient_to_job(target, measured, sigma)
-    chords = design.chords(len(target) + 1)  # the count measured (given or found)
+    if reference_mm is not None:
+        chords = np.asarray(reference_mm, dtype=np.float64)
+    else:
+        # the count measured (given or found), as the planner bends the design in it
+        chords = bent_polygon(design, len(target) + 1)
     bends = bend_list(chords, source=design_name)
     if len(bends.bends_deg) != len(target):
         raise InputError(

@@ -1212,6 +1212,7 @@ def profile_polyline(
     *,
     width_px: float,
     corner_margin: float = 0.12,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit | None:
     """The polyline of the vertex bends: each chord's centres from its whole cross-profile.
 
@@ -1221,7 +1222,8 @@ def profile_polyline(
     :func:`chord_profile_centres`, lit side). The re-measured centres (the others kept)
     are fitted by :func:`cvmeasure.part.fit.fit_polyline`, so each direction's sigma
     comes from their own scatter about the chord, with its correlation
-    (:func:`cvmeasure.part.fit._correlation_factor`). None when the fit fails.
+    (:func:`cvmeasure.part.fit._correlation_factor`). ``fractions``: the polygon bent's
+    vertex positions (:func:`cvmeasure.part.fit.fit_polyline`). None when the fit fails.
     """
     divisions = chords_from.divisions
     pts_mm = to_mm(points_px)
@@ -1240,6 +1242,6 @@ def profile_polyline(
     keep = np.isfinite(new[:, 0])
     new[~keep] = np.asarray(points_px, dtype=np.float64)[~keep]
     try:
-        return fit_polyline(to_mm(new), divisions)
+        return fit_polyline(to_mm(new), divisions, fractions=fractions)
     except ValueError:
         return None

@@ -223,6 +223,7 @@ def fit_polyline(
     *,
     corner_margin: float = 0.12,
     iterations: int = 3,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit:
     """Fit ``divisions`` straight segments to an ordered centreline.
 
@@ -238,13 +239,28 @@ def fit_polyline(
     ----------
     ordered_points_mm : ndarray (M, 2), ordered from one wire end to the other.
     divisions : number of straight chords N >= 1.
+    fractions : ndarray (N+1,), optional
+        Where the vertices of the polygon bent lie, as shares of its length (0 .. 1, in
+        this centreline's order; :mod:`cvmeasure.wireplan`). The split points then start
+        there and each stays within a quarter of its shorter neighbouring chord (a part
+        of unequal chords); default: equal chords.
     """
     pts = _check_points(ordered_points_mm, 2 * divisions + 2)
     if divisions < 1:
         raise ValueError(f"divisions must be >= 1, got {divisions}")
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))
-    verts = divide_into_chords(pts, divisions)
+    window: np.ndarray | None = None
+    if fractions is None:
+        verts = divide_into_chords(pts, divisions)
+    else:
+        f = np.asarray(fractions, dtype=np.float64).ravel()
+        if f.size != divisions + 1:
+            raise ValueError(f"{f.size} vertex fractions for {divisions} chords")
+        at = f * s[-1]
+        verts = np.column_stack((np.interp(at, s, pts[:, 0]), np.interp(at, s, pts[:, 1])))
+        chord = np.diff(at)
+        window = 0.25 * np.minimum(np.r_[chord[:1], chord], np.r_[chord, chord[-1:]])
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     rms = float("nan")
     vs0: np.ndarray | None = None
@@ -255,7 +271,7 @@ def fit_polyline(
         vs[0], vs[-1] = 0.0, s[-1]
         if vs0 is None:
             vs0 = vs.copy()
-        quarter = 0.25 * s[-1] / divisions
+        quarter = 0.25 * s[-1] / divisions if window is None else window
         vs = np.maximum.accumulate(np.clip(vs, vs0 - quarter, vs0 + quarter))
         lines = []
         dir_var: list[float] = []

@@ -72,6 +72,7 @@ from cvmeasure.part.lift import (
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 from cvmeasure.part.shadow import estimate_lift_shadow
+from cvmeasure.wireplan import bent_polygon
 
 __all__ = [
     "Method",
@@ -180,8 +181,9 @@ class PartMeasurement:
     warnings : things a user should know (e.g. arcs too short for a stable radius).
     shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
         sign, so radius and arc angle describe no real arc).
-    divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
-        (vertices found on the centreline) or None (none: a smooth curve).
+    divisions_from : where the chord count came from: ``"--divisions"``, ``"plan"`` (the
+        polygon bent, ``reference_mm``), ``"photo"`` (vertices found on the centreline)
+        or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
@@ -267,13 +269,17 @@ def _shape(poly: PolylineFit | None) -> str:
 
 
 def arc_from_points(
-    points_mm: np.ndarray, divisions: int | None
+    points_mm: np.ndarray, divisions: int | None, fractions: np.ndarray | None = None
 ) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
-    """Our arc quantities from an ordered centreline in mm (see the module notes)."""
+    """Our arc quantities from an ordered centreline in mm (see the module notes).
+
+    ``fractions``: where the polygon bent has its vertices (shares of its length, in the
+    centreline's order; :func:`cvmeasure.part.fit.fit_polyline`), default equal chords.
+    """
     pts = np.asarray(points_mm, dtype=np.float64)
     poly = None
     if divisions:
-        poly = fit_polyline(pts, divisions)
+        poly = fit_polyline(pts, divisions, fractions=fractions)
         circle = fit_circle_robust(poly.vertices_mm)
         geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
         chord, height = chord_and_height_mm(poly.vertices_mm)
@@ -584,6 +590,7 @@ def _lift_effects(
     base_mm: float,
     max_lift_mm: float = MAX_LIFT_MM,
     standard: bool = False,
+    fractions: np.ndarray | None = None,
 ) -> tuple[dict[str, Any], np.ndarray | None, str]:
     """The lift's bound, the bends' extra sigma (deg) and a warning ('' when none).
 
@@ -600,7 +607,7 @@ def _lift_effects(
 
     def effect(other_mm: np.ndarray) -> tuple[float, float, np.ndarray | None]:
         try:
-            res, _, p = arc_from_points(other_mm, divisions)
+            res, _, p = arc_from_points(other_mm, divisions, fractions)
         except ValueError:
             return float("nan"), float("nan"), None
         d_r = 100.0 * (res.radius_mm / ours.radius_mm - 1.0)
@@ -785,7 +792,11 @@ LIT_MIN_LIFT_MM = 2.0
 
 
 def _vertex_polyline(
-    lit_points_px: np.ndarray | None, to_mm: Any, divisions: int | None, poly: PolylineFit | None
+    lit_points_px: np.ndarray | None,
+    to_mm: Any,
+    divisions: int | None,
+    poly: PolylineFit | None,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit | None:
     """The polyline whose bends are the vertex bends: the pairs' and the lit side's chords.
 
@@ -800,14 +811,18 @@ def _vertex_polyline(
     if poly is None or lit_points_px is None or not divisions:
         return poly
     try:
-        lit = fit_polyline(to_mm(lit_points_px), divisions)
+        lit = fit_polyline(to_mm(lit_points_px), divisions, fractions=fractions)
     except ValueError:
         return poly
     return _combine_chords(poly, lit)
 
 
 def _profile_vertices(
-    image: np.ndarray, centre: Centreline, to_mm: Any, poly: PolylineFit | None
+    image: np.ndarray,
+    centre: Centreline,
+    to_mm: Any,
+    poly: PolylineFit | None,
+    fractions: np.ndarray | None = None,
 ) -> PolylineFit | None:
     """The vertex bends' polyline from each chord's whole cross-profile (lit side).
 
@@ -819,7 +834,12 @@ def _profile_vertices(
     if poly is None or widths is None or not np.isfinite(widths).any():
         return None
     return profile_polyline(
-        gray_float(image), centre.points_px, to_mm, poly, width_px=float(np.nanmedian(widths))
+        gray_float(image),
+        centre.points_px,
+        to_mm,
+        poly,
+        width_px=float(np.nanmedian(widths)),
+        fractions=fractions,
     )
 
 
@@ -865,6 +885,29 @@ def _combine_chords(pairs: PolylineFit, lit: PolylineFit) -> PolylineFit:
     )
 
 
+def _reference_fractions(centreline_mm: np.ndarray, reference_mm: np.ndarray) -> np.ndarray:
+    """The polygon bent's vertex positions (shares of its length) in the centreline's order.
+
+    The centreline runs either way along the part; the order whose chord fit leaves the
+    smaller residual is the part's (a polygon symmetric end to end gives the same).
+    """
+    ref = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
+    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))))
+    f = cum / cum[-1]
+    if len(ref) < 3:
+        return f
+    back = 1.0 - f[::-1]
+    if np.allclose(f, back, atol=1e-9):
+        return f
+    fits = []
+    for cand in (f, back):
+        try:
+            fits.append(fit_polyline(centreline_mm, len(ref) - 1, fractions=cand).rms_residual_mm)
+        except ValueError:
+            fits.append(np.inf)
+    return f if fits[0] <= fits[1] else back
+
+
 def _net_turn_deg(points_mm: np.ndarray) -> float:
     """Total signed turning of an ordered centreline (board frame sense), degrees."""
     pts = np.asarray(points_mm, dtype=np.float64)
@@ -882,18 +925,29 @@ def compare_with_design(
     *,
     design_source: str = "design",
     allow_mirror: bool = True,
+    reference_mm: np.ndarray | None = None,
 ) -> DesignComparison:
     """Register a board-frame centreline to a design and compare (see the module notes).
 
-    With divisions N the reference is the design divided into N equal chords
-    (the polygon the machine is asked to bend), otherwise the design curve.
-    ``allow_mirror=False`` refuses the mirror image (the part lies as it left the
-    machine): a design symmetric end to end is then matched vertex for vertex.
+    The reference is the polygon the machine was asked to bend (``reference_mm``,
+    design frame: :attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, whose chord count
+    must be the result's); without it, with divisions N, the polygon of N chords the
+    planner makes of the design (:func:`cvmeasure.wireplan.bent_polygon`: drawn corners
+    kept, curves in equal chords), else the design curve. ``allow_mirror=False`` refuses the mirror
+    image (the part lies as it left the machine): a design symmetric end to end is
+    then matched vertex for vertex.
     """
     seen = np.asarray(centreline_mm, dtype=np.float64) * np.array([1.0, -1.0])
     n = result.divisions
-    # with N chords the shape meant is the design divided into N equal chords
-    verts = design.chords(n) if n else design.points_mm
+    if reference_mm is not None:
+        verts = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
+        if n and n != len(verts) - 1:
+            raise ValueError(
+                f"the part was fitted with {n} chords, the polygon bent has {len(verts) - 1}"
+            )
+    else:
+        # the polygon the planner makes of this wire in n chords (drawn corners kept)
+        verts = bent_polygon(design, n) if n else design.points_mm
     reg = register_to_design(seen, verts, allow_mirror=allow_mirror)
     dev = deviation_profile(seen, verts, reg)
     d_geo = arc_geometry(fit_circle_robust(verts), verts)
@@ -931,6 +985,7 @@ def measure_part(
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
     shadow_lift: bool = True,
+    reference_mm: np.ndarray | None = None,
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -989,6 +1044,11 @@ def measure_part(
     source : the photo's name, used in errors.
     allow_mirror : the part may lie upside down (the design comparison tries the
         mirror image); False when it lies as it left the machine.
+    reference_mm : ndarray (N+1, 2), the polygon the machine was asked to bend (design
+        frame, mm; :attr:`cvmeasure.wireplan.WirePlan.vertices_mm`). With it the part is
+        fitted with its N chords, each vertex starting where the polygon has it (unequal
+        chords), and compared with it; ``divisions`` is then N. Default: N equal chords
+        of ``design``.
 
     Raises
     ------
@@ -1041,22 +1101,30 @@ def measure_part(
             axis_height_mm=base_mm,
         )
     chords = count_chords(centreline_mm)
-    divisions_from = "--divisions" if divisions is not None else None
+    given = "plan" if reference_mm is not None else "--divisions"
+    if reference_mm is not None:
+        divisions = len(reference_mm) - 1
+    divisions_from = given if divisions is not None else None
     if divisions is None and chords.divisions is not None:
         divisions, divisions_from = chords.divisions, "photo"
     elif divisions is not None and chords.divisions not in (None, divisions):
+        what = "the polygon bent has" if given == "plan" else "--divisions"
         warnings.append(
-            f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
+            f"{what} {divisions}, but the photo shows {chords.divisions} chords "
             f"({chords.reason}); measured with {divisions}"
         )
     elif divisions is not None and chords.divisions is None:
+        what = "the polygon bent has" if given == "plan" else "--divisions"
         warnings.append(
-            f"--divisions {divisions}, but no chord vertices were found in the photo "
-            f"({chords.reason})"
+            f"{what} {divisions}, but no chord vertices were found in the photo ({chords.reason})"
         )
+    if reference_mm is None and design is not None and divisions and not design.curve_mask.all():
+        # a design with drawn corners: the polygon the planner bends in that many chords
+        reference_mm = bent_polygon(design, divisions)
+    fractions = None if reference_mm is None else _reference_fractions(centreline_mm, reference_mm)
     flat_mm = centreline_mm
     try:
-        ours, circle, poly = arc_from_points(centreline_mm, divisions)
+        ours, circle, poly = arc_from_points(centreline_mm, divisions, fractions)
     except ValueError as exc:
         raise InputError(source, f"cannot fit the part ({exc})") from None
     lift_info = None
@@ -1105,18 +1173,20 @@ def measure_part(
 
         centreline_mm = lifted_mm(centre.points_px)
         try:
-            ours, circle, poly = arc_from_points(centreline_mm, divisions)
+            ours, circle, poly = arc_from_points(centreline_mm, divisions, fractions)
         except ValueError as exc:
             raise InputError(source, f"cannot fit the part ({exc})") from None
-        vpoly = _profile_vertices(image, centre, lifted_mm, poly)
+        vpoly = _profile_vertices(image, centre, lifted_mm, poly, fractions)
         if vpoly is None:  # no silhouette edges' profile fit: the edges' centres
             vpoly = poly
             if scale * corrected.lift.lift_mm >= LIT_MIN_LIFT_MM:
-                vpoly = _vertex_polyline(centre.lit_points_px, lifted_mm, divisions, poly)
+                vpoly = _vertex_polyline(
+                    centre.lit_points_px, lifted_mm, divisions, poly, fractions
+                )
         bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
         lift_info, extra_sigma, _ = _lift_effects(
             plane, centre.points_px, flat_mm, None, flat[0], flat[1], divisions, base_mm,
-            2.0 * corrected.lift.lift_sigma_mm, standard=not uncertain,
+            2.0 * corrected.lift.lift_sigma_mm, standard=not uncertain, fractions=fractions,
         )  # fmt: skip
         by_shadow = shadow_info is not None
         # lift_mm: the lift corrected with (the reading, or the bound it was read above);
@@ -1149,7 +1219,7 @@ def measure_part(
     else:  # measured on the plate (a lift, if any, bounded below), not re-fitted lifted
         # a round wire's vertex bends from each chord's whole cross-profile (part14s)
         vpoly = _profile_vertices(
-            image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly
+            image, centre, lambda q: plane.image_to_plane_mm(q, height_mm=base_mm), poly, fractions
         )
         vpoly = poly if vpoly is None else vpoly
         bend_sigma = None if vpoly is None else np.asarray(vpoly.bend_sigma_deg, dtype=float)
@@ -1158,7 +1228,7 @@ def measure_part(
         # where it is good enough, else the largest lift a part rocks to)
         lift_info, extra_sigma, lift_warning = _lift_effects(
             plane, centre.points_px, centreline_mm, lift, ours, poly, divisions, base_mm,
-            max_lift_mm,
+            max_lift_mm, fractions=fractions,
         )  # fmt: skip
         if bend_sigma is not None and extra_sigma is not None:
             bend_sigma = np.hypot(bend_sigma, extra_sigma)
@@ -1250,6 +1320,7 @@ def measure_part(
             design,
             design_source=design_source,
             allow_mirror=allow_mirror,
+            reference_mm=reference_mm,
         )
     return PartMeasurement(
         source=source,

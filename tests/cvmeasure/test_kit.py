@@ -1,4 +1,5 @@
 import itertools
+import json
 
 import colour
 import numpy as np
@@ -92,3 +93,39 @@ def test_a_kit_with_some_heights_missing_is_refused_naming_them():
     del data["markers"][2]["height_mm"]  # the pin's
     with pytest.raises(InputError, match=r"kit.json: height_mm is given for .* but not for pin"):
         MarkerKit.from_dict(data, source="kit.json")
+
+
+def test_one_truth_sheet_kit_renderer_and_docs_agree(tmp_path, capsys):
+    """The spec's kit rule: the printed sheet, the built-in kit, `render bender`'s default
+    and the docs tell one story (markers on caps at the kit's heights; flat is an option)."""
+    import re
+    from pathlib import Path
+
+    from cvmeasure.cli import main
+    from cvmeasure_calib_targets.markers import write_kit_sheet
+
+    kit = default_kit()
+    assert kit.has_heights
+    svg = write_kit_sheet(kit, tmp_path / "kit.svg").read_text()
+    assert "glue each on its cap" in svg and "glue flat" not in svg
+    for m in kit.markers:
+        assert f"face {m.height_mm:g} mm above the plate" in svg
+    flat_svg = write_kit_sheet(kit.flat(), tmp_path / "flat.svg").read_text()
+    assert "glue flat on the top plate" in flat_svg and "above the plate" not in flat_svg
+    args = ["render", "bender", "--pin-deg", "40", "--bend-deg", "30", "--scale", "0.1"]
+    assert main([*args, "-o", str(tmp_path / "r")]) == 0
+    truth = json.loads((tmp_path / "r" / "bender.truth.json").read_text())
+    assert {r: truth["markers"][r]["height_mm"] for r in ROLES} == {
+        r: kit.height_mm(r) for r in ROLES
+    }
+    assert main([*args, "--flat-kit", "-o", str(tmp_path / "f")]) == 0
+    truth = json.loads((tmp_path / "f" / "bender.truth.json").read_text())
+    assert all(truth["markers"][r]["height_mm"] == 0.0 for r in ROLES)
+    assert "height_mm" not in json.dumps(truth["kit"])
+    assert main(["targets", "markers", "--format", "json", "--flat-kit"]) == 0
+    assert "height_mm" not in capsys.readouterr().out
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "conventions.md").read_text()
+    said = re.search(r"The built-in kit `seed-5` gives[^.]*\(([^)]*)\)", docs).group(1)
+    assert " ".join(said.split()) == "origin and axis caps 12 mm, pin cap 18 mm, wire clips 8.5 mm, wire axis 5 mm"
+    assert [kit.height_mm(r) for r in ROLES] == [12.0, 12.0, 18.0, 8.5, 8.5]
+    assert kit.wire_axis_height_mm == 5.0

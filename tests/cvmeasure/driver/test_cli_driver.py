@@ -40,7 +40,11 @@ def test_gcode_from_svg_uses_the_simulation_inverse(half_gcode):
     np.testing.assert_allclose(np.abs(bends), 9.0, atol=1e-6)
     np.testing.assert_allclose(summary["pin_deg"], pin_command_for_angle(bends), atol=1e-9)
     lines = out.read_text().splitlines()
-    assert lines[0].startswith("; cvmeasure") and lines[2].startswith("N1 G21 G90")
+    first = next(i for i, line in enumerate(lines) if not line.startswith(";"))
+    assert lines[0].startswith("; cvmeasure") and lines[first].startswith("N1 G21 G90")
+    # the header keeps the division of the arc (printed too) and the polygon bent
+    assert any(line.startswith("; curve divided:") for line in lines[:first])
+    assert any(line.startswith("; plan ") for line in lines[:first])
 
 
 def test_gcode_with_a_calibration_json(tmp_path, capsys):

@@ -300,3 +300,51 @@ def test_session_reads_kit_and_camera_files(tmp_path, capsys):
     broken.write_text("{")
     assert main([*args[:-5], "--kit", str(broken), "--dir", str(tmp_path / "s2")]) == 2
     assert "broken_kit.json" in capsys.readouterr().err
+
+
+def test_every_photo_warning_reaches_the_console_the_calibration_and_the_report(tmp_path, capsys):
+    """Photo warnings (here: the kit's heights, not applied without a plane pose, on every
+    photo) are in the calibration JSON's provenance.warnings, the console summary and the
+    HTML report, as well as the session log."""
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", "10,30", "--scale", "0.2"]
+    assert main([*args, "--quiet"]) == 0
+    console = capsys.readouterr().out
+    log = read_session_log(tmp_path / "cal_session" / "session.jsonl")
+    logged = [
+        (r[f"photo_{which}"], w["code"])
+        for r in log
+        if r["event"] == "sample"
+        for which in ("loaded", "unloaded")
+        for w in r[which]["warnings"]
+    ]
+    assert len(logged) >= 8  # 4 bends x 2 photos, each warned about the heights
+    cal = json.loads(out.read_text())
+    got = [(w["photo"], w["code"]) for w in cal["provenance"]["warnings"]]
+    assert got == logged
+    report = out.with_suffix(".html").read_text()
+    for photo, code in logged:
+        assert code in console and code in report and photo in report
+    assert "on 8 of 8 photos" in console
+
+
+def test_session_refuses_a_lens_json_as_the_camera(tmp_path, capsys):
+    lens = tmp_path / "camera.json"
+    lens.write_text("{}")
+    out = str(tmp_path / "c.json")
+    assert main(["session", "-o", out, "--port", "x", "--camera", str(lens)]) == 2
+    err = capsys.readouterr().err
+    assert "--camera-model" in err and "camera.json" in err
+    assert main(["session", "--simulate", "-o", out, "--camera", "folder:///tmp"]) == 2
+    assert "simulated camera" in capsys.readouterr().err
+
+
+def test_session_flat_kit_measures_flat_stickers(tmp_path):
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", "10,30", "--scale", "0.2"]
+    assert main([*args, "--flat-kit", "--quiet"]) == 0
+    log = read_session_log(tmp_path / "cal_session" / "session.jsonl")
+    heights = {
+        r[w].get("heights") for r in log if r["event"] == "sample" for w in ("loaded", "unloaded")
+    }
+    assert heights == {"flat"}

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -19,6 +20,7 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.kit import ROLES, default_kit
 from cvmeasure.markers import measure_machine_photo
 from cvmeasure.markers.heights import height_parallax
+from cvmeasure.warning import codes, has_code
 
 pytest.importorskip("cvmeasure_datasets.discs3d")
 
@@ -67,17 +69,26 @@ def test_heights_applied_through_the_plane_pose(pose):
     bgr, truth = _photo(-60.0, -50.0, pose)
     plane = true_plane(_camera(), pose)
     res = measure_machine_photo(bgr, default_kit(), plane=plane)
-    assert res.heights == "plane" and res.height_bound_deg is None
+    assert res.heights == "plane"
+    # nominal heights: what caps 10 % off them could do is bounded beside the sigma
+    assert has_code(res.warnings, "heights_nominal") and res.height_bound_deg["pin_angle_deg"] > 0
+    stated = replace(
+        default_kit(),
+        markers=tuple(replace(m, height_sigma_mm=0.2) for m in default_kit().markers),
+    )
+    known = measure_machine_photo(bgr, stated, plane=plane)
+    assert known.height_bound_deg is None and not has_code(known.warnings, "heights_nominal")
+    assert known.uncertainty_deg["pin_angle_deg"] > res.uncertainty_deg["pin_angle_deg"]
     pin_err, bend_err = _err(res, truth)
     assert abs(pin_err) < TOL_DEG and abs(bend_err) < TOL_DEG, (pin_err, bend_err)
     # each disc measured at its own height has the kit's size and is round on the plate
-    assert not any("in size on the plane" in w or "elliptic" in w for w in res.warnings)
+    assert not codes(res.warnings) & {"plane_scale", "plane_tilt", "kit_heights_mismatch"}
     # the same photo measured flat: the pin (6 mm above the origin disc) is off, and said so
     flat = measure_machine_photo(bgr, default_kit().flat(), plane=plane)
     assert flat.heights == "flat"
     assert abs(_err(flat, truth)[0]) > 0.1
-    assert any("no marker heights" in w for w in flat.warnings)
-    assert any("in size on the plane" in w for w in flat.warnings)
+    (said,) = [w for w in flat.warnings if w.code == "kit_heights_mismatch"]
+    assert "stand at heights" in said.message and "height_mm" in said.message
 
 
 def test_a_plane_json_without_its_pose_gets_it_from_the_homography():
@@ -108,8 +119,8 @@ def test_without_a_pose_the_bound_holds_the_error(pose):
     camera = _camera()
     res = measure_machine_photo(bgr, default_kit(), camera=camera)
     assert res.heights == "none"
-    said = [w for w in res.warnings if "marker heights not applied" in w]
-    assert said and "height_bound_deg" in said[0]
+    said = [w for w in res.warnings if w.code == "heights_not_applied"]
+    assert said and "height_bound_deg" in said[0].message
     pin_err, bend_err = _err(res, truth)
     assert abs(pin_err) > 0.1  # the heights matter: origin 12 mm, pin 18 mm
     assert abs(pin_err) <= res.height_bound_deg["pin_angle_deg"]
@@ -127,7 +138,7 @@ def test_parallel_correction_on_a_square_camera():
     bgr, truth = _photo(-60.0, -50.0, SQUARE)
     res = measure_machine_photo(bgr, default_kit(), camera=_camera(), heights="parallel")
     assert res.heights == "parallel"
-    assert any("corrected assuming a camera square" in w for w in res.warnings)
+    assert has_code(res.warnings, "heights_parallel")
     pin_err, bend_err = _err(res, truth)
     assert abs(pin_err) < TOL_DEG and abs(bend_err) < TOL_DEG
     assert abs(pin_err) <= res.height_bound_deg["pin_angle_deg"]

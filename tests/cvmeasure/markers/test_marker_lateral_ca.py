@@ -54,7 +54,7 @@ def _centre_rms_px(res, photo) -> float:
 
 
 def _ca_warnings(res) -> list[str]:
-    return [w for w in res.warnings if "chromatic" in w]
+    return [w for w in res.warnings if w.code == "lateral_colour"]
 
 
 def test_estimate_recovers_the_magnification_from_exact_shifts():
@@ -95,8 +95,8 @@ def test_lateral_ca_is_detected_and_measured_in_green():
     kit = default_kit()
     res = measure_machine_photo(photo.bgr, kit, camera=photo.camera)
     (warning,) = _ca_warnings(res)
-    assert warning.startswith("lateral chromatic aberration detected (")
-    assert warning.endswith("px at the corners): edges taken in green")
+    assert warning.message.startswith("lateral chromatic aberration detected (")
+    assert warning.message.endswith("px at the corners): edges taken in green")
     assert res.pin_angle_deg == pytest.approx(photo.truth["pin_angle_deg"], abs=ANGLE_TOL_DEG)
     assert res.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=ANGLE_TOL_DEG)
     assert _centre_rms_px(res, photo) < CENTRE_RMS_TOL_PX

@@ -53,7 +53,9 @@ def test_a_tool_shadow_across_a_marker_is_named_and_held(offset_mm):
     shadow = Bar(through, direction, 6.0, height_mm=KIT.height_mm("pin") + 0.01, shadow=0.5,
                  soft_mm=2.0)  # fmt: skip
     res, truth = _measure(bars=(shadow,))
-    assert any("'pin' unevenly lit" in w for w in res.warnings), res.warnings
+    assert any(w.code == "marker_uneven_light" and w.subject == "pin" for w in res.warnings), (
+        res.warnings
+    )
     ok, err = _held(res, truth, "pin_angle_deg")
     assert ok, (err, res.uncertainty_deg)
 
@@ -63,7 +65,9 @@ def test_a_wire_across_a_ring_edge_is_named_and_held():
     wire = Bar(through, direction, 3.0, height_mm=KIT.height_mm("wire_b") + 4.0,
                srgb=(170, 170, 175))  # fmt: skip
     res, truth = _measure(bars=(wire,))
-    assert any("'wire_b' partly hidden" in w for w in res.warnings), res.warnings
+    assert any(w.code == "marker_hidden" and w.subject == "wire_b" for w in res.warnings), (
+        res.warnings
+    )
     ok, err = _held(res, truth, "bend_angle_deg")
     assert ok, (err, res.uncertainty_deg)
 

@@ -250,7 +250,9 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     save_camera(tmp_path / "camera.json", photo.camera)
     atomic_write_json(tmp_path / "board.json", board.to_dict())
     save_calibration(tmp_path / "cal.json", cal)
-    common = ["--design", str(design), "--material", str(tmp_path / "cal.json")]
+    # bent as `cvmeasure gcode arc.svg --divisions 10`: the same option plans the same polygon
+    common = ["--design", str(design), "--divisions", "10"]
+    common += ["--material", str(tmp_path / "cal.json")]
     common += ["--board", str(tmp_path / "board.json"), "--camera", str(tmp_path / "camera.json")]
     out = ["-o", str(tmp_path / "cal2.json"), "--gcode", str(tmp_path / "job2.gcode")]
     assert main(["correct", str(jpg), *common, *out, "--json"]) == 0

@@ -1,0 +1,550 @@
+"""The public API: one verb per job, each taking paths or loaded objects.
+
+``import cvmeasure`` exposes these names (see :mod:`cvmeasure`). Every verb
+accepts a file path wherever it takes a board, camera, plane, kit, design,
+material calibration, trials table or photo, or the object already loaded
+(``load_*``), and returns a typed result that :func:`save` writes.
+
+Bad input raises :class:`cvmeasure.errors.InputError` naming the file or
+option and the problem (what the CLI prints as one line, exit 2).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cvmeasure.board import BoardSpec
+from cvmeasure.board import load_board as _read_board
+from cvmeasure.calibration.pipeline import CalibrationReport, calibrate_detections, detect_photos
+from cvmeasure.calibration.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
+from cvmeasure.camera import CameraModel, save_camera
+from cvmeasure.camera import load_camera as _read_camera
+from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
+from cvmeasure.design import Design, DesignPath
+from cvmeasure.design import load_design as _read_design
+from cvmeasure.diagnose import Diagnosis
+from cvmeasure.diagnose import diagnose as _diagnose
+from cvmeasure.driver.gcode import GcodeJob, SimCompensator, design_job
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
+from cvmeasure.imageio import Photo, read_photo
+from cvmeasure.kit import MarkerKit, default_kit
+from cvmeasure.kit import load_kit as _read_kit
+from cvmeasure.markers.measure import measure_photo_file, measure_trial
+from cvmeasure.material.calibration import Calibration, fit_calibration, save_calibration
+from cvmeasure.material.calibration import load_calibration as _read_material
+from cvmeasure.material.correct import Correction, correct_from_part
+from cvmeasure.part.measure import PartMeasurement
+from cvmeasure.part.measure import measure_part as _measure_part
+from cvmeasure.sim import SimParams, params_from_json, params_to_json
+
+__all__ = [
+    "CameraCalibration",
+    "CorrectedJob",
+    "calibrate_camera",
+    "measure_plane",
+    "measure_bender_photo",
+    "measure_springback",
+    "measure_part",
+    "fit_material",
+    "diagnose_trials",
+    "gcode_for",
+    "correct",
+    "load_photo",
+    "load_board",
+    "load_camera",
+    "load_plane",
+    "load_kit",
+    "load_design",
+    "load_material",
+    "load_trials",
+    "load_params",
+    "save",
+]
+
+PathLike = str | os.PathLike[str]
+
+
+@dataclass(frozen=True)
+class CameraCalibration:
+    """A solved lens: the camera to save and the report to judge it by.
+
+    ``camera`` carries its calibration record (board, views, uncertainty); save it with
+    :func:`save`. ``report`` holds the cross-validation diff (read it first: it shows
+    model error the RMS hides), the projection-uncertainty map, coverage and warnings.
+    """
+
+    camera: CameraModel
+    report: CalibrationReport
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        return self.report.warnings
+
+
+@dataclass(frozen=True)
+class CorrectedJob:
+    """The closed loop's output: the corrected material calibration, what changed, the next job."""
+
+    material: Calibration
+    correction: Correction
+    job: GcodeJob
+
+
+# --- loading ----------------------------------------------------------------------------
+
+
+def load_photo(path: PathLike) -> Photo:
+    """Decode a photo file (JPEG, PNG, TIFF or camera RAW)."""
+    return read_photo(path)
+
+
+def load_board(path: PathLike) -> BoardSpec:
+    """Read a board JSON (ChArUco or chessboard; ``cvmeasure targets`` writes one)."""
+    return _read_board(path)
+
+
+def load_camera(path: PathLike) -> CameraModel:
+    """Read a camera JSON (``cvmeasure calibrate`` or :func:`calibrate_camera` wrote it)."""
+    return _read_camera(path)
+
+
+def load_plane(path: PathLike, camera: CameraModel | PathLike | None = None) -> PlaneModel:
+    """Read a plane JSON; it carries its camera (``camera``, if given, must be that one)."""
+    return PlaneModel.load(path, camera=_camera(camera))
+
+
+def load_kit(path: PathLike | None = None) -> MarkerKit:
+    """Read a marker-kit JSON; without a path, the built-in kit."""
+    return default_kit() if path is None else _read_kit(path)
+
+
+def load_design(path: PathLike) -> Design:
+    """Read an SVG or DXF wire design; ``.wire()`` gives the one wire path."""
+    return _read_design(path)
+
+
+def load_material(path: PathLike) -> Calibration:
+    """Read a material calibration (``diwire-material/1`` JSON)."""
+    return _read_material(path)
+
+
+def load_trials(path: PathLike) -> TrialTable:
+    """Read a trials CSV (loaded/unloaded bends per trial, docs/conventions.md)."""
+    return TrialTable.read_csv(path, source=str(path))
+
+
+def load_params(path: PathLike) -> tuple[SimParams, tuple[Any, ...]]:
+    """Read a simulation params JSON: ``(params, effects)``."""
+    return params_from_json(path)
+
+
+def save(path: PathLike, result: Any) -> Path:
+    """Write any result or loaded object to ``path`` (atomically); return the path.
+
+    A camera or :class:`CameraCalibration` -> camera JSON; a plane -> plane JSON; a
+    material calibration -> its JSON; a trials table -> trials CSV; a G-code job -> the
+    G-code text; ``(SimParams, effects)`` -> params JSON; a :class:`CorrectedJob` -> the
+    material JSON (save ``.job`` separately); anything with ``to_dict()`` (a photo or part
+    measurement, a diagnosis, a correction) -> its JSON.
+    """
+    if isinstance(result, CameraCalibration):
+        result = result.camera
+    if isinstance(result, CorrectedJob):
+        result = result.material
+    if isinstance(result, CameraModel):
+        return save_camera(path, result)
+    if isinstance(result, PlaneModel):
+        return result.save(path)
+    if isinstance(result, Calibration):
+        return save_calibration(path, result)
+    if isinstance(result, TrialTable):
+        return result.write_csv(path)
+    if isinstance(result, GcodeJob):
+        return atomic_write_text(path, result.text())
+    if isinstance(result, SimParams):
+        return params_to_json(path, result)
+    if isinstance(result, tuple) and len(result) == 2 and isinstance(result[0], SimParams):
+        return params_to_json(path, result[0], tuple(result[1]))
+    if hasattr(result, "to_dict"):
+        return atomic_write_json(path, to_jsonable(result.to_dict()))
+    raise TypeError(f"save: no file format for a {type(result).__name__}")
+
+
+# --- arguments: a path or the object ------------------------------------------------------
+
+
+def _board(board: BoardSpec | PathLike | None) -> BoardSpec | None:
+    return load_board(board) if isinstance(board, str | os.PathLike) else board
+
+
+def _camera(camera: CameraModel | PathLike | None) -> CameraModel | None:
+    return load_camera(camera) if isinstance(camera, str | os.PathLike) else camera
+
+
+def _plane(plane: PlaneModel | PathLike | None, camera: CameraModel | None) -> PlaneModel | None:
+    return load_plane(plane, camera) if isinstance(plane, str | os.PathLike) else plane
+
+
+def _kit(kit: MarkerKit | PathLike | None) -> MarkerKit:
+    return load_kit(kit) if kit is None or isinstance(kit, str | os.PathLike) else kit
+
+
+def _wire(design: Design | DesignPath | PathLike | None) -> DesignPath | None:
+    if isinstance(design, str | os.PathLike):
+        design = load_design(design)
+    return design.wire() if isinstance(design, Design) else design
+
+
+def _photo(photo: Photo | PathLike | np.ndarray, source: str) -> Photo:
+    if isinstance(photo, Photo):
+        return photo
+    if isinstance(photo, np.ndarray):
+        return Photo(source, photo, False)
+    return read_photo(photo)
+
+
+def _material(material: Calibration | PathLike) -> Calibration:
+    return load_material(material) if isinstance(material, str | os.PathLike) else material
+
+
+def _trials(trials: TrialTable | Sequence[Trial] | PathLike) -> TrialTable:
+    if isinstance(trials, str | os.PathLike):
+        return load_trials(trials)
+    return trials if isinstance(trials, TrialTable) else TrialTable(tuple(trials))
+
+
+# --- the verbs ----------------------------------------------------------------------------
+
+
+def calibrate_camera(
+    photos: Sequence[PathLike],
+    board: BoardSpec | PathLike,
+    *,
+    model: str = "auto",
+    board_warp: str = "auto",
+    reject_outliers: bool = True,
+    progress: Callable[[str], None] | None = None,
+) -> CameraCalibration:
+    """Calibrate the lens from photos of a board (what ``cvmeasure calibrate`` runs).
+
+    Parameters
+    ----------
+    photos : paths of the board photos (JPEG, PNG, TIFF, RAW), 15 or more views.
+    board : the board (or its JSON).
+    model : distortion model, ``"auto"`` (chosen by held-out error), ``"1"``, ``"2"``,
+        ``"5"``, ``"8"``, ``"rational"`` or ``"thin-prism"``.
+    board_warp : the board's bow solved with the lens: ``"auto"``, ``"on"`` or ``"off"``.
+    reject_outliers : drop outlier corners and views before the final solve.
+    progress : called with one line per photo read.
+
+    Raises
+    ------
+    InputError
+        No photo shows a usable board, or too few views remain.
+    """
+    spec = _board(board)
+    detections = detect_photos(photos, spec, progress=progress)
+    if not detections:
+        raise InputError("photos", "no photos given")
+    sizes = [d.image_size_px for d in detections]
+    size = max(set(sizes), key=sizes.count)
+    source = f"{len(photos)} photo(s) ({photos[0]}{', ...' if len(photos) > 1 else ''})"
+    if not any(d.ok for d in detections):
+        first = detections[0]
+        raise InputError(
+            first.source if len(detections) == 1 else source,
+            f"no usable board in any photo ({first.source}: {first.reason})",
+        )
+    report = calibrate_detections(
+        detections,
+        size,
+        model=model,
+        reject_outliers=reject_outliers,
+        source=source,
+        board_warp=board_warp,
+    )
+    return CameraCalibration(report.camera_model(spec), report)
+
+
+def measure_plane(
+    photo: Photo | PathLike | np.ndarray,
+    board: BoardSpec | PathLike,
+    camera: CameraModel | PathLike,
+    *,
+    tolerance_deg: float = DEFAULT_TOLERANCE_DEG,
+) -> PlaneModel:
+    """Measure the plate's plane from a photo of the board lying on it (``cvmeasure plane``).
+
+    The result maps undistorted photo pixels to board millimetres and says whether
+    ignoring the camera's tilt keeps angle errors within ``tolerance_deg`` (deg).
+    """
+    p = _photo(photo, "photo")
+    return estimate_plane(
+        p.gray8(), _board(board), _camera(camera), tolerance_deg=tolerance_deg, source=p.path
+    )
+
+
+def measure_bender_photo(
+    photo: Photo | PathLike,
+    kit: MarkerKit | PathLike | None = None,
+    *,
+    camera: CameraModel | PathLike | None = None,
+    plane: PlaneModel | PathLike | None = None,
+    board: BoardSpec | PathLike | None = None,
+    method: str = "ours",
+    space: str = "lab",
+    edge: str | None = None,
+    heights: str = "none",
+) -> MachinePhotoResult:
+    """Signed pin and bend angles (deg, machine frame) of one bender photo (``cvmeasure measure``).
+
+    Parameters
+    ----------
+    photo : the photo's path (a JPEG is read by its fastest path) or a loaded photo.
+    kit : the marker kit (or its JSON); the built-in kit when None.
+    camera : the calibrated camera; without it angles are measured in image pixels.
+    plane : the plate's plane (``measure_plane``); markers are then measured at their
+        kit heights. Or ``board``: find that board in this photo (needs ``camera``).
+    method : ``"ours"`` or ``"seed"`` (the seed paper's baseline, image pixels only).
+    space : colour space of the segmentation, ``"lab"`` or ``"rgb"``.
+    edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``, or
+        None (by the photo's type).
+    heights : without a plane, ``"none"`` (bound the heights' effect) or ``"parallel"``.
+
+    Raises
+    ------
+    InputError
+        The photo is unreadable, or a marker is missing or ambiguous (named with why).
+    """
+    cam = _camera(camera)
+    return measure_photo_file(
+        photo if isinstance(photo, Photo) else Path(photo),
+        _kit(kit),
+        camera=cam,
+        plane=_plane(plane, cam),
+        board=_board(board),
+        method=method,
+        space=space,
+        edge=edge,
+        heights=heights,
+    )
+
+
+def measure_springback(
+    loaded: MachinePhotoResult | Photo | PathLike,
+    unloaded: MachinePhotoResult | Photo | PathLike,
+    *,
+    kit: MarkerKit | PathLike | None = None,
+    camera: CameraModel | PathLike | None = None,
+    plane: PlaneModel | PathLike | None = None,
+    trial: str | None = None,
+    commanded_pin_deg: float = math.nan,
+) -> Trial:
+    """One trial from a loaded and an unloaded photo of a bend: its springback (deg)."""
+    cam = _camera(camera)
+    pl, k = _plane(plane, cam), _kit(kit)
+
+    def measured(x: MachinePhotoResult | Photo | PathLike) -> MachinePhotoResult:
+        if isinstance(x, MachinePhotoResult):
+            return x
+        return measure_bender_photo(x, k, camera=cam, plane=pl)
+
+    return measure_trial(
+        measured(loaded), measured(unloaded), trial, commanded_pin_deg=commanded_pin_deg
+    )
+
+
+def measure_part(
+    photo: Photo | PathLike | np.ndarray,
+    *,
+    board: BoardSpec | PathLike | None = None,
+    camera: CameraModel | PathLike | None = None,
+    plane: PlaneModel | PathLike | None = None,
+    design: Design | DesignPath | PathLike | None = None,
+    wire_diameter_mm: float | None = None,
+    divisions: int | None = None,
+    moved_photo: Photo | PathLike | np.ndarray | None = None,
+    shadow_lift: bool = True,
+    method: str = "ours",
+    allow_mirror: bool = True,
+) -> PartMeasurement:
+    """Measure a finished part lying beside the board (``cvmeasure part``).
+
+    Parameters
+    ----------
+    photo : the part's photo (path, loaded photo, or BGR array at the camera's size).
+    board, camera : the board in the photo and the calibrated camera; or ``plane``, a
+        plane measured before (``measure_plane``), which carries its camera.
+    design : the SVG/DXF design (or loaded); then the result carries the best rigid fit,
+        the deviation profile and each vertex's bend error.
+    wire_diameter_mm : the wire's diameter; with it the centreline lies between the
+        wire's silhouette edges and the part's lift off the plate is measured (from its
+        cast shadow, ``shadow_lift``) or bounded, and warned about.
+    divisions : the chord count the part was bent in; None finds it in the photo.
+    moved_photo : a second photo of the part slid on the plate: the lift is then
+        measured from the two views (needs ``board`` and ``wire_diameter_mm``).
+    method : which method gives the headline values: ``"ours"``, ``"ellipse"`` or
+        ``"sagitta"`` (the seed paper's two).
+    allow_mirror : the design may be matched mirrored (the part photographed upside down).
+
+    Returns
+    -------
+    PartMeasurement
+        ``result.radius_mm``, ``vertex_bend_deg`` and their sigmas, ``comparison``
+        against the design, ``warnings``.
+    """
+    if board is None and plane is None:
+        raise InputError("measure_part", "give the board and camera, or a plane")
+    if board is not None and plane is None and camera is None:
+        raise InputError("board", "finding the board's plane needs the camera")
+    cam = _camera(camera)
+    p = _photo(photo, "photo")
+    wire = _wire(design)
+    moved = None if moved_photo is None else _photo(moved_photo, "moved photo").bgr
+    return _measure_part(
+        p.bgr,
+        _board(board),
+        cam,
+        divisions=divisions,
+        design=wire,
+        design_source=str(design) if isinstance(design, str | os.PathLike) else "design",
+        method=method,
+        source=p.path,
+        allow_mirror=allow_mirror,
+        wire_diameter_mm=wire_diameter_mm,
+        plane=_plane(plane, cam),
+        moved_image=moved,
+        shadow_lift=shadow_lift,
+    )
+
+
+def fit_material(
+    trials: TrialTable | Sequence[Trial] | PathLike,
+    *,
+    model: str = "linear",
+    motion_model: str = "pchip",
+    name: str | None = None,
+) -> Calibration:
+    """Fit the springback compensation to measured trials (``cvmeasure fit``).
+
+    ``model``: ``"linear"``, ``"cubic"``, ``"pchip"`` or ``"physical"``; every model is
+    scored leave-one-angle-out in the result. Refuses to extrapolate.
+    """
+    table = _trials(trials)
+    if name is None:
+        name = Path(trials).stem if isinstance(trials, str | os.PathLike) else "calibration"
+    try:
+        return fit_calibration(table, model=model, motion_model=motion_model, name=name)
+    except ValueError as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(
+            str(trials) if isinstance(trials, str | os.PathLike) else "trials", str(exc)
+        ) from None
+
+
+def diagnose_trials(
+    trials: TrialTable | Sequence[Trial] | PathLike,
+    params: SimParams | PathLike | None = None,
+    *,
+    max_causes: int = 2,
+    follow_up: bool = True,
+) -> Diagnosis:
+    """What the simulation gets wrong on measured trials (``cvmeasure diagnose``).
+
+    ``params``: the nominal simulation parameters (or a params JSON, whose effects are
+    kept as part of the model). The result names the cause(s) with a 95 % interval, or
+    says none explains the data, with terms discovered beyond the catalogue.
+    (Named ``diagnose_trials`` because ``cvmeasure.diagnose`` is the subpackage.)
+    """
+    table = _trials(trials)
+    effects: tuple[Any, ...] = ()
+    if isinstance(params, str | os.PathLike):
+        params, effects = load_params(params)
+    try:
+        return _diagnose(
+            table,
+            params or SimParams(),
+            base_effects=effects,
+            max_causes=max_causes,
+            follow_up=follow_up,
+        )
+    except ValueError as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(
+            str(trials) if isinstance(trials, str | os.PathLike) else "trials", str(exc)
+        ) from None
+
+
+def gcode_for(
+    design: Design | DesignPath | PathLike,
+    material: Calibration | PathLike | None = None,
+    *,
+    divisions: int | None = None,
+    min_segment_mm: float = 12.0,
+    max_bend_deg: float = 135.0,
+    bend_radius_mm: float = 0.0,
+) -> GcodeJob:
+    """A design -> compensated TinyG G-code (``cvmeasure gcode``; ``save`` writes it).
+
+    ``material``: the material calibration whose springback compensation sets each pin
+    command; without it, the simulation's nominal model. ``divisions`` bends a curve in
+    that many equal chords.
+    """
+    from cvmeasure.wireplan import plan_design
+
+    if isinstance(design, str | os.PathLike):
+        design = load_design(design)
+    if isinstance(design, DesignPath):
+        design = Design("design", (design,))
+    # the same planner and rules as `cvmeasure gcode` (refusals name element and number)
+    plan = plan_design(
+        design, min_segment_mm=min_segment_mm, max_bend_deg=max_bend_deg, divisions=divisions
+    )
+    compensation = SimCompensator() if material is None else _material(material)
+    return design_job(
+        plan.vertices_mm,
+        source=design.source,
+        compensation=compensation,
+        min_segment_mm=min_segment_mm,
+        max_bend_deg=max_bend_deg,
+        bend_radius_mm=bend_radius_mm,
+    )
+
+
+def correct(
+    part: PartMeasurement,
+    design: Design | DesignPath | PathLike,
+    material: Calibration | PathLike,
+    *,
+    gain: float = 0.9,
+    deadband_sigma: float = 2.5,
+) -> CorrectedJob:
+    """The closed loop (``cvmeasure correct``): a finished part corrects material and job.
+
+    ``part`` must be measured with ``design`` (:func:`measure_part`), so its per-vertex
+    bend errors are known. Returns the corrected material calibration, what changed and
+    the next G-code job.
+    """
+    if not 0 < gain <= 1:
+        raise InputError("gain", f"must be in (0, 1], got {gain}")
+    name = Path(design).name if isinstance(design, str | os.PathLike) else "design"
+    cal = _material(material)
+    try:
+        cal2, corr, job = correct_from_part(
+            cal, part, _wire(design), design_name=name, gain=gain, deadband_sigma=deadband_sigma
+        )
+    except ValueError as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(str(material), str(exc)) from None
+    return CorrectedJob(cal2, corr, job)

@@ -1,0 +1,58 @@
+"""The diagnosis does not depend on how the machine is described, only on what it predicts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.contracts import TrialTable
+from cvmeasure.diagnose import diagnose
+from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
+from cvmeasure.sim import SimParams, parse_effect, simulate
+
+
+def _session(effects=(), noise_deg=0.05, seed=5):
+    """A standard session's bends on the default machine, measured with noise."""
+    plan = SessionConfig(mode="standard").plan()
+    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
+    rng = np.random.default_rng(seed)
+    sim = simulate(cmd, SimParams(), effects)
+    noisy = [
+        v + rng.normal(0.0, noise_deg, cmd.size)
+        for v in (sim.loaded_bend_deg, sim.unloaded_bend_deg, sim.pin_angle_deg)
+    ]
+    return TrialTable.from_arrays(cmd, noisy[0], noisy[1], measured_pin_deg=noisy[2])
+
+
+def _twice_the_size() -> SimParams:
+    # every length doubled: the strains, hence every angle, are the same (a similar
+    # machine); the die radius, 3 mm, is outside a DIWire's 0.8-2.6 mm
+    return SimParams().replace(
+        wire_diameter_mm=6.0, die_radius_mm=3.0, pin_orbit_mm=24.0, pin_radius_mm=5.0
+    )
+
+
+def test_a_similar_machine_predicts_the_same():
+    cmd = _session().commanded_pin_deg
+    a, b = simulate(cmd), simulate(cmd, _twice_the_size())
+    for x, y in ((a.loaded_bend_deg, b.loaded_bend_deg), (a.pin_angle_deg, b.pin_angle_deg)):
+        np.testing.assert_allclose(x, y, atol=1e-9)
+
+
+@pytest.mark.parametrize("effect", [None, "offset=1.2"])
+def test_same_diagnosis_for_two_descriptions_of_one_machine(effect):
+    # the die radius was fitted within a DIWire's 0.8-2.6 mm whatever the params said:
+    # described at twice its size, a machine with no effect misfit by 1.2 deg and was
+    # named `scale + camera_tilt` with evidence weight 1.0
+    effects = () if effect is None else (parse_effect(effect),)
+    trials = _session(effects)
+    a = diagnose(trials, SimParams())
+    b = diagnose(trials, _twice_the_size())
+    assert a.causes == b.causes == (() if effect is None else ("offset",))
+    assert b.baseline_fit.nuisance[0] == pytest.approx(2 * a.baseline_fit.nuisance[0], rel=1e-3)
+    assert b.baseline_rmse_deg == pytest.approx(a.baseline_rmse_deg, rel=0.01)
+    if effect is not None:
+        (lo_a, hi_a), (lo_b, hi_b) = a.intervals["offset_deg"], b.intervals["offset_deg"]
+        sigma = (hi_a - lo_a) / (2 * 1.96)
+        assert abs(lo_a - lo_b) < 0.1 * sigma and abs(hi_a - hi_b) < 0.1 * sigma
+        assert a.params["offset_deg"] == pytest.approx(1.2, abs=0.05)
