@@ -554,11 +554,17 @@ def _resume_plan(
         # held (its line is the runtime's), or it ran out of lines by itself with no
         # flush sent since: it ran every line it parsed, and its line is exact
         held = settled
-    upper = max(
-        (int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)),
-        key=lambda n: _index_of(job, n),
-        default=0,
-    )
+    reported = [int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)]
+    upper = max(reported, key=lambda n: _index_of(job, n), default=0)
+    if last.get("event") == "stop" and last.get("reason") == "desync":
+        # a block that reached the board corrupted may carry a wrong N: the bound is every
+        # line the board may have received (the window after the corrupted one)
+        bad = _index_of(job, last.get("line_number"))
+        window = job[min(len(job) - 1, max(bad, 0) + config.window_lines)].number
+        upper = max(
+            [n for n in reported if n in {j.number for j in job}] + [window],
+            key=lambda n: _index_of(job, n),
+        )
     evidence = ResumeEvidence(
         lower=lower,
         upper=upper,
