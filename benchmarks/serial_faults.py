@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import random
 import re
@@ -224,6 +225,25 @@ def _made(job: list[str], executed: list[tuple[int, dict, dict]], first: int, la
     return True
 
 
+def _xyza(p: dict) -> tuple[float, ...]:
+    return tuple(float(p.get(a, 0.0)) for a in "xyza")
+
+
+def _on(p: tuple[float, ...], seg: tuple[tuple[float, ...], tuple[float, ...]]) -> bool:
+    a, b = seg
+    return abs(math.dist(a, p) + math.dist(p, b) - math.dist(a, b)) <= 0.01
+
+
+def _attribute(label: int, start: dict, end: dict, ends: dict) -> int:
+    """The job line a move belongs to: its label when the move lies on that line's path,
+    else a label one digit off by one (a garbled N word) whose path holds it, else the label."""
+    p, q = _xyza(start), _xyza(end)
+    for n in [label] + [label + s * 10**k for k in range(5) for s in (-1, 1)]:
+        if n in ends and _on(p, ends[n]) and _on(q, ends[n]):
+            return n
+    return label
+
+
 def _near(p: dict, q: tuple[float, ...]) -> bool:
     return all(abs(float(p.get(a, 0.0)) - v) <= 0.01 for a, v in zip("xyza", q, strict=True))
 
@@ -248,8 +268,12 @@ def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> 
         truth = board.truth()
     run.seconds = time.perf_counter() - t0
     # a truth entry's end is where the move stopped: its distance is what ran
+    # a move is the job line whose planned path it lies on: a garbled N word (one digit
+    # off by one) mislabels a right move
+    ends = planned_ends(job)
     executed = [
-        (e.line, sum((e.end[a] - e.start[a]) ** 2 for a in e.end) ** 0.5) for e in truth.executed
+        (_attribute(e.line, e.start, e.end, ends), math.dist(_xyza(e.start), _xyza(e.end)))
+        for e in truth.executed
     ]
     run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
