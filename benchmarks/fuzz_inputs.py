@@ -174,13 +174,19 @@ def _first_number_to(text: str, new: str) -> str:
     return re.sub(r'(":\s*)-?\d+(\.\d+)?([eE][-+]?\d+)?', lambda m: m.group(1) + new, text, count=1)
 
 
-def _drop_first_key(text: str) -> str:
-    """The object without its bulkiest key (its data: a matrix, the markers, the samples)."""
+#: The key each JSON kind cannot do without (the spec's required data).
+REQUIRED_KEYS = {
+    "camera": "camera_matrix",
+    "plane": "H_board_image",
+    "board": "squares_x",
+    "kit": "markers",
+    "calibration": "samples",
+}
+
+
+def _drop_required_key(text: str, arg: str) -> str:
     obj = json.loads(text)
-    if isinstance(obj, dict) and obj:
-        optional = ("provenance", "calibration", "std_devs", "per_view", "views")
-        keys = [k for k in obj if k not in optional] or list(obj)
-        obj.pop(max(keys, key=lambda k: len(json.dumps(obj[k]))))
+    obj.pop(REQUIRED_KEYS[arg])
     return json.dumps(obj)
 
 
@@ -198,7 +204,7 @@ CSV_MUTATIONS = ("header_only", "dup_header", "word_number", "nan_cell", "inf_ce
 IMAGE_MUTATIONS = ("cut_jpeg", "one_pixel_png", "text_as_jpg", "cut_tiff", "bomb_png", "bad_crc")
 
 
-def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int) -> Path:
+def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int, arg: str = "") -> Path:
     """Write the ``mutation`` of ``src`` (a file of ``kind``) into ``dest_dir``; its path."""
     rng = random.Random(seed)
     suffix = src.suffix
@@ -222,7 +228,7 @@ def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int) -> Pa
         "nan": lambda: _first_number_to(text, "NaN").encode(),
         "string_number": lambda: _first_number_to(text, '"abc"').encode(),
         "huge_number": lambda: _first_number_to(text, "1e308").encode(),
-        "drop_key": lambda: _drop_first_key(text).encode(),
+        "drop_key": lambda: _drop_required_key(text, arg).encode(),
         "header_only": lambda: text.splitlines()[0].encode() + b"\n",
         "dup_header": lambda: (
             text.splitlines()[0]
@@ -579,7 +585,7 @@ def build_cases(base: dict[str, Path], work: Path, *, quick: bool) -> list[Case]
                     unprivileged = True
                 else:
                     try:
-                        bad = mutate(kind, base[arg], d, mutation, seed)
+                        bad = mutate(kind, base[arg], d, mutation, seed, arg)
                     except (KeyError, IndexError, ValueError, json.JSONDecodeError):
                         continue
                 files[arg] = bad
