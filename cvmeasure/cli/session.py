@@ -30,9 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the TinyG double on a pty (simulated machine) + the simulated camera",
     )
     p.add_argument("--port", help="the bender's serial port or URL (real sessions)")
-    p.add_argument(
-        "--camera", type=camera_url, help="camera URL: gphoto2://[port] or folder:///path"
-    )
+    p.add_argument("--camera", help="camera URL: gphoto2://[port] or folder:///path")
     p.add_argument(
         "--camera-setting",
         action="append",
@@ -93,15 +91,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 CAMERA_SCHEMES = ("gphoto2://", "folder://")
 
 
-def camera_url(text: str) -> str:
-    """A camera URL (``gphoto2://[port]`` or ``folder:///path``), checked as it is parsed."""
-    if not text.startswith(CAMERA_SCHEMES):
-        raise argparse.ArgumentTypeError(
-            f"{text!r} is not a camera URL; use gphoto2://[port] or folder:///path"
-        )
-    return text
-
-
 def angle_list(text: str) -> tuple[float, ...]:
     """Calibration angles ``2.5,5,10`` (deg): at least 2 different, each in (0, 180)."""
     try:
@@ -137,6 +126,11 @@ def _check_camera_option(args: argparse.Namespace) -> None:
             f"{args.camera} is a file (a camera JSON is the lens model: give it as "
             "--camera-model); --camera is the camera that takes the photos, "
             "gphoto2://[port] or folder:///path",
+        )
+    if not args.camera.startswith(CAMERA_SCHEMES):
+        raise InputError(
+            "--camera",
+            f"{args.camera!r} is not a camera URL; use gphoto2://[port] or folder:///path",
         )
 
 

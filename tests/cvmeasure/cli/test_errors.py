@@ -169,19 +169,20 @@ def test_readers_refuse_damaged_and_wrong_kind_files(tmp_path):
         read_csv_rows(cal, required=["trial"])
 
 
-def test_options_are_checked_where_they_are_parsed(tmp_path, capsys):
+def test_session_options_are_refused_before_anything_runs(tmp_path, capsys):
     out = str(tmp_path / "cal.json")
+    with pytest.raises(SystemExit) as info:  # a usage error, as the option is parsed
+        main(["session", "-o", out, "--simulate", "--angles", ""])
+    assert info.value.code == 2 and "argument --angles" in capsys.readouterr().err
     for argv, words in (
-        (["--simulate", "--camera", "ftp://nowhere"], "argument --camera: 'ftp://nowhere'"),
-        (["--simulate", "--angles", ""], "argument --angles"),
+        (["--port", "/dev/ttyUSB0", "--camera", "ftp://nowhere"], "--camera: 'ftp://nowhere'"),
+        (["--simulate", "--camera", "ftp://nowhere"], "--camera: --simulate photographs"),
+        (["--simulate", "--plane", str(tmp_path / "plane.json")], "--plane: a plane JSON needs"),
     ):
-        with pytest.raises(SystemExit) as info:
-            main(["session", "-o", out, *argv])
-        assert info.value.code == 2 and words in capsys.readouterr().err
-    plane = tmp_path / "plane.json"
-    plane.write_text("{}")
-    assert main(["session", "-o", out, "--simulate", "--plane", str(plane)]) == 2
-    assert "--plane: a plane JSON needs the camera" in capsys.readouterr().err
+        assert main(["session", "-o", out, *argv]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "cal_session").exists()  # nothing ran
 
 
 def test_a_job_cut_short_is_refused(tmp_path, capsys):
