@@ -168,6 +168,14 @@ def _tiff_cut(base: Path) -> bytes:
     return data.tobytes()[: len(data) // 3]
 
 
+def _cut_mid_line(data: bytes) -> bytes:
+    """The first half of a file, cut inside a line (a cut at a line end is a valid file)."""
+    cut = len(data) // 2
+    while 0 < cut < len(data) and data[cut - 1 : cut] in (b"\n", b"\r"):
+        cut += 3
+    return data[:cut]
+
+
 def _first_number_to(text: str, new: str) -> str:
     import re
 
@@ -221,7 +229,7 @@ def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int, arg: 
         "empty": lambda: b"",
         "random_bytes": lambda: bytes(rng.randrange(256) for _ in range(4096)),
         "nul_bytes": lambda: data[: len(data) // 2] + b"\x00" * 16 + data[len(data) // 2 :],
-        "cut_half": lambda: data[: len(data) // 2],
+        "cut_half": lambda: _cut_mid_line(data),
         "not_utf8": lambda: data[: len(data) // 2] + b"\xff\xfe\xb0" + data[len(data) // 2 :],
         "invalid_json": lambda: text.replace(":", " ", 1).encode(),
         "array_top": lambda: b"[" + data + b"]",
@@ -542,7 +550,7 @@ def _wrong_kind(name: str, base: dict[str, Path]) -> Path:
     if kind == "csv":
         return base["calibration"]
     if kind == "jsonl":
-        return base["calibration"]
+        return base["camera"]  # (a calibration JSON is a report's input too)
     if kind == "svg":
         return base["trials"]
     return base["photo"]
