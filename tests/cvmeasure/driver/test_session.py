@@ -225,7 +225,8 @@ def test_unmeasurable_photo_names_the_photo_and_keeps_the_log(tmp_path):
     finally:
         bender.close()
     events = [r["event"] for r in read_session_log(tmp_path / "s" / "session.jsonl")]
-    assert events == ["start", "fed", "bend", "failed"]  # the bend is logged, nothing counted as done
+    # the bend is logged, nothing counted as done
+    assert events == ["start", "fed", "bend", "failed"]
 
 
 def test_real_session_needs_port_and_camera(tmp_path, capsys):
