@@ -173,7 +173,8 @@ def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str], inspe
     made?); without it the run ends refused.
     """
     extra: list[str] = []
-    for _ in range(MAX_RESUMES + 1):
+    waited = 0
+    for _ in range(MAX_RESUMES + 1 + 20):
         code, err = _bend(job_path, port_of(), extra, env)
         run.exits.append(code)
         run.stderr.append(err.strip())
@@ -193,6 +194,10 @@ def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str], inspe
                 force = ["--force"]
             extra = ["--resume", *force]
             time.sleep(0.3)
+            continue
+        if "no such serial port" in err and waited < 20:
+            waited += 1  # the port is not back yet: the operator waits for it
+            time.sleep(0.5)
             continue
         asked = _ASKED.search(err)
         if asked and inspect is not None:
