@@ -171,12 +171,15 @@ def test_readers_refuse_damaged_and_wrong_kind_files(tmp_path):
 
 def test_session_options_are_refused_before_anything_runs(tmp_path, capsys):
     out = str(tmp_path / "cal.json")
-    with pytest.raises(SystemExit) as info:  # a usage error, as the option is parsed
-        main(["session", "-o", out, "--simulate", "--angles", ""])
-    assert info.value.code == 2 and "argument --angles" in capsys.readouterr().err
+    for argv, words in (  # usage errors, as the options are parsed
+        (["--simulate", "--angles", ""], "argument --angles"),
+        (["--port", "/dev/ttyUSB0", "--camera", "ftp://nowhere"], "argument --camera: 'ftp://"),
+    ):
+        with pytest.raises(SystemExit) as info:
+            main(["session", "-o", out, *argv])
+        assert info.value.code == 2 and words in capsys.readouterr().err
     for argv, words in (
-        (["--port", "/dev/ttyUSB0", "--camera", "ftp://nowhere"], "--camera: 'ftp://nowhere'"),
-        (["--simulate", "--camera", "ftp://nowhere"], "--camera: --simulate photographs"),
+        (["--simulate", "--camera", "folder:///tmp"], "--camera: --simulate photographs"),
         (["--simulate", "--plane", str(tmp_path / "plane.json")], "--plane: a plane JSON needs"),
     ):
         assert main(["session", "-o", out, *argv]) == 2
