@@ -16,6 +16,7 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from benchmarks._photos import CHARUCO_5X7, CHESS_LEFT, CHESS_SLAM, LIFECAM, REAL
+from cvmeasure.warning import has_code
 
 SECTION = "Lens calibration on real sets and exact-model renders (issue 16)"
 
@@ -472,11 +473,11 @@ def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[
         zs_on.append([(got_on[p] - truth[p]) / on.result.std_devs[p] for p in _Z_PARAMS])
         bw = on.result.board_warp
         warp_z.extend(w / s for w, s in zip(bw.warp_mm, bw.sigma_mm, strict=True))
-        fired_on.append(any("the two halves of the views disagree" in w for w in on.warnings))
+        fired_on.append(has_code(on.warnings, "calib_halves_disagree"))
         cv = rep.cross_validation
-        warned = any("the two halves of the views disagree" in w for w in rep.warnings)
+        warned = has_code(rep.warnings, "calib_halves_disagree")
         fired.append(warned)
-        too_simple.append(any("is too simple for these views" in w for w in rep.warnings))
+        too_simple.append(has_code(rep.warnings, "calib_model_too_simple"))
         ratios.append(cv.ratio if cv else float("nan"))
         auto = calibrate_detections(dets, cam.image_size_px, model="auto", cross_check=False)
         autos.append(auto.result.model)

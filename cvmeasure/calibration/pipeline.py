@@ -31,6 +31,7 @@ from cvmeasure.calibration.uncertainty import (
 )
 from cvmeasure.calibration.warp import board_extent_mm, refine_board_warp, warp_test
 from cvmeasure.camera import CameraModel
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "CalibrationReport",
@@ -56,7 +57,7 @@ class CalibrationReport:
     uncertainty: ProjectionUncertainty
     coverage: Coverage
     cross_validation: CrossValidation | None
-    warnings: tuple[str, ...]
+    warnings: tuple[StageWarning, ...]
     model_choice: dict[str, Any] | None = None
     board_warp: dict[str, Any] | None = None
 
@@ -89,7 +90,7 @@ class CalibrationReport:
             ),
             "projection_uncertainty": self.uncertainty.to_dict(),
             "coverage": self.coverage.to_dict(),
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
             "model_choice": self.model_choice,
             "board_warp": self.board_warp,
             "board": board.to_dict(),
@@ -141,7 +142,7 @@ class CalibrationReport:
             "model": self.result.model,
             "model_choice": self.model_choice,
             "board_warp": self.board_warp,
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 
@@ -459,9 +460,9 @@ def calibrate_detections(
         if cross_check
         else None
     )
-    warnings: list[str] = []
+    warnings: list[StageWarning] = []
     for det in detections:
-        warnings.extend(f"{det.source}: {n}" for n in det.notes)
+        warnings.extend(StageWarning("calib_board_layout", n, det.source) for n in det.notes)
     richer = (
         richer_model_test(result.detections, result.image_size_px, model)
         if cross_check and choice is None
@@ -470,25 +471,39 @@ def calibrate_detections(
     if richer is not None and richer["supported"]:
         t = max(richer["extra_coefficient_sigmas"].values(), default=0.0)
         warnings.append(
-            f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
-            f"the same corners significantly better (F-test p {richer['f_test_p']:.2g}, extra "
-            f"coefficient {t:.1f} sigma); the halves check cannot see this (both halves share "
-            "the bias): use --model auto or a richer model"
+            StageWarning(
+                "calib_model_too_simple",
+                f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
+                f"the same corners significantly better (F-test p {richer['f_test_p']:.2g}, "
+                f"extra coefficient {t:.1f} sigma); the halves check cannot see this (both "
+                "halves share the bias): use --model auto or a richer model",
+            )
         )
     if cv is None and cross_check:
-        warnings.append("too few views to cross-validate two halves (need 6 or more)")
+        warnings.append(
+            StageWarning(
+                "calib_no_cross_validation",
+                "too few views to cross-validate two halves (need 6 or more)",
+            )
+        )
     elif cv is not None and cv.ratio > CROSS_VALIDATION_RATIO_LIMIT:
         warnings.append(
-            f"the two halves of the views disagree by {cv.diff.central_rms_px:.2f} px in the "
-            f"image centre, {cv.ratio:.1f}x what corner noise explains: model error (lens model "
-            "too simple, board not flat, focus or zoom changed between photos); the reported "
-            "standard deviations understate the real uncertainty"
+            StageWarning(
+                "calib_halves_disagree",
+                f"the two halves of the views disagree by {cv.diff.central_rms_px:.2f} px in the "
+                f"image centre, {cv.ratio:.1f}x what corner noise explains: model error (lens "
+                "model too simple, board not flat, focus or zoom changed between photos); the "
+                "reported standard deviations understate the real uncertainty",
+            )
         )
     rel_f = result.std_devs["fx"] / result.camera.fx
     if rel_f > _FOCAL_SIGMA_WARN:
         warnings.append(
-            f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
-            "photos with the board tilted 30-45 deg and closer to the camera"
+            StageWarning(
+                "calib_focal_uncertain",
+                f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
+                "photos with the board tilted 30-45 deg and closer to the camera",
+            )
         )
     warnings.extend(cov.warnings)
     big = {
@@ -500,23 +515,34 @@ def calibrate_detections(
     if big or not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size:
         coeffs = ", ".join(f"{k} {v:+.3g}" for k, v in big.items())
         warnings.append(
-            f"the {result.model} distortion model is ill-conditioned on these views"
-            + (f" (coefficients {coeffs})" if coeffs else "")
-            + (
-                f"; its projection uncertainty exceeds {ILL_CONDITIONED_UNCERTAINTY:g}x the "
-                "image size and means nothing"
-                if not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size
-                else ""
+            StageWarning(
+                "calib_ill_conditioned",
+                f"the {result.model} distortion model is ill-conditioned on these views"
+                + (f" (coefficients {coeffs})" if coeffs else "")
+                + (
+                    f"; its projection uncertainty exceeds {ILL_CONDITIONED_UNCERTAINTY:g}x the "
+                    "image size and means nothing"
+                    if not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size
+                    else ""
+                )
+                + ": use a simpler model (--model 5) or add photos with the board in the corners",
             )
-            + ": use a simpler model (--model 5) or add photos with the board in the corners"
         )
     if result.corners_rejected:
         warnings.append(
-            f"{result.corners_rejected} outlier corner(s) dropped from the views used "
-            "(residual more than 4 robust sigmas off its board neighbours' median)"
+            StageWarning(
+                "calib_corners_dropped",
+                f"{result.corners_rejected} outlier corner(s) dropped from the views used "
+                "(residual more than 4 robust sigmas off its board neighbours' median)",
+            )
         )
     if result.rejected:
-        warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
+        warnings.append(
+            StageWarning(
+                "calib_views_skipped",
+                f"{len(result.rejected)} photo(s) skipped; see views_rejected",
+            )
+        )
     return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice, warp_info)
 
 
