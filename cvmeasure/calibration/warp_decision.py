@@ -26,7 +26,7 @@ H. Hotelling, "The generalization of Student's ratio", Ann. Math. Statist. 2(3),
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -65,13 +65,14 @@ _JACKKNIFE_MIN_VIEWS = 6
 class WarpDecision:
     """A board warp solved with the lens, and whether it is kept, with the evidence.
 
-    ``own`` is the warp test with the solve's model; ``extension_model`` and
+    ``own`` is the warp test with the solve's model (``model``); ``extension_model`` and
     ``extension_p`` the formal test with its extension; ``jackknife_p`` the test with
     the jackknife covariance over ``jackknife_groups`` view groups (None when not run);
     ``lens_shift_sigma`` the largest move of fx, fy, cx, cy the warp causes, in sigmas.
     """
 
     mode: str
+    model: str
     used: bool
     own: WarpTest
     extension_model: str
@@ -82,8 +83,9 @@ class WarpDecision:
     reason: str
 
     def text(self) -> str:
-        verdict = "kept" if self.used else "not kept"
-        return self.own.text(verdict) + f": {self.reason}"
+        seen = "the board is not flat" if self.own.significant else "flat within noise"
+        verdict = f"{seen} with model {self.model} alone"
+        return self.own.text(verdict) + (": kept: " if self.used else ": not kept: ") + self.reason
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -100,19 +102,25 @@ class WarpDecision:
         }
 
 
-def _jackknife_p(
-    result: CalibrationResult, model: str, extent_mm, warp_mm: np.ndarray
-) -> tuple[float, int]:
+def _jackknife_p(result: CalibrationResult, extent_mm, warp_mm: np.ndarray) -> tuple[float, int]:
     """Hotelling's T^2 of ``warp_mm`` against the delete-a-group jackknife covariance of
-    the warp (views in up to 10 groups, every k-th view in one group); (p, groups)."""
+    the warp (views in up to 10 groups, every k-th view in one group); (p, groups).
+
+    Each group's solve starts from ``result`` (the flat solve on every view) with the
+    group's views left out, so it needs a few Gauss-Newton steps, not a new calibration.
+    """
     from scipy.stats import f as f_dist
 
     dets = result.detections
     groups = min(len(dets), _JACKKNIFE_GROUPS)
     warps = []
     for g in range(groups):
-        keep = [d for i, d in enumerate(dets) if i % groups != g]
-        sub = calibrate_views(keep, result.image_size_px, model=model, reject_outliers=False)  # type: ignore[arg-type]
+        keep = [i for i in range(len(dets)) if i % groups != g]
+        sub = replace(
+            result,
+            views=tuple(result.views[i] for i in keep),
+            detections=tuple(dets[i] for i in keep),
+        )
         warps.append(refine_board_warp(sub, extent_mm=extent_mm).board_warp.warp_mm)
     w = np.asarray(warps)
     dev = w - w.mean(axis=0)
@@ -151,7 +159,7 @@ def decide_board_warp(
     ext_model = EXTENSION_MODEL.get(result.model, result.model)
     if mode == "on":
         decision = WarpDecision(
-            mode, True, own, ext_model, None, None, 0, shift, "--board-warp on keeps it"
+            mode, result.model, True, own, ext_model, None, None, 0, shift, "--board-warp on"
         )
         return warped, decision
     ext_p: float | None = None
@@ -168,9 +176,7 @@ def decide_board_warp(
         ext_test = warp_test(ext_warped.board_warp, ext_warped)
         ext_p = ext_test.p
         if ext_test.significant and len(result.detections) >= _JACKKNIFE_MIN_VIEWS:
-            jk_p, groups = _jackknife_p(
-                result, ext_model, extent_mm, np.asarray(ext_warped.board_warp.warp_mm)
-            )
+            jk_p, groups = _jackknife_p(ext, extent_mm, np.asarray(ext_warped.board_warp.warp_mm))
     except InputError:
         pass
     if ext_p is None or ext_p >= WARP_SIGNIFICANT_P:
@@ -203,5 +209,7 @@ def decide_board_warp(
             f"lens by {shift:.1f} sigma"
         )
         used = True
-    decision = WarpDecision(mode, used, own, ext_model, ext_p, jk_p, groups, shift, reason)
+    decision = WarpDecision(
+        mode, result.model, used, own, ext_model, ext_p, jk_p, groups, shift, reason
+    )
     return (warped if used else result), decision
