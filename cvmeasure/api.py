@@ -31,7 +31,7 @@ from cvmeasure.design import Design, DesignPath
 from cvmeasure.design import load_design as _read_design
 from cvmeasure.diagnose import Diagnosis
 from cvmeasure.diagnose import diagnose as _diagnose
-from cvmeasure.driver.gcode import GcodeJob, SimCompensator, design_job, wire_polyline
+from cvmeasure.driver.gcode import GcodeJob, SimCompensator, design_job
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
 from cvmeasure.imageio import Photo, read_photo
@@ -500,20 +500,20 @@ def gcode_for(
     command; without it, the simulation's nominal model. ``divisions`` bends a curve in
     that many equal chords.
     """
-    wire = _wire(design)
-    if wire.closed:
-        raise InputError(
-            str(design),
-            f"closed shape {wire.element or wire.kind}: a wire part needs two free ends",
-        )
-    compensation = SimCompensator() if material is None else _material(material)
-    points = wire_polyline(
-        wire.points_mm, min_segment_mm=min_segment_mm, divisions=divisions, arcs=wire.arcs
+    from cvmeasure.wireplan import plan_design
+
+    if isinstance(design, str | os.PathLike):
+        design = load_design(design)
+    if isinstance(design, DesignPath):
+        design = Design("design", (design,))
+    # the same planner and rules as `cvmeasure gcode` (refusals name element and number)
+    plan = plan_design(
+        design, min_segment_mm=min_segment_mm, max_bend_deg=max_bend_deg, divisions=divisions
     )
-    source = str(design) if isinstance(design, str | os.PathLike) else "design"
+    compensation = SimCompensator() if material is None else _material(material)
     return design_job(
-        points,
-        source=source,
+        plan.vertices_mm,
+        source=design.source,
         compensation=compensation,
         min_segment_mm=min_segment_mm,
         max_bend_deg=max_bend_deg,

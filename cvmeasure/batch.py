@@ -26,6 +26,7 @@ import contextlib
 import glob
 import importlib
 import importlib.util
+import json
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -37,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 from cvmeasure import __version__
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.extras import require
-from cvmeasure.fileio import append_jsonl, read_jsonl, repair_jsonl_tail
+from cvmeasure.fileio import append_jsonl, atomic_write_text, read_jsonl, repair_jsonl_tail
 
 if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used, not on import
     from concurrent.futures import Future
@@ -277,12 +278,48 @@ def photo_key(path: str | os.PathLike[str]) -> str:
 
 
 def done_keys(output: str | os.PathLike[str]) -> set[str]:
-    """Keys of the photos already in a results file (repairs a cut last line first)."""
+    """Keys of the photos measured successfully in a results file (repairs a cut last line).
+
+    A photo whose record says ``"ok": false`` is not done: a re-run retries it.
+    """
     path = Path(output)
     if not path.exists():
         return set()
     repair_jsonl_tail(path)
-    return {r["photo_key"] for r in read_jsonl(path) if isinstance(r, dict) and "photo_key" in r}
+    return {
+        r["photo_key"]
+        for r in read_jsonl(path)
+        if isinstance(r, dict) and "photo_key" in r and r.get("ok", True)
+    }
+
+
+def drop_failed_records(output: str | os.PathLike[str], keys: set[str]) -> int:
+    """Rewrite ``output`` (atomically) without the failed records of ``keys``; how many went.
+
+    A key's file is its resolved path (the part before the size and time): a photo
+    fixed since (a new size or time) drops its old failed record too. Before a re-run
+    retries failed photos, so that the results file keeps one record per photo: its latest.
+    """
+    files = {k.rsplit("|", 2)[0] for k in keys}
+    path = Path(output)
+    if not path.exists() or not keys:
+        return 0
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    kept, dropped = [], 0
+    for line in lines:
+        try:
+            record = json.loads(line)
+        except json.JSONDecodeError:
+            kept.append(line)
+            continue
+        key = record.get("photo_key") if isinstance(record, dict) else None
+        if isinstance(key, str) and key.rsplit("|", 2)[0] in files and not record.get("ok"):
+            dropped += 1
+        else:
+            kept.append(line)
+    if dropped:
+        atomic_write_text(path, "".join(kept))
+    return dropped
 
 
 # --------------------------------------------------------------------------- measurements
@@ -647,6 +684,7 @@ def run_batch(
         seen.add(key)
         jobs.append((os.fspath(p), key))
     already = len(paths) - len(jobs)
+    drop_failed_records(output, {key for _, key in jobs})
     client = None
     if scheduler:
         client = _dask_client(scheduler)

@@ -192,16 +192,56 @@ class CameraModel:
             )
         if len(size) != 2 or min(size) <= 0:
             raise InputError(source, "image_size must be [width, height] in pixels")
+        if "dist_coeffs" not in data:
+            # a file without its coefficients is not a lens without distortion ([] says that)
+            raise InputError(source, "camera JSON lacks 'dist_coeffs' (give [] for none)")
         if d.size and d.size not in _VALID_DIST_LENGTHS:
             raise InputError(
                 source, f"dist_coeffs must have one of {_VALID_DIST_LENGTHS} values, got {d.size}"
             )
+        if not np.all(np.isfinite(d)):
+            raise InputError(source, "dist_coeffs must be finite numbers")
+        rms = data.get("rms_px")
+        if rms is not None and (isinstance(rms, bool) or not isinstance(rms, (int, float))):
+            raise InputError(source, f"rms_px must be a number of pixels, got {rms!r}")
+        problem = _implausible_distortion(k, d, (float(size[0]), float(size[1])))
+        if problem:
+            raise InputError(source, problem)
         rest = {
             k2: v
             for k2, v in data.items()
             if k2 not in ("image_size", "camera_matrix", "dist_coeffs")
         }
         return cls((int(size[0]), int(size[1])), k, d, rest)
+
+
+def _implausible_distortion(k: np.ndarray, d: np.ndarray, size: tuple[float, float]) -> str:
+    """Why the radial distortion cannot be a real lens over this image ("" when it can).
+
+    Over the image (out to its farthest corner) the radial factor must stay positive,
+    move a point by less than its own distance from the centre, and keep the order of
+    radii (monotonic): a coefficient off by orders of magnitude (a typo, a corrupt file)
+    folds the image over itself.
+    """
+    if d.size < 5:
+        return ""
+    corners = np.array([[0.0, 0.0], [size[0], 0.0], [0.0, size[1]], [size[0], size[1]]])
+    xn = (corners[:, 0] - k[0, 2]) / k[0, 0]
+    yn = (corners[:, 1] - k[1, 2]) / k[1, 1]
+    r = np.linspace(0.0, float(np.max(np.hypot(xn, yn))), 200)
+    r2 = r * r
+    num = 1 + d[0] * r2 + d[1] * r2**2 + d[4] * r2**3
+    den = 1 + (d[5] * r2 + d[6] * r2**2 + d[7] * r2**3 if d.size >= 8 else 0.0)
+    factor = num / den
+    if np.any(factor <= 0) or np.any(np.abs(factor - 1) >= 1):
+        worst = float(factor[np.argmax(np.abs(factor - 1))])
+        return (
+            f"dist_coeffs {np.array2string(d[:5], precision=4)} scale a radius by {worst:.3g} "
+            "within the image: not a plausible lens (a wrong or corrupt coefficient?)"
+        )
+    if np.any(np.diff(r * factor) <= 0):
+        return "dist_coeffs fold the image over itself (the distorted radius stops growing)"
+    return ""
 
 
 def load_camera(path: str | os.PathLike[str]) -> CameraModel:

@@ -692,6 +692,8 @@ def read_svg(
         if isinstance(element, structural):
             continue
         name = _svg_name(element)
+        if not isinstance(element, se.Shape) and _svg_not_drawn(element):
+            continue  # an editor's metadata (Inkscape's sodipodi:namedview), styles, defs
         if not isinstance(element, se.Shape):
             if ignore_unknown:
                 continue
@@ -703,6 +705,21 @@ def read_svg(
     if not paths:
         raise InputError(path, "no drawable geometry in the SVG")
     return Design(str(path), tuple(paths), unit_text)
+
+
+#: SVG elements that draw nothing themselves.
+_SVG_NOT_DRAWN = {
+    "metadata", "style", "defs", "title", "desc", "symbol", "marker", "clippath", "mask",
+    "pattern", "lineargradient", "radialgradient", "stop", "filter", "script", "namedview",
+}  # fmt: skip
+
+
+def _svg_not_drawn(element: Any) -> bool:
+    """Metadata, styles and definitions, or an element of another program's namespace."""
+    tag = str(element.values.get("tag", "")) if hasattr(element, "values") else ""
+    if tag.startswith("{") and not tag.startswith("{http://www.w3.org/2000/svg}"):
+        return True
+    return tag.rsplit("}", 1)[-1].lower() in _SVG_NOT_DRAWN
 
 
 def _svg_name(element: Any) -> str:

@@ -32,14 +32,49 @@ __all__ = [
     "read_json",
     "read_jsonl",
     "read_csv_rows",
+    "sniff_kind",
+    "STDIO",
+    "set_stdout",
+    "MAX_JSON_REAL",
     "write_csv_rows",
     "to_jsonable",
 ]
 
 
+#: The file name that means standard output (a writer) or standard input (a reader).
+STDIO = "-"
+#: Where a write to ``-`` goes (the CLI points it at the real stdout and sends its own
+#: messages to stderr, so that ``cvmeasure simulate plan.csv -o - | ...`` gets only data).
+_stdout: list[Any] = []
+
+
+def set_stdout(stream: Any | None) -> None:
+    """Send writes to ``-`` to ``stream`` (None: back to ``sys.stdout``)."""
+    _stdout.clear()
+    if stream is not None:
+        _stdout.append(stream)
+
+
+def _write_stdout(data: bytes) -> None:
+    import sys
+
+    stream = _stdout[0] if _stdout else sys.stdout
+    buffer = getattr(stream, "buffer", None)
+    if buffer is not None:
+        stream.flush()
+        buffer.write(data)
+        buffer.flush()
+    else:
+        stream.write(data.decode("utf-8"))
+        stream.flush()
+
+
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically; return the path."""
+    """Write ``data`` to ``path`` atomically; return the path (``-``: standard output)."""
     path = Path(path)
+    if os.fspath(path) == STDIO:
+        _write_stdout(data)
+        return path
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
@@ -155,6 +190,15 @@ def read_text_file(path: str | os.PathLike[str], *, what: str, encoding: str = "
     text in ``encoding`` (a binary file) each get one line saying which.
     """
     path = Path(path)
+    if os.fspath(path) == STDIO:
+        import sys
+
+        try:
+            return sys.stdin.buffer.read().decode(encoding)
+        except UnicodeDecodeError as exc:
+            raise InputError(
+                "standard input", f"byte {exc.start} is not {encoding} text (a binary file?)"
+            ) from None
     try:
         if path.is_dir():
             raise InputError(path, f"is a folder, not a {what}")
@@ -174,9 +218,31 @@ def read_text_file(path: str | os.PathLike[str], *, what: str, encoding: str = "
         raise InputError(path, f"cannot read {what}: {exc.strerror or exc}") from None
 
 
+#: Largest magnitude of a real number in an input JSON document: nothing cvmeasure reads
+#: (pixels, millimetres, degrees, coefficients) is anywhere near it, and 1e308 is corruption.
+MAX_JSON_REAL = 1e15
+
+
+class _BadNumber(ValueError):
+    pass
+
+
+def _real(text: str) -> float:
+    value = float(text)
+    if not abs(value) <= MAX_JSON_REAL:
+        raise _BadNumber(f"the number {text} is out of any sensible range")
+    return value
+
+
+def _constant(text: str) -> float:
+    raise _BadNumber(f"{text} is not a number JSON allows")
+
+
 def _loads(text: str, path: Path, where: str) -> Any:
     try:
-        return json.loads(text)
+        return json.loads(text, parse_float=_real, parse_constant=_constant)
+    except _BadNumber as exc:
+        raise InputError(path, f"corrupt {where}: {exc}") from None
     except json.JSONDecodeError as exc:
         raise InputError(
             path, f"corrupt {where}: {exc.msg} at line {exc.lineno} column {exc.colno}"
@@ -211,6 +277,9 @@ def read_jsonl(
         except (json.JSONDecodeError, RecursionError) as exc:
             if skip_partial_last and number == len(lines):
                 break
+            kind = sniff_kind(path)
+            if kind is not None and not kind.startswith("JSON Lines"):
+                raise InputError(path, f"is {kind}, not a JSON Lines file") from None
             why = exc.msg if isinstance(exc, json.JSONDecodeError) else "nested too deeply"
             raise InputError(path, f"corrupt JSON on line {number}: {why}") from None
         if not isinstance(record, dict):
@@ -235,11 +304,22 @@ def read_csv_rows(
     """
     path = Path(path)
     text = read_text_file(path, what="CSV file", encoding="utf-8-sig")
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise InputError(path, f"line {line}: a NUL byte; not a text CSV (a damaged file?)")
     reader = csv.DictReader(io.StringIO(text))
     try:
         header = [h.strip() for h in (reader.fieldnames or [])]
+        twice = sorted({h for h in header if header.count(h) > 1})
+        if twice:
+            raise InputError(
+                path, f"column(s) {', '.join(twice)} appear more than once in the header"
+            )
         missing = [c for c in required if c not in header]
         if missing:
+            kind = sniff_kind(path)
+            if kind is not None and not kind.startswith("a CSV"):
+                raise InputError(path, f"is {kind}, not a CSV table")
             raise InputError(
                 path, f"missing column(s) {', '.join(missing)}; has {', '.join(header)}"
             )
@@ -255,6 +335,81 @@ def read_csv_rows(
     except csv.Error as exc:
         raise InputError(path, f"line {reader.line_num + 1}: not a valid CSV row: {exc}") from None
     return rows
+
+
+#: JSON documents cvmeasure writes, by the keys that tell them apart (first match wins).
+_JSON_KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("a calibration JSON (`cvmeasure fit` / `session`)", ("samples", "angles_deg")),
+    ("a camera JSON (`cvmeasure calibrate`)", ("camera_matrix", "dist_coeffs")),
+    ("a plane JSON (`cvmeasure plane`)", ("H_board_image",)),
+    ("a board JSON (`cvmeasure targets charuco`)", ("squares_x",)),
+    ("a marker kit JSON", ("markers", "wire_diameter_mm")),
+    ("a diagnosis JSON (`cvmeasure diagnose`)", ("diagnosis",)),
+    ("a part result JSON (`cvmeasure part`)", ("radius_mm", "arc_angle_deg")),
+    ("a simulation params JSON", ("wire", "head")),
+)
+_MAGIC: tuple[tuple[bytes, str], ...] = (
+    (b"\xff\xd8\xff", "a JPEG image"),
+    (b"\x89PNG\r\n\x1a\n", "a PNG image"),
+    (b"II*\x00", "a TIFF image"),
+    (b"MM\x00*", "a TIFF image"),
+    (b"%PDF", "a PDF document"),
+    (b"PK\x03\x04", "a ZIP archive (or an Office document)"),
+    (b"\x1f\x8b", "a gzip archive"),
+)
+
+
+def sniff_kind(path: str | os.PathLike[str]) -> str | None:
+    """What kind of file ``path`` looks like, in words ("a camera JSON", "a JPEG image").
+
+    For messages that refuse a file of the wrong kind: ``report cal.json`` can say the
+    file is a calibration JSON rather than "corrupt JSON on line 1". None when the file
+    cannot be read or is of no kind recognised here.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+        for magic, kind in _MAGIC:
+            if head.startswith(magic):
+                return kind
+        stripped = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+        if stripped[:5].lower() in (b"<?xml", b"<svg ") or b"<svg" in head[:1024]:
+            return "an SVG drawing"
+        if stripped.startswith((b"{", b"[")):
+            return _sniff_json(Path(path))
+        if b"\x00" in head:
+            return "a binary file"
+        first = stripped.split(b"\n", 1)[0]
+        if first.count(b",") >= 1 and not first.startswith((b"N", b"G", b"(")):
+            return "a CSV table"
+        if first[:1] in (b"N", b"G", b"M", b"(", b";"):
+            return "a G-code file"
+    except OSError:
+        return None
+    return None
+
+
+def _sniff_json(path: Path) -> str | None:
+    try:
+        text = path.read_text(encoding="utf-8")
+        obj = json.loads(text)
+    except (OSError, UnicodeDecodeError, RecursionError):
+        return None
+    except json.JSONDecodeError:
+        lines = [ln for ln in text.splitlines() if ln.strip()]
+        try:
+            records = [json.loads(ln) for ln in lines[:3]]
+        except (json.JSONDecodeError, RecursionError):
+            return None
+        return "JSON Lines (one record per line)" if len(records) > 1 else None
+    if isinstance(obj, dict):
+        if len([ln for ln in text.splitlines() if ln.strip()]) == 1:
+            return "JSON Lines (one record per line)"
+        for kind, keys in _JSON_KINDS:
+            if all(k in obj for k in keys):
+                return kind
+        return "a JSON document"
+    return "a JSON list" if isinstance(obj, list) else "a JSON value"
 
 
 def write_csv_rows(

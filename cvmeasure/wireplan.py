@@ -34,7 +34,7 @@ import json
 import math
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -60,6 +60,7 @@ __all__ = [
     "plan_from_job",
     "polygon_from_chords",
     "plan_for_part",
+    "bent_polygon",
     "job_strokes",
     "DEFAULT_JOIN_GAP_MM",
     "DEFAULT_CLEARANCE_MM",
@@ -121,7 +122,6 @@ class WirePlan:
     changes: tuple[DesignChange, ...] = ()
     before_mm: np.ndarray | None = None
     from_job: bool = False
-    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def divisions(self) -> int:
@@ -297,8 +297,32 @@ def plan_design(
     before = drawn if (scale != 1.0 or bridged > 0 or (short.size and rechord)) else None
     _check_bends(src, design, corners, max_bend_deg, scale)
     _check_contact(src, design, corners, clearance_mm, scale)
-    options = {"min_segment_mm": min_segment_mm, "divisions": divisions, "rechord": rechord}
-    return WirePlan(src, design.units, corners, tuple(changes), before, False, options)
+    return WirePlan(src, design.units, corners, tuple(changes), before, False)
+
+
+def bent_polygon(
+    wire: DesignPath, divisions: int, *, min_segment_mm: float = MIN_SEGMENT_MM
+) -> np.ndarray:
+    """The polygon of ``divisions`` chords a design wire is bent as, by the planner's rules.
+
+    For a caller that has the wire and the chord count but no plan (no job): a wire that
+    is all curve is divided into ``divisions`` equal chords (:meth:`DesignPath.chords`);
+    one with drawn corners keeps them and divides its curves, each into the chords the
+    planner would make, or all into ``divisions`` chords in total when that matches
+    instead. When no such polygon has ``divisions`` chords, the wire's equal chords.
+    """
+    if wire.curve_mask.all() or len(wire.points_mm) < 2:
+        return wire.chords(divisions)
+    corners = _merge_straight(_divide_curves(wire, min_segment_mm, None)[0])
+    if len(corners) - 1 == divisions:
+        return corners
+    runs = int(np.sum(np.diff(np.concatenate(([0], wire.curve_mask.astype(int)))) == 1))
+    straight = len(_merge_straight(_divide_curves(wire, min_segment_mm, 1)[0])) - 1 - runs
+    if runs == 1 and divisions - straight >= 1:
+        corners = _merge_straight(_divide_curves(wire, min_segment_mm, divisions - straight)[0])
+        if len(corners) - 1 == divisions:
+            return corners
+    return wire.chords(divisions)
 
 
 def _one_wire(design: Design, join_gap_mm: float) -> tuple[DesignPath, float]:

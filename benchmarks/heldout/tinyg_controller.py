@@ -117,6 +117,11 @@ class TinyGController:
             log.position = {k: round(v, 6) for k, v in self.machine.position().items()}
         return log
 
+    def elapsed_s(self) -> float:
+        """Seconds since the controller started, on the truth log's clock."""
+        assert self.machine is not None
+        return time.monotonic() - self.machine.t0
+
     def status(self) -> dict[str, object]:
         """The machine's state now: ``stat``, ``line``, planner and RX occupancy, position."""
         assert self.machine is not None

@@ -358,15 +358,18 @@ class TinyGMachine:
 
     # ------------------------------------------------------------------ motion
     def _advance(self, dt: float, now: float) -> None:
-        """Run the runtime for ``dt`` machine seconds."""
+        """Run the runtime for ``dt`` machine seconds.
+
+        A feedhold decelerates over ``hold_decel_s``, i.e. the machine still travels for
+        half that time at speed, into the next queued moves when the current one ends
+        first (TinyG plans the deceleration over the queue, not within one block).
+        """
         while self.hold != "hold":
-            if self.current is None and self.hold == "sync":
-                self.hold = "hold"  # the hold began between two moves
-                self.sr_now = True
-                self.event(now, "hold_reached", line=self.runtime_line, position=self.position())
-                return
             if self.current is None:
-                if self.motion != "run" or not self._start_next(now):
+                if self.hold == "sync" and (self.decel_left_s <= 1e-12 or not self.planner):
+                    self._hold_reached(now)
+                    return
+                if self.motion == "stop" or not self._start_next(now):
                     return
                 if self.stall_until is not None:
                     return
@@ -383,13 +386,18 @@ class TinyGMachine:
                 self.runtime_pos = dict(move.target)
                 self._log_move(move, move.target, now, "done")
                 self.current = None
-            if self.hold == "sync" and (self.decel_left_s <= 1e-12 or self.current is None):
-                self.hold = "hold"
-                self.sr_now = True
-                self.event(now, "hold_reached", line=self.runtime_line, position=self.position())
+            if self.hold == "sync" and self.decel_left_s <= 1e-12:
+                self._hold_reached(now)
                 return
             if dt <= 1e-12:
                 return
+
+    def _hold_reached(self, now: float) -> None:
+        if self.current is not None:
+            self.runtime_pos = self.position()
+        self.hold = "hold"
+        self.sr_now = True
+        self.event(now, "hold_reached", line=self.runtime_line, position=self.position())
 
     def _start_next(self, now: float) -> bool:
         """Take the next planner buffer; False when the queue ran dry (cycle end)."""

@@ -13,14 +13,15 @@ output went away (``cvmeasure ... | head``), as a process killed by SIGPIPE.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import importlib
 import os
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from cvmeasure import __version__
-from cvmeasure.errors import CvmeasureError, InputError
+from cvmeasure.cli.errors import classify_exit, quiet_c_stderr, quiet_warnings
 
 __all__ = ["main", "console_main", "build_parser", "COMMAND_MODULES"]
 
@@ -45,6 +46,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "batch",
     "report",
     "track",
+    "ui",
 )
 
 
@@ -87,6 +89,7 @@ def _check_paths(args: argparse.Namespace) -> None:
     inputs: list[Path] = []
     for dest, value in vars(args).items():
         paths = [v for v in (value if isinstance(value, list) else [value]) if isinstance(v, Path)]
+        paths = [p for p in paths if str(p) != "-"]
         if not paths:
             continue
         if dest in OUTPUT_FILE_DESTS or dest in folders:
@@ -104,20 +107,39 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    with quiet_warnings(), _data_on_stdout(args):
+        try:
+            _check_paths(args)
+            return int(args.func(args) or 0)
+        except BaseException as exc:  # noqa: BLE001 - every way out gets its one line
+            code, message = classify_exit(exc, args)
+            if code is None:
+                raise
+            if message is not None:
+                print(f"cvmeasure {args.command}: {message}", file=sys.stderr)
+            if code == 141:
+                return _stdout_gone()
+            if code == 1 and os.environ.get("CVMEASURE_DEBUG"):
+                raise
+            return code
+
+
+@contextlib.contextmanager
+def _data_on_stdout(args: argparse.Namespace) -> Iterator[None]:
+    """With an output named ``-`` the data goes to stdout and the command's messages to stderr."""
+    from cvmeasure.fileio import STDIO, set_stdout
+
+    if not any(str(getattr(args, d, None)) == STDIO for d in OUTPUT_FILE_DESTS):
+        yield
+        return
+    real = sys.stdout
+    set_stdout(real)
+    sys.stdout = sys.stderr
     try:
-        _check_paths(args)
-        return int(args.func(args) or 0)
-    except InputError as exc:
-        print(f"cvmeasure {args.command}: {exc}", file=sys.stderr)
-        return 2
-    except CvmeasureError as exc:
-        print(f"cvmeasure {args.command}: error: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"cvmeasure {args.command}: interrupted", file=sys.stderr)
-        return 130
-    except BrokenPipeError:
-        return _stdout_gone()
+        yield
+    finally:
+        sys.stdout = real
+        set_stdout(None)
 
 
 def _stdout_gone() -> int:
@@ -129,8 +151,15 @@ def _stdout_gone() -> int:
 
 
 def console_main() -> None:
-    """Entry point of the ``cvmeasure`` console script."""
-    code = main()
+    """Entry point of the ``cvmeasure`` console script.
+
+    The image and numerical libraries' own messages (libjpeg's "Corrupt JPEG data",
+    libpng's and libtiff's warnings) are written by C code straight to file
+    descriptor 2; they are sent nowhere, while cvmeasure's own stderr lines still
+    reach the terminal (``CVMEASURE_DEBUG=1`` keeps everything).
+    """
+    with quiet_c_stderr():
+        code = main()
     try:
         sys.stdout.flush()
     except BrokenPipeError:

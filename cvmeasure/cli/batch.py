@@ -85,7 +85,9 @@ def run(args: argparse.Namespace) -> int:
             register_measurer("custom", args.measure)
             resolve_measurer("custom")
         except (ValueError, ImportError, AttributeError) as exc:
-            raise InputError(args.measure, f"cannot use as a measurement: {exc}") from None
+            raise InputError(
+                "--measure", f"{args.measure!r} cannot be used as a measurement: {exc}"
+            ) from None
         kind = "custom"
 
     if args.workers is not None and args.workers < 1:
@@ -150,10 +152,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if summary.failed:
         if not args.json:
-            print(
-                f"cvmeasure batch: {args.output}: {summary.failed} of {summary.measured} photos "
-                'could not be measured (records with "ok": false)',
-                file=sys.stderr,
+            first = summary.failures[0][1]
+            more = (
+                f" ({summary.failed - 1} more of {summary.measured} photos failed; "
+                f'records with "ok": false in {args.output})'
+                if summary.failed > 1
+                else f' (record with "ok": false in {args.output}; a re-run retries it)'
             )
+            print(f"cvmeasure batch: {first}{more}", file=sys.stderr)
         return 2
     return 0

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from cvmeasure.cli.options import positive_float
+from cvmeasure.cli.options import positive_float, positive_int
 
 __all__ = ["register", "run"]
 
@@ -31,6 +31,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="resume even though a corrupted line reached the machine (check the part first)",
     )
+    p.add_argument(
+        "--from-line",
+        type=positive_int,
+        metavar="N",
+        help="with --resume: continue at line N, on your word after checking the part, when "
+        "the board cannot prove which lines ran (the refusal names the choices)",
+    )
     p.add_argument("--journal", type=Path, help="journal file (default: JOB.journal.jsonl)")
     p.add_argument("--no-xonxoff", action="store_true", help="switch software flow control off")
     p.add_argument(
@@ -39,6 +46,33 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(func=run)
+
+
+#: How a complete job ends: a program end (M2, M30) or the ``(end)`` comment `gcode` writes.
+_END_MARKERS = ("M2", "M02", "M30", "(END)")
+
+
+def _check_complete(path: Path, text: str) -> None:
+    """Refuse a job cut short (a copy or download that did not finish): it bends half a part.
+
+    A job is complete when its last line is an end marker (M2, M30, ``(end)``) or the
+    file ends with a line break; a last line without its line break and without an
+    end marker is where a cut file stops.
+    """
+    from cvmeasure.errors import InputError
+
+    lines = [t.strip().upper() for t in text.splitlines() if t.strip()]
+    last = lines[-1] if lines else ""
+    words = last.split()
+    if words and words[0].startswith("N") and len(words) > 1:
+        words = words[1:]
+    ended = bool(words) and (words[0] in _END_MARKERS or " ".join(words).startswith("(END"))
+    if not ended and not text.endswith(("\n", "\r")):
+        raise InputError(
+            path,
+            f"the job's last line {last[:40]!r} has no line break and the job no end line "
+            "(M2, M30, (end)): the file looks cut short; add the end line if it is complete",
+        )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -52,8 +86,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(args.job, "G-code file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(args.job, f"cannot read G-code: {exc}") from None
+    _check_complete(args.job, text)
     job = prepare_job(text.splitlines(), source=str(args.job))
     journal = args.journal or args.job.with_name(args.job.name + ".journal.jsonl")
+    if args.from_line is not None and not args.resume:
+        raise InputError("--from-line", "only applies with --resume")
     if args.resume and not journal.is_file():
         raise InputError(journal, "no journal to resume from")
     config = StreamConfig(stall_timeout_s=args.stall_timeout_s)
@@ -79,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
                 progress=progress,
                 source=str(args.job),
                 force=args.force,
+                from_line=args.from_line,
             )
         finally:
             if not args.quiet and on_terminal:

@@ -9,8 +9,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cvmeasure.cli.options import positive_float, positive_int
+
+if TYPE_CHECKING:
+    from cvmeasure.wireplan import WirePlan
 
 __all__ = ["add_plan_options", "plan_from_args"]
 
@@ -57,7 +61,7 @@ def add_plan_options(p: argparse.ArgumentParser, *, job: bool, divisions: bool =
         )
 
 
-def plan_from_args(args: argparse.Namespace, design: Path):
+def plan_from_args(args: argparse.Namespace, design: Path) -> WirePlan:
     """The plan of ``design`` (or of ``args.job``) with the shared options."""
     from cvmeasure.wireplan import plan_for_part
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
@@ -73,6 +74,9 @@ def run(args: argparse.Namespace) -> int:
     ]
     header = ["".join(c for c in h if c.isprintable() and c not in "!~%$?") for h in header]
     header += plan.header_lines()
+    header += ["; warning: " + "".join(c for c in str(w) if c not in "!~%$?") for w in job.warnings]
+    for w in job.warnings:
+        print(f"warning: {w}", file=sys.stderr)
     atomic_write_text(args.out, "\n".join(header) + "\n" + job.text())
     if args.json:
         print(json.dumps({"out": str(args.out), **job.to_dict(), "plan": plan.to_dict()}, indent=2))

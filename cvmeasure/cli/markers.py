@@ -1,4 +1,4 @@
-"""``cvmeasure markers``: the marker kit's colours (``learn`` them from a reference photo)."""
+"""``cvmeasure markers``: the marker kit's colours (``learn``) and heights (``heights``)."""
 
 from __future__ import annotations
 
@@ -6,13 +6,13 @@ import argparse
 import json
 from pathlib import Path
 
-__all__ = ["register", "run_learn"]
+__all__ = ["register", "run_learn", "run_heights"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "markers",
-        help="learn the marker kit's colours from a reference photo",
+        help="learn the marker kit's colours, measure its heights",
         description="Tools for the colour marker kit.",
     )
     msub = p.add_subparsers(dest="markers_command", metavar="ACTION")
@@ -38,6 +38,58 @@ def register(sub: argparse._SubParsersAction) -> None:
     learn.add_argument("--name", help="name of the learnt kit (default <kit>-learnt)")
     learn.add_argument("--json", action="store_true", help="print the result as JSON")
     learn.set_defaults(func=run_learn)
+    _register_heights(msub)
+
+
+def _register_heights(msub: argparse._SubParsersAction) -> None:
+    from cvmeasure.cli.options import positive_float
+
+    h = msub.add_parser(
+        "heights",
+        help="measure each marker's height above the plate from photos of a bend sweep",
+        description="Measure the height of each marker's face above the top plate from "
+        "photos taken from the plane's pose: bend photos at several pin angles (the pin "
+        "holding the wire against the die; both directions, 6 or more) and, recommended, "
+        "photos of the straight wire (--straight). The pin and wire markers turn about the "
+        "die's axis, where the origin marker sits: only the true heights keep their "
+        "distances from it over the sweep, and the straight wire parallel to the axis. "
+        "Writes the kit JSON with the measured height_mm, height_sigma_mm and "
+        "height_covariance_mm2; `measure --kit` carries those uncertainties into every "
+        "angle's.",
+    )
+    h.add_argument("photos", nargs="*", type=Path, metavar="PHOTO", help="bend photos")
+    h.add_argument(
+        "--session",
+        type=Path,
+        help="a calibration session's folder (or its session.jsonl): its loaded photos are "
+        "the bend photos (the session photographs them from one pose)",
+    )
+    h.add_argument(
+        "--plane",
+        type=Path,
+        required=True,
+        help="plane JSON (`cvmeasure plane -o`) measured from the same camera pose",
+    )
+    h.add_argument(
+        "--straight",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="PHOTO",
+        help="a photo of the straight wire (no bend) from the same pose (repeatable)",
+    )
+    h.add_argument(
+        "--kit", type=Path, help="nominal kit JSON (default: the built-in kit's heights)"
+    )
+    h.add_argument(
+        "--prior-sigma-mm",
+        type=positive_float,
+        default=2.0,
+        help="standard uncertainty of the nominal heights, mm (default 2)",
+    )
+    h.add_argument("-o", "--out", type=Path, required=True, help="kit JSON to write")
+    h.add_argument("--json", action="store_true", help="print the result as JSON")
+    h.set_defaults(func=run_heights)
 
 
 def run_learn(args: argparse.Namespace) -> int:
@@ -64,3 +116,76 @@ def run_learn(args: argparse.Namespace) -> int:
     print(f"heights above the plate: {learnt.kit.heights_text()}")
     print(f"wrote {args.out}")
     return 0
+
+
+def run_heights(args: argparse.Namespace) -> int:
+    import sys
+
+    from cvmeasure.contracts import PlaneModel
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.imageio import read_photo
+    from cvmeasure.kit import ROLES, default_kit, load_kit
+    from cvmeasure.markers.kit_heights import SweepPhoto, measure_heights
+    from cvmeasure.markers.measure import frame_centres
+
+    kit = load_kit(args.kit) if args.kit else default_kit()
+    plane = PlaneModel.load(args.plane)
+    sweep, failed, y_down = [], 0, True
+    bends = list(args.photos) + (_session_loaded_photos(args.session) if args.session else [])
+    if not bends:
+        raise InputError("markers heights", "no bend photos (PHOTO... or --session)")
+    shots = [(p, False) for p in bends] + [(p, True) for p in args.straight]
+    for path, straight in shots:
+        try:
+            photo = read_photo(path)
+            got = frame_centres(photo.bgr, kit, plane=plane, linear=photo.linear, source=str(path))
+        except InputError as exc:
+            print(f"cvmeasure markers heights: {exc}", file=sys.stderr)
+            failed += 1
+            continue
+        y_down = got.frame.y_down
+        sweep.append(SweepPhoto(got.centres, got.covariances, straight, str(path)))
+    try:
+        result = measure_heights(
+            sweep,
+            kit,
+            plane.camera_centre_mm,
+            y_down=y_down,
+            prior_sigma_mm=args.prior_sigma_mm,
+        )
+    except ValueError as exc:
+        raise InputError("markers heights", f"{exc} ({failed} photo(s) failed)") from None
+    atomic_write_json(args.out, result.kit.to_dict())
+    if args.json:
+        print(json.dumps(result.to_dict()))
+    else:
+        print(f"{result.n_photos} photos ({result.n_straight} straight), fit RMS {result.rms:.2f}")
+        for role in ROLES:
+            print(
+                f"{role:<7} {result.heights_mm[role]:7.2f} +- {result.sigma_mm[role]:.2f} mm"
+                f"  (nominal {result.nominal_mm[role]:g} mm)"
+            )
+        for w in result.warnings:
+            print(f"! {w}")
+        print(f"wrote {args.out}")
+    return 2 if failed else 0
+
+
+def _session_loaded_photos(path: Path) -> list[Path]:
+    """The loaded photos of a calibration session's log (paths relative to its folder)."""
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import read_jsonl
+
+    log = path / "session.jsonl" if path.is_dir() else path
+    if not log.is_file():
+        raise InputError(path, "no session log here (session.jsonl)")
+    records = read_jsonl(log, skip_partial_last=True)
+    photos = [
+        log.parent / str(r["photo_loaded"])
+        for r in records
+        if isinstance(r, dict) and r.get("event") == "sample" and r.get("photo_loaded")
+    ]
+    if not photos:
+        raise InputError(log, "not a session log with bends (no 'sample' records)")
+    return photos

@@ -212,6 +212,7 @@ def _print_summary(m, out) -> None:
     chords = {
         "--divisions": f"{r.divisions} chords (--divisions)",
         "photo": f"{r.divisions} chords (vertices found in the photo)",
+        "plan": f"{r.divisions} chords (the polygon bent, from the design or --job)",
         None: "no chord vertices found (a smooth curve)",
     }[m.divisions_from]
     print(f"{m.source}  (method {r.method}; {chords})", file=out)

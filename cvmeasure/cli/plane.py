@@ -80,7 +80,12 @@ def run(args: argparse.Namespace) -> int:
     if args.rectified is not None:
         import cv2
 
-        img = rectify_image(photo.bgr, plane, px_per_mm=args.px_per_mm)
+        try:
+            img = rectify_image(photo.bgr, plane, px_per_mm=args.px_per_mm)
+        except ValueError as exc:
+            raise InputError(
+                "--px-per-mm", f"{args.px_per_mm:g} px/mm is too fine for this plane: {exc}"
+            ) from None
         ok, buf = cv2.imencode(args.rectified.suffix or ".png", img)
         if not ok:
             raise InputError(args.rectified, "cannot encode an image with this file suffix")

@@ -30,7 +30,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the TinyG double on a pty (simulated machine) + the simulated camera",
     )
     p.add_argument("--port", help="the bender's serial port or URL (real sessions)")
-    p.add_argument("--camera", help="camera URL: gphoto2://[port] or folder:///path")
+    p.add_argument(
+        "--camera", type=camera_url, help="camera URL: gphoto2://[port] or folder:///path"
+    )
     p.add_argument(
         "--camera-setting",
         action="append",
@@ -52,9 +54,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "high: standard plus 2.5 and 7.5 deg, for shallow parts (wanted loaded angles, "
         "both directions)",
     )
-    p.add_argument("--angles", help="custom calibration angles, e.g. 2.5,5,10,20 (deg)")
+    p.add_argument(
+        "--angles", type=angle_list, help="custom calibration angles, e.g. 2.5,5,10,20 (deg)"
+    )
     p.add_argument("--model", choices=("linear", "cubic", "pchip", "physical"), default="linear")
     p.add_argument("--kit", type=Path, help="marker kit JSON (default: the built-in kit)")
+    p.add_argument(
+        "--flat-kit",
+        action="store_true",
+        help="the markers are flat stickers on the plate: the kit's heights removed",
+    )
     p.add_argument("--camera-model", type=Path, help="camera JSON (lens model) for measuring")
     p.add_argument(
         "--plane",
@@ -80,17 +89,33 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _angles(text: str) -> tuple[float, ...]:
-    from cvmeasure.errors import InputError
+#: Camera URL schemes a real session can use.
+CAMERA_SCHEMES = ("gphoto2://", "folder://")
 
+
+def camera_url(text: str) -> str:
+    """A camera URL (``gphoto2://[port]`` or ``folder:///path``), checked as it is parsed."""
+    if not text.startswith(CAMERA_SCHEMES):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a camera URL; use gphoto2://[port] or folder:///path"
+        )
+    return text
+
+
+def angle_list(text: str) -> tuple[float, ...]:
+    """Calibration angles ``2.5,5,10`` (deg): at least 2 different, each in (0, 180)."""
     try:
         angles = tuple(float(a) for a in text.split(","))
     except ValueError:
-        raise InputError("--angles", f"{text!r} is not a comma-separated list of numbers") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a comma-separated list of numbers"
+        ) from None
     if any(not 0 < a < 180 for a in angles):
-        raise InputError("--angles", "angles must be in (0, 180) deg")
+        raise argparse.ArgumentTypeError(f"angles must be in (0, 180) deg, got {text!r}")
     if len(set(angles)) < 2:
-        raise InputError("--angles", "a calibration needs at least 2 different angles")
+        raise argparse.ArgumentTypeError(
+            f"a calibration needs at least 2 different angles, got {text!r}"
+        )
     return angles
 
 
@@ -115,6 +140,18 @@ def _check_camera_option(args: argparse.Namespace) -> None:
         )
 
 
+def _check_options(args: argparse.Namespace) -> None:
+    """Options that are wrong together (each is fine alone)."""
+    from cvmeasure.errors import InputError
+
+    if args.simulate and args.port:
+        raise InputError("--port", "--simulate uses the TinyG double; drop --port")
+    if args.plane and not args.camera_model:
+        raise InputError(
+            "--plane", "a plane JSON needs the camera it was measured with (--camera-model)"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.contracts import TrialTable
     from cvmeasure.driver.camera import open_camera
@@ -132,8 +169,9 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.provenance import provenance
 
     _check_camera_option(args)
+    _check_options(args)
     session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
-    angles = _angles(args.angles) if args.angles else ()
+    angles = args.angles or ()
     config = SessionConfig(
         mode="custom" if angles else args.mode, angles_deg=angles, feed_mm=args.feed_mm
     )
@@ -142,6 +180,10 @@ def run(args: argparse.Namespace) -> int:
         from cvmeasure.kit import load_kit
 
         kit = load_kit(args.kit)
+    if args.flat_kit:
+        from cvmeasure.kit import default_kit
+
+        kit = (kit or default_kit()).flat()
     options = {}
     if args.camera_model:
         from cvmeasure.camera import load_camera

@@ -63,6 +63,7 @@ from cvmeasure.diagnose.identify import (
     Identifiability,
     check_identifiability,
 )
+from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
 from cvmeasure.diagnose.residuals import (
     LeftoverCheck,
     ResidualTrend,
@@ -183,6 +184,9 @@ class Diagnosis:
     follow_up: FollowUp | None = None
     #: the other pairs the beam could name (the rivals of a named pair's tie)
     other_pairs: tuple[CandidateResult, ...] = field(default=(), repr=False, compare=False)
+    #: the best explanation against the scatter of repeated bends (None: no repeats);
+    #: ``misfit.refused``: the simulation does not describe this machine, nothing named
+    misfit: Misfit | None = None
 
     @property
     def gain(self) -> float:
@@ -256,6 +260,7 @@ class Diagnosis:
             "evidence": [{"explanation": e, "weight": w} for e, w in self.evidence],
             "tie": list(self.tie),
             "follow_up": None if self.follow_up is None else self.follow_up.to_dict(),
+            "lack_of_fit": None if self.misfit is None else self.misfit.to_dict(),
         }
 
 
@@ -669,13 +674,42 @@ def _diagnose_once(
     # evidence (a delta BIC and a held-out gain against baseline + a *bounded*
     # discrepancy) can be model-form error beyond the bound, which its interval carries
     null_held = _holds_no_effect(ext_fit)
+    refused_cv = math.nan  # held-out RMSE of a cause refused for its interval (discrepancy out)
     if cause not in ("none", "unexplained") and len(null_held) == len(ext_fit.causes) > 0:
+        alone = _alone_excluding_no_effect(results, ext_fit.causes)
+        if alone is not None:
+            # two causes sharing one signature hold no effect together (each can take
+            # the other's share) while one alone excludes it: that one is named
+            notes.append(
+                f"{' + '.join(ext_fit.causes)} not named together: each 95 % interval holds "
+                f"no effect beside the other; {alone.cause} alone excludes it"
+            )
+            cause, ext_fit, ext_cv = alone.cause, alone.fit, alone.cv_rmse_deg
+            named_cv = alone.cv_discrepancy_rmse_deg
+            ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
+            beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
+        else:
+            notes.append(
+                f"{', '.join(null_held)} not named: the 95 % interval with the model-form "
+                "error carried holds no effect"
+            )
+            refused_cv = named_cv
+            cause, ext_fit, ext_res, ext_cv, beside = "none", base_fit, base_res, base_cv, ()
+    # terms outside the catalogue do not stand in for a catalogue cause refused above that
+    # explains the held-out data better than they do: what the data show is that cause's
+    # signature at a size the plan cannot tell from none (e.g. a backlash lost on every
+    # bend within the dead zone's tolerance), not a new mechanism
+    beat_refused = not math.isfinite(refused_cv) or not mean_terms
+    beat_refused = beat_refused or found.rmse_after_deg < refused_cv
+    if found.terms and cause == "none" and not beat_refused:
         notes.append(
-            f"{', '.join(null_held)} not named: the 95 % interval with the model-form "
-            "error carried holds no effect"
+            f"terms outside the catalogue ({', '.join(t.term for t in found.terms)}) explain "
+            f"the held-out data worse than the cause refused above ({found.rmse_after_deg:.3f} "
+            f"vs {refused_cv:.3f} deg): not reported"
         )
-        cause, ext_fit, ext_res, ext_cv, beside = "none", base_fit, base_res, base_cv, ()
-    if found.terms and (cause == "none" or (mean_terms and terms_win())):
+    if found.terms and (
+        (cause == "none" and beat_refused) or (cause != "none" and mean_terms and terms_win())
+    ):
         if cause != "none":
             notes.append(
                 "terms outside the catalogue explain the data better than "
@@ -750,6 +784,19 @@ def _diagnose_once(
             f"not a pick; {ORDER_EXPERIMENT}"
         )
         experiment = experiment or ORDER_EXPERIMENT
+    if cause == "unexplained":
+        n_terms = sum(len(t.coefficients_deg) for t in found.terms)
+        misfit = lack_of_fit_residuals(trials, ext_res, base_fit.n_params + n_terms)
+    else:
+        misfit = lack_of_fit(trials, ext_fit if ext_fit.causes else base_fit)
+    if misfit is not None and misfit.refused:
+        # the least bad of wrong models is no name: the machine is not what the params say
+        # (terms outside the catalogue found stay reported, as what is left unexplained)
+        notes.append(misfit.note())
+        if cause != "unexplained":
+            cause, ext_fit, ext_res, ext_cv, discovered = "none", base_fit, base_res, base_cv, ()
+        tie = ()
+        experiment = "describe the machine with --params (its geometry and wire) and diagnose again"
     leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
@@ -784,7 +831,24 @@ def _diagnose_once(
         evidence=evidence,
         tie=tie,
         discovered_rmse_deg=found.rmse_after_deg if mean_terms else math.nan,
+        misfit=misfit,
     )
+
+
+def _alone_excluding_no_effect(
+    results: Sequence[CandidateResult], causes: Sequence[str]
+) -> CandidateResult | None:
+    """Of a refused pair's causes, the accepted single one whose own interval excludes no
+    effect, the best held out (discrepancy profiled out); None: none of them."""
+    if len(causes) < 2:
+        return None
+    alone = [
+        c
+        for c in results
+        if c.accepted and len(c.fit.causes) == 1 and c.cause in causes
+        if not _holds_no_effect(c.fit)
+    ]
+    return min(alone, key=lambda c: c.cv_discrepancy_rmse_deg, default=None)
 
 
 def _holds_no_effect(fit: ModelFit) -> list[str]:

@@ -148,16 +148,20 @@ def library(
             out[b * n : (b + 1) * n] = v
         return out
 
+    # the drive's terms are errors of the head rotation: they move the pin on the loaded
+    # photo as much as the head (gain 1 in the pin block), which the wire's own model-form
+    # error does not
+    head = (0, 1, 2)
     cols: dict[str, NDArray[np.float64]] = {}
     for p in (60, 90, 120, 180):
         w = 2 * np.pi * mag / p
         cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(
-            [stack(s * np.sin(w)), stack(s * np.cos(w))]
+            [stack(s * np.sin(w), head), stack(s * np.cos(w), head)]
         )
     for t in (5, 15, 45):
-        cols[f"warm_up_{t}"] = (gain * stack(s * (1.0 - np.exp(-k / t))))[:, None]
+        cols[f"warm_up_{t}"] = (gain * stack(s * (1.0 - np.exp(-k / t)), head))[:, None]
     cols["previous_bend"] = stack(prev_s * prev_theta / 90.0)[:, None]
-    cols["order_squared"] = (gain * stack(s * (k / max(n - 1, 1)) ** 2))[:, None]
+    cols["order_squared"] = (gain * stack(s * (k / max(n - 1, 1)) ** 2, head))[:, None]
     cols["released_angle"] = stack(s * mag / 100.0, blocks=(1,))[:, None]
     return cols
 
@@ -311,7 +315,7 @@ def discover(
         cols[_REFIT] = np.asarray(refit, dtype=np.float64).reshape(3 * n, -1)
         forced = (_REFIT,)
     names = list(cols)
-    ok = np.isfinite(r) & (np.arange(3 * n) < 2 * n)
+    ok = np.isfinite(r)  # the pin too: a drive term must move it, model-form error does not
     y = r[ok]
     sel = {k: v[ok] for k, v in cols.items()}
     unique, group_of = np.unique(np.asarray(groups), return_inverse=True)

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike
 
 from cvmeasure.driver.protocol import encode_line
 from cvmeasure.errors import InputError
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "BendStep",
@@ -51,7 +52,6 @@ __all__ = [
     "pin_commands",
     "gcode_lines",
     "design_job",
-    "wire_polyline",
     "MIN_SEGMENT_MM",
     "MAX_BEND_DEG",
     "SHALLOW_SESSION_ANGLES_DEG",
@@ -169,6 +169,7 @@ class GcodeJob:
     lines: tuple[str, ...]
     bends: BendList
     pin_deg: tuple[float, ...]
+    warnings: tuple[StageWarning, ...] = ()
 
     def text(self) -> str:
         return "\n".join(self.lines) + "\n"
@@ -180,6 +181,7 @@ class GcodeJob:
             "total_feed_mm": self.bends.total_feed_mm,
             "bend_list": self.bends.to_dict()["steps"],
             "pin_deg": list(self.pin_deg),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 
@@ -255,79 +257,18 @@ def bend_list(
     return BendList(tuple(steps), source)
 
 
-def wire_polyline(
-    points_mm: ArrayLike,
-    *,
-    min_segment_mm: float = MIN_SEGMENT_MM,
-    divisions: int | None = None,
-    arcs: Sequence[Any] = (),
-) -> np.ndarray:
-    """The design's polyline with its curves divided into equal chords the bender can make.
-
-    A run of consecutive chords shorter than ``min_segment_mm`` is a flattened
-    curve (arc, circle piece, spline, Bezier): it is replaced by ``divisions``
-    equal chords (:func:`cvmeasure.design.divide_into_chords`), or by as many
-    as fit with each at least ``min_segment_mm`` long. Straight pieces keep
-    their vertices (the seed paper's Wireware splits curves the same way).
-
-    Parameters
-    ----------
-    points_mm : ndarray of shape (N, 2), the flattened design path, mm.
-    min_segment_mm : shortest chord wanted.
-    divisions : chords per curve (None = the most that are all >= ``min_segment_mm``).
-    arcs : the path's exact circular arcs (:class:`cvmeasure.design.DesignArc`);
-        a curve that is one of them is divided on the true circle, not on its
-        flattened polyline.
-
-    Returns
-    -------
-    ndarray of shape (M, 2)
-    """
-    from cvmeasure.design import chord_lengths_mm, divide_into_chords
-
-    pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-    if len(pts) < 3:
-        return pts
-    seg = chord_lengths_mm(pts)
-    short = seg < min_segment_mm
-    out = [pts[0]]
-    i = 0
-    while i < len(seg):
-        if not short[i]:
-            out.append(pts[i + 1])
-            i += 1
-            continue
-        j = i
-        while j < len(seg) and short[j]:
-            j += 1
-        run = pts[i : j + 1]
-        length = float(seg[i:j].sum())
-        if j - i == 1:
-            out.append(pts[j])  # a lone short segment: left for the rules to name
-        else:
-            n = divisions if divisions is not None else max(1, int(length // min_segment_mm))
-            exact = _matching_arc(arcs, run[0], run[-1])
-            if exact is not None:
-                out.extend(exact.points_mm(chords=n)[1:])
-            else:
-                out.extend(divide_into_chords(run, n)[1:])
-        i = j
-    return np.asarray(out)
-
-
-def _matching_arc(arcs: Sequence[Any], start: np.ndarray, end: np.ndarray) -> Any:
-    for arc in arcs:
-        ends = arc.points_mm(chords=1)
-        if np.allclose(ends[0], start, atol=1e-6) and np.allclose(ends[-1], end, atol=1e-6):
-            return arc
-    return None
-
-
 def pin_commands(
     bends: BendList,
     compensation: Compensator | Callable[[float], float] | None = None,
+    *,
+    warnings_out: list[StageWarning] | None = None,
 ) -> tuple[float, ...]:
     """Pin command (deg, signed) of each bend through the compensation.
+
+    A bend a little below a calibration's range (within its lowest calibrated
+    interval of the lowest point) is made by the stated extrapolation rule
+    (:func:`_extrapolated_below`) and warned about (``bend_extrapolated``, appended to
+    ``warnings_out``); further below, it is refused naming the session that calibrates it.
 
     Raises
     ------
@@ -347,11 +288,18 @@ def pin_commands(
     for i, target in enumerate(bends.bends_deg, start=1):
         try:
             out.append(float(fn(float(target))))  # type: ignore[operator]
+            continue
         except ValueError as exc:
-            raise InputError(
-                bends.source,
-                f"bend {i} of {target:.2f} deg cannot be made: {exc}{_shallow_advice(comp, target)}",
-            ) from None
+            made = _extrapolated_below(comp, float(target), i)
+            if made is None:
+                raise InputError(
+                    bends.source,
+                    f"bend {i} of {target:.2f} deg cannot be made: {exc}"
+                    f"{_shallow_advice(comp, target)}",
+                ) from None
+        out.append(made[0])
+        if warnings_out is not None:
+            warnings_out.append(made[1])
     return tuple(out)
 
 
@@ -372,6 +320,64 @@ def _shallow_advice(compensation: Any, target_deg: float) -> str:
         f"cvmeasure session --angles {angles} (final bends from about 0.3 deg) and pass "
         "its calibration as --material"
     )
+
+
+def _lowest_interval(
+    compensation: Any, target_deg: float
+) -> tuple[float, float, float, float] | None:
+    """(f0, l0, f1, l1): the two lowest calibrated (final, loaded) knots of the bend's side."""
+    comp = getattr(compensation, "compensation", compensation)
+    curves = getattr(comp, "springback", None)
+    if not isinstance(curves, dict) or target_deg == 0:
+        return None
+    curve = curves.get("cw" if target_deg < 0 else "ccw")
+    if curve is None or len(curve.final_deg) < 2:
+        return None
+    f, lo = curve.final_deg, curve.loaded_deg
+    return float(f[0]), float(lo[0]), float(f[1]), float(lo[1])
+
+
+def _extrapolated_below(
+    compensation: Any, target_deg: float, index: int
+) -> tuple[float, StageWarning] | None:
+    """The stated rule for a bend just below the calibrated range, or None (refuse).
+
+    Below the lowest calibrated final angle ``f0`` the calibration's curves are
+    continued linearly (its ``outside="warn"``: the lowest interval's slope), down to
+    ``max(f0 - (f1 - f0), f0 / 2)`` at most (nearer the yield the springback is no longer
+    that of a yielded section). A shallow bend's springback is the elastic recovery of a
+    just-yielded section, nearly constant; holding it at ``f0``'s value instead of
+    continuing the slope gives the other plausible pin, and the two bends' difference,
+    ``(f0 - |t|) |sb1 - sb0| / (f1 - f0)``, is the stated uncertainty.
+    """
+    knots = _lowest_interval(compensation, target_deg)
+    if knots is None:
+        return None
+    f0, l0, f1, l1 = knots
+    t = abs(target_deg)
+    if t >= f0 or t < max(f0 - (f1 - f0), 0.5 * f0) or f1 <= f0:
+        return None
+    import warnings
+
+    from cvmeasure.material.compensation import CompensationRangeWarning
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CompensationRangeWarning)
+            pin = float(compensation.compensate(target_deg, outside="warn"))
+    except (TypeError, ValueError):
+        return None
+    sigma = (f0 - t) * abs((l1 - f1) - (l0 - f0)) / (f1 - f0)
+    angles = ",".join(f"{a:g}" for a in SHALLOW_SESSION_ANGLES_DEG)
+    warning = StageWarning(
+        "bend_extrapolated",
+        f"bend {index} of {target_deg:.2f} deg is below the calibrated {f0:.2f} deg: its pin "
+        f"is extrapolated from the calibration's lowest interval (springback "
+        f"{l0 - f0:.2f} deg), uncertain by about {sigma:.3f} deg; cvmeasure session "
+        f"--angles {angles} calibrates it",
+        f"bend {index}",
+    )
+    return pin, warning
 
 
 def _num(value: float) -> str:
@@ -452,6 +458,7 @@ def design_job(
         max_bend_deg=max_bend_deg,
         bend_radius_mm=bend_radius_mm,
     )
-    pins = pin_commands(bl, compensation)
+    notes: list[StageWarning] = []
+    pins = pin_commands(bl, compensation, warnings_out=notes)
     lines = gcode_lines(bl, pins, layout=layout, title=source.rsplit("/", 1)[-1])
-    return GcodeJob(lines, bl, pins)
+    return GcodeJob(lines, bl, pins, tuple(notes))

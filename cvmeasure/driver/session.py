@@ -26,10 +26,12 @@ state the photo lab's simulated camera
 (:class:`cvmeasure_datasets.simcamera.SimulatedCamera`) renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
-"config": {...}}``, ``{"event": "bend", "step": i, ...}`` (written before
-the bend is sent), ``{"event": "sample", "step": i, ...}`` (a completed
-angle), ``{"event": "resume", "done": n}``, ``{"event": "failed", "step": i,
-"error": "..."}``.
+"config": {...}}``, ``{"event": "fed", "step": i, "feed_mm": ..., "refeed": ...}``
+(fresh wire is out), ``{"event": "bend", "step": i, ...}`` (written before the
+bend is sent), ``{"event": "sample", "step": i, ...}`` (a completed angle),
+``{"event": "resume", "done": n, "interrupted": [...]}``, ``{"event": "failed",
+"step": i, "error": "..."}``. Every ``bend`` follows a ``fed`` of its step: a step
+cut after its bend was sent is bent again only on wire fed since.
 """
 
 from __future__ import annotations
@@ -405,6 +407,7 @@ def run_session(
     plan_json = [[d, a] for d, a in plan]
     done: dict[int, SessionStep] = {}
     resumed = log_path.exists()
+    interrupted: set[int] = set()
     if resumed:
         records = read_session_log(log_path)
         start = next((r for r in records if r.get("event") == "start"), None)
@@ -415,7 +418,18 @@ def run_session(
         for r in records:
             if r.get("event") == "sample":
                 done[int(r["step"])] = SessionStep.from_dict(r)
-        append_jsonl(log_path, {"event": "resume", "done": len(done), "time_utc": _now()})
+        # a step whose bend was sent but not recorded may have bent the wire at the pin:
+        # it is bent again only after fresh wire is fed past that bend
+        interrupted = {int(r["step"]) for r in records if r.get("event") == "bend"} - set(done)
+        append_jsonl(
+            log_path,
+            {
+                "event": "resume",
+                "done": len(done),
+                "interrupted": sorted(interrupted),
+                "time_utc": _now(),
+            },
+        )
     else:
         append_jsonl(
             log_path,
@@ -431,17 +445,6 @@ def run_session(
         if stop_after is not None and len(bent) >= stop_after:
             raise SessionInterrupted(f"stopped after {len(bent)} bends as asked")
         pin = round(nominal_pin_for_loaded_deg(angle, direction, params), 3)  # as sent
-        append_jsonl(
-            log_path,
-            {
-                "event": "bend",
-                "step": step,
-                "direction": direction,
-                "target_deg": angle,
-                "commanded_pin_deg": pin,
-                "time_utc": _now(),
-            },
-        )
         bent.append(step)
         try:
             record = _bend_and_measure(
@@ -456,6 +459,8 @@ def run_session(
                 config=config,
                 kit=kit,
                 options=options,
+                log_path=log_path,
+                refeed=step in interrupted,
             )
         except CvmeasureError as exc:
             append_jsonl(log_path, {"event": "failed", "step": step, "error": str(exc)})
@@ -508,11 +513,39 @@ def _bend_and_measure(
     config: SessionConfig,
     kit: Any,
     options: Mapping[str, Any],
+    log_path: Path,
+    refeed: bool = False,
 ) -> SessionStep:
-    """Feed, bend, photograph loaded, release, photograph unloaded, measure both."""
+    """Feed, bend, photograph loaded, release, photograph unloaded, measure both.
+
+    The log gets ``fed`` once the fresh wire is out (``refeed`` true when the step's
+    previous attempt was cut after its bend was sent: that wire may be bent) and
+    ``bend`` before the bend is sent, so a resume knows which wire a bend was on.
+    """
     from cvmeasure.markers.measure import measure_photo_file
 
     machine.run(session_gcode("feed", config))
+    append_jsonl(
+        log_path,
+        {
+            "event": "fed",
+            "step": step,
+            "feed_mm": config.feed_mm,
+            "refeed": refeed,
+            "time_utc": _now(),
+        },
+    )
+    append_jsonl(
+        log_path,
+        {
+            "event": "bend",
+            "step": step,
+            "direction": direction,
+            "target_deg": angle,
+            "commanded_pin_deg": pin,
+            "time_utc": _now(),
+        },
+    )
     machine.run(session_gcode("bend", config, pin_deg=pin, previous_direction=previous_direction))
     shot_loaded = camera.capture(_photo_name(step, direction, angle, "loaded"))
     machine.run(session_gcode("release", config))

@@ -52,7 +52,6 @@ def _figure_png(calibration: Calibration) -> bytes:
         unc = np.array([s.uncertainty_deg.get("springback_deg", 0.0) for s in samples])
         top, bottom = axes[0, col], axes[1, col]
         top.errorbar(final, loaded - final, yerr=unc, fmt="ko", ms=4, label="measured", zorder=5)
-        grid = np.linspace(final.min(), final.max(), 300)
         for model in SPRINGBACK_MODELS:
             try:
                 curve = fit_springback(final, loaded, model=model, direction=direction)  # type: ignore[arg-type]
@@ -60,6 +59,9 @@ def _figure_png(calibration: Calibration) -> bytes:
                 continue
             score = curve.loao_rmse_deg
             label = f"{model} (LOAO RMS {score:.3f} deg)" if score is not None else model
+            # over the curve's own domain: repeated bends are averaged into one angle, so
+            # the lowest single bend can lie just below it
+            grid = np.linspace(*curve.domain_deg, 300)
             top.plot(grid, curve.springback_deg(grid), color=_COLOURS[model], label=label)
             if curve.loao_errors_deg:
                 bottom.plot(

@@ -29,30 +29,25 @@ remaining millimetres), nothing done is sent twice.
 
 from __future__ import annotations
 
-import hashlib
 import logging
-import queue
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from cvmeasure.driver.connection import IDLE as _IDLE
+from cvmeasure.driver.connection import BoardConnection
+from cvmeasure.driver.job import JobLine, job_sha256, prepare_job
 from cvmeasure.driver.protocol import (
     AXES,
     CYCLE_START,
     FEEDHOLD,
-    QUEUE_FLUSH,
     STATUS_TEXT,
-    XOFF,
-    XON,
     ExceptionReport,
-    GcodeBlock,
-    GcodeError,
-    LineSplitter,
     MachineStat,
     Message,
     QueueReport,
@@ -63,12 +58,17 @@ from cvmeasure.driver.protocol import (
     encode_json,
     encode_line,
     parse_block,
-    parse_message,
-    track_positions,
+)
+from cvmeasure.driver.resume import (
+    ResumeEvidence,
+    ResumePlan,
+    journal_evidence,
+    locate_resume,
+    plan_resume,
 )
 from cvmeasure.driver.transport import Link
-from cvmeasure.errors import DeviceError, DeviceTimeoutError, InputError
-from cvmeasure.fileio import append_jsonl, read_jsonl
+from cvmeasure.errors import DeviceError, DeviceTimeoutError
+from cvmeasure.fileio import append_jsonl
 
 __all__ = [
     "StreamConfig",
@@ -82,6 +82,7 @@ __all__ = [
     "prepare_job",
     "job_sha256",
     "plan_resume",
+    "locate_resume",
     "stream_job",
     "SETUP_COMMANDS",
     "FIRMWARE_QUERIES",
@@ -93,7 +94,7 @@ log = logging.getLogger(__name__)
 SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
     {"ej": 1},
     {"js": 1},
-    {"jv": 1},
+    {"jv": 5},  # verbose: each G-code ack echoes the block, so a garbled byte shows
     {"ee": 0},
     {"ec": 0},
     {"sv": 1},
@@ -103,8 +104,6 @@ SETUP_COMMANDS: tuple[dict[str, Any], ...] = (
 )
 #: Identification asked for before every job and recorded in the journal.
 FIRMWARE_QUERIES: tuple[dict[str, Any], ...] = ({"fv": None}, {"fb": None})
-_IDLE = (MachineStat.READY, MachineStat.STOP, MachineStat.END)
-_MOVING = (MachineStat.RUN, MachineStat.CYCLE, MachineStat.JOG, MachineStat.HOMING)
 
 
 @dataclass(frozen=True)
@@ -135,20 +134,6 @@ class StreamConfig:
 
 
 @dataclass(frozen=True)
-class JobLine:
-    """One line of a job: its index, ``N`` number, text and bytes on the wire."""
-
-    index: int
-    number: int
-    text: str
-    block: GcodeBlock
-
-    @property
-    def nbytes(self) -> int:
-        return len(self.text) + 1
-
-
-@dataclass(frozen=True)
 class StopInfo:
     """Why and where a job stopped.
 
@@ -162,7 +147,8 @@ class StopInfo:
     says that a line the board received corrupted (a ``desync``) had reached the
     machine before the feedhold, and ``ran_past_rejected_line`` that the board ran
     lines after the one it rejected (an ``error``): the part may be wrong, and a
-    resume needs ``force``.
+    resume needs ``force``; ``flush_sent`` that a queue flush was sent (confirmed or
+    not): the board's line after it is then the last line *parsed*, not run.
     """
 
     reason: str
@@ -173,6 +159,7 @@ class StopInfo:
     corrupt_line_ran: bool = False
     held: dict[str, Any] | None = None
     ran_past_rejected_line: bool = False
+    flush_sent: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
@@ -194,18 +181,6 @@ class StreamResult:
         return dict(self.__dict__)
 
 
-@dataclass(frozen=True)
-class ResumePlan:
-    """Where to continue: the first job index to send, and a completing line for a cut one."""
-
-    start_index: int
-    fixup: str | None
-    done_through: int
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
-
-
 class JobStopped(DeviceError):
     """The job stopped safely on a fault; ``stop`` says where and why."""
 
@@ -220,143 +195,6 @@ class JobStopped(DeviceError):
 
 # ---------------------------------------------------------------------------
 # Jobs
-
-
-def prepare_job(lines: Iterable[str], *, source: str = "job") -> list[JobLine]:
-    """Check and number a job's lines.
-
-    Blank and comment-only lines are dropped. Either every line carries an
-    ``N`` word (strictly increasing, >= 1) or none does, and then N1, N2, ...
-    are added. Every line must be sendable (:func:`encode_line`) and parse.
-
-    Raises
-    ------
-    InputError
-        Naming ``source`` and the line that is wrong.
-    """
-    texts = [t.strip() for t in lines]
-    texts = [t for t in texts if t and t[0] not in "(;"]
-    if not texts:
-        raise InputError(source, "job has no G-code lines")
-    blocks: list[GcodeBlock] = []
-    for i, t in enumerate(texts, start=1):
-        try:
-            encode_line(t)
-            blocks.append(parse_block(t))
-        except (ValueError, GcodeError) as exc:
-            raise InputError(source, f"line {i}: {exc}") from None
-    numbered = [b.line_number is not None for b in blocks]
-    if not any(numbered):
-        texts = [f"N{i} {t}" for i, t in enumerate(texts, start=1)]
-        blocks = [parse_block(t) for t in texts]
-    elif not all(numbered):
-        raise InputError(source, "some lines have N numbers and some do not")
-    out: list[JobLine] = []
-    previous = 0
-    for i, (t, b) in enumerate(zip(texts, blocks, strict=True)):
-        number = int(b.line_number or 0)
-        if number <= previous:
-            raise InputError(source, f"line {i + 1}: N{number} does not increase (N0 is reserved)")
-        previous = number
-        try:
-            encode_line(t)
-        except ValueError as exc:
-            raise InputError(source, f"line {i + 1}: {exc}") from None
-        out.append(JobLine(i, number, t, b))
-    return out
-
-
-def job_sha256(job: Sequence[JobLine]) -> str:
-    """Identity of a job (its numbered lines) for the journal."""
-    return hashlib.sha256("\n".join(j.text for j in job).encode("ascii")).hexdigest()
-
-
-def plan_resume(
-    job: Sequence[JobLine],
-    *,
-    start_pos: Mapping[str, float],
-    board_line: int,
-    board_pos: Mapping[str, float],
-    tolerance: float = 2e-3,
-    fixup_rate: float = 1000.0,
-    min_move_s: float = 0.005,
-) -> ResumePlan:
-    """Where a stopped job continues, from what the board reports.
-
-    Parameters
-    ----------
-    job : the numbered job.
-    start_pos : the board position when the job started (journal), axis -> value.
-    board_line : ``sr.line`` now (0 = nothing of the job executed: the job's
-        start marker ``N0``).
-    board_pos : ``posx``... now, axis -> value.
-    tolerance : position agreement meaning "the line completed" (units of the axis).
-    fixup_rate : feed (units/min) for completing a cut rapid (G0) move.
-    min_move_s : a completing move is slowed so it lasts at least this long
-        (TinyG rejects moves under 2.5 ms).
-
-    Raises
-    ------
-    DeviceError
-        ``board_line`` is not a line of this job, or the position disagrees
-        with the job there (an axis the line does not move is off, or the
-        relative feed is outside the line's move): something ran that was not
-        the job, and continuing would make a wrong part.
-    """
-    if board_line == 0:
-        off = [
-            a for a in AXES if abs(float(board_pos.get(a, 0.0)) - start_pos.get(a, 0.0)) > tolerance
-        ]
-        if off:
-            raise DeviceError(
-                f"the board has run none of the job but has moved ({', '.join(off)}) since it "
-                "started: check the part and start again"
-            )
-        return ResumePlan(0, None, -1)
-    index = {j.number: j.index for j in job}
-    if board_line not in index:
-        raise DeviceError(
-            f"the board reports line N{board_line}, which is not in this job; "
-            "it was reset or ran another job: re-zero the machine and start again"
-        )
-    k = index[board_line]
-    planned = track_positions([j.block for j in job], start_pos)
-    end = planned[k]
-    rest = {a: end[a] - float(board_pos.get(a, 0.0)) for a in AXES}
-    if all(abs(v) <= tolerance for v in rest.values()):
-        return ResumePlan(k + 1, None, k)
-    line = job[k]
-    relative_modes = [
-        b.block.distance_mode for b in job[: k + 1] if b.block.distance_mode is not None
-    ]
-    relative = bool(relative_modes) and relative_modes[-1] == "relative"
-    moved = [a for a in AXES if a in line.block.axes]
-    still = [a for a in AXES if a not in moved and abs(rest[a]) > tolerance]
-    if still or not moved:
-        raise DeviceError(
-            f"the board's position disagrees with the job at line N{line.number} "
-            f"({', '.join(f'{a} off by {-rest[a]:+.3f}' for a in still or AXES if abs(rest[a]) > tolerance)}): "
-            "a corrupted line may have run; check the part and start again"
-        )
-    if relative:
-        before = planned[k - 1] if k > 0 else {a: float(start_pos.get(a, 0.0)) for a in AXES}
-        for a in moved:
-            span = end[a] - before[a]
-            if rest[a] * span < -tolerance or abs(rest[a]) > abs(span) + tolerance:
-                raise DeviceError(
-                    f"the board's {a} position is outside line N{line.number}'s move: "
-                    "a corrupted line may have run; check the part and start again"
-                )
-    distance = sum(rest[a] ** 2 for a in moved) ** 0.5
-    rate = line.block.feed if line.block.motion == 1 and line.block.feed else fixup_rate
-    rate = min(rate, max(distance, 1e-6) / min_move_s * 60.0)
-    if relative:
-        words = " ".join(f"{a.upper()}{rest[a]:.4f}" for a in moved)
-        fix = f"N{line.number} G91 G1 {words} F{rate:.4g}"
-    else:
-        words = " ".join(f"{a.upper()}{end[a]:.4f}" for a in moved)
-        fix = f"N{line.number} G90 G1 {words} F{rate:.4g}"
-    return ResumePlan(k + 1, fix, k - 1)
 
 
 class StreamControl:
@@ -395,168 +233,6 @@ class StreamControl:
 
 # ---------------------------------------------------------------------------
 # The host side of the link
-
-
-class BoardConnection:
-    """Reads the board in a thread; one consumer takes messages in arrival order.
-
-    Parameters
-    ----------
-    link : an open :class:`~cvmeasure.driver.transport.Link`.
-    """
-
-    def __init__(self, link: Link) -> None:
-        self.link = link
-        self.state: dict[str, Any] = {}
-        self.last_rx = time.monotonic()
-        self.error: DeviceError | None = None
-        self.unparsed: list[Unparsed] = []
-        #: XOFF seen in the data (a link without tty flow control, e.g. socket://)
-        self.paused = False
-        #: firmware version and build (``fv``, ``fb``) as the board reported them
-        self.firmware: dict[str, Any] = {}
-        self._queue: queue.Queue[Message | None] = queue.Queue()
-        self._stop = threading.Event()
-        self._splitter = LineSplitter()
-        self._thread = threading.Thread(target=self._reader, name="board-reader", daemon=True)
-        self._thread.start()
-
-    def _reader(self) -> None:
-        while not self._stop.is_set():
-            try:
-                data = self.link.read_available()
-            except DeviceError as exc:
-                self.error = exc
-                self._queue.put(None)
-                return
-            if not data:
-                continue
-            self.last_rx = time.monotonic()
-            for byte in data:
-                if byte in (XON, XOFF):
-                    self.paused = byte == XOFF
-            for raw in self._splitter.feed(data):
-                msg = parse_message(raw)
-                log.debug("board -> %r", raw)
-                self._queue.put(msg)
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2)
-
-    def write(self, data: bytes) -> None:
-        if self.error is not None:
-            raise self.error
-        log.debug("host -> %r", data)
-        self.link.write(data)
-
-    def next_message(self, timeout_s: float) -> Message | None:
-        """The next message (status reports merged into :attr:`state`), or None."""
-        try:
-            msg = self._queue.get(timeout=max(timeout_s, 0.0))
-        except queue.Empty:
-            return None
-        if msg is None:
-            self._queue.put(None)  # keep reporting the error
-            return None
-        if isinstance(msg, StatusReport):
-            self.state.update(msg.fields)
-        elif isinstance(msg, Response) and isinstance(msg.body.get("sr"), dict):
-            self.state.update(msg.body["sr"])
-        elif isinstance(msg, Unparsed):
-            self.unparsed.append(msg)
-        return msg
-
-    def command(self, obj: Mapping[str, Any], *, timeout_s: float = 2.0) -> Response:
-        """Send one JSON command and wait for its response (nothing else in flight)."""
-        data = encode_json(obj)
-        self.write(data)
-        deadline = time.monotonic() + timeout_s
-        while True:
-            if self.error is not None:
-                raise self.error
-            msg = self.next_message(deadline - time.monotonic())
-            if isinstance(msg, Response) and not msg.is_banner:
-                if msg.nbytes != len(data):
-                    raise DeviceError(
-                        f"{self.link.url}: reply to {data!r} counts {msg.nbytes} bytes, "
-                        f"sent {len(data)}"
-                    )
-                return msg
-            if time.monotonic() >= deadline:
-                raise DeviceTimeoutError(
-                    f"{self.link.url}: no reply to {data.decode().strip()} in {timeout_s:g} s"
-                )
-
-    def hold(self, *, timeout_s: float) -> dict[str, Any] | None:
-        """Feedhold; the status fields once the machine has stopped moving, or None.
-
-        Read *before* any queue flush, ``line`` is the line the machine was running
-        (after a flush TinyG reports the last line it parsed). A machine that was not
-        moving answers at once with its last reported state.
-        """
-        self.write(FEEDHOLD)
-        if self.state.get("stat") not in _MOVING:
-            self.drain(0.02)
-            return dict(self.state)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if self.error is not None:
-                raise self.error
-            msg = self.next_message(deadline - time.monotonic())
-            if isinstance(msg, StatusReport) and self.state.get("stat") not in _MOVING:
-                return dict(self.state)
-        return None
-
-    def wait_idle(self, *, timeout_s: float, query_timeout_s: float) -> dict[str, Any]:
-        """Let a running machine finish what it holds; its full status once idle.
-
-        A board whose planner is full reads no command until a slot frees, so each
-        status query may wait for the machine. DeviceTimeoutError after ``timeout_s``.
-        """
-        deadline = time.monotonic() + timeout_s
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise DeviceTimeoutError(
-                    f"{self.link.url}: the board was still running after {timeout_s:g} s"
-                )
-            if self.error is not None:
-                raise self.error
-            try:
-                state = self.query_status(timeout_s=min(max(query_timeout_s, 0.1), remaining))
-            except DeviceError:
-                # its planner is full (the query is read when a slot frees), or a reply
-                # to a line of the dead connection arrived first: ask again
-                self.drain(0.05)
-                continue
-            if state.get("stat") not in _MOVING:
-                return state
-            self.next_message(min(0.1, remaining))
-
-    def flush_board(self, *, timeout_s: float) -> bool:
-        """Feedhold + queue flush; wait for the flush's rx report. True when it came."""
-        self.write(FEEDHOLD)
-        self.write(QUEUE_FLUSH)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if self.error is not None:
-                raise self.error
-            msg = self.next_message(deadline - time.monotonic())
-            if isinstance(msg, RxReport):
-                self.drain(0.02)
-                return True
-        return False
-
-    def drain(self, quiet_s: float) -> None:
-        """Consume messages until none arrives for ``quiet_s``."""
-        while self.next_message(quiet_s) is not None:
-            pass
-
-    def query_status(self, *, timeout_s: float = 2.0) -> dict[str, Any]:
-        """All status fields (``{"sr":null}``), merged into :attr:`state`."""
-        self.command({"sr": None}, timeout_s=timeout_s)
-        return dict(self.state)
 
 
 def _position(state: Mapping[str, Any]) -> dict[str, float]:
@@ -604,9 +280,11 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     board = run.board
     state: dict[str, Any] | None = None
     held: dict[str, Any] | None = None
+    flush_sent = False
     if board.error is None and reason != "port_gone":
         try:
             held = board.hold(timeout_s=run.config.flush_timeout_s)
+            flush_sent = True
             flushed = board.flush_board(timeout_s=run.config.flush_timeout_s)
             if not flushed:
                 detail += "; the board did not confirm the flush (unresponsive)"
@@ -648,8 +326,9 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         corrupt_line_ran=corrupt_ran,
         held=held,
         ran_past_rejected_line=ran_past,
+        flush_sent=flush_sent,
     )
-    run.log({"event": "stop", **stop.to_dict()})
+    run.log({"event": "stop", **stop.to_dict(), "running_line": board.running_line})
     raise JobStopped(stop)
 
 
@@ -669,6 +348,14 @@ def _handle(run: _Run, msg: Message) -> None:
                 head,
                 f"the board consumed {msg.nbytes} bytes for a {head.nbytes}-byte line "
                 "(a byte was lost or garbled on the way)",
+            )
+        echo = msg.body.get("gc")
+        if isinstance(echo, str) and _squeeze(echo) != _squeeze(head.text):
+            _stop(
+                run,
+                "desync",
+                head,
+                f"the board read {echo.strip()!r} for {head.text!r} (a byte garbled on the way)",
             )
         if msg.status != 0:
             text = STATUS_TEXT.get(msg.status, "")
@@ -691,6 +378,11 @@ def _handle(run: _Run, msg: Message) -> None:
         _stop(run, "malformed", head, f"unreadable reply {msg.text!r} ({msg.reason})")
     elif isinstance(msg, (QueueReport, RxReport)):
         pass
+
+
+def _squeeze(text: str) -> str:
+    """A G-code block as the board may echo it: upper case, no spaces."""
+    return "".join(text.split()).upper()
 
 
 def _index_of(job: Sequence[JobLine], number: Any) -> int:
@@ -727,6 +419,7 @@ def stream_job(
     source: str = "job",
     control: StreamControl | None = None,
     force: bool = False,
+    from_line: int | None = None,
 ) -> StreamResult:
     """Stream a job to the board and wait until it has executed.
 
@@ -742,6 +435,8 @@ def stream_job(
     source : the job's name in messages.
     control : feedhold / cycle start / abort requests from another thread.
     force : resume even after a stop whose corrupted line had reached the machine.
+    from_line : with ``resume``, the line to continue at, on the operator's word, when
+        the board's report and position leave it uncertain whether lines ran.
 
     Raises
     ------
@@ -764,7 +459,7 @@ def stream_job(
     board = BoardConnection(link)
     run = _Run(job, board, config, journal_path, progress, control)
     try:
-        return _stream(run, sha, resume, source, link.xonxoff, t0, force)
+        return _stream(run, sha, resume, source, link.xonxoff, t0, force, from_line)
     except KeyboardInterrupt:
         head = run.inflight[0] if run.inflight else None
         try:
@@ -777,62 +472,70 @@ def stream_job(
 
 
 def _stream(
-    run: _Run, sha: str, resume: bool, source: str, xonxoff: bool, t0: float, force: bool
+    run: _Run,
+    sha: str,
+    resume: bool,
+    source: str,
+    xonxoff: bool,
+    t0: float,
+    force: bool,
+    from_line: int | None = None,
 ) -> StreamResult:
     board, config, job = run.board, run.config, run.job
     start_index, fixup, resumed_from = 0, None, None
     notes: list[str] = []
     if resume:
-        start_pos, last = _journal_start(run.journal, sha, source, force=force)
+        start_pos, last, lower, lower_how = journal_evidence(run.journal, sha, source, force=force)
         # a board still running (the host died mid-job) finishes the lines it holds:
         # flushing them would make TinyG report the last line it *parsed*, not run
-        held = board.wait_idle(
+        settled = board.wait_idle(
             timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
         )
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
         state = _setup(board, config, xonxoff)
-        if state.get("stat") == MachineStat.ALARM:
-            # an alarm tripped while no host was there to see it (e.g. the port was gone):
-            # cleared to go on, and said, so that the part gets checked
-            alarmed = dict(state)
-            board.command({"clear": None}, timeout_s=config.command_timeout_s)
-            state = board.query_status(timeout_s=config.command_timeout_s)
-            if not (last.get("event") == "stop" and last.get("reason") == "alarm"):
-                notes.append(
-                    f"the board was in alarm at line N{alarmed.get('line')} when resumed (it "
-                    "tripped while the host was away: check the machine and the part); cleared"
-                )
-                run.log({"event": "alarm_cleared", "board": alarmed})
-        board_line, line_from = _executed_line(last, held, state)
-        if (
-            last.get("event") == "stop"
-            and last.get("reason") == "error"
-            and last.get("line_number") is not None
-            and not force
-            and _index_of(job, board_line) > _index_of(job, last["line_number"])
+        state = _clear_alarm(run, state, last, notes)
+        held = last.get("held") if last.get("event") == "stop" else None
+        if settled.get("stat") == MachineStat.HOLD or not (
+            last.get("event") == "stop" and last.get("flush_sent", True)
         ):
-            raise DeviceError(
-                f"{run.journal}: line N{last['line_number']} was rejected by the board "
-                f"({last.get('detail', 'an error status')}) but the board went on to run up "
-                f"to N{board_line} without it: the part is wrong; check it, then start again "
-                "(or resume with --force to finish it as it is)"
-            )
-        plan = plan_resume(
+            # held (its line is the runtime's), or it ran out of lines by itself with no
+            # flush sent since: it ran every line it parsed, and its line is exact
+            held = settled
+        upper = max(
+            (int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)),
+            key=lambda n: _index_of(job, n),
+            default=0,
+        )
+        evidence = ResumeEvidence(
+            lower=lower,
+            upper=upper,
+            held=int(held["line"]) if isinstance(held, dict) and "line" in held else None,
+            sources={"lower": lower_how},
+        )
+        plan, k = locate_resume(
             job,
             start_pos=start_pos,
-            board_line=board_line,
             board_pos=_position(state),
+            evidence=evidence,
+            from_line=from_line,
         )
+        board_line = 0 if k < 0 else job[k].number
+        _check_rejected(run, last, board_line, force)
         start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
         run.log(
             {
                 "event": "resume",
                 "sha256": sha,
                 "board": state,
-                "held": held,
+                "settled": settled,
+                "evidence": {
+                    "lower": evidence.lower,
+                    "upper": evidence.upper,
+                    "held": evidence.held,
+                },
                 "executed_line": board_line,
-                "executed_line_from": line_from,
+                "from_line": from_line,
                 "firmware": board.firmware,
                 **plan.to_dict(),
             }
@@ -876,46 +579,40 @@ def _stream(
     )
 
 
-def _journal_start(
-    journal: Path | None, sha: str, source: str, *, force: bool = False
-) -> tuple[dict[str, float], dict[str, Any]]:
-    """(start position, the journal's last start/stop/resume record) of this job."""
-    if journal is None or not journal.is_file():
-        raise InputError(journal or source, "no journal to resume from")
-    records = read_jsonl(journal, skip_partial_last=True)
-    starts = [r for r in records if r.get("event") == "start"]
-    if not starts or starts[-1].get("sha256") != sha:
-        raise InputError(journal, "the journal belongs to a different job")
-    last = [r for r in records if r.get("event") in ("start", "stop", "resume")][-1]
-    if last.get("event") == "stop" and last.get("corrupt_line_ran") and not force:
-        raise DeviceError(
-            f"{journal}: the job stopped after the corrupted line N{last.get('line_number')} "
-            "had reached the machine; check the part, then resume with --force"
+def _clear_alarm(
+    run: _Run, state: dict[str, Any], last: Mapping[str, Any], notes: list[str]
+) -> dict[str, Any]:
+    """Clear an alarm that tripped while no host was there to see it, and say so."""
+    board, config = run.board, run.config
+    if state.get("stat") != MachineStat.ALARM:
+        return state
+    alarmed = dict(state)
+    board.command({"clear": None}, timeout_s=config.command_timeout_s)
+    state = board.query_status(timeout_s=config.command_timeout_s)
+    if not (last.get("event") == "stop" and last.get("reason") == "alarm"):
+        notes.append(
+            f"the board was in alarm at line N{alarmed.get('line')} when resumed (it "
+            "tripped while the host was away: check the machine and the part); cleared"
         )
-    return {a: float(v) for a, v in starts[-1].get("start_pos", {}).items()}, last
+        run.log({"event": "alarm_cleared", "board": alarmed})
+    return state
 
 
-def _same_position(a: Mapping[str, Any] | None, b: Mapping[str, Any], tol: float = 2e-3) -> bool:
-    if a is None:
-        return False
-    pa, pb = _position(a), _position(b)
-    return all(abs(pa[k] - pb[k]) <= tol for k in AXES)
-
-
-def _executed_line(
-    last: Mapping[str, Any], settled: Mapping[str, Any], state: Mapping[str, Any]
-) -> tuple[int, str]:
-    """The job line the machine last ran (complete or cut short), and where that came from.
-
-    TinyG's ``sr.line`` after a queue flush names the last line *parsed*, which may be
-    a flushed line that never ran. So: the line held at the stop that flushed the
-    board (while the machine has not moved since), else the board's own report once
-    it ran out of lines by itself (``settled``: it has then run every line it parsed).
-    """
-    stop_held = last.get("held") if last.get("event") == "stop" else None
-    if stop_held is not None and "line" in stop_held and _same_position(stop_held, state):
-        return int(stop_held["line"]), "held at the stop"
-    return int(settled.get("line", state.get("line", 0))), "board report"
+def _check_rejected(run: _Run, last: Mapping[str, Any], board_line: int, force: bool) -> None:
+    """Refuse to go on past a line the board rejected and then ran beyond (unless forced)."""
+    if (
+        last.get("event") == "stop"
+        and last.get("reason") == "error"
+        and last.get("line_number") is not None
+        and not force
+        and _index_of(run.job, board_line) > _index_of(run.job, last["line_number"])
+    ):
+        raise DeviceError(
+            f"{run.journal}: line N{last['line_number']} was rejected by the board "
+            f"({last.get('detail', 'an error status')}) but the board went on to run up "
+            f"to N{board_line} without it: the part is wrong; check it, then start again "
+            "(or resume with --force to finish it as it is)"
+        )
 
 
 def _check_board(run: _Run) -> None:

@@ -175,12 +175,15 @@ class PlaneDisc:
     """One disc's circle fitted on the plane at its kit height.
 
     ``radius_mm`` is the fitted radius there, mm; ``shape`` its :func:`anisotropy`
-    (None when its edge is partly hidden: a shape would read the cover).
+    (None when its edge is partly hidden: a shape would read the cover); ``whole``
+    False when its edge is partly hidden or shadowed (its size then reads the cover,
+    so the size checks leave it out).
     """
 
     role: str
     radius_mm: float
     shape: np.ndarray | None = None
+    whole: bool = True
 
 
 def implied_heights_mm(
@@ -216,15 +219,16 @@ def plane_warnings(
     plane is from another camera distance. Discs all elliptic alike mean another tilt.
     """
     out: list[StageWarning] = []
-    if not discs:
+    sized = [d for d in discs if d.whole]
+    if not sized:
         return out
-    implied = implied_heights_mm(discs, kit, camera_height_mm)
+    implied = implied_heights_mm(sized, kit, camera_height_mm)
     roles = list(implied)
     offsets = np.array([implied[r] - kit.height_mm(r) for r in roles])
     common = float(np.median(offsets))
     spread = float(np.sqrt(np.mean((offsets - common) ** 2)))
-    ratio = float(np.median([d.radius_mm / (0.5 * kit.by_role(d.role).diameter_mm) for d in discs]))
-    if len(discs) >= 3 and spread > HEIGHT_SPREAD_TOLERANCE_MM:
+    ratio = float(np.median([d.radius_mm / (0.5 * kit.by_role(d.role).diameter_mm) for d in sized]))
+    if len(sized) >= 3 and spread > HEIGHT_SPREAD_TOLERANCE_MM:
         out.append(_kit_heights_warning(implied, kit))
     elif abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
         out.append(

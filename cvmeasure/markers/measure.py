@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -70,6 +71,7 @@ from cvmeasure.markers.frame import MeasureFrame, measure_frame
 from cvmeasure.markers.heights import (
     BOUND_TILT_DEG,
     fallback_focal_px,
+    height_angle_jacobian,
     height_angle_variance_deg2,
     height_parallax,
 )
@@ -93,6 +95,8 @@ __all__ = [
     "measure_machine_photo",
     "measure_photo_file",
     "measure_trial",
+    "FrameCentres",
+    "frame_centres",
     "refine_candidate",
     "refine_candidates",
     "lateral_ca_estimate",
@@ -108,6 +112,9 @@ HeightMode = Literal["none", "parallel"]
 HEIGHT_MODES: tuple[str, ...] = ("none", "parallel")
 #: Height bounds (deg) below this are not warned about (the heights barely matter).
 HEIGHT_WARN_DEG = 1e-3
+#: How far printed caps may stand off a kit's nominal heights (a share of each height):
+#: the bound stated beside the sigma while the heights are not measured.
+NOMINAL_HEIGHT_TOLERANCE = 0.10
 
 #: Centre standard uncertainty (px per axis) stated for the seed method's Hough centres.
 SEED_CENTRE_SIGMA_PX = 0.5
@@ -231,9 +238,10 @@ def _on_frame(
         centres[role] = np.array(fit_f.centre)
         covs[role] = jac @ cov_imgs[role] @ jac.T
         if frame.name == "plane":
-            whole = fit.coverage >= HIDDEN_COVERAGE
-            shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if whole else None
-            discs.append(PlaneDisc(role, float(fit_f.radius), shape))
+            seen = fit.coverage >= HIDDEN_COVERAGE
+            shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if seen else None
+            whole = seen and fits[role][1].ring_spread < UNEVEN_RING_SPREAD
+            discs.append(PlaneDisc(role, float(fit_f.radius), shape, whole))
     return centres, covs, discs
 
 
@@ -391,6 +399,81 @@ def measure_machine_photo(
             "heights='parallel' corrects a camera-only measurement: it needs a camera and "
             "no plane (a plane pose applies the heights exactly)"
         )
+    got = _centres(
+        bgr, kit, camera, plane, method, space, colour_model, linear, edge, heights, source
+    )
+    transform, markers, centres, covs, warnings = (
+        got.frame,
+        got.markers,
+        got.centres,
+        got.covariances,
+        got.warnings,
+    )
+    height_state, height_bound = got.height_state, got.height_bound
+    try:
+        angles = machine_angles(centres, covs, y_down=transform.y_down)
+    except ValueError as exc:
+        raise InputError(source, str(exc)) from None
+    sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
+    if height_state == "plane" and transform.plane is not None:
+        # the kit's height uncertainties (measured or stated) carried into the angles
+        var = height_angle_variance_deg2(
+            centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
+        )
+        sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
+        if not np.any(kit.height_cov_mm2()):  # nominal heights: bounded beside the sigma
+            height_bound = _nominal_heights_bound(
+                centres, kit, transform.plane.camera_centre_mm, transform.y_down, warnings
+            )
+    return MachinePhotoResult(
+        angles.pin_angle_deg,
+        angles.bend_angle_deg,
+        markers,
+        sigma,
+        tuple(warnings),
+        photo,
+        method,
+        space,
+        transform.name,
+        height_state,
+        height_bound,
+    )
+
+
+@dataclass(frozen=True)
+class FrameCentres:
+    """The discs' centres in the angles' frame, before the angles (see :func:`frame_centres`).
+
+    ``frame`` the frame (``frame.name``: "image", "undistorted" or "plane", mm);
+    ``centres`` and ``covariances`` each role's centre (2,) and covariance (2, 2) in it
+    (on a plane pose: each disc's centre on the plane at its kit height);
+    ``markers`` the centres in the photo's own pixels; ``warnings`` as the result's.
+    """
+
+    frame: MeasureFrame
+    markers: dict[str, MarkerMeasurement]
+    centres: dict[str, np.ndarray]
+    covariances: dict[str, np.ndarray]
+    warnings: list[StageWarning]
+    height_state: str | None = None
+    height_bound: dict[str, float] | None = None
+
+
+def _centres(
+    bgr: Any,
+    kit: MarkerKit,
+    camera: CameraModel | None,
+    plane: Any,
+    method: str,
+    space: str,
+    colour_model: ColourModel | None,
+    linear: bool,
+    edge: str | None,
+    heights: str,
+    source: str,
+) -> FrameCentres:
+    """The markers found, refined and mapped into the angles' frame (options checked by
+    :func:`measure_machine_photo`)."""
     from cvmeasure.jpegplanes import LazyBGR
 
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
@@ -433,30 +516,54 @@ def measure_machine_photo(
             height_state, height_bound = _heights_without_pose(
                 centres, covs, markers, kit, camera, img.shape, transform, heights, warnings
             )
-    try:
-        angles = machine_angles(centres, covs, y_down=transform.y_down)
-    except ValueError as exc:
-        raise InputError(source, str(exc)) from None
-    sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
-    if height_state == "plane" and transform.plane is not None:
-        # the kit's height uncertainties (measured or stated) carried into the angles
-        var = height_angle_variance_deg2(
-            centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
+    return FrameCentres(transform, markers, centres, covs, warnings, height_state, height_bound)
+
+
+def frame_centres(
+    bgr: Any,
+    kit: MarkerKit,
+    *,
+    camera: CameraModel | None = None,
+    plane: Any = None,
+    linear: bool = False,
+    edge: str | None = None,
+    source: str = "photo",
+) -> FrameCentres:
+    """The discs' centres of one photo in the angles' frame (on a plane pose: the plate,
+    mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
+    for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
+    return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
+
+
+def _nominal_heights_bound(
+    centres: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    warnings: list[StageWarning],
+) -> dict[str, float] | None:
+    """What caps standing up to :data:`NOMINAL_HEIGHT_TOLERANCE` off a kit's nominal
+    (unmeasured) heights can do to the angles, deg; warned about beside the sigma."""
+    jac = height_angle_jacobian(centres, kit, camera_centre_mm, y_down=y_down)
+    tol = np.array([NOMINAL_HEIGHT_TOLERANCE * kit.height_mm(r) for r in ROLES])
+    bound = {
+        "pin_angle_deg": float(np.abs(jac[0]) @ tol),
+        "bend_angle_deg": float(np.abs(jac[1]) @ tol),
+    }
+    if max(bound.values()) < HEIGHT_WARN_DEG:
+        return None
+    warnings.append(
+        StageWarning(
+            "heights_nominal",
+            f"the +- leaves out the kit's heights, which are nominal, not measured: caps "
+            f"standing up to {100 * NOMINAL_HEIGHT_TOLERANCE:.0f} % off them can add up to "
+            f"{bound['pin_angle_deg']:.3f} deg (pin) and {bound['bend_angle_deg']:.3f} deg "
+            "(bend) of error (height_bound_deg): measure them once with `cvmeasure markers "
+            "heights` (or give each height_sigma_mm) to remove this bound",
+            "kit",
         )
-        sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
-    return MachinePhotoResult(
-        angles.pin_angle_deg,
-        angles.bend_angle_deg,
-        markers,
-        sigma,
-        tuple(warnings),
-        photo,
-        method,
-        space,
-        transform.name,
-        height_state,
-        height_bound,
     )
+    return bound
 
 
 def _heights_without_pose(

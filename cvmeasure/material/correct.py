@@ -735,7 +735,8 @@ def correct_from_part(
     reference_mm : ndarray (N+1, 2), the polygon the part was bent as
         (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, the one the measurement was
         compared with): the next job bends it again, same feeds, only the pins corrected.
-        None: the design's N equal chords (N the count measured).
+        None: the polygon the planner makes of ``design`` in the N chords measured
+        (:func:`cvmeasure.wireplan.bent_polygon`).
 
     Returns
     -------
@@ -748,6 +749,7 @@ def correct_from_part(
     """
     from cvmeasure.driver.gcode import GcodeJob, bend_list, gcode_lines
     from cvmeasure.errors import InputError
+    from cvmeasure.wireplan import bent_polygon
 
     comp = measurement.comparison
     if comp is None or comp.bends is None:
@@ -763,7 +765,8 @@ def correct_from_part(
     if reference_mm is not None:
         chords = np.asarray(reference_mm, dtype=np.float64)
     else:
-        chords = design.chords(len(target) + 1)  # the count measured (given or found)
+        # the count measured (given or found), as the planner bends the design in it
+        chords = bent_polygon(design, len(target) + 1)
     bends = bend_list(chords, source=design_name)
     if len(bends.bends_deg) != len(target):
         raise InputError(

@@ -72,6 +72,7 @@ from cvmeasure.part.lift import (
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 from cvmeasure.part.shadow import estimate_lift_shadow
+from cvmeasure.wireplan import bent_polygon
 
 __all__ = [
     "Method",
@@ -180,8 +181,9 @@ class PartMeasurement:
     warnings : things a user should know (e.g. arcs too short for a stable radius).
     shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
         sign, so radius and arc angle describe no real arc).
-    divisions_from : where the chord count came from: ``"--divisions"``, ``"photo"``
-        (vertices found on the centreline) or None (none: a smooth curve).
+    divisions_from : where the chord count came from: ``"--divisions"``, ``"plan"`` (the
+        polygon bent, ``reference_mm``), ``"photo"`` (vertices found on the centreline)
+        or None (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
@@ -929,8 +931,9 @@ def compare_with_design(
 
     The reference is the polygon the machine was asked to bend (``reference_mm``,
     design frame: :attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, whose chord count
-    must be the result's); without it, with divisions N, the design divided into N
-    equal chords, else the design curve. ``allow_mirror=False`` refuses the mirror
+    must be the result's); without it, with divisions N, the polygon of N chords the
+    planner makes of the design (:func:`cvmeasure.wireplan.bent_polygon`: drawn corners
+    kept, curves in equal chords), else the design curve. ``allow_mirror=False`` refuses the mirror
     image (the part lies as it left the machine): a design symmetric end to end is
     then matched vertex for vertex.
     """
@@ -943,7 +946,8 @@ def compare_with_design(
                 f"the part was fitted with {n} chords, the polygon bent has {len(verts) - 1}"
             )
     else:
-        verts = design.chords(n) if n else design.points_mm
+        # the polygon the planner makes of this wire in n chords (drawn corners kept)
+        verts = bent_polygon(design, n) if n else design.points_mm
     reg = register_to_design(seen, verts, allow_mirror=allow_mirror)
     dev = deviation_profile(seen, verts, reg)
     d_geo = arc_geometry(fit_circle_robust(verts), verts)
@@ -1097,23 +1101,27 @@ def measure_part(
             axis_height_mm=base_mm,
         )
     chords = count_chords(centreline_mm)
-    fractions = None
+    given = "plan" if reference_mm is not None else "--divisions"
     if reference_mm is not None:
         divisions = len(reference_mm) - 1
-        fractions = _reference_fractions(centreline_mm, reference_mm)
-    divisions_from = "--divisions" if divisions is not None else None
+    divisions_from = given if divisions is not None else None
     if divisions is None and chords.divisions is not None:
         divisions, divisions_from = chords.divisions, "photo"
     elif divisions is not None and chords.divisions not in (None, divisions):
+        what = "the polygon bent has" if given == "plan" else "--divisions"
         warnings.append(
-            f"--divisions {divisions}, but the photo shows {chords.divisions} chords "
+            f"{what} {divisions}, but the photo shows {chords.divisions} chords "
             f"({chords.reason}); measured with {divisions}"
         )
     elif divisions is not None and chords.divisions is None:
+        what = "the polygon bent has" if given == "plan" else "--divisions"
         warnings.append(
-            f"--divisions {divisions}, but no chord vertices were found in the photo "
-            f"({chords.reason})"
+            f"{what} {divisions}, but no chord vertices were found in the photo ({chords.reason})"
         )
+    if reference_mm is None and design is not None and divisions and not design.curve_mask.all():
+        # a design with drawn corners: the polygon the planner bends in that many chords
+        reference_mm = bent_polygon(design, divisions)
+    fractions = None if reference_mm is None else _reference_fractions(centreline_mm, reference_mm)
     flat_mm = centreline_mm
     try:
         ours, circle, poly = arc_from_points(centreline_mm, divisions, fractions)

@@ -36,6 +36,30 @@ PREFERRED_COLUMNS: tuple[str, ...] = (
     "r_px",
 )
 _HIDDEN = {"seconds", "cpu_s", "worker_pid", "ok"}
+#: Column headings for the operator: what it is, in words, and its unit.
+COLUMN_NAMES: dict[str, str] = {
+    "bend_angle_deg": "bend angle (deg)",
+    "pin_angle_deg": "pin angle (deg)",
+    "springback_deg": "springback (deg)",
+    "loaded_bend_deg": "loaded bend (deg)",
+    "unloaded_bend_deg": "unloaded bend, the part's (deg)",
+    "target_deg": "target (deg)",
+    "wanted_loaded_deg": "wanted loaded bend (deg)",
+    "commanded_pin_deg": "pin command (deg)",
+    "measured_pin_deg": "measured pin (deg)",
+    "radius_mm": "radius (mm)",
+    "chord_width_mm": "chord width (mm)",
+    "height_mm": "arc height (mm)",
+    "arc_angle_deg": "arc angle (deg)",
+    "segment_bend_deg": "bend per chord (deg)",
+    "wire_width_mm": "wire width (mm)",
+    "divisions": "chords",
+    "bend_index": "bend number",
+    "x_px": "x (px)",
+    "y_px": "y (px)",
+    "r_px": "radius (px)",
+}
+_UNITS = (("_deg", "deg"), ("_mm", "mm"), ("_px", "px"), ("_pct", "%"), ("_s", "s"))
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1b1b1b;max-width:1400px}
 h1{font-size:1.5em;margin-bottom:4px}h2{font-size:1.2em;margin-top:28px;border-bottom:1px solid #ccc}
@@ -103,6 +127,70 @@ def table_columns(records: Sequence[Mapping[str, Any]], limit: int = 9) -> list[
     return (first + rest)[:limit]
 
 
+def column_name(key: str) -> str:
+    """The heading of a record field: :data:`COLUMN_NAMES`, else its words and unit.
+
+    >>> column_name("bend_angle_deg"), column_name("lift_sigma_mm")
+    ('bend angle (deg)', 'lift sigma (mm)')
+    """
+    if key in COLUMN_NAMES:
+        return COLUMN_NAMES[key]
+    for suffix, unit in _UNITS:
+        if key.endswith(suffix):
+            return f"{key[: -len(suffix)].replace('_', ' ')} ({unit})"
+    return key.replace("_", " ")
+
+
+def _uncertainty(record: Mapping[str, Any], key: str) -> float | None:
+    """One standard uncertainty of ``record[key]`` where the record states one."""
+    for field in ("uncertainty_deg", "uncertainty_mm"):
+        table = record.get(field)
+        if isinstance(table, Mapping) and plots.numeric(table.get(key)) is not None:
+            return float(table[key])
+    return None
+
+
+def _value_cell(record: Mapping[str, Any], key: str) -> str:
+    """A value with its standard uncertainty beside it (``40.0000 &plusmn; 0.0190``)."""
+    u = _uncertainty(record, key)
+    text = _fmt(record.get(key))
+    if u is not None and text:
+        text += f" &plusmn; {u:.4f}"
+    return f"<td class=num>{text}</td>"
+
+
+def verdict(
+    record: Mapping[str, Any], tolerance_deg: float | None, tolerance_mm: float | None
+) -> tuple[str, str] | None:
+    """The record against the tolerance: ("within" | "out" | "undecided", why), or None.
+
+    A bend with a target (``target_deg`` and its ``unloaded_bend_deg``, the part's angle):
+    its error within the tolerance by more than 2 standard uncertainties is "within",
+    beyond it by more than 2 is "out", else "undecided" (measure again or tighten the
+    uncertainty). A part compared with its design: its largest deviation against
+    ``tolerance_mm``.
+    """
+    target = plots.numeric(record.get("target_deg"))
+    final = plots.numeric(record.get("unloaded_bend_deg"))
+    if tolerance_deg is not None and target is not None and final is not None:
+        err = abs(final) - abs(target)
+        u = _uncertainty(record, "unloaded_bend_deg") or 0.0
+        why = f"error {err:+.3f} deg &plusmn; {2 * u:.3f} (2 sigma), tolerance {tolerance_deg:g}"
+        if abs(err) + 2 * u <= tolerance_deg:
+            return "within", why
+        if abs(err) - 2 * u > tolerance_deg:
+            return "out", why
+        return "undecided", why
+    comparison = record.get("comparison")
+    if tolerance_mm is not None and isinstance(comparison, Mapping):
+        dev = comparison.get("deviation") or {}
+        worst = plots.numeric(dev.get("max_mm")) if isinstance(dev, Mapping) else None
+        if worst is not None:
+            why = f"largest deviation {abs(worst):.2f} mm, tolerance {tolerance_mm:g}"
+            return ("within" if abs(worst) <= tolerance_mm else "out"), why
+    return None
+
+
 def _kv_table(rows: Sequence[tuple[str, Any]]) -> str:
     body = "".join(f"<tr><th>{_e(k)}</th><td class=num>{_fmt(v)}</td></tr>" for k, v in rows)
     return f"<table>{body}</table>"
@@ -161,6 +249,8 @@ def build_report(
     thumb_width_px: int = 360,
     stamp: Mapping[str, Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    tolerance_deg: float | None = None,
+    tolerance_mm: float | None = None,
 ) -> str:
     """The HTML text of the report of per-photo result records.
 
@@ -181,6 +271,9 @@ def build_report(
         Provenance shown in the header (command, version, time).
     progress : callable, optional
         Called with (thumbnails done, thumbnails to do).
+    tolerance_deg, tolerance_mm : float, optional
+        Judge each bend with a target, and each part compared with its design, against
+        these (:func:`verdict`); a verdict column and its count in the summary.
     """
     roots = tuple(Path(r) for r in photo_roots)
     records = sorted(records, key=_sort_key)
@@ -195,7 +288,12 @@ def build_report(
     out.append("<h2 id=summary>Summary</h2>")
     summary = [("records", len(records)), ("measured", len(ok)), ("failed", len(failed))]
     summary += [(f"kind {k}", n) for k, n in sorted(kinds.items())]
+    judged = Counter(
+        v[0] for v in (verdict(r, tolerance_deg, tolerance_mm) for r in records) if v is not None
+    )
+    summary += [(f"verdict {k}", n) for k, n in sorted(judged.items())]
     out.append(_kv_table(summary))
+    out += _warnings_section(records)
 
     figures = [
         ("angles", plots.angles_png(records)),
@@ -214,7 +312,15 @@ def build_report(
 
     columns = table_columns(records)
     out.append("<h2 id=photos>Photos</h2><div class=wide><table><thead><tr>")
-    head = (["overlay"] if thumbnails else []) + ["photo", "kind"] + columns + ["warnings / error"]
+    verdicts = [verdict(r, tolerance_deg, tolerance_mm) for r in records]
+    judged = any(v is not None for v in verdicts)
+    head = (
+        (["overlay"] if thumbnails else [])
+        + ["photo", "kind"]
+        + [column_name(c) for c in columns]
+        + (["verdict"] if judged else [])
+        + ["warnings / error"]
+    )
     out.append("".join(f"<th>{_e(h)}</th>" for h in head) + "</tr></thead><tbody>")
     n_thumbs = min(len(records), max_thumbnails) if thumbnails else 0
     for i, rec in enumerate(records):
@@ -227,7 +333,13 @@ def build_report(
         name = rec.get("file_name") or Path(str(rec.get("photo", ""))).name or rec.get("trial", "")
         cells.append(f"<td class=name title='{_e(rec.get('photo', ''))}'>{_e(name)}</td>")
         cells.append(f"<td>{_e(rec.get('kind', ''))}</td>")
-        cells += [f"<td class=num>{_fmt(rec.get(c))}</td>" for c in columns]
+        cells += [_value_cell(rec, c) for c in columns]
+        if judged:
+            v = verdicts[i]
+            css = {"within": "good", "out": "bad"}.get(v[0], "") if v else ""
+            cells.append(
+                f"<td class={css or 'num'} title='{v[1]}'>{v[0]}</td>" if v else "<td></td>"
+            )
         notes = [str(StageWarning.from_json(w)) for w in rec.get("warnings") or []]
         if rec.get("error"):
             notes.insert(0, str(rec["error"]))
@@ -235,6 +347,27 @@ def build_report(
         out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
     out.append("</tbody></table></div>")
     return html_page(title, out)
+
+
+def _warnings_section(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Every warning code among the records: how many photos gave it, and one message."""
+    by_code: dict[str, list[tuple[str, StageWarning]]] = {}
+    for rec in records:
+        name = str(rec.get("photo") or rec.get("trial") or "")
+        for raw in rec.get("warnings") or []:
+            w = StageWarning.from_json(raw)
+            by_code.setdefault(w.code, []).append((name, w))
+    if not by_code:
+        return ["<h2 id=warnings>Warnings</h2><p>No warnings.</p>"]
+    rows = "".join(
+        f"<tr><td>{_e(code)}</td><td class=num>{len({n for n, _ in got})}</td>"
+        f"<td>{_e(got[0][1].message)}</td></tr>"
+        for code, got in sorted(by_code.items(), key=lambda kv: -len(kv[1]))
+    )
+    return [
+        "<h2 id=warnings>Warnings</h2><table><tr><th>code</th><th>photos</th>"
+        f"<th>message (first)</th></tr>{rows}</table>"
+    ]
 
 
 def _tracking_section(records: Sequence[Mapping[str, Any]]) -> list[str]:
@@ -269,6 +402,8 @@ def _sort_key(record: Mapping[str, Any]) -> tuple[str, str]:
 
 
 def _thumb_cell(record: Mapping[str, Any], roots: tuple[Path, ...], width_px: int) -> str:
+    if not record.get("photo") and not record.get("file_name"):
+        return "<td></td>"  # a trial or bend record: its photos have rows of their own
     path = find_photo(record, roots)
     if path is None:
         return "<td>photo not found</td>"

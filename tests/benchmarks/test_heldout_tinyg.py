@@ -171,12 +171,15 @@ def test_planner_holds_28_moves_and_reading_waits_for_headroom(board_factory):
 
 
 def test_xoff_at_high_water_and_no_byte_lost_with_xonxoff(board_factory):
-    board, host = board_factory(faults=["stall@3:0.6"])
+    board, host = board_factory(faults=["stall@3:1.0"])
     lines = job(80)
     host.send(*lines)  # ~1.6 kB at once: only flow control keeps the 254-byte ring intact
-    host.pump(0.3)
+    deadline = time.monotonic() + 0.9
+    while not board.status()["xoff"] and time.monotonic() < deadline:
+        host.pump(0.02)
+    host.pump(0.05)
     s = board.status()
-    assert s["xoff"] and 203 < s["rx_bytes"] <= 203 + 3 + 1
+    assert s["stalled"] and s["xoff"] and 203 < s["rx_bytes"] <= 203 + 3 + 1
     host.wait_state(line=82, stat=3)
     truth = board.truth()
     assert not [e for e in truth.events if e["kind"] == "rx_overflow_drop"]
@@ -185,12 +188,15 @@ def test_xoff_at_high_water_and_no_byte_lost_with_xonxoff(board_factory):
 
 
 def test_without_flow_control_overflow_is_dropped_silently(board_factory):
-    board, host = board_factory(faults=["stall@3:0.6"], xonxoff=False)
-    host.send(*job(80))
-    host.pump(0.4)
+    board, host = board_factory(faults=["stall@3"], xonxoff=False)
+    host.send(*job(80))  # ~1.6 kB while the planner is stuck full
+    deadline = time.monotonic() + 3.0
+    while board.status()["rx_bytes"] < 253 and time.monotonic() < deadline:
+        host.pump(0.05)
+    host.pump(0.2)
     assert 0x13 in host.flow  # XOFF arrives as a data byte the host ignored
     drops = [e for e in board.truth().events if e["kind"] == "rx_overflow_drop"]
-    assert len(drops) > 100
+    assert len(drops) > 100 and board.status()["rx_bytes"] == 253
 
 
 def test_feedhold_resume_then_hold_and_flush(board_factory):
@@ -216,6 +222,20 @@ def test_feedhold_resume_then_hold_and_flush(board_factory):
     # the flush resynced the model to where the runtime stopped, and sr.line is the model's
     assert board.status()["line"] == 12 and board.status()["planner_moves"] == 0
     assert truth.position["y"] == pytest.approx(flushed[0].end["y"])
+
+
+def test_feedhold_deceleration_runs_into_the_next_moves(board_factory):
+    slow_stop = MachineConfig(speedup=20.0, boot_s=0.02, hold_decel_s=2.0)  # 1 s at speed
+    board, host = board_factory(config=slow_stop)
+    host.send(*job(30))  # moves of 0.2 s (feeds) and under 0.1 s (bends) machine time
+    host.pump(0.1)
+    host.ser.write(b"!")
+    host.pump(0.3)
+    events = board.truth().events
+    held = next(e for e in events if e["kind"] == "feedhold")
+    reached = next(e for e in events if e["kind"] == "hold_reached")
+    assert reached["line"] >= held["line"] + 4
+    assert board.status()["stat"] == 6 and board.status()["planner_moves"] > 0
 
 
 def test_reset_reboots_with_banner_and_zero_position(board_factory):

@@ -346,7 +346,7 @@ def test_custom_measurement_runs_in_spawned_workers(tmp_path, capsys):
     assert {r["kind"] for r in records} == {"custom"}
     check_against_truth(records, truth)
     assert main(["batch", str(tmp_path / "p"), "--measure", "no.such:thing", "-o", str(out)]) == 2
-    assert "no.such:thing: cannot use as a measurement" in capsys.readouterr().err
+    assert "--measure: 'no.such:thing' cannot be used as a measurement" in capsys.readouterr().err
 
 
 def env_threads(photo, context):

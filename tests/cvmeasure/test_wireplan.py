@@ -204,9 +204,9 @@ def _session(angles):
     return fit_calibration(samples, mode="custom", angles_deg=angles)
 
 
-def test_seed_saddle_is_refused_naming_the_session_then_bent_from_it(tmp_path, capsys):
+def test_seed_saddle_from_the_high_session_is_extrapolated_and_said_so(tmp_path, capsys):
+    """The saddle's 0.91 deg end bends lie below the high mode's 1.55 deg: stated rule."""
     import cvmeasure_datasets
-    from cvmeasure.driver.gcode import SHALLOW_SESSION_ANGLES_DEG
     from cvmeasure.material.calibration import MODES, save_calibration
     from cvmeasure.sim import simulate
 
@@ -214,16 +214,71 @@ def test_seed_saddle_is_refused_naming_the_session_then_bent_from_it(tmp_path, c
     svg = _write(tmp_path, "saddle.svg", _polyline_svg([(100 + x, 100 - y) for x, y in verts]))
     out = tmp_path / "saddle.gcode"
     save_calibration(tmp_path / "high.json", _session(MODES["high"]))
+    args = ["gcode", str(svg), "-o", str(out), "--material", str(tmp_path / "high.json")]
+    assert main([*args, "--json"]) == 0
+    printed = capsys.readouterr()
+    job = json.loads(printed.out)
+    codes = {w["code"] for w in job["warnings"]}
+    assert codes == {"bend_extrapolated"} and len(job["warnings"]) == 2  # its two 0.91s
+    assert "cvmeasure session --angles 1.2,1.9,2.5," in printed.err
+    assert "; warning: bend_extrapolated" in out.read_text()
+    want = np.array([s["bend_deg"] for s in job["bend_list"][:-1]])
+    np.testing.assert_allclose(simulate(job["pin_deg"]).unloaded_bend_deg, want, atol=0.05)
+
+
+def test_a_bend_far_below_the_calibration_is_refused_naming_the_session(tmp_path, capsys):
+    from cvmeasure.material.calibration import MODES, save_calibration
+
+    verts = polygon_from_chords([40, 40], [0.5])
+    svg = _write(tmp_path, "flat.svg", _polyline_svg([(20 + x, 100 - y) for x, y in verts]))
+    save_calibration(tmp_path / "high.json", _session(MODES["high"]))
+    out = tmp_path / "flat.gcode"
     assert main(["gcode", str(svg), "-o", str(out), "--material", str(tmp_path / "high.json")]) == 2
     err = capsys.readouterr().err
-    assert "0.91 deg" in err and "cvmeasure session --angles 1.2,1.9,2.5," in err
+    assert "bend 1 of -0.50 deg" in err and "cvmeasure session --angles 1.2,1.9,2.5," in err
     assert not out.exists()
+
+
+def test_seed_saddle_from_the_shallow_session_is_calibrated(tmp_path, capsys):
+    import cvmeasure_datasets
+    from cvmeasure.driver.gcode import SHALLOW_SESSION_ANGLES_DEG
+    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.sim import simulate
+
+    verts = cvmeasure_datasets.saddle_part(200.0, 20.0, 13).vertices_mm
+    svg = _write(tmp_path, "saddle.svg", _polyline_svg([(100 + x, 100 - y) for x, y in verts]))
+    out = tmp_path / "saddle.gcode"
     save_calibration(tmp_path / "shallow.json", _session(SHALLOW_SESSION_ANGLES_DEG))
     args = ["gcode", str(svg), "-o", str(out), "--material", str(tmp_path / "shallow.json")]
     assert main([*args, "--json"]) == 0
     job = json.loads(capsys.readouterr().out)
+    assert job["warnings"] == []
     want = np.array([s["bend_deg"] for s in job["bend_list"][:-1]])
     made = simulate(job["pin_deg"]).unloaded_bend_deg
     # the nominal machine bends what the session calibrated: within 0.05 deg, 0.91 included
     assert np.min(np.abs(want)) == pytest.approx(0.91, abs=0.01)
     np.testing.assert_allclose(made, want, atol=0.05)
+
+
+def test_scale_on_request_prints_before_and_after(tmp_path, capsys):
+    svg = _write(tmp_path, "sjog.svg", _polyline_svg(_sjog_points(), "sjog"))
+    out = tmp_path / "sjog.gcode"
+    assert main(["gcode", str(svg), "-o", str(out), "--scale", "1.6", "--json"]) == 0
+    job = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose([s["feed_mm"] for s in job["bend_list"]], 12.8, atol=1e-3)
+    np.testing.assert_allclose(
+        [-s["bend_deg"] for s in job["bend_list"][:-1]], [-45, 45, 45, -45], atol=1e-3
+    )
+    assert [c["what"] for c in job["plan"]["changes"]] == ["scaled"]
+    assert "; scaled: " in out.read_text() and "->" in out.read_text()
+
+
+def test_a_job_without_its_plan_must_bend_as_often_as_the_design(tmp_path):
+    verts = polygon_from_chords([30, 42, 25, 36], [20, -35, 15])
+    svg = _write(tmp_path, "j.svg", _polyline_svg([(20 + x, 150 - y) for x, y in verts]))
+    foreign = _write(tmp_path, "other.gcode", "G21\nG91 G1 Y30\nG90 G1 X20\nG0 X0\nG91 G1 Y40\n")
+    with pytest.raises(InputError, match="the job bends 1 times but the design's plan has 3"):
+        plan_for_part(svg, job=foreign)
+    same = "G21\n" + "".join(f"G91 G1 Y{c}\nG90 G1 X10\nG0 X0\n" for c in (30, 42, 25))
+    plan = plan_for_part(svg, job=_write(tmp_path, "same.gcode", same + "G91 G1 Y36\n"))
+    assert not plan.from_job and plan.divisions == 4

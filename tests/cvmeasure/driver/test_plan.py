@@ -22,11 +22,14 @@ def test_every_angle_twice_each_way_after_reversals_and_not(mode):
     assert len(plan) == 4 * len(angles)
     assert Counter(plan) == {(d, a): 2 for d in ("ccw", "cw") for a in angles}
     after_reversal = [i > 0 and plan[i - 1][0] != d for i, (d, _) in enumerate(plan)]
-    # half the bends follow a reversal, half a bend the same way (a backlash's share)
-    assert abs(np.mean(after_reversal[1:]) - 0.5) < 0.1
-    # most (angle, direction) are bent once after a reversal and once not
-    both = Counter((d, a) for (d, a), r in zip(plan, after_reversal, strict=True) if r)
-    assert sum(v == 1 for v in both.values()) >= 0.75 * 2 * len(angles)
+    # a sixth to a quarter of the bends follow a reversal (a backlash lost on reversals),
+    # the rest a bend the same way, in runs of 4 and more (a drift shifting home walks)
+    assert 0.12 < np.mean(after_reversal[1:]) < 0.4
+    runs, run = [], 1
+    for i in range(1, len(plan)):
+        run = 1 if after_reversal[i] else run + 1
+        runs.append(run)
+    assert max(runs) >= min(4, len(angles)) and max(runs) <= 8
     # the angle does not follow the bend index (a drift or a warm-up would take its shape)
     a = np.array([x for _, x in plan])
     assert abs(np.corrcoef(a, np.arange(a.size))[0, 1]) < 0.2
@@ -69,3 +72,12 @@ def test_calibration_fit_unchanged_by_the_order(model):
         assert simulate([a.compensate(target)]).unloaded_bend_deg[0] == pytest.approx(
             target, abs=0.1
         )
+
+
+def test_report_figure_with_repeated_bends():
+    # repeats are averaged into one angle per curve, so the lowest single bend can lie
+    # below the curve's domain: the report drew it over the raw range and refused
+    from cvmeasure.driver.session_report import _figure_png
+
+    calibration = fit_calibration(_samples(diagnosis_plan(MODES["quick"]), seed=4))
+    assert _figure_png(calibration)[:8] == b"\x89PNG\r\n\x1a\n"

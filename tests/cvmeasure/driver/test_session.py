@@ -113,9 +113,24 @@ def test_killed_session_resumes_without_loss_or_repeat(tmp_path):
     assert set(bent_second) == set(range(6)) - set(done_first)
     assert set(bent_first) <= set(range(6))
     assert any(r["event"] == "resume" for r in records)
+    assert _bends_on_used_wire(records) == []  # a cut step is bent again on fresh wire only
     cal = load_calibration(out)
     truth = sim_springback([s.commanded_pin_deg for s in cal.samples])
     assert np.max(np.abs(np.array([s.springback_deg for s in cal.samples]) - truth)) < 0.05
+
+
+def _bends_on_used_wire(records: list[dict]) -> list[int]:
+    """Steps bent with no wire fed since the previous bend (the same wire bent twice)."""
+    fed_since_bend = False
+    twice = []
+    for r in records:
+        if r["event"] == "fed":
+            fed_since_bend = True
+        elif r["event"] == "bend":
+            if not fed_since_bend:
+                twice.append(r["step"])
+            fed_since_bend = False
+    return twice
 
 
 def test_a_log_torn_by_a_kill_survives_repeated_resumes(tmp_path, capsys):
@@ -139,9 +154,12 @@ def test_resume_refuses_another_plan(tmp_path, capsys):
     assert main([*args, "--angles", "20,40", "--stop-after", "1", "--quiet"]) == 3
     assert main([*args, "--angles", "20,50", "--quiet"]) == 2
     assert "session.jsonl: session log belongs to another plan" in capsys.readouterr().err
-    assert main([*args, "--angles", "abc"]) == 2
-    assert main([*args, "--angles", "20"]) == 2
-    assert "at least 2 different angles" in capsys.readouterr().err
+    for bad in ("abc", "20", ""):  # refused as the option is parsed: a usage error
+        with pytest.raises(SystemExit) as exit_info:
+            main([*args, "--angles", bad])
+        assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --angles" in err and "at least 2 different angles" in err
 
 
 def test_double_behind_the_streamer_shows_loaded_then_unloaded():
@@ -207,7 +225,7 @@ def test_unmeasurable_photo_names_the_photo_and_keeps_the_log(tmp_path):
     finally:
         bender.close()
     events = [r["event"] for r in read_session_log(tmp_path / "s" / "session.jsonl")]
-    assert events == ["start", "bend", "failed"]  # the bend is logged, nothing counted as done
+    assert events == ["start", "fed", "bend", "failed"]  # the bend is logged, nothing counted as done
 
 
 def test_real_session_needs_port_and_camera(tmp_path, capsys):
@@ -250,7 +268,7 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
         session([Fault("alarm", bend_line)])
     log = tmp_path / "s" / "session.jsonl"
     first = read_session_log(log)
-    assert [r["event"] for r in first] == ["start", "bend", "failed"]
+    assert [r["event"] for r in first] == ["start", "fed", "bend", "failed"]
     assert "alarm" in first[-1]["error"]
     result = session([])
     assert result.resumed and result.bent_this_run == (0, 1, 2, 3)  # the cut bend is redone
@@ -319,3 +337,14 @@ def test_session_refuses_a_lens_json_as_the_camera(tmp_path, capsys):
     assert "--camera-model" in err and "camera.json" in err
     assert main(["session", "--simulate", "-o", out, "--camera", "folder:///tmp"]) == 2
     assert "simulated camera" in capsys.readouterr().err
+
+
+def test_session_flat_kit_measures_flat_stickers(tmp_path):
+    out = tmp_path / "cal.json"
+    args = ["session", "--simulate", "-o", str(out), "--angles", "10,30", "--scale", "0.2"]
+    assert main([*args, "--flat-kit", "--quiet"]) == 0
+    log = read_session_log(tmp_path / "cal_session" / "session.jsonl")
+    heights = {
+        r[w].get("heights") for r in log if r["event"] == "sample" for w in ("loaded", "unloaded")
+    }
+    assert heights == {"flat"}

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -68,7 +69,16 @@ def test_heights_applied_through_the_plane_pose(pose):
     bgr, truth = _photo(-60.0, -50.0, pose)
     plane = true_plane(_camera(), pose)
     res = measure_machine_photo(bgr, default_kit(), plane=plane)
-    assert res.heights == "plane" and res.height_bound_deg is None
+    assert res.heights == "plane"
+    # nominal heights: what caps 10 % off them could do is bounded beside the sigma
+    assert has_code(res.warnings, "heights_nominal") and res.height_bound_deg["pin_angle_deg"] > 0
+    stated = replace(
+        default_kit(),
+        markers=tuple(replace(m, height_sigma_mm=0.2) for m in default_kit().markers),
+    )
+    known = measure_machine_photo(bgr, stated, plane=plane)
+    assert known.height_bound_deg is None and not has_code(known.warnings, "heights_nominal")
+    assert known.uncertainty_deg["pin_angle_deg"] > res.uncertainty_deg["pin_angle_deg"]
     pin_err, bend_err = _err(res, truth)
     assert abs(pin_err) < TOL_DEG and abs(bend_err) < TOL_DEG, (pin_err, bend_err)
     # each disc measured at its own height has the kit's size and is round on the plate

@@ -1,0 +1,259 @@
+"""Measuring the markers' heights above the plate from photos (``cvmeasure markers heights``).
+
+A kit's heights are what each marker's face stands above the top plate; the angles
+measured on a plane pose are as good as those heights (caps 10 % off their nominal
+heights move the angles by tenths of a degree under a tilted camera). This step
+measures them on the user's machine, from photos taken from the plane's pose:
+
+* **bend photos** at several pin and bend angles (the pin holding the wire against
+  the die: loaded photos). The pin marker turns about the die's axis, where the
+  origin marker sits, and so do ``wire_a`` and ``wire_b`` (they ride on the bent leg,
+  which leaves the die tangentially: the leg turns about the die's axis as it
+  bends). Each of them therefore keeps one distance from the origin marker over the
+  sweep, but only when every marker is mapped to the plane at its true height: a
+  wrong height moves a marker about the camera's foot point (planes at two heights
+  are a homothety about it), by an amount that depends on where it is.
+* **straight photos** (optional, recommended): the wire fed straight, no bend. Then
+  ``wire_a -> wire_b`` is parallel to ``axis -> origin`` (bend angle 0): it fixes
+  the heights of the wire markers against the axis marker.
+
+The heights are the least-squares solution of those conditions, each residual
+weighted by its centres' covariance, with the kit's nominal heights as a prior
+(``prior_sigma_mm`` each): what the photos cannot see (a common shift of every
+height, which no angle depends on) stays at the nominal value with the prior's
+uncertainty. The result is the kit with the measured ``height_mm``, their
+``height_sigma_mm`` and their covariance ``height_covariance_mm2``, which a
+measurement on a plane pose carries into every angle's uncertainty.
+
+Frames: the plate's frame of the plane pose (board frame), mm; heights along the
+plate's normal towards the camera.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from cvmeasure.geometry import wrap_deg
+from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.markers.angles import machine_angles, pin_bend_deg
+from cvmeasure.markers.heights import move_to_heights
+from cvmeasure.warning import StageWarning
+
+__all__ = ["SweepPhoto", "MeasuredHeights", "measure_heights", "PRIOR_SIGMA_MM"]
+
+#: Standard uncertainty of the kit's nominal heights as the prior, mm (a printed cap
+#: seated on its part; caps 10 % off 18 mm are 1.8 mm off).
+PRIOR_SIGMA_MM = 2.0
+#: The roles that turn about the die's axis over a sweep.
+TURNING = ("pin", "wire_a", "wire_b")
+#: Fewest photos for a fit, and the smallest span of pin angles (deg) that is a sweep.
+MIN_PHOTOS = 3
+MIN_SPAN_DEG = 30.0
+#: Whitened residuals' RMS above this: the photos disagree with the turning-markers model.
+POOR_FIT_RMS = 3.0
+
+
+@dataclass(frozen=True)
+class SweepPhoto:
+    """One photo's disc centres on the plate (mm), each mapped at the kit's height.
+
+    ``straight``: the wire was straight in this photo (bend angle 0).
+    """
+
+    centres_mm: dict[str, np.ndarray]
+    covariances_mm2: dict[str, np.ndarray]
+    straight: bool = False
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class MeasuredHeights:
+    """The measured heights and the kit that carries them.
+
+    ``kit`` is the input kit with ``height_mm``, ``height_sigma_mm`` and
+    ``height_covariance_mm2`` measured; ``nominal_mm`` the heights it started from;
+    ``radii_mm`` the fitted distances of the turning markers from the origin marker;
+    ``rms`` the RMS of the residuals in units of their standard uncertainty (about 1
+    when the photos agree with the model); ``warnings`` what is in doubt.
+    """
+
+    kit: MarkerKit
+    nominal_mm: dict[str, float]
+    radii_mm: dict[str, float]
+    rms: float
+    n_photos: int
+    n_straight: int
+    warnings: tuple[StageWarning, ...] = ()
+
+    @property
+    def heights_mm(self) -> dict[str, float]:
+        return {r: self.kit.height_mm(r) for r in ROLES}
+
+    @property
+    def sigma_mm(self) -> dict[str, float]:
+        return {r: float(self.kit.by_role(r).height_sigma_mm or 0.0) for r in ROLES}
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "heights_mm": {r: round(v, 4) for r, v in self.heights_mm.items()},
+            "height_sigma_mm": {r: round(v, 4) for r, v in self.sigma_mm.items()},
+            "nominal_mm": self.nominal_mm,
+            "radii_mm": {r: round(v, 4) for r, v in self.radii_mm.items()},
+            "rms": round(self.rms, 3),
+            "n_photos": self.n_photos,
+            "n_straight": self.n_straight,
+            "warnings": [w.to_json() for w in self.warnings],
+            "kit": self.kit.to_dict(),
+        }
+
+
+def _residuals(
+    x: np.ndarray,
+    photos: Sequence[SweepPhoto],
+    kit_mm: dict[str, float],
+    prior_mm: np.ndarray,
+    prior_sigma_mm: float,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    bend_sigma_deg: Sequence[float],
+) -> np.ndarray:
+    heights = dict(zip(ROLES, x[: len(ROLES)], strict=True))
+    radii = dict(zip(TURNING, x[len(ROLES) :], strict=True))
+    out: list[float] = []
+    for k, photo in enumerate(photos):
+        c = move_to_heights(photo.centres_mm, kit_mm, heights, camera_centre_mm)
+        for role in TURNING:
+            d = c[role] - c["origin"]
+            dist = float(np.hypot(*d))
+            u = d / dist
+            cov = photo.covariances_mm2[role] + photo.covariances_mm2["origin"]
+            out.append((dist - radii[role]) / math.sqrt(float(u @ cov @ u)))
+        if photo.straight:
+            bend = float(wrap_deg(pin_bend_deg(c, y_down=y_down)[1]))
+            out.append(bend / bend_sigma_deg[k])
+    out.extend((x[: len(ROLES)] - prior_mm) / prior_sigma_mm)
+    return np.asarray(out)
+
+
+def measure_heights(
+    photos: Sequence[SweepPhoto],
+    kit: MarkerKit,
+    camera_centre_mm: Any,
+    *,
+    y_down: bool = True,
+    prior_sigma_mm: float = PRIOR_SIGMA_MM,
+) -> MeasuredHeights:
+    """Measure the markers' heights from a sweep of photos from one plane pose.
+
+    Parameters
+    ----------
+    photos : the photos' centres on the plate, mapped at ``kit``'s heights
+        (:func:`cvmeasure.markers.measure.frame_centres` on the plane pose).
+    kit : the kit the centres were mapped with; its heights are the prior (a flat kit:
+        0 mm each).
+    camera_centre_mm : the plane pose's camera centre in the plate frame (3,), mm.
+    y_down : the plate frame's handedness as the measurement sees it.
+    prior_sigma_mm : standard uncertainty of the kit's heights as the prior, mm.
+
+    Raises
+    ------
+    ValueError
+        Fewer than :data:`MIN_PHOTOS` photos, or a photo without every role.
+    """
+    if len(photos) < MIN_PHOTOS:
+        raise ValueError(f"need at least {MIN_PHOTOS} photos of a bend sweep, got {len(photos)}")
+    if prior_sigma_mm <= 0:
+        raise ValueError("prior_sigma_mm must be > 0")
+    for p in photos:
+        missing = [r for r in ROLES if r not in p.centres_mm]
+        if missing:
+            raise ValueError(f"{p.source or 'a photo'} lacks {', '.join(missing)}")
+    centre = np.asarray(camera_centre_mm, dtype=np.float64).reshape(3)
+    kit_mm = {r: kit.height_mm(r) for r in ROLES}
+    prior = np.array([kit_mm[r] for r in ROLES])
+    bend_sigma = [
+        machine_angles(p.centres_mm, p.covariances_mm2, y_down=y_down).bend_sigma_deg
+        for p in photos
+    ]
+    radii0 = [
+        float(np.median([np.hypot(*(p.centres_mm[r] - p.centres_mm["origin"])) for p in photos]))
+        for r in TURNING
+    ]
+    args = (photos, kit_mm, prior, prior_sigma_mm, centre, y_down, bend_sigma)
+    fit = least_squares(_residuals, np.concatenate((prior, radii0)), args=args, x_scale=1.0)
+    n_res, n_par = fit.fun.size, fit.x.size
+    chi2 = float(fit.fun @ fit.fun)
+    rms = math.sqrt(chi2 / max(n_res - n_par, 1))
+    cov = np.linalg.pinv(fit.jac.T @ fit.jac) * max(1.0, rms**2)
+    n = len(ROLES)
+    h_cov = cov[:n, :n]
+    h_sigma = np.sqrt(np.diag(h_cov))
+    markers = tuple(
+        replace(
+            kit.by_role(r),
+            height_mm=round(float(fit.x[i]), 4),
+            height_sigma_mm=round(float(h_sigma[i]), 4),
+        )
+        for i, r in enumerate(ROLES)
+    )
+    order = {m.role: m for m in markers}
+    new_kit = replace(
+        kit,
+        name=f"{kit.name.removesuffix('-flat')}-heights",
+        markers=tuple(order[m.role] for m in kit.markers),
+        height_covariance_mm2=tuple(tuple(float(v) for v in row) for row in h_cov),
+    )
+    warnings = _sweep_warnings(photos, rms, y_down)
+    return MeasuredHeights(
+        new_kit,
+        kit_mm,
+        {r: float(v) for r, v in zip(TURNING, fit.x[n:], strict=True)},
+        rms,
+        len(photos),
+        sum(p.straight for p in photos),
+        tuple(warnings),
+    )
+
+
+def _sweep_warnings(photos: Sequence[SweepPhoto], rms: float, y_down: bool) -> list[StageWarning]:
+    """What a sweep leaves in doubt: too narrow, no straight photo, a poor fit."""
+    out = []
+    pins = np.array([pin_bend_deg(p.centres_mm, y_down=y_down)[0] for p in photos])
+    span = float(np.ptp(np.unwrap(np.radians(pins)))) * 180.0 / math.pi
+    if span < MIN_SPAN_DEG:
+        out.append(
+            StageWarning(
+                "heights_sweep_narrow",
+                f"the pin turns through only {span:.0f} deg over these photos: the heights "
+                f"are poorly seen (photograph bends over at least {MIN_SPAN_DEG:.0f} deg, "
+                "both directions)",
+                "sweep",
+            )
+        )
+    if not any(p.straight for p in photos):
+        out.append(
+            StageWarning(
+                "heights_no_straight",
+                "no photo of the straight wire: the wire markers' heights against the axis "
+                "marker's are left to the kit's nominal values and their prior uncertainty "
+                "(add one or more with --straight)",
+                "sweep",
+            )
+        )
+    if rms > POOR_FIT_RMS:
+        out.append(
+            StageWarning(
+                "heights_fit_poor",
+                f"the photos disagree with markers turning about the die's axis ({rms:.1f} "
+                "standard uncertainties RMS): were they taken from the plane's pose, with the "
+                "pin holding the wire against the die?",
+                "sweep",
+            )
+        )
+    return out

@@ -1,0 +1,135 @@
+"""What ``cvmeasure report`` is given: results JSON Lines, a session log or a calibration.
+
+:func:`read_report_input` reads the file once and says what it holds: per-photo
+results (``measure`` / ``batch`` JSON Lines), a calibration session's log
+(``session.jsonl``: its bends' loaded and unloaded records, photo paths made
+relative to the log's folder so their overlays are found), or a calibration JSON
+(``session`` / ``fit`` output: the calibration report). Any other JSON file is
+refused by naming what kind of file it is.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_jsonl
+
+__all__ = ["ReportInput", "read_report_input", "json_kind"]
+
+
+@dataclass(frozen=True)
+class ReportInput:
+    """The records to report and what they came from (``kind``: "results", "session log",
+    "calibration"); ``calibration`` the document itself for a calibration JSON."""
+
+    kind: str
+    records: list[dict[str, Any]]
+    calibration: dict[str, Any] | None = None
+
+
+def json_kind(doc: Any) -> str:
+    """What a single JSON document is, by its keys (for messages): "a camera JSON", ..."""
+    if not isinstance(doc, dict):
+        return f"a JSON {type(doc).__name__}"
+    keys = set(doc)
+    fmt = str(doc.get("format", ""))
+    if "samples" in keys and ({"springback", "model", "scores"} & keys or "calib" in fmt):
+        return "a calibration JSON"
+    if fmt.startswith("cvmeasure-plane") or {"H_image_board", "homography"} & keys:
+        return "a plane JSON"
+    if "markers" in keys and isinstance(doc.get("markers"), list):
+        return "a marker kit JSON"
+    if {"camera_matrix", "dist_coeffs"} & keys or {"fx", "fy"} <= keys:
+        return "a camera JSON"
+    if {"squares_x", "squares_y"} & keys:
+        return "a board JSON"
+    if "pin_angle_deg" in keys or "radius_mm" in keys:
+        return "one result record (JSON Lines hold one per line)"
+    return "a JSON document"
+
+
+def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
+    """Read ``path`` and say what it holds (see the module doc).
+
+    Raises
+    ------
+    InputError
+        Not JSON at all, a JSON file of another kind (named), or no records.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(
+            p, "not a text file (give a results .jsonl, session.jsonl or calibration JSON)"
+        ) from None
+    except OSError as exc:
+        raise InputError(p, f"cannot read: {exc.strerror or exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError:
+        doc = None  # JSON Lines (or broken): read line by line below
+    if isinstance(doc, dict):
+        kind = json_kind(doc)
+        if kind == "a calibration JSON":
+            return ReportInput("calibration", [], doc)
+        if not kind.startswith("one result"):
+            raise InputError(
+                p,
+                f"this is {kind}, not results: report takes the JSON Lines of `measure`/`batch`, "
+                "a session log (session.jsonl) or a calibration JSON",
+            )
+    records = read_jsonl(p, skip_partial_last=True)
+    if not records:
+        raise InputError(p, "no records")
+    if not all(isinstance(r, dict) for r in records):
+        raise InputError(p, "every line must be a JSON object")
+    if any("event" in r for r in records):
+        return ReportInput("session log", session_log_records(records, p.parent))
+    return ReportInput("results", records)
+
+
+def session_log_records(log: list[dict[str, Any]], folder: Path) -> list[dict[str, Any]]:
+    """A session log's bends as report records: each photo's record (its path joined to the
+    session folder, so its overlay is found) and the bend's trial record."""
+    out: list[dict[str, Any]] = []
+    for r in log:
+        if r.get("event") != "sample":
+            continue
+        trial = int(r.get("step", 0)) + 1
+        for which in ("loaded", "unloaded"):
+            rec = dict(r.get(which) or {})
+            rel = r.get(f"photo_{which}")
+            if rel:
+                rec["photo"] = str(folder / rel)
+            rec.update({"kind": f"machine ({which})", "trial": trial})
+            out.append(rec)
+        u_lo = ((r.get("loaded") or {}).get("uncertainty_deg") or {}).get("bend_angle_deg")
+        u_un = ((r.get("unloaded") or {}).get("uncertainty_deg") or {}).get("bend_angle_deg")
+        unc = {}
+        if u_lo is not None and u_un is not None:
+            unc = {
+                "loaded_bend_deg": u_lo,
+                "unloaded_bend_deg": u_un,
+                "springback_deg": (u_lo**2 + u_un**2) ** 0.5,
+            }
+        out.append(
+            {
+                "kind": "calibration bend",
+                "trial": trial,
+                # the session's target is the wanted loaded angle, not the part's: no verdict
+                "wanted_loaded_deg": r.get("target_deg"),
+                "uncertainty_deg": unc,
+                "commanded_pin_deg": r.get("commanded_pin_deg"),
+                "loaded_bend_deg": (r.get("loaded") or {}).get("bend_angle_deg"),
+                "unloaded_bend_deg": (r.get("unloaded") or {}).get("bend_angle_deg"),
+                "springback_deg": r.get("springback_deg"),
+                "direction": r.get("direction"),
+            }
+        )
+    return out

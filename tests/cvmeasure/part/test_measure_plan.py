@@ -1,0 +1,76 @@
+"""A part of unequal chords measured against the polygon bent (issue 36).
+
+Compared with its design divided into equal chords, a perfect 40/42/40/42 mm zigzag
+read -43.84/46.16/43.84 deg instead of +-45; measured with the polygon bent (the
+plan's chords start the vertex fit and are the reference) it reads its true bends.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+import cvmeasure_datasets
+from cvmeasure.board import CharucoBoardSpec
+from cvmeasure.design import DesignPath
+from cvmeasure.part.measure import measure_part
+from cvmeasure.wireplan import polygon_from_chords
+
+BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
+#: Rendered vertex bends are measured within this (deg; the part tests' tolerance).
+VERTEX_BEND_DEG = 0.15
+
+SHAPES = {
+    "zigzag": ([40.0, 42.0, 40.0, 42.0], [45.0, -45.0, 45.0]),
+    # an open polyline as operators draw them: chords 15-40 mm, bends 3-60 deg both ways
+    "unequal": ([18.0, 38.0, 15.0, 31.0, 24.0, 40.0], [-12.0, 55.0, 3.5, -48.0, 27.0]),
+}
+
+
+@functools.cache
+def _photo(name: str):
+    chords, turns = SHAPES[name]
+    verts = polygon_from_chords(chords, turns)
+    verts = verts - verts.mean(axis=0)
+    photo = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.polyline_part(verts * np.array([1.0, -1.0])),
+        board=BOARD,
+        seed=11,
+        scale=0.5,
+    )
+    return verts, photo
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES))
+def test_unequal_chords_measured_against_the_polygon_bent(name):
+    verts, photo = _photo(name)
+    design = DesignPath(verts, False, "polyline", name)
+    m = measure_part(
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        design=design,
+        allow_mirror=False,
+        reference_mm=verts,
+        source=name,
+    )
+    bends = m.comparison.bends
+    np.testing.assert_allclose(bends.design_bend_deg, SHAPES[name][1], atol=1e-9)
+    assert bends.max_abs_error_deg < VERTEX_BEND_DEG
+    assert m.result.divisions == len(SHAPES[name][0])
+
+
+def test_without_a_plan_the_corners_are_kept_and_equal_chords_misread():
+    """A design with corners and a chord count (no job) is compared with its corners too;
+    the old reference (the design in equal chords) errs by degrees: the test can fail."""
+    verts, photo = _photo("zigzag")
+    design = DesignPath(verts, False, "polyline", "zigzag")
+    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=4, design=design, allow_mirror=False)
+    assert m.comparison.bends.max_abs_error_deg < VERTEX_BEND_DEG
+    old = measure_part(
+        photo.bgr, BOARD, photo.camera, design=design, allow_mirror=False,
+        reference_mm=design.chords(4),
+    )  # fmt: skip
+    assert old.comparison.bends.max_abs_error_deg > 1.0
