@@ -1,8 +1,11 @@
 """The one place where the app calls the cvmeasure library.
 
-Every measuring, fitting and G-code function the app uses is called here, so that when the
-library's public API lands the switch is this one file. Functions take and return typed
-values (dataclasses of :mod:`cvmeasure.app.state` or library types), never dicts.
+Measuring, fitting, G-code and the closed loop go through the public API (``import
+cvmeasure``: :mod:`cvmeasure.api`). What the public API does not offer is called here from
+its module, and only here: the automatic session and the streamer (:mod:`cvmeasure.driver`),
+the coverage advice and the per-view board detection of the lens calibration, the fast
+marker search of the live view, the photo overlays, and the nominal simulation the app starts
+from before any material session. Functions return typed values, never dicts.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+import cvmeasure
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.errors import InputError
 
@@ -27,7 +31,6 @@ __all__ = [
     "PartCheck",
     "check_design",
     "check_points",
-    "design_polyline",
     "springback_for",
     "measure_bender_photo",
     "bender_overlay",
@@ -62,42 +65,33 @@ class CheckedDesign:
     compensation: str
 
 
-def design_polyline(path: Path) -> Any:
-    """The design's single wire (:class:`cvmeasure.design.DesignPath`), or InputError."""
-    from cvmeasure.design import load_design
-
-    wire = load_design(path).wire()
-    if wire.closed:
-        raise InputError(
-            path.name, f"closed shape {wire.element or wire.kind}: a wire part needs two free ends"
-        )
-    return wire
-
-
 def check_design(path: Path, calibration: Any = None, *, name: str | None = None) -> CheckedDesign:
-    """Read a design, check the bender's rules and compensate it (as ``cvmeasure gcode``).
+    """Read a design, check the bender's rules and compensate it (``cvmeasure.gcode_for``).
 
-    Raises InputError naming the file when the design breaks a rule.
+    Raises InputError naming the file (as ``name``) when the design breaks a rule.
     """
-    from cvmeasure.driver.gcode import wire_polyline
-
     name = name or path.name
     try:
-        wire = design_polyline(path)
-        points = wire_polyline(wire.points_mm, arcs=wire.arcs)
+        wire = cvmeasure.load_design(path).wire()
+        job = cvmeasure.gcode_for(path, calibration)
     except InputError as exc:
         raise InputError(name, _problem(exc)) from None
-    return check_points(points, calibration, name=name)
+    return _checked(name, wire.points_mm, job, calibration)
 
 
 def check_points(points: Any, calibration: Any = None, *, name: str) -> CheckedDesign:
     """Check and compensate a polyline (mm): rules, bends, pin commands, G-code."""
-    from cvmeasure.driver.gcode import SimCompensator, design_job
+    from cvmeasure.design import DesignPath
 
+    wire = DesignPath(np.asarray(points, dtype=float), closed=False, kind="polyline", element=name)
     try:
-        job = design_job(points, source=name, compensation=calibration or SimCompensator())
+        job = cvmeasure.gcode_for(wire, calibration)
     except InputError as exc:
         raise InputError(name, _problem(exc)) from None
+    return _checked(name, wire.points_mm, job, calibration)
+
+
+def _checked(name: str, points: Any, job: Any, calibration: Any) -> CheckedDesign:
     return CheckedDesign(
         name=name,
         chords_mm=np.asarray(points, dtype=float),
@@ -124,10 +118,7 @@ def springback_for(calibration: Any, final_deg: float) -> tuple[float, float]:
 
 def measure_bender_photo(path: Path, kit: Any, camera: Any = None) -> Any:
     """The machine photo's signed angles (:class:`cvmeasure.markers.MachinePhotoResult`)."""
-    from cvmeasure.markers.measure import measure_photo_file
-
-    options = {"camera": camera} if camera is not None else {}
-    return measure_photo_file(path, kit, **options)
+    return cvmeasure.measure_bender_photo(path, kit, camera=camera)
 
 
 def bender_overlay(bgr: np.ndarray, result: Any, kit: Any, max_width_px: int = 1280) -> np.ndarray:
@@ -188,15 +179,14 @@ class LensSolve:
     problems: tuple[str, ...]
 
 
-def solve_lens(detections: Sequence[Any], image_size_px: tuple[int, int]) -> LensSolve:
-    """Calibrate the lens from the views (as ``cvmeasure calibrate``)."""
-    from cvmeasure.calibration.pipeline import calibrate_detections
-
-    report = calibrate_detections(list(detections), image_size_px, source="the views taken")
+def solve_lens(photos: Sequence[Path]) -> LensSolve:
+    """Calibrate the lens from the views' photos (``cvmeasure.calibrate_camera``)."""
+    cal = cvmeasure.calibrate_camera(list(photos), BOARD, model="5")
+    report = cal.report
     # dropping a few outlier corners is the solve doing its job, not a reason to redo it
     problems = tuple(str(w) for w in report.warnings if "outlier corner" not in str(w))
     return LensSolve(
-        camera=report.camera,
+        camera=cal.camera,
         rms_px=float(report.result.rms_px),
         covered_fraction=float(report.coverage.covered_fraction),
         problems=problems,
@@ -204,24 +194,16 @@ def solve_lens(detections: Sequence[Any], image_size_px: tuple[int, int]) -> Len
 
 
 def save_camera(path: Path, camera: Any) -> None:
-    from cvmeasure.camera import save_camera as _save
-
-    _save(path, camera)
+    cvmeasure.save(path, camera)
 
 
 def load_camera(path: Path) -> Any:
-    from cvmeasure.camera import load_camera as _load
-
-    return _load(path)
+    return cvmeasure.load_camera(path)
 
 
 def plane_check(bgr: np.ndarray, camera: Any, source: str) -> Any:
-    """The plate's tilt seen by the camera (:class:`cvmeasure.contracts.PlaneModel`)."""
-    import cv2
-
-    from cvmeasure.calibration.plane import estimate_plane
-
-    return estimate_plane(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY), BOARD, camera, source=source)
+    """The plate's tilt seen by the camera (``cvmeasure.measure_plane``)."""
+    return cvmeasure.measure_plane(bgr, BOARD, camera)
 
 
 def kit_check(path: Path, kit: Any, camera: Any = None) -> Any:
@@ -243,19 +225,16 @@ class PartCheck:
 
 
 def measure_finished_part(
-    bgr: np.ndarray, camera: Any, design: Any, divisions: int, source: str
+    bgr: np.ndarray, camera: Any, design: Path, divisions: int, source: str
 ) -> PartCheck:
-    """Measure a part photo against its design, vertex by vertex (as ``cvmeasure part``)."""
-    from cvmeasure.part.measure import measure_part
-
+    """Measure a part photo against its design, vertex by vertex (``cvmeasure.measure_part``)."""
     try:
-        m = measure_part(
+        m = cvmeasure.measure_part(
             bgr,
-            BOARD,
-            camera,
-            divisions=divisions,
+            board=BOARD,
+            camera=camera,
             design=design,
-            source=source,
+            divisions=divisions,
             allow_mirror=False,  # the part lies as it left the machine
         )
     except InputError:
@@ -282,13 +261,13 @@ def part_overlay(bgr: np.ndarray, check: PartCheck) -> np.ndarray:
     return draw_overlay(bgr, check.measurement)
 
 
-def correct_next_part(
-    calibration: Any, check: PartCheck, design: Any, design_name: str
-) -> tuple[Any, Any, Any]:
-    """(corrected calibration, correction, next job) from a measured part (``cvmeasure correct``)."""
-    from cvmeasure.material.correct import correct_from_part
+def correct_next_part(calibration: Any, check: PartCheck, design: Path) -> tuple[Any, Any, Any]:
+    """(corrected calibration, correction, next job) from a measured part (``cvmeasure.correct``).
 
-    return correct_from_part(calibration, check.measurement, design, design_name=design_name)
+    The design is given by its path: its file name keys the job's per-vertex corrections.
+    """
+    out = cvmeasure.correct(check.measurement, design, calibration)
+    return out.material, out.correction, out.job
 
 
 @functools.lru_cache(maxsize=1)
@@ -296,7 +275,7 @@ def default_calibration() -> Any:
     """The nominal simulated machine's calibration (a start before any material session)."""
     from cvmeasure.contracts import Trial
     from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-    from cvmeasure.material.calibration import MODES, fit_calibration
+    from cvmeasure.material.calibration import MODES
     from cvmeasure.sim import simulate
 
     angles = MODES["quick"]
@@ -312,22 +291,15 @@ def default_calibration() -> Any:
         )
         for i, p in enumerate(pins)
     ]
-    return fit_calibration(samples, mode="quick", name="nominal machine")
+    return cvmeasure.fit_material(samples, name="nominal machine")
 
 
 def load_calibration(path: Path) -> Any:
-    from cvmeasure.material.calibration import load_calibration as _load
-
-    return _load(path)
+    return cvmeasure.load_material(path)
 
 
 def save_calibration(path: Path, calibration: Any) -> None:
-    from dataclasses import replace
-
-    from cvmeasure.material.calibration import save_calibration as _save
-    from cvmeasure.provenance import provenance
-
-    _save(path, replace(calibration, provenance=calibration.provenance or provenance()))
+    cvmeasure.save(path, calibration)
 
 
 def session_config(mode: str, angles: Sequence[float]) -> Any:
@@ -399,19 +371,19 @@ class SessionDiagnosis:
 
 def diagnose_session(trials: Any) -> SessionDiagnosis:
     """Name the machine effect behind the trials (``cvmeasure diagnose``), in one sentence."""
-    from cvmeasure.contracts import TrialTable
-    from cvmeasure.diagnose import diagnose
-    from cvmeasure.sim import SimParams
-
-    table = trials if isinstance(trials, TrialTable) else TrialTable(tuple(trials))
     try:
-        d = diagnose(table, SimParams(), folds=min(5, max(2, len(table.trials) // 2)))
+        d = cvmeasure.diagnose_trials(list(trials))
     except ValueError as exc:
         return SessionDiagnosis(f"no diagnosis: {exc}", ())
     gain = 100.0 * d.gain
-    if d.cause in ("none", "", None):
+    if d.cause == "none":
         sentence = (
             f"the nominal machine explains the bends (held-out error {d.baseline_rmse_deg:.3f} deg)"
+        )
+    elif d.cause == "unexplained":
+        sentence = (
+            "no known machine effect explains the bends (held-out error "
+            f"{d.baseline_rmse_deg:.3f} deg): look at the machine before bending parts"
         )
     else:
         sentence = (
@@ -475,9 +447,7 @@ def job_line_numbers(text: str) -> list[tuple[int, bool]]:
 
 
 def default_kit() -> Any:
-    from cvmeasure.kit import default_kit as _kit
-
-    return _kit()
+    return cvmeasure.load_kit()
 
 
 def os_fsync_dir(path: Path) -> None:

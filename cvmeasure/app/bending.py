@@ -329,8 +329,9 @@ class Bending:
         path = rig.capture(
             "part", f"{Path(design_name).stem}-part{part}", self.op.folder / "inspect", part
         )
+        cpu0 = time.thread_time()  # the verdict's own work, from the photo on disk
         bgr = cv2.imread(str(path))
-        design = adapter.design_polyline(self.designs / design_name)
+        design = self.designs / design_name
         bends = next((f.bends for f in self.op.state.files if f.name == design_name), 0)
         check = adapter.measure_finished_part(
             bgr, self.op.camera_model, design, bends + 1, path.name
@@ -359,6 +360,7 @@ class Bending:
             )
         ]
         ins.message = f"{design_name} part {part} measured"
+        ins.measure_cpu_s = time.thread_time() - cpu0
         record = {"design": design_name, "part": part, "worst_deg": check.worst_deg,
                   "passed": passed, "errors_deg": list(check.error_deg)}  # fmt: skip
         append_jsonl(self.op.folder / "parts.jsonl", record)
@@ -369,7 +371,7 @@ class Bending:
         if self._check is None:
             raise InputError("part", "inspect a part first")
         check, design, name = self._check
-        cal, corr, job = adapter.correct_next_part(self.op.calibration(), check, design, name)
+        cal, corr, job = adapter.correct_next_part(self.op.calibration(), check, design)
         adapter.save_calibration(self.op.calibration_path, cal)
         header = f"; cvmeasure ui: {name} corrected after part {self.op.state.inspect.part}\n"
         atomic_write_bytes(

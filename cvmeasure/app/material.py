@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 from cvmeasure.app import adapter
 from cvmeasure.app.state import Busy, MaterialState, MaterialStep
 from cvmeasure.errors import CvmeasureError, DeviceError, InputError
-from cvmeasure.fileio import atomic_write_json
+from cvmeasure.fileio import atomic_write_bytes, atomic_write_json
 
 if TYPE_CHECKING:
     from cvmeasure.app.operator import Operator
@@ -38,7 +38,7 @@ class MeasuringCamera:
 
     def capture(self, name: str) -> Any:
         shot = self.camera.capture(name)
-        self.on_photo(shot, time.time())
+        self.on_photo(shot)
         return shot
 
     def close(self) -> None:
@@ -52,7 +52,6 @@ class Material:
         self._pause = threading.Event()
         self._resume = threading.Event()
         self._stop = threading.Event()
-        self.photo_times: list[tuple[float, float]] = []  # (photo written, angles published)
 
     @property
     def state(self) -> MaterialState:
@@ -201,7 +200,7 @@ class Material:
         self._publish()
         self.op.background("material", lambda: self._work(rig))
 
-    def _on_photo(self, shot: Any, taken: float) -> None:
+    def _on_photo(self, shot: Any) -> None:
         try:
             result = adapter.measure_bender_photo(Path(shot.path), self.op.kit, shot.camera)
         except InputError as exc:
@@ -209,15 +208,30 @@ class Material:
             self._publish()
             return
         s = self.state
-        s.last_photo = Path(shot.path).name
         s.last_photo_angle_deg = float(result.bend_angle_deg)
+        # the angles first (what the operator waits for), then the picture with them drawn
         self.op.bus.publish(
             "photo",
-            {"photo": s.last_photo, "bend_angle_deg": s.last_photo_angle_deg,
-             "pin_angle_deg": float(result.pin_angle_deg)},
-        )  # fmt: skip
-        self.photo_times.append((taken, time.time()))
+            {
+                "photo": Path(shot.path).name,
+                "bend_angle_deg": s.last_photo_angle_deg,
+                "pin_angle_deg": float(result.pin_angle_deg),
+            },
+        )
+        s.last_photo = self._overlay(Path(shot.path), result)
         self._publish()
+
+    def _overlay(self, photo: Path, result: Any) -> str:
+        """The photo with the markers and angles drawn (``<stem>.overlay.jpg``); its name."""
+        import cv2
+
+        bgr = cv2.imread(str(photo))
+        ok, jpg = cv2.imencode(".jpg", adapter.bender_overlay(bgr, result, self.op.kit, 960))
+        if not ok:
+            return photo.name
+        out = photo.with_name(photo.stem + ".overlay.jpg")
+        atomic_write_bytes(out, jpg.tobytes())
+        return out.name
 
     def _progress(self, done: int, total: int, step: Any) -> None:
         s = self.state

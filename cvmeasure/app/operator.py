@@ -36,6 +36,8 @@ __all__ = ["Operator", "Busy"]
 
 log = logging.getLogger(__name__)
 
+#: How long a command waits for an activity that is just ending to free the machine (s).
+BUSY_WAIT_S = 2.0
 #: The plate may lean this much before the plane check says "not square" (deg).
 PLANE_TOLERANCE_DEG = 0.5
 
@@ -62,6 +64,7 @@ class Operator:
         self.kit = adapter.default_kit()
         self._machine = threading.Lock()  # one machine activity at a time
         self._detections: list[Any] = []
+        self._view_photos: list[Path] = []
         self.camera_model: Any = None
         from cvmeasure.app.bending import Bending
         from cvmeasure.app.material import Material
@@ -102,7 +105,7 @@ class Operator:
 
     def background(self, name: str, work: Callable[[], None], *, machine: bool = True) -> None:
         """Run ``work`` in a thread; with ``machine`` it holds the machine until done."""
-        if machine and not self._machine.acquire(blocking=False):
+        if machine and not self._machine.acquire(timeout=BUSY_WAIT_S):
             raise Busy("the machine is busy; wait for it or stop what it is doing")
 
         def run() -> None:
@@ -117,7 +120,8 @@ class Operator:
         threading.Thread(target=run, name=f"app-{name}", daemon=True).start()
 
     def machine_busy(self) -> bool:
-        if self._machine.acquire(blocking=False):
+        """Whether another activity holds the machine (one that is just ending is waited for)."""
+        if self._machine.acquire(timeout=BUSY_WAIT_S):
             self._machine.release()
             return False
         return True
@@ -205,6 +209,7 @@ class Operator:
                 usable = bool(getattr(det, "ok", True)) and len(det.corners_px) > 0
                 if usable:
                     self._detections.append(det)
+                    self._view_photos.append(path)
                 note = f"{len(det.corners_px)} corners" if usable else "board not found"
                 lens.views.append(LensView(index + 1, len(det.corners_px), usable, note))
                 lens.guidance = adapter.coverage_guidance(self._detections, rig.image_size_px)
@@ -222,7 +227,7 @@ class Operator:
         self.background("lens-view", work, machine=False)
 
     def solve_lens(self) -> None:
-        rig = self.need_rig()
+        self.need_rig()
         lens = self.state.lens
         if len(self._detections) < adapter.MIN_LENS_VIEWS:
             raise Busy(f"take at least {adapter.MIN_LENS_VIEWS} usable views first")
@@ -233,7 +238,7 @@ class Operator:
         def work() -> None:
             self.publish("lens")
             try:
-                solved = adapter.solve_lens(self._detections, rig.image_size_px)
+                solved = adapter.solve_lens(self._view_photos)
                 lens.rms_px = solved.rms_px
                 lens.good = not solved.problems
                 if lens.good:

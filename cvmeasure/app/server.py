@@ -13,6 +13,7 @@ import asyncio
 import json
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +62,10 @@ class Command(BaseModel):
     after_lines: int | None = None
 
 
+#: Raises :class:`Busy` unless the request comes from the controlling browser.
+Controller = Callable[[Request], None]
+
+
 def _error(status: int, message: str) -> JSONResponse:
     return JSONResponse({"error": message}, status_code=status)
 
@@ -73,8 +78,29 @@ def create_app(op: Operator) -> FastAPI:
         version="1",
     )
     app.state.op = op
-    env = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=select_autoescape())
     app.mount("/static", StaticFiles(directory=HERE / "static"), name="static")
+
+    _error_handlers(app)
+    controller = _controller(op)
+    _page_routes(app, op)
+    _state_routes(app, op)
+    _machine_routes(app, op, controller)
+    _camera_routes(app, op, controller)
+    _material_routes(app, op, controller)
+    _job_routes(app, op, controller)
+    _inspect_routes(app, op, controller)
+    if op.simulate:
+
+        @app.get("/api/sim/bends", summary="Simulation only: every bend the double executed")
+        async def sim_bends() -> dict[str, Any]:
+            return {"bends": op.need_rig().truth()}
+
+    hops_routes(app, op)
+    return app
+
+
+def _error_handlers(app: FastAPI) -> None:
+    """Bad input is 400, a state or control conflict 409, a device failure 500."""
 
     @app.exception_handler(InputError)
     async def _bad_input(request: Request, exc: InputError) -> JSONResponse:
@@ -88,12 +114,21 @@ def create_app(op: Operator) -> FastAPI:
     async def _failed(request: Request, exc: CvmeasureError) -> JSONResponse:
         return _error(500, str(exc))
 
+
+def _controller(op: Operator) -> Controller:
+    """The check every command makes: does this browser control the machine?"""
+
     def controller(request: Request) -> None:
         client = request.cookies.get(CLIENT_COOKIE) or request.headers.get("X-Client-Id")
         if not op.control.allows(client):
             raise Busy("another browser controls the machine: this one watches (take control)")
 
-    # ------------------------------------------------------------------ pages
+    return controller
+
+
+def _page_routes(app: FastAPI, op: Operator) -> None:
+    """Routes: pages."""
+    env = Environment(loader=FileSystemLoader(HERE / "templates"), autoescape=select_autoescape())
 
     def page(slug: str, request: Request) -> HTMLResponse:
         client = request.cookies.get(CLIENT_COOKIE) or uuid.uuid4().hex
@@ -115,7 +150,9 @@ def create_app(op: Operator) -> FastAPI:
             return _error(404, f"no page {slug!r}")
         return page(slug, request)
 
-    # ------------------------------------------------------------------ state, control, events
+
+def _state_routes(app: FastAPI, op: Operator) -> None:
+    """Routes: state, control, events."""
 
     @app.get("/api/state", summary="The whole server state, by section")
     async def state() -> dict[str, Any]:
@@ -165,7 +202,9 @@ def create_app(op: Operator) -> FastAPI:
             stream(), media_type="text/event-stream", headers={"Cache-Control": "no-store"}
         )
 
-    # ------------------------------------------------------------------ connection, machine
+
+def _machine_routes(app: FastAPI, op: Operator, controller: Controller) -> None:
+    """Routes: connection, machine."""
 
     @app.get("/api/connection", summary="Bender and camera connection (OctoPrint: connection)")
     async def connection() -> dict[str, Any]:
@@ -204,7 +243,9 @@ def create_app(op: Operator) -> FastAPI:
             "connection": c.state,
         }
 
-    # ------------------------------------------------------------------ camera and set up
+
+def _camera_routes(app: FastAPI, op: Operator, controller: Controller) -> None:
+    """Routes: camera and set up."""
 
     @app.get("/api/camera", summary="Lens calibration, plane check and kit check")
     async def camera() -> dict[str, Any]:
@@ -231,7 +272,9 @@ def create_app(op: Operator) -> FastAPI:
             _mjpeg(op, width), media_type="multipart/x-mixed-replace; boundary=frame"
         )
 
-    # ------------------------------------------------------------------ material
+
+def _material_routes(app: FastAPI, op: Operator, controller: Controller) -> None:
+    """Routes: material."""
 
     @app.get("/api/material", summary="The material session: plan, bends, result")
     async def material() -> dict[str, Any]:
@@ -281,7 +324,9 @@ def create_app(op: Operator) -> FastAPI:
             return _error(404, "no calibration yet")
         return FileResponse(op.calibration_path, media_type="application/json")
 
-    # ------------------------------------------------------------------ files, queue, job
+
+def _job_routes(app: FastAPI, op: Operator, controller: Controller) -> None:
+    """Routes: files, queue, job."""
 
     @app.get("/api/files", summary="Uploaded designs with their bends and compensated pin angles")
     async def files() -> dict[str, Any]:
@@ -348,7 +393,9 @@ def create_app(op: Operator) -> FastAPI:
             raise InputError("command", f"unknown job command {cmd.command!r}")
         return Response(status_code=204)
 
-    # ------------------------------------------------------------------ inspect
+
+def _inspect_routes(app: FastAPI, op: Operator, controller: Controller) -> None:
+    """Routes: inspect."""
 
     @app.get("/api/inspect", summary="The last inspected part: deviations, PASS/FAIL")
     async def inspect() -> dict[str, Any]:
@@ -378,15 +425,6 @@ def create_app(op: Operator) -> FastAPI:
         return Response(
             control_chart_svg(ins.history, ins.tolerance_deg), media_type="image/svg+xml"
         )
-
-    if op.simulate:
-
-        @app.get("/api/sim/bends", summary="Simulation only: every bend the double executed")
-        async def sim_bends() -> dict[str, Any]:
-            return {"bends": op.need_rig().truth()}
-
-    hops_routes(app, op)
-    return app
 
 
 def _sse(event_id: str, kind: str, data: Any) -> str:

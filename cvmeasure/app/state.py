@@ -195,6 +195,7 @@ class InspectState:
     corrected: bool = False
     message: str = "no part inspected yet"
     busy: bool = False
+    measure_cpu_s: float | None = None  # CPU time of the last verdict (photo read to verdict)
     history: list[dict[str, Any]] = field(default_factory=list)
 
 

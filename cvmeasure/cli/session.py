@@ -96,8 +96,10 @@ CAMERA_SCHEMES = ("gphoto2://", "folder://")
 def camera_url(text: str) -> str:
     """A camera URL (``gphoto2://[port]`` or ``folder:///path``), checked as it is parsed."""
     if not text.startswith(CAMERA_SCHEMES):
+        lens = " (a camera JSON is the lens model: give it as --camera-model)"
         raise argparse.ArgumentTypeError(
             f"{text!r} is not a camera URL; use gphoto2://[port] or folder:///path"
+            + (lens if text.lower().endswith(".json") or Path(text).is_file() else "")
         )
     return text
 
@@ -120,23 +122,15 @@ def angle_list(text: str) -> tuple[float, ...]:
 
 
 def _check_camera_option(args: argparse.Namespace) -> None:
-    """Refuse a --camera that is not a camera URL: a lens JSON belongs to --camera-model."""
+    """Refuse --camera with --simulate (the simulated camera takes the photos); a camera
+    JSON given as --camera is refused as it is parsed (:func:`camera_url`)."""
     from cvmeasure.errors import InputError
 
-    if args.camera is None:
-        return
-    if args.simulate:
+    if args.camera is not None and args.simulate:
         raise InputError(
             "--camera",
             "--simulate photographs with the simulated camera: give no --camera (a lens "
             "model JSON is --camera-model)",
-        )
-    if Path(args.camera).suffix.lower() == ".json" or Path(args.camera).is_file():
-        raise InputError(
-            "--camera",
-            f"{args.camera} is a file (a camera JSON is the lens model: give it as "
-            "--camera-model); --camera is the camera that takes the photos, "
-            "gphoto2://[port] or folder:///path",
         )
 
 

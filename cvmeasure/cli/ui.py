@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import socket
 from pathlib import Path
 
 from cvmeasure.cli.options import int_in, positive_float
@@ -42,6 +43,19 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.errors import InputError
 
+    # the options first (a bad one answers at once), then the web stack and the app
+    if args.dir.exists() and not args.dir.is_dir():
+        raise InputError(args.dir, "--dir must be a folder")
+    if args.effect and not args.simulate:
+        raise InputError("--effect", "machine effects are for the simulated bender (--simulate)")
+    with socket.socket() as probe:  # a port in use is the operator's to fix: say so, exit 2
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
+        try:
+            probe.bind((args.host, args.port))
+        except OSError as exc:
+            raise InputError(
+                "--port", f"cannot listen on {args.host}:{args.port}: {exc.strerror}"
+            ) from None
     try:
         import uvicorn
 
@@ -51,11 +65,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             "cvmeasure ui", f"{exc.name} is missing: pip install 'cvmeasure[app]'"
         ) from None
-    if args.dir.exists() and not args.dir.is_dir():
-        raise InputError(args.dir, "--dir must be a folder")
     simulated = None
-    if args.effect and not args.simulate:
-        raise InputError("--effect", "machine effects are for the simulated bender (--simulate)")
     if args.simulate:
         from cvmeasure.sim import parse_effect
         from cvmeasure_datasets.simrig import SimRig

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.geometry import CircleFit
-from cvmeasure.kit import MarkerKit
+from cvmeasure.kit import ROLES, MarkerKit, default_kit
 from cvmeasure.markers.colour import WhiteEstimate, bgr8_to_space, kit_colour_model
 from cvmeasure.markers.refine import UNEVEN_RING_SPREAD
 from cvmeasure.warning import StageWarning
@@ -49,8 +49,14 @@ PLANE_SCALE_TOLERANCE = 0.02
 PLANE_SHAPE_TOLERANCE = 0.005
 #: The discs' heights implied by their sizes differing from the kit's, relative to one
 #: another (RMS about their median offset), by more than this (mm) mean the kit's
-#: heights are not the markers' (flat stickers measured with a 3D kit, or the reverse).
-HEIGHT_SPREAD_TOLERANCE_MM = 2.5
+#: heights are not the markers' (flat stickers measured with a 3D kit, or the reverse),
+#: when the other story fits them better by :data:`STORY_MARGIN_MM`; by more than
+#: :data:`HEIGHT_OFF_TOLERANCE_MM`, whatever the other story. (The two stories differ by
+#: 3.5 mm RMS for the built-in heights; a disc's implied height reads its radius to
+#: ``Z / r``: 0.3 % of an 11 px radius is 2.5 mm at 850 mm.)
+HEIGHT_SPREAD_TOLERANCE_MM = 2.0
+STORY_MARGIN_MM = 1.0
+HEIGHT_OFF_TOLERANCE_MM = 5.0
 
 
 def colour_delta_e(
@@ -223,13 +229,15 @@ def plane_warnings(
     if not sized:
         return out
     implied = implied_heights_mm(sized, kit, camera_height_mm)
-    roles = list(implied)
-    offsets = np.array([implied[r] - kit.height_mm(r) for r in roles])
+    offsets = np.array([implied[r] - kit.height_mm(r) for r in implied])
     common = float(np.median(offsets))
-    spread = float(np.sqrt(np.mean((offsets - common) ** 2)))
+    spread = _spread_mm(implied, {r: kit.height_mm(r) for r in implied})
+    # the other story (flat stickers for a 3D kit, the built-in heights for a flat one)
+    other = _spread_mm(implied, _other_story_mm(kit))
     ratio = float(np.median([d.radius_mm / (0.5 * kit.by_role(d.role).diameter_mm) for d in sized]))
-    if len(sized) >= 3 and spread > HEIGHT_SPREAD_TOLERANCE_MM:
-        out.append(_kit_heights_warning(implied, kit))
+    wrong_story = spread > HEIGHT_SPREAD_TOLERANCE_MM and other < spread - STORY_MARGIN_MM
+    if len(sized) >= 3 and (wrong_story or spread > HEIGHT_OFF_TOLERANCE_MM):
+        out.append(_kit_heights_warning(implied, kit, other_story=wrong_story))
     elif abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
         out.append(
             StageWarning(
@@ -260,17 +268,33 @@ def plane_warnings(
     return out
 
 
-def _kit_heights_warning(implied: Mapping[str, float], kit: MarkerKit) -> StageWarning:
+def _spread_mm(implied: Mapping[str, float], heights: Mapping[str, float]) -> float:
+    """RMS of the implied heights' offsets from ``heights`` about their median, mm: how
+    far they are from that story, whatever the common offset (the plane's scale)."""
+    off = np.array([implied[r] - heights[r] for r in implied])
+    return float(np.sqrt(np.mean((off - np.median(off)) ** 2)))
+
+
+def _other_story_mm(kit: MarkerKit) -> dict[str, float]:
+    """The heights of the other story: flat stickers for a kit with heights, the built-in
+    kit's heights for a flat one."""
+    if kit.has_heights:
+        return {r: 0.0 for r in ROLES}
+    built_in = default_kit()
+    return {r: built_in.height_mm(r) for r in ROLES}
+
+
+def _kit_heights_warning(
+    implied: Mapping[str, float], kit: MarkerKit, *, other_story: bool
+) -> StageWarning:
     """The wrong-kit warning: the heights the discs' sizes imply against the kit's."""
     seen = ", ".join(f"{r} {h:.0f}" for r, h in implied.items())
-    values = np.array(list(implied.values()))
-    flat_like = float(np.sqrt(np.mean((values - np.median(values)) ** 2)))
-    if kit.has_heights and flat_like <= HEIGHT_SPREAD_TOLERANCE_MM:
+    if kit.has_heights and other_story:
         hint = (
             "they look like flat stickers on the plate: measure with a flat kit "
             "(--flat-kit, or a kit JSON without height_mm)"
         )
-    elif not kit.has_heights:
+    elif not kit.has_heights and other_story:
         hint = (
             "they stand at heights: use a kit giving each marker's height_mm (the built-in "
             "kit, or measure them with `cvmeasure markers heights`)"

@@ -55,6 +55,8 @@ TURNING = ("pin", "wire_a", "wire_b")
 #: Fewest photos for a fit, and the smallest span of pin angles (deg) that is a sweep.
 MIN_PHOTOS = 3
 MIN_SPAN_DEG = 30.0
+#: Smallest scale of the heights' covariance by the residuals' RMS (see measure_heights).
+MIN_BIRGE = 0.5
 #: Whitened residuals' RMS above this: the photos disagree with the turning-markers model.
 POOR_FIT_RMS = 3.0
 
@@ -190,7 +192,10 @@ def measure_heights(
     n_res, n_par = fit.fun.size, fit.x.size
     chi2 = float(fit.fun @ fit.fun)
     rms = math.sqrt(chi2 / max(n_res - n_par, 1))
-    cov = np.linalg.pinv(fit.jac.T @ fit.jac) * max(1.0, rms**2)
+    # scaled by the residuals' own scatter (the Birge ratio), both ways: the centres'
+    # covariances are the edge fits' and can overstate what the sweep shows; never below
+    # a quarter of the stated one (a lucky few photos must not claim too much)
+    cov = np.linalg.pinv(fit.jac.T @ fit.jac) * max(rms, MIN_BIRGE) ** 2
     n = len(ROLES)
     h_cov = cov[:n, :n]
     h_sigma = np.sqrt(np.diag(h_cov))

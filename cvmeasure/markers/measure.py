@@ -416,15 +416,9 @@ def measure_machine_photo(
         raise InputError(source, str(exc)) from None
     sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
     if height_state == "plane" and transform.plane is not None:
-        # the kit's height uncertainties (measured or stated) carried into the angles
-        var = height_angle_variance_deg2(
-            centres, kit, transform.plane.camera_centre_mm, y_down=transform.y_down
+        sigma, height_bound = _plane_heights(
+            centres, kit, transform.plane.camera_centre_mm, transform.y_down, sigma, warnings
         )
-        sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
-        if not np.any(kit.height_cov_mm2()):  # nominal heights: bounded beside the sigma
-            height_bound = _nominal_heights_bound(
-                centres, kit, transform.plane.camera_centre_mm, transform.y_down, warnings
-            )
     return MachinePhotoResult(
         angles.pin_angle_deg,
         angles.bend_angle_deg,
@@ -533,6 +527,23 @@ def frame_centres(
     mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
     for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
     return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
+
+
+def _plane_heights(
+    centres: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    sigma: dict[str, float],
+    warnings: list[StageWarning],
+) -> tuple[dict[str, float], dict[str, float] | None]:
+    """On a plane pose: the kit's height uncertainties (measured or stated) carried into
+    the angles' sigma; nominal heights bounded beside it instead (and warned about)."""
+    var = height_angle_variance_deg2(centres, kit, camera_centre_mm, y_down=y_down)
+    sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
+    if np.any(kit.height_cov_mm2()):
+        return sigma, None
+    return sigma, _nominal_heights_bound(centres, kit, camera_centre_mm, y_down, warnings)
 
 
 def _nominal_heights_bound(

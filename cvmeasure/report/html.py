@@ -277,22 +277,12 @@ def build_report(
     """
     roots = tuple(Path(r) for r in photo_roots)
     records = sorted(records, key=_sort_key)
-    ok = [r for r in records if r.get("ok", True)]
-    failed = [r for r in records if r.get("ok") is False]
-    kinds = Counter(str(r.get("kind", "-")) for r in records)
     out: list[str] = []
     meta = [f"results: {_e(source)}"] if source else []
     for k, v in (stamp or {}).items():
         meta.append(f"{_e(k)}: {_e(v)}")
     out.append(f"<p class=meta>{' &middot; '.join(meta)}</p>")
-    out.append("<h2 id=summary>Summary</h2>")
-    summary = [("records", len(records)), ("measured", len(ok)), ("failed", len(failed))]
-    summary += [(f"kind {k}", n) for k, n in sorted(kinds.items())]
-    judged = Counter(
-        v[0] for v in (verdict(r, tolerance_deg, tolerance_mm) for r in records) if v is not None
-    )
-    summary += [(f"verdict {k}", n) for k, n in sorted(judged.items())]
-    out.append(_kv_table(summary))
+    out += _summary_section(records, tolerance_deg, tolerance_mm)
     out += _warnings_section(records)
 
     figures = [
@@ -347,6 +337,22 @@ def build_report(
         out.append(f"<tr{row_class}>{''.join(cells)}</tr>")
     out.append("</tbody></table></div>")
     return html_page(title, out)
+
+
+def _summary_section(
+    records: Sequence[Mapping[str, Any]], tolerance_deg: float | None, tolerance_mm: float | None
+) -> list[str]:
+    """Counts: records, measured, failed, per kind, per verdict against the tolerance."""
+    ok = [r for r in records if r.get("ok", True)]
+    failed = [r for r in records if r.get("ok") is False]
+    kinds = Counter(str(r.get("kind", "-")) for r in records)
+    summary = [("records", len(records)), ("measured", len(ok)), ("failed", len(failed))]
+    summary += [(f"kind {k}", n) for k, n in sorted(kinds.items())]
+    judged = Counter(
+        v[0] for v in (verdict(r, tolerance_deg, tolerance_mm) for r in records) if v is not None
+    )
+    summary += [(f"verdict {k}", n) for k, n in sorted(judged.items())]
+    return ["<h2 id=summary>Summary</h2>", _kv_table(summary)]
 
 
 def _warnings_section(records: Sequence[Mapping[str, Any]]) -> list[str]:

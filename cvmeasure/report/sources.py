@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from cvmeasure.errors import InputError
-from cvmeasure.fileio import read_jsonl
+from cvmeasure.fileio import read_jsonl, sniff_kind
 
-__all__ = ["ReportInput", "read_report_input", "json_kind"]
+__all__ = ["ReportInput", "read_report_input", "session_log_records"]
 
 
 @dataclass(frozen=True)
@@ -30,27 +30,6 @@ class ReportInput:
     kind: str
     records: list[dict[str, Any]]
     calibration: dict[str, Any] | None = None
-
-
-def json_kind(doc: Any) -> str:
-    """What a single JSON document is, by its keys (for messages): "a camera JSON", ..."""
-    if not isinstance(doc, dict):
-        return f"a JSON {type(doc).__name__}"
-    keys = set(doc)
-    fmt = str(doc.get("format", ""))
-    if "samples" in keys and ({"springback", "model", "scores"} & keys or "calib" in fmt):
-        return "a calibration JSON"
-    if fmt.startswith("cvmeasure-plane") or {"H_image_board", "homography"} & keys:
-        return "a plane JSON"
-    if "markers" in keys and isinstance(doc.get("markers"), list):
-        return "a marker kit JSON"
-    if {"camera_matrix", "dist_coeffs"} & keys or {"fx", "fy"} <= keys:
-        return "a camera JSON"
-    if {"squares_x", "squares_y"} & keys:
-        return "a board JSON"
-    if "pin_angle_deg" in keys or "radius_mm" in keys:
-        return "one result record (JSON Lines hold one per line)"
-    return "a JSON document"
 
 
 def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
@@ -72,19 +51,26 @@ def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
         raise InputError(p, f"cannot read: {exc.strerror or exc}") from None
     try:
         doc = json.loads(text)
-    except json.JSONDecodeError:
-        doc = None  # JSON Lines (or broken): read line by line below
-    if isinstance(doc, dict):
-        kind = json_kind(doc)
-        if kind == "a calibration JSON":
+    except (json.JSONDecodeError, RecursionError):
+        doc = None  # JSON Lines (or broken, or nested too deeply): read line by line below
+    if isinstance(doc, dict) and len(text.strip().splitlines()) > 1:
+        kind = sniff_kind(p) or "a JSON document"
+        if kind.startswith("a calibration JSON"):
             return ReportInput("calibration", [], doc)
-        if not kind.startswith("one result"):
+        if not kind.startswith("JSON Lines"):
             raise InputError(
                 p,
                 f"this is {kind}, not results: report takes the JSON Lines of `measure`/`batch`, "
                 "a session log (session.jsonl) or a calibration JSON",
             )
-    records = read_jsonl(p, skip_partial_last=True)
+    # A cut last line is a write the report cannot see; say so rather than drop a record.
+    if text and not text.endswith("\n") and _last_line_cut(text):
+        raise InputError(
+            p,
+            "its last line is cut (a write interrupted?): run the command that wrote it again, "
+            "or delete that line",
+        )
+    records = read_jsonl(p)
     if not records:
         raise InputError(p, "no records")
     if not all(isinstance(r, dict) for r in records):
@@ -92,6 +78,15 @@ def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
     if any("event" in r for r in records):
         return ReportInput("session log", session_log_records(records, p.parent))
     return ReportInput("results", records)
+
+
+def _last_line_cut(text: str) -> bool:
+    """Whether the text's last line (no newline after it) is not a whole JSON value."""
+    try:
+        json.loads(text.rsplit("\n", 1)[-1])
+    except (json.JSONDecodeError, RecursionError):
+        return True
+    return False
 
 
 def session_log_records(log: list[dict[str, Any]], folder: Path) -> list[dict[str, Any]]:

@@ -28,7 +28,8 @@ async function api(path, body, method) {
   say("");
   return r.status === 204 || r.status === 202 ? null : r.json().catch(() => null);
 }
-const act = (path, body) => api(path, body).catch(() => {});
+// a command that succeeds may have made this browser the controller: redraw the badge
+const act = (path, body) => api(path, body).then(refreshControl).catch(() => {});
 
 function setVerdict(el, text, good) {
   if (!el) return;

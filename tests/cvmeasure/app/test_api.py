@@ -205,3 +205,25 @@ def test_rhino_example_script_calls_the_same_endpoints(server):
     assert np.abs(np.abs(made.unloaded_bend_deg) - 20.0).max() < 0.05  # the script's 20 deg bends
     assert simulate([out["pin_for_angle"]]).unloaded_bend_deg[0] == pytest.approx(45.0, abs=0.05)
     assert out["gcode"].count("G90 G1 X") == 3
+
+
+def test_ui_command_refuses_bad_options_in_one_line(tmp_path):
+    """Bad input: exit 2 and one stderr line naming the option or file."""
+    import subprocess
+    import sys
+
+    not_a_folder = tmp_path / "file.txt"
+    not_a_folder.write_text("x")
+    runs = {
+        "--dir": ["--dir", str(not_a_folder)],
+        "--effect": ["--effect", "backlash=0.5", "--dir", str(tmp_path / "ws")],
+    }
+    for name, extra in runs.items():
+        proc = subprocess.run(
+            [sys.executable, "-m", "cvmeasure", "ui", *extra], capture_output=True, text=True,
+            timeout=60,
+        )  # fmt: skip
+        assert proc.returncode == 2, proc.stderr
+        lines = proc.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("cvmeasure ui: ")
+        assert (str(not_a_folder) if name == "--dir" else name) in lines[0]

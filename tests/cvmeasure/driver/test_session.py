@@ -225,7 +225,12 @@ def test_unmeasurable_photo_names_the_photo_and_keeps_the_log(tmp_path):
     finally:
         bender.close()
     events = [r["event"] for r in read_session_log(tmp_path / "s" / "session.jsonl")]
-    assert events == ["start", "fed", "bend", "failed"]  # the bend is logged, nothing counted as done
+    assert events == [
+        "start",
+        "fed",
+        "bend",
+        "failed",
+    ]  # the bend is logged, nothing counted as done
 
 
 def test_real_session_needs_port_and_camera(tmp_path, capsys):
@@ -332,7 +337,9 @@ def test_session_refuses_a_lens_json_as_the_camera(tmp_path, capsys):
     lens = tmp_path / "camera.json"
     lens.write_text("{}")
     out = str(tmp_path / "c.json")
-    assert main(["session", "-o", out, "--port", "x", "--camera", str(lens)]) == 2
+    with pytest.raises(SystemExit) as exit_:  # refused as the command line is parsed
+        main(["session", "-o", out, "--port", "x", "--camera", str(lens)])
+    assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert "--camera-model" in err and "camera.json" in err
     assert main(["session", "--simulate", "-o", out, "--camera", "folder:///tmp"]) == 2
