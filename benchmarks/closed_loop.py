@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.closed_loop", description=__doc__)
     p.add_argument("--quick", action="store_true", help="fewer designs and parts (< 3 min)")
     p.add_argument("--seed", type=int, default=36, help="seed of the machines and designs")
-    p.add_argument("--scale", type=float, default=0.4, help="photo scale (1 = full size)")
+    p.add_argument("--scale", type=float, default=0.5, help="photo scale (1 = full size)")
     p.add_argument("--workers", type=int, default=6, help="designs run in parallel processes")
     args = p.parse_args(argv)
     t0 = time.perf_counter()

@@ -143,10 +143,17 @@ def _pb_truth(hidden: pb.Hidden) -> float | None:
     return hidden.params[EFFECTS[hidden.name].param]
 
 
-def _pb_pin(machine: pb.Machine, head_deg: np.ndarray) -> np.ndarray:
-    """The pin's angle on the loaded photo (machine frame) for the true head rotation."""
+def _pb_pin(
+    machine: pb.Machine, head_deg: np.ndarray, hidden: tuple[pb.Hidden, ...] = ()
+) -> np.ndarray:
+    """The pin's angle on the loaded photo (machine frame) for the true head rotation, seen
+    through the camera's tilt like the bends."""
     s = np.where(head_deg < 0, -1.0, 1.0)
-    return s * (machine.home_pin_deg + np.abs(head_deg))
+    pin = s * (machine.home_pin_deg + np.abs(head_deg))
+    for h in hidden:
+        if h.name == "camera_tilt":
+            pin = pb._tilted(pin, h.params["tilt_deg"], h.params.get("tilt_axis_deg", 0.0))
+    return pin
 
 
 def _pb_case(seed: int, name: str, mode: str, swept: bool) -> Case:
@@ -157,7 +164,7 @@ def _pb_case(seed: int, name: str, mode: str, swept: bool) -> Case:
     cmd = session_commands(mode, swept=swept)
     true = pb.bend(cmd, machine, hidden, rng)
     loaded, unloaded, pin = _noisy(
-        rng, noise, true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg)
+        rng, noise, true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg, hidden)
     )
     trials = TrialTable.from_arrays(cmd, loaded, unloaded, measured_pin_deg=pin, source="physical")
     truth = _pb_truth(hidden[0]) if hidden else None
@@ -260,7 +267,7 @@ def follow_up_trials(case: Case, commands_deg: np.ndarray) -> TrialTable:
     else:
         machine, hidden = case.machine
         true = pb.bend(cmd, machine, hidden, rng)
-        cols = (true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg))
+        cols = (true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg, hidden))
     loaded, unloaded, pin = _noisy(rng, case.noise_deg, *(c[n:] for c in cols))
     return TrialTable.from_arrays(
         cmd,
@@ -584,10 +591,6 @@ def main(argv: list[str] | None = None) -> dict:
     )
 
 
-if __name__ == "__main__":
-    main()
-
-
 #: The causes and general forms compared on each plan (name, value, shape).
 _VARIANTS: tuple[tuple[str, str, float, tuple], ...] = (
     ("backlash", "backlash", 1.5, ()),
@@ -648,3 +651,7 @@ def identifiability_rows() -> list[list]:
                     [mode, plan, label, round(share, 3), round(rms, 3), rival, round(cos, 3)]
                 )
     return rows
+
+
+if __name__ == "__main__":
+    main()

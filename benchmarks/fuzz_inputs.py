@@ -168,19 +168,33 @@ def _tiff_cut(base: Path) -> bytes:
     return data.tobytes()[: len(data) // 3]
 
 
+def _cut_mid_line(data: bytes) -> bytes:
+    """The first half of a file, cut inside a line (a cut at a line end is a valid file)."""
+    cut = len(data) // 2
+    while 0 < cut < len(data) and data[cut - 1 : cut] in (b"\n", b"\r"):
+        cut += 3
+    return data[:cut]
+
+
 def _first_number_to(text: str, new: str) -> str:
     import re
 
     return re.sub(r'(":\s*)-?\d+(\.\d+)?([eE][-+]?\d+)?', lambda m: m.group(1) + new, text, count=1)
 
 
-def _drop_first_key(text: str) -> str:
-    """The object without its bulkiest key (its data: a matrix, the markers, the samples)."""
+#: The key each JSON kind cannot do without (the spec's required data).
+REQUIRED_KEYS = {
+    "camera": "camera_matrix",
+    "plane": "H_board_image",
+    "board": "squares_x",
+    "kit": "markers",
+    "calibration": "samples",
+}
+
+
+def _drop_required_key(text: str, arg: str) -> str:
     obj = json.loads(text)
-    if isinstance(obj, dict) and obj:
-        optional = ("provenance", "calibration", "std_devs", "per_view", "views")
-        keys = [k for k in obj if k not in optional] or list(obj)
-        obj.pop(max(keys, key=lambda k: len(json.dumps(obj[k]))))
+    obj.pop(REQUIRED_KEYS[arg])
     return json.dumps(obj)
 
 
@@ -198,7 +212,7 @@ CSV_MUTATIONS = ("header_only", "dup_header", "word_number", "nan_cell", "inf_ce
 IMAGE_MUTATIONS = ("cut_jpeg", "one_pixel_png", "text_as_jpg", "cut_tiff", "bomb_png", "bad_crc")
 
 
-def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int) -> Path:
+def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int, arg: str = "") -> Path:
     """Write the ``mutation`` of ``src`` (a file of ``kind``) into ``dest_dir``; its path."""
     rng = random.Random(seed)
     suffix = src.suffix
@@ -215,14 +229,14 @@ def mutate(kind: str, src: Path, dest_dir: Path, mutation: str, seed: int) -> Pa
         "empty": lambda: b"",
         "random_bytes": lambda: bytes(rng.randrange(256) for _ in range(4096)),
         "nul_bytes": lambda: data[: len(data) // 2] + b"\x00" * 16 + data[len(data) // 2 :],
-        "cut_half": lambda: data[: len(data) // 2],
+        "cut_half": lambda: _cut_mid_line(data),
         "not_utf8": lambda: data[: len(data) // 2] + b"\xff\xfe\xb0" + data[len(data) // 2 :],
         "invalid_json": lambda: text.replace(":", " ", 1).encode(),
         "array_top": lambda: b"[" + data + b"]",
         "nan": lambda: _first_number_to(text, "NaN").encode(),
         "string_number": lambda: _first_number_to(text, '"abc"').encode(),
         "huge_number": lambda: _first_number_to(text, "1e308").encode(),
-        "drop_key": lambda: _drop_first_key(text).encode(),
+        "drop_key": lambda: _drop_required_key(text, arg).encode(),
         "header_only": lambda: text.splitlines()[0].encode() + b"\n",
         "dup_header": lambda: (
             text.splitlines()[0]
@@ -536,7 +550,7 @@ def _wrong_kind(name: str, base: dict[str, Path]) -> Path:
     if kind == "csv":
         return base["calibration"]
     if kind == "jsonl":
-        return base["calibration"]
+        return base["camera"]  # (a calibration JSON is a report's input too)
     if kind == "svg":
         return base["trials"]
     return base["photo"]
@@ -559,6 +573,8 @@ def build_cases(base: dict[str, Path], work: Path, *, quick: bool) -> list[Case]
                 mutations = [m for m in mutations if m not in ("not_utf8", "nul_bytes")]
             if kind == "csv":
                 mutations = [m for m in mutations if m != "cut_half"]
+            if arg == "params":  # every key of a params JSON has a default: none is required
+                mutations = [m for m in mutations if m != "drop_key"]
             if quick:
                 mutations = mutations[::4]
             for mutation in mutations:
@@ -577,7 +593,7 @@ def build_cases(base: dict[str, Path], work: Path, *, quick: bool) -> list[Case]
                     unprivileged = True
                 else:
                     try:
-                        bad = mutate(kind, base[arg], d, mutation, seed)
+                        bad = mutate(kind, base[arg], d, mutation, seed, arg)
                     except (KeyError, IndexError, ValueError, json.JSONDecodeError):
                         continue
                 files[arg] = bad
@@ -779,7 +795,8 @@ def _report(outcomes: list[Outcome], argv: list[str] | None, quick: bool) -> dic
             "each case is one `cvmeasure` process; the permission cases run without the "
             "capabilities that let root read and write everything (setpriv)",
             "a CSV cut at half is not in the corpus: cut at a line end it is a shorter valid "
-            "file, which no reader can tell apart",
+            "file, which no reader can tell apart; nor a params JSON without a key (each has a "
+            "default)",
             f"{len(outcomes)} runs, {sum(o.seconds for o in outcomes):.0f} s in total",
         ],
     )

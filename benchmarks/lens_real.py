@@ -16,6 +16,7 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from benchmarks._photos import CHARUCO_5X7, CHESS_LEFT, CHESS_SLAM, LIFECAM, REAL
+from cvmeasure.warning import has_code
 
 SECTION = "Lens calibration on real sets and exact-model renders (issue 16)"
 
@@ -160,7 +161,7 @@ def _choice_text(choice: dict) -> str:
 def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
     from cvmeasure.calibration.pipeline import calibrate_detections
 
-    rows, choice_rows, metrics, warp_rows = [], [], [], []
+    rows, choice_rows, metrics, warp_rows, issue_rows = [], [], [], [], []
     if not REAL.is_dir():
         return [], [], [f"real sets skipped: {REAL} is absent"]
 
@@ -238,6 +239,7 @@ def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
         ours = _values(dflt.camera, pub)
         z_auto = max(abs(ours[p] - v) / dflt.result.std_devs[p] for p, v in pub.items())
         auto = calibrate_detections(dets, size, model="auto", cross_check=False)
+        issue_rows.append(_issue39_row(name, dets, size, model, pub, dflt, auto, z_auto))
         choice_rows.append(
             [
                 name,
@@ -253,6 +255,8 @@ def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
         dets = _detect_glob(pattern, spec)
         size = next(d.image_size_px for d in dets if d.ok)
         auto = calibrate_detections(dets, size, model="auto", cross_check=False)
+        if name in _FLAT_UNPUBLISHED:
+            issue_rows.append(_issue39_row(name, dets, size, None, None, None, auto, None))
         choice_rows.append(
             [
                 name,
@@ -264,7 +268,28 @@ def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
                 "none published",
             ]
         )
+    metrics += _issue39_metrics(issue_rows)
     tables = [
+        Table(
+            "real sets (issue 39): the published lens model with the default board warp, plain "
+            "OpenCV calibrateCamera on the same corners, and --model auto against the published "
+            "calibration (projection difference RMS over the whole image, after the best-fit "
+            "rotation)",
+            [
+                "set",
+                "published model",
+                "worst |z| ours (default warp)",
+                "warp kept",
+                "worst |z| plain OpenCV",
+                "auto picks",
+                "auto vs published px",
+                "published model's fit vs published px",
+                "noise px (2 x median projection sigma)",
+                "auto's held-out / best",
+                "next best: image-corner change px",
+            ],
+            [r[:11] for r in issue_rows],
+        ),
         Table(
             "real sets: published values with the published model and board model (z = (ours - "
             "published) / our sigma)",
@@ -293,6 +318,129 @@ def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
         ),
     ]
     return metrics, tables, []
+
+
+#: Unpublished sets whose board the published solves of the same session treat as flat.
+_FLAT_UNPUBLISHED = ("OpenCV right 9x6",)
+#: Published sets whose published solve assumes a flat board.
+_FLAT_PUBLISHED = (
+    "OpenCV left 9x6 (13 views)",
+    "SimpleSLAM 9x6 (31 views)",
+    "ChArUco 5x7 tutorial (4 views)",
+)
+
+
+def _plain_opencv_z(dets, size, model: str, pub: dict, sigma: dict) -> float:
+    """Plain ``cv2.calibrateCamera`` (the model's flags, no rejection, no warp) on every
+    corner found: worst |value - published| / our sigma."""
+    import cv2
+
+    from cvmeasure.calibration.solve import model_flags
+
+    ok = [d for d in dets if d.ok]
+    objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in ok]
+    imgs = [d.corners_px.astype(np.float32).reshape(-1, 1, 2) for d in ok]
+    _, k, dist, _, _ = cv2.calibrateCamera(objs, imgs, size, None, None, flags=model_flags(model))
+    vals = {"fx": k[0, 0], "fy": k[1, 1], "cx": k[0, 2], "cy": k[1, 2]}
+    vals.update(zip(_DIST8, np.asarray(dist).ravel(), strict=False))
+    return float(max(abs(float(vals[p]) - v) / sigma[p] for p, v in pub.items()))
+
+
+def _published_camera(pub: dict, size):
+    from cvmeasure.camera import CameraModel
+
+    k = np.array([[pub["fx"], 0.0, pub["cx"]], [0.0, pub["fy"], pub["cy"]], [0.0, 0.0, 1.0]])
+    dist = [pub[n] for n in _DIST8 if n in pub]
+    return CameraModel(size, k, np.asarray(dist, dtype=float))
+
+
+def _issue39_row(name, dets, size, model, pub, dflt, auto, z_dflt) -> list:
+    """One row of the issue-39 table (and, past column 11, what the metrics need)."""
+    from cvmeasure.calibration.uncertainty import projection_diff
+
+    choice = auto.model_choice or {}
+    cands = [c for c in choice.get("candidates", []) if c.get("held_out_rms_px") is not None]
+    chosen = next((c for c in cands if c["model"] == choice.get("chosen")), None)
+    ratio = (
+        chosen["held_out_rms_px"] / choice["best_held_out_rms_px"]
+        if chosen and choice.get("best_held_out_rms_px")
+        else None
+    )
+    nb = choice.get("next_best") or {}
+    warp = (dflt or auto).board_warp
+    row = [name, model or "-", None, bool(warp and warp["used"]), None, auto.result.model]
+    if pub is None:
+        row += [None, None, None]
+    else:
+        ref = _published_camera(pub, size)
+        row[2] = round(float(z_dflt), 2)
+        row[4] = round(_plain_opencv_z(dets, size, model, pub, dflt.result.std_devs), 2)
+        noise = 2.0 * dflt.uncertainty.median_px
+        row += [
+            round(projection_diff(ref, auto.camera).rms_px, 3),
+            round(projection_diff(ref, dflt.camera).rms_px, 3),
+            round(noise, 3),
+        ]
+    row += [
+        round(ratio, 3) if ratio is not None else None,
+        round(nb["image_corner_change_px"], 2) if nb else None,
+    ]
+    return row
+
+
+def _issue39_metrics(rows: list) -> list[Metric]:
+    """Issue 39's targets from the table rows."""
+    out = []
+    pub_rows = [r for r in rows if r[2] is not None]
+    if pub_rows:
+        worst = max(r[2] for r in pub_rows)
+        out.append(
+            Metric(
+                "published lens model, default --board-warp auto: worst |ours - published| / "
+                f"our sigma over the published real sets ({len(pub_rows)})",
+                worst,
+                "sigma",
+                target="<= 2",
+                met=worst <= 2.0,
+            )
+        )
+        over = [r for r in pub_rows if r[6] > r[7] + r[8]]
+        out.append(
+            Metric(
+                "--model auto: published real sets whose projection differs from the published "
+                "calibration more than the published model's own fit does, beyond noise "
+                "(2 x median projection sigma)",
+                len(over),
+                "sets",
+                target="0",
+                met=not over,
+            )
+        )
+    ratios = [r[9] for r in rows if r[9] is not None]
+    if ratios:
+        out.append(
+            Metric(
+                "--model auto: chosen model's whole-image held-out RMS / the best candidate's, "
+                "worst over the real sets",
+                max(ratios),
+                "x",
+                target="<= 1.5",
+                met=max(ratios) <= 1.5,
+            )
+        )
+    flat = [r for r in rows if r[0] in (*_FLAT_PUBLISHED, *_FLAT_UNPUBLISHED)]
+    kept = sum(bool(r[3]) for r in flat)
+    out.append(
+        Metric(
+            f"board warp kept (default auto) on flat-board real sets ({len(flat)}: OpenCV left "
+            "and right, SimpleSLAM, ChArUco tutorial)",
+            kept,
+            "sets",
+            target="0",
+            met=kept == 0,
+        )
+    )
+    return out
 
 
 # --------------------------------------------------------------------------- renders
@@ -472,11 +620,11 @@ def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[
         zs_on.append([(got_on[p] - truth[p]) / on.result.std_devs[p] for p in _Z_PARAMS])
         bw = on.result.board_warp
         warp_z.extend(w / s for w, s in zip(bw.warp_mm, bw.sigma_mm, strict=True))
-        fired_on.append(any("the two halves of the views disagree" in w for w in on.warnings))
+        fired_on.append(has_code(on.warnings, "calib_halves_disagree"))
         cv = rep.cross_validation
-        warned = any("the two halves of the views disagree" in w for w in rep.warnings)
+        warned = has_code(rep.warnings, "calib_halves_disagree")
         fired.append(warned)
-        too_simple.append(any("is too simple for these views" in w for w in rep.warnings))
+        too_simple.append(has_code(rep.warnings, "calib_model_too_simple"))
         ratios.append(cv.ratio if cv else float("nan"))
         auto = calibrate_detections(dets, cam.image_size_px, model="auto", cross_check=False)
         autos.append(auto.result.model)

@@ -24,6 +24,7 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from cvmeasure.errors import InputError
+from cvmeasure.warning import has_code
 
 SECTION = "Finished parts: ours vs the seed's ellipse and sagitta methods"
 
@@ -245,15 +246,15 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_segment_bend_err_deg"] = float(m.result.segment_bend_deg) - true_seg
         out[f"{name}_vertex_err_deg"] = float(np.max(np.abs(bends - true_seg)))
         out[f"{name}_within_2sigma"] = [bool(v) for v in np.abs(bends - true_seg) < 2 * sigma]
-        out[f"{name}_lifted_warning"] = any(w.startswith("part_lifted") for w in m.warnings)
+        out[f"{name}_lifted_warning"] = has_code(m.warnings, "part_lifted")
         # an end point it cannot locate well (its cap facing its shadow) is said too
-        out[f"{name}_end_warning"] = any(w.startswith("part_end_uncertain") for w in m.warnings)
+        out[f"{name}_end_warning"] = has_code(m.warnings, "part_end_uncertain")
         # and a chord along which the centreline was lost (its vertex bends not measured)
-        out[f"{name}_gap_warning"] = any(w.startswith("part_centreline_gap") for w in m.warnings)
+        out[f"{name}_gap_warning"] = has_code(m.warnings, "part_centreline_gap")
         # and a circle whose bend per chord disagrees with the vertex bends (part14t)
-        out[f"{name}_arc_warning"] = any(w.startswith("part_arc_inconsistent") for w in m.warnings)
+        out[f"{name}_arc_warning"] = has_code(m.warnings, "part_arc_inconsistent")
         out[f"{name}_lift"] = m.lift
-        out[f"{name}_moved_unused"] = any(w.startswith("moved_photo_unused") for w in m.warnings)
+        out[f"{name}_moved_unused"] = has_code(m.warnings, "moved_photo_unused")
     return out
 
 

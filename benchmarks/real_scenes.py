@@ -379,7 +379,7 @@ def _part_rows(args, scale, camera, n):
                 print(f"part {row} photo {i}: refused ({exc})", flush=True)
                 refused += 1
                 continue
-            warned += [w.split(":")[0] for w in m.warnings if w.split(":")[0] in PART_WARNINGS]
+            warned += [w.code for w in m.warnings if w.code in PART_WARNINGS]
             truth = photo.truth
             radius_err.append(100.0 * (m.result.radius_mm / truth["radius_mm"] - 1.0))
             bend_err.append(m.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions)
@@ -405,9 +405,7 @@ def _part_rows(args, scale, camera, n):
                 print(f"part {row} photo {i} with --no-shadow-lift: refused ({exc})", flush=True)
                 width["refused"] += 1
             else:
-                width["warned"] += [
-                    w.split(":")[0] for w in m0.warnings if w.split(":")[0] in PART_WARNINGS
-                ]
+                width["warned"] += [w.code for w in m0.warnings if w.code in PART_WARNINGS]
                 width["radius"].append(100.0 * (m0.result.radius_mm / truth["radius_mm"] - 1.0))
                 width["bend"].append(
                     m0.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions
@@ -428,9 +426,7 @@ def _part_rows(args, scale, camera, n):
                 moved["refused"] += 1
                 continue
             moved["warned"] += [
-                w.split(":")[0]
-                for w in m2.warnings
-                if w.split(":")[0] in (*PART_WARNINGS, "moved_photo_unused")
+                w.code for w in m2.warnings if w.code in (*PART_WARNINGS, "moved_photo_unused")
             ]
             moved["radius"].append(100.0 * (m2.result.radius_mm / truth["radius_mm"] - 1.0))
             moved["bend"].append(

@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import random
+import re
 import subprocess
 import sys
 import tempfile
@@ -65,6 +67,7 @@ class RunResult:
     exits: list[int] = field(default_factory=list)
     stderr: list[str] = field(default_factory=list)
     forced: bool = False
+    asked: int = 0
     refused: bool = False
     finished: bool = False
     twice: list[int] = field(default_factory=list)
@@ -79,6 +82,22 @@ class RunResult:
     def silent_wrong(self) -> bool:
         wrong = bool(self.twice or self.lost or self.out_of_order)
         return self.finished and wrong and not (self.warned or self.forced)
+
+
+def planned_ends(job: list[str]) -> dict[int, tuple[tuple[float, ...], tuple[float, ...]]]:
+    """Each line's move as (start, end) positions, axes x y z a."""
+    pos = {"X": 0.0, "Y": 0.0, "Z": 0.0, "A": 0.0}
+    relative = False
+    out = {}
+    for text in job:
+        words = text.upper().split()
+        start = tuple(pos.values())
+        relative = (relative or "G91" in words) and "G90" not in words
+        for w in words[1:]:
+            if w[:1] in pos:
+                pos[w[:1]] = pos[w[:1]] + float(w[1:]) if relative else float(w[1:])
+        out[int(words[0][1:])] = (start, tuple(pos.values()))
+    return out
 
 
 def planned_lengths(job: list[str]) -> dict[int, float]:
@@ -142,10 +161,20 @@ def _bend(job: Path, port: str, extra: list[str], env: dict[str, str]) -> tuple[
     return proc.returncode, proc.stderr.decode("utf-8", "replace")
 
 
-def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str]) -> None:
-    """Bend, then resume after each stop as an operator would, until done or refused."""
+_ASKED = re.compile(r"--from-line N(\d+) if they were not or --from-line N(\d+) if they were")
+
+
+def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str], inspect=None) -> None:
+    """Bend, then resume after each stop as an operator would, until done or refused.
+
+    ``--force`` once a message asks for the part to be checked (the operator looked and
+    said go; counted), ``--from-line`` when a resume asks which lines were made:
+    ``inspect(first, last)`` is the operator looking at the part (were lines first..last-1
+    made?); without it the run ends refused.
+    """
     extra: list[str] = []
-    for attempt in range(MAX_RESUMES + 1):
+    waited = 0
+    for _ in range(MAX_RESUMES + 1 + 20):
         code, err = _bend(job_path, port_of(), extra, env)
         run.exits.append(code)
         run.stderr.append(err.strip())
@@ -155,23 +184,73 @@ def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str]) -> No
             run.finished = True
             return
         lines = [ln for ln in err.splitlines() if ln.strip()]
+        force = ["--force"] if run.forced else []
         if "job stopped" in err:
             run.stops += 1
-            if len(lines) != 1 or " at line N" not in err and "unknown line" not in err:
+            if len(lines) != 1 or (" at line N" not in err and "unknown line" not in err):
                 run.stops_unclear += 1
-        elif attempt > 0 or code == 2:
-            run.refused = True
-            if "--force" in err and not run.forced and "check" in err:
-                run.forced = True  # the operator checked the part and said go
-                extra = ["--resume", "--force"]
-                continue
-            return
-        if "--force" in err and "check" in err:
+            if "--force" in err and "check" in err:
+                run.forced = True
+                force = ["--force"]
+            extra = ["--resume", *force]
+            time.sleep(0.3)
+            continue
+        if "no such serial port" in err and waited < 20:
+            waited += 1  # the port is not back yet: the operator waits for it
+            time.sleep(0.5)
+            continue
+        asked = _ASKED.search(err)
+        if asked and inspect is not None:
+            first, last = int(asked.group(1)), int(asked.group(2))
+            run.asked += 1
+            made = inspect(first, last)
+            extra = ["--resume", *force, "--from-line", str(last if made else first)]
+            continue
+        if "--force" in err and "check" in err and not run.forced:
             run.forced = True
             extra = ["--resume", "--force"]
-        else:
-            extra = ["--resume"]
-        time.sleep(0.3)
+            continue
+        run.refused = True
+        return
+    run.refused = True
+
+
+def _made(job: list[str], executed: list[tuple[int, dict, dict]], first: int, last: int) -> bool:
+    """Did the machine make lines first..last-1 (looked at as moves, whatever their labels)?"""
+    ends = planned_ends(job)
+    for n in range(first, last):
+        if n not in ends or ends[n][0] == ends[n][1]:
+            continue
+        start, end = ends[n]
+        if not any(
+            _near(a, start) and _near(b, end) or (label == n and _near(b, end))
+            for label, a, b in executed
+        ):
+            return False
+    return True
+
+
+def _xyza(p: dict) -> tuple[float, ...]:
+    return tuple(float(p.get(a, 0.0)) for a in "xyza")
+
+
+def _on(p: tuple[float, ...], seg: tuple[tuple[float, ...], tuple[float, ...]]) -> bool:
+    a, b = seg
+    return abs(math.dist(a, p) + math.dist(p, b) - math.dist(a, b)) <= 0.01
+
+
+def _attribute(label: int, start: dict, end: dict, ends: dict) -> int:
+    """The job line a move belongs to: its label when the move lies on that line's path,
+    else a label one digit off by one (a garbled N word) whose path holds it, else the label."""
+    p, q = _xyza(start), _xyza(end)
+    for n in [label] + [label + s * 10**k for k in range(5) for s in (-1, 1)]:
+        if n in ends and _on(p, ends[n]) and _on(q, ends[n]):
+            return n
+    return label
+
+
+def _near(p: dict, q: tuple[float, ...]) -> bool:
+    return all(abs(float(p.get(a, 0.0)) - v) <= 0.01 for a, v in zip("xyza", q, strict=True))
 
 
 def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> RunResult:
@@ -184,13 +263,22 @@ def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> 
     link = work / "tty"
     t0 = time.perf_counter()
     with TinyGController(faults=[parse_fault(fault)], link=link) as board:
-        _operate(run, job_path, lambda: str(link), env)
+
+        def inspect(first: int, last: int) -> bool:
+            moves = [(e.line, e.start, e.end) for e in board.truth().executed]
+            return _made(job, moves, first, last)
+
+        _operate(run, job_path, lambda: str(link), env, inspect)
         board.wait_idle(timeout_s=30)
         truth = board.truth()
     run.seconds = time.perf_counter() - t0
     # a truth entry's end is where the move stopped: its distance is what ran
+    # a move is the job line whose planned path it lies on: a garbled N word (one digit
+    # off by one) mislabels a right move
+    ends = planned_ends(job)
     executed = [
-        (e.line, sum((e.end[a] - e.start[a]) ** 2 for a in e.end) ** 0.5) for e in truth.executed
+        (_attribute(e.line, e.start, e.end, ends), math.dist(_xyza(e.start), _xyza(e.end)))
+        for e in truth.executed
     ]
     run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
@@ -247,7 +335,12 @@ def run_double(
                 board.reconnect()
             return board.port
 
-        _operate(run, job_path, port, env)
+        def inspect(first: int, last: int) -> bool:
+            completed = set(board.executed_lines()[0])
+            lengths = planned_lengths(job)
+            return all(n in completed for n in range(first, last) if lengths.get(n, 0.0) > 1e-6)
+
+        _operate(run, job_path, port, env, inspect)
         time.sleep(0.2)
         completed, partial = board.executed_lines()
     run.seconds = time.perf_counter() - t0
@@ -345,6 +438,20 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
             Metric(
                 f"{model}: runs finished (the rest refused, naming the check)",
                 finished,
+                "",
+                target=None,
+                met=None,
+            ),
+            Metric(
+                f"{model}: runs the operator was asked which lines ran (--from-line)",
+                sum(r.asked > 0 for r in rs),
+                "",
+                target=None,
+                met=None,
+            ),
+            Metric(
+                f"{model}: runs the operator forced after checking the part (--force)",
+                sum(r.forced for r in rs),
                 "",
                 target=None,
                 met=None,

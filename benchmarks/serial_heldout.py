@@ -1,7 +1,8 @@
 """Serial streaming against a held-out TinyG model: faults, the operator's resume, scored against the board's truth log (issue 43).
 
-Designs of our own (random open polylines, 14-30 mm segments, 15-80 deg turns of either
-sign) become ~2,000-line jobs through ``cvmeasure gcode``; ``cvmeasure bend JOB --port PTY``
+Jobs of 2,000 lines are written here in the bender's G-code dialect (``cvmeasure gcode``
+refuses the 9 m of wire they would take); the quick run streams a job that ``cvmeasure
+gcode`` made from a design of ours (a random open polyline). ``cvmeasure bend JOB --port PTY``
 streams each to :mod:`benchmarks.heldout.tinyg_controller` (a TinyG model written from the
 firmware's documentation, on a pseudo-terminal) with one fault injected. After a stop the
 operator does what ``cvmeasure bend --help`` and the stop message say: re-run with
@@ -110,29 +111,58 @@ class Run:
         ]
 
 
+def write_job(path: Path, seed: int, min_lines: int) -> None:
+    """A job in the bender's G-code dialect (docs/streaming.md, "Lines"), written here.
+
+    ``cvmeasure gcode`` refuses a wire longer than 3 m, which caps its jobs near 1,200
+    lines; the 2,000-line jobs are written in the same dialect: ``N1 G21 G90``, ``G0 Z0``,
+    ``G0 X0``, then per bend a relative feed, the pin to its angle and back home, the pin
+    ducked (``Z180`` then ``Z0``) when the bend direction changes, and an ``N`` end marker.
+    Feeds 12-30 mm, pin angles 25-80 deg of either sign (fixed seed).
+    """
+    rng = random.Random(seed)
+    lines = ["G21 G90 (heldout job)", "G0 Z0", "G0 X0"]
+    side = 1
+    while len(lines) < min_lines - 2:
+        lines.append(f"G91 G1 Y{rng.uniform(12.0, 30.0):.3f} F3000")
+        if rng.random() < 0.4:
+            side = -side
+            lines += ["G90 G0 Z180", "G0 Z0"]
+        lines += [f"G90 G1 X{side * rng.uniform(25.0, 80.0):.3f} F6000", "G0 X0"]
+    lines.append(f"G91 G1 Y{rng.uniform(12.0, 30.0):.3f} F3000")
+    numbered = [f"N{i} {text}" for i, text in enumerate(lines, start=1)]
+    numbered.append(f"N{len(lines) + 1} (end)")
+    path.write_text(f"; heldout job, seed {seed}\n" + "\n".join(numbered) + "\n")
+
+
 def write_design(path: Path, seed: int, segments: int) -> None:
-    """An open polyline SVG: random segment lengths and turns (our own design, not a fixture)."""
+    """An open zigzag polyline SVG: random segment lengths and turns (our own design)."""
     rng = random.Random(seed)
     pts = [(0.0, 0.0)]
     heading = 0.0
     for _ in range(segments):
         step = rng.uniform(14.0, 30.0)
-        heading += rng.choice((-1, 1)) * math.radians(rng.uniform(15.0, 80.0))
+        turn = math.radians(rng.uniform(15.0, 80.0))
+        heading = turn if heading <= 0 else heading - turn  # zigzag: it never meets itself
         x, y = pts[-1]
         pts.append((x + step * math.cos(heading), y + step * math.sin(heading)))
     points = " ".join(f"{x:.3f},{y:.3f}" for x, y in pts)
     path.write_text(
-        '<svg xmlns="http://www.w3.org/2000/svg" width="20000mm" height="20000mm" '
-        'viewBox="-10000 -10000 20000 20000">'
+        '<svg xmlns="http://www.w3.org/2000/svg" width="4000mm" height="4000mm" '
+        'viewBox="-2000 -2000 4000 4000">'
         f'<polyline points="{points}" fill="none" stroke="black"/></svg>\n'
     )
 
 
-def make_job(workdir: Path, seed: int, segments: int) -> Path:
-    """``cvmeasure gcode`` on a design of ours; the job path."""
+def make_job(workdir: Path, seed: int, size: int, source: str) -> Path:
+    """The job: ``cvmeasure gcode`` on a design of ours (``size`` segments), or written
+    in the dialect here (``size`` lines)."""
+    job = workdir / f"job{seed}.nc"
+    if source == "written":
+        write_job(job, seed, size)
+        return job
     svg = workdir / f"design{seed}.svg"
-    write_design(svg, seed, segments)
-    job = workdir / f"design{seed}.nc"
+    write_design(svg, seed, size)
     subprocess.run([CVMEASURE, "gcode", str(svg), "-o", str(job)], check=True, capture_output=True)
     return job
 
@@ -328,17 +358,22 @@ def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.serial_heldout", description=__doc__)
     p.add_argument("--quick", action="store_true", help="one short job, one fault of each kind")
     args = p.parse_args(argv)
-    designs = [(7, 130)] if args.quick else [(7, 520), (11, 520), (23, 520)]
+    # (seed, size, source): the quick run keeps one job from the user's own `gcode`
+    designs = (
+        [(7, 100, "gcode")]
+        if args.quick
+        else [(7, 2000, "written"), (11, 2000, "written"), (23, 2000, "written")]
+    )
     variants = 1 if args.quick else 3
     runs: list[Run] = []
     job_lines = []
     with tempfile.TemporaryDirectory(prefix="serial_heldout_jobs_") as tmp:
-        for seed, segments in designs:
-            job_path = make_job(Path(tmp), seed, segments)
+        for seed, size, source in designs:
+            job_path = make_job(Path(tmp), seed, size, source)
             job = expected_job(job_path.read_text())
             job_lines.append(max(job.text_by_line))
             for fault in fault_plan(job, seed, variants):
-                run = stream_with_fault(job_path, job, fault, f"design{seed}")
+                run = stream_with_fault(job_path, job, fault, f"job{seed}")
                 print(f"{run.design} {run.fault}: rc {[a.rc for a in run.attempts]}, "
                       f"twice {run.ran_twice[:5]}, lost {run.lost[:5]}, "
                       f"order {run.out_of_order[:5]}, corrupted {run.corrupted[:5]}, "
@@ -386,9 +421,9 @@ def _report(argv, quick: bool, runs: list[Run], job_lines: list[int]) -> dict:
         _kind_rows(runs),
     )  # fmt: skip
     failures = Table(
-        "runs that failed a target (design, fault, exit code per attempt (f = --force), what, "
+        "runs that failed a target (job, fault, exit code per attempt (f = --force), what, "
         "last message)",
-        ["design", "fault", "rcs", "what", "last message"],
+        ["job", "fault", "rcs", "what", "last message"],
         _failure_rows(runs),
     )
     counts = Counter(r.kind for r in runs)

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.errors import InputError
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "ManualReading",
@@ -230,7 +231,7 @@ class AgreementResult:
     vision_repeatability_sd_deg: float | None
     pairs: tuple[dict[str, Any], ...]
     unmatched_manual: tuple[str, ...] = ()
-    warnings: tuple[str, ...] = field(default=())
+    warnings: tuple[StageWarning, ...] = field(default=())
 
     def to_dict(self) -> dict[str, Any]:
         ba = self.bland_altman
@@ -246,7 +247,7 @@ class AgreementResult:
             "vision_repeatability_sd_deg": self.vision_repeatability_sd_deg,
             "pairs": list(self.pairs),
             "unmatched_manual": list(self.unmatched_manual),
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 
@@ -513,7 +514,7 @@ def agreement(
         ),
     )
 
-    warnings: list[str] = []
+    warnings: list[StageWarning] = []
     rr = None
     readings = [r for name in matched for r in by_photo[name]]
     if any(len(g) > 1 for g in groups):
@@ -523,14 +524,20 @@ def agreement(
                 [r.bend_angle_deg for r in readings], part_of, [r.reader for r in readings]
             )
         except ValueError as exc:
-            warnings.append(f"no manual gauge R&R: {exc}")
+            warnings.append(StageWarning("agreement_no_gauge_rr", f"no manual gauge R&R: {exc}"))
     bends: dict[str, list[float]] = defaultdict(list)
     for name in matched:
         bend = by_photo[name][0].bend
         if bend:
             bends[bend].append(vision_by_name[name])
     if unmatched:
-        warnings.append(f"{len(unmatched)} manual photo(s) without a vision result")
+        warnings.append(
+            StageWarning(
+                "agreement_unmatched",
+                f"{len(unmatched)} manual photo(s) without a vision result",
+                ", ".join(unmatched[:5]) + (", ..." if len(unmatched) > 5 else ""),
+            )
+        )
 
     pairs = tuple(
         {

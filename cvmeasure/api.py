@@ -44,6 +44,7 @@ from cvmeasure.material.correct import Correction, correct_from_part
 from cvmeasure.part.measure import PartMeasurement
 from cvmeasure.part.measure import measure_part as _measure_part
 from cvmeasure.sim import SimParams, params_from_json, params_to_json
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "CameraCalibration",
@@ -85,7 +86,7 @@ class CameraCalibration:
     report: CalibrationReport
 
     @property
-    def warnings(self) -> tuple[str, ...]:
+    def warnings(self) -> tuple[StageWarning, ...]:
         return self.report.warnings
 
 

@@ -439,7 +439,12 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
     except CvmeasureError as exc:
         record["error"] = f"{path}: {exc}"
     except Exception as exc:  # noqa: BLE001 - one photo must not stop a batch; recorded
-        record["error"] = f"{path}: internal error {type(exc).__name__}: {exc}"
+        if type(exc).__module__.startswith("cv2"):  # OpenCV refused the image (too small...)
+            text = str(exc).split("error: ", 1)[-1]
+            record["error"] = f"{path}: OpenCV cannot process it ({' '.join(text.split())})"
+        else:
+            text = " ".join(str(exc).split())
+            record["error"] = f"{path}: internal error {type(exc).__name__}: {text}"
     record["ok"] = record["error"] is None
     record["seconds"] = round(time.perf_counter() - t0, 4)
     record["cpu_s"] = round(time.process_time() - cpu0, 4)

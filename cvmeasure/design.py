@@ -651,10 +651,9 @@ def _svg_units(path: Path, root_attrib: Mapping[str, str], units: str | None) ->
         ], f"{units} (given by --units; the file has {described})"
     raise InputError(
         path,
-        f"no physical units: the drawing's size is {width.strip() or 'not given'} (px or "
-        "unitless) and no drawing program declares its px size; re-export in mm, or pass "
-        "--units px (96 per inch: Inkscape, browsers), --units pt (72 per inch: Illustrator) "
-        "or --units mm",
+        f"no physical units (size {width.strip() or 'not given'}, no program declaring its "
+        "px): re-export in mm, or pass --units px (96/in, Inkscape) or --units pt (72/in, "
+        "Illustrator)",
     )
 
 

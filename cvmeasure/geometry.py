@@ -273,6 +273,24 @@ def fit_circle_robust(
         cx, cy, r = cx + step[0], cy + step[1], r + step[2]
         if it >= 2 and max(abs(step[0]), abs(step[1]), abs(step[2])) < stop:
             break
+    return _circle_fit_result(p, pts_t, (cx, cy, r), w, correlation_factor, centre, d, jac_t)
+
+
+def _circle_fit_result(
+    p: np.ndarray,
+    pts_t: np.ndarray,
+    circle: tuple[float, float, float],
+    w: np.ndarray,
+    correlation_factor: float,
+    centre: np.ndarray,
+    d: np.ndarray,
+    jac_t: np.ndarray,
+) -> CircleFit:
+    """The :class:`CircleFit` at the converged circle: residuals, weighted covariance.
+
+    ``centre`` (2, 1), ``d`` (2, N) and ``jac_t`` (3, N) are the fit's work arrays, reused.
+    """
+    cx, cy, r = circle
     theta = np.array([cx, cy, r])
     centre[0, 0], centre[1, 0] = cx, cy
     np.subtract(pts_t, centre, out=d)

@@ -288,11 +288,10 @@ def plan_design(
         i = int(short[0])
         raise InputError(
             src,
-            f"segment {i + 1} of {_element_at(design, corners[i : i + 2] / scale)} from "
-            f"({corners[i, 0]:.2f}, {corners[i, 1]:.2f}) mm is {lengths[i]:.2f} mm long; the "
-            f"bender needs at least {min_segment_mm:g} mm ({short.size} such segments; "
-            "--rechord divides them into longer chords and prints the change, --scale "
-            "enlarges the part)",
+            f"segment {i + 1} of {_element_at(design, corners[i : i + 2] / scale)} at "
+            f"({corners[i, 0]:.2f}, {corners[i, 1]:.2f}) mm is {lengths[i]:.2f} mm long, under "
+            f"the bender's {min_segment_mm:g} mm ({short.size} such; --rechord or --scale "
+            "change the design)",
         )
     before = drawn if (scale != 1.0 or bridged > 0 or (short.size and rechord)) else None
     _check_bends(src, design, corners, max_bend_deg, scale)

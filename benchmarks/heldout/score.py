@@ -7,8 +7,8 @@ absolute move with a line of its own (same number, same target) without penalty.
 
 * *ran twice*: the line moved again after it had once run to its end, or a relative move
   moved more than its length in total;
-* *lost*: the line should have moved and never completed, although the job went past it
-  (or the streamer said the job is finished);
+* *lost*: the line should have moved and never completed, although a later line of the
+  job moved (or the streamer said the job is finished);
 * *out of order*: the line moved after a later line of the job had moved;
 * *corrupted*: a move ran under the line's number that is not the job's (another target,
   another length, an axis the line does not name, a number the job does not move under),
@@ -146,7 +146,7 @@ def score_job(job: ExpectedJob, truth: TruthLog, finished: bool) -> JobScore:
     completed = {
         n for n, recs in by_line.items() if n in job.moves and _judge_line(job.moves[n], recs, out)
     }
-    reached = max(completed, default=0)
+    reached = max(by_line, default=0)  # a later line that moved at all skipped the gap
     out.lost = [
         n
         for n in job.moving_lines

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.calibration.detect import BoardDetection
+from cvmeasure.warning import StageWarning
 
 __all__ = ["Coverage", "image_coverage", "EDGE_BAND", "MIN_GOOD_TILT_DEG", "RECOMMENDED_VIEWS"]
 
@@ -59,7 +60,7 @@ class Coverage:
     tilt_x_deg: tuple[float, ...]
     tilt_y_deg: tuple[float, ...]
     view_count: int
-    warnings: tuple[str, ...]
+    warnings: tuple[StageWarning, ...]
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -75,7 +76,7 @@ class Coverage:
                 "max_about_y": max((abs(t) for t in self.tilt_y_deg), default=0.0),
             },
             "view_count": self.view_count,
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 
@@ -128,41 +129,62 @@ def image_coverage(
     tilts = tuple(c[0] for c in comps)
     tx = tuple(c[1] for c in comps)
     ty = tuple(c[2] for c in comps)
-    warnings: list[str] = []
+    warnings: list[StageWarning] = []
     for edge in _EDGES:
         if gaps[edge] > EDGE_BAND:
             warnings.append(
-                f"no corners within {EDGE_BAND:.0%} of the {edge} edge "
-                f"(nearest at {gaps[edge]:.0%}): add photos with the board reaching the {edge} edge"
+                StageWarning(
+                    "calib_edge_uncovered",
+                    f"no corners within {EDGE_BAND:.0%} of the {edge} edge (nearest at "
+                    f"{gaps[edge]:.0%}): add photos with the board reaching the {edge} edge",
+                    f"{edge} edge",
+                )
             )
     if covered < 0.75:
         empty = np.argwhere(counts == 0)
         names = sorted({_region_name(c, r, nx, ny) for r, c in empty})
         warnings.append(
-            f"corners cover only {covered:.0%} of the image ({int((counts > 0).sum())} of "
-            f"{nx * ny} cells): add photos filling the {', '.join(names)}"
+            StageWarning(
+                "calib_coverage_low",
+                f"corners cover only {covered:.0%} of the image ({int((counts > 0).sum())} of "
+                f"{nx * ny} cells): add photos filling the {', '.join(names)}",
+            )
         )
     if comps:
         if max(tilts) < MIN_GOOD_TILT_DEG:
             warnings.append(
-                f"the board is never tilted more than {max(tilts):.0f} deg: add photos tilted "
-                "30-45 deg (focal length and distance cannot be told apart otherwise)"
+                StageWarning(
+                    "calib_tilt_low",
+                    f"the board is never tilted more than {max(tilts):.0f} deg: add photos "
+                    "tilted 30-45 deg (focal length and distance cannot be told apart otherwise)",
+                )
             )
         else:
             if max(abs(t) for t in tx) < MIN_GOOD_TILT_DEG:
                 warnings.append(
-                    "no view is tilted about the horizontal axis: add photos with the top or "
-                    "bottom edge of the board turned 30-45 deg away from the camera"
+                    StageWarning(
+                        "calib_tilt_axis_missing",
+                        "no view is tilted about the horizontal axis: add photos with the top "
+                        "or bottom edge of the board turned 30-45 deg away from the camera",
+                        "horizontal axis",
+                    )
                 )
             if max(abs(t) for t in ty) < MIN_GOOD_TILT_DEG:
                 warnings.append(
-                    "no view is tilted about the vertical axis: add photos with the left or "
-                    "right edge of the board turned 30-45 deg away from the camera"
+                    StageWarning(
+                        "calib_tilt_axis_missing",
+                        "no view is tilted about the vertical axis: add photos with the left or "
+                        "right edge of the board turned 30-45 deg away from the camera",
+                        "vertical axis",
+                    )
                 )
     if len(detections) < RECOMMENDED_VIEWS:
         warnings.append(
-            f"only {len(detections)} views: {RECOMMENDED_VIEWS}-30 are recommended for a "
-            "trustworthy solve"
+            StageWarning(
+                "calib_few_views",
+                f"only {len(detections)} views: {RECOMMENDED_VIEWS}-30 are recommended for a "
+                "trustworthy solve",
+            )
         )
     return Coverage(
         (nx, ny), counts, covered, gaps, tilts, tx, ty, len(detections), tuple(warnings)

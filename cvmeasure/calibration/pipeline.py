@@ -26,11 +26,15 @@ from cvmeasure.calibration.solve import (
 from cvmeasure.calibration.uncertainty import (
     CrossValidation,
     ProjectionUncertainty,
+    central_mask,
     cross_validate,
+    projection_diff,
     projection_uncertainty,
 )
-from cvmeasure.calibration.warp import board_extent_mm, refine_board_warp, warp_test
+from cvmeasure.calibration.warp import board_extent_mm
+from cvmeasure.calibration.warp_decision import decide_board_warp
 from cvmeasure.camera import CameraModel
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "CalibrationReport",
@@ -56,7 +60,7 @@ class CalibrationReport:
     uncertainty: ProjectionUncertainty
     coverage: Coverage
     cross_validation: CrossValidation | None
-    warnings: tuple[str, ...]
+    warnings: tuple[StageWarning, ...]
     model_choice: dict[str, Any] | None = None
     board_warp: dict[str, Any] | None = None
 
@@ -89,7 +93,7 @@ class CalibrationReport:
             ),
             "projection_uncertainty": self.uncertainty.to_dict(),
             "coverage": self.coverage.to_dict(),
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
             "model_choice": self.model_choice,
             "board_warp": self.board_warp,
             "board": board.to_dict(),
@@ -141,7 +145,7 @@ class CalibrationReport:
             "model": self.result.model,
             "model_choice": self.model_choice,
             "board_warp": self.board_warp,
-            "warnings": list(self.warnings),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 
@@ -158,13 +162,16 @@ DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "s1", "s2", "s3", 
 AUTO_MODELS = ("1", "2", "5", "rational")
 
 
-def _held_out_rms_px(
+def _held_out(
     detections: Sequence[BoardDetection], image_size_px: tuple[int, int], model: str
-) -> tuple[float, int] | None:
-    """RMS residual of corners in views left out of the fit (even fits odd and back), px.
+) -> dict[str, Any] | None:
+    """Residuals of corners in views left out of the fit (even fits odd and back), split
+    into the central 60 % of the image and the rest.
 
     Each left-out view's pose is solved (PnP) with the other half's intrinsics fixed, so
-    the residual holds model error as well as noise. Returns (rms, residual count).
+    the residual holds model error as well as noise. Returns per held-out view the sums
+    of squared residuals (px^2) and corner counts in the centre and at the edge (arrays,
+    parallel), or None when a half has fewer than 3 views or a fit fails.
     """
     import cv2
 
@@ -173,35 +180,72 @@ def _held_out_rms_px(
     halves = (list(detections[0::2]), list(detections[1::2]))
     if min(len(h) for h in halves) < 3:
         return None
-    sq = 0.0
-    n = 0
+    rows = []
     for fit, test in ((halves[0], halves[1]), (halves[1], halves[0])):
         try:
             cam = calibrate_views(fit, image_size_px, model=model).camera  # type: ignore[arg-type]
         except InputError:
             return None
         for det in test:
-            ok, rvec, tvec = cv2.solvePnP(
-                det.object_mm.reshape(-1, 1, 3),
-                det.corners_px.reshape(-1, 1, 2),
-                cam.camera_matrix,
-                cam.dist_coeffs,
-            )
+            obj = det.object_mm.reshape(-1, 1, 3)
+            img = det.corners_px.reshape(-1, 1, 2)
+            ok, rvec, tvec = cv2.solvePnP(obj, img, cam.camera_matrix, cam.dist_coeffs)
             if not ok:
                 continue
             rvec, tvec = cv2.solvePnPRefineLM(
-                det.object_mm.reshape(-1, 1, 3),
-                det.corners_px.reshape(-1, 1, 2),
-                cam.camera_matrix,
-                cam.dist_coeffs,
-                rvec,
-                tvec,
+                obj, img, cam.camera_matrix, cam.dist_coeffs, rvec, tvec
             )
-            res = view_residuals_px(cam, det, rvec.ravel(), tvec.ravel())
-            sq += float(np.sum(res**2))
-            n += res.size
-    return (float(np.sqrt(sq / n)), n) if n else None
+            sq = np.sum(view_residuals_px(cam, det, rvec.ravel(), tvec.ravel()) ** 2, axis=1)
+            centre = central_mask(det.corners_px, image_size_px)
+            rows.append((sq[centre].sum(), centre.sum(), sq[~centre].sum(), (~centre).sum()))
+    if not rows:
+        return None
+    arr = np.asarray(rows, dtype=np.float64)
+    return {
+        "sq_centre": arr[:, 0],
+        "n_centre": arr[:, 1],
+        "sq_edge": arr[:, 2],
+        "n_edge": arr[:, 3],
+    }
 
+
+def _whole_image_terms(held: dict[str, Any]) -> np.ndarray:
+    """Per held-out view, its share of the whole-image held-out mean square (px^2 per
+    coordinate): the centre's and the edge's mean squares weigh half each, so the edge,
+    where the operator's parts lie too, counts as much as the centre however few corners
+    it has. Their sum is the whole-image held-out mean square."""
+    n_c, n_e = held["n_centre"].sum(), held["n_edge"].sum()
+    regions = [(held["sq_centre"], n_c), (held["sq_edge"], n_e)]
+    regions = [(sq, n) for sq, n in regions if n > 0]
+    return sum(sq / (2.0 * n * len(regions)) for sq, n in regions)
+
+
+def _held_out_summary(held: dict[str, Any]) -> dict[str, Any]:
+    n_c, n_e = held["n_centre"].sum(), held["n_edge"].sum()
+    return {
+        "held_out_rms_px": float(np.sqrt(np.sum(_whole_image_terms(held)))),
+        "held_out_centre_rms_px": float(np.sqrt(held["sq_centre"].sum() / (2 * n_c)))
+        if n_c
+        else None,
+        "held_out_edge_rms_px": float(np.sqrt(held["sq_edge"].sum() / (2 * n_e))) if n_e else None,
+        "residuals": int(2 * (n_c + n_e)),
+    }
+
+
+def _paired_z(worse: dict[str, Any], better: dict[str, Any]) -> float:
+    """How many standard errors ``worse``'s whole-image held-out mean square is above
+    ``better``'s: the views are the same, so the difference is judged view by view (its
+    standard error from the spread of the per-view differences)."""
+    d = _whole_image_terms(worse) - _whole_image_terms(better)
+    if d.size < 2:
+        return 0.0
+    se = float(np.sqrt(d.size * np.var(d, ddof=1)))
+    return float(np.sum(d) / se) if se > 0 else (np.inf if np.sum(d) > 0 else 0.0)
+
+
+#: A model's whole-image held-out mean square is worse than another's beyond noise when
+#: it is higher by more than this many standard errors of the view-by-view difference.
+HELD_OUT_WORSE_Z = 2.0
 
 #: A richer model's fit is better than the simpler one's when the nested F-test rejects
 #: the simpler model at this false-alarm probability (3 sigma, two-sided).
@@ -230,6 +274,7 @@ def _full_fit(
         "ssr_px2": float(res.rms_px) ** 2 * n,
         "n": n,
         "params": len(res.std_devs) + 6 * len(res.views),
+        "camera": res.camera,
         "coeffs": {
             k: float(v)
             for k, v in zip(DIST_NAMES, res.camera.dist_coeffs, strict=False)
@@ -246,8 +291,9 @@ def _richer_supported(simple: dict[str, Any], rich: dict[str, Any]) -> dict[str,
     sums of squares (same corners) rejects the simpler model at :data:`SIGNIFICANT_P`;
     each extra coefficient's |value| / sigma is reported as evidence. A richer model
     that is ill-conditioned (a coefficient beyond
-    :data:`ILL_CONDITIONED_COEFF`) or whose held-out RMS is worse than the simpler one's
-    beyond noise is never supported.
+    :data:`ILL_CONDITIONED_COEFF`) or whose whole-image held-out mean square is worse
+    than the simpler one's by more than :data:`HELD_OUT_WORSE_Z` standard errors
+    (:func:`_paired_z`) is never supported.
     """
     from scipy.stats import f as f_dist
 
@@ -262,11 +308,8 @@ def _richer_supported(simple: dict[str, Any], rich: dict[str, Any]) -> dict[str,
     p = float(f_dist.sf(f_stat, dq, dof))
     ill = any(abs(v) > ILL_CONDITIONED_COEFF for v in rf["coeffs"].values())
     held_worse = False
-    if simple.get("held_out_rms_px") is not None and rich.get("held_out_rms_px") is not None:
-        held_worse = bool(
-            rich["held_out_rms_px"] ** 2
-            > simple["held_out_rms_px"] ** 2 * (1.0 + 3.0 * np.sqrt(2.0 / rich["residuals"]))
-        )
+    if simple.get("held") is not None and rich.get("held") is not None:
+        held_worse = _paired_z(rich["held"], simple["held"]) > HELD_OUT_WORSE_Z
     # the F-test decides: OpenCV's coefficient sigmas of an ill-conditioned model are
     # tiny (rational fits on clean renders showed k3 at 5e6 sigma), so |value| / sigma
     # is evidence only
@@ -284,18 +327,23 @@ def _richer_supported(simple: dict[str, Any], rich: dict[str, Any]) -> dict[str,
 def choose_model(
     detections: Sequence[BoardDetection], image_size_px: tuple[int, int]
 ) -> tuple[str, dict[str, Any]]:
-    """The simplest model whose richer rivals add nothing significant.
+    """The simplest model no richer one beats, judged over the whole image.
 
     Every candidate of :data:`AUTO_MODELS` is fitted on the corners and views model 5's
-    outlier rejection keeps (:func:`_full_fit`)
-    and, for the evidence and as a guard against over-fitting, on the even views and
-    tested on the odd ones, and back (:func:`_held_out_rms_px`). Starting from the
-    simplest, a richer model replaces the current choice when its extra coefficients are
-    significant (:func:`_richer_supported`: the nested F-test at p < 0.0027) and it is
-    neither ill-conditioned nor worse held out. (Choosing by the held-out RMS alone
-    threw real distortion away: at 922x614 with 12 views it cannot tell k1 from
-    k1 k2 p1 p2 k3.) Returns the model name and the evidence (JSON-ready).
-    With too few views, ``"5"`` is returned and the evidence says why.
+    outlier rejection keeps (:func:`_full_fit`), and on the even views with the odd ones'
+    corners predicted (pose by PnP, intrinsics fixed), and back (:func:`_held_out`). The
+    held-out error is taken over the whole image: the centre (central 60 %) and the edge
+    weigh half each. Starting from the simplest, a richer model replaces the choice when
+    its extra coefficients are significant (nested F-test, p < 0.0027) and it is neither
+    ill-conditioned nor worse held out over the whole image (:func:`_paired_z` >
+    :data:`HELD_OUT_WORSE_Z`): a model that fits the centre and strays at the edge loses
+    there. If the choice is still worse held out than the best candidate beyond noise,
+    the simplest candidate that is not is taken. (The held-out error alone cannot tell k1
+    from k1 k2 p1 p2 k3 at 922x614 with 12 views; the F-test can.) Returns the model and
+    the evidence (JSON-ready): every candidate's held-out RMS (whole image, centre,
+    edge), the test against the one before, why the choice, and the next-best model with
+    how far it would move the image corners. With too few views, ``"5"`` is returned and
+    the evidence says why.
     """
     if len(detections) < 6:
         return "5", {
@@ -315,13 +363,13 @@ def choose_model(
         fit = _full_fit(detections, image_size_px, m)
         if fit is None:
             continue
-        held = _held_out_rms_px(detections, image_size_px, m)
+        held = _held_out(detections, image_size_px, m)
         evidence.append(
             {
                 "model": m,
                 "fit": fit,
-                "held_out_rms_px": held[0] if held else None,
-                "residuals": held[1] if held else None,
+                "held": held,
+                **(_held_out_summary(held) if held is not None else {"held_out_rms_px": None}),
             }
         )
     if not evidence:
@@ -330,22 +378,83 @@ def choose_model(
             "candidates": [],
         }
     chosen = evidence[0]
+    why = f"model {chosen['model']} is the simplest candidate"
     for e in evidence[1:]:
         e["test"] = _richer_supported(chosen, e)
         if e["test"]["supported"]:
+            why = (
+                f"model {e['model']} fits significantly better than {chosen['model']} "
+                f"(F-test p {e['test']['f_test_p']:.2g}) and is no worse held out over the "
+                "whole image"
+            )
             chosen = e
+    usable = [
+        e
+        for e in evidence
+        if e["held"] is not None
+        and not any(abs(v) > ILL_CONDITIONED_COEFF for v in e["fit"]["coeffs"].values())
+    ]
+    best = min(usable, key=lambda e: e["held_out_rms_px"], default=None)
+    if best is not None and chosen["held"] is not None:
+        z = _paired_z(chosen["held"], best["held"])
+        if z > HELD_OUT_WORSE_Z:
+            adequate = next(
+                e for e in usable if _paired_z(e["held"], best["held"]) <= HELD_OUT_WORSE_Z
+            )
+            why = (
+                f"model {chosen['model']} is worse held out over the whole image than model "
+                f"{best['model']} ({z:.1f} standard errors); model {adequate['model']} is the "
+                "simplest that is not"
+            )
+            chosen = adequate
+    next_best = _next_best(evidence, chosen)
     for e in evidence:
         fit = e.pop("fit")
+        e.pop("held")
+        e.pop("camera", None)
         e["fit_rms_px"] = float(np.sqrt(fit["ssr_px2"] / fit["n"]))
     helds = [e["held_out_rms_px"] for e in evidence if e["held_out_rms_px"] is not None]
     return chosen["model"], {
-        "rule": "simplest model no richer one beats significantly: a richer model replaces "
-        "the choice when the nested F-test on the fit residuals (same corners) gives "
-        "p < 0.0027, unless it is ill-conditioned or its held-out RMS (fit on even "
-        "views, tested on odd, and back) is worse beyond noise",
+        "rule": "simplest model no richer one beats: a richer model replaces the choice "
+        "when the nested F-test on the fit residuals (same corners) gives p < 0.0027, "
+        "unless it is ill-conditioned or worse held out over the whole image (fit on even "
+        "views, tested on odd, and back; centre and edge weigh half each; worse by more "
+        f"than {HELD_OUT_WORSE_Z:g} standard errors of the view-by-view difference); a "
+        "choice worse held out than the best candidate gives way to the simplest that is not",
         "chosen": chosen["model"],
+        "why": why,
         "best_held_out_rms_px": min(helds) if helds else None,
+        "next_best": next_best,
         "candidates": evidence,
+    }
+
+
+def _next_best(evidence: list[dict[str, Any]], chosen: dict[str, Any]) -> dict[str, Any] | None:
+    """The candidate with the lowest whole-image held-out error other than ``chosen``
+    (ill-conditioned ones excluded), and how far it would move the image: at the four
+    image corners (largest) and RMS over the image, after the best-fit rotation, px."""
+    others = [
+        e
+        for e in evidence
+        if e is not chosen
+        and e.get("held_out_rms_px") is not None
+        and not any(abs(v) > ILL_CONDITIONED_COEFF for v in e["fit"]["coeffs"].values())
+    ]
+    if not others:
+        return None
+    other = min(others, key=lambda e: e["held_out_rms_px"])
+    diff = projection_diff(chosen["fit"]["camera"], other["fit"]["camera"])
+    w, h = diff.image_size_px
+    corners = [
+        float(diff.diff_px[i])
+        for i, (x, y) in enumerate(diff.grid_px)
+        if x in (0.0, w - 1.0) and y in (0.0, h - 1.0)
+    ]
+    return {
+        "model": other["model"],
+        "held_out_rms_px": other["held_out_rms_px"],
+        "image_corner_change_px": max(corners),
+        "whole_image_change_rms_px": diff.rms_px,
     }
 
 
@@ -372,12 +481,19 @@ def richer_model_test(
 
 
 def model_choice_text(choice: dict[str, Any]) -> str:
-    """One line of evidence for a :func:`choose_model` choice: per candidate its held-out
-    RMS (px) and, for richer ones, the largest extra coefficient in sigmas and the F-test p."""
+    """One line of evidence for a :func:`choose_model` choice: the model and why; per
+    candidate its whole-image held-out RMS (centre / edge, px) and, for richer ones, the
+    largest extra coefficient in sigmas and the F-test p; what the next-best model would
+    change at the image corners."""
     parts = []
     for e in choice.get("candidates", []):
         held = e.get("held_out_rms_px")
-        text = f"{e['model']}: held-out {held:.4f} px" if held is not None else f"{e['model']}:"
+        text = f"{e['model']}:"
+        if held is not None:
+            text = f"{e['model']}: held-out {held:.4f} px"
+            c, g = e.get("held_out_centre_rms_px"), e.get("held_out_edge_rms_px")
+            if c is not None and g is not None:
+                text += f" (centre {c:.4f}, edge {g:.4f})"
         test = e.get("test")
         if test:
             t = max(test["extra_coefficient_sigmas"].values(), default=0.0)
@@ -389,9 +505,18 @@ def model_choice_text(choice: dict[str, Any]) -> str:
             if test["held_out_worse"]:
                 text += ", worse held out"
         parts.append(text)
-    return (
-        f"model {choice.get('chosen', '5')} chosen (" + ("; ".join(parts) or choice["rule"]) + ")"
-    )
+    line = f"model {choice.get('chosen', '5')} chosen"
+    if choice.get("why"):
+        line += f": {choice['why']}"
+    line += " (" + ("; ".join(parts) or choice["rule"]) + ")"
+    nb = choice.get("next_best")
+    if nb:
+        line += (
+            f"; the next best, model {nb['model']}, would move the image corners by up to "
+            f"{nb['image_corner_change_px']:.2f} px ({nb['whole_image_change_rms_px']:.2f} px "
+            "RMS over the image)"
+        )
+    return line
 
 
 def calibrate_detections(
@@ -409,8 +534,9 @@ def calibrate_detections(
     Raises :class:`~cvmeasure.errors.InputError` (naming ``source``) when too
     few views are usable. ``model="auto"`` picks it with :func:`choose_model`.
     ``board_warp``: ``"auto"`` solves mrcal's two-parameter board warp with the lens
-    (:mod:`cvmeasure.calibration.warp`) and keeps it only when the data show it (its
-    chi-square rejects a flat board at p < 0.0027), ``"on"`` always keeps it, ``"off"``
+    (:mod:`cvmeasure.calibration.warp`) and keeps it only when the lens model's extension
+    still sees the bow, every group of views does, and it moves the lens beyond noise
+    (:func:`~cvmeasure.calibration.warp_decision.decide_board_warp`), ``"on"`` always keeps it, ``"off"``
     never solves it; the report's ``board_warp`` says which, with the warp in mm and its
     sigma. The cross-validation's halves are solved the same way. With ``cross_check`` and
     a model given (not ``"auto"``), :func:`richer_model_test` also asks whether the next
@@ -429,22 +555,8 @@ def calibrate_detections(
     extent = None
     if board_warp != "off":
         extent = board_extent_mm(result.detections)
-        warped = refine_board_warp(result, extent_mm=extent)
-        test = warp_test(warped.board_warp, warped)
-        used = board_warp == "on" or test.significant
-        warp_info = {
-            "mode": board_warp,
-            "used": used,
-            **test.to_dict(),
-            "text": test.text()
-            + (
-                ": solved with the lens"
-                if used
-                else ": not used (--board-warp on to keep it anyway)"
-            ),
-        }
-        if used:
-            result = warped
+        result, decision = decide_board_warp(result, mode=board_warp, extent_mm=extent)
+        warp_info = decision.to_dict()
     use_warp = result.board_warp is not None
     unc = projection_uncertainty(result)
     cov = image_coverage(result.detections, result.image_size_px, [v.rvec for v in result.views])
@@ -459,9 +571,9 @@ def calibrate_detections(
         if cross_check
         else None
     )
-    warnings: list[str] = []
+    warnings: list[StageWarning] = []
     for det in detections:
-        warnings.extend(f"{det.source}: {n}" for n in det.notes)
+        warnings.extend(StageWarning("calib_board_layout", n, det.source) for n in det.notes)
     richer = (
         richer_model_test(result.detections, result.image_size_px, model)
         if cross_check and choice is None
@@ -470,25 +582,39 @@ def calibrate_detections(
     if richer is not None and richer["supported"]:
         t = max(richer["extra_coefficient_sigmas"].values(), default=0.0)
         warnings.append(
-            f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
-            f"the same corners significantly better (F-test p {richer['f_test_p']:.2g}, extra "
-            f"coefficient {t:.1f} sigma); the halves check cannot see this (both halves share "
-            "the bias): use --model auto or a richer model"
+            StageWarning(
+                "calib_model_too_simple",
+                f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
+                f"the same corners significantly better (F-test p {richer['f_test_p']:.2g}, "
+                f"extra coefficient {t:.1f} sigma); the halves check cannot see this (both "
+                "halves share the bias): use --model auto or a richer model",
+            )
         )
     if cv is None and cross_check:
-        warnings.append("too few views to cross-validate two halves (need 6 or more)")
+        warnings.append(
+            StageWarning(
+                "calib_no_cross_validation",
+                "too few views to cross-validate two halves (need 6 or more)",
+            )
+        )
     elif cv is not None and cv.ratio > CROSS_VALIDATION_RATIO_LIMIT:
         warnings.append(
-            f"the two halves of the views disagree by {cv.diff.central_rms_px:.2f} px in the "
-            f"image centre, {cv.ratio:.1f}x what corner noise explains: model error (lens model "
-            "too simple, board not flat, focus or zoom changed between photos); the reported "
-            "standard deviations understate the real uncertainty"
+            StageWarning(
+                "calib_halves_disagree",
+                f"the two halves of the views disagree by {cv.diff.central_rms_px:.2f} px in the "
+                f"image centre, {cv.ratio:.1f}x what corner noise explains: model error (lens "
+                "model too simple, board not flat, focus or zoom changed between photos); the "
+                "reported standard deviations understate the real uncertainty",
+            )
         )
     rel_f = result.std_devs["fx"] / result.camera.fx
     if rel_f > _FOCAL_SIGMA_WARN:
         warnings.append(
-            f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
-            "photos with the board tilted 30-45 deg and closer to the camera"
+            StageWarning(
+                "calib_focal_uncertain",
+                f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
+                "photos with the board tilted 30-45 deg and closer to the camera",
+            )
         )
     warnings.extend(cov.warnings)
     big = {
@@ -500,23 +626,34 @@ def calibrate_detections(
     if big or not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size:
         coeffs = ", ".join(f"{k} {v:+.3g}" for k, v in big.items())
         warnings.append(
-            f"the {result.model} distortion model is ill-conditioned on these views"
-            + (f" (coefficients {coeffs})" if coeffs else "")
-            + (
-                f"; its projection uncertainty exceeds {ILL_CONDITIONED_UNCERTAINTY:g}x the "
-                "image size and means nothing"
-                if not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size
-                else ""
+            StageWarning(
+                "calib_ill_conditioned",
+                f"the {result.model} distortion model is ill-conditioned on these views"
+                + (f" (coefficients {coeffs})" if coeffs else "")
+                + (
+                    f"; its projection uncertainty exceeds {ILL_CONDITIONED_UNCERTAINTY:g}x the "
+                    "image size and means nothing"
+                    if not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size
+                    else ""
+                )
+                + ": use a simpler model (--model 5) or add photos with the board in the corners",
             )
-            + ": use a simpler model (--model 5) or add photos with the board in the corners"
         )
     if result.corners_rejected:
         warnings.append(
-            f"{result.corners_rejected} outlier corner(s) dropped from the views used "
-            "(residual more than 4 robust sigmas off its board neighbours' median)"
+            StageWarning(
+                "calib_corners_dropped",
+                f"{result.corners_rejected} outlier corner(s) dropped from the views used "
+                "(residual more than 4 robust sigmas off its board neighbours' median)",
+            )
         )
     if result.rejected:
-        warnings.append(f"{len(result.rejected)} photo(s) skipped; see views_rejected")
+        warnings.append(
+            StageWarning(
+                "calib_views_skipped",
+                f"{len(result.rejected)} photo(s) skipped; see views_rejected",
+            )
+        )
     return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice, warp_info)
 
 

@@ -23,8 +23,8 @@ import numpy as np
 from cvmeasure.board import BoardSpec
 from cvmeasure.calibration.detect import BoardDetection, detect_board
 from cvmeasure.camera import CameraModel
-from cvmeasure.contracts import PlaneModel, apply_homography
 from cvmeasure.errors import InputError
+from cvmeasure.plane_model import PlaneModel, apply_homography
 
 __all__ = [
     "PlaneModel",

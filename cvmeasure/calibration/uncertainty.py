@@ -43,6 +43,7 @@ __all__ = [
     "projection_diff",
     "cross_validate",
     "image_grid_px",
+    "central_mask",
 ]
 
 
@@ -55,11 +56,15 @@ def image_grid_px(image_size_px: tuple[int, int], grid: tuple[int, int] = (24, 1
     return np.column_stack((gx.ravel(), gy.ravel()))
 
 
-def _central_mask(points_px: np.ndarray, size: tuple[int, int], frac: float = 0.6) -> np.ndarray:
+def central_mask(points_px: np.ndarray, size: tuple[int, int], frac: float = 0.6) -> np.ndarray:
+    """True for points (N, 2) px inside the central ``frac`` of the image in x and in y."""
     w, h = size
     dx = np.abs(points_px[:, 0] - (w - 1) / 2) / w
     dy = np.abs(points_px[:, 1] - (h - 1) / 2) / h
     return (dx <= frac / 2 + 1e-9) & (dy <= frac / 2 + 1e-9)
+
+
+_central_mask = central_mask
 
 
 @dataclass(frozen=True)

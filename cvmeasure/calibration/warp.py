@@ -85,9 +85,10 @@ class WarpTest:
     def significant(self) -> bool:
         return self.p < WARP_SIGNIFICANT_P
 
-    def text(self) -> str:
+    def text(self, verdict: str | None = None) -> str:
         """One line, the same for a board described transposed: each side's bow (its length
-        in mm), towards or away from the camera, longest side first."""
+        in mm), towards or away from the camera, longest side first; ``verdict`` replaces
+        this test's own ("the board is not flat" / "flat within noise")."""
         (wx, wy), (sx, sy) = self.warp.warp_mm, self.warp.sigma_mm
         sides = []
         for w, s, (lo, hi) in zip((wx, wy), (sx, sy), self.warp.extent_mm, strict=True):
@@ -105,7 +106,11 @@ class WarpTest:
             "board warp (the middle out of the plane of the edges): "
             + ", ".join(t[2] for t in sides)
             + f" (chi-square p {self.p:.2g}: "
-            + ("the board is not flat" if self.significant else "flat within noise")
+            + (
+                verdict
+                if verdict is not None
+                else ("the board is not flat" if self.significant else "flat within noise")
+            )
             + ")"
         )
 

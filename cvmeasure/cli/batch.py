@@ -152,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if summary.failed:
         if not args.json:
-            first = summary.failures[0][1]
+            first = " ".join(str(summary.failures[0][1]).split())
             more = (
                 f" ({summary.failed - 1} more of {summary.measured} photos failed; "
                 f'records with "ok": false in {args.output})'

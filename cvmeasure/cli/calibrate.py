@@ -30,7 +30,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="auto",
         help="distortion model: auto (default: from 1 up through 2, 5, rational, a richer "
         "model is taken when the nested F-test on the same corners rejects the simpler one "
-        "at p < 0.0027 and it is well conditioned and no worse held out), 1 (k1), 2 (k1 k2), "
+        "at p < 0.0027 and it is well conditioned and no worse held out over the whole image, "
+        "centre and edge alike; the output names the choice, why, and how far the next-best "
+        "model would move the image corners), 1 (k1), 2 (k1 k2), "
         "5 (k1 k2 p1 p2 k3), 8 / rational (k1..k6), thin-prism (k1..k6, s1..s4)",
     )
     p.add_argument(
@@ -38,8 +40,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         choices=("auto", "on", "off"),
         default="auto",
         help="solve the board's bow out of its plane with the lens (mrcal's two-parameter "
-        "calobject_warp): auto (default: kept only when the data show it, its chi-square "
-        "p < 0.0027), on (always kept), off (a flat board)",
+        "calobject_warp): auto (default: kept only when the lens model's next richer model "
+        "still sees the bow, every group of views does, and it moves fx fy cx cy by more "
+        "than 1 sigma), on (always kept), off (a flat board)",
     )
     p.add_argument(
         "--no-reject", action="store_true", help="keep every corner and view (no rejection loop)"

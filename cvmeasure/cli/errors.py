@@ -134,6 +134,8 @@ def classify_exit(exc: BaseException, args: argparse.Namespace) -> tuple[int | N
         return 2, _one_line(_os_message(exc, args))
     if isinstance(exc, UnicodeError):
         return 2, f"{input_names(args)}: not text in the expected encoding (a binary file?)"
+    if isinstance(exc, RecursionError):
+        return 2, f"{input_names(args)}: nested too deeply to read (a damaged or hostile file?)"
     if isinstance(exc, MemoryError):
         return 2, f"{input_names(args)}: too large to process in this computer's memory"
     if _is_cv2_error(exc):

@@ -51,11 +51,23 @@ def run(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise InputError(args.trials, str(exc)) from None
-    save_calibration(args.out, calibration)
+    png = None
     if args.plot:
-        from cvmeasure.driver.session_report import plot_calibration
+        # drawn before anything is written: a plot that cannot be made leaves no half result
+        from cvmeasure.driver.session_report import _figure_png
 
-        plot_calibration(calibration, args.plot)
+        try:
+            png = _figure_png(calibration)
+        except (ValueError, RuntimeError) as exc:
+            raise InputError(
+                "--plot",
+                f"cannot plot this calibration ({exc}); nothing written (run without --plot)",
+            ) from None
+    save_calibration(args.out, calibration)
+    if png is not None:
+        from cvmeasure.fileio import atomic_write_bytes
+
+        atomic_write_bytes(args.plot, png)
     summary = {
         "out": str(args.out),
         "model": calibration.model,

@@ -292,11 +292,9 @@ def pin_commands(
         except ValueError as exc:
             made = _extrapolated_below(comp, float(target), i)
             if made is None:
-                raise InputError(
-                    bends.source,
-                    f"bend {i} of {target:.2f} deg cannot be made: {exc}"
-                    f"{_shallow_advice(comp, target)}",
-                ) from None
+                # below the calibration: the session to run, said in the one line there is
+                why = _shallow_advice(comp, target) or f"cannot be made: {exc}"
+                raise InputError(bends.source, f"bend {i} of {target:.2f} deg {why}") from None
         out.append(made[0])
         if warnings_out is not None:
             warnings_out.append(made[1])
@@ -316,9 +314,7 @@ def _shallow_advice(compensation: Any, target_deg: float) -> str:
         return ""
     angles = ",".join(f"{a:g}" for a in SHALLOW_SESSION_ANGLES_DEG)
     return (
-        f"; it is below the calibrated {low:.2f} deg: calibrate shallow bends with "
-        f"cvmeasure session --angles {angles} (final bends from about 0.3 deg) and pass "
-        "its calibration as --material"
+        f"is below the calibrated {low:.2f} deg: calibrate with cvmeasure session --angles {angles}"
     )
 
 

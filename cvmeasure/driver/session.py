@@ -409,27 +409,7 @@ def run_session(
     resumed = log_path.exists()
     interrupted: set[int] = set()
     if resumed:
-        records = read_session_log(log_path)
-        start = next((r for r in records if r.get("event") == "start"), None)
-        if start is None or start.get("plan") != plan_json:
-            raise InputError(
-                log_path, "session log belongs to another plan (use a new folder or the same mode)"
-            )
-        for r in records:
-            if r.get("event") == "sample":
-                done[int(r["step"])] = SessionStep.from_dict(r)
-        # a step whose bend was sent but not recorded may have bent the wire at the pin:
-        # it is bent again only after fresh wire is fed past that bend
-        interrupted = {int(r["step"]) for r in records if r.get("event") == "bend"} - set(done)
-        append_jsonl(
-            log_path,
-            {
-                "event": "resume",
-                "done": len(done),
-                "interrupted": sorted(interrupted),
-                "time_utc": _now(),
-            },
-        )
+        done, interrupted = _read_resume(log_path, plan_json)
     else:
         append_jsonl(
             log_path,
@@ -492,6 +472,34 @@ def run_session(
         resumed=resumed,
         log_path=log_path,
     )
+
+
+def _read_resume(
+    log_path: Path, plan_json: list[list[Any]]
+) -> tuple[dict[int, SessionStep], set[int]]:
+    """(done steps, steps cut after their bend was sent) of a log being resumed.
+
+    A step whose bend was sent but not recorded may have bent the wire at the pin: it
+    is bent again only after fresh wire is fed past that bend. The resume is logged.
+    """
+    records = read_session_log(log_path)
+    start = next((r for r in records if r.get("event") == "start"), None)
+    if start is None or start.get("plan") != plan_json:
+        raise InputError(
+            log_path, "session log belongs to another plan (use a new folder or the same mode)"
+        )
+    done = {int(r["step"]): SessionStep.from_dict(r) for r in records if r.get("event") == "sample"}
+    interrupted = {int(r["step"]) for r in records if r.get("event") == "bend"} - set(done)
+    append_jsonl(
+        log_path,
+        {
+            "event": "resume",
+            "done": len(done),
+            "interrupted": sorted(interrupted),
+            "time_utc": _now(),
+        },
+    )
+    return done, interrupted
 
 
 def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:

@@ -485,61 +485,8 @@ def _stream(
     start_index, fixup, resumed_from = 0, None, None
     notes: list[str] = []
     if resume:
-        start_pos, last, lower, lower_how = journal_evidence(run.journal, sha, source, force=force)
-        # a board still running (the host died mid-job) finishes the lines it holds:
-        # flushing them would make TinyG report the last line it *parsed*, not run
-        settled = board.wait_idle(
-            timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
-        )
-        if not board.flush_board(timeout_s=config.flush_timeout_s):
-            raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
-        state = _setup(board, config, xonxoff)
-        state = _clear_alarm(run, state, last, notes)
-        held = last.get("held") if last.get("event") == "stop" else None
-        if settled.get("stat") == MachineStat.HOLD or not (
-            last.get("event") == "stop" and last.get("flush_sent", True)
-        ):
-            # held (its line is the runtime's), or it ran out of lines by itself with no
-            # flush sent since: it ran every line it parsed, and its line is exact
-            held = settled
-        upper = max(
-            (int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)),
-            key=lambda n: _index_of(job, n),
-            default=0,
-        )
-        evidence = ResumeEvidence(
-            lower=lower,
-            upper=upper,
-            held=int(held["line"]) if isinstance(held, dict) and "line" in held else None,
-            sources={"lower": lower_how},
-        )
-        plan, k = locate_resume(
-            job,
-            start_pos=start_pos,
-            board_pos=_position(state),
-            evidence=evidence,
-            from_line=from_line,
-        )
-        board_line = 0 if k < 0 else job[k].number
-        _check_rejected(run, last, board_line, force)
+        plan = _resume_plan(run, sha, source, xonxoff, force, from_line, notes)
         start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
-        run.log(
-            {
-                "event": "resume",
-                "sha256": sha,
-                "board": state,
-                "settled": settled,
-                "evidence": {
-                    "lower": evidence.lower,
-                    "upper": evidence.upper,
-                    "held": evidence.held,
-                },
-                "executed_line": board_line,
-                "from_line": from_line,
-                "firmware": board.firmware,
-                **plan.to_dict(),
-            }
-        )
     else:
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
@@ -577,6 +524,80 @@ def _stream(
         fixup=fixup,
         notes=tuple(notes),
     )
+
+
+def _resume_plan(
+    run: _Run,
+    sha: str,
+    source: str,
+    xonxoff: bool,
+    force: bool,
+    from_line: int | None,
+    notes: list[str],
+) -> ResumePlan:
+    """Settle, flush and set up the board; where the stopped job continues (journalled)."""
+    board, config, job = run.board, run.config, run.job
+    start_pos, last, lower, lower_how = journal_evidence(run.journal, sha, source, force=force)
+    # a board still running (the host died mid-job) finishes the lines it holds:
+    # flushing them would make TinyG report the last line it *parsed*, not run
+    settled = board.wait_idle(
+        timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
+    )
+    if not board.flush_board(timeout_s=config.flush_timeout_s):
+        raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
+    state = _setup(board, config, xonxoff)
+    state = _clear_alarm(run, state, last, notes)
+    held = last.get("held") if last.get("event") == "stop" else None
+    if settled.get("stat") == MachineStat.HOLD or not (
+        last.get("event") == "stop" and last.get("flush_sent", True)
+    ):
+        # held (its line is the runtime's), or it ran out of lines by itself with no
+        # flush sent since: it ran every line it parsed, and its line is exact
+        held = settled
+    reported = [int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)]
+    upper = max(reported, key=lambda n: _index_of(job, n), default=0)
+    if last.get("event") == "stop" and last.get("reason") == "desync":
+        # a block that reached the board corrupted may carry a wrong N: the bound is every
+        # line the board may have received (the window after the corrupted one)
+        bad = _index_of(job, last.get("line_number"))
+        window = job[min(len(job) - 1, max(bad, 0) + config.window_lines)].number
+        upper = max(
+            [n for n in reported if n in {j.number for j in job}] + [window],
+            key=lambda n: _index_of(job, n),
+        )
+    evidence = ResumeEvidence(
+        lower=lower,
+        upper=upper,
+        held=int(held["line"]) if isinstance(held, dict) and "line" in held else None,
+        sources={"lower": lower_how},
+    )
+    plan, k = locate_resume(
+        job,
+        start_pos=start_pos,
+        board_pos=_position(state),
+        evidence=evidence,
+        from_line=from_line,
+    )
+    board_line = 0 if k < 0 else job[k].number
+    _check_rejected(run, last, board_line, force)
+    run.log(
+        {
+            "event": "resume",
+            "sha256": sha,
+            "board": state,
+            "settled": settled,
+            "evidence": {
+                "lower": evidence.lower,
+                "upper": evidence.upper,
+                "held": evidence.held,
+            },
+            "executed_line": board_line,
+            "from_line": from_line,
+            "firmware": board.firmware,
+            **plan.to_dict(),
+        }
+    )
+    return plan
 
 
 def _clear_alarm(

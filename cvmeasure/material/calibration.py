@@ -363,6 +363,19 @@ def validate_calibration_dict(d: Any, path: str | os.PathLike[str] = "<calibrati
         raise InputError(path, f"format is {fmt!r}, expected {FORMAT!r}")
     for key in ("wire", "machine", "samples", "springback", "motion"):
         _need(d, key, dict, path, "calibration")
+    for section in ("wire", "machine"):
+        for key, value in d[section].items():
+            # the wire's and machine's numbers (diameter_mm, ...) are used as numbers
+            if (
+                key.endswith(("_mm", "_deg", "_mpa"))
+                and value is not None
+                and (
+                    isinstance(value, bool)
+                    or not isinstance(value, (int, float))
+                    or not math.isfinite(value)
+                )
+            ):
+                raise _fail(path, f"{section}.{key}", f"expected a number, got {value!r}")
     mode = d.get("mode", "custom")
     if mode not in (*MODES, "custom"):
         raise _fail(path, "mode", f"unknown mode {mode!r}")

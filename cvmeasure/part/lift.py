@@ -353,6 +353,22 @@ def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
     return tg[:, 0] * rel[:, 1] - tg[:, 1] * rel[:, 0]
 
 
+def _fit_without_outliers(residual: Any, x: np.ndarray, n: int) -> tuple[Any, np.ndarray]:
+    """Least squares of ``residual(x, used)`` over ``n`` points, refitted without the points
+    a centreline defect puts off (beyond 4 robust sigmas); the final fit and the points used."""
+    from scipy.optimize import least_squares
+
+    scale = np.array([1e-4, 0.05, 0.05, 0.1, 0.1])
+    used = np.ones(n, dtype=bool)
+    for _ in range(3):
+        fit = least_squares(residual, x, args=(used,), x_scale=scale, diff_step=1e-6)
+        x = fit.x
+        every = residual(x, np.ones_like(used))
+        med = float(np.median(every))
+        used = np.abs(every - med) < 4.0 * 1.4826 * float(np.median(np.abs(every - med))) + 1e-9
+    return least_squares(residual, x, args=(used,), x_scale=scale, diff_step=1e-6), used
+
+
 def estimate_lift_moved(
     plane: PlaneModel,
     points_px: np.ndarray,
@@ -380,8 +396,6 @@ def estimate_lift_moved(
     standard uncertainty counts one independent sample per wire diameter along the
     part. ``axis_height_mm``: the axis' height where the part rests (the wire's radius).
     """
-    from scipy.optimize import least_squares
-
     p1 = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     p2 = np.asarray(points_moved_px, dtype=np.float64).reshape(-1, 2)
     q1 = points_at_heights_mm(plane, p1, axis_height_mm)
@@ -422,16 +436,7 @@ def estimate_lift_moved(
         return _signed_distance(_rigid(x[0], x[1:3], x2), x1)
 
     x = np.array([theta0, shift0[0], shift0[1], 0.0, 0.0])
-    used = np.ones(int(inside.sum()), dtype=bool)
-    for _ in range(3):  # refit without the points a centreline defect puts off (> 4 sigma)
-        fit = least_squares(residual, x, args=(used,), x_scale=np.array([1e-4, 0.05, 0.05, 0.1, 0.1]),
-                            diff_step=1e-6)  # fmt: skip
-        x = fit.x
-        every = residual(x, np.ones_like(used))
-        med = float(np.median(every))
-        used = np.abs(every - med) < 4.0 * 1.4826 * float(np.median(np.abs(every - med))) + 1e-9
-    fit = least_squares(residual, x, args=(used,), x_scale=np.array([1e-4, 0.05, 0.05, 0.1, 0.1]),
-                        diff_step=1e-6)  # fmt: skip
+    fit, used = _fit_without_outliers(residual, x, int(inside.sum()))
     res = fit.fun
     jac = fit.jac
     sigma2 = float(np.sum(res**2) / max(used.sum() - 5, 1))

@@ -132,6 +132,53 @@ def longest_skeleton_path(skeleton: np.ndarray) -> np.ndarray:
     return np.column_stack((xs[order], ys[order])).astype(np.float64)
 
 
+def _wire_like(
+    count: int, labels: np.ndarray, stats: np.ndarray, min_extent: float, wide: float
+) -> list[tuple[float, int]]:
+    """(skeleton length, label) of the components long enough and no wider than a wire."""
+    from skimage.morphology import skeletonize
+
+    found: list[tuple[float, int]] = []
+    for lab in range(1, count):
+        x, y, w, h, area = stats[lab]
+        if max(w, h) < min_extent:
+            continue
+        comp = labels[y : y + h, x : x + w] == lab
+        skel = skeletonize(comp)
+        length = float(skel.sum())
+        if area / max(length, 1.0) > wide:
+            continue  # wider than any wire: a strip of table, a sheet's edge
+        found.append((length, lab))
+    return found
+
+
+def _longest_filled_path(
+    found: list[tuple[float, int]], labels: np.ndarray, stats: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Of the longest skeletons, the one with the longest path once its holes are filled
+    (a stray disc's or ring's outline has a long skeleton but, filled, no long path):
+    (path length, its filled mask, the path), in the reduced image's pixels."""
+    import cv2
+    from skimage.morphology import skeletonize
+
+    best: tuple[float, np.ndarray, np.ndarray] | None = None
+    for _, lab in sorted(found, reverse=True)[:CANDIDATES]:
+        x, y, w, h, _ = stats[lab]
+        comp_box = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
+        # fill holes (a specular crest can split the mask along the wire)
+        contours, _ = cv2.findContours(comp_box, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        filled_box = np.zeros_like(comp_box)
+        cv2.drawContours(filled_box, contours, -1, 1, thickness=cv2.FILLED)
+        path_box = longest_skeleton_path(skeletonize(filled_box.astype(bool)))
+        plen = float(np.sum(np.hypot(*np.diff(path_box, axis=0).T)))
+        if best is None or plen > best[0]:
+            filled = np.zeros(labels.shape, dtype=np.uint8)
+            filled[y : y + h, x : x + w] = filled_box
+            best = (plen, filled, path_box + np.array([x, y], dtype=np.float64))
+    assert best is not None
+    return best
+
+
 def segment_wire(
     image: np.ndarray,
     *,
@@ -155,7 +202,6 @@ def segment_wire(
     WireMask, or None when no wire-like structure is found.
     """
     import cv2
-    from skimage.morphology import skeletonize
 
     gray = gray_float(image)
     g8 = np.clip(gray + 0.5, 0, 255).astype(np.uint8)
@@ -192,37 +238,10 @@ def segment_wire(
     count, labels, stats, _ = cv2.connectedComponentsWithStats(
         cand.astype(np.uint8), connectivity=8
     )
-    found: list[tuple[float, int]] = []
-    for lab in range(1, count):
-        x, y, w, h, area = stats[lab]
-        if max(w, h) < min_length_px * factor * 0.5:
-            continue
-        comp = labels[y : y + h, x : x + w] == lab
-        skel = skeletonize(comp)
-        length = float(skel.sum())
-        if area / max(length, 1.0) > wide:
-            continue  # wider than any wire: a strip of table, a sheet's edge
-        found.append((length, lab))
+    found = _wire_like(count, labels, stats, min_length_px * factor * 0.5, wide)
     if not found:
         return None
-    # of the longest skeletons, the one with the longest path once its holes are filled:
-    # a stray disc's or ring's outline has a long skeleton but, filled, no long path
-    best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for _, lab in sorted(found, reverse=True)[:CANDIDATES]:
-        x, y, w, h, _ = stats[lab]
-        comp_box = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
-        # fill holes (a specular crest can split the mask along the wire)
-        contours, _ = cv2.findContours(comp_box, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        filled_box = np.zeros_like(comp_box)
-        cv2.drawContours(filled_box, contours, -1, 1, thickness=cv2.FILLED)
-        path_box = longest_skeleton_path(skeletonize(filled_box.astype(bool)))
-        plen = float(np.sum(np.hypot(*np.diff(path_box, axis=0).T)))
-        if best is None or plen > best[0]:
-            filled = np.zeros(labels.shape, dtype=np.uint8)
-            filled[y : y + h, x : x + w] = filled_box
-            best = (plen, filled, path_box + np.array([x, y], dtype=np.float64))
-    assert best is not None
-    path_len, filled, path_small = best
+    path_len, filled, path_small = _longest_filled_path(found, labels, stats)
     if path_len / factor < min_length_px:
         return None
     # back to full size

@@ -63,7 +63,14 @@ def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
                 f"this is {kind}, not results: report takes the JSON Lines of `measure`/`batch`, "
                 "a session log (session.jsonl) or a calibration JSON",
             )
-    records = read_jsonl(p, skip_partial_last=True)
+    # A cut last line is a write the report cannot see; say so rather than drop a record.
+    if text and not text.endswith("\n") and _last_line_cut(text):
+        raise InputError(
+            p,
+            "its last line is cut (a write interrupted?): run the command that wrote it again, "
+            "or delete that line",
+        )
+    records = read_jsonl(p)
     if not records:
         raise InputError(p, "no records")
     if not all(isinstance(r, dict) for r in records):
@@ -71,6 +78,15 @@ def read_report_input(path: str | os.PathLike[str]) -> ReportInput:
     if any("event" in r for r in records):
         return ReportInput("session log", session_log_records(records, p.parent))
     return ReportInput("results", records)
+
+
+def _last_line_cut(text: str) -> bool:
+    """Whether the text's last line (no newline after it) is not a whole JSON value."""
+    try:
+        json.loads(text.rsplit("\n", 1)[-1])
+    except (json.JSONDecodeError, RecursionError):
+        return True
+    return False
 
 
 def session_log_records(log: list[dict[str, Any]], folder: Path) -> list[dict[str, Any]]:

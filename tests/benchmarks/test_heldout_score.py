@@ -72,3 +72,9 @@ def test_one_feed_of_the_wrong_length_is_corrupted_not_twice():
     log = [rec(3, 0, 10.01, 0, 0)] + CLEAN[1:]  # a garbled digit: Y10.01 instead of Y10
     s = score_job(expected_job(JOB), TruthLog(executed=log), finished=True)
     assert s.corrupted == [3] and s.ran_twice == [] and abs(s.feed_error_mm - 0.01) < 1e-9
+
+
+def test_a_line_skipped_before_a_partly_run_later_line_is_lost():
+    log = [CLEAN[0], rec(5, 10, 10, 0, -12, 0.3, "flushed")]  # N4 rejected, N5 began
+    s = score_job(expected_job(JOB), TruthLog(executed=log), finished=False)
+    assert s.lost == [4]

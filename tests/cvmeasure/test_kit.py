@@ -126,6 +126,9 @@ def test_one_truth_sheet_kit_renderer_and_docs_agree(tmp_path, capsys):
     assert "height_mm" not in capsys.readouterr().out
     docs = (Path(__file__).resolve().parents[2] / "docs" / "conventions.md").read_text()
     said = re.search(r"The built-in kit `seed-5` gives[^.]*\(([^)]*)\)", docs).group(1)
-    assert " ".join(said.split()) == "origin and axis caps 12 mm, pin cap 18 mm, wire clips 8.5 mm, wire axis 5 mm"
+    assert (
+        " ".join(said.split())
+        == "origin and axis caps 12 mm, pin cap 18 mm, wire clips 8.5 mm, wire axis 5 mm"
+    )
     assert [kit.height_mm(r) for r in ROLES] == [12.0, 12.0, 18.0, 8.5, 8.5]
     assert kit.wire_axis_height_mm == 5.0

@@ -73,6 +73,17 @@ def test_calibrate_writes_the_camera_json(photo_dir, tmp_path, true_camera, caps
     assert data["board"] == json.loads((photo_dir / "board.json").read_text())
     assert summary["views_used"] == 10 and summary["cross_validation_central_rms_px"] < 0.5
     assert data["cross_validation"]["views"] == [5, 5]
+    # --model auto (the default) says which model, why, and what the next best would change
+    # at the image corners; the board warp says what the lens model's extension saw
+    choice = data["model_choice"]
+    assert choice["chosen"] == data["model"] and choice["why"]
+    assert choice["next_best"]["model"] != data["model"]
+    assert choice["next_best"]["image_corner_change_px"] >= 0.0
+    for cand in choice["candidates"]:
+        assert cand["held_out_centre_rms_px"] > 0 and cand["held_out_edge_rms_px"] > 0
+    warp = data["board_warp"]
+    assert warp["used"] is False and warp["reason"]
+    assert warp["extension_model"] in ("2", "5", "rational", "thin-prism")
 
 
 def test_calibrate_human_output_and_models(photo_dir, tmp_path, capsys):

@@ -24,11 +24,14 @@ def test_opencv_left_set_reproduces_the_python_test_reference(shared_real):
     """opencv/opencv modules/python/test/test_calibration.py: RMS 0.19633, fx 532.81 (13 views)."""
     files = sorted((shared_real / "opencv-samples-chessboard-9x6" / "left").glob("*.jpg"))
     dets = _detect(files, {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0})
-    # the reference is a flat-board solve; our default (--board-warp auto) finds this printed
-    # board bowed by 0.17 mm, far beyond its sigma, and solves it with the lens
+    # the reference is a flat-board solve; our default (--board-warp auto) sees a 0.17 mm
+    # bow on this printed board, with model 5's extension too and in every group of views,
+    # but it moves fx fy cx cy by 0.6 sigma at most: not worth two parameters, not kept
     auto = calibrate_detections(dets, (640, 480), cross_check=False)
-    assert auto.board_warp["used"] and abs(auto.result.board_warp.warp_mm[1]) > 0.1
-    assert auto.result.rms_px < 0.19
+    info = auto.board_warp
+    assert not info["used"] and auto.result.board_warp is None
+    assert abs(info["warp_mm"][1]) > 0.1 and info["extension_p"] < 1e-10
+    assert info["jackknife_p"] < 0.0027 and info["lens_shift_sigma"] < 1.0
     report = calibrate_detections(dets, (640, 480), board_warp="off")
     res = report.result
     assert len(res.views) == 13 and not res.rejected
@@ -46,7 +49,9 @@ def test_opencv_left_set_reproduces_the_python_test_reference(shared_real):
     # The honest numbers: the halves agree in the centre, and the edges are extrapolated.
     cv = report.cross_validation
     assert cv.diff.central_rms_px < 0.3 and cv.diff.max_px > 3.0
-    assert any("left edge" in w for w in report.warnings)
+    assert any(
+        w.code == "calib_edge_uncovered" and w.subject == "left edge" for w in report.warnings
+    )
 
 
 def test_charuco_tutorial_set_matches_its_yml(shared_real):
@@ -70,7 +75,7 @@ def test_charuco_tutorial_set_matches_its_yml(shared_real):
     # tutorial_camera_charuco.yml: within 2 of our formal sigmas.
     assert abs(res.camera.fx - 452.51) < 2 * sd["fx"]
     assert abs(res.camera.principal_point_px[1] - 277.75) < 2 * sd["cy"]
-    assert any("only 4 views" in w for w in report.warnings)
+    assert any(w.code == "calib_few_views" and "only 4 views" in w.message for w in report.warnings)
 
 
 def test_photonvision_cross_validation_exposes_what_rms_hides(shared_real):
@@ -116,7 +121,8 @@ def test_a_foreign_photo_leaves_the_good_views_unchanged(shared_real, charuco_bo
     assert not det.ok and "not a plain chessboard" in det.reason
 
     def fx_of(dets):
-        return calibrate_detections(dets, (640, 480), cross_check=False).camera.fx
+        # a flat solve: the board warp is not what is tested here (and its decision is slow)
+        return calibrate_detections(dets, (640, 480), cross_check=False, board_warp="off").camera.fx
 
     alone = fx_of(good)
     assert fx_of([*good, det]) == alone  # to the last digit (the solve runs on one thread)

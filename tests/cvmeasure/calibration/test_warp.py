@@ -28,7 +28,7 @@ CAMERA = CameraModel(
 NOISE_PX = 0.2
 
 
-def _corners(warp_mm, seed, *, transposed=False, n_views=20):
+def _corners(warp_mm, seed, *, transposed=False, n_views=20, camera=CAMERA):
     """Noisy corners of a board bowed by ``warp_mm`` (mrcal's parabola), flat object_mm."""
     rng = np.random.default_rng(seed)
     obj = BOARD.corners_mm()
@@ -40,7 +40,7 @@ def _corners(warp_mm, seed, *, transposed=False, n_views=20):
     ids = np.arange(len(obj))
     out = []
     for k, (rvec, tvec) in enumerate(random_poses(BOARD, n_views, seed, distance_mm=500)):
-        proj, _ = cv2.projectPoints(bowed, rvec, tvec, CAMERA.camera_matrix, CAMERA.dist_coeffs)
+        proj, _ = cv2.projectPoints(bowed, rvec, tvec, camera.camera_matrix, camera.dist_coeffs)
         pts = proj.reshape(-1, 2) + rng.normal(0.0, NOISE_PX, (len(obj), 2))
         described = obj[:, [1, 0, 2]] if transposed else obj.copy()
         out.append(BoardDetection(f"view{k:02d}", CAMERA.image_size_px, pts, ids, described))
@@ -84,6 +84,8 @@ def test_flat_board_finds_no_warp_and_auto_leaves_it_out():
     rep = calibrate_detections(dets, CAMERA.image_size_px, model="5", cross_check=False)
     assert rep.board_warp is not None and rep.board_warp["used"] is False
     assert rep.result.board_warp is None  # the flat solve is kept
+    assert rep.board_warp["extension_model"] == "rational"
+    assert rep.board_warp["extension_p"] >= 0.0027
     assert "flat within noise" in rep.board_warp["text"]
     off = calibrate_detections(
         dets, CAMERA.image_size_px, model="5", cross_check=False, board_warp="off"
@@ -96,11 +98,30 @@ def test_flat_board_finds_no_warp_and_auto_leaves_it_out():
     assert on.board_warp["used"] is True and on.result.board_warp is not None
 
 
+def test_a_warp_that_absorbs_lens_model_error_is_not_kept():
+    """A flat board seen through a lens with tangential distortion, fitted with model 2
+    (k1 k2): the warp solved with model 2 takes up the model's error (chi-square p 6e-06,
+    the former rule kept it), but with model 2's extension (model 5) the board is flat."""
+    lens = CameraModel(CAMERA.image_size_px, CAMERA.camera_matrix, [-0.2, 0.08, 5e-3, -5e-3, 0])
+    dets = _corners((0.0, 0.0), seed=5, camera=lens)
+    rep = calibrate_detections(dets, CAMERA.image_size_px, model="2", cross_check=False)
+    info = rep.board_warp
+    assert info["p"] < 1e-4  # the warp with model 2 alone looks significant
+    assert info["extension_model"] == "5" and info["extension_p"] > 0.01
+    assert info["used"] is False and rep.result.board_warp is None
+    assert "not kept" in info["text"]
+
+
 def test_auto_keeps_a_significant_warp_and_says_so():
     dets = _corners((0.4, 0.2), seed=7)
     rep = calibrate_detections(dets, CAMERA.image_size_px, model="5")
     assert rep.board_warp["used"] is True
-    assert "the board is not flat" in rep.board_warp["text"]
+    info = rep.board_warp
+    # the evidence: the lens model's extension sees it, so does every group of views,
+    # and it moves the lens beyond noise
+    assert info["extension_p"] < 1e-10 and info["jackknife_p"] < 0.0027
+    assert info["lens_shift_sigma"] > 1.0
+    assert "kept" in info["text"] and "does not explain" in info["text"]
     wx, wy = rep.result.board_warp.warp_mm
     assert wx == pytest.approx(0.4, abs=0.08) and wy == pytest.approx(0.2, abs=0.08)
     # the halves of the cross-validation are solved with the warp too: no model error

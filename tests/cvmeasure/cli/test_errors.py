@@ -169,19 +169,23 @@ def test_readers_refuse_damaged_and_wrong_kind_files(tmp_path):
         read_csv_rows(cal, required=["trial"])
 
 
-def test_options_are_checked_where_they_are_parsed(tmp_path, capsys):
+def test_session_options_are_refused_before_anything_runs(tmp_path, capsys):
     out = str(tmp_path / "cal.json")
-    for argv, words in (
-        (["--simulate", "--camera", "ftp://nowhere"], "argument --camera: 'ftp://nowhere'"),
+    for argv, words in (  # usage errors, as the options are parsed
         (["--simulate", "--angles", ""], "argument --angles"),
+        (["--port", "/dev/ttyUSB0", "--camera", "ftp://nowhere"], "argument --camera: 'ftp://"),
     ):
         with pytest.raises(SystemExit) as info:
             main(["session", "-o", out, *argv])
         assert info.value.code == 2 and words in capsys.readouterr().err
-    plane = tmp_path / "plane.json"
-    plane.write_text("{}")
-    assert main(["session", "-o", out, "--simulate", "--plane", str(plane)]) == 2
-    assert "--plane: a plane JSON needs the camera" in capsys.readouterr().err
+    for argv, words in (
+        (["--simulate", "--camera", "folder:///tmp"], "--camera: --simulate photographs"),
+        (["--simulate", "--plane", str(tmp_path / "plane.json")], "--plane: a plane JSON needs"),
+    ):
+        assert main(["session", "-o", out, *argv]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "cal_session").exists()  # nothing ran
 
 
 def test_a_job_cut_short_is_refused(tmp_path, capsys):
@@ -190,3 +194,17 @@ def test_a_job_cut_short_is_refused(tmp_path, capsys):
     assert main(["bend", str(job), "--port", "sim://", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert str(job) in err and "looks cut short" in err
+
+
+def test_fit_plots_a_calibration_whose_extreme_sample_is_outside_the_fitted_range(tmp_path):
+    # repeated angles with measurement noise: the curve is fitted over per-angle means, so
+    # the smallest single final angle lies below its domain; the plot must still be drawn
+    plan = tmp_path / "plan.csv"
+    angles = [40, 60, 80, 100, 120]
+    rows = [(i + 1, s * a) for i, (a, s) in enumerate((a, s) for s in (1, -1) for a in angles * 3)]
+    plan.write_text("trial,commanded_pin_deg\n" + "".join(f"{t},{c}\n" for t, c in rows))
+    trials = tmp_path / "trials.csv"
+    assert main(["simulate", str(plan), "-o", str(trials), "--noise-deg", "0.1"]) == 0
+    out, png = tmp_path / "cal.json", tmp_path / "cal.png"
+    assert main(["fit", str(trials), "-o", str(out), "--plot", str(png)]) == 0
+    assert out.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

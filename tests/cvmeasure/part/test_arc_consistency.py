@@ -1,14 +1,15 @@
 """A centreline stretch off the wire (on its shadow) moves the chords' vertices but not
 the vertex bends: the arc through the vertices must then be warned about
-(:func:`cvmeasure.part.measure._arc_consistency`, ``part_arc_inconsistent``)."""
+(:func:`cvmeasure.part.checks.arc_consistency_warning`, ``part_arc_inconsistent``)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 import cvmeasure_datasets
+from cvmeasure.part.arc import arc_from_points
+from cvmeasure.part.checks import arc_consistency_warning
 from cvmeasure.part.fit import fit_polyline
-from cvmeasure.part.measure import _arc_consistency, arc_from_points
 
 # dev part B4: R 52.5 mm, 70 deg in 6 chords of 10.7 mm; the last chord's centres ran
 # 2.3 mm off the axis along the wire's shadow after a 3 mm gap
@@ -41,7 +42,7 @@ def _measure(on_shadow: bool, seed: int):
     # the vertex bends as the chords' cross-profiles read them on the wire itself
     vpoly = fit_polyline(_centres(rng, False), DIVISIONS)
     sigma = np.full(DIVISIONS - 1, 0.02)
-    return ours, poly, vpoly, _arc_consistency(ours, poly, vpoly, sigma)
+    return ours, poly, vpoly, arc_consistency_warning(ours, poly, vpoly, sigma)
 
 
 def test_a_chord_on_the_shadow_makes_the_arc_disagree_with_the_bends_and_is_warned():
@@ -50,11 +51,11 @@ def test_a_chord_on_the_shadow_makes_the_arc_disagree_with_the_bends_and_is_warn
         # the failure: the radius far off while every vertex bend is right
         assert abs(ours.radius_mm / RADIUS_MM - 1.0) > 0.05
         assert np.max(np.abs(vpoly.bend_deg - ARC_DEG / DIVISIONS)) < 0.1
-        assert warning.startswith("part_arc_inconsistent:")
+        assert warning is not None and warning.code == "part_arc_inconsistent"
 
 
 def test_a_clean_arc_is_not_warned():
     for seed in (1411, 1412, 1413):
         ours, _, _, warning = _measure(False, seed)
         assert abs(ours.radius_mm / RADIUS_MM - 1.0) < 0.005
-        assert warning == ""
+        assert warning is None

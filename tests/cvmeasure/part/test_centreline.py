@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.part.centreline import measure_centreline, outer_edges, symmetric_centres
+from cvmeasure.part.centreline import measure_centreline
 from cvmeasure.part.compare import point_to_polyline
+from cvmeasure.part.profiles import outer_edges, symmetric_centres
 
 SIZE = (260, 320)  # rows, cols
 RADIUS_PX = 4.0  # wire half-width

@@ -143,8 +143,8 @@ def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
     0.15 mm): that chord's coverage is what is left, the others are whole; the part's check
     widens the sigmas of the bends at both its vertices to the angle half a width subtends
     over the chord (3 mm wire, 12.5 mm chords: 6.8 deg) and names it."""
+    from cvmeasure.part.checks import widen_for_centreline_gaps
     from cvmeasure.part.fit import chord_coverage
-    from cvmeasure.part.measure import _centreline_gaps
 
     n, radius = 12, 60.0
     angles = np.radians(np.linspace(0.0, 120.0, n + 1))
@@ -163,10 +163,10 @@ def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
     assert cover[4] < 0.05
     assert np.all(np.delete(cover, 4) > 0.97)
     poly = fit_polyline(kept, n)
-    sigma, warning = _centreline_gaps(kept, poly, np.full(n - 1, 0.01), 3.0)
-    assert warning.startswith("part_centreline_gap") and "chord(s) 5 " in warning
+    sigma, warning = widen_for_centreline_gaps(kept, poly, np.full(n - 1, 0.01), 3.0)
+    assert warning.code == "part_centreline_gap" and "chord(s) 5 " in warning.message
     expected = np.degrees(np.arctan2(1.5, seg[4]))
     np.testing.assert_allclose(sigma[[3, 4]], np.hypot(0.01, expected), rtol=0.02)
     assert np.all(np.delete(sigma, [3, 4]) == 0.01)
-    _, none = _centreline_gaps(pts, fit_polyline(pts, n), np.full(n - 1, 0.01), 3.0)
-    assert none == ""
+    _, none = widen_for_centreline_gaps(pts, fit_polyline(pts, n), np.full(n - 1, 0.01), 3.0)
+    assert none is None

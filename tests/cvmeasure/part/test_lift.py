@@ -7,7 +7,9 @@ import pytest
 
 import cvmeasure_datasets
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, lift_bound_mm, rocked_lift
-from cvmeasure.part.measure import _lifted_mm, arc_from_points, measure_part
+from cvmeasure.part.lift_use import lifted_points_mm
+from cvmeasure.part.measure import arc_from_points, measure_part
+from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.parts import lifted_centreline
 from cvmeasure_datasets.round_wire import true_plane
@@ -54,13 +56,13 @@ def test_points_at_their_true_heights_give_the_rigid_parts_shape():
     dense = _dense(axis3)
     px = plane.plane_to_image_px(dense)
     heights = -dense[:, 2] - WIRE_MM / 2
-    flat, _, _ = arc_from_points(_lifted_mm(plane, px, WIRE_MM / 2, rocked_lift(
+    flat, _, _ = arc_from_points(lifted_points_mm(plane, px, WIRE_MM / 2, rocked_lift(
         dense[:, :2], 0.0, 0.0), 1.0), 8)  # fmt: skip
     # the true lift as a rigid plane through the points
     a = np.column_stack((dense[:, :2], np.ones(len(dense))))
     coef = np.linalg.lstsq(a, heights, rcond=None)[0]
     true = LiftEstimate(heights, (coef[0], coef[1]), np.zeros((2, 2)), 2.0, 0.0, len(px), 1.0)
-    fixed, _, poly = arc_from_points(_lifted_mm(plane, px, WIRE_MM / 2, true, 1.0), 8)
+    fixed, _, poly = arc_from_points(lifted_points_mm(plane, px, WIRE_MM / 2, true, 1.0), 8)
     assert info["lift_mm"] == 2.0
     assert abs(100.0 * (flat.radius_mm / 62.0 - 1.0)) > 0.3
     assert abs(100.0 * (fixed.radius_mm / 62.0 - 1.0)) < 0.005
@@ -94,6 +96,6 @@ def test_a_lifted_lab_part_is_warned_about_and_within_its_stated_bound():
     assert m.lift is not None and m.lift["bound_mm"] == pytest.approx(MAX_LIFT_MM)
     assert abs(radius_err_pct) <= m.lift["effect_radius_pct"] + 0.1
     assert m.lift["effect_radius_pct"] < 2.0  # a bound, not a shrug
-    assert any(w.startswith("part_lifted") for w in m.warnings)
+    assert has_code(m.warnings, "part_lifted")
     vertex_err = np.abs(np.asarray(m.vertex_bend_deg)) - 15.0
     assert np.all(np.abs(vertex_err) < 2.0 * np.asarray(m.vertex_bend_sigma_deg))

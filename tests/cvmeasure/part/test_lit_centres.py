@@ -70,7 +70,7 @@ def test_lit_centres_keep_a_lifted_parts_chords_straight():
 
 def test_lifted_parts_vertex_bends_hold_their_sigma():
     """measure_part on the same photo (the shadow's lift, corrected): each chord's direction
-    from its whole cross-profile, lit side (:func:`cvmeasure.part.centreline.profile_polyline`),
+    from its whole cross-profile, lit side (:func:`cvmeasure.part.chord_profiles.profile_polyline`),
     against the true bend (the rigid part's own, 120 / 7 deg at every vertex)."""
     from cvmeasure.part.measure import measure_part
 

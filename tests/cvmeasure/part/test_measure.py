@@ -12,6 +12,7 @@ from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.design import arc_points_mm, load_design
 from cvmeasure.part.compare import point_to_polyline
 from cvmeasure.part.measure import measure_part
+from cvmeasure.warning import codes, has_code
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
 SCALE = 0.45  # 2074 x 1382 px, 0.29 mm/px: the 2 mm wire is 7 px wide
@@ -61,7 +62,7 @@ def test_arcs_on_both_sheets(kind, sheet):
     assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
     # an arc is ordered to turn counter-clockwise in the board frame
     assert np.all(m.vertex_bend_deg > 0)
-    assert not any("ends next to" in w for w in m.warnings)
+    assert not has_code(m.warnings, "part_cut_off")
     # the centreline lies on the true wire axis
     _, dist, _ = point_to_polyline(m.centreline_mm, np.asarray(truth["part"]["centreline_mm"]))
     assert np.sqrt(np.mean(dist**2)) < 0.05
@@ -92,7 +93,7 @@ def test_saddle_bends_change_sign(sheet):
     assert m.result.chord_width_mm == pytest.approx(truth["chord_width_mm"], abs=0.3)
     assert m.result.height_mm == pytest.approx(truth["height_mm"], abs=0.2)
     # a saddle says what its numbers are: no arc, bends of both signs
-    assert m.shape == "s-curve" and any("S-curve" in w for w in m.warnings)
+    assert m.shape == "s-curve" and has_code(m.warnings, "part_s_curve")
     assert measure_part(photo.bgr, BOARD, photo.camera).result.divisions == 13  # found
 
 
@@ -104,10 +105,14 @@ def test_without_divisions_the_vertices_are_found_in_the_photo():
     assert m.result.radius_mm == pytest.approx(given.result.radius_mm, abs=1e-9)
     assert m.result.radius_mm == pytest.approx(80.0, rel=3e-3)  # the vertices' circle
     assert len(m.chords_found.vertex_arclength_mm) == 5
-    assert not any("divisions" in w for w in m.warnings)
+    assert not codes(m.warnings) & {"divisions_mismatch", "divisions_not_found"}
     # a wrong --divisions is used as given, and said
     wrong = measure_part(photo.bgr, BOARD, photo.camera, divisions=5)
-    assert any("--divisions 5, but the photo shows 6 chords" in w for w in wrong.warnings)
+    assert any(
+        w.code == "divisions_mismatch"
+        and "--divisions 5, but the photo shows 6 chords" in w.message
+        for w in wrong.warnings
+    )
 
 
 @pytest.mark.parametrize("kind", ["half", "short"])
@@ -119,7 +124,10 @@ def test_a_seed_method_far_from_the_centreline_is_warned_about(kind):
         if name not in m.methods:
             continue
         far = abs(m.methods[name].arc_angle_deg - ours) > 10.0
-        said = any(f"the seed's {name} method gives an arc" in w for w in m.warnings)
+        said = any(
+            w.code == "seed_method_disagrees" and f"the seed's {name} method" in w.message
+            for w in m.warnings
+        )
         assert far == said, (name, m.methods[name].arc_angle_deg, ours)
 
 
@@ -229,4 +237,6 @@ def test_a_wire_cut_by_the_photos_edge_is_flagged():
         pose=cvmeasure_datasets.Pose(distance_mm=900.0, offset_mm=(160.0, 100.0)),
     )
     m = measure_part(photo.bgr, BOARD, photo.camera)
-    assert any("ends next to the photo's edge" in w for w in m.warnings)
+    assert any(
+        w.code == "part_cut_off" and "next to the photo's edge" in w.message for w in m.warnings
+    )

@@ -1,5 +1,5 @@
 """The vertex bends from each chord's whole cross-profile
-(:func:`cvmeasure.part.centreline.profile_polyline`), against a known bent wire drawn with a
+(:func:`cvmeasure.part.chord_profiles.profile_polyline`), against a known bent wire drawn with a
 side-lit profile (dark flanks, a highlight off the axis, a cast shadow on one side)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from cvmeasure.part.centreline import chord_profile_centres, profile_polyline
+from cvmeasure.part.chord_profiles import chord_profile_centres, profile_polyline
 from cvmeasure.part.fit import fit_polyline
 
 WIDTH_PX = 38.0  # the wire's width at full size (3 mm at 550 mm)

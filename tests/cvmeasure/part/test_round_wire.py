@@ -14,6 +14,7 @@ from cvmeasure.part.centreline import measure_centreline
 from cvmeasure.part.lift import expected_width_px, points_at_heights_mm
 from cvmeasure.part.measure import measure_part
 from cvmeasure.part.segment import gray_float, segment_wire
+from cvmeasure.warning import codes, has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
@@ -98,7 +99,7 @@ def test_a_lifted_part_is_refused_warned_about_or_right(sheet, lift_mm):
         return  # a clear refusal
     radius_err_pct = abs(100.0 * (m.result.radius_mm / 50.0 - 1.0))
     bend_err = float(np.max(np.abs(np.abs(m.vertex_bend_deg) - 15.0)))
-    warned = any(w.startswith("part_lifted") for w in m.warnings)
+    warned = has_code(m.warnings, "part_lifted")
     assert m.lift is not None and m.lift["used"] == "bound"
     assert warned or (radius_err_pct <= 0.3 and bend_err <= 0.03), (m.warnings, radius_err_pct)
 
@@ -149,7 +150,7 @@ def test_the_photo_labs_round_wire_is_never_silently_wrong(lift_mm):
         return
     radius_err_pct = abs(100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0))
     bend_err = abs(float(m.result.segment_bend_deg) - 15.0)
-    named = [w for w in m.warnings if w.split(":")[0] in ("part_lifted", "round_wire_edges_lost")]
+    named = codes(m.warnings) & {"part_lifted", "round_wire_edges_lost"}
     assert named or (radius_err_pct <= 0.3 and bend_err <= 0.03), (m.warnings, radius_err_pct)
 
 
@@ -174,7 +175,7 @@ def test_the_photo_labs_round_wire_is_followed_between_its_silhouette_edges():
         effects=SceneEffects(wire_3d=True),
     )
     m = measure_part(photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM)
-    assert not any(w.startswith("round_wire_edges_lost") for w in m.warnings), m.warnings
+    assert not has_code(m.warnings, "round_wire_edges_lost"), m.warnings
     # 0.51 mm/px: measured radius 0.20 %, bend 0.021 deg (the symmetric centre: 0.52 deg)
     assert abs(m.result.radius_mm / photo.truth["radius_mm"] - 1.0) < 0.003
     assert abs(float(m.result.segment_bend_deg) - 15.0) < 0.05
@@ -236,7 +237,7 @@ def test_an_end_facing_its_shadow_on_a_light_plate_is_found_at_its_cap():
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
     for end in m.centreline_px[[0, -1]]:
         assert float(np.min(np.hypot(*(true_ends_px - end).T))) < 1.0
-    assert not any(w.startswith("part_end_uncertain") for w in m.warnings), m.warnings
+    assert not has_code(m.warnings, "part_end_uncertain"), m.warnings
 
 
 def test_a_chord_whose_shadow_joins_its_silhouette_keeps_its_centres():
@@ -262,7 +263,7 @@ def test_a_chord_whose_shadow_joins_its_silhouette_keeps_its_centres():
     )
     err = np.asarray(m.vertex_bend_deg) - 12.0
     assert np.max(np.abs(err)) < 0.12, err
-    assert not any(w.startswith("part_centreline_gap") for w in m.warnings), m.warnings
+    assert not has_code(m.warnings, "part_centreline_gap"), m.warnings
 
 
 def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
@@ -294,7 +295,7 @@ def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
     assert max(off) > 5.0, off  # the end is still taken at the shadow's edge: stated, not fixed
     # each end's stated uncertainty covers its distance from the truth
     assert np.all(np.asarray(off) <= u + 1.0), (off, u)
-    assert any(w.startswith("part_end_uncertain") for w in m.warnings), m.warnings
+    assert has_code(m.warnings, "part_end_uncertain"), m.warnings
 
 
 @pytest.mark.parametrize("noise", [0.0, 1.5])

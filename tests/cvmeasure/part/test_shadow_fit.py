@@ -10,11 +10,8 @@ from scipy.optimize import least_squares
 
 import cvmeasure_datasets
 from cvmeasure.part.lift import points_at_heights_mm
-from cvmeasure.part.shadow import (
-    ShadowEdges,
-    _forward_steps,
-    predict_shadow_edges_mm,
-)
+from cvmeasure.part.shadow_edges import ShadowEdges
+from cvmeasure.part.shadow_model import forward_steps, predict_shadow_edges_mm
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import true_plane
 
@@ -63,6 +60,6 @@ def test_the_fits_forward_steps_are_least_squares_own():
     for x0 in (np.array([0.0, -0.37, 2.5, 1e-7]), np.array([-3.0, 0.2, -1e-12, 250.0])):
         ref = least_squares(f, x0, diff_step=1e-5, max_nfev=1)
         assert np.array_equal(ref.x, x0)
-        xs = x0 + np.diag(_forward_steps(x0, 1e-5))
+        xs = x0 + np.diag(forward_steps(x0, 1e-5))
         jac = np.column_stack([(f(xi) - f(x0)) / (xi[i] - x0[i]) for i, xi in enumerate(xs)])
         assert np.allclose(jac, ref.jac, rtol=1e-12, atol=0.0)

@@ -13,6 +13,7 @@ import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_centreline_mm
 from cvmeasure.part.shadow import estimate_lift_shadow
+from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
@@ -118,7 +119,7 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
     assert main([*argv, "--no-shadow-lift", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["lift"]["used"] == "bound" and out["lift"]["source"] == "width"
-    assert any(w.startswith("part_lifted") for w in out["warnings"])
+    assert any(w["code"] == "part_lifted" for w in out["warnings"])
     assert main([*argv, "--shadow-lift"]) == 0
     assert "from the cast shadow" in capsys.readouterr().out
     assert main([*base, "--shadow-lift"]) == 2
@@ -276,12 +277,12 @@ def test_a_dark_textured_lab_sheet_widens_the_shadow_lift():
 
 
 def test_the_sheets_own_edge_errors_come_from_its_bare_side():
-    """:func:`_texture_edge_errors` on synthetic profiles: a shadow step (depth 0.35,
+    """:func:`texture_edge_errors` on synthetic profiles: a shadow step (depth 0.35,
     penumbra 1 mm) on one side of each profile, the other side bare. Measured: a plain
     sheet (noise 0.005) 0.003 mm rms of laid-step errors, a sheet with stains along the
     profile (a +-10 % sinusoid, 3 mm period) 0.15 mm. Asserted: below 0.02 mm, and 0.05 mm
     or more."""
-    from cvmeasure.part.shadow import _fit_ramps, _texture_edge_errors
+    from cvmeasure.part.shadow_edges import fit_ramps, texture_edge_errors
 
     rng = np.random.default_rng(11)
     u = np.arange(0.0, 11.0 + 1e-9, 0.05)
@@ -294,9 +295,9 @@ def test_the_sheets_own_edge_errors_come_from_its_bare_side():
         phase = rng.uniform(0.0, 2.0 * np.pi, (2, n, 1))
         q *= 1.0 + stain * np.sin(2.0 * np.pi * u[None, None, :] / 3.0 + phase)
         q[0] *= 1.0 - 0.35 * np.clip(0.5 - (u[None, :] - edge_true[:, None]) / 1.0, 0.0, 1.0)
-        offsets, contrast, k_w = _fit_ramps(u, q, start, far)
+        offsets, contrast, k_w = fit_ramps(u, q, start, far)
         assert k_w is not None and np.isfinite(offsets[0]).all()
-        tex = _texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
+        tex = texture_edge_errors(u, q, start, far, offsets, contrast, k_w)
         rms = float(np.sqrt(np.nanmean(tex**2)))
         assert low <= rms < high, (stain, rms)
 
@@ -305,7 +306,8 @@ def _true_edge_residuals_mm(photo, plane, centre) -> tuple[np.ndarray, np.ndarra
     """The measured shadow edges less the true ones (the render's lamp and axis heights
     through :func:`predict_shadow_edges_mm`), and each edge's gap beyond the silhouette."""
     from cvmeasure.part.lift import points_at_heights_mm
-    from cvmeasure.part.shadow import measure_shadow_edges, predict_shadow_edges_mm
+    from cvmeasure.part.shadow_edges import measure_shadow_edges
+    from cvmeasure.part.shadow_model import predict_shadow_edges_mm
     from cvmeasure_datasets.solids import lamp_direction
 
     lamp = lamp_direction(photo.truth["lighting"]["light_azimuth_deg"], up=-1.0)
@@ -389,7 +391,8 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     within its stated effect, the bend per chord within its stated effect."""
     from dataclasses import replace
 
-    from cvmeasure.part.measure import SHADOW_MAX_2SIGMA_MM, measure_part
+    from cvmeasure.part.lift_use import SHADOW_MAX_2SIGMA_MM
+    from cvmeasure.part.measure import measure_part
     from cvmeasure_datasets.effects import SceneEffects
 
     photo = _lab_render(2002, 0, replace(SceneEffects.all_on(), part_lift_mm=3.0))  # dark
@@ -401,7 +404,7 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     assert m.lift["source"] == "shadow"
     assert 2.0 * m.lift["lift_sigma_mm"] > SHADOW_MAX_2SIGMA_MM  # the case this is about
     assert abs(m.lift["lift_mm"] - 3.0) < 2.0 * m.lift["lift_sigma_mm"]
-    assert any(w.startswith("part_lifted") for w in m.warnings)
+    assert has_code(m.warnings, "part_lifted")
     radius_err = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
     assert abs(radius_err) < min(0.3, m.lift["effect_radius_pct"])
     bend_err = m.result.segment_bend_deg - photo.truth["arc_angle_deg"] / n
@@ -429,10 +432,10 @@ def test_which_uncertain_shadow_lifts_are_corrected(lift_mm, sigma_mm, bound_mm,
     bound otherwise used, and it is within 2 sigma of that bound (dev reads of part14j/m,
     and the flat dev-seed-2000 part on a textured light sheet that read 3.00 +- 1.43 mm)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import SHADOW_WIDE_MAX_2SIGMA_MM, _shadow_unusable
+    from cvmeasure.part.lift_use import SHADOW_WIDE_MAX_2SIGMA_MM, shadow_unusable
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, sigma_mm, 3, 1.0)
-    refusal = _shadow_unusable(est, bound_mm)
+    refusal = shadow_unusable(est, bound_mm)
     assert (refusal is None) is usable
     # inconsistent (more than 2 sigma above the bound) where a reading not too uncertain is
     if refusal is not None:
@@ -449,12 +452,12 @@ def test_an_uncertain_shadow_lift_read_above_the_bound_is_corrected_at_the_bound
     lift_mm, bound_mm, used_mm
 ):
     """The lift corrected with is the shadow's, or the bound where the shadow reads above it
-    (a reading within 2 sigma of the bound; _shadow_unusable rejects one farther above)."""
+    (a reading within 2 sigma of the bound; shadow_unusable rejects one farther above)."""
     from cvmeasure.part.lift import LiftEstimate
-    from cvmeasure.part.measure import _shadow_lift_scale
+    from cvmeasure.part.lift_use import shadow_lift_scale
 
     est = LiftEstimate(np.zeros(3), (0.0, 0.0), np.eye(2), lift_mm, 0.8, 3, 1.0)
-    assert _shadow_lift_scale(est, bound_mm) * lift_mm == pytest.approx(used_mm, abs=1e-9)
+    assert shadow_lift_scale(est, bound_mm) * lift_mm == pytest.approx(used_mm, abs=1e-9)
 
 
 def _faked_shadow(shadow, lift_mm: float, sigma_mm: float):
@@ -506,7 +509,7 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
         photo.bgr, None, None, plane=plane, wire_diameter_mm=WIRE_MM, divisions=7
     )
     assert m.lift is not None and m.lift["used"] == used, m.lift
-    lifted = [w for w in m.warnings if w.startswith("part_lifted")]
+    lifted = [str(w) for w in m.warnings if w.code == "part_lifted"]
     if used == "bound":
         assert m.lift["source"] == "width" and m.lift["bound_mm"] == pytest.approx(3.0)
         assert m.lift["shadow"]["lift_mm"] == pytest.approx(7.42)

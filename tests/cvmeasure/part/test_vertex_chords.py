@@ -1,13 +1,13 @@
 """The vertex bends of a lifted part: each chord's direction from the silhouette pairs'
 midpoints and the lit side's edge, weighed by their noise and the pairs' drift
-(:func:`cvmeasure.part.measure._combine_chords`), against a known polyline."""
+(:func:`cvmeasure.part.vertices.combine_chords`), against a known polyline."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from cvmeasure.part.fit import fit_polyline
-from cvmeasure.part.measure import _combine_chords
+from cvmeasure.part.vertices import combine_chords
 
 RADIUS_MM, ARC_DEG, DIVISIONS = 46.0, 120.0, 7
 STEP_MM = 0.08  # a centre every 0.5 px at 0.157 mm/px
@@ -48,7 +48,7 @@ def test_combined_chords_beat_either_edge_and_hold_their_sigma():
     for _ in range(40):
         pairs_pts, lit_pts = _centres(rng)
         pairs, lit = fit_polyline(pairs_pts, DIVISIONS), fit_polyline(lit_pts, DIVISIONS)
-        comb = _combine_chords(pairs, lit)
+        comb = combine_chords(pairs, lit)
         true = ARC_DEG / DIVISIONS
         for name, fit in (("pairs", pairs), ("lit", lit), ("combined", comb)):
             errs[name].append(fit.bend_deg - true)
@@ -78,5 +78,5 @@ def test_combined_chords_fall_back_to_the_lit_fit_without_directions():
     bare = fit_polyline(pairs_pts, DIVISIONS)
     from dataclasses import replace
 
-    out = _combine_chords(replace(bare, direction_deg=None), lit)
+    out = combine_chords(replace(bare, direction_deg=None), lit)
     assert out is lit

@@ -62,3 +62,17 @@ def test_columns_name_their_units_and_verdicts_weigh_the_uncertainty():
     text = build_report([rec], thumbnails=False, tolerance_deg=0.5)
     assert "90.3000 &plusmn; 0.0500" in text and ">within<" in text
     assert "verdict within" in text
+
+
+def test_report_refuses_results_whose_last_line_is_cut(tmp_path, capsys):
+    whole = '{"photo": "a.jpg", "pin_angle_deg": 1.0}\n'
+    cut = tmp_path / "cut.jsonl"
+    cut.write_text(whole + '{"photo": "b.jpg", "pin_an')
+    page = tmp_path / "cut.html"
+    assert main(["report", str(cut), "-o", str(page), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cut.jsonl" in err[0] and "last line is cut" in err[0]
+    assert not page.exists()
+    # a whole last line without its newline is a complete file, not a cut one
+    cut.write_text(whole + '{"photo": "b.jpg", "pin_angle_deg": 2.0}')
+    assert main(["report", str(cut), "-o", str(page), "--quiet"]) == 0

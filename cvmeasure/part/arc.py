@@ -1,0 +1,85 @@
+"""The arc a centreline describes: circle, chords, sagitta and its shape (arc or S-curve)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cvmeasure.geometry import CircleFit, fit_circle_robust
+from cvmeasure.part.fit import (
+    ArcGeometry,
+    PolylineFit,
+    arc_geometry,
+    fit_polyline,
+)
+from cvmeasure.part.result import ArcResult
+
+__all__ = [
+    "S_CURVE_BEND_DEG",
+    "part_shape",
+    "arc_from_points",
+    "chord_and_height_mm",
+    "net_turn_deg",
+]
+
+
+#: Vertex bends of both signs beyond this (deg) make a part an S-curve (saddle).
+S_CURVE_BEND_DEG = 0.2
+
+
+def part_shape(poly: PolylineFit | None) -> str:
+    """``"s-curve"`` when the vertex bends change sign, else ``"arc"``."""
+    if poly is None:
+        return "arc"
+    bends = np.asarray(poly.bend_deg, dtype=float)
+    if np.any(bends > S_CURVE_BEND_DEG) and np.any(bends < -S_CURVE_BEND_DEG):
+        return "s-curve"
+    return "arc"
+
+
+def arc_from_points(
+    points_mm: np.ndarray, divisions: int | None, fractions: np.ndarray | None = None
+) -> tuple[ArcResult, CircleFit, PolylineFit | None]:
+    """Our arc quantities from an ordered centreline in mm (see the module notes).
+
+    ``fractions``: where the polygon bent has its vertices (shares of its length, in the
+    centreline's order; :func:`cvmeasure.part.fit.fit_polyline`), default equal chords.
+    """
+    pts = np.asarray(points_mm, dtype=np.float64)
+    poly = None
+    if divisions:
+        poly = fit_polyline(pts, divisions, fractions=fractions)
+        circle = fit_circle_robust(poly.vertices_mm)
+        geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
+        chord, height = chord_and_height_mm(poly.vertices_mm)
+    else:
+        circle = fit_circle_robust(pts)
+        geo = arc_geometry(circle, pts)
+        chord, height = geo.chord_width_mm, geo.height_mm
+    result = ArcResult("ours", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
+    return result, circle, poly
+
+
+def chord_and_height_mm(vertices_mm: np.ndarray) -> tuple[float, float]:
+    """End-to-end distance of a polyline and its largest vertex distance from that line, mm.
+
+    For vertices on a circular arc these are the seed's width d and height h
+    (exactly when a vertex sits at the arc's middle); they stay meaningful for
+    saddles and other shapes that have no single radius.
+    """
+    v = np.asarray(vertices_mm, dtype=np.float64)
+    a, b = v[0], v[-1]
+    chord = float(np.hypot(*(b - a)))
+    if chord == 0.0:
+        return 0.0, float(np.max(np.hypot(*(v - a).T)))
+    d = (b - a) / chord
+    rel = v - a
+    return chord, float(np.max(np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0])))
+
+
+def net_turn_deg(points_mm: np.ndarray) -> float:
+    """Total signed turning of an ordered centreline (board frame sense), degrees."""
+    pts = np.asarray(points_mm, dtype=np.float64)
+    step = max(1, len(pts) // 200)
+    d = np.diff(pts[::step], axis=0)
+    heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    return float(np.degrees(heading[-1] - heading[0])) if len(heading) else 0.0

@@ -1,0 +1,239 @@
+"""The end points of a wire's centreline: where each cap's outline lies on the axis.
+
+A wire's end is taken as a hemispherical cap (a cut end rounded by handling), so the
+brightness beyond the end along the axis repeats the half-profile across the wire; a
+round wire measured between silhouette edges ends at its cap's silhouette less the
+half-width. An end facing its cast shadow on a light plate states how far inside the
+taken outline the true one could lie.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
+
+__all__ = ["INTO_SHADOW_COS", "SHADOW_STEP_SHARE", "SHADOW_DARKER", "EndShape", "end_point"]
+
+
+#: An end whose outward axis is within 60 deg of the shadow's direction faces away from
+#: the light (:func:`end_point`).
+INTO_SHADOW_COS = 0.5
+
+#: Least strength of a step inside the taken cap edge (share of the strongest) that can be
+#: the cap's silhouette where a cast shadow reaches past the cap (:func:`_cap_edge`).
+SHADOW_STEP_SHARE = 0.25
+
+#: A stretch along the axis whose darkening below the plate exceeds this many times the
+#: wire body's is cast shadow (measured: shadows 1.9-2.4, caps' own stretches <= 0.9).
+SHADOW_DARKER = 1.25
+
+EndShape = Literal["round", "flat"]
+
+
+def end_point(
+    gray: np.ndarray,
+    centres: np.ndarray,
+    profiles: np.ndarray,
+    offsets: np.ndarray,
+    rho: float,
+    half_width: float,
+    *,
+    head: bool,
+    shape: EndShape = "round",
+    silhouette: bool = False,
+    shadow: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:
+    """The end point of the wire's axis at one end, pixels, and its uncertainty (px).
+
+    Round ends: the centre of the hemispherical cap. Flat ends: the end face,
+    where the brightness along the axis crosses half-way from the crest (the
+    median on the axis inside the wire) to the background beyond.
+
+    With ``silhouette`` (centres between the silhouette edges, ``half_width`` half
+    the edges' distance), a round end is the cap's silhouette on the axis
+    (:func:`_cap_edge`) moved back by the half-width: the cap's outline is the
+    same limb as the wire's sides, so the edges' shading bias cancels. The
+    brightness along the axis of a side-lit cap (a specular spot, a lit or a
+    dark face) does not repeat the profile across the wire, which the match
+    below assumes (it stopped 30 px short on the photo lab's 23 px wire).
+
+    ``shadow``: the image direction in which the wire's shadow lies, when seen. An end
+    whose axis points into it (within 60 deg) faces away from the light and the shadow of
+    a lifted end can reach beyond its cap: the returned uncertainty says how far inside
+    the cap's silhouette could lie (:func:`_cap_edge`; 0 elsewhere).
+
+    The axis near the end is a robust line through the centres 1.5 to 4.5
+    half-widths from the last one (the last centres can be pulled by the
+    cap's shadow); the cap is searched along that line.
+    """
+    from cvmeasure.part.fit import _fit_line
+
+    pts = centres if head else centres[::-1]
+    prof = profiles if head else profiles[::-1]
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    sel = (s >= 1.5 * half_width) & (s <= 4.5 * half_width + 1.0)
+    if sel.sum() < 5:
+        sel = np.zeros(len(pts), dtype=bool)
+        sel[: min(len(pts), 10)] = True
+    p0, d, _ = _fit_line(pts[sel])
+    if d @ (pts[0] - pts[sel][-1]) < 0:
+        d = -d  # outward
+    first = pts[sel][0]
+    start = p0 + ((first - p0) @ d) * d
+    # mean cross half-profile in the window, symmetrised, on the flank
+    # u in [0.35, 0.9] half-widths: inside the wire (no shadow), away from the
+    # narrow specular crest (whose sampled height differs between a ridge and a cap)
+    mid = len(offsets) // 2
+    k0 = int(round(0.35 * half_width / PROFILE_STEP_PX))
+    k1 = max(k0 + 2, int(round(max(rho, 0.9 * half_width) / PROFILE_STEP_PX)))
+    block = prof[sel]
+    right = block[:, mid + k0 : mid + k1 + 1]
+    left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
+    template = np.median(0.5 * (right + left), axis=0)
+    if shape == "flat":
+        return _flat_end(gray, start, d, block, half_width), 0.0
+    if silhouette:
+        into_shadow = shadow is not None and float(d @ shadow) >= INTO_SHADOW_COS
+        found = _cap_edge(gray, start, d, block, half_width, facing_shadow=into_shadow)
+        if found is not None:
+            edge, spread = found
+            return start + (edge - half_width) * d, spread
+    search = np.arange(
+        -round((1.0 * half_width) / PROFILE_STEP_PX),
+        round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1,
+    )
+    search = search * PROFILE_STEP_PX
+    u = np.arange(k0, k1 + 1) * PROFILE_STEP_PX
+    samples = sample_image(
+        gray, start[None, None, :] + (search[:, None, None] + u[None, :, None]) * d
+    )
+    costs = np.mean((samples - template[None, :]) ** 2, axis=1)
+    k = int(np.argmin(costs))
+    if 0 < k < len(costs) - 1:
+        c0, c1, c2 = costs[k - 1], costs[k], costs[k + 1]
+        den = c0 - 2 * c1 + c2
+        frac = 0.5 * (c0 - c2) / den if den > 0 else 0.0
+        best = float(search[k] + np.clip(frac, -1, 1) * PROFILE_STEP_PX)
+    else:
+        best = float(search[k])
+    return start + best * d, 0.0
+
+
+def _cap_edge(
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    half_width: float,
+    *,
+    facing_shadow: bool = False,
+) -> tuple[float, float] | None:
+    """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none,
+    and how far inside it a weaker step could be the silhouette instead (px, else 0).
+
+    The silhouette is where the brightness along the axis steps from the wire's towards
+    the background's (the profiles' ``block`` across the wire near the end give both
+    levels): a peak of that signed gradient (over 0.5 px, refined by a parabola). Of the
+    peaks at least half as strong as the strongest, the outermost within two
+    half-widths beyond the strongest: a specular spot on the cap has edges of its own
+    inside the cap, a shadow's penumbra beyond it is soft, and another object farther
+    away is not taken. At an end facing away from the light (``facing_shadow``) on a
+    plate brighter than the wire, the shadow's far edge steps like the silhouette and as
+    strongly, and may be the outermost peak (13.5 px beyond the cap at a 1.5 mm lift):
+    there the uncertainty is how far inside the taken peak the innermost one at least a
+    quarter as strong lies (within two half-widths), else 0. Taking the innermost strong
+    peak instead was measured wrong as often (a lab render's cap: 0.10 deg per chord).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    mid = block.shape[1] // 2
+    k_in = max(1, int(round(0.8 * half_width / PROFILE_STEP_PX)))
+    wire = float(np.median(block[:, mid - k_in : mid + k_in + 1]))
+    outer = max(2, block.shape[1] // 10)
+    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    sign = 1.0 if wire > background else -1.0
+    t = np.arange(0, round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
+    axial = sample_image(gray, start[None, :] + t[:, None] * d[None, :])
+    grad = -sign * gaussian_filter1d(axial, 0.5 / PROFILE_STEP_PX, order=1)
+    inner = grad[1:-1]
+    peaks = np.nonzero((inner >= grad[:-2]) & (inner > grad[2:]) & (inner > 0))[0] + 1
+    if len(peaks) == 0:
+        return None
+    strong = peaks[grad[peaks] >= 0.5 * grad[peaks].max()]
+    first = strong[np.argmax(grad[strong])]
+    k = int(strong[t[strong] <= t[first] + 2.0 * half_width].max())
+    spread = 0.0
+    # the shadow's far edge steps like the silhouette, and as strongly, only where the plate
+    # is brighter than the wire (a light sheet); on a dark one it is faint beside the wire's
+    if facing_shadow and sign < 0:
+        weak = peaks[grad[peaks] >= SHADOW_STEP_SHARE * grad[peaks].max()]
+        # walk in over cast shadow: a stretch inside the taken step darker than the wire's
+        # body is plate lit by the ambient light only, not the lamp-lit wire or its cap
+        while True:
+            inside = weak[(t[weak] < t[k]) & (t[weak] >= t[k] - 2.0 * half_width)]
+            if len(inside) == 0:
+                break
+            j = int(inside.max())
+            level = _stretch_level(gray, start, d, t[j], t[k], half_width)
+            if background - level <= SHADOW_DARKER * (background - wire):
+                break
+            k = j
+        near = weak[(t[weak] <= t[k]) & (t[weak] >= t[k] - 2.0 * half_width)]
+        spread = float(t[k] - t[near].min())
+        # the cap's own outline against the shadow may give no rising step at all (its dark
+        # limb meets the shadow at about the shadow's level): a stretch inside the taken
+        # step as dark as cast shadow and longer than a half-width (a cap's own dark limb
+        # lies within one half-width of its outline) has the silhouette somewhere in it
+        dark = axial < background - SHADOW_DARKER * (background - wire)
+        j = k - 1
+        while j >= 0 and dark[j]:
+            j -= 1
+        run = float(t[k] - t[j + 1]) if j + 1 < k else 0.0
+        if run > half_width:
+            spread = max(spread, run)
+    g0, g1, g2 = grad[k - 1], grad[k], grad[k + 1]
+    den = g0 - 2 * g1 + g2
+    frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
+    return float(t[k] + np.clip(frac, -0.5, 0.5) * PROFILE_STEP_PX), spread
+
+
+def _stretch_level(
+    gray: np.ndarray, start: np.ndarray, d: np.ndarray, t0: float, t1: float, half_width: float
+) -> float:
+    """Mean grey level of the stretch of the axis ``start + t d`` between two steps at ``t0``
+    and ``t1`` (px; 1.5 px kept clear of each), within a quarter half-width across it."""
+    lo, hi = t0 + 1.5, t1 - 1.5
+    ts = np.arange(lo, hi + 1e-9, 0.5) if hi > lo else np.array([0.5 * (t0 + t1)])
+    us = np.arange(-0.25 * half_width, 0.25 * half_width + 1e-9, 0.5)
+    normal = np.array([-d[1], d[0]])
+    pts = start[None, None, :] + ts[:, None, None] * d + us[None, :, None] * normal
+    return float(np.mean(sample_image(gray, pts)))
+
+
+def _flat_end(
+    gray: np.ndarray, start: np.ndarray, d: np.ndarray, block: np.ndarray, half_width: float
+) -> np.ndarray:
+    """The end face of a square-cut wire along the axis ``start + t d``, pixels."""
+    mid = block.shape[1] // 2
+    crest = float(np.median(block[:, mid]))
+    outer = max(2, block.shape[1] // 10)
+    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    level = 0.5 * (crest + background)
+    t = np.arange(
+        -round(half_width / PROFILE_STEP_PX), round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1
+    )
+    t = t * PROFILE_STEP_PX
+    axial = sample_image(gray, start[None, :] + t[:, None] * d[None, :])
+    sign = 1.0 if crest > background else -1.0
+    inside = (axial - level) * sign > 0
+    k0 = int(np.argmax(inside))  # first sample inside the wire
+    beyond = np.nonzero(~inside[k0:])[0]
+    if not inside.any() or len(beyond) == 0:
+        return start
+    k = k0 + int(beyond[0])  # first sample past the end face
+    a, b = axial[k - 1], axial[k]
+    frac = (level - a) / (b - a) if b != a else 0.5
+    return start + (t[k - 1] + frac * (t[k] - t[k - 1])) * d

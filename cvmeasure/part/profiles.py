@@ -1,0 +1,459 @@
+"""Profiles across a wire: sampling along paths and the 1-D analysis of each profile.
+
+Paths are polylines in image pixels; a profile is the image sampled (bilinear) along a
+path's normal. From profiles: the centre of symmetry (:func:`symmetric_centres`), the
+silhouette edges of a round wire (:func:`silhouette_edges`, :func:`outer_edges`), the
+wire's half-width, and the least-cost continuous path through a table of costs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "PROFILE_STEP_PX",
+    "CLIPPED_LEVEL",
+    "path_length",
+    "resample_path",
+    "smooth_path",
+    "path_normals",
+    "sample_image",
+    "symmetric_centres",
+    "silhouette_edges",
+    "outer_edges",
+    "edge_gradient",
+    "majority_filter",
+    "peak_offset",
+    "asymmetry_ratio",
+    "least_cost_path",
+    "true_runs",
+    "long_runs",
+    "despike",
+    "half_width_px",
+]
+
+
+PROFILE_STEP_PX = 0.05
+
+#: Grey level (0-255 scale) from which a sample counts as clipped (a saturated highlight).
+CLIPPED_LEVEL = 250.0
+
+
+def path_length(path: np.ndarray) -> float:
+    return float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
+
+
+def resample_path(path: np.ndarray, step: float) -> np.ndarray:
+    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))))
+    n = max(2, int(s[-1] / step) + 1)
+    t = np.linspace(0.0, s[-1], n)
+    return np.column_stack((np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])))
+
+
+def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:
+    from scipy.ndimage import gaussian_filter1d
+
+    if sigma <= 0 or len(path) < 3:
+        return path
+    return np.column_stack(
+        (
+            gaussian_filter1d(path[:, 0], sigma, mode="nearest"),
+            gaussian_filter1d(path[:, 1], sigma, mode="nearest"),
+        )
+    )
+
+
+def path_normals(path: np.ndarray) -> np.ndarray:
+    t = np.gradient(path, axis=0)
+    t /= np.maximum(np.hypot(t[:, 0], t[:, 1]), 1e-12)[:, None]
+    return np.column_stack((-t[:, 1], t[:, 0]))
+
+
+def sample_image(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``gray`` at points (..., 2) x, y."""
+    from scipy.ndimage import map_coordinates
+
+    shape = points.shape[:-1]
+    flat = points.reshape(-1, 2)
+    vals = map_coordinates(gray, [flat[:, 1], flat[:, 0]], order=1, mode="nearest")
+    return vals.reshape(shape)
+
+
+def symmetric_centres(
+    profiles: np.ndarray,
+    *,
+    rho_px: float,
+    search_px: float,
+    step_px: float = PROFILE_STEP_PX,
+    max_slope_px: float | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Shift (P,) about which each profile is most symmetric, and the cost there.
+
+    Parameters
+    ----------
+    profiles : ndarray (P, S); samples every ``step_px`` along the normal,
+        centred on the guess (sample ``S // 2`` is offset 0).
+    rho_px : half-window of the symmetry test.
+    search_px : largest shift tried either way.
+    max_slope_px : with it, the shifts of consecutive profiles (in order along
+        the wire) differ by at most this much: the path of least total cost
+        through the cost table (dynamic programming), so that isolated false
+        minima cannot pull single centres away. Without it, each profile's own
+        minimum.
+
+    Returns
+    -------
+    shift_px : ndarray (P,), NaN where the minimum is at the search boundary.
+    cost : ndarray (P,), mean squared asymmetry at the minimum.
+    """
+    p = np.asarray(profiles, dtype=np.float64)
+    mid = p.shape[1] // 2
+    ku = max(1, int(round(rho_px / step_px)))
+    kc = max(1, int(round(search_px / step_px)))
+    if mid - kc - ku < 0 or mid + kc + ku >= p.shape[1]:
+        raise ValueError("profiles too short for rho_px + search_px")
+    shifts = np.arange(-kc, kc + 1)
+    cost = np.empty((len(p), len(shifts)))
+    u = np.arange(1, ku + 1)
+    for j, c in enumerate(shifts):
+        a = p[:, mid + c + u]
+        b = p[:, mid + c - u]
+        cost[:, j] = np.mean((a - b) ** 2, axis=1)
+    rows = np.arange(len(p))
+    if max_slope_px is None:
+        k = np.argmin(cost, axis=1)
+    else:
+        # choose the basin by asymmetry relative to the window's variance, so a
+        # flat, soft shadow band (symmetric but featureless) loses to the wire
+        cs = np.cumsum(np.pad(p, ((0, 0), (1, 0))), axis=1)
+        cs2 = np.cumsum(np.pad(p * p, ((0, 0), (1, 0))), axis=1)
+        lo, hi = mid + shifts - ku, mid + shifts + ku + 1
+        n = 2 * ku + 1
+        mean = (cs[:, hi] - cs[:, lo]) / n
+        var = np.maximum((cs2[:, hi] - cs2[:, lo]) / n - mean**2, 0.0)
+        ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
+        k = least_cost_path(ratio, max(1, int(np.ceil(max_slope_px / step_px))))
+        # then the raw asymmetry's own minimum within a few samples of it
+        near = 4
+        idx = np.clip(k[:, None] + np.arange(-near, near + 1)[None, :], 0, len(shifts) - 1)
+        k = idx[rows, np.argmin(cost[rows[:, None], idx], axis=1)]
+    inner = (k > 0) & (k < len(shifts) - 1)
+    kk = np.clip(k, 1, len(shifts) - 2)
+    c0, c1, c2 = cost[rows, kk - 1], cost[rows, kk], cost[rows, kk + 1]
+    denom = c0 - 2 * c1 + c2
+    frac = np.where(denom > 0, 0.5 * (c0 - c2) / np.where(denom > 0, denom, 1.0), 0.0)
+    shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
+    shift = np.where(inner, shift, np.nan)
+    return shift, cost[rows, k]
+
+
+def silhouette_edges(
+    profiles: np.ndarray,
+    offsets_px: np.ndarray,
+    width_px: np.ndarray | float,
+    *,
+    tolerance: float = 0.05,
+    centre_tolerance: float = 0.2,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wire's two silhouette edges on each profile across it, pixels along the normal.
+
+    Parameters
+    ----------
+    profiles : ndarray (P, S); grey levels at ``offsets_px`` (S,) along each normal.
+    width_px : the expected apparent width (scalar or (P,)), pixels.
+    tolerance : relative range of widths accepted about ``width_px``.
+    centre_tolerance : largest distance of the pair's midpoint from offset 0 (the
+        current centre), relative to ``width_px``.
+
+    Returns
+    -------
+    left, right : ndarray (P,) each, offsets of the two edges (NaN where no pair of
+        gradient peaks has a width within the tolerance), pixels.
+
+    Each edge is a local maximum of the profile's gradient magnitude (smoothed over
+    0.5 px), refined by a parabola; of every pair of peaks whose distance is within
+    ``tolerance`` of the width and whose midpoint is near the current centre, the one
+    with the largest summed gradient wins (a shadow's outer edge paired with a
+    highlight's edge can have the wire's width, but not about its centre). Beyond a
+    silhouette edge (1.5-3 px out) lies the plate or a shadow, never a highlight: an
+    edge with a level there above the plate's by 30 % of the profile's range is not one
+    (a dark flat shadow's outer edge and a highlight's edge are the strongest pair a
+    width apart on a light sheet when the wire's limb beside the shadow is as dark).
+    And one edge of the pair steps up, the other down: the limbs are darker than what
+    lies beside them (a light sheet, a shadow) or brighter (a dark sheet).
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    p = np.asarray(profiles, dtype=np.float64)
+    step = float(offsets_px[1] - offsets_px[0])
+    signed = gaussian_filter1d(p, 0.5 / step, axis=1, order=1)
+    grad = np.abs(signed)
+    n_p = len(p)
+    width = np.broadcast_to(np.asarray(width_px, dtype=np.float64), (n_p,))
+    left = np.full(n_p, np.nan)
+    right = np.full(n_p, np.nan)
+    inner = grad[:, 1:-1]
+    is_peak = (inner >= grad[:, :-2]) & (inner > grad[:, 2:])
+    is_peak &= inner >= 0.15 * inner.max(axis=1, keepdims=True)
+    outer = max(3, p.shape[1] // 10)
+    plate = np.median(np.concatenate((p[:, :outer], p[:, -outer:]), axis=1), axis=1)
+    bright = plate + 0.3 * (p.max(axis=1) - plate)
+    out1, out2 = int(round(1.5 / step)), int(round(3.0 / step))
+    last = p.shape[1] - 1
+    for i in range(n_p):
+        k = np.nonzero(is_peak[i])[0] + 1
+        if len(k) < 2:
+            continue
+        g0, g1, g2 = grad[i, k - 1], grad[i, k], grad[i, k + 1]
+        den = g0 - 2 * g1 + g2
+        frac = np.where(den < 0, 0.5 * (g0 - g2) / np.where(den < 0, den, -1.0), 0.0)
+        pos = offsets_px[k] + np.clip(frac, -0.5, 0.5) * step
+        gap = pos[None, :] - pos[:, None]
+        score = g1[None, :] + g1[:, None]
+        # the level beyond each peak as a left edge (outwards = lower offsets) and a right one
+        beyond_l = 0.5 * (p[i, np.clip(k - out1, 0, last)] + p[i, np.clip(k - out2, 0, last)])
+        beyond_r = 0.5 * (p[i, np.clip(k + out1, 0, last)] + p[i, np.clip(k + out2, 0, last)])
+        ok = np.abs(gap / width[i] - 1.0) <= tolerance
+        ok &= (beyond_l <= bright[i])[:, None] & (beyond_r <= bright[i])[None, :]
+        # one edge steps into the wire, the other out of it (the limbs darker than all
+        # around them, or brighter): a shadow's outer edge and a highlight's far edge
+        # step the same way
+        sense = np.sign(signed[i, k])
+        ok &= (sense[:, None] * sense[None, :]) < 0
+        ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * centre_tolerance * width[i]
+        if not ok.any():
+            continue
+        a, b = np.unravel_index(np.argmax(np.where(ok, score, -np.inf)), gap.shape)
+        left[i], right[i] = pos[a], pos[b]
+    return left, right
+
+
+def outer_edges(
+    profiles: np.ndarray, offsets_px: np.ndarray, width_px: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The wire's silhouette edges found from inside: the last edge before the plate.
+
+    A stretch where the profile is flat (gradient below a threshold over 0.08 wire
+    widths, at least 1.5 px) is outside the wire: the plate, or a shadow lying on
+    it; inside a round wire the only flat stretch is a highlight's crest (clipped,
+    or broad as on the photo lab's 3D wire), known by its level: well above the
+    plate (more than 30 % of the profile's range), where no shadow is. Between the flat
+    stretches lie the wire, a shadow's penumbra, other lines; the wire is the one
+    at least 0.9 widths wide nearest the profile's centre (within 0.7 widths; 1.5
+    when the centre lies on a flat stretch, such as a wide shadow) whose
+    silhouette edges, the strongest gradients within 2.5 px inside its two
+    ends (refined by a parabola), are at most 1.6 widths apart (a penumbra joined
+    to it widens it). The stretch itself is wider than the edges' distance by the
+    blurred edges' tails, about 2 px whatever the width: 1.7 widths on a 6 px wire.
+
+    Returns left, right offsets (P,) px, NaN where no stretch of the wire's width
+    was found.
+    """
+    from scipy.ndimage import gaussian_filter1d
+
+    p = np.asarray(profiles, dtype=np.float64)
+    step = float(offsets_px[1] - offsets_px[0])
+    g = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1)) / step  # grey per px
+    n = p.shape[1]
+    outer = max(3, n // 10)
+    noise = 1.4826 * np.median(
+        np.abs(np.concatenate((g[:, :outer], g[:, -outer:]), axis=1)), axis=1
+    )
+    tau = np.maximum(3.0 * noise, 0.08 * g.max(axis=1))
+    # a highlight is flat too, but inside the wire: clipped, or a broad crest well
+    # above the plate (a shadow, the only other flat level, is darker than the plate)
+    plate = np.median(np.concatenate((p[:, :outer], p[:, -outer:]), axis=1), axis=1)
+    above = np.maximum(0.3 * (p.max(axis=1) - plate), np.maximum(3.0 * noise * step, 8.0))
+    flat = (g < tau[:, None]) & (p < np.minimum(CLIPPED_LEVEL, (plate + above)[:, None]))
+    run = max(2, int(round(max(1.5, 0.08 * width_px) / step)))
+    back = int(round(2.5 / step))
+    left = np.full(len(p), np.nan)
+    right = np.full(len(p), np.nan)
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    # covered[i, j]: sample j lies in a flat stretch at least ``run`` samples long
+    all_flat = sliding_window_view(flat, run, axis=1).all(axis=2)
+    covered = np.zeros_like(flat)
+    for k in range(run):
+        covered[:, k : k + all_flat.shape[1]] |= all_flat
+    for i in range(len(p)):
+        # the stretches between flat ones: the wire, a penumbra, a stray line...
+        busy = ~covered[i]
+        starts, stops = true_runs(busy)
+        if len(starts) == 0:
+            continue
+        width = (stops - starts) * step
+        centre = 0.5 * (offsets_px[starts] + offsets_px[np.minimum(stops, n) - 1])
+        # a stretch holds the blurred edges' tails too (about 2 px each side, whatever
+        # the wire's width): the upper bound is on its edges' distance, below
+        fits = width >= 0.9 * width_px
+        # a rough centre on a flat stretch (a wide shadow) is off the wire: look farther
+        reach = (1.5 if covered[i, n // 2] else 0.7) * width_px
+        fits &= (starts > 0) & (stops < n) & (np.abs(centre) <= reach)
+        # the one holding the current centre, else the nearest
+        for j in np.argsort(np.where(fits, np.abs(centre), np.inf))[: int(fits.sum())]:
+            a, b = int(starts[j]), int(stops[j])  # busy samples a .. b - 1
+            lo = peak_offset(g[i], a, min(b, a + back), offsets_px)
+            hi = peak_offset(g[i], max(a, b - back), b, offsets_px)
+            if hi - lo <= 1.6 * width_px:
+                left[i], right[i] = lo, hi
+                break
+    return left, right
+
+
+def edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -> np.ndarray:
+    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN."""
+    from scipy.ndimage import gaussian_filter1d
+
+    step = float(offsets[1] - offsets[0])
+    g = np.abs(gaussian_filter1d(np.asarray(profiles, float), 0.5 / step, axis=1, order=1)) / step
+    ok = np.isfinite(edge)
+    k = np.clip(
+        np.round((np.nan_to_num(edge) - offsets[0]) / step).astype(int), 0, len(offsets) - 1
+    )
+    return np.where(ok, g[np.arange(len(g)), k], 0.0)
+
+
+def majority_filter(labels: np.ndarray, window: int) -> np.ndarray:
+    """The most frequent non-negative label (0, 1, 2) in a window along the wire; -1 where none."""
+    from scipy.ndimage import uniform_filter1d
+
+    counts = np.stack(
+        [uniform_filter1d((labels == k).astype(float), window, mode="nearest") for k in range(3)]
+    )
+    out = np.argmax(counts, axis=0)
+    return np.where(counts.max(axis=0) > 0, out, -1)
+
+
+def peak_offset(g: np.ndarray, lo: int, hi: int, offsets: np.ndarray) -> float:
+    """Sub-sample position of the maximum of ``g[lo:hi]`` (parabola), in offset units."""
+    k = lo + int(np.argmax(g[lo:hi]))
+    if 0 < k < len(g) - 1:
+        c0, c1, c2 = g[k - 1], g[k], g[k + 1]
+        den = c0 - 2 * c1 + c2
+        frac = 0.5 * (c0 - c2) / den if den < 0 else 0.0
+    else:
+        frac = 0.0
+    step = offsets[1] - offsets[0]
+    return float(offsets[k] + np.clip(frac, -0.5, 0.5) * step)
+
+
+def asymmetry_ratio(
+    profiles: np.ndarray, shift_px: np.ndarray, asym: np.ndarray, rho_px: float
+) -> float:
+    """Median of (mean squared asymmetry) / (2 x variance in the window) over profiles."""
+    if len(profiles) == 0:
+        return 1.0
+    mid = profiles.shape[1] // 2
+    ku = max(1, int(round(rho_px / PROFILE_STEP_PX)))
+    centre = mid + np.round(shift_px / PROFILE_STEP_PX).astype(np.int64)
+    idx = centre[:, None] + np.arange(-ku, ku + 1)[None, :]
+    idx = np.clip(idx, 0, profiles.shape[1] - 1)
+    window = np.take_along_axis(profiles, idx, axis=1)
+    var = window.var(axis=1)
+    return float(np.median(asym / np.maximum(2.0 * var, 1e-9)))
+
+
+def least_cost_path(cost: np.ndarray, reach: int) -> np.ndarray:
+    """Column per row (P,) minimising the summed cost with |k_i - k_(i-1)| <= reach."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    n_rows, n_cols = cost.shape
+    # scale each row to its own range so that no single profile dominates
+    lo = cost.min(axis=1, keepdims=True)
+    span = np.maximum(cost.max(axis=1, keepdims=True) - lo, 1e-12)
+    c = (cost - lo) / span
+    back = np.empty((n_rows, n_cols), dtype=np.int64)
+    total = c[0].copy()
+    cols = np.arange(n_cols)
+    for i in range(1, n_rows):
+        win = sliding_window_view(np.pad(total, reach, constant_values=np.inf), 2 * reach + 1)
+        j = np.argmin(win, axis=1)
+        back[i] = cols + j - reach
+        total = c[i] + win[cols, j]
+    path = np.empty(n_rows, dtype=np.int64)
+    path[-1] = int(np.argmin(total))
+    for i in range(n_rows - 1, 0, -1):
+        path[i - 1] = back[i, path[i]]
+    return path
+
+
+def true_runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Starts and stops (one past the end) of a 1-D boolean ``mask``'s runs of True."""
+    change = np.diff(np.concatenate(([False], mask, [False])).astype(np.int8))
+    return np.nonzero(change == 1)[0], np.nonzero(change == -1)[0]
+
+
+def long_runs(mask: np.ndarray, min_length: float) -> np.ndarray:
+    """True at the elements of ``mask``'s runs of True at least ``min_length`` long."""
+    out = np.zeros(len(mask), dtype=bool)
+    for start, stop in zip(*true_runs(mask), strict=True):
+        if stop - start >= min_length:
+            out[start:stop] = True
+    return out
+
+
+def despike(shift: np.ndarray, window: int) -> np.ndarray:
+    """NaN where a shift departs from the running median of its neighbours along the wire.
+
+    A centre moves smoothly along the wire; one that jumps (a false symmetric
+    point in a flank, a crossing shadow) is dropped: more than 3 robust sigmas
+    (and 0.5 px) from the running median over ``window`` profiles.
+    """
+    from scipy.ndimage import median_filter
+
+    out = shift.copy()
+    ok = np.isfinite(shift)
+    if ok.sum() < 5:
+        return out
+    vals = shift[ok]
+    med = median_filter(vals, size=max(3, window | 1), mode="nearest")
+    res = vals - med
+    sigma = 1.4826 * float(np.median(np.abs(res)))
+    bad = np.abs(res) > max(3.0 * sigma, 0.5)
+    idx = np.nonzero(ok)[0]
+    out[idx[bad]] = np.nan
+    return out
+
+
+def half_width_px(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) -> np.ndarray:
+    """Per profile, the smaller distance from 0 to a flank at half contrast (P,).
+
+    The contrast is taken against the background on the side *farther* in
+    level from the wire's extreme (a shadow sits between the two); the
+    smaller of the two sides is the one a shadow did not widen.
+    """
+    p = profiles
+    n = p.shape[1]
+    outer = max(2, n // 10)
+    bg_l = np.median(p[:, :outer], axis=1)
+    bg_r = np.median(p[:, -outer:], axis=1)
+    core = np.abs(offsets) <= 1.5 * guess_px
+    bg = 0.5 * (bg_l + bg_r)
+    dev = p[:, core] - bg[:, None]
+    hi = dev.max(axis=1)
+    lo = dev.min(axis=1)
+    bright = hi >= -lo  # the wire stands out brighter than its background
+    extreme = np.where(bright, p[:, core].max(axis=1), p[:, core].min(axis=1))
+    ref = np.where(bright, np.minimum(bg_l, bg_r), np.maximum(bg_l, bg_r))
+    level = 0.5 * (ref + extreme)
+    sign = np.where(bright, 1.0, -1.0)
+    above = (p - level[:, None]) * sign[:, None] > 0
+    out = np.full(len(p), np.nan)
+    centre = n // 2
+    for i in range(len(p)):
+        row = above[i]
+        left = np.nonzero(row[:centre])[0]
+        right = np.nonzero(row[centre:])[0]
+        if len(left) == 0 or len(right) == 0:
+            continue
+        a = left[0]
+        b = centre + right[-1]
+        if a == 0 or b == n - 1:
+            continue
+        fa = (level[i] - p[i, a - 1]) / (p[i, a] - p[i, a - 1])
+        fb = (level[i] - p[i, b]) / (p[i, b + 1] - p[i, b])
+        xa = offsets[a - 1] + fa * (offsets[a] - offsets[a - 1])
+        xb = offsets[b] + fb * (offsets[b + 1] - offsets[b])
+        out[i] = min(-xa, xb)
+    return out

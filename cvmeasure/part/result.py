@@ -1,0 +1,180 @@
+"""The typed result of a part measurement and its pieces.
+
+:class:`PartMeasurement` is what :func:`cvmeasure.part.measure.measure_part` returns and
+``cvmeasure part --json`` prints (``to_dict``); :class:`ArcResult` is one method's arc,
+:class:`DesignComparison` the part against its design.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from cvmeasure.geometry import CircleFit
+from cvmeasure.part.compare import (
+    BendComparison,
+    Deviation,
+    Registration,
+)
+from cvmeasure.part.fit import (
+    ChordCount,
+)
+from cvmeasure.part.seed_methods import SeedArc
+from cvmeasure.warning import StageWarning
+
+__all__ = ["Method", "METHODS", "ArcResult", "DesignComparison", "PartMeasurement"]
+
+
+Method = Literal["ours", "ellipse", "sagitta"]
+
+METHODS: tuple[str, ...] = ("ours", "ellipse", "sagitta")
+
+
+@dataclass(frozen=True)
+class ArcResult:
+    """The spec's part quantities from one method.
+
+    ``segment_bend_deg`` is ``arc_angle_deg / divisions`` (None without divisions).
+    """
+
+    method: str
+    radius_mm: float
+    chord_width_mm: float
+    height_mm: float
+    arc_angle_deg: float
+    divisions: int | None
+
+    @property
+    def segment_bend_deg(self) -> float | None:
+        return None if not self.divisions else self.arc_angle_deg / self.divisions
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "radius_mm": self.radius_mm,
+            "chord_width_mm": self.chord_width_mm,
+            "height_mm": self.height_mm,
+            "arc_angle_deg": self.arc_angle_deg,
+            "segment_bend_deg": self.segment_bend_deg,
+        }
+
+
+@dataclass(frozen=True)
+class DesignComparison:
+    """The part registered to its design and how far it deviates.
+
+    ``bends`` only with divisions: per-vertex bends (design order and sense)
+    and the seed's absolute / relative errors of the bend per chord.
+    """
+
+    source: str
+    registration: Registration
+    deviation: Deviation
+    design_arc: ArcResult
+    bends: BendComparison | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "design": self.source,
+            "registration": self.registration.to_dict(),
+            "deviation": self.deviation.to_dict(),
+            "design_arc": self.design_arc.to_dict(),
+            "bends": None if self.bends is None else self.bends.to_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class PartMeasurement:
+    """Everything measured on one part photo.
+
+    Attributes
+    ----------
+    source : the photo.
+    result : the headline :class:`ArcResult` (from ``method``).
+    methods : the result of every method, by name.
+    vertex_bend_deg : ndarray (N-1,) signed bends at the fitted vertices (ours,
+        with divisions), counter-clockwise positive in the board frame; else None.
+    vertex_bend_sigma_deg : their standard uncertainties (sampling only), degrees.
+    vertices_mm : ndarray (N+1, 2) fitted chord vertices, board mm; else None.
+    vertices_px : the same vertices in photo pixels.
+    centreline_mm : ndarray (M, 2) the wire's centreline, board mm, end to end.
+    centreline_px : ndarray (M, 2) the same in photo pixels.
+    wire_width_mm : apparent wire width (flanks at half contrast), mm.
+    circle : the circle fit behind ``ours``.
+    plane : summary of the board plane (tilt, scale, reprojection RMS).
+    wire : summary of the segmentation.
+    comparison : against the design, when one was given.
+    warnings : things a user should know (e.g. arcs too short for a stable radius).
+    shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
+        sign, so radius and arc angle describe no real arc).
+    divisions_from : where the chord count came from: ``"--divisions"``, ``"plan"`` (the
+        polygon bent, ``reference_mm``), ``"photo"`` (vertices found on the centreline)
+        or None (none: a smooth curve).
+    chords_found : what the vertex search on the centreline found.
+    lift : with a wire diameter, the part's lift off the plate
+        (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
+        the lift corrected with, the reading or the bound it was read above, the reading
+        itself in ``read_lift_mm``), ``lift_sigma_mm`` (the estimate's or the reading's; None
+        without one), ``used`` (``"bound"``, or ``"correction"``
+        when a lift was measured and corrected), ``source`` (where the lift came from:
+        ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
+        ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
+        the bend per chord and a vertex bend (``effect_segment_bend_deg``,
+        ``effect_bend_deg``); else None.
+    """
+
+    source: str
+    result: ArcResult
+    methods: dict[str, ArcResult]
+    vertex_bend_deg: np.ndarray | None
+    vertex_bend_sigma_deg: np.ndarray | None
+    vertices_mm: np.ndarray | None
+    vertices_px: np.ndarray | None
+    centreline_mm: np.ndarray
+    centreline_px: np.ndarray
+    wire_width_mm: float
+    circle: CircleFit
+    plane: dict[str, Any]
+    wire: dict[str, Any]
+    seed_arcs: dict[str, SeedArc] = field(default_factory=dict)
+    comparison: DesignComparison | None = None
+    warnings: tuple[StageWarning, ...] = ()
+    shape: str = "arc"
+    divisions_from: str | None = None
+    chords_found: ChordCount | None = None
+    lift: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
+        out["divisions"] = self.result.divisions
+        out["divisions_from"] = self.divisions_from
+        out["shape"] = self.shape
+        out["chords_found"] = None if self.chords_found is None else self.chords_found.to_dict()
+        out["vertex_bend_deg"] = (
+            None if self.vertex_bend_deg is None else self.vertex_bend_deg.tolist()
+        )
+        out["vertex_bend_sigma_deg"] = (
+            None if self.vertex_bend_sigma_deg is None else self.vertex_bend_sigma_deg.tolist()
+        )
+        out["bend_sense"] = "counter-clockwise positive in the board frame (x, y)"
+        out["vertices_mm"] = None if self.vertices_mm is None else self.vertices_mm.tolist()
+        out["wire_width_mm"] = self.wire_width_mm
+        out["circle"] = self.circle.to_dict("mm")
+        out["methods"] = {k: v.to_dict() for k, v in self.methods.items()}
+        out["seed_arcs"] = {k: v.to_dict() for k, v in self.seed_arcs.items()}
+        out["plane"] = self.plane
+        out["wire"] = self.wire
+        out["centreline_mm"] = self.centreline_mm.tolist()
+        # for overlays: the centreline in photo pixels, at most 400 points
+        step = max(1, len(self.centreline_px) // 400)
+        line_px = np.vstack((self.centreline_px[::step], self.centreline_px[-1:]))
+        out["centreline_px"] = np.round(line_px, 2).tolist()
+        out["vertices_px"] = (
+            None if self.vertices_px is None else np.round(self.vertices_px, 2).tolist()
+        )
+        out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
+        out["lift"] = self.lift
+        out["warnings"] = [w.to_json() for w in self.warnings]
+        return out

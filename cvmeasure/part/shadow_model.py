@@ -1,0 +1,173 @@
+"""The model of a lifted wire's cast shadow: where its outer edges fall for a lamp and a tilt.
+
+Under a distant lamp the axis at height ``H`` shadows at ``p + H s``; a cylinder of radius
+``r`` casts a band whose outer edge lies ``H (n.s) + r sqrt(1 + (n.s)^2)`` across the
+wire. :func:`predict_shadow_edges_mm` gives the edges for a shadow vector and heights,
+each crossing followed on the polyline segment it lies on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cvmeasure.contracts import PlaneModel
+from cvmeasure.part.lift import (
+    MAX_LIFT_MM,
+    points_at_heights_mm,
+)
+from cvmeasure.part.shadow_edges import ShadowEdges, unit_normals
+
+__all__ = [
+    "EdgeModel",
+    "edge_model",
+    "predict_shadow_edges_mm",
+    "predict_edges",
+    "forward_steps",
+    "rigid_heights",
+]
+
+
+@dataclass(frozen=True)
+class EdgeModel:
+    """What :func:`predict_shadow_edges_mm` needs that does not change during a fit.
+
+    ``at0_mm`` (M, 2): each centreline point's ray on the plate (height 0), board mm;
+    ``per_mm`` (M, 2): its move per mm of height (affine along the ray); the measuring
+    lines start at ``edges.axis_mm`` along ``+-edges.normal``.
+    """
+
+    at0_mm: np.ndarray
+    per_mm: np.ndarray
+    edges: ShadowEdges
+    radius_mm: float
+
+    def curve(self, height_mm: np.ndarray, shadow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The axis (..., M, 2) at its heights (..., M) and the band's outer edge (..., M, 2).
+
+        Leading dimensions run over parameter sets (``shadow`` (..., 2)).
+        """
+        h = height_mm[..., None]
+        axis3 = self.at0_mm + h * self.per_mm
+        sc = axis3 + h * shadow[..., None, :]
+        m = unit_normals(sc)  # the shadow curve's
+        ms = m[..., 1] * shadow[..., 1:] + m[..., 0] * shadow[..., :1]
+        scale = np.where(ms >= 0, 1.0, -1.0) * self.radius_mm * np.sqrt(1.0 + ms * ms)
+        return axis3, sc + scale[..., None] * m
+
+    def crossings(
+        self, axis3: np.ndarray, edge: np.ndarray, shadow: np.ndarray, d: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Where each measuring line (K) first crosses the polyline ``edge`` (M, 2).
+
+        The line from ``edges.axis_mm`` along ``d`` (K, 2), searched over the segments near
+        each sample's own index (a window as long as the shadow's largest displacement).
+        Returns the distance along ``d`` (K,) (NaN where none) and the crossed segment's
+        first point (K,) (-1 where none).
+        """
+        q = self.edges.axis_mm
+        win = 3.0 + (self.radius_mm + 2.0 * MAX_LIFT_MM) * float(np.hypot(*shadow))
+        step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
+        kw = int(np.ceil(win / step))
+        p = np.clip(self.edges.index[:, None] + np.arange(-kw, kw + 1)[None, :], 0, len(edge) - 1)
+        ex, ey = edge[:, 0].take(p), edge[:, 1].take(p)
+        cross = (ex - q[:, :1]) * d[:, 1:] - (ey - q[:, 1:]) * d[:, :1]
+        cross_a, cross_b = cross[:, :-1], cross[:, 1:]
+        rows, cols = np.nonzero((cross_a * cross_b <= 0) & (cross_a != cross_b))
+        ca, cb = cross_a[rows, cols], cross_b[rows, cols]
+        seg = p[rows, cols]
+        along = _along(edge[seg], edge[p[rows, cols + 1]], q[rows], d[rows], ca, cb)
+        ahead = along > 0
+        rows, seg, along = rows[ahead], seg[ahead], along[ahead]
+        if np.all(rows[1:] > rows[:-1]):  # one crossing per line (rows come sorted)
+            first = slice(None)
+        else:
+            order = np.lexsort((along, rows))
+            first = order[np.unique(rows[order], return_index=True)[1]]
+        out = np.full(len(q), np.nan)
+        out_seg = np.full(len(q), -1)
+        out[rows[first]] = along[first]
+        out_seg[rows[first]] = seg[first]
+        return out, out_seg
+
+    def along_segments(self, edge: np.ndarray, seg: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Distance (..., K) along ``d`` to the lines through the segments ``seg`` (K,) of
+        ``edge`` (..., M, 2) (NaN where ``seg`` is -1): the crossing with the segment found
+        by :meth:`crossings`, followed as the curve moves (its derivative)."""
+        q = self.edges.axis_mm
+        j = np.maximum(seg, 0)
+        a, b = edge[..., j, :], edge[..., j + 1, :]
+        rel_a, rel_b = a - q, b - q
+        ca = rel_a[..., 0] * d[:, 1] - rel_a[..., 1] * d[:, 0]
+        cb = rel_b[..., 0] * d[:, 1] - rel_b[..., 1] * d[:, 0]
+        along = _along(a, b, q, d, ca, np.where(ca != cb, cb, ca + 1.0))
+        return np.where(seg >= 0, along, np.nan)
+
+
+def _along(a, b, q, d, cross_a, cross_b):
+    """Distance along ``d`` from ``q`` to where the segment ``a``-``b`` (cross products
+    ``cross_a``, ``cross_b`` of its ends with the line) meets the line."""
+    t = cross_a / (cross_a - cross_b)
+    hit = a + t[..., None] * (b - a)
+    return np.sum((hit - q) * d, axis=-1)
+
+
+def edge_model(
+    plane: PlaneModel, points_px: np.ndarray, edges: ShadowEdges, radius_mm: float
+) -> EdgeModel:
+    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    at0 = points_at_heights_mm(plane, pts, 0.0)
+    at1 = points_at_heights_mm(plane, pts, 1.0)
+    return EdgeModel(at0, at1 - at0, edges, radius_mm)
+
+
+def predict_shadow_edges_mm(
+    plane: PlaneModel,
+    points_px: np.ndarray,
+    edges: ShadowEdges,
+    height_mm: np.ndarray,
+    shadow: np.ndarray,
+    radius_mm: float,
+    side: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The model's outer edge offset (K,) along the side ``side`` (K,) (+1 / -1 of normal).
+
+    ``height_mm`` (M,): the axis' height above the plate at every centreline point;
+    ``shadow`` (2,): the shadow vector per mm of height. Each axis point on the plane of its
+    own height, shadowed to ``p + H s``, the band's outer edge ``r sqrt(1 + (m.s)^2)`` off
+    the shadow curve along its own normal ``m``; the offset is where the measuring line
+    (from ``edges.axis_mm`` along ``+-edges.normal``) crosses that edge curve. ``side``
+    (K,): the side to measure on (default the shadow's, ``sign(n.s)``); NaN where the
+    line does not meet the edge.
+    """
+    model = edge_model(plane, points_px, edges, radius_mm)
+    return predict_edges(model, np.asarray(height_mm, dtype=np.float64), shadow, side)[:2]
+
+
+def predict_edges(
+    model: EdgeModel, height_mm: np.ndarray, shadow: np.ndarray, side: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`predict_shadow_edges_mm` on a prepared model; also the crossed segments."""
+    shadow = np.asarray(shadow, dtype=np.float64)
+    n = model.edges.normal
+    if side is None:
+        side = np.where(n @ shadow >= 0, 1.0, -1.0)
+    axis3, edge = model.curve(height_mm, shadow)
+    along, seg = model.crossings(axis3, edge, shadow, n * side[:, None])
+    return along, side, seg
+
+
+def forward_steps(x: np.ndarray, rel_step: float) -> np.ndarray:
+    """The forward steps scipy's least_squares takes for ``diff_step=rel_step`` (the
+    relative step, or sqrt(eps) max(1, |x|) where that vanishes), so a Jacobian supplied
+    to it is the one it would have computed."""
+    sign = np.where(x >= 0, 1.0, -1.0)
+    step = rel_step * sign * np.abs(x)
+    fallback = np.sqrt(np.finfo(np.float64).eps) * sign * np.maximum(1.0, np.abs(x))
+    return np.where((x + step) - x == 0, fallback, step)
+
+
+def rigid_heights(plane_mm: np.ndarray, slope: np.ndarray) -> np.ndarray:
+    rel = plane_mm @ slope
+    return rel - rel.min()
