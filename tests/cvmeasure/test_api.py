@@ -32,6 +32,14 @@ def test_help_shows_every_verb_and_an_example():
         cvmeasure.not_a_verb  # noqa: B018
 
 
+def test_the_lazy_names_are_the_api_modules_names():
+    """``cvmeasure`` lists the API's names without importing it (start-up time): the two
+    lists must stay the same."""
+    import cvmeasure.api
+
+    assert [n for n in cvmeasure.__all__ if n != "__version__"] == cvmeasure.api.__all__
+
+
 def test_save_and_load_round_trip(tmp_path):
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     assert cvmeasure.load_board(cvmeasure.save(tmp_path / "b.json", board)) == board
