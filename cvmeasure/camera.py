@@ -21,7 +21,7 @@ import numpy as np
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, read_json
 
-__all__ = ["CameraModel", "load_camera", "save_camera"]
+__all__ = ["CameraModel", "implausible_distortion", "load_camera", "save_camera"]
 
 _VALID_DIST_LENGTHS = (4, 5, 8, 12, 14)
 
@@ -204,7 +204,7 @@ class CameraModel:
         rms = data.get("rms_px")
         if rms is not None and (isinstance(rms, bool) or not isinstance(rms, (int, float))):
             raise InputError(source, f"rms_px must be a number of pixels, got {rms!r}")
-        problem = _implausible_distortion(k, d, (float(size[0]), float(size[1])))
+        problem = implausible_distortion(k, d, (float(size[0]), float(size[1])))
         if problem:
             raise InputError(source, problem)
         rest = {
@@ -215,7 +215,7 @@ class CameraModel:
         return cls((int(size[0]), int(size[1])), k, d, rest)
 
 
-def _implausible_distortion(k: np.ndarray, d: np.ndarray, size: tuple[float, float]) -> str:
+def implausible_distortion(k: np.ndarray, d: np.ndarray, size: tuple[float, float]) -> str:
     """Why the radial distortion cannot be a real lens over this image ("" when it can).
 
     Over the image (out to its farthest corner) the radial factor must stay positive,

@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         detect_photos,
         model_choice_text,
     )
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera import implausible_distortion, save_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import to_jsonable
     from cvmeasure.provenance import provenance
@@ -106,6 +106,15 @@ def run(args: argparse.Namespace) -> int:
         args.board_warp,
     ]
     camera = report.camera_model(board, provenance=provenance(argv))
+    # A model that folds the image is refused by every reader (load_camera): never write one.
+    size = (float(camera.image_size_px[0]), float(camera.image_size_px[1]))
+    problem = implausible_distortion(camera.camera_matrix, camera.dist_coeffs, size)
+    if problem:
+        raise InputError(
+            args.out,
+            f"not written: the fitted model {args.model}'s {problem}; use --model auto or a "
+            "simpler model, or add photos with the board in the image's corners",
+        )
     path = save_camera(args.out, camera)
     summary = report.summary()
     if args.json:
