@@ -156,8 +156,8 @@ def coverage_guidance(detections: Sequence[Any], image_size_px: tuple[int, int])
         return "hold the board flat in the middle of the view, filling about a third of it"
     cov = image_coverage(usable, image_size_px)
     for warning in cov.warnings:
-        if "add photos" in warning and not warning.startswith("only"):
-            advice = warning.split(": ", 1)[-1]
+        if warning.code != "calib_few_views" and "add photos" in warning.message:
+            advice = warning.message.split(": ", 1)[-1]
             return advice.replace("add photos with the board", "hold the board", 1).replace(
                 "add photos", "hold the board", 1
             )
@@ -184,7 +184,7 @@ def solve_lens(photos: Sequence[Path]) -> LensSolve:
     cal = cvmeasure.calibrate_camera(list(photos), BOARD, model="5")
     report = cal.report
     # dropping a few outlier corners is the solve doing its job, not a reason to redo it
-    problems = tuple(str(w) for w in report.warnings if "outlier corner" not in str(w))
+    problems = tuple(str(w) for w in report.warnings if w.code != "calib_corners_dropped")
     return LensSolve(
         camera=cal.camera,
         rms_px=float(report.result.rms_px),
