@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import argparse
 
-from benchmarks import Table, finish
+from benchmarks import finish
 from benchmarks.diagnosis_session import (
     HELDOUT_OUTSIDE,
     SEED0,
     _cases,
     _generator_metrics,
     make_case,
+    per_cause_table,
     run_case,
 )
 
@@ -45,13 +46,7 @@ def main(argv: list[str] | None = None) -> dict:
         argv,
         quick=args.quick,
         metrics=metrics,
-        tables=[
-            Table(
-                "per hidden cause (modes quick, standard, high together)",
-                ["generator", "hidden", "cases", "right %", "follow-ups run", "instead"],
-                per_cause,
-            )
-        ],
+        tables=[per_cause_table(per_cause)],
         notes=[
             f"seeds from {SEED0 + SEED_OFFSET}, {reps} per (cause, mode); the DIWire preset; "
             "noise 0.02-0.1 deg per reading; outside the catalogue: " + ", ".join(HELDOUT_OUTSIDE),

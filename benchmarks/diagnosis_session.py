@@ -452,6 +452,15 @@ def _cases(generators: tuple[str, ...], reps: int) -> list[tuple[str, int, str, 
     return out
 
 
+def per_cause_table(per_cause: list[list]) -> Table:
+    """The per-hidden-cause table of :func:`_generator_metrics`'s rows (one generator or more)."""
+    return Table(
+        "per hidden cause (modes quick, standard, high together)",
+        ["generator", "hidden", "cases", "right %", "follow-ups run", "instead"],
+        per_cause,
+    )
+
+
 def _generator_metrics(gen: str, rows: list[dict]) -> tuple[list[Metric], list[list]]:
     cat = [r for r in rows if r["hidden"] in CATALOGUE]
     null = [r for r in rows if r["hidden"] == "none"]
@@ -562,11 +571,7 @@ def main(argv: list[str] | None = None) -> dict:
         quick=args.quick,
         metrics=metrics,
         tables=[
-            Table(
-                "per hidden cause (modes quick, standard, high together)",
-                ["generator", "hidden", "cases", "right %", "follow-ups run", "instead"],
-                per_cause,
-            ),
+            per_cause_table(per_cause),
             Table(
                 "identifiability: each cause's signature with the machine's strength, die "
                 "radius and dead zone projected out: share left, nearest other cause (|cosine|)",
