@@ -54,16 +54,24 @@ from cvmeasure.diagnose.fitting import (
     DISCREPANCY_P,
     ModelFit,
     discrepancy_basis,
+    discrepancy_form,
     fit_model,
     group_folds,
     grouped_kfold_cv,
+    learned_form,
 )
 from cvmeasure.diagnose.identify import (
     CONFOUNDED_SIMILARITY,
     Identifiability,
     check_identifiability,
 )
-from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
+from cvmeasure.diagnose.misfit import (
+    Misfit,
+    curve_rms_deg,
+    lack_of_fit,
+    lack_of_fit_residuals,
+    springback_rms_deg,
+)
 from cvmeasure.diagnose.residuals import (
     LeftoverCheck,
     ResidualTrend,
@@ -375,6 +383,58 @@ def diagnose(
         min_delta_bic=min_delta_bic,
         max_causes=max_causes,
     )
+    result = _diagnose_form(trials, params, kwargs, follow_up)
+    if not _form_misses(result):
+        return result
+    # the simulation's form does not describe this machine: its no-effect relation is
+    # learned from the session (a smooth curve in the bend, fitted with every cause) and
+    # the causes are tested on what such a curve cannot absorb
+    with discrepancy_form(learned_form(trials)):
+        learned = _diagnose_form(trials, params, kwargs, follow_up)
+        fit = learned.extended_fit if learned.causes else learned.baseline_fit
+        curve_deg = curve_rms_deg(trials, fit)
+    if learned.misfit is not None and learned.misfit.refused:
+        return result
+    allowed_deg = LEARNED_CURVE_SPRINGBACKS * springback_rms_deg(trials, params)
+    if not curve_deg <= allowed_deg:
+        note = (
+            f"a curve learned from the session would have to move the angles by "
+            f"{curve_deg:.2f} deg rms, beyond what the material's response can be off by "
+            f"({allowed_deg:.2f} deg, twice the springback the description predicts): the "
+            "machine is described wrong (wire, pin or dead zone); no cause is named"
+        )
+        return dataclasses.replace(result, notes=(*result.notes, note))
+    note = (
+        "the simulation's form misses this machine beyond the noise: its no-effect relation "
+        "was learned from the session (a smooth curve in the bend for loaded and released "
+        "angles, both directions alike); the causes were tested on the direction, the order "
+        "and the pin, which it cannot absorb"
+    )
+    return dataclasses.replace(learned, notes=(*learned.notes, note))
+
+
+#: The learned curve stands for the description's error in the material's response:
+#: the springback (the released angle) and the hardening's share of the loaded one, each
+#: off by at most about the whole springback. A curve beyond this many times the
+#: predicted springback (rms over the session) is a machine described wrong (its wire,
+#: pin or dead zone), which the user is told to fix.
+LEARNED_CURVE_SPRINGBACKS = 2.0
+
+
+def _form_misses(result: Diagnosis) -> bool:
+    """The simulation's form (bounded discrepancy) leaves the data unexplained: refused
+    for lack of fit, or explained only by terms outside the catalogue."""
+    refused = result.misfit is not None and result.misfit.refused
+    return refused or result.cause == "unexplained"
+
+
+def _diagnose_form(
+    trials: TrialTable, params: SimParams, kwargs: dict[str, Any], follow_up: bool
+) -> Diagnosis:
+    """One diagnosis in the discrepancy's form in use, the bow decided and the
+    follow-up planned."""
+    base_effects = kwargs["base_effects"]
+    folds, min_cv_gain = kwargs["folds"], kwargs["min_cv_gain"]
     result = _diagnose_once(trials, params, **kwargs)
     bow = _bow_decides(trials, params, result, tuple(base_effects), folds, min_cv_gain)
     if bow is None:
