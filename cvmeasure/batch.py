@@ -27,37 +27,18 @@ import glob
 import importlib
 import importlib.util
 import json
-import multiprocessing
 import os
-import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import cv2
-import numpy as np
-
 from cvmeasure import __version__
-from cvmeasure.board import load_board
-from cvmeasure.camera import load_camera
-from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.extras import require
-from cvmeasure.fileio import (
-    append_jsonl,
-    atomic_write_text,
-    read_jsonl,
-    repair_jsonl_tail,
-    to_jsonable,
-)
-from cvmeasure.imageio import PHOTO_SUFFIXES
-from cvmeasure.kit import default_kit, load_kit
-from cvmeasure.markers.measure import measure_photo_file
-from cvmeasure.part.measure import measure_part as measure_part_photo
+from cvmeasure.fileio import append_jsonl, atomic_write_text, read_jsonl, repair_jsonl_tail
 
 if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used, not on import
     from concurrent.futures import Future
@@ -149,18 +130,21 @@ class MeasureContext:
 
 @lru_cache(maxsize=8)
 def _load_camera(path: str) -> CameraModel:
+    from cvmeasure.camera import load_camera
 
     return load_camera(path)
 
 
 @lru_cache(maxsize=8)
 def _load_kit(path: str | None) -> MarkerKit:
+    from cvmeasure.kit import default_kit, load_kit
 
     return default_kit() if path is None else load_kit(path)
 
 
 @lru_cache(maxsize=8)
 def _load_plane(path: str, camera_path: str | None) -> PlaneModel:
+    from cvmeasure.contracts import PlaneModel
 
     camera = None if camera_path is None else _load_camera(camera_path)
     return PlaneModel.load(path, camera=camera)
@@ -168,6 +152,7 @@ def _load_plane(path: str, camera_path: str | None) -> PlaneModel:
 
 @lru_cache(maxsize=8)
 def _load_board(path: str) -> BoardSpec:
+    from cvmeasure.board import load_board
 
     return load_board(path)
 
@@ -256,6 +241,7 @@ def list_photos(spec: str | os.PathLike[str] | Sequence[str | os.PathLike[str]])
     (:data:`~cvmeasure.imageio.PHOTO_SUFFIXES`); a glob may use ``**``. Raises
     InputError naming the spec when nothing matches.
     """
+    from cvmeasure.imageio import PHOTO_SUFFIXES
 
     if isinstance(spec, (str, os.PathLike)):
         specs = [spec]
@@ -345,6 +331,7 @@ def detect_kind(photo: Photo, context: MeasureContext | None = None) -> str:
     Detection runs on a copy at most 1600 px wide, with the dictionary of the
     batch's board when one was given (DICT_5X5_100 otherwise).
     """
+    import cv2
 
     gray = photo.gray8()
     scale = min(1.0, 1600.0 / max(gray.shape))
@@ -366,6 +353,8 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     centroid (``x_px``, ``y_px``, image frame) and the equal-area radius
     ``r_px``. A real, simple measurement for testing and benchmarking batches.
     """
+    import cv2
+    import numpy as np
 
     gray = cv2.GaussianBlur(photo.gray8(), (5, 5), 0)
     _t, mask = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
@@ -387,6 +376,7 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 
 
 def _as_record(result: Any) -> dict[str, Any]:
+    from cvmeasure.fileio import to_jsonable
 
     data = to_jsonable(result)
     if not isinstance(data, dict):
@@ -396,6 +386,7 @@ def _as_record(result: Any) -> dict[str, Any]:
 
 def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A bender photo through :func:`cvmeasure.markers.measure.measure_photo_file`."""
+    from cvmeasure.markers.measure import measure_photo_file
 
     result = measure_photo_file(
         photo, context.kit(), camera=context.camera(), plane=context.plane()
@@ -405,6 +396,7 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
+    from cvmeasure.part.measure import measure_part as measure_part_photo
 
     board, camera = context.board(), context.camera()
     if board is None or camera is None:
@@ -465,6 +457,7 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
 
 
 def _init_worker() -> None:
+    import cv2
 
     cv2.setNumThreads(1)
 
@@ -483,6 +476,7 @@ def _pool_worker_init(batch_pid: int | None = None) -> None:
     re-parented when this runs: it is compared with ``batch_pid``, not with the
     parent it finds, so it exits too.
     """
+    import threading
 
     _init_worker()
     parent_pid = os.getppid() if batch_pid is None else batch_pid
@@ -542,6 +536,7 @@ def _pool_context(start_method: str) -> Any:
     the ~1.3 s CPU of imports each spawned worker pays, without the deadlock of
     forking a process whose OpenMP threads exist.
     """
+    import multiprocessing
 
     if start_method not in START_METHODS:
         raise ValueError(
@@ -565,6 +560,7 @@ def _run_processes(
     workers: int,
     start_method: str = "spawn",
 ) -> Iterator[dict[str, Any]]:
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ctx = _pool_context(start_method)
     window = 4 * workers

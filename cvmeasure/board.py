@@ -54,7 +54,6 @@ class CharucoBoardSpec:
         return self.squares_x * self.square_mm, self.squares_y * self.square_mm
 
     def cv_dictionary(self):
-
         return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
 
     def cv_board(self):

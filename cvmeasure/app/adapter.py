@@ -269,7 +269,6 @@ def measure_finished_part(
 
 
 def part_overlay(bgr: np.ndarray, check: PartCheck) -> np.ndarray:
-
     return draw_part_overlay(bgr, check.measurement)
 
 
@@ -311,7 +310,6 @@ def save_calibration(path: Path, calibration: Any) -> None:
 
 
 def session_config(mode: str, angles: Sequence[float]) -> Any:
-
     return SessionConfig(mode="custom" if angles else mode, angles_deg=tuple(angles))
 
 
@@ -326,7 +324,6 @@ def read_session_log(path: Path) -> list[dict[str, Any]]:
 
 
 def session_step_from_record(record: dict[str, Any]) -> Any:
-
     return SessionStep.from_dict(record)
 
 
@@ -355,12 +352,10 @@ def run_material_session(
 
 
 def streamed_bender(link: Any) -> Any:
-
     return StreamedBender(link)
 
 
 def session_interrupted(message: str) -> Exception:
-
     return SessionInterrupted(message)
 
 
@@ -407,7 +402,6 @@ def open_link(url: str, double: Any = None) -> Any:
 
 
 def stream_control() -> Any:
-
     return StreamControl()
 
 

@@ -330,7 +330,6 @@ class Bending:
         self.op.background("inspect", work, machine=False)
 
     def _measure(self, rig, item_id: str, design_name: str, part: int, tol: float) -> None:
-
         path = rig.capture(
             "part", f"{Path(design_name).stem}-part{part}", self.op.folder / "inspect", part
         )

@@ -73,7 +73,6 @@ class RealRig(Rig):
     """A bender on a port (or link URL) and a gphoto2 camera or a watched folder."""
 
     def __init__(self, port: str, camera_url: str, folder: Path) -> None:
-
         self.port = port
         self.link = adapter.open_link(port)
         try:
