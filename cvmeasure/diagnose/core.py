@@ -29,6 +29,13 @@ Steps, on measured trials:
 
 Residuals below ``RESOLUTION_DEG`` are not structure; an extended model
 still missing by more than ``GROSS_MISFIT_DEG`` names nothing.
+
+A machine whose form the simulation misses (the steps refused for lack of fit, or
+explained only by terms outside the catalogue) is diagnosed again with its no-effect
+relation learned from the session (:func:`~cvmeasure.diagnose.fitting.learned_form`: a
+smooth curve in the bend magnitude for the loaded and released angles, fitted with every
+cause); the causes are then measured on what the curve cannot absorb (the direction, the
+order, the pin on the loaded photo).
 """
 
 from __future__ import annotations
@@ -918,8 +925,7 @@ def _holds_no_effect(fit: ModelFit) -> list[str]:
     On sweeps with nothing hidden, the model-form error beyond the discrepancy's bound
     (its coefficients at +-0.25 deg) passed as a scale of about 0.01: accepted by its
     delta BIC and held-out gain against baseline + the bounded discrepancy, while its
-    own interval, which carries the discrepancy, held 0 (development seed 310064:
-    -0.007 .. 0.017). A pair is kept when one of its causes excludes no effect (its
+    own interval, which carries the discrepancy, held 0 (e.g. -0.007 .. 0.017). A pair is kept when one of its causes excludes no effect (its
     second cause passed its own test beside the first)."""
     return [c for c, (lo, hi) in zip(fit.causes, fit.intervals, strict=True) if lo <= 0.0 <= hi]
 
@@ -1400,10 +1406,10 @@ def _extend(
         # the catalogue lacks: the next accepted pair is tried, at most BEAM_WIDTH of them.
         # (Structure left beyond the discrepancy no longer refuses a pair: on the
         # independent model the right pair always leaves some, the model-form error beyond
-        # the discrepancy's bound, and it refused 17 of 32 missed pairs on development
-        # seeds 8000-8005 while refusing no wrong pair on 96 no-effect and
-        # outside-catalogue cases, seeds 30000+; terms outside the catalogue are weighed
-        # against the pair after naming, by the held-out and evidence test of step 3b.)
+        # the discrepancy's bound, and it refused about half of the missed pairs while
+        # refusing no wrong pair on no-effect and outside-catalogue cases; terms outside
+        # the catalogue are weighed against the pair after naming, by the held-out and
+        # evidence test of step 3b.)
         refused = []
         for c in more[:BEAM_WIDTH]:
             if _plausible(c.fit):

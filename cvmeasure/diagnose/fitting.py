@@ -98,8 +98,8 @@ PRIOR_NOISE_DEG = 0.05
 #: 0.2 deg); the contact angle's tolerances (a ground pin's radius within 0.01 mm,
 #: 0.05 deg; the orbit radius within 0.05 mm, 0.09 deg; the wire's diameter within
 #: 0.04 mm, drawn wire of 3 mm, 0.10 deg). It was 0.1 deg (the repeatability and the pin
-#: alone): on the independent physical model's development seeds 350000-350309 (play lost
-#: on every bend) 24 of 32 backlash intervals held the truth, 32 of 32 with 0.25 deg.
+#: alone): on the independent physical model (play lost on every bend) 24 of 32 backlash
+#: intervals held the truth, 32 of 32 with 0.25 deg.
 UNFITTED_PRIOR_SD: tuple[tuple[str, float], ...] = (("approach_deg", 0.25),)
 #: The span's elastic bow is known, not fitted: beam theory gives the loaded leg's lead
 #: over the tangent construction's chord, ``M l / (6 EI)`` (share 1: the moment falls
@@ -719,7 +719,7 @@ def _interval(
     The centre's move is the joint fit's answer only if the model is right: the dead
     zone held at nominal also takes up model-form error along its own shape, and its
     pull then moves the centre the wrong way (a scale's centre moved 2.3 standard
-    errors away from the truth on development seeds, the estimate held it). Neither
+    errors away from the truth on the independent model, the estimate held it). Neither
     fit is known to be the right one, so the interval holds both."""
     if not math.isfinite(se):
         return (lo, hi)
@@ -1056,7 +1056,7 @@ def fit_model(
             # expected change over many steps, the step's phase unknown). It was the
             # continuous form's derivative, which on a plan of alternating directions
             # (a sweep) is nearly nil, the home shifts cancelling, while the steps lost
-            # whole do not cancel: development sweeps (seeds 100000-100029) with a drift
+            # whole do not cancel: sweeps with a drift
             # fitted at a held-out RMSE of 0.03-0.2 deg (baseline 0.5-1.5) had an interval
             # holding 0 and named nothing
             j = 1 + m + i
@@ -1450,7 +1450,13 @@ def grouped_kfold_cv(
         mask = np.tile(held, n_blocks)
         out[mask] = r[mask]
         out_d[mask] = (r - basis @ np.asarray(fit.discrepancy))[mask]
-    if _FORM.get().fit_with_causes:  # the learned curve is part of the model
+    if _FORM.get().fit_with_causes:
+        # the learned curve is the machine's no-effect relation, a nuisance like its
+        # geometry: held at its fit on every trial (profiled from the held-out residuals
+        # together), the causes are what is held out
+        ok = np.isfinite(out)
+        out_d = np.full_like(out, np.nan)
+        out_d[ok] = out[ok] - basis[ok] @ _profile_discrepancy(out[ok], basis[ok])
         out = out_d
     return CrossValidation(
         causes=names, residual_deg=out, residual_discrepancy_deg=out_d if discrepancy else None
