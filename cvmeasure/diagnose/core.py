@@ -60,6 +60,7 @@ from cvmeasure.diagnose.discover import (
 from cvmeasure.diagnose.fitting import (
     DISCREPANCY_P,
     ModelFit,
+    current_form,
     discrepancy_basis,
     discrepancy_form,
     fit_model,
@@ -864,7 +865,11 @@ def _diagnose_once(
             cause, ext_fit, ext_res, ext_cv, discovered = "none", base_fit, base_res, base_cv, ()
         tie = ()
         experiment = "describe the machine with --params (its geometry and wire) and diagnose again"
-    leftover = leftover_structure(trials, ext_res, list(ctx.fold_masks))
+    left_res = ext_res
+    if current_form().fit_with_causes and ext_fit.discrepancy:
+        # the learned curve is the machine's no-effect relation, not a leftover
+        left_res = ext_res - basis @ np.asarray(ext_fit.discrepancy)
+    leftover = leftover_structure(trials, left_res, list(ctx.fold_masks))
     if leftover.unnamed:
         notes.append(
             f"a discrepancy remains that no named cause explains (a smoother along the "
