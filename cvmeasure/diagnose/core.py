@@ -59,6 +59,7 @@ from cvmeasure.diagnose.discover import (
 )
 from cvmeasure.diagnose.fitting import (
     DISCREPANCY_P,
+    DiscrepancyForm,
     ModelFit,
     current_form,
     discrepancy_basis,
@@ -203,6 +204,9 @@ class Diagnosis:
     #: the best explanation against the scatter of repeated bends (None: no repeats);
     #: ``misfit.refused``: the simulation does not describe this machine, nothing named
     misfit: Misfit | None = None
+    #: the no-effect relation learned from the session when the simulation's form missed
+    #: the machine (None: the simulation's form with its bounded discrepancy)
+    learned: DiscrepancyForm | None = None
 
     @property
     def gain(self) -> float:
@@ -277,6 +281,13 @@ class Diagnosis:
             "tie": list(self.tie),
             "follow_up": None if self.follow_up is None else self.follow_up.to_dict(),
             "lack_of_fit": None if self.misfit is None else self.misfit.to_dict(),
+            "learned_curve": None
+            if self.learned is None
+            else {
+                "degree": self.learned.degree,
+                "bound_deg": self.learned.bound_deg,
+                "span_deg": list(self.learned.span_deg),
+            },
         }
 
 
@@ -397,7 +408,8 @@ def diagnose(
     # the simulation's form does not describe this machine: its no-effect relation is
     # learned from the session (a smooth curve in the bend, fitted with every cause) and
     # the causes are tested on what such a curve cannot absorb
-    with discrepancy_form(learned_form(trials)):
+    form = learned_form(trials)
+    with discrepancy_form(form):
         learned = _diagnose_form(trials, params, kwargs, follow_up)
         fit = learned.extended_fit if learned.causes else learned.baseline_fit
         curve_deg = curve_rms_deg(trials, fit)
@@ -418,7 +430,7 @@ def diagnose(
         "angles, both directions alike); the causes were tested on the direction, the order "
         "and the pin, which it cannot absorb"
     )
-    return dataclasses.replace(learned, notes=(*learned.notes, note))
+    return dataclasses.replace(learned, notes=(*learned.notes, note), learned=form)
 
 
 #: The learned curve stands for the description's error in the material's response:

@@ -41,7 +41,10 @@ def test_no_effect_on_another_form_names_nothing_and_says_so():
     result = diagnose(_session())
     assert result.cause == "none" and result.causes == ()
     assert result.misfit is not None and not result.misfit.refused
-    assert any("learned from the session" in n for n in result.notes)
+    assert result.learned is not None and result.learned.degree == 5
+    assert result.to_dict()["learned_curve"]["span_deg"] == pytest.approx([18.1, 114.6], abs=0.05)
+    # a machine of the simulation's own form keeps the bounded discrepancy
+    assert diagnose(_session(machine={})).learned is None
 
 
 @pytest.mark.parametrize("effect, tol", [("offset=1.0", 0.05), ("scale=0.03", 0.005)])
