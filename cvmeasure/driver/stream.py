@@ -4,8 +4,12 @@ The host algorithm of reference ``diwire-tinyg.md`` section 2.10:
 
 * JSON mode; the session settings are sent one at a time (send-response);
 * at most ``window_lines`` lines **and** ``window_bytes`` bytes in flight
-  (default 4 and 200 of the board's 254-byte receive buffer), so the buffer
-  cannot overflow; XON/XOFF stays on as the safety net (the tty honours it);
+  (default 1 and 200 of the board's 254-byte receive buffer), so the buffer
+  cannot overflow; XON/XOFF stays on as the safety net (the tty honours it).
+  One line at a time by default: TinyG acks a line once it is parsed and queued,
+  so the planner stays full all the same, and no later line is already in the
+  board when a line is rejected (the board would skip it and run the next ones),
+  loses its LF (it would run merged with the next) or its ack is uncertain;
 * each ``{"r":...}`` acks the head of the in-flight FIFO and its footer's byte
   count must equal that line's length: a mismatch (a dropped or garbled byte),
   a non-zero status, a reply that cannot be parsed, a reset banner, an alarm
@@ -40,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from cvmeasure.driver.connection import IDLE as _IDLE
-from cvmeasure.driver.connection import BoardConnection
+from cvmeasure.driver.connection import BoardConnection, BoardStuckError
 from cvmeasure.driver.job import JobLine, job_sha256, prepare_job
 from cvmeasure.driver.protocol import (
     AXES,
@@ -110,7 +114,8 @@ FIRMWARE_QUERIES: tuple[dict[str, Any], ...] = ({"fv": None}, {"fb": None})
 class StreamConfig:
     """Tunables of the streamer (times in wall seconds).
 
-    window_lines, window_bytes : lines and bytes allowed in flight.
+    window_lines, window_bytes : lines and bytes allowed in flight (one line: a
+        rejected, merged or unacknowledged line is never overtaken by a later one).
     stall_timeout_s : silence from the board, while it owes an ack or is
         running, after which the job is stopped as stalled.
     flush_timeout_s : how long a safe stop waits for the board's flush report.
@@ -120,7 +125,7 @@ class StreamConfig:
         the lines it already holds (its ``sr.line`` is then exact).
     """
 
-    window_lines: int = 4
+    window_lines: int = 1
     window_bytes: int = 200
     stall_timeout_s: float = 5.0
     flush_timeout_s: float = 5.0
@@ -540,9 +545,18 @@ def _resume_plan(
     start_pos, last, lower, lower_how = journal_evidence(run.journal, sha, source, force=force)
     # a board still running (the host died mid-job) finishes the lines it holds:
     # flushing them would make TinyG report the last line it *parsed*, not run
-    settled = board.wait_idle(
-        timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
-    )
+    try:
+        settled = board.wait_idle(
+            timeout_s=config.settle_timeout_s,
+            query_timeout_s=config.command_timeout_s,
+            stuck_s=config.stall_timeout_s,
+        )
+    except BoardStuckError as exc:
+        line = exc.line if exc.line is not None else last.get("line_number")
+        raise DeviceError(
+            f"cannot resume at line N{line}: {exc}; check the machine, reset the board "
+            "(power it off and on), then resume"
+        ) from None
     if not board.flush_board(timeout_s=config.flush_timeout_s):
         raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
     state = _setup(board, config, xonxoff)
@@ -655,10 +669,12 @@ def _watchdog(run: _Run, waiting_for: str) -> None:
     if silence > run.config.stall_timeout_s:
         head = run.inflight[0] if run.inflight else None
         line = run.board.state.get("line")
+        # the machine is where the board last said it was: the line in flight may wait
+        # behind a full planner, so the board's line is the one the stop names
         _stop(
             run,
             "stall",
-            head or _line_by_number(run.job, line),
+            _line_by_number(run.job, line) or head,
             f"no word from the board for {silence:.1f} s while waiting for {waiting_for}",
             number=line,
         )
