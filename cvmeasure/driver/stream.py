@@ -287,16 +287,8 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     held: dict[str, Any] | None = None
     flush_sent = False
     if board.error is None and reason != "port_gone":
-        try:
-            held = board.hold(timeout_s=run.config.flush_timeout_s)
-            flush_sent = True
-            flushed = board.flush_board(timeout_s=run.config.flush_timeout_s)
-            if not flushed:
-                detail += "; the board did not confirm the flush (unresponsive)"
-            else:
-                state = board.query_status(timeout_s=run.config.command_timeout_s)
-        except DeviceError as exc:
-            detail += f"; stopping failed: {exc}"
+        held, state, flush_sent, problem = _halt(run, reason)
+        detail += problem
     running = held if held is not None else state
     if line is None and number is None and running is not None:
         # an alarm names the line the machine was executing when it tripped
@@ -335,6 +327,32 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     )
     run.log({"event": "stop", **stop.to_dict(), "running_line": board.running_line})
     raise JobStopped(stop)
+
+
+def _halt(run: _Run, reason: str) -> tuple[dict[str, Any] | None, dict[str, Any] | None, bool, str]:
+    """Feedhold and flush: (held report, status after the flush, flush sent, problem).
+
+    A stall with the machine idle had nothing queued (it ran all it parsed): the line
+    in flight may wait in the board's input without its end (a lost LF), and a status
+    query sent now would merge with it, so the flush (which clears the input) comes
+    first and the status after it is exact, as a held report is.
+    """
+    board, config = run.board, run.config
+    idle = reason == "stall" and board.state.get("stat") in _IDLE
+    held = state = None
+    flush_sent = False
+    try:
+        if not idle:
+            held = board.hold(timeout_s=config.flush_timeout_s)
+        flush_sent = True
+        if not board.flush_board(timeout_s=config.flush_timeout_s):
+            return held, None, True, "; the board did not confirm the flush (unresponsive)"
+        state = board.query_status(timeout_s=config.command_timeout_s)
+    except DeviceError as exc:
+        return held, state, flush_sent, f"; stopping failed: {exc}"
+    if idle and state.get("stat") in _IDLE:
+        held = state
+    return held, state, True, ""
 
 
 def _handle(run: _Run, msg: Message) -> None:
