@@ -264,6 +264,8 @@ class _Run:
     sent: int = 0
     last_progress_t: float = 0.0
     last_progress_line: int | None = None
+    #: the last job line written to the board (acked or in flight)
+    last_sent: JobLine | None = None
 
     def log(self, record: dict[str, Any]) -> None:
         if self.journal is not None:
@@ -671,13 +673,13 @@ def _check_rejected(run: _Run, last: Mapping[str, Any], board_line: int, force: 
 def _check_board(run: _Run) -> None:
     board = run.board
     if board.error is not None:
-        # nothing in flight (e.g. the write of the next line failed): name the last
-        # line the board reported, so the user still learns where the job was
+        # a board cut off runs on through all it parsed: it ends at the line in
+        # flight, or at the last one sent (the board's last report is older)
         head = run.inflight[0] if run.inflight else None
         _stop(
             run,
             "port_gone",
-            head or _line_by_number(run.job, board.state.get("line")),
+            head or run.last_sent or _line_by_number(run.job, board.state.get("line")),
             str(board.error),
         )
 
@@ -761,6 +763,7 @@ def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
                     _check_board(run)
                 run.inflight.append(line)
                 run.sent += 1
+                run.last_sent = line
                 i += 1
                 if run.progress:
                     run.progress(line.index + 1, n_total, board.state.get("line"))
