@@ -85,3 +85,20 @@ def test_a_resume_on_a_frozen_board_refuses_naming_the_line(job, tmp_path):
         assert time.monotonic() - t0 < 15.0
         assert "reset the board" in str(refused.value)
         link.close()
+
+
+def test_a_port_gone_names_the_line_the_board_ends_at(job, tmp_path):
+    """Cut off, the board runs on through all it parsed: the stop names where it ends."""
+    fault = Fault("vanish", BEFORE_N1 + 30)
+    with FakeTinyG(speedup=20.0, faults=[fault]) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped) as info:
+            stream_job(link, job.lines, journal=tmp_path / "j.jsonl", config=FAST)
+        link.close()
+        deadline = time.monotonic() + 20.0
+        while board.machine_state().planner_depth and time.monotonic() < deadline:
+            time.sleep(0.05)
+        completed, partial = board.executed_lines()
+    stop = info.value.stop
+    assert stop.reason == "port_gone" and partial == []
+    assert stop.line_number == completed[-1] == 30
