@@ -185,7 +185,7 @@ def _stability(runs) -> tuple[float, float, float]:
     """
     changes, worse, walk = [0.0], [0.0], [0.0]
     for run in runs:
-        if len(run) <= 3:
+        if len(run) <= 3 or "failed" in run[0]:
             continue
         ref = np.asarray(run[2]["made_deg"])
         ref_err = np.abs(np.asarray(run[2]["true_err_deg"]))
@@ -206,13 +206,29 @@ def _segment_error(vertices_mm, made, target) -> tuple[float, float]:
 
 
 def _task(job):
-    """One design's loop in a worker process: its session, then its parts."""
+    """One design's loop in a worker process: its session, then its parts.
+
+    A design the chain refuses or fails on (an error from any stage) is scored as a
+    failure with its message, every part out of target, instead of ending the benchmark.
+    """
     design, parts, machine, effects, seed, camera, scale = job
-    cal = session_calibration(machine, effects, seed=seed)
-    return run_design(
-        design, parts, params=machine, effects=effects, cal=cal,
-        camera=camera, scale=scale, seed=seed,
-    )  # fmt: skip
+    try:
+        cal = session_calibration(machine, effects, seed=seed)
+        return run_design(
+            design, parts, params=machine, effects=effects, cal=cal,
+            camera=camera, scale=scale, seed=seed,
+        )  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 - scored and reported, never hidden
+        message = f"{type(exc).__name__}: {exc}"
+        failed = {
+            "design": design.name, "family": design.family, "unequal": design.unequal,
+            "bends": 0, "chords_mm": [0.0], "failed": message,
+            "worst_true_err_deg": float("inf"), "true_err_deg": [], "meas_err_deg": [],
+            "made_deg": [], "meas_sigma_deg": [], "seed_relative_pct": float("nan"),
+            "seed_absolute_deg": float("nan"), "true_segment_err_deg": (float("inf"), 0.0),
+            "response_ratio": None, "same_polygon": True, "feeds_kept": True,
+        }  # fmt: skip
+        return [{**failed, "part": k} for k in range(parts)]
 
 
 def _run_all(args, folder):
@@ -245,7 +261,8 @@ def _run_all(args, folder):
         for k, records in enumerate(pool.map(_task, jobs), start=1):
             done.append(records)
             worst = records[min(2, len(records) - 1)]["worst_true_err_deg"]
-            print(f"[{k}/{len(jobs)}] {records[0]['design']}: part 2 worst {worst:.3f} deg",
+            why = f" FAILED {records[0]['failed']}" if "failed" in records[0] else ""
+            print(f"[{k}/{len(jobs)}] {records[0]['design']}: part 2 worst {worst:.3f} deg{why}",
                   file=sys.stderr, flush=True)  # fmt: skip
     runs = {d[0].name: r for d, r in zip(jobs[:2], done[:2], strict=True)}
     return runs, done[2:], calibration, stability
@@ -270,6 +287,7 @@ def main(argv: list[str] | None = None) -> dict:
     noise_p95 = float(np.percentile(meas, 95))
     # stability: parts 3.. of the seed designs against part 2 (after 2 corrections)
     stab, worse, walk = _stability(runs.values())
+    failed = [f"{run[0]['design']}: {run[0]['failed']}" for run in every if "failed" in run[0]]
     other_polygon = sum(not rec["same_polygon"] for run in every for rec in run)
     feeds_changed = sum(not rec["feeds_kept"] for run in every for rec in run)
     metrics = [
@@ -349,6 +367,13 @@ def main(argv: list[str] | None = None) -> dict:
             target="0",
             met=feeds_changed == 0,
         ),  # fmt: skip
+        Metric(
+            "designs the chain refused or failed on (each named in the notes)",
+            len(failed),
+            "",
+            target="0",
+            met=not failed,
+        ),
         Metric("measurement noise of a vertex bend, p95 |measured - executed|", noise_p95, "deg"),
         Metric("wall time", seconds, "s"),
     ]
@@ -430,6 +455,7 @@ def main(argv: list[str] | None = None) -> dict:
             f"photos rendered at scale {args.scale:g} (reduced to keep the loop within the "
             f"session on a shared 2-core machine), measured through a camera calibrated from "
             f"{calibration['views']} rendered board photos (RMS {calibration['rms_px']:.3f} px)",
+            *(f"failed: {f}" for f in failed),
             f"stability: the saddle's true bends of parts 3..{2 + stability} (after 3 to "
             f"{2 + stability} corrections) compared with part 2's (the change; the growth of "
             "each vertex's error) and with the part before (from part 4 on)",
