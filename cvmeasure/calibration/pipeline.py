@@ -561,10 +561,12 @@ def calibrate_detections(
     use_warp = result.board_warp is not None
     # the stated sigmas allow for errors shared by a view's corners (the formal ones alone
     # put a real set's published cy 4.1 sigma away; the view-clustered ones, 1.4)
-    cov = view_clustered_covariance(result)
-    result = replace(result, std_devs=cov.std_devs())
-    unc = projection_uncertainty(result, covariance=cov)
-    cov = image_coverage(result.detections, result.image_size_px, [v.rvec for v in result.views])
+    param_cov = view_clustered_covariance(result)
+    result = replace(result, std_devs=param_cov.std_devs())
+    unc = projection_uncertainty(result, covariance=param_cov)
+    coverage = image_coverage(
+        result.detections, result.image_size_px, [v.rvec for v in result.views]
+    )
     cv = (
         cross_validate(
             result.detections,
@@ -579,14 +581,31 @@ def calibrate_detections(
     warnings: list[StageWarning] = []
     for det in detections:
         warnings.extend(StageWarning("calib_board_layout", n, det.source) for n in det.notes)
+    warnings += _model_error_warnings(result, model, cv, cross_check=cross_check and choice is None)
+    if cv is None and cross_check:
+        warnings.append(
+            StageWarning(
+                "calib_no_cross_validation",
+                "too few views to cross-validate two halves (need 6 or more)",
+            )
+        )
+    warnings += _solve_quality_warnings(result, unc, coverage)
+    return CalibrationReport(result, unc, coverage, cv, tuple(warnings), choice, warp_info)
+
+
+def _model_error_warnings(
+    result: CalibrationResult, model: str, cv: CrossValidation | None, *, cross_check: bool
+) -> list[StageWarning]:
+    """Model error seen two ways: with ``cross_check`` (a model given, not chosen), the
+    next richer model fitting the same corners significantly better; the two halves of the
+    views disagreeing beyond noise (``cv``)."""
+    out: list[StageWarning] = []
     richer = (
-        richer_model_test(result.detections, result.image_size_px, model)
-        if cross_check and choice is None
-        else None
+        richer_model_test(result.detections, result.image_size_px, model) if cross_check else None
     )
     if richer is not None and richer["supported"]:
         t = max(richer["extra_coefficient_sigmas"].values(), default=0.0)
-        warnings.append(
+        out.append(
             StageWarning(
                 "calib_model_too_simple",
                 f"model {model} is too simple for these views: model {_NEXT_RICHER[model]} fits "
@@ -595,15 +614,8 @@ def calibrate_detections(
                 "halves share the bias): use --model auto or a richer model",
             )
         )
-    if cv is None and cross_check:
-        warnings.append(
-            StageWarning(
-                "calib_no_cross_validation",
-                "too few views to cross-validate two halves (need 6 or more)",
-            )
-        )
-    elif cv is not None and cv.ratio > CROSS_VALIDATION_RATIO_LIMIT:
-        warnings.append(
+    if cv is not None and cv.ratio > CROSS_VALIDATION_RATIO_LIMIT:
+        out.append(
             StageWarning(
                 "calib_halves_disagree",
                 f"the two halves of the views disagree by {cv.diff.central_rms_px:.2f} px in the "
@@ -612,16 +624,25 @@ def calibrate_detections(
                 "reported standard deviations understate the real uncertainty",
             )
         )
+    return out
+
+
+def _solve_quality_warnings(
+    result: CalibrationResult, unc: ProjectionUncertainty, coverage: Coverage
+) -> list[StageWarning]:
+    """What the solve itself shows: a poorly determined focal length, the coverage's
+    warnings, an ill-conditioned model, corners dropped and photos skipped."""
+    out: list[StageWarning] = []
     rel_f = result.std_devs["fx"] / result.camera.fx
     if rel_f > _FOCAL_SIGMA_WARN:
-        warnings.append(
+        out.append(
             StageWarning(
                 "calib_focal_uncertain",
                 f"the focal length is poorly determined (1 sigma {100 * rel_f:.2f} % of f): add "
                 "photos with the board tilted 30-45 deg and closer to the camera",
             )
         )
-    warnings.extend(cov.warnings)
+    out.extend(coverage.warnings)
     big = {
         name: float(v)
         for name, v in zip(DIST_NAMES, result.camera.dist_coeffs, strict=False)
@@ -630,7 +651,7 @@ def calibrate_detections(
     size = float(max(result.image_size_px))
     if big or not unc.max_px <= ILL_CONDITIONED_UNCERTAINTY * size:
         coeffs = ", ".join(f"{k} {v:+.3g}" for k, v in big.items())
-        warnings.append(
+        out.append(
             StageWarning(
                 "calib_ill_conditioned",
                 f"the {result.model} distortion model is ill-conditioned on these views"
@@ -645,7 +666,7 @@ def calibrate_detections(
             )
         )
     if result.corners_rejected:
-        warnings.append(
+        out.append(
             StageWarning(
                 "calib_corners_dropped",
                 f"{result.corners_rejected} outlier corner(s) dropped from the views used "
@@ -653,13 +674,13 @@ def calibrate_detections(
             )
         )
     if result.rejected:
-        warnings.append(
+        out.append(
             StageWarning(
                 "calib_views_skipped",
                 f"{len(result.rejected)} photo(s) skipped; see views_rejected",
             )
         )
-    return CalibrationReport(result, unc, cov, cv, tuple(warnings), choice, warp_info)
+    return out
 
 
 def detect_photos(

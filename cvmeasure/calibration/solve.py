@@ -389,6 +389,34 @@ def calibrate_views(
         seen.add(state)
         active = new_active
         _check_count(active, rejected, min_views, source)
+    out = _calibration_result(
+        (camera, rms, rvecs, tvecs, sd_intr, per_view),
+        model,
+        flags,
+        active,
+        rejected,
+        n_rejected_corners,
+        rounds,
+    )
+    if board_warp:
+        from cvmeasure.calibration.warp import refine_board_warp
+
+        out = refine_board_warp(out, extent_mm=board_extent_mm)
+    return out
+
+
+def _calibration_result(
+    solve: tuple,
+    model: str,
+    flags: int,
+    active: Sequence[BoardDetection],
+    rejected: Sequence[RejectedView],
+    n_rejected_corners: dict[int, int],
+    rounds: int,
+) -> CalibrationResult:
+    """The result of the last solve (``solve``: what :func:`_solve` returned, in the order
+    camera, RMS, rvecs, tvecs, intrinsic sigmas, per-view RMS) on the corner sets ``active``."""
+    camera, rms, rvecs, tvecs, sd_intr, per_view = solve
     names = _free_intrinsics(model)
     views = tuple(
         ViewResult(
@@ -402,7 +430,7 @@ def calibrate_views(
         )
         for d, e, r, t in zip(active, per_view, rvecs, tvecs, strict=True)
     )
-    out = CalibrationResult(
+    return CalibrationResult(
         camera=camera,
         model=model,
         flags=flags,
@@ -413,11 +441,6 @@ def calibrate_views(
         detections=tuple(active),
         rounds=rounds,
     )
-    if board_warp:
-        from cvmeasure.calibration.warp import refine_board_warp
-
-        out = refine_board_warp(out, extent_mm=board_extent_mm)
-    return out
 
 
 def _usable_views(
