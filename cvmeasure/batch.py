@@ -27,18 +27,37 @@ import glob
 import importlib
 import importlib.util
 import json
+import multiprocessing
 import os
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import cv2
+import numpy as np
+
 from cvmeasure import __version__
+from cvmeasure.board import load_board
+from cvmeasure.camera import load_camera
+from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.extras import require
-from cvmeasure.fileio import append_jsonl, atomic_write_text, read_jsonl, repair_jsonl_tail
+from cvmeasure.fileio import (
+    append_jsonl,
+    atomic_write_text,
+    read_jsonl,
+    repair_jsonl_tail,
+    to_jsonable,
+)
+from cvmeasure.imageio import PHOTO_SUFFIXES
+from cvmeasure.kit import default_kit, load_kit
+from cvmeasure.markers.measure import measure_photo_file
+from cvmeasure.part.measure import measure_part as measure_part_photo
 
 if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used, not on import
     from concurrent.futures import Future
@@ -130,21 +149,18 @@ class MeasureContext:
 
 @lru_cache(maxsize=8)
 def _load_camera(path: str) -> CameraModel:
-    from cvmeasure.camera import load_camera
 
     return load_camera(path)
 
 
 @lru_cache(maxsize=8)
 def _load_kit(path: str | None) -> MarkerKit:
-    from cvmeasure.kit import default_kit, load_kit
 
     return default_kit() if path is None else load_kit(path)
 
 
 @lru_cache(maxsize=8)
 def _load_plane(path: str, camera_path: str | None) -> PlaneModel:
-    from cvmeasure.contracts import PlaneModel
 
     camera = None if camera_path is None else _load_camera(camera_path)
     return PlaneModel.load(path, camera=camera)
@@ -152,7 +168,6 @@ def _load_plane(path: str, camera_path: str | None) -> PlaneModel:
 
 @lru_cache(maxsize=8)
 def _load_board(path: str) -> BoardSpec:
-    from cvmeasure.board import load_board
 
     return load_board(path)
 
@@ -241,7 +256,6 @@ def list_photos(spec: str | os.PathLike[str] | Sequence[str | os.PathLike[str]])
     (:data:`~cvmeasure.imageio.PHOTO_SUFFIXES`); a glob may use ``**``. Raises
     InputError naming the spec when nothing matches.
     """
-    from cvmeasure.imageio import PHOTO_SUFFIXES
 
     if isinstance(spec, (str, os.PathLike)):
         specs = [spec]
@@ -331,7 +345,6 @@ def detect_kind(photo: Photo, context: MeasureContext | None = None) -> str:
     Detection runs on a copy at most 1600 px wide, with the dictionary of the
     batch's board when one was given (DICT_5X5_100 otherwise).
     """
-    import cv2
 
     gray = photo.gray8()
     scale = min(1.0, 1600.0 / max(gray.shape))
@@ -353,8 +366,6 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     centroid (``x_px``, ``y_px``, image frame) and the equal-area radius
     ``r_px``. A real, simple measurement for testing and benchmarking batches.
     """
-    import cv2
-    import numpy as np
 
     gray = cv2.GaussianBlur(photo.gray8(), (5, 5), 0)
     _t, mask = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
@@ -376,7 +387,6 @@ def measure_disc(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 
 
 def _as_record(result: Any) -> dict[str, Any]:
-    from cvmeasure.fileio import to_jsonable
 
     data = to_jsonable(result)
     if not isinstance(data, dict):
@@ -386,7 +396,6 @@ def _as_record(result: Any) -> dict[str, Any]:
 
 def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A bender photo through :func:`cvmeasure.markers.measure.measure_photo_file`."""
-    from cvmeasure.markers.measure import measure_photo_file
 
     result = measure_photo_file(
         photo, context.kit(), camera=context.camera(), plane=context.plane()
@@ -396,7 +405,6 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
-    from cvmeasure.part.measure import measure_part as measure_part_photo
 
     board, camera = context.board(), context.camera()
     if board is None or camera is None:
@@ -457,7 +465,6 @@ def measure_one(path: str, key: str, kind: str, context: MeasureContext) -> dict
 
 
 def _init_worker() -> None:
-    import cv2
 
     cv2.setNumThreads(1)
 
@@ -476,7 +483,6 @@ def _pool_worker_init(batch_pid: int | None = None) -> None:
     re-parented when this runs: it is compared with ``batch_pid``, not with the
     parent it finds, so it exits too.
     """
-    import threading
 
     _init_worker()
     parent_pid = os.getppid() if batch_pid is None else batch_pid
@@ -536,7 +542,6 @@ def _pool_context(start_method: str) -> Any:
     the ~1.3 s CPU of imports each spawned worker pays, without the deadlock of
     forking a process whose OpenMP threads exist.
     """
-    import multiprocessing
 
     if start_method not in START_METHODS:
         raise ValueError(
@@ -560,7 +565,6 @@ def _run_processes(
     workers: int,
     start_method: str = "spawn",
 ) -> Iterator[dict[str, Any]]:
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     ctx = _pool_context(start_method)
     window = 4 * workers
@@ -627,6 +631,41 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+def _pending_jobs(paths: list[Any], output: Path) -> list[tuple[str, str]]:
+    """(path, key) of each photo not yet measured in ``output``, each photo once."""
+    done = done_keys(output)
+    jobs: list[tuple[str, str]] = []
+    seen: set[str] = set()
+    for p in paths:
+        try:
+            key = photo_key(p)
+        except OSError as exc:
+            raise InputError(p, f"cannot read photo: {exc.strerror or exc}") from None
+        if key in done or key in seen:
+            continue
+        seen.add(key)
+        jobs.append((os.fspath(p), key))
+    return jobs
+
+
+def _append_records(
+    records: Iterable[dict[str, Any]],
+    output: Path,
+    on_record: Callable[[dict[str, Any]], None] | None,
+) -> tuple[list[tuple[str, str]], list[float]]:
+    """Append each record as it arrives; return the failures and the arrival times (s)."""
+    failures: list[tuple[str, str]] = []
+    times: list[float] = []
+    for record in records:
+        append_jsonl(output, record)
+        times.append(time.perf_counter())
+        if not record["ok"]:
+            failures.append((record["photo"], record["error"]))
+        if on_record:
+            on_record(record)
+    return failures, times
+
+
 def run_batch(
     photos: Iterable[str | os.PathLike[str]],
     output: str | os.PathLike[str],
@@ -675,19 +714,8 @@ def run_batch(
     if kind != "auto":
         resolve_measurer(kind)  # ValueError for an unknown kind, before any work
     output = Path(output)
-    done = done_keys(output)
-    jobs: list[tuple[str, str]] = []
-    seen: set[str] = set()
     paths = list(photos)
-    for p in paths:
-        try:
-            key = photo_key(p)
-        except OSError as exc:
-            raise InputError(p, f"cannot read photo: {exc.strerror or exc}") from None
-        if key in done or key in seen:
-            continue
-        seen.add(key)
-        jobs.append((os.fspath(p), key))
+    jobs = _pending_jobs(paths, output)
     already = len(paths) - len(jobs)
     drop_failed_records(output, {key for _, key in jobs})
     client = None
@@ -708,21 +736,12 @@ def run_batch(
         records = _run_serial(jobs, kind, context)
     else:
         records = _run_processes(jobs, kind, context, n_workers, start_method)
-    measured = 0
-    failures: list[tuple[str, str]] = []
-    times: list[float] = []
     try:
-        for record in records:
-            append_jsonl(output, record)
-            times.append(time.perf_counter())
-            measured += 1
-            if not record["ok"]:
-                failures.append((record["photo"], record["error"]))
-            if on_record:
-                on_record(record)
+        failures, times = _append_records(records, output, on_record)
     finally:
         if client is not None:
             client.close()
+    measured = len(times)
     # steady state: after every worker has delivered its first photo (start-up excluded)
     steady = None
     if measured >= n_workers + 2 and times[-1] > times[n_workers - 1]:

@@ -12,10 +12,13 @@ import csv
 import io
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from cvmeasure.errors import InputError
 
@@ -56,7 +59,6 @@ def set_stdout(stream: Any | None) -> None:
 
 
 def _write_stdout(data: bytes) -> None:
-    import sys
 
     stream = _stdout[0] if _stdout else sys.stdout
     buffer = getattr(stream, "buffer", None)
@@ -107,7 +109,6 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
 
 def to_jsonable(obj: Any) -> Any:
     """Convert numpy scalars/arrays, paths and dataclass-like objects to JSON types."""
-    import numpy as np
 
     if hasattr(obj, "to_dict") and callable(obj.to_dict):
         return to_jsonable(obj.to_dict())
