@@ -389,25 +389,7 @@ def choose_model(
                 "whole image"
             )
             chosen = e
-    usable = [
-        e
-        for e in evidence
-        if e["held"] is not None
-        and not any(abs(v) > ILL_CONDITIONED_COEFF for v in e["fit"]["coeffs"].values())
-    ]
-    best = min(usable, key=lambda e: e["held_out_rms_px"], default=None)
-    if best is not None and chosen["held"] is not None:
-        z = _paired_z(chosen["held"], best["held"])
-        if z > HELD_OUT_WORSE_Z:
-            adequate = next(
-                e for e in usable if _paired_z(e["held"], best["held"]) <= HELD_OUT_WORSE_Z
-            )
-            why = (
-                f"model {chosen['model']} is worse held out over the whole image than model "
-                f"{best['model']} ({z:.1f} standard errors); model {adequate['model']} is the "
-                "simplest that is not"
-            )
-            chosen = adequate
+    chosen, why = _no_worse_than_best(evidence, chosen, why)
     next_best = _next_best(evidence, chosen)
     for e in evidence:
         fit = e.pop("fit")
@@ -428,6 +410,33 @@ def choose_model(
         "next_best": next_best,
         "candidates": evidence,
     }
+
+
+def _no_worse_than_best(
+    evidence: list[dict[str, Any]], chosen: dict[str, Any], why: str
+) -> tuple[dict[str, Any], str]:
+    """``chosen`` and ``why``, unless ``chosen`` is worse held out over the whole image than
+    the best well-conditioned candidate beyond noise (:func:`_paired_z` >
+    :data:`HELD_OUT_WORSE_Z`): then the simplest candidate that is not, and why."""
+    usable = [
+        e
+        for e in evidence
+        if e["held"] is not None
+        and not any(abs(v) > ILL_CONDITIONED_COEFF for v in e["fit"]["coeffs"].values())
+    ]
+    best = min(usable, key=lambda e: e["held_out_rms_px"], default=None)
+    if best is None or chosen["held"] is None:
+        return chosen, why
+    z = _paired_z(chosen["held"], best["held"])
+    if z <= HELD_OUT_WORSE_Z:
+        return chosen, why
+    adequate = next(e for e in usable if _paired_z(e["held"], best["held"]) <= HELD_OUT_WORSE_Z)
+    why = (
+        f"model {chosen['model']} is worse held out over the whole image than model "
+        f"{best['model']} ({z:.1f} standard errors); model {adequate['model']} is the "
+        "simplest that is not"
+    )
+    return adequate, why
 
 
 def _next_best(evidence: list[dict[str, Any]], chosen: dict[str, Any]) -> dict[str, Any] | None:
