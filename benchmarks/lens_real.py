@@ -1608,7 +1608,11 @@ def main(argv: list[str] | None = None) -> dict:
         "printed uncertainties: `cvmeasure calibrate` run twice per model on the first render "
         "set; every +- sigma and every px figure of the projection-uncertainty and "
         "cross-validation lines",
-        "the issue's BoofCV and PhotonVision Pi sets are not in ../shared: not measured here",
+        "the issue's BoofCV and PhotonVision Pi sets are not in ../shared: not measured here. "
+        "Other public sets with published intrinsics that a package registry ships were looked "
+        "for: PyPI has none we found; Debian ships opencv-doc (its samples/data holds the same "
+        "left/right 9x6 photos as the OpenCV set here) and visp-images-data (ViSP's images, "
+        "75 MB, published intrinsics not checked); neither is used, nothing is downloaded",
     ]
     return finish(
         __file__, SECTION, argv, quick=args.quick, metrics=metrics, tables=tables, notes=notes
