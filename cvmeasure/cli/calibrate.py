@@ -151,7 +151,8 @@ def _print_report(report, path: Path) -> None:
     print(
         f"fx {cam.fx:.3f} +- {sd['fx']:.3f}  fy {cam.fy:.3f} +- {sd['fy']:.3f}  "
         f"cx {cam.principal_point_px[0]:.3f} +- {sd['cx']:.3f}  "
-        f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px (1 sigma, noise only)"
+        f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px "
+        "(1 sigma, incl. errors a view shares)"
     )
     if determined:
         print(
