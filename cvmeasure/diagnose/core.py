@@ -415,6 +415,10 @@ def diagnose(
         curve_deg = curve_rms_deg(trials, fit)
     if learned.misfit is not None and learned.misfit.refused:
         return result
+    if result.cause == "unexplained" and not _refused(result) and learned.cause != "none":
+        # terms outside the catalogue explained the data within the noise: a catalogue
+        # name through the learned curve would stand in for them (a warm-up as a drift)
+        return result
     allowed_deg = LEARNED_CURVE_SPRINGBACKS * springback_rms_deg(trials, params)
     if not curve_deg <= allowed_deg:
         note = (
@@ -441,11 +445,15 @@ def diagnose(
 LEARNED_CURVE_SPRINGBACKS = 2.0
 
 
+def _refused(result: Diagnosis) -> bool:
+    return result.misfit is not None and result.misfit.refused
+
+
 def _form_misses(result: Diagnosis) -> bool:
     """The simulation's form (bounded discrepancy) leaves the data unexplained: refused
-    for lack of fit, or explained only by terms outside the catalogue."""
-    refused = result.misfit is not None and result.misfit.refused
-    return refused or result.cause == "unexplained"
+    for lack of fit, or explained only by terms outside the catalogue (then the learned
+    curve may only say that nothing is there: the no-effect relation was the terms)."""
+    return _refused(result) or result.cause == "unexplained"
 
 
 def _diagnose_form(
