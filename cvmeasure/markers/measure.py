@@ -24,9 +24,12 @@ a camera square to the plate. A kit without heights is measured flat, with a
 warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
-Stated uncertainties are sampling errors of the edge fits (with a floor per
-centre); they do not include camera or plane calibration errors, print or
-mounting tolerances of the markers, or lateral chromatic aberration.
+Stated uncertainties are sampling errors of the edge fits, taken where the disc is
+a circle (on the plate on a plane pose), with a floor per centre and, for a disc
+partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
+sampling; on a plane pose the kit's height uncertainties are added. They do not
+include camera or plane calibration errors, print or mounting tolerances of the
+markers, or lateral chromatic aberration.
 
 Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
 resolution) and in the green channel for RAW/16-bit data (``edge=`` to choose):
