@@ -62,7 +62,7 @@ from cvmeasure.part.profiles import (
     path_length,
     path_normals,
     resample_path,
-    sample_image,
+    sample_across,
     silhouette_edges,
     smooth_path,
     symmetric_centres,
@@ -209,8 +209,7 @@ def measure_centreline(
     )
 
     def profiles_at(centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        pts = centres[:, None, :] + offsets[None, :, None] * normals[:, None, :]
-        return sample_image(g, pts)
+        return sample_across(g, centres, normals, offsets)
 
     normals = path_normals(path)
     prof = profiles_at(path, normals)
