@@ -351,16 +351,34 @@ def outer_edges(
 
 
 def edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN."""
+    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN.
+
+    ``gaussian_filter1d(profiles, 0.5 px, order=1)`` (mode ``reflect``) evaluated at one
+    sample per profile only, with the filter's own operations in its order (its odd
+    kernel: the weights times the differences of the samples either side), so the same
+    values as filtering every sample and reading one.
+    """
     from scipy.ndimage import gaussian_filter1d
 
+    p = np.asarray(profiles, float)
     step = float(offsets[1] - offsets[0])
-    g = np.abs(gaussian_filter1d(np.asarray(profiles, float), 0.5 / step, axis=1, order=1)) / step
+    sigma = 0.5 / step
+    radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    # the correlation weights: the response to a unit sample, read backwards
+    weights = gaussian_filter1d(impulse, sigma, order=1)[radius::-1]
     ok = np.isfinite(edge)
     k = np.clip(
         np.round((np.nan_to_num(edge) - offsets[0]) / step).astype(int), 0, len(offsets) - 1
     )
-    return np.where(ok, g[np.arange(len(g)), k], 0.0)
+    padded = np.pad(p, ((0, 0), (radius, radius)), mode="symmetric")  # scipy's 'reflect'
+    rows = np.arange(len(p))
+    at = k + radius
+    g = padded[rows, at] * weights[0]
+    for j in range(1, radius + 1):
+        g += (padded[rows, at + j] - padded[rows, at - j]) * weights[j]
+    return np.where(ok, np.abs(g) / step, 0.0)
 
 
 def majority_filter(labels: np.ndarray, window: int) -> np.ndarray:
