@@ -106,25 +106,42 @@ def _lifted_case(folder: Path, scale: float, sheet: str, seed: int) -> dict[str,
     }
 
 
+#: Runs ``python -m cvmeasure ARGS`` in this process and, at exit, writes its peak resident
+#: memory (VmHWM, KiB: this program's own, unlike ru_maxrss, which keeps the forking
+#: parent's pages from before the exec) to the file named by the first argument.
+_PEAK_WRAPPER = """
+import atexit, runpy, sys
+out = sys.argv.pop(1)
+def peak():
+    with open("/proc/self/status") as f, open(out, "w") as o:
+        o.write(next(line for line in f if line.startswith("VmHWM")).split()[1])
+atexit.register(peak)
+sys.argv[0] = "cvmeasure"
+runpy.run_module("cvmeasure", run_name="__main__", alter_sys=True)
+"""
+
+
 def _process(photo: Path, args: list[str]) -> tuple[float, float, float, dict]:
     """``cvmeasure part PHOTO ARGS --json`` as a child process on this core:
-    (wall s, CPU s, the child's peak RSS MB, result)."""
+    (wall s, CPU s, its peak resident memory MB, result)."""
+    peak_file = photo.with_suffix(".peak")
     t0 = time.perf_counter()
     child = subprocess.Popen(
-        [sys.executable, "-m", "cvmeasure", "part", str(photo), *args, "--json"],
+        [sys.executable, "-c", _PEAK_WRAPPER, str(peak_file), "part", str(photo), *args, "--json"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
     out = child.stdout.read()  # the JSON; stderr is a line at most
     err = child.stderr.read()
-    # reaped here, not by Popen: os.wait4 gives this child's own resource use
+    # reaped here, not by Popen: os.wait4 gives this child's own CPU time
     _, status, usage = os.wait4(child.pid, 0)
     child.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t0
     if child.returncode != 0:
         raise RuntimeError(f"cvmeasure part {photo}: {err.strip().splitlines()[-1:]}")
-    return wall, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0, json.loads(out)
+    peak_mb = int(peak_file.read_text()) / 1024.0
+    return wall, usage.ru_utime + usage.ru_stime, peak_mb, json.loads(out)
 
 
 def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
@@ -253,7 +270,7 @@ def main(argv: list[str] | None = None) -> dict:
             f"one core ({core}; OMP/OpenBLAS/OpenCV threads 1); wall and CPU of "
             "`python -m cvmeasure part PHOTO ... --json` as a child process (its start-up, "
             "imports and decode included), the library call's CPU after read_photo",
-            "peak_mb: ru_maxrss of the children so far (the rows run smallest photo first)",
+            "peak_mb: the child's VmHWM (its own peak resident memory, read at its exit)",
             "flat: a 120 deg arc of 10 chords (R 60 mm) beside a 14x10 ChArUco board, "
             "900 mm, JPEG q92 (cvmeasure_datasets.render_part_photo, true lens); lifted: "
             "a 3 mm round wire lifted 3 mm at one end, side lit, on a plane measured from "
