@@ -231,10 +231,15 @@ def main(argv: list[str] | None = None) -> dict:
     sizes = [s for s in SIZES if s[0] == "14 MP"] if args.quick else list(SIZES)
     repeats = args.repeats or (1 if args.quick else 3)
     rows = _rows(sizes, repeats, args.seed, args.quick)
-    at14 = [r for r in rows if r["size"] == "14 MP"]
-    proc = float(np.median([r["process_s"] for r in at14 if r["process_s"] is not None]))
-    lib = float(np.median([r["library_cpu_s"] for r in at14]))
-    peak = max(r["peak_mb"] for r in at14 if r["peak_mb"] is not None)
+    # the targets are the case: an arc beside the board at 4608x3072
+    flat14 = [r for r in rows if r["size"] == "14 MP" and r["part"] == "flat"]
+    lifted14 = [r for r in rows if r["size"] == "14 MP" and r["part"] == "lifted"]
+    proc = float(np.median([r["process_s"] for r in flat14]))
+    proc_cpu = float(np.median([r["process_cpu_s"] for r in flat14]))
+    lib = float(np.median([r["library_cpu_s"] for r in flat14]))
+    peak = max(r["peak_mb"] for r in flat14)
+    lifted_lib = float(np.median([r["library_cpu_s"] for r in lifted14]))
+    lifted_peak = max(r["peak_mb"] for r in lifted14 if r["peak_mb"] is not None)
     cols = ["size", "part", "sheet", "photos", "process_s", "process_cpu_s", "library_cpu_s",
             "peak_mb", "radius_err_pct", "warnings"]  # fmt: skip
     return finish(
@@ -244,25 +249,38 @@ def main(argv: list[str] | None = None) -> dict:
         quick=args.quick,
         metrics=[
             Metric(
-                "cvmeasure part, whole process, 4608x3072 (median of the rows)",
+                "cvmeasure part, whole process, flat part, 4608x3072 (median wall)",
                 proc,
                 "s",
                 target=f"<= {PROCESS_TARGET_S}",
                 met=proc <= PROCESS_TARGET_S,
             ),
             Metric(
-                "measure_part after the decode, 4608x3072 (median CPU)",
+                "cvmeasure part, whole process, flat part, 4608x3072 (median CPU)", proc_cpu, "s"
+            ),
+            Metric(
+                "measure_part after the decode, flat part, 4608x3072 (median CPU)",
                 lib,
                 "s",
                 target=f"<= {LIBRARY_TARGET_S}",
                 met=lib <= LIBRARY_TARGET_S,
             ),
             Metric(
-                "peak memory of the process, 4608x3072 (largest)",
+                "peak memory of the process, flat part, 4608x3072 (largest)",
                 peak,
                 "MB",
                 target=f"<= {PEAK_TARGET_MB:.0f}",
                 met=peak <= PEAK_TARGET_MB,
+            ),
+            Metric(
+                "measure_part after the decode, lifted round wire, 4608x3072 (median CPU)",
+                lifted_lib,
+                "s",
+            ),
+            Metric(
+                "peak memory of the process, lifted round wire, 4608x3072 (largest)",
+                lifted_peak,
+                "MB",
             ),
         ],  # fmt: skip
         tables=[Table("per photo", cols, [[r[c] for c in cols] for r in rows])],
