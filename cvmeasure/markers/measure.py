@@ -236,7 +236,12 @@ def _on_frame(
                 stop=FIT_STOP_PX,
             )
         centres[role] = np.array(fit_f.centre)
-        covs[role] = jac @ cov_imgs[role] @ jac.T
+        # the sampling error from the fit in the frame, where the disc is a circle: in the
+        # image a tilted view makes it an ellipse, and the circle fit there reads that
+        # shape as edge noise (centre sigmas several times the errors on tilted views);
+        # the floor and the split-half term are image terms, mapped
+        extra_img = cov_imgs[role] - fit.covariance
+        covs[role] = np.asarray(fit_f.covariance) + jac @ extra_img @ jac.T
         if frame.name == "plane":
             seen = fit.coverage >= HIDDEN_COVERAGE
             shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if seen else None

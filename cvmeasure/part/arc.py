@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from cvmeasure.geometry import CircleFit, fit_circle_robust
@@ -17,6 +19,7 @@ __all__ = [
     "S_CURVE_BEND_DEG",
     "part_shape",
     "arc_from_points",
+    "polygon_arc",
     "chord_and_height_mm",
     "net_turn_deg",
 ]
@@ -48,15 +51,55 @@ def arc_from_points(
     poly = None
     if divisions:
         poly = fit_polyline(pts, divisions, fractions=fractions)
-        circle = fit_circle_robust(poly.vertices_mm)
-        geo: ArcGeometry = arc_geometry(circle, poly.vertices_mm)
-        chord, height = chord_and_height_mm(poly.vertices_mm)
+        geo, circle = polygon_arc(poly.vertices_mm)
+        chord, height = geo.chord_width_mm, geo.height_mm
     else:
         circle = fit_circle_robust(pts)
         geo = arc_geometry(circle, pts)
         chord, height = geo.chord_width_mm, geo.height_mm
     result = ArcResult("ours", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
     return result, circle, poly
+
+
+def polygon_arc(vertices_mm: np.ndarray) -> tuple[ArcGeometry, CircleFit]:
+    """The arc quantities of a polygon's vertices (N+1, 2), mm, and the circle through them.
+
+    Radius and arc angle from the robust circle through the vertices; chord and height
+    from the vertices themselves (:func:`chord_and_height_mm`), so a part and its design
+    are summarised alike. A polygon that no circle describes -- a straight wire (fewer
+    than 3 vertices, or all on a line) or an S-curve symmetric about its middle, whose
+    best-fitting circle is a line -- has the straight line's limit: an infinite radius
+    (``null`` in JSON), no arc angle, and a circle of undefined centre.
+    """
+    v = np.asarray(vertices_mm, dtype=np.float64).reshape(-1, 2)
+    if not np.all(np.isfinite(v)):
+        raise ValueError("polygon vertices must be finite")
+    chord, height = chord_and_height_mm(v) if len(v) else (0.0, 0.0)
+    circle = _circle_or_line(v)
+    if not math.isfinite(circle.radius):
+        return ArcGeometry(math.inf, chord, height, 0.0), circle
+    geo = arc_geometry(circle, v)
+    return ArcGeometry(geo.radius_mm, chord, height, geo.arc_angle_deg), circle
+
+
+def _circle_or_line(v: np.ndarray) -> CircleFit:
+    """:func:`fit_circle_robust` of finite points, or an infinite-radius circle on their line.
+
+    The points are finite and checked for count, so the fit's only remaining refusal is
+    a degenerate set (all on a line, or all one point).
+    """
+    if len(v) >= 3:
+        try:
+            return fit_circle_robust(v)
+        except ValueError:
+            pass  # collinear (or one point): the line below
+    centred = v - v.mean(axis=0) if len(v) else np.zeros((0, 2))
+    rms = 0.0
+    if len(v) >= 2:  # distance to the total-least-squares line
+        normal = np.linalg.svd(centred, full_matrices=False)[2][-1]
+        rms = float(np.sqrt(np.mean((centred @ normal) ** 2)))
+    nan2 = np.full((2, 2), math.nan)
+    return CircleFit((math.nan, math.nan), math.inf, nan2, rms, len(v), len(v), 0.0, math.nan)
 
 
 def chord_and_height_mm(vertices_mm: np.ndarray) -> tuple[float, float]:

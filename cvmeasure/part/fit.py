@@ -217,6 +217,25 @@ def _intersect(p1: np.ndarray, d1: np.ndarray, p2: np.ndarray, d2: np.ndarray) -
     return p1 + t * d1
 
 
+def _start_vertices(
+    pts: np.ndarray, s: np.ndarray, divisions: int, fractions: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`fit_polyline`'s starting vertices and, with ``fractions``, each split's window.
+
+    ``s``: the arc length (mm) at each point. Without ``fractions``: equal chords and no
+    window (the caller keeps each split within a quarter of the mean chord).
+    """
+    if fractions is None:
+        return divide_into_chords(pts, divisions), None
+    f = np.asarray(fractions, dtype=np.float64).ravel()
+    if f.size != divisions + 1:
+        raise ValueError(f"{f.size} vertex fractions for {divisions} chords")
+    at = f * s[-1]
+    verts = np.column_stack((np.interp(at, s, pts[:, 0]), np.interp(at, s, pts[:, 1])))
+    chord = np.diff(at)
+    return verts, 0.25 * np.minimum(np.r_[chord[:1], chord], np.r_[chord, chord[-1:]])
+
+
 def fit_polyline(
     ordered_points_mm: np.ndarray,
     divisions: int,
@@ -250,17 +269,7 @@ def fit_polyline(
         raise ValueError(f"divisions must be >= 1, got {divisions}")
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))
-    window: np.ndarray | None = None
-    if fractions is None:
-        verts = divide_into_chords(pts, divisions)
-    else:
-        f = np.asarray(fractions, dtype=np.float64).ravel()
-        if f.size != divisions + 1:
-            raise ValueError(f"{f.size} vertex fractions for {divisions} chords")
-        at = f * s[-1]
-        verts = np.column_stack((np.interp(at, s, pts[:, 0]), np.interp(at, s, pts[:, 1])))
-        chord = np.diff(at)
-        window = 0.25 * np.minimum(np.r_[chord[:1], chord], np.r_[chord, chord[-1:]])
+    verts, window = _start_vertices(pts, s, divisions, fractions)
     lines: list[tuple[np.ndarray, np.ndarray]] = []
     rms = float("nan")
     vs0: np.ndarray | None = None

@@ -33,8 +33,14 @@ from cvmeasure.camera import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import CircleFit, fit_circle_robust
-from cvmeasure.part.arc import arc_from_points, chord_and_height_mm, net_turn_deg, part_shape
+from cvmeasure.geometry import CircleFit
+from cvmeasure.part.arc import (
+    arc_from_points,
+    chord_and_height_mm,
+    net_turn_deg,
+    part_shape,
+    polygon_arc,
+)
 from cvmeasure.part.centreline import Centreline
 from cvmeasure.part.checks import (
     END_BEND_DEG,
@@ -48,7 +54,7 @@ from cvmeasure.part.compare import (
     register_to_design,
 )
 from cvmeasure.part.ends import EndShape
-from cvmeasure.part.fit import ChordCount, PolylineFit, arc_geometry, count_chords, fit_polyline
+from cvmeasure.part.fit import ChordCount, PolylineFit, count_chords, fit_polyline
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
     LIFT_BEND_DEG,
@@ -129,7 +135,7 @@ def compare_with_design(
         verts = bent_polygon(design, n) if n else design.points_mm
     reg = register_to_design(seen, verts, allow_mirror=allow_mirror)
     dev = deviation_profile(seen, verts, reg)
-    d_geo = arc_geometry(fit_circle_robust(verts), verts)
+    d_geo, _ = polygon_arc(verts)  # an S-curve or a straight design has no circle
     design_arc = ArcResult(
         "design", d_geo.radius_mm, d_geo.chord_width_mm, d_geo.height_mm, d_geo.arc_angle_deg, n
     )
