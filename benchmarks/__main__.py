@@ -43,7 +43,7 @@ ALL_CORES = frozenset({"batch"})
 #: the other core skews (shared memory bandwidth and last-level cache slow a full decode and
 #: our measurement by different amounts): with ``--cores`` they run alone (pinned to one core,
 #: nothing else of this run on the others) after the parallel part, before ``ALL_CORES``.
-TIMING_ALONE = frozenset({"decode_speed"})
+TIMING_ALONE = frozenset({"decode_speed", "part_speed"})
 #: Benchmarks that mostly wait on pseudo-terminals and child processes (about a third of a
 #: core): with ``--cores`` they run one at a time in a lane of their own beside the pinned
 #: queue, so the run's length is not their waiting added to everything else's computing.

@@ -348,8 +348,13 @@ def divide_into_chords(points_mm: np.ndarray, divisions: int) -> np.ndarray:
     return np.vstack((verts, pts[-1:]))
 
 
+def _index_at(cum: np.ndarray, s: float) -> int:
+    """The segment in which arc length ``s`` lies (clamped to the first and last)."""
+    return min(max(int(np.searchsorted(cum, s, side="right")) - 1, 0), len(cum) - 2)
+
+
 def _point_at(pts: np.ndarray, cum: np.ndarray, s: float) -> np.ndarray:
-    i = int(np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(pts) - 2))
+    i = _index_at(cum, s)
     f = (s - cum[i]) / (cum[i + 1] - cum[i])
     return pts[i] + f * (pts[i + 1] - pts[i])
 
@@ -358,7 +363,7 @@ def _next_at_distance(
     pts: np.ndarray, cum: np.ndarray, s0: float, origin: np.ndarray, dist: float
 ) -> float | None:
     """Arc length of the first point beyond ``s0`` at distance ``dist`` from ``origin``."""
-    i = int(np.clip(np.searchsorted(cum, s0, side="right") - 1, 0, len(pts) - 2))
+    i = _index_at(cum, s0)
     start = _point_at(pts, cum, s0)
     # the first segment whose far end is not nearer than ``dist`` (all at once: a Python
     # loop over a dense curve's points was most of a part's chord count)

@@ -62,7 +62,7 @@ from cvmeasure.part.profiles import (
     path_length,
     path_normals,
     resample_path,
-    sample_image,
+    sample_across,
     silhouette_edges,
     smooth_path,
     symmetric_centres,
@@ -209,74 +209,24 @@ def measure_centreline(
     )
 
     def profiles_at(centres: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        pts = centres[:, None, :] + offsets[None, :, None] * normals[:, None, :]
-        return sample_image(g, pts)
+        return sample_across(g, centres, normals, offsets)
 
-    normals = path_normals(path)
-    prof = profiles_at(path, normals)
-    centres = path
-    # the rough path can sit off the axis (a shadow joined to the mask), which
-    # inflates half-widths measured from it: centre with a small window first
-    hws = half_width_px(prof, offsets, hw0)
-    rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
-    # a window of most of the wire: a small one finds false centres in each
-    # dark flank (a local valley is symmetric too)
-    rho = max(0.85 * rough, _MIN_RHO_PX)
-    search = min(1.0 * rough + 1.0, reach - rho - 0.5)
-    rejected = 0
     window = int(round(6.0 * hw0 / step_px))
-    for final in (False, False, True):
-        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
-        shift = despike(shift, window)
-        ok = np.isfinite(shift)
-        rejected = int((~ok).sum())
-        if ok.sum() < 5:
-            raise ValueError("no symmetric wire profile along the path")
-        centres = resample_path((centres + shift[:, None] * normals)[ok], step_px)
-        # normals from the centres found, smoothed along the wire
-        smooth = smooth_path(centres, max(2.0, 2.0 * rough) / step_px)
-        normals = path_normals(smooth)
-        prof = profiles_at(centres, normals)
-        if not final:
-            hws = half_width_px(prof, offsets, rough)
-            rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
-            rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
-            search = min(0.5 * rough + 1.0, reach - rho - 0.5)
+    centres, normals, prof, rough, rho, search = _symmetric_passes(
+        profiles_at, path, offsets, hw0, reach, step_px, window
+    )
     half_width = rough
-    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
-    shift = despike(shift, window)
-    ok = np.isfinite(shift)
-    rejected = int((~ok).sum())
-    coverage = float(ok.mean())
-    symmetry = asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
-    centres = (centres + shift[:, None] * normals)[ok]
-    if len(centres) < 5:
-        raise ValueError("no symmetric wire profile along the path")
-    prof_ok = prof[ok]
+    centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
+        prof, centres, normals, rho, search, step_px, window
+    )
     centre_from = "symmetry"
-    widths = None
-    shadow = None
-    lit = None
+    widths = shadow = lit = None
     if wire_width_px is not None:
-        # from the mask's path, not the symmetric centres: those may have lost a
-        # stretch of the wire (a clipped highlight), which could not come back
-        try:
-            found = _silhouette_centres(
-                profiles_at, path, offsets, float(wire_width_px), step_px, rough, window
-            )
-        except ValueError:
-            found = None
-        # the silhouette edges must follow the wire as far as its symmetric centres do;
-        # where they lose a stretch at an end the part would be cut short: keep the
-        # symmetric centres and say so (centre_from)
-        # unless those are no wire's (a side-lit wire far from symmetric, a shadow joined
-        # to it: they wander off along the shadow), then most of the mask's own path
-        reach_px = (
-            SILHOUETTE_MIN_SHARE * path_length(centres)
-            if symmetry <= SYMMETRIC_WIRE_MAX
-            else SILHOUETTE_MIN_SHARE_OF_PATH * path_length(path)
-        )
-        if found is not None and path_length(found[0]) >= reach_px:
+        found = _silhouette_if_whole(
+            profiles_at, path, centres, offsets, float(wire_width_px), step_px, rough, window,
+            symmetry,
+        )  # fmt: skip
+        if found is not None:
             centres, prof_ok, widths, coverage, shadow, lit = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
@@ -294,7 +244,85 @@ def measure_centreline(
     ]  # fmt: skip
     ends = np.vstack([e[0] for e in found_ends])
     end_uncertainty = np.array([e[1] for e in found_ends])
-    # trim centres that lie beyond the end points (skeleton overshoot)
+    keep = _inside_ends(centres, ends, half_width, step_px)
+    lit_points = None if lit is None else np.vstack((ends[:1], lit[keep], ends[1:]))
+    edge_width = None if widths is None else np.concatenate(([np.nan], widths[keep], [np.nan]))
+    return Centreline(
+        points_px=np.vstack((ends[:1], centres[keep], ends[1:])),
+        half_width_px=half_width,
+        rho_px=rho,
+        ends_px=ends,
+        rejected=rejected,
+        coverage=coverage,
+        asymmetry=symmetry,
+        centre_from=centre_from,
+        edge_width_px=edge_width,
+        end_uncertainty_px=end_uncertainty,
+        lit_points_px=lit_points,
+    )
+
+
+def _final_symmetric(
+    prof: np.ndarray,
+    centres: np.ndarray,
+    normals: np.ndarray,
+    rho: float,
+    search: float,
+    step_px: float,
+    window: int,
+) -> tuple[np.ndarray, np.ndarray, int, float, float]:
+    """The last pass of symmetric centres: the centres and their profiles, the profiles
+    rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`)."""
+    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
+    shift = despike(shift, window)
+    ok = np.isfinite(shift)
+    rejected = int((~ok).sum())
+    coverage = float(ok.mean())
+    symmetry = asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
+    centres = (centres + shift[:, None] * normals)[ok]
+    if len(centres) < 5:
+        raise ValueError("no symmetric wire profile along the path")
+    return centres, prof[ok], rejected, coverage, symmetry
+
+
+def _silhouette_if_whole(
+    profiles_at: Any,
+    path: np.ndarray,
+    centres: np.ndarray,
+    offsets: np.ndarray,
+    width_px: float,
+    step_px: float,
+    rough: float,
+    window: int,
+    symmetry: float,
+) -> tuple | None:
+    """:func:`_silhouette_centres` when they follow the wire far enough, else None.
+
+    ``centres`` are the symmetric ones, ``symmetry`` their remaining asymmetry.
+    """
+    # from the mask's path, not the symmetric centres: those may have lost a
+    # stretch of the wire (a clipped highlight), which could not come back
+    try:
+        found = _silhouette_centres(profiles_at, path, offsets, width_px, step_px, rough, window)
+    except ValueError:
+        found = None
+    # the silhouette edges must follow the wire as far as its symmetric centres do;
+    # where they lose a stretch at an end the part would be cut short: keep the
+    # symmetric centres and say so (centre_from)
+    # unless those are no wire's (a side-lit wire far from symmetric, a shadow joined
+    # to it: they wander off along the shadow), then most of the mask's own path
+    reach_px = (
+        SILHOUETTE_MIN_SHARE * path_length(centres)
+        if symmetry <= SYMMETRIC_WIRE_MAX
+        else SILHOUETTE_MIN_SHARE_OF_PATH * path_length(path)
+    )
+    return found if found is not None and path_length(found[0]) >= reach_px else None
+
+
+def _inside_ends(
+    centres: np.ndarray, ends: np.ndarray, half_width: float, step_px: float
+) -> np.ndarray:
+    """True (M,) at the centres not beyond the end points (a skeleton's overshoot)."""
     keep = np.ones(len(centres), dtype=bool)
     k = min(5, len(centres) - 1)
     near = max(k, int(round(4.0 * half_width / step_px)))  # only the last few centres
@@ -308,24 +336,51 @@ def measure_centreline(
     ):
         inward = inward / max(np.hypot(*inward), 1e-12)
         keep[idx] &= ((centres[idx] - end) @ inward) >= 0.5 * half_width
-    inner = centres[keep]
-    lit_points = None if lit is None else np.vstack((ends[:1], lit[keep], ends[1:]))
-    edge_width = None
-    if widths is not None:
-        edge_width = np.concatenate(([np.nan], widths[keep], [np.nan]))
-    return Centreline(
-        points_px=np.vstack((ends[:1], inner, ends[1:])),
-        half_width_px=half_width,
-        rho_px=rho,
-        ends_px=ends,
-        rejected=rejected,
-        coverage=coverage,
-        asymmetry=symmetry,
-        centre_from=centre_from,
-        edge_width_px=edge_width,
-        end_uncertainty_px=end_uncertainty,
-        lit_points_px=lit_points,
-    )
+    return keep
+
+
+def _symmetric_passes(
+    profiles_at: Any,
+    path: np.ndarray,
+    offsets: np.ndarray,
+    hw0: float,
+    reach: float,
+    step_px: float,
+    window: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, float]:
+    """The three passes of symmetric centres from the mask's ``path`` (the module notes).
+
+    Returns the last pass's centres, normals and profiles, the half-width measured
+    about them, and the symmetry window and search (px) for the final pass.
+    """
+    normals = path_normals(path)
+    prof = profiles_at(path, normals)
+    centres = path
+    # the rough path can sit off the axis (a shadow joined to the mask), which
+    # inflates half-widths measured from it: centre with a small window first
+    hws = half_width_px(prof, offsets, hw0)
+    rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    # a window of most of the wire: a small one finds false centres in each
+    # dark flank (a local valley is symmetric too)
+    rho = max(0.85 * rough, _MIN_RHO_PX)
+    search = min(1.0 * rough + 1.0, reach - rho - 0.5)
+    for final in (False, False, True):
+        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
+        shift = despike(shift, window)
+        ok = np.isfinite(shift)
+        if ok.sum() < 5:
+            raise ValueError("no symmetric wire profile along the path")
+        centres = resample_path((centres + shift[:, None] * normals)[ok], step_px)
+        # normals from the centres found, smoothed along the wire
+        smooth = smooth_path(centres, max(2.0, 2.0 * rough) / step_px)
+        normals = path_normals(smooth)
+        prof = profiles_at(centres, normals)
+        if not final:
+            hws = half_width_px(prof, offsets, rough)
+            rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
+            rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
+            search = min(0.5 * rough + 1.0, reach - rho - 0.5)
+    return centres, normals, prof, rough, rho, search
 
 
 def _shadow_side(

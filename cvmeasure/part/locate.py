@@ -17,7 +17,6 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
 from cvmeasure.part.ends import EndShape
-from cvmeasure.part.morph import dilate_local
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 
 __all__ = [
@@ -165,11 +164,17 @@ def outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarr
     """
     import cv2
 
-    gray = gray_float(image)
     near = max(3, int(round(0.5 * wire.width_px)) | 1)
-    band = dilate_local(
-        wire.mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (near, near))
-    ).astype(bool)
+    # all of it within the wire's box grown by the dilation and the closing (the same
+    # pixels as on the whole photo: nothing outside it can join)
+    ys, xs = np.nonzero(wire.mask.any(axis=1))[0], np.nonzero(wire.mask.any(axis=0))[0]
+    grow = near // 2 + 2
+    h, w = wire.mask.shape
+    y0, y1 = max(0, int(ys[0]) - grow), min(h, int(ys[-1]) + grow + 1)
+    x0, x1 = max(0, int(xs[0]) - grow), min(w, int(xs[-1]) + grow + 1)
+    mask = wire.mask[y0:y1, x0:x1].astype(np.uint8)
+    gray = gray_float(image[y0:y1, x0:x1])
+    band = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (near, near))).astype(bool)
     level = max(wire.threshold, 0.5 * wire.contrast)
     binary = (band & (np.abs(gray - wire.background_level) > level)).astype(np.uint8)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
@@ -177,8 +182,10 @@ def outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarr
         biggest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         binary = (labels == biggest).astype(np.uint8)
     else:
-        binary = wire.mask.astype(np.uint8)
+        binary = mask
     binary = cv2.morphologyEx(binary, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
-    contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contours, _ = cv2.findContours(
+        binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE, offset=(x0, y0)
+    )
     pts = np.vstack([c.reshape(-1, 2) for c in contours]).astype(np.float64)
     return plane.image_to_plane_mm(pts)

@@ -19,6 +19,8 @@ __all__ = [
     "smooth_path",
     "path_normals",
     "sample_image",
+    "sample_across",
+    "asymmetry_costs",
     "symmetric_centres",
     "silhouette_edges",
     "outer_edges",
@@ -70,6 +72,27 @@ def path_normals(path: np.ndarray) -> np.ndarray:
     return np.column_stack((-t[:, 1], t[:, 0]))
 
 
+def sample_across(
+    gray: np.ndarray, centres: np.ndarray, normals: np.ndarray, offsets: np.ndarray
+) -> np.ndarray:
+    """Bilinear profiles (P, S) of ``gray`` at ``centres + offsets * normals`` (x, y, pixels).
+
+    The same samples as :func:`sample_image` on those points, with the coordinates
+    written straight into the (2, P, S) array the interpolation reads (no (P, S, 2)
+    points array and its copies).
+    """
+    from scipy.ndimage import map_coordinates
+
+    c = np.asarray(centres, dtype=np.float64)
+    nrm = np.asarray(normals, dtype=np.float64)
+    off = np.asarray(offsets, dtype=np.float64)
+    coords = np.empty((2, len(c), len(off)))
+    for axis, k in ((0, 1), (1, 0)):  # row (y) then column (x)
+        np.multiply(off[None, :], nrm[:, k, None], out=coords[axis])
+        coords[axis] += c[:, k, None]
+    return map_coordinates(gray, coords, order=1, mode="nearest")
+
+
 def sample_image(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Bilinear samples of ``gray`` at points (..., 2) x, y."""
     from scipy.ndimage import map_coordinates
@@ -114,12 +137,7 @@ def symmetric_centres(
     if mid - kc - ku < 0 or mid + kc + ku >= p.shape[1]:
         raise ValueError("profiles too short for rho_px + search_px")
     shifts = np.arange(-kc, kc + 1)
-    cost = np.empty((len(p), len(shifts)))
-    diff = np.empty((len(p), ku))
-    for j, c in enumerate(shifts):
-        # samples c + 1 .. c + ku against c - 1 .. c - ku (views: no gathers)
-        np.subtract(p[:, mid + c + 1 : mid + c + ku + 1], p[:, mid + c - 1 :: -1][:, :ku], diff)
-        cost[:, j] = np.einsum("ij,ij->i", diff, diff) / ku
+    cost = asymmetry_costs(p, mid, kc, ku)
     rows = np.arange(len(p))
     if max_slope_px is None:
         k = np.argmin(cost, axis=1)
@@ -146,6 +164,36 @@ def symmetric_centres(
     shift = (shifts[kk] + np.clip(frac, -1, 1)) * step_px
     shift = np.where(inner, shift, np.nan)
     return shift, cost[rows, k]
+
+
+#: Profiles per block of :func:`asymmetry_costs` (a block's samples and costs stay in cache).
+_COST_BLOCK_ROWS = 64
+
+
+def asymmetry_costs(profiles: np.ndarray, mid: int, kc: int, ku: int) -> np.ndarray:
+    """Mean squared asymmetry (P, 2 kc + 1) of each profile about samples ``mid - kc .. mid + kc``.
+
+    ``cost[i, j] = mean over u = 1 .. ku of (p[i, c + u] - p[i, c - u]) ** 2``, c = mid - kc + j.
+    Summed over ``u`` for every shift at once, a block of profiles at a time: the same
+    sums as one shift at a time, but each block's samples are read from cache.
+    """
+    p = np.asarray(profiles, dtype=np.float64)
+    n = 2 * kc + 1
+    cost = np.zeros((len(p), n))
+    for r0 in range(0, len(p), _COST_BLOCK_ROWS):
+        block = p[r0 : r0 + _COST_BLOCK_ROWS]
+        out = cost[r0 : r0 + _COST_BLOCK_ROWS]
+        diff = np.empty((len(block), n))
+        for u in range(1, ku + 1):
+            np.subtract(
+                block[:, mid - kc + u : mid + kc + u + 1],
+                block[:, mid - kc - u : mid + kc - u + 1],
+                diff,
+            )
+            np.square(diff, diff)
+            out += diff
+    cost /= ku
+    return cost
 
 
 def silhouette_edges(
@@ -303,16 +351,34 @@ def outer_edges(
 
 
 def edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN."""
+    """The profiles' gradient magnitude (grey per px, over 0.5 px) at ``edge`` (P,); 0 at NaN.
+
+    ``gaussian_filter1d(profiles, 0.5 px, order=1)`` (mode ``reflect``) evaluated at one
+    sample per profile only, with the filter's own operations in its order (its odd
+    kernel: the weights times the differences of the samples either side), so the same
+    values as filtering every sample and reading one.
+    """
     from scipy.ndimage import gaussian_filter1d
 
+    p = np.asarray(profiles, float)
     step = float(offsets[1] - offsets[0])
-    g = np.abs(gaussian_filter1d(np.asarray(profiles, float), 0.5 / step, axis=1, order=1)) / step
+    sigma = 0.5 / step
+    radius = int(4.0 * sigma + 0.5)  # gaussian_filter1d's default truncate
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    # the correlation weights: the response to a unit sample, read backwards
+    weights = gaussian_filter1d(impulse, sigma, order=1)[radius::-1]
     ok = np.isfinite(edge)
     k = np.clip(
         np.round((np.nan_to_num(edge) - offsets[0]) / step).astype(int), 0, len(offsets) - 1
     )
-    return np.where(ok, g[np.arange(len(g)), k], 0.0)
+    padded = np.pad(p, ((0, 0), (radius, radius)), mode="symmetric")  # scipy's 'reflect'
+    rows = np.arange(len(p))
+    at = k + radius
+    g = padded[rows, at] * weights[0]
+    for j in range(1, radius + 1):
+        g += (padded[rows, at + j] - padded[rows, at - j]) * weights[j]
+    return np.where(ok, np.abs(g) / step, 0.0)
 
 
 def majority_filter(labels: np.ndarray, window: int) -> np.ndarray:

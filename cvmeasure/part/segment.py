@@ -88,6 +88,22 @@ def gray_float(image: np.ndarray) -> np.ndarray:
     return out
 
 
+def _gray8(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The photo's grey levels rounded to uint8, and the grey levels themselves (0-255).
+
+    A uint8 photo's grey levels are whole already: both are the one uint8 image (no
+    full-size float copy).
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.dtype == np.uint8:
+        g8 = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
+        return g8, g8
+    gray = gray_float(img)
+    return np.clip(gray + 0.5, 0, 255).astype(np.uint8), gray
+
+
 def _odd(n: float) -> int:
     k = max(3, int(math.ceil(n)))
     return k if k % 2 else k + 1
@@ -205,8 +221,7 @@ def segment_wire(
     """
     import cv2
 
-    gray = gray_float(image)
-    g8 = np.clip(gray + 0.5, 0, 255).astype(np.uint8)
+    g8, levels = _gray8(image)
     # Work at a reduced size when the wire is wide: the mask is only a guide.
     factor = min(1.0, 10.0 / max(max_wire_width_px, 1e-9))
     small = (
@@ -253,12 +268,12 @@ def segment_wire(
     else:
         mask, path = filled, path_small
     mask_b = mask.astype(bool)
-    inside = gray[mask_b]
+    inside = levels[mask_b].astype(np.float32)
     ring = dilate_local(
         mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(max_wire_width_px),) * 2)
     )
     around = ring.astype(bool) & ~mask_b
-    bg_level = float(np.median(gray[around])) if around.any() else float(np.median(gray))
+    bg_level = float(np.median(levels[around])) if around.any() else float(np.median(levels))
     # which way the wire stands out: compare its mean absolute deviation sides
     dev = inside - bg_level
     sheet: Sheet = (

@@ -160,6 +160,25 @@ def _silhouette_on_plate_mm(
     return out
 
 
+def _sample_box(px: np.ndarray, shape: tuple[int, ...]) -> tuple[int, int, int, int]:
+    """Pixel box (x0, y0, x1, y1) holding every pixel bilinear samples at ``px`` (N, 2) read.
+
+    Clipped to the image (where it is, samples beyond it read the border as before); the
+    whole image when no sample is finite.
+    """
+    h, w = shape[:2]
+    ok = np.all(np.isfinite(px), axis=1)
+    if not ok.any():
+        return 0, 0, w, h
+    lo = np.floor(px[ok].min(axis=0)).astype(np.int64) - 1
+    hi = np.floor(px[ok].max(axis=0)).astype(np.int64) + 3
+    x0, y0 = int(np.clip(lo[0], 0, w)), int(np.clip(lo[1], 0, h))
+    x1, y1 = int(np.clip(hi[0], 0, w)), int(np.clip(hi[1], 0, h))
+    if x1 - x0 < 1 or y1 - y0 < 1:
+        return 0, 0, w, h
+    return x0, y0, x1, y1
+
+
 def measure_shadow_edges(
     image: np.ndarray,
     plane: PlaneModel,
@@ -209,16 +228,21 @@ def measure_shadow_edges(
         silhouette = _silhouette_on_plate_mm(plane, axis, normal, h, radius, at_h)
     gray = gray_float(image)
     top = 255.0 if gray.max() > 1.5 else 1.0
-    lin = srgb_decode(np.clip(gray / top, 0.0, 1.0)).astype(np.float32)
     du = 0.25 * plane.mm_per_px
     u = np.arange(0.0, PROFILE_REACH_MM + 1e-9, du)
     far = u >= PROFILE_REACH_MM - PLATE_STRETCH_MM
     q = np.empty((2, len(index), len(u)))
-    for k_side, sign in enumerate((1.0, -1.0)):
+    sides = []
+    for sign in (1.0, -1.0):
         where = axis[:, None, :] + sign * u[None, :, None] * normal[:, None, :]
-        px = plane.plane_to_image_px(where.reshape(-1, 2)).astype(np.float32)
+        sides.append(plane.plane_to_image_px(where.reshape(-1, 2)).astype(np.float32))
+    # linear light only in the box the profiles read (the whole photo's was most of the
+    # time and memory); shifted by whole pixels, the samples are the same
+    x0, y0, x1, y1 = _sample_box(np.vstack(sides), gray.shape)
+    lin = srgb_decode(np.clip(gray[y0:y1, x0:x1] / top, 0.0, 1.0)).astype(np.float32)
+    for k_side, px in enumerate(sides):
         prof = cv2.remap(
-            lin, px[:, 0].reshape(len(index), -1), px[:, 1].reshape(len(index), -1),
+            lin, (px[:, 0] - x0).reshape(len(index), -1), (px[:, 1] - y0).reshape(len(index), -1),
             cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan,
         ).astype(np.float64)  # fmt: skip
         plate = np.median(prof[:, far], axis=1)
