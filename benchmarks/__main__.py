@@ -44,6 +44,10 @@ ALL_CORES = frozenset({"batch"})
 #: our measurement by different amounts): with ``--cores`` they run alone (pinned to one core,
 #: nothing else of this run on the others) after the parallel part, before ``ALL_CORES``.
 TIMING_ALONE = frozenset({"decode_speed"})
+#: Benchmarks that mostly wait on pseudo-terminals and child processes (about a third of a
+#: core): with ``--cores`` they run one at a time in a lane of their own beside the pinned
+#: queue, so the run's length is not their waiting added to everything else's computing.
+SIDE_LANE = frozenset({"serial_faults", "serial_heldout", "kill_runs"})
 
 
 def _command_of(name: str, quick: bool) -> list[str]:
@@ -93,38 +97,57 @@ def _previous_seconds(name: str) -> float:
         return 0.0
 
 
+def _start(
+    name: str, quick: bool, schedule: str, core: int | None
+) -> tuple[subprocess.Popen[bytes], Any]:
+    """Start one benchmark, pinned to ``core`` (unless None); its stderr goes to a temp file."""
+    import tempfile
+
+    err = tempfile.TemporaryFile(mode="w+")
+    print(f"--- {name} ({'side lane' if core is None else f'core {core}'})", flush=True)
+    proc = subprocess.Popen(
+        _command_of(name, quick),
+        cwd=REPO_ROOT,
+        stderr=err,
+        env=_env_with(schedule),
+        preexec_fn=None if core is None else (lambda c=core: os.sched_setaffinity(0, {c})),
+    )
+    return proc, err
+
+
 def _run_pinned(
-    names: Sequence[str], quick: bool, timeout_s: float, cores: Sequence[int]
+    names: Sequence[str],
+    quick: bool,
+    timeout_s: float,
+    cores: Sequence[int],
+    side: Sequence[str] = (),
 ) -> dict[str, tuple[int, float, str]]:
     """Run ``names`` at most ``len(cores)`` at a time, each pinned to a core of its own.
 
-    Longest first (by the last run's seconds), so the queues end together; a child's
-    stderr goes to a temporary file and is echoed when it ends.
+    Longest first (by the last run's seconds), so the queues end together. ``side``
+    (``SIDE_LANE``: benchmarks that mostly wait) run one at a time beside them, unpinned.
+    A child's stderr goes to a temporary file and is echoed when it ends.
     """
-    import tempfile
-
-    pending = sorted(names, key=_previous_seconds, reverse=True)
+    queues: dict[str, list[str]] = {
+        "pinned": sorted(names, key=_previous_seconds, reverse=True),
+        "side": sorted(side, key=_previous_seconds, reverse=True),
+    }
     schedule = (
         f"in parallel: up to {len(cores)} benchmarks at once, each pinned to a core of its own"
+        + (", beside one that mostly waits on I/O (unpinned)" if side else "")
     )
-    free = list(cores)
-    running: dict[str, tuple[subprocess.Popen[bytes], int, float, Any]] = {}
+    slots: list[tuple[str, int | None]] = [("pinned", c) for c in cores] + [("side", None)]
+    running: dict[str, tuple[subprocess.Popen[bytes], tuple[str, int | None], float, Any]] = {}
     done: dict[str, tuple[int, float, str]] = {}
-    while pending or running:
-        while pending and free:
-            name, core = pending.pop(0), free.pop(0)
-            err = tempfile.TemporaryFile(mode="w+")
-            print(f"--- {name} (core {core})", flush=True)
-            proc = subprocess.Popen(
-                _command_of(name, quick),
-                cwd=REPO_ROOT,
-                stderr=err,
-                env=_env_with(schedule),
-                preexec_fn=lambda c=core: os.sched_setaffinity(0, {c}),
-            )
-            running[name] = (proc, core, time.perf_counter(), err)
+    while queues["pinned"] or queues["side"] or running:
+        for slot in list(slots):
+            if queues[slot[0]]:
+                slots.remove(slot)
+                name = queues[slot[0]].pop(0)
+                proc, err = _start(name, quick, schedule, slot[1])
+                running[name] = (proc, slot, time.perf_counter(), err)
         time.sleep(0.5)
-        for name, (proc, core, t0, err) in list(running.items()):
+        for name, (proc, slot, t0, err) in list(running.items()):
             elapsed = time.perf_counter() - t0
             code = proc.poll()
             if code is None and elapsed > timeout_s:
@@ -141,7 +164,7 @@ def _run_pinned(
             done.setdefault(name, (code, elapsed, _last_line(text)))
             print(f"--- {name} ended ({elapsed:.0f} s, exit {code})", flush=True)
             del running[name]
-            free.append(core)
+            slots.append(slot)
     return done
 
 
@@ -193,14 +216,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--timeout",
         type=float,
-        default=1800.0,
-        help="seconds allowed per benchmark (default 1800)",
+        default=3600.0,
+        help="seconds allowed per benchmark (default 3600)",
     )
     p.add_argument(
         "--cores",
         type=int,
         default=1,
         help="run up to N benchmarks at once, each pinned to a core of its own (Linux); "
+        f"{', '.join(sorted(SIDE_LANE))} one at a time beside them (they mostly wait), "
         f"{', '.join(sorted(TIMING_ALONE))} then run alone after them, "
         f"{', '.join(sorted(ALL_CORES))} alone on every core, last (default 1: one at a time)",
     )
@@ -227,9 +251,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.cores > 1 and hasattr(os, "sched_setaffinity"):
         cores = sorted(os.sched_getaffinity(0))[: args.cores]
         alone = [n for n in names if n in TIMING_ALONE] + [n for n in names if n in ALL_CORES]
-        outcomes.update(
-            _run_pinned([n for n in names if n not in alone], args.quick, args.timeout, cores)
-        )
+        side = [n for n in names if n in SIDE_LANE]
+        rest = [n for n in names if n not in alone and n not in side]
+        outcomes.update(_run_pinned(rest, args.quick, args.timeout, cores, side))
         names = alone
     for name in names:
         print(f"--- {name}", flush=True)

@@ -372,7 +372,8 @@ def main(argv: list[str] | None = None) -> dict:
             "accounting artefact (a merged line counted under its second N). At the real "
             "machine's speed the planner stays ahead and the main table applies",
             f"{JOB_LINES}-line jobs (random parts, ~600 bends, seeds 0..{n_seeds - 1}) streamed "
-            f"over a real pty to FakeTinyG at speedup {args.speedup:g}; windows 4 lines / 200 bytes",
+            f"over a real pty to FakeTinyG at speedup {args.speedup:g}; windows {CONFIG.window_lines} line(s) / "
+            f"{CONFIG.window_bytes} bytes",
             "lost/repeated are counted from the double's own record of completed blocks "
             "(N0 start marker + N1..N2000); a block cut short by a flush and completed by the "
             "resume's fix-up line counts once",

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_csv_rows
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -256,7 +257,6 @@ class AgreementResult:
 
 def load_manual(path: str | os.PathLike[str]) -> list[ManualReading]:
     """Read MANUAL.csv: ``photo, bend_angle_deg`` and optional ``reader``, ``repeat``, ``bend``."""
-    from cvmeasure.fileio import read_csv_rows
 
     rows = read_csv_rows(path, required=("photo", "bend_angle_deg"))
     readings = []

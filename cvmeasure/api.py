@@ -45,6 +45,7 @@ from cvmeasure.part.measure import PartMeasurement
 from cvmeasure.part.measure import measure_part as _measure_part
 from cvmeasure.sim import SimParams, params_from_json, params_to_json
 from cvmeasure.warning import StageWarning
+from cvmeasure.wireplan import plan_design
 
 __all__ = [
     "CameraCalibration",
@@ -501,7 +502,6 @@ def gcode_for(
     command; without it, the simulation's nominal model. ``divisions`` bends a curve in
     that many equal chords.
     """
-    from cvmeasure.wireplan import plan_design
 
     if isinstance(design, str | os.PathLike):
         design = load_design(design)

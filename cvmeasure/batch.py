@@ -627,6 +627,41 @@ def default_workers() -> int:
     return max(1, os.cpu_count() or 1)
 
 
+def _pending_jobs(paths: list[Any], output: Path) -> list[tuple[str, str]]:
+    """(path, key) of each photo not yet measured in ``output``, each photo once."""
+    done = done_keys(output)
+    jobs: list[tuple[str, str]] = []
+    seen: set[str] = set()
+    for p in paths:
+        try:
+            key = photo_key(p)
+        except OSError as exc:
+            raise InputError(p, f"cannot read photo: {exc.strerror or exc}") from None
+        if key in done or key in seen:
+            continue
+        seen.add(key)
+        jobs.append((os.fspath(p), key))
+    return jobs
+
+
+def _append_records(
+    records: Iterable[dict[str, Any]],
+    output: Path,
+    on_record: Callable[[dict[str, Any]], None] | None,
+) -> tuple[list[tuple[str, str]], list[float]]:
+    """Append each record as it arrives; return the failures and the arrival times (s)."""
+    failures: list[tuple[str, str]] = []
+    times: list[float] = []
+    for record in records:
+        append_jsonl(output, record)
+        times.append(time.perf_counter())
+        if not record["ok"]:
+            failures.append((record["photo"], record["error"]))
+        if on_record:
+            on_record(record)
+    return failures, times
+
+
 def run_batch(
     photos: Iterable[str | os.PathLike[str]],
     output: str | os.PathLike[str],
@@ -675,19 +710,8 @@ def run_batch(
     if kind != "auto":
         resolve_measurer(kind)  # ValueError for an unknown kind, before any work
     output = Path(output)
-    done = done_keys(output)
-    jobs: list[tuple[str, str]] = []
-    seen: set[str] = set()
     paths = list(photos)
-    for p in paths:
-        try:
-            key = photo_key(p)
-        except OSError as exc:
-            raise InputError(p, f"cannot read photo: {exc.strerror or exc}") from None
-        if key in done or key in seen:
-            continue
-        seen.add(key)
-        jobs.append((os.fspath(p), key))
+    jobs = _pending_jobs(paths, output)
     already = len(paths) - len(jobs)
     drop_failed_records(output, {key for _, key in jobs})
     client = None
@@ -708,21 +732,12 @@ def run_batch(
         records = _run_serial(jobs, kind, context)
     else:
         records = _run_processes(jobs, kind, context, n_workers, start_method)
-    measured = 0
-    failures: list[tuple[str, str]] = []
-    times: list[float] = []
     try:
-        for record in records:
-            append_jsonl(output, record)
-            times.append(time.perf_counter())
-            measured += 1
-            if not record["ok"]:
-                failures.append((record["photo"], record["error"]))
-            if on_record:
-                on_record(record)
+        failures, times = _append_records(records, output, on_record)
     finally:
         if client is not None:
             client.close()
+    measured = len(times)
     # steady state: after every worker has delivered its first photo (start-up excluded)
     steady = None
     if measured >= n_workers + 2 and times[-1] > times[n_workers - 1]:

@@ -11,6 +11,7 @@ import os
 from dataclasses import asdict, dataclass
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 
 from cvmeasure.errors import InputError
@@ -53,13 +54,10 @@ class CharucoBoardSpec:
         return self.squares_x * self.square_mm, self.squares_y * self.square_mm
 
     def cv_dictionary(self):
-        import cv2
-
         return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
 
     def cv_board(self):
         """The ``cv2.aruco.CharucoBoard`` (lengths in mm)."""
-        import cv2
 
         board = cv2.aruco.CharucoBoard(
             (self.squares_x, self.squares_y), self.square_mm, self.marker_mm, self.cv_dictionary()

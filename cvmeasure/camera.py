@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.errors import InputError
@@ -135,7 +136,6 @@ class CameraModel:
     # -- geometry ------------------------------------------------------------
     def project(self, points_cam_mm: np.ndarray) -> np.ndarray:
         """Project camera-frame points (N, 3) in mm to distorted pixels (N, 2)."""
-        import cv2
 
         pts = np.asarray(points_cam_mm, dtype=np.float64).reshape(-1, 1, 3)
         img, _ = cv2.projectPoints(
@@ -145,7 +145,6 @@ class CameraModel:
 
     def undistort_px(self, points_px: np.ndarray) -> np.ndarray:
         """Remove lens distortion: distorted pixels (N, 2) -> ideal pinhole pixels (N, 2)."""
-        import cv2
 
         pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
         if pts.shape[0] == 0:

@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.errors import InputError
+from cvmeasure.fileio import read_csv_rows, write_csv_rows
 from cvmeasure.kit import ROLES
 from cvmeasure.plane_model import PLANE_FORMAT, PlaneModel, apply_homography
 from cvmeasure.warning import StageWarning
@@ -315,7 +316,6 @@ class TrialTable:
     @classmethod
     def read_csv(cls, path: str | os.PathLike[str], *, source: str = "csv") -> TrialTable:
         """Read a trials CSV; InputError names the file (and line) of any problem."""
-        from cvmeasure.fileio import read_csv_rows
 
         return cls.from_rows(
             read_csv_rows(path, required=TRIALS_COLUMNS), source=path, origin=source
@@ -408,7 +408,6 @@ class TrialTable:
 
     def write_csv(self, path: str | os.PathLike[str]) -> Path:
         """Write the trials CSV atomically; return its path."""
-        from cvmeasure.fileio import write_csv_rows
 
         return write_csv_rows(path, self.rows(), self.columns())
 

@@ -360,23 +360,26 @@ def _next_at_distance(
     """Arc length of the first point beyond ``s0`` at distance ``dist`` from ``origin``."""
     i = int(np.clip(np.searchsorted(cum, s0, side="right") - 1, 0, len(pts) - 2))
     start = _point_at(pts, cum, s0)
-    for j in range(i, len(pts) - 1):
-        a = start if j == i else pts[j]
-        b = pts[j + 1]
-        if np.hypot(*(b - origin)) < dist:
-            continue
-        # solve |a + u (b - a) - origin| = dist for the smallest u in [0, 1]
-        d = b - a
-        f = a - origin
-        qa = float(d @ d)
-        qb = 2.0 * float(f @ d)
-        qc = float(f @ f) - dist * dist
-        disc = max(qb * qb - 4 * qa * qc, 0.0)
-        u = (-qb + math.sqrt(disc)) / (2 * qa)
-        u = min(max(u, 0.0), 1.0)
-        seg_start = s0 if j == i else cum[j]
-        return seg_start + u * (cum[j + 1] - seg_start)
-    return None
+    # the first segment whose far end is not nearer than ``dist`` (all at once: a Python
+    # loop over a dense curve's points was most of a part's chord count)
+    ahead = pts[i + 1 :]
+    far = np.flatnonzero(~(np.hypot(ahead[:, 0] - origin[0], ahead[:, 1] - origin[1]) < dist))
+    if len(far) == 0:
+        return None
+    j = i + int(far[0])
+    a = start if j == i else pts[j]
+    b = pts[j + 1]
+    # solve |a + u (b - a) - origin| = dist for the smallest u in [0, 1]
+    d = b - a
+    f = a - origin
+    qa = float(d @ d)
+    qb = 2.0 * float(f @ d)
+    qc = float(f @ f) - dist * dist
+    disc = max(qb * qb - 4 * qa * qc, 0.0)
+    u = (-qb + math.sqrt(disc)) / (2 * qa)
+    u = min(max(u, 0.0), 1.0)
+    seg_start = s0 if j == i else cum[j]
+    return seg_start + u * (cum[j + 1] - seg_start)
 
 
 def join_paths(paths: Sequence[DesignPath], *, tolerance_mm: float = 0.05) -> list[DesignPath]:

@@ -12,6 +12,7 @@ import csv
 import io
 import json
 import os
+import sys
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -56,8 +57,6 @@ def set_stdout(stream: Any | None) -> None:
 
 
 def _write_stdout(data: bytes) -> None:
-    import sys
-
     stream = _stdout[0] if _stdout else sys.stdout
     buffer = getattr(stream, "buffer", None)
     if buffer is not None:
@@ -107,7 +106,7 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
 
 def to_jsonable(obj: Any) -> Any:
     """Convert numpy scalars/arrays, paths and dataclass-like objects to JSON types."""
-    import numpy as np
+    import numpy as np  # here, not on import: `cvmeasure --help` builds its parser without numpy
 
     if hasattr(obj, "to_dict") and callable(obj.to_dict):
         return to_jsonable(obj.to_dict())

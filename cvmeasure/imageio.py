@@ -19,9 +19,11 @@ libturbojpeg is installed, and makes BGR only where it reads (:mod:`cvmeasure.jp
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from cvmeasure.colorimetry import srgb_decode, srgb_encode
@@ -110,7 +112,6 @@ class Photo:
 
     def gray8(self) -> np.ndarray:
         """An 8-bit grey image (display-referred: linear data is gamma-encoded first)."""
-        import cv2
 
         return cv2.cvtColor(self.bgr8(), cv2.COLOR_BGR2GRAY)
 
@@ -153,7 +154,6 @@ MAX_PHOTO_PIXELS = 150_000_000
 def check_pixel_count(path: str | os.PathLike[str], *, limit: int = MAX_PHOTO_PIXELS) -> None:
     """Refuse (InputError naming the file) a photo whose header declares more than ``limit``
     pixels, from the header alone (Pillow's lazy open), before anything is decoded."""
-    import warnings
 
     from PIL import Image, UnidentifiedImageError
 
@@ -209,7 +209,6 @@ def read_photo(
     if img is not None:
         return Photo(str(path), img, linear=bool(linear))
     check_pixel_count(path)
-    import cv2
 
     img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if img is None:

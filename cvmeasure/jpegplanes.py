@@ -36,6 +36,7 @@ import functools
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 __all__ = ["JpegPlanes", "LazyBGR", "available", "read_planes"]
@@ -124,13 +125,11 @@ class JpegPlanes:
 
     def _to_bgr(self, y: np.ndarray, cb: np.ndarray, cr: np.ndarray) -> np.ndarray:
         """BGR uint8 from same-size Y, Cb, Cr: OpenCV's full-range (JFIF) YCrCb -> BGR."""
-        import cv2
 
         return cv2.cvtColor(cv2.merge((np.ascontiguousarray(y), cr, cb)), cv2.COLOR_YCrCb2BGR)
 
     def region_bgr(self, y0: int, y1: int, x0: int, x1: int) -> np.ndarray:
         """BGR uint8 of rows [y0, y1), columns [x0, x1) (inside the image): (y1 - y0, x1 - x0, 3)."""
-        import cv2
 
         if self.sx == 1 and self.sy == 1:
             return self._to_bgr(self.y[y0:y1, x0:x1], self.cb[y0:y1, x0:x1], self.cr[y0:y1, x0:x1])

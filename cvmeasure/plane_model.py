@@ -14,11 +14,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.camera import CameraModel
 from cvmeasure.errors import InputError
+from cvmeasure.fileio import atomic_write_json, read_json, to_jsonable
 
 __all__ = ["PLANE_FORMAT", "apply_homography", "PlaneModel"]
 
@@ -36,7 +38,6 @@ def _pose_from_homography(
     rotation completed and made orthonormal (nearest rotation, SVD), the sign chosen
     so that the plane lies in front of the camera.
     """
-    import cv2
 
     m = np.linalg.inv(camera.camera_matrix) @ np.linalg.inv(h_board_image)
     m = m / math.sqrt(np.linalg.norm(m[:, 0]) * np.linalg.norm(m[:, 1]))
@@ -141,7 +142,6 @@ class PlaneModel:
             return np.zeros((0, 2))
         if height_mm == 0.0:
             return apply_homography(self.H_board_image, self.camera.undistort_px(pts))
-        import cv2
 
         rot, _ = cv2.Rodrigues(self.rvec)
         rays = np.column_stack((self.camera.normalized(pts), np.ones(len(pts))))
@@ -158,7 +158,6 @@ class PlaneModel:
     def camera_centre_mm(self) -> NDArray[np.float64]:
         """The camera's centre (3,) in the board frame, mm (``-R^T t``; its z is negative for
         a plane from ``cvmeasure plane``: the board frame's z points away from the camera)."""
-        import cv2
 
         rot, _ = cv2.Rodrigues(self.rvec)
         return -rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3)
@@ -169,7 +168,6 @@ class PlaneModel:
         With distortion. For (N, 3), z is the board frame's own (away from the camera for a
         plane from ``cvmeasure plane``: a height above the plate is -z).
         """
-        import cv2
 
         arr = np.asarray(points_mm, dtype=np.float64)
         if arr.ndim == 2 and arr.shape[1] == 3:
@@ -317,13 +315,11 @@ class PlaneModel:
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write the plane JSON atomically; return its path."""
-        from cvmeasure.fileio import atomic_write_json, to_jsonable
 
         return atomic_write_json(path, to_jsonable(self.to_dict()))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str], *, camera: CameraModel | None = None) -> PlaneModel:
         """Read a plane JSON (see :meth:`from_dict`); InputError names the file."""
-        from cvmeasure.fileio import read_json
 
         return cls.from_dict(read_json(path, what="plane JSON"), camera=camera, source=str(path))

@@ -7,6 +7,9 @@ import platform
 import sys
 from typing import Any
 
+import cv2
+import numpy as np
+
 from cvmeasure import __version__
 
 __all__ = ["provenance"]
@@ -14,8 +17,6 @@ __all__ = ["provenance"]
 
 def provenance(argv: list[str] | None = None) -> dict[str, Any]:
     """A small dict recording how an output was made (command line, versions, time)."""
-    import cv2
-    import numpy as np
 
     return {
         "generated_by": f"cvmeasure {__version__}",

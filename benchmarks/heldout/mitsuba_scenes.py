@@ -105,6 +105,9 @@ class BenderScene:
     # mirror image would sit in every cap top and wash the colours out (see the README)
     ceiling_mm: tuple[float, float, float] = (-320.0, -220.0, 560.0)
     cap_alpha: float = 0.3
+    # the sheet or table top the bender stands on (linear RGB reflectance): dark steel
+    # plate by default, a light laminate or paper sheet as some shops have
+    plate_rgb: tuple[float, float, float] = (0.12, 0.12, 0.13)
 
 
 @dataclass(frozen=True)
@@ -275,6 +278,7 @@ def _base_scene(
     plate_z_mm: float = 0.0,
     filter_stddev_px: float = 0.5,
     ceiling_mm: tuple[float, float, float] = (0.0, 0.0, 700.0),
+    plate_rgb: tuple[float, float, float] = (0.12, 0.12, 0.13),
 ) -> dict:
     tf = mi.ScalarTransform4f
     return {
@@ -315,7 +319,7 @@ def _base_scene(
         "plate": {
             "type": "rectangle",
             "to_world": tf().translate([0.0, 0.0, plate_z_mm]).scale([400.0, 300.0, 1.0]),
-            "bsdf": _plastic([0.12, 0.12, 0.13], alpha=0.4),
+            "bsdf": _plastic(list(plate_rgb), alpha=0.4),
         },
     }
 
@@ -414,7 +418,14 @@ def render_bender(
     truth = _truth_bender(scene, kit, layout)
     if not jpg.exists():
         d = _base_scene(
-            mi, scene.rig, scene.spp, scene.lamp_mm, 0.0, scene.filter_stddev_px, scene.ceiling_mm
+            mi,
+            scene.rig,
+            scene.spp,
+            scene.lamp_mm,
+            0.0,
+            scene.filter_stddev_px,
+            scene.ceiling_mm,
+            scene.plate_rgb,
         )
         d.update(_wire_shapes(mi, scene))
         d.update(_marker_shapes(mi, scene, kit, layout))

@@ -22,7 +22,26 @@ import numpy as np
 
 import cvmeasure
 from cvmeasure.board import CharucoBoardSpec
+from cvmeasure.calibration.coverage import RECOMMENDED_VIEWS, image_coverage
+from cvmeasure.calibration.detect import detect_board
+from cvmeasure.contracts import Trial
+from cvmeasure.design import DesignPath
+from cvmeasure.driver.session import (
+    SessionConfig,
+    SessionInterrupted,
+    SessionStep,
+    StreamedBender,
+    nominal_pin_for_loaded_deg,
+    run_session,
+)
+from cvmeasure.driver.stream import StreamControl, prepare_job, stream_job
 from cvmeasure.errors import InputError
+from cvmeasure.markers.colour import kit_colour_model
+from cvmeasure.markers.detect import find_markers
+from cvmeasure.markers.overlay import draw_overlay as draw_marker_overlay
+from cvmeasure.material.calibration import MODES
+from cvmeasure.part.overlay import draw_overlay as draw_part_overlay
+from cvmeasure.sim import simulate
 
 __all__ = [
     "BOARD",
@@ -81,7 +100,6 @@ def check_design(path: Path, calibration: Any = None, *, name: str | None = None
 
 def check_points(points: Any, calibration: Any = None, *, name: str) -> CheckedDesign:
     """Check and compensate a polyline (mm): rules, bends, pin commands, G-code."""
-    from cvmeasure.design import DesignPath
 
     wire = DesignPath(np.asarray(points, dtype=float), closed=False, kind="polyline", element=name)
     try:
@@ -123,15 +141,12 @@ def measure_bender_photo(path: Path, kit: Any, camera: Any = None) -> Any:
 
 def bender_overlay(bgr: np.ndarray, result: Any, kit: Any, max_width_px: int = 1280) -> np.ndarray:
     """The photo with the markers, the machine frame and the angles drawn on it."""
-    from cvmeasure.markers.overlay import draw_overlay
 
-    return draw_overlay(bgr, result, kit, max_width_px=max_width_px)
+    return draw_marker_overlay(bgr, result, kit, max_width_px=max_width_px)
 
 
 def find_marker_centres(bgr: np.ndarray, kit: Any) -> dict[str, tuple[float, float, float]]:
     """Marker discs found in a live frame: role -> (x px, y px, radius px); fast search only."""
-    from cvmeasure.markers.colour import kit_colour_model
-    from cvmeasure.markers.detect import find_markers
 
     search = find_markers(bgr, kit, kit_colour_model(kit))
     out = {}
@@ -142,14 +157,12 @@ def find_marker_centres(bgr: np.ndarray, kit: Any) -> dict[str, tuple[float, flo
 
 def detect_board_view(bgr: np.ndarray, source: str) -> Any:
     """The board's corners in one lens-calibration photo (:class:`BoardDetection`)."""
-    from cvmeasure.calibration.detect import detect_board
 
     return detect_board(bgr, BOARD, source=source)
 
 
 def coverage_guidance(detections: Sequence[Any], image_size_px: tuple[int, int]) -> str:
     """Where to hold the board next, from the coverage of the views so far (in words)."""
-    from cvmeasure.calibration.coverage import RECOMMENDED_VIEWS, image_coverage
 
     usable = [d for d in detections if len(d.corners_px)]
     if not usable:
@@ -256,9 +269,7 @@ def measure_finished_part(
 
 
 def part_overlay(bgr: np.ndarray, check: PartCheck) -> np.ndarray:
-    from cvmeasure.part.overlay import draw_overlay
-
-    return draw_overlay(bgr, check.measurement)
+    return draw_part_overlay(bgr, check.measurement)
 
 
 def correct_next_part(calibration: Any, check: PartCheck, design: Path) -> tuple[Any, Any, Any]:
@@ -273,10 +284,6 @@ def correct_next_part(calibration: Any, check: PartCheck, design: Path) -> tuple
 @functools.lru_cache(maxsize=1)
 def default_calibration() -> Any:
     """The nominal simulated machine's calibration (a start before any material session)."""
-    from cvmeasure.contracts import Trial
-    from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-    from cvmeasure.material.calibration import MODES
-    from cvmeasure.sim import simulate
 
     angles = MODES["quick"]
     pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]
@@ -303,8 +310,6 @@ def save_calibration(path: Path, calibration: Any) -> None:
 
 
 def session_config(mode: str, angles: Sequence[float]) -> Any:
-    from cvmeasure.driver.session import SessionConfig
-
     return SessionConfig(mode="custom" if angles else mode, angles_deg=tuple(angles))
 
 
@@ -319,8 +324,6 @@ def read_session_log(path: Path) -> list[dict[str, Any]]:
 
 
 def session_step_from_record(record: dict[str, Any]) -> Any:
-    from cvmeasure.driver.session import SessionStep
-
     return SessionStep.from_dict(record)
 
 
@@ -335,7 +338,6 @@ def run_material_session(
     camera_model: Any = None,
 ) -> Any:
     """Run or resume the automatic calibration session (:func:`run_session`)."""
-    from cvmeasure.driver.session import run_session
 
     options = {"camera": camera_model} if camera_model is not None else {}
     return run_session(
@@ -350,14 +352,10 @@ def run_material_session(
 
 
 def streamed_bender(link: Any) -> Any:
-    from cvmeasure.driver.session import StreamedBender
-
     return StreamedBender(link)
 
 
 def session_interrupted(message: str) -> Exception:
-    from cvmeasure.driver.session import SessionInterrupted
-
     return SessionInterrupted(message)
 
 
@@ -404,8 +402,6 @@ def open_link(url: str, double: Any = None) -> Any:
 
 
 def stream_control() -> Any:
-    from cvmeasure.driver.stream import StreamControl
-
     return StreamControl()
 
 
@@ -420,7 +416,6 @@ def stream_lines(
     source: str,
 ) -> Any:
     """Stream a G-code job, journalled (``cvmeasure bend``); raises JobStopped on a fault."""
-    from cvmeasure.driver.stream import prepare_job, stream_job
 
     job = prepare_job(text.splitlines(), source=source)
     return stream_job(
@@ -437,7 +432,6 @@ def stream_lines(
 
 def job_line_numbers(text: str) -> list[tuple[int, bool]]:
     """(N number, is a bend stroke) of every line a job sends, in order."""
-    from cvmeasure.driver.stream import prepare_job
 
     stroke = re.compile(r"G90\s+G1\s+X", re.IGNORECASE)  # as ``cvmeasure correct`` counts
     return [

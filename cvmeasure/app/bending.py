@@ -15,12 +15,19 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.app import adapter
 from cvmeasure.app.state import Busy, DesignFile, InspectState, JobState, QueueItem, VertexDeviation
 from cvmeasure.errors import CvmeasureError, DeviceError, InputError
-from cvmeasure.fileio import append_jsonl, atomic_write_bytes, atomic_write_json, read_json
+from cvmeasure.fileio import (
+    append_jsonl,
+    atomic_write_bytes,
+    atomic_write_json,
+    read_json,
+    read_jsonl,
+)
 
 if TYPE_CHECKING:
     from cvmeasure.app.operator import Operator
@@ -93,7 +100,6 @@ class Bending:
         path = self.op.folder / "jobs.jsonl"
         if not path.is_file():
             return []
-        from cvmeasure.fileio import read_jsonl
 
         return read_jsonl(path, skip_partial_last=True)
 
@@ -324,8 +330,6 @@ class Bending:
         self.op.background("inspect", work, machine=False)
 
     def _measure(self, rig, item_id: str, design_name: str, part: int, tol: float) -> None:
-        import cv2
-
         path = rig.capture(
             "part", f"{Path(design_name).stem}-part{part}", self.op.folder / "inspect", part
         )

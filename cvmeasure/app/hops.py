@@ -11,6 +11,7 @@ Polylines travel as lists of points, so no geometry library is needed on either 
 
 from __future__ import annotations
 
+import asyncio
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -20,6 +21,7 @@ import numpy as np
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse
 
+from cvmeasure.app import adapter
 from cvmeasure.errors import CvmeasureError
 
 if TYPE_CHECKING:
@@ -114,7 +116,6 @@ class HopsComponent:
 
 def components(op: Operator) -> dict[str, HopsComponent]:
     """The app's Hops components (they read the current calibration and the last part)."""
-    from cvmeasure.app import adapter
 
     def pin_angles(points: list[tuple[float, float, float]]) -> tuple[Any, ...]:
         if not points or len(points) < 3:
@@ -222,6 +223,5 @@ def hops_routes(app: FastAPI, op: Operator) -> None:
             return JSONResponse(
                 {"values": [], "errors": [f"unknown Hops component {pointer!r}"]}, 404
             )
-        import asyncio
 
         return await asyncio.to_thread(_solve, comp, payload)

@@ -15,6 +15,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import cv2
+
 from cvmeasure.app import adapter
 from cvmeasure.app.state import Busy, MaterialState, MaterialStep
 from cvmeasure.errors import CvmeasureError, DeviceError, InputError
@@ -223,7 +225,6 @@ class Material:
 
     def _overlay(self, photo: Path, result: Any) -> str:
         """The photo with the markers and angles drawn (``<stem>.overlay.jpg``); its name."""
-        import cv2
 
         bgr = cv2.imread(str(photo))
         ok, jpg = cv2.imencode(".jpg", adapter.bender_overlay(bgr, result, self.op.kit, 960))

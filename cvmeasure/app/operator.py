@@ -15,7 +15,11 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import cv2
+
 from cvmeasure.app import adapter
+from cvmeasure.app.bending import Bending
+from cvmeasure.app.material import Material
 from cvmeasure.app.rig import Rig, open_rig
 from cvmeasure.app.state import (
     SECTIONS,
@@ -66,8 +70,6 @@ class Operator:
         self._detections: list[Any] = []
         self._view_photos: list[Path] = []
         self.camera_model: Any = None
-        from cvmeasure.app.bending import Bending
-        from cvmeasure.app.material import Material
 
         self.material = Material(self)
         self.bending = Bending(self)
@@ -266,7 +268,6 @@ class Operator:
         rig = self.need_rig()
         if self.camera_model is None:
             raise Busy("calibrate the camera first")
-        import cv2
 
         path = rig.capture("plane", "plane", self.folder / "setup")
         plane = adapter.plane_check(cv2.imread(str(path)), self.camera_model, path.name)

@@ -13,9 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.app import adapter
+from cvmeasure.driver.camera import open_camera
 from cvmeasure.errors import InputError
 
 __all__ = ["Rig", "PartMark", "RealRig", "open_rig"]
@@ -71,8 +73,6 @@ class RealRig(Rig):
     """A bender on a port (or link URL) and a gphoto2 camera or a watched folder."""
 
     def __init__(self, port: str, camera_url: str, folder: Path) -> None:
-        from cvmeasure.driver.camera import open_camera
-
         self.port = port
         self.link = adapter.open_link(port)
         try:
@@ -94,7 +94,6 @@ class RealRig(Rig):
         """The last photo taken (a DSLR has no continuous view through this path)."""
         if self._last is None:
             return None
-        import cv2
 
         img = cv2.imread(str(self._last))
         if img is None:

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import cv2
 from fastapi import FastAPI, File, Request, UploadFile
 from fastapi.responses import (
     FileResponse,
@@ -433,7 +434,6 @@ def _sse(event_id: str, kind: str, data: Any) -> str:
 
 async def _mjpeg(op: Operator, width: int):
     """Frames at :data:`LIVE_FPS`: the rig's live frame, the time stamped on it."""
-    import cv2
 
     period = 1.0 / LIVE_FPS
     while True:

@@ -357,6 +357,97 @@ def calibrate_views(
 
     flags = model_flags(model)
     size = (int(image_size_px[0]), int(image_size_px[1]))
+    active, rejected = _usable_views(detections, size)
+    n_rejected_corners = {id(d): 0 for d in active}
+    original = {id(d): d for d in active}  # each corner set as detected, before rejection
+    _check_count(active, rejected, min_views, source)
+    rounds = 0
+    seen = {tuple((d.source, d.ids.tobytes()) for d in active)}
+    while True:
+        rounds += 1
+        try:
+            rms, camera, rvecs, tvecs, sd_intr, per_view = _solve(active, size, flags)
+        except cv2.error as exc:  # degenerate views (e.g. all boards parallel)
+            raise InputError(source, f"the calibration solve failed: {exc}") from None
+        if not reject_outliers or rounds >= max_rounds:
+            break
+        # every corner each view was detected with is judged again under this round's
+        # solve (a corner dropped earlier comes back if it now fits): the kept set is a
+        # fixed point of the rule, not the end of an erosion of the residuals' tails
+        full = [original[id(d)] for d in active]
+        outlier, bad_views = _judge_round(camera, active, full, rvecs, tvecs, per_view)
+        new_active, changed = _next_active(
+            active, full, outlier, bad_views, rejected, n_rejected_corners, original
+        )
+        state = tuple((d.source, d.ids.tobytes()) for d in new_active)
+        if not changed or state in seen:
+            # no change, or back to a corner set already solved (the rule cycles between
+            # corners on the edge of its limit): the last solve stands
+            if not changed:
+                active = new_active
+            break
+        seen.add(state)
+        active = new_active
+        _check_count(active, rejected, min_views, source)
+    out = _calibration_result(
+        (camera, rms, rvecs, tvecs, sd_intr, per_view),
+        model,
+        flags,
+        active,
+        rejected,
+        n_rejected_corners,
+        rounds,
+    )
+    if board_warp:
+        from cvmeasure.calibration.warp import refine_board_warp
+
+        out = refine_board_warp(out, extent_mm=board_extent_mm)
+    return out
+
+
+def _calibration_result(
+    solve: tuple,
+    model: str,
+    flags: int,
+    active: Sequence[BoardDetection],
+    rejected: Sequence[RejectedView],
+    n_rejected_corners: dict[int, int],
+    rounds: int,
+) -> CalibrationResult:
+    """The result of the last solve (``solve``: what :func:`_solve` returned, in the order
+    camera, RMS, rvecs, tvecs, intrinsic sigmas, per-view RMS) on the corner sets ``active``."""
+    camera, rms, rvecs, tvecs, sd_intr, per_view = solve
+    names = _free_intrinsics(model)
+    views = tuple(
+        ViewResult(
+            d.source,
+            float(e),
+            d.corner_count,
+            n_rejected_corners[id(d)],
+            tilt_deg_from_rvec(r),
+            r,
+            t,
+        )
+        for d, e, r, t in zip(active, per_view, rvecs, tvecs, strict=True)
+    )
+    return CalibrationResult(
+        camera=camera,
+        model=model,
+        flags=flags,
+        rms_px=rms,
+        std_devs={n: float(sd_intr[INTRINSIC_NAMES.index(n)]) for n in names},
+        views=views,
+        rejected=tuple(rejected),
+        detections=tuple(active),
+        rounds=rounds,
+    )
+
+
+def _usable_views(
+    detections: Sequence[BoardDetection], size: tuple[int, int]
+) -> tuple[list[BoardDetection], list[RejectedView]]:
+    """The detections a solve can use (ok, of ``size``, enough corners), and the others
+    with the reason each is left out."""
     rejected: list[RejectedView] = []
     active: list[BoardDetection] = []
     for det in detections:
@@ -374,145 +465,128 @@ def calibrate_views(
             rejected.append(RejectedView(det.source, f"too few corners ({det.corner_count})"))
         else:
             active.append(det)
-    n_rejected_corners = {id(d): 0 for d in active}
-    original = {id(d): d for d in active}  # each corner set as detected, before rejection
+    return active, rejected
 
-    def check_count() -> None:
-        if len(active) < min_views:
-            why = "; ".join(f"{r.source}: {r.reason}" for r in rejected[:6])
-            raise InputError(
-                source,
-                f"only {len(active)} usable view(s), need at least {min_views}"
-                + (f" (skipped: {why})" if why else ""),
-            )
 
-    check_count()
-    rounds = 0
-    seen = {tuple((d.source, d.ids.tobytes()) for d in active)}
-    while True:
-        rounds += 1
-        try:
-            rms, camera, rvecs, tvecs, sd_intr, per_view = _solve(active, size, flags)
-        except cv2.error as exc:  # degenerate views (e.g. all boards parallel)
-            raise InputError(source, f"the calibration solve failed: {exc}") from None
-        if not reject_outliers or rounds >= max_rounds:
-            break
-        # every corner each view was detected with is judged again under this round's
-        # solve (a corner dropped earlier comes back if it now fits): the kept set is a
-        # fixed point of the rule, not the end of an erosion of the residuals' tails
-        full = [original[id(d)] for d in active]
-        residuals = [
-            _robust_residuals(camera, d, r, t) for d, r, t in zip(full, rvecs, tvecs, strict=True)
-        ]
-        # a corner is judged against its neighbours: model error is smooth over the board
-        # (rejecting it biased SimpleSLAM's focal length by 3 sigma), a bad corner is not
-        local = [_neighbour_relative(d, res) for d, res in zip(full, residuals, strict=True)]
-        allres = np.concatenate(local).ravel()
-        sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
-        # and against its own view's noise when that is larger than the pool's: blur and
-        # distance make some views' corners noisier (LifeCam: view sigma 0.13-0.70 px),
-        # and a corner of a blurred view is not a mis-detection for being 4 pooled sigmas off
-        limits = []
-        for loc in local:
-            s_view = 1.4826 * float(np.median(np.abs(loc.ravel() - np.median(loc.ravel()))))
-            limits.append(max(_OUTLIER_SIGMAS * max(sigma, s_view), _OUTLIER_FLOOR_PX))
-        view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
-        # Views first (judged on their inlier corners, so a few outliers drop corners,
-        # not the view); corners only in a round where no view went, because a bad
-        # view distorts the solve and with it every other view's residuals.
-        bad_views: dict[int, str] = {}
-        # hysteresis: a corner dropped in an earlier round comes back only well inside the
-        # limit (x _READMIT), so corners right at it do not flip in and out every round
-        outlier = []
-        for d, orig, loc, lim in zip(active, full, local, limits, strict=True):
-            norm = np.linalg.norm(loc, axis=1)
-            was_out = ~np.isin(orig.ids, d.ids)
-            outlier.append(np.where(was_out, norm > _READMIT * lim, norm > lim))
-        for k, res in enumerate(residuals):
-            norms = np.linalg.norm(res, axis=1)
-            n_out = int(np.sum(outlier[k]))
-            inliers = norms[~outlier[k]]
-            vrms = float(np.sqrt(np.mean(inliers**2))) if inliers.size else float("inf")
-            if n_out > 0.5 * len(norms):
-                bad_views[k] = (
-                    f"{n_out} of {len(norms)} corners are off their neighbours by more than "
-                    f"{limits[k]:.3f} px (blurred or moved photo, or a different lens setting?)"
-                )
-            elif vrms > view_limit:
-                bad_views[k] = (
-                    f"view RMS {vrms:.3f} px (inlier corners) is above {view_limit:.3f} px "
-                    f"({_VIEW_RMS_FACTOR:g}x the median view)"
-                )
-        changed = bool(bad_views)
-        new_active: list[BoardDetection] = []
-        for k, det in enumerate(active):
-            if k in bad_views:
-                rejected.append(RejectedView(det.source, bad_views[k]))
-                continue
-            orig = full[k]
-            # a dropped view distorted the solve: corners judged against it get another
-            # chance, every corner of the remaining views is re-admitted
-            keep = np.ones(orig.corner_count, bool) if bad_views else ~outlier[k]
-            if keep.all():
-                if det is not orig:
-                    changed = True
-                det = orig
-            else:
-                if det.corner_count != int(keep.sum()) or not np.array_equal(
-                    det.ids, orig.ids[keep]
-                ):
-                    changed = True
-                sub = orig.subset(keep)
-                n_rejected_corners[id(sub)] = int((~keep).sum())
-                original[id(sub)] = orig
-                if sub.corner_count < MIN_CORNERS:
-                    rejected.append(
-                        RejectedView(
-                            det.source,
-                            f"too few corners left after outlier removal ({sub.corner_count})",
-                        )
-                    )
-                    changed = True
-                    continue
-                det = sub
-            new_active.append(det)
-        state = tuple((d.source, d.ids.tobytes()) for d in new_active)
-        if not changed or state in seen:
-            # no change, or back to a corner set already solved (the rule cycles between
-            # corners on the edge of its limit): the last solve stands
-            if not changed:
-                active = new_active
-            break
-        seen.add(state)
-        active = new_active
-        check_count()
-    names = _free_intrinsics(model)
-    std_devs = {n: float(sd_intr[INTRINSIC_NAMES.index(n)]) for n in names}
-    views = tuple(
-        ViewResult(
-            d.source,
-            float(e),
-            d.corner_count,
-            n_rejected_corners[id(d)],
-            tilt_deg_from_rvec(r),
-            r,
-            t,
+def _check_count(
+    active: Sequence[BoardDetection],
+    rejected: Sequence[RejectedView],
+    min_views: int,
+    source: str,
+) -> None:
+    """Raise :class:`InputError` naming ``source`` when fewer than ``min_views`` are left."""
+    if len(active) < min_views:
+        why = "; ".join(f"{r.source}: {r.reason}" for r in rejected[:6])
+        raise InputError(
+            source,
+            f"only {len(active)} usable view(s), need at least {min_views}"
+            + (f" (skipped: {why})" if why else ""),
         )
-        for d, e, r, t in zip(active, per_view, rvecs, tvecs, strict=True)
-    )
-    out = CalibrationResult(
-        camera=camera,
-        model=model,
-        flags=flags,
-        rms_px=rms,
-        std_devs=std_devs,
-        views=views,
-        rejected=tuple(rejected),
-        detections=tuple(active),
-        rounds=rounds,
-    )
-    if board_warp:
-        from cvmeasure.calibration.warp import refine_board_warp
 
-        out = refine_board_warp(out, extent_mm=board_extent_mm)
-    return out
+
+def _judge_round(
+    camera: CameraModel,
+    active: Sequence[BoardDetection],
+    full: Sequence[BoardDetection],
+    rvecs: Sequence[np.ndarray],
+    tvecs: Sequence[np.ndarray],
+    per_view: np.ndarray,
+) -> tuple[list[np.ndarray], dict[int, str]]:
+    """One round's verdict under its solve: per view the outlier mask over every corner it
+    was detected with (``full``), and the views to drop with the reason.
+
+    A corner is an outlier when its residual, less its board neighbours' median, is beyond
+    4 robust sigmas (the larger of the pooled and its view's); one dropped in an earlier
+    round (absent from ``active``) comes back only within 0.8 of that limit. A view goes
+    when most of its corners are outliers or its inlier RMS is above 3x the median view's.
+    """
+    residuals = [
+        _robust_residuals(camera, d, r, t) for d, r, t in zip(full, rvecs, tvecs, strict=True)
+    ]
+    # a corner is judged against its neighbours: model error is smooth over the board
+    # (rejecting it biased SimpleSLAM's focal length by 3 sigma), a bad corner is not
+    local = [_neighbour_relative(d, res) for d, res in zip(full, residuals, strict=True)]
+    allres = np.concatenate(local).ravel()
+    sigma = 1.4826 * float(np.median(np.abs(allres - np.median(allres))))
+    # and against its own view's noise when that is larger than the pool's: blur and
+    # distance make some views' corners noisier (LifeCam: view sigma 0.13-0.70 px),
+    # and a corner of a blurred view is not a mis-detection for being 4 pooled sigmas off
+    limits = []
+    for loc in local:
+        s_view = 1.4826 * float(np.median(np.abs(loc.ravel() - np.median(loc.ravel()))))
+        limits.append(max(_OUTLIER_SIGMAS * max(sigma, s_view), _OUTLIER_FLOOR_PX))
+    view_limit = max(_VIEW_RMS_FACTOR * float(np.median(per_view)), _VIEW_RMS_FLOOR_PX)
+    # hysteresis: a corner dropped in an earlier round comes back only well inside the
+    # limit (x _READMIT), so corners right at it do not flip in and out every round
+    outlier = []
+    for d, orig, loc, lim in zip(active, full, local, limits, strict=True):
+        norm = np.linalg.norm(loc, axis=1)
+        was_out = ~np.isin(orig.ids, d.ids)
+        outlier.append(np.where(was_out, norm > _READMIT * lim, norm > lim))
+    # Views are judged on their inlier corners, so a few outliers drop corners, not the view
+    bad_views: dict[int, str] = {}
+    for k, res in enumerate(residuals):
+        norms = np.linalg.norm(res, axis=1)
+        n_out = int(np.sum(outlier[k]))
+        inliers = norms[~outlier[k]]
+        vrms = float(np.sqrt(np.mean(inliers**2))) if inliers.size else float("inf")
+        if n_out > 0.5 * len(norms):
+            bad_views[k] = (
+                f"{n_out} of {len(norms)} corners are off their neighbours by more than "
+                f"{limits[k]:.3f} px (blurred or moved photo, or a different lens setting?)"
+            )
+        elif vrms > view_limit:
+            bad_views[k] = (
+                f"view RMS {vrms:.3f} px (inlier corners) is above {view_limit:.3f} px "
+                f"({_VIEW_RMS_FACTOR:g}x the median view)"
+            )
+    return outlier, bad_views
+
+
+def _next_active(
+    active: Sequence[BoardDetection],
+    full: Sequence[BoardDetection],
+    outlier: Sequence[np.ndarray],
+    bad_views: dict[int, str],
+    rejected: list[RejectedView],
+    n_rejected_corners: dict[int, int],
+    original: dict[int, BoardDetection],
+) -> tuple[list[BoardDetection], bool]:
+    """The corner sets of the next round and whether they changed.
+
+    Views first: a round that drops a view (appended to ``rejected``) drops no corners and
+    re-admits every corner of the remaining views, because a bad view distorts the solve
+    and with it every other view's residuals. Otherwise each view keeps its inliers; a view
+    left with too few corners is rejected. ``n_rejected_corners`` and ``original`` are
+    updated for every new corner subset.
+    """
+    changed = bool(bad_views)
+    new_active: list[BoardDetection] = []
+    for k, det in enumerate(active):
+        if k in bad_views:
+            rejected.append(RejectedView(det.source, bad_views[k]))
+            continue
+        orig = full[k]
+        keep = np.ones(orig.corner_count, bool) if bad_views else ~outlier[k]
+        if keep.all():
+            if det is not orig:
+                changed = True
+            det = orig
+        else:
+            if det.corner_count != int(keep.sum()) or not np.array_equal(det.ids, orig.ids[keep]):
+                changed = True
+            sub = orig.subset(keep)
+            n_rejected_corners[id(sub)] = int((~keep).sum())
+            original[id(sub)] = orig
+            if sub.corner_count < MIN_CORNERS:
+                rejected.append(
+                    RejectedView(
+                        det.source,
+                        f"too few corners left after outlier removal ({sub.corner_count})",
+                    )
+                )
+                changed = True
+                continue
+            det = sub
+        new_active.append(det)
+    return new_active, changed

@@ -237,26 +237,11 @@ def refine_board_warp(
     ``board_warp`` set.
     """
     import cv2
-    from scipy.optimize import least_squares
-
-    from cvmeasure.camera import CameraModel
 
     dets = result.detections
     extent = extent_mm or board_extent_mm(dets)
-    names = tuple(result.std_devs)
-    n_i = len(names)
-    n_v = len(dets)
+    n_i = len(result.std_devs)
     base = result.camera
-
-    def unpack(x):
-        k = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
-        dist = base.dist_coeffs.copy()
-        dist[: n_i - 4] = x[4:n_i]
-        cam = CameraModel(base.image_size_px, k, dist)
-        rv = [x[n_i + 6 * v : n_i + 6 * v + 3] for v in range(n_v)]
-        tv = [x[n_i + 6 * v + 3 : n_i + 6 * v + 6] for v in range(n_v)]
-        return cam, rv, tv, x[-2:]
-
     x0 = np.concatenate(
         [[base.fx, base.fy, *base.principal_point_px], base.dist_coeffs[: n_i - 4]]
         + [np.concatenate([v.rvec, v.tvec_mm]) for v in result.views]
@@ -266,61 +251,86 @@ def refine_board_warp(
 
     def evaluate(x):
         if cache.get("x") is None or not np.array_equal(cache["x"], x):
-            cam, rv, tv, w = unpack(x)
+            cam, rv, tv, w = _unpack_warp_params(x, base, n_i, len(dets))
             cache["x"] = x.copy()
             cache["r"], cache["j"] = warp_jacobian(cam, dets, rv, tv, n_i, extent, w)
         return cache["r"], cache["j"]
 
-    def fun(x):
-        return -evaluate(x)[0]  # projected - observed
-
-    def jac(x):
-        return evaluate(x)[1]
-
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # bit-identical runs (see solve._solve)
     try:
-        # x_scale: columns are scaled by the Jacobian's norms, so the step is well posed
-        # for focal lengths (1e3 px), distortion (1e-1) and warps (1e-2 mm) alike
-        sol = least_squares(
-            fun,
-            x0,
-            jac=jac,
-            method="trf",
-            tr_solver="lsmr",
-            x_scale="jac",
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-            max_nfev=50,
-        )
-        x = sol.x
-        # Gauss-Newton polish on the normal equations (the solve starts at OpenCV's flat
-        # optimum, so a few exact steps converge where the iterative solver stops short)
-        for _ in range(5):
-            r, j = evaluate(x)
-            jtj = (j.T @ j).toarray()
-            scale = np.sqrt(np.diag(jtj))
-            scale[scale == 0] = 1.0
-            step = np.linalg.solve(jtj / np.outer(scale, scale), (j.T @ r) / scale) / scale
-            x_new = x + step
-            r_new, _ = evaluate(x_new)
-            if r_new @ r_new > r @ r:
-                break
-            x = x_new
-            if r @ r - r_new @ r_new < 1e-12 * (r @ r):
-                break
+        x = _solve_warp(evaluate, x0)
         r, j = evaluate(x)
     finally:
         cv2.setNumThreads(threads)
-    cam, rv, tv, w = unpack(x)
+    return _warped_result(result, x, r, j, extent)
+
+
+def _unpack_warp_params(x: np.ndarray, base, n_i: int, n_v: int):
+    """(camera, rvecs, tvecs, warp) from the parameter vector [free intrinsics, 6 per view,
+    warp x, warp y]; distortion coefficients beyond the free ones stay ``base``'s."""
+    from cvmeasure.camera import CameraModel
+
+    k = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
+    dist = base.dist_coeffs.copy()
+    dist[: n_i - 4] = x[4:n_i]
+    cam = CameraModel(base.image_size_px, k, dist)
+    rv = [x[n_i + 6 * v : n_i + 6 * v + 3] for v in range(n_v)]
+    tv = [x[n_i + 6 * v + 3 : n_i + 6 * v + 6] for v in range(n_v)]
+    return cam, rv, tv, x[-2:]
+
+
+def _solve_warp(evaluate, x0: np.ndarray) -> np.ndarray:
+    """Least squares from ``x0`` (trust region, then up to 5 Gauss-Newton steps);
+    ``evaluate(x)`` gives (observed - projected residuals, their sparse Jacobian)."""
+    from scipy.optimize import least_squares
+
+    # x_scale: columns are scaled by the Jacobian's norms, so the step is well posed
+    # for focal lengths (1e3 px), distortion (1e-1) and warps (1e-2 mm) alike
+    sol = least_squares(
+        lambda x: -evaluate(x)[0],  # projected - observed
+        x0,
+        jac=lambda x: evaluate(x)[1],
+        method="trf",
+        tr_solver="lsmr",
+        x_scale="jac",
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=50,
+    )
+    x = sol.x
+    # Gauss-Newton polish on the normal equations (the solve starts at OpenCV's flat
+    # optimum, so a few exact steps converge where the iterative solver stops short)
+    for _ in range(5):
+        r, j = evaluate(x)
+        jtj = (j.T @ j).toarray()
+        scale = np.sqrt(np.diag(jtj))
+        scale[scale == 0] = 1.0
+        step = np.linalg.solve(jtj / np.outer(scale, scale), (j.T @ r) / scale) / scale
+        x_new = x + step
+        r_new, _ = evaluate(x_new)
+        if r_new @ r_new > r @ r:
+            break
+        x = x_new
+        if r @ r - r_new @ r_new < 1e-12 * (r @ r):
+            break
+    return x
+
+
+def _warped_result(result, x: np.ndarray, r: np.ndarray, j, extent):
+    """``result`` with the solution ``x`` (residuals ``r``, Jacobian ``j``): camera, poses,
+    per-view and overall RMS, standard deviations and the board warp with its covariance."""
+    dets = result.detections
+    names = tuple(result.std_devs)
+    n_i = len(names)
+    cam, rv, tv, w = _unpack_warp_params(x, result.camera, n_i, len(dets))
     cov = gauss_markov_covariance(r, j)[0]
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     warp = BoardWarp((float(w[0]), float(w[1])), cov[-2:, -2:].copy(), extent)
+    rr = r.reshape(-1, 2)
     views = []
     for v, view in enumerate(result.views):
-        rv_v, tv_v = rv[v].copy(), tv[v].copy()
-        rr = r.reshape(-1, 2)
         # per-view RMS from the refined residuals
         start = sum(d.corner_count for d in dets[:v])
         e = rr[start : start + dets[v].corner_count]
@@ -328,8 +338,8 @@ def refine_board_warp(
             replace(
                 view,
                 rms_px=float(np.sqrt(np.mean(np.sum(e**2, axis=1)))),
-                rvec=rv_v,
-                tvec_mm=tv_v,
+                rvec=rv[v].copy(),
+                tvec_mm=tv[v].copy(),
             )
         )
     return replace(

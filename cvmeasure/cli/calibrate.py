@@ -59,7 +59,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.calibration.pipeline import (
         calibrate_detections,
         detect_photos,
-        model_choice_text,
     )
     from cvmeasure.camera import implausible_distortion, save_camera
     from cvmeasure.errors import InputError
@@ -120,6 +119,14 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(to_jsonable({"camera_json": str(path), **summary}), indent=2))
         return 0
+    _print_report(report, path)
+    return 0
+
+
+def _print_report(report, path: Path) -> None:
+    """The human summary: model choice, warp decision, cross-validation, intrinsics, warnings."""
+    from cvmeasure.calibration.pipeline import model_choice_text
+
     cv = report.cross_validation
     print(f"camera JSON: {path}")
     if report.model_choice is not None:
@@ -144,7 +151,8 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"fx {cam.fx:.3f} +- {sd['fx']:.3f}  fy {cam.fy:.3f} +- {sd['fy']:.3f}  "
         f"cx {cam.principal_point_px[0]:.3f} +- {sd['cx']:.3f}  "
-        f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px (1 sigma, noise only)"
+        f"cy {cam.principal_point_px[1]:.3f} +- {sd['cy']:.3f} px "
+        "(1 sigma, incl. errors a view shares)"
     )
     if determined:
         print(
@@ -160,4 +168,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"skipped {r.source}: {r.reason}")
     for w in report.warnings:
         print(f"warning: {w}")
-    return 0

@@ -54,10 +54,10 @@ def run(args: argparse.Namespace) -> int:
     png = None
     if args.plot:
         # drawn before anything is written: a plot that cannot be made leaves no half result
-        from cvmeasure.driver.session_report import _figure_png
+        from cvmeasure.driver.session_report import calibration_figure_png
 
         try:
-            png = _figure_png(calibration)
+            png = calibration_figure_png(calibration)
         except (ValueError, RuntimeError) as exc:
             raise InputError(
                 "--plot",

@@ -109,17 +109,13 @@ def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]
     return out
 
 
-def run(args: argparse.Namespace) -> int:
-    import cv2
-
+def _measure_setup(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
+    """The kit, camera, plane and board the options name, refusing options wrong together."""
+    from cvmeasure.board import load_board
     from cvmeasure.camera import load_camera
-    from cvmeasure.contracts import PlaneModel, Trial, TrialTable
+    from cvmeasure.contracts import PlaneModel
     from cvmeasure.errors import InputError
-    from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
-    from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit, load_kit
-    from cvmeasure.markers.measure import measure_photo_file, measure_trial
-    from cvmeasure.markers.overlay import draw_overlay
 
     kit = load_kit(args.kit) if args.kit else default_kit()
     if args.flat_kit:
@@ -139,11 +135,17 @@ def run(args: argparse.Namespace) -> int:
         )
     board = None
     if args.board is not None:
-        from cvmeasure.board import load_board
-
         if camera is None:
             raise InputError("--board", "rectifying to a board's plane needs --camera")
         board = load_board(args.board)
+    return kit, camera, plane, board
+
+
+def _photos_and_trials(
+    args: argparse.Namespace,
+) -> tuple[list[Path], list[tuple[str, Path, Path, dict[str, str]]]]:
+    """Every photo to measure (each once) and the loaded/unloaded pairs among them."""
+    from cvmeasure.errors import InputError
 
     trials: list[tuple[str, Path, Path, dict[str, str]]] = []
     for i, (loaded, unloaded) in enumerate(args.pair or [], start=1):
@@ -157,14 +159,39 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("measure", "no photos given (PHOTO..., --pair or --trials)")
     if args.overlay is not None and len(photos) > 1 and args.overlay.suffix:
         raise InputError(args.overlay, "several photos: --overlay must be a folder")
+    return photos, trials
 
+
+def _write_overlay(args: argparse.Namespace, path: Path, photo: Any, res: Any, kit: Any) -> None:
+    import cv2
+
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_bytes
+    from cvmeasure.markers.overlay import draw_overlay
+
+    target = args.overlay if args.overlay.suffix else args.overlay / f"{path.stem}.overlay.png"
+    ok, buf = cv2.imencode(".png", draw_overlay(photo.bgr8(), res, kit))
+    if not ok:
+        raise InputError(target, "cannot encode the overlay PNG")
+    atomic_write_bytes(target, buf.tobytes())
+
+
+def _measure_photos(
+    args: argparse.Namespace, photos: list[Path], setup: tuple[Any, Any, Any, Any]
+) -> tuple[dict[Path, Any], list[dict[str, Any]], int]:
+    """Measure each photo (a bad one is reported and skipped): results, records, failures."""
+    from cvmeasure.api import measure_bender_photo
+    from cvmeasure.errors import InputError
+    from cvmeasure.imageio import read_photo
+
+    kit, camera, plane, board = setup
     results: dict[Path, Any] = {}
     records: list[dict[str, Any]] = []
     failed = 0
     for path in photos:
         try:
             photo = read_photo(path)
-            res = measure_photo_file(
+            res = measure_bender_photo(
                 photo,
                 kit,
                 camera=camera,
@@ -183,15 +210,21 @@ def run(args: argparse.Namespace) -> int:
         records.append(res.to_dict())
         _emit(res.to_dict(), args.json)
         if args.overlay is not None:
-            target = (
-                args.overlay if args.overlay.suffix else args.overlay / f"{path.stem}.overlay.png"
-            )
-            ok, buf = cv2.imencode(".png", draw_overlay(photo.bgr8(), res, kit))
-            if not ok:
-                raise InputError(target, "cannot encode the overlay PNG")
-            atomic_write_bytes(target, buf.tobytes())
+            _write_overlay(args, path, photo, res, kit)
+    return results, records, failed
 
-    measured_trials: list[Trial] = []
+
+def _measure_trials(
+    args: argparse.Namespace,
+    trials: list[tuple[str, Path, Path, dict[str, str]]],
+    results: dict[Path, Any],
+    records: list[dict[str, Any]],
+) -> list[Any]:
+    """Springback of each pair whose two photos were measured (records appended)."""
+    from cvmeasure.api import measure_springback
+    from cvmeasure.errors import InputError
+
+    measured = []
     for trial, loaded, unloaded, row in trials:
         if loaded not in results or unloaded not in results:
             print(
@@ -206,14 +239,25 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(
                 args.trials, f"trial {trial}: commanded_pin_deg {commanded!r}"
             ) from None
-        t = measure_trial(
-            results[loaded], results[unloaded], trial, commanded_pin_deg=commanded_deg
+        t = measure_springback(
+            results[loaded], results[unloaded], trial=trial, commanded_pin_deg=commanded_deg
         )
-        rec = t.to_dict()
-        records.append(rec)
-        _emit(rec, args.json)
-        measured_trials.append(t)
+        records.append(t.to_dict())
+        _emit(records[-1], args.json)
+        measured.append(t)
+    return measured
 
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.contracts import TrialTable
+    from cvmeasure.errors import InputError
+    from cvmeasure.fileio import atomic_write_text
+    from cvmeasure.report.console import warning_summary
+
+    setup = _measure_setup(args)
+    photos, trials = _photos_and_trials(args)
+    results, records, failed = _measure_photos(args, photos, setup)
+    measured_trials = _measure_trials(args, trials, results, records)
     if args.out is not None:
         if args.out.suffix.lower() == ".csv":
             if not trials:
@@ -223,8 +267,6 @@ def run(args: argparse.Namespace) -> int:
             TrialTable(tuple(measured_trials)).write_csv(args.out)
         else:
             atomic_write_text(args.out, "".join(json.dumps(r) + "\n" for r in records))
-    from cvmeasure.report.console import warning_summary
-
     summary = warning_summary(
         ((str(p), w) for p, r in results.items() for w in r.warnings), n_photos=len(photos)
     )

@@ -57,6 +57,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="ours",
         help="method of the headline values (default ours; all are reported under 'methods')",
     )
+    _add_wire_and_lift_options(p)
+    p.add_argument("--overlay", type=Path, help="write the photo with the found centreline (PNG)")
+    p.add_argument("--plot", type=Path, help="write the deviation plot (PNG; needs --design)")
+    p.add_argument("-o", "--out", type=Path, help="also write the result JSON here")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(func=run)
+
+
+def _add_wire_and_lift_options(p: argparse.ArgumentParser) -> None:
+    """The wire's diameter and shape, and how the part's lift off the plate is measured."""
     p.add_argument(
         "--wire-diameter-mm",
         type=positive_float,
@@ -116,11 +126,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="round",
         help="shape of the wire's ends: round (hemispherical, default) or flat (square-cut)",
     )
-    p.add_argument("--overlay", type=Path, help="write the photo with the found centreline (PNG)")
-    p.add_argument("--plot", type=Path, help="write the deviation plot (PNG; needs --design)")
-    p.add_argument("-o", "--out", type=Path, help="also write the result JSON here")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

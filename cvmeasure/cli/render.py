@@ -212,6 +212,62 @@ def _bender_kit(args: argparse.Namespace, effects: Any) -> tuple[Any, Any]:
     return kit, effects
 
 
+#: Truth keys copied into each written record (when the photo has them).
+_TRUTH_KEYS = (
+    "pin_angle_deg",
+    "bend_angle_deg",
+    "radius_mm",
+    "arc_angle_deg",
+    "chord_width_mm",
+    "height_mm",
+)
+
+
+def _render_part(args: argparse.Namespace, board: Any, effects: Any, common: dict[str, Any]):
+    import cvmeasure_datasets
+    from cvmeasure.errors import InputError
+
+    try:
+        if args.arc:
+            part = cvmeasure_datasets.arc_part(args.arc[0], args.arc[1], int(args.arc[2]))
+        else:
+            part = cvmeasure_datasets.saddle_part(
+                args.saddle[0], args.saddle[1], int(args.saddle[2])
+            )
+    except ValueError as exc:
+        raise InputError("command line", f"bad part: {exc}") from None
+    return cvmeasure_datasets.render_part_photo(
+        part=part, board=board, sheet=args.sheet, pose=_pose(args, None), effects=effects, **common
+    )
+
+
+def _scene_effects(args: argparse.Namespace) -> Any:
+    import cvmeasure_datasets
+    from cvmeasure.errors import InputError
+
+    if args.effects is None:
+        return None
+    if args.kind == "board":
+        raise InputError("--effects", "board views have no scene effects")
+    try:
+        return cvmeasure_datasets.SceneEffects.parse(args.effects)
+    except ValueError as exc:
+        raise InputError("--effects", str(exc)) from None
+
+
+def _print_written(written: list[dict[str, Any]], as_json: bool) -> None:
+    if as_json:
+        print(json.dumps(written, indent=2))
+        return
+    for r in written:
+        extra = "  ".join(
+            f"{k}={r[k]:.6g}"
+            for k in _TRUTH_KEYS
+            if k in r and not (k == "arc_angle_deg" and "radius_mm" not in r)
+        )
+        print(f"wrote {r['photo']}  {extra}".rstrip())
+
+
 def run(args: argparse.Namespace) -> int:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec, load_board
@@ -230,22 +286,18 @@ def run(args: argparse.Namespace) -> int:
     if args.kind == "board":
         poses = cvmeasure_datasets.random_board_poses(args.count, args.seed, board=board)
     occlude = _occlusions(args.occlude) if args.kind == "bender" else {}
-    effects = None
-    if args.effects is not None:
-        if args.kind == "board":
-            raise InputError("--effects", "board views have no scene effects")
-        try:
-            effects = cvmeasure_datasets.SceneEffects.parse(args.effects)
-        except ValueError as exc:
-            raise InputError("--effects", str(exc)) from None
+    effects = _scene_effects(args)
     kit = None
     if args.kind == "bender":
         kit, effects = _bender_kit(args, effects)
     for i in range(args.count):
         seed = args.seed + i
-        light = _lighting(args, seed)
         common = dict(
-            camera=camera, lighting=light, seed=seed, scale=args.scale, linear=args.linear
+            camera=camera,
+            lighting=_lighting(args, seed),
+            seed=seed,
+            scale=args.scale,
+            linear=args.linear,
         )
         if args.kind == "bender":
             photo = cvmeasure_datasets.render_bender_photo(
@@ -258,23 +310,7 @@ def run(args: argparse.Namespace) -> int:
                 **common,
             )
         elif args.kind == "part":
-            try:
-                if args.arc:
-                    part = cvmeasure_datasets.arc_part(args.arc[0], args.arc[1], int(args.arc[2]))
-                else:
-                    part = cvmeasure_datasets.saddle_part(
-                        args.saddle[0], args.saddle[1], int(args.saddle[2])
-                    )
-            except ValueError as exc:
-                raise InputError("command line", f"bad part: {exc}") from None
-            photo = cvmeasure_datasets.render_part_photo(
-                part=part,
-                board=board,
-                sheet=args.sheet,
-                pose=_pose(args, None),
-                effects=effects,
-                **common,
-            )
+            photo = _render_part(args, board, effects, common)
         else:
             photo = cvmeasure_datasets.render_board_view(
                 board=board, pose=_pose(args, poses[i]), **common
@@ -284,32 +320,9 @@ def run(args: argparse.Namespace) -> int:
         record = {"photo": str(photo_path), "truth": str(truth_path), "seed": seed}
         if args.linear:
             record["linear_tiff"] = str(photo.save_linear_tiff(args.out / f"{name}.linear.tiff"))
-        for key in (
-            "pin_angle_deg",
-            "bend_angle_deg",
-            "radius_mm",
-            "arc_angle_deg",
-            "chord_width_mm",
-            "height_mm",
-        ):
+        for key in _TRUTH_KEYS:
             if photo.truth.get(key) is not None:  # a saddle has no radius
                 record[key] = photo.truth[key]
         written.append(record)
-    if args.json:
-        print(json.dumps(written, indent=2))
-    else:
-        for r in written:
-            extra = "  ".join(
-                f"{k}={r[k]:.6g}"
-                for k in (
-                    "pin_angle_deg",
-                    "bend_angle_deg",
-                    "radius_mm",
-                    "arc_angle_deg",
-                    "chord_width_mm",
-                    "height_mm",
-                )
-                if k in r and not (k == "arc_angle_deg" and "radius_mm" not in r)
-            )
-            print(f"wrote {r['photo']}  {extra}".rstrip())
+    _print_written(written, args.json)
     return 0

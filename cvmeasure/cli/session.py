@@ -146,56 +146,47 @@ def _check_options(args: argparse.Namespace) -> None:
         )
 
 
-def run(args: argparse.Namespace) -> int:
-    from cvmeasure.contracts import TrialTable
-    from cvmeasure.driver.camera import open_camera
-    from cvmeasure.driver.session import (
-        SessionConfig,
-        SessionInterrupted,
-        StreamedBender,
-        run_session,
-        simulated_bender,
-    )
-    from cvmeasure.driver.session_report import write_session_report
-    from cvmeasure.driver.transport import open_link
-    from cvmeasure.errors import InputError
-    from cvmeasure.material.calibration import save_calibration
-    from cvmeasure.provenance import provenance
+def _measure_inputs(args: argparse.Namespace) -> tuple[object, dict[str, object]]:
+    """The kit (or None for the built-in one) and the measurement options (camera, plane)."""
+    from cvmeasure.camera import load_camera
+    from cvmeasure.contracts import PlaneModel
+    from cvmeasure.kit import default_kit, load_kit
 
-    _check_camera_option(args)
-    _check_options(args)
-    session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
-    angles = args.angles or ()
-    config = SessionConfig(
-        mode="custom" if angles else args.mode, angles_deg=angles, feed_mm=args.feed_mm
-    )
-    kit = None
-    if args.kit:
-        from cvmeasure.kit import load_kit
-
-        kit = load_kit(args.kit)
+    kit = load_kit(args.kit) if args.kit else None
     if args.flat_kit:
-        from cvmeasure.kit import default_kit
-
         kit = (kit or default_kit()).flat()
-    options = {}
+    options: dict[str, object] = {}
     if args.camera_model:
-        from cvmeasure.camera import load_camera
-
         options["camera"] = load_camera(args.camera_model)
     if args.plane:
-        from cvmeasure.contracts import PlaneModel
-
         options["plane"] = PlaneModel.load(args.plane, camera=options.get("camera"))
-    params, effects = None, ()
-    if args.params or args.effect:
-        from cvmeasure.sim import SimParams, params_from_json, parse_effect
+    return kit, options
 
-        params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
-        try:
-            effects = tuple(effects) + tuple(parse_effect(t) for t in args.effect)
-        except ValueError as exc:
-            raise InputError("--effect", str(exc)) from None
+
+def _machine_description(args: argparse.Namespace) -> tuple[object, tuple[object, ...]]:
+    """The simulated machine's params and hidden effects (None, () when not given)."""
+    from cvmeasure.errors import InputError
+    from cvmeasure.sim import SimParams, params_from_json, parse_effect
+
+    if not (args.params or args.effect):
+        return None, ()
+    params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
+    try:
+        effects = tuple(effects) + tuple(parse_effect(t) for t in args.effect)
+    except ValueError as exc:
+        raise InputError("--effect", str(exc)) from None
+    return params, effects
+
+
+def _open_machine_and_camera(
+    args: argparse.Namespace, session_dir: Path, params: object, effects: tuple[object, ...]
+) -> tuple[object, object]:
+    """The bender and the camera: the TinyG double + simulated camera, or the real ones."""
+    from cvmeasure.driver.camera import open_camera
+    from cvmeasure.driver.session import StreamedBender, simulated_bender
+    from cvmeasure.driver.transport import open_link
+    from cvmeasure.errors import InputError
+
     if args.simulate:
         from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
@@ -207,62 +198,57 @@ def run(args: argparse.Namespace) -> int:
             scale=args.scale,
             seed=args.seed,
         )
-    else:
-        if not (args.port and args.camera):
-            raise InputError("--port", "a real session needs --port URL and --camera URL")
-        options_cam = {}
-        if args.camera_setting and not args.camera.startswith("gphoto2:"):
-            raise InputError("--camera-setting", "settings apply to gphoto2:// cameras only")
-        if args.camera_setting:
-            pairs = [t.partition("=") for t in args.camera_setting]
-            if any(not sep or not name for name, sep, _ in pairs):
-                raise InputError("--camera-setting", "expected NAME=VALUE")
-            options_cam["settings"] = {name: value for name, _, value in pairs}
-        camera = open_camera(args.camera, session_dir / "photos", **options_cam)
-        machine = StreamedBender(open_link(args.port))
+        return machine, camera
+    if not (args.port and args.camera):
+        raise InputError("--port", "a real session needs --port URL and --camera URL")
+    options_cam = {}
+    if args.camera_setting and not args.camera.startswith("gphoto2:"):
+        raise InputError("--camera-setting", "settings apply to gphoto2:// cameras only")
+    if args.camera_setting:
+        pairs = [t.partition("=") for t in args.camera_setting]
+        if any(not sep or not name for name, sep, _ in pairs):
+            raise InputError("--camera-setting", "expected NAME=VALUE")
+        options_cam["settings"] = {name: value for name, _, value in pairs}
+    camera = open_camera(args.camera, session_dir / "photos", **options_cam)
+    return StreamedBender(open_link(args.port)), camera
+
+
+def _progress_printer(quiet: bool):
+    """A ``progress(done, total, step)`` callback printing one line per bend to stderr."""
 
     def progress(done: int, total: int, step) -> None:
-        if not args.quiet:
-            codes = sorted({w.code for _, w in step.photo_warnings()})
-            print(
-                f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
-                f"loaded {step.loaded.bend_angle_deg:8.3f}  unloaded "
-                f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg"
-                + (f"  ! {', '.join(codes)}" if codes else ""),
-                file=sys.stderr,
-                flush=True,
-            )
-
-    try:
-        result = run_session(
-            machine,
-            camera,
-            session_dir,
-            config=config,
-            kit=kit,
-            measure_options=options,
-            model=args.model,
-            params=params,
-            name=args.out.stem,
-            progress=progress,
-            stop_after=args.stop_after,
+        if quiet:
+            return
+        codes = sorted({w.code for _, w in step.photo_warnings()})
+        print(
+            f"[{done:2d}/{total}] {step.direction:3s} {step.target_deg:6.1f} deg: "
+            f"loaded {step.loaded.bend_angle_deg:8.3f}  unloaded "
+            f"{step.unloaded.bend_angle_deg:8.3f}  springback {step.springback_deg:6.3f} deg"
+            + (f"  ! {', '.join(codes)}" if codes else ""),
+            file=sys.stderr,
+            flush=True,
         )
-    except SessionInterrupted as exc:
-        print(f"cvmeasure session: {exc}; resume with the same command", file=sys.stderr)
-        return 3
-    finally:
-        camera.close()
-        machine.close()
-    calibration = result.calibration
+
+    return progress
+
+
+def _write_outputs(args: argparse.Namespace, result, session_dir: Path) -> dict[str, object]:
+    """Write the calibration JSON, trials CSV and HTML report; return the JSON summary."""
     from dataclasses import replace
 
+    from cvmeasure.contracts import TrialTable
+    from cvmeasure.driver.session_report import write_session_report
+    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.provenance import provenance
+
+    calibration = result.calibration
     calibration = replace(calibration, provenance={**provenance(), **calibration.provenance})
     save_calibration(args.out, calibration)
     trials_path = session_dir / "trials.csv"
     TrialTable(calibration.samples).write_csv(trials_path)
     report = args.report or args.out.with_suffix(".html")
     write_session_report(report, calibration, result.steps, session_dir=session_dir)
-    summary = {
+    return {
         "out": str(args.out),
         "report": str(report),
         "log": str(result.log_path),
@@ -274,6 +260,14 @@ def run(args: argparse.Namespace) -> int:
         "scores": calibration.scores,
         "warnings": calibration.provenance.get("warnings", []),
     }
+
+
+def _print_summary(
+    args: argparse.Namespace, result, summary: dict[str, object], session_dir: Path
+) -> None:
+    """The JSON summary or the human lines, then the warning summary of every photo."""
+    from cvmeasure.report.console import warning_summary
+
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
@@ -283,12 +277,49 @@ def run(args: argparse.Namespace) -> int:
                 f"{len(result.steps) - len(result.bent_this_run)} bends already done, "
                 f"{len(result.bent_this_run)} bent this run"
             )
-        print(f"wrote {args.out}, {report} ({len(result.steps)} bends, model {calibration.model})")
-    from cvmeasure.report.console import warning_summary
-
+        print(
+            f"wrote {summary['out']}, {summary['report']} ({len(result.steps)} bends, "
+            f"model {summary['model']})"
+        )
     lines = warning_summary(
         [pw for s in result.steps for pw in s.photo_warnings()], n_photos=2 * len(result.steps)
     )
     for line in lines:
         print(line, file=sys.stderr if args.json else sys.stdout)
+
+
+def run(args: argparse.Namespace) -> int:
+    from cvmeasure.driver.session import SessionConfig, SessionInterrupted, run_session
+
+    _check_camera_option(args)
+    _check_options(args)
+    session_dir = args.dir or args.out.with_name(args.out.stem + "_session")
+    angles = args.angles or ()
+    config = SessionConfig(
+        mode="custom" if angles else args.mode, angles_deg=angles, feed_mm=args.feed_mm
+    )
+    kit, options = _measure_inputs(args)
+    params, effects = _machine_description(args)
+    machine, camera = _open_machine_and_camera(args, session_dir, params, effects)
+    try:
+        result = run_session(
+            machine,
+            camera,
+            session_dir,
+            config=config,
+            kit=kit,
+            measure_options=options,
+            model=args.model,
+            params=params,
+            name=args.out.stem,
+            progress=_progress_printer(args.quiet),
+            stop_after=args.stop_after,
+        )
+    except SessionInterrupted as exc:
+        print(f"cvmeasure session: {exc}; resume with the same command", file=sys.stderr)
+        return 3
+    finally:
+        camera.close()
+        machine.close()
+    _print_summary(args, result, _write_outputs(args, result, session_dir), session_dir)
     return 0

@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -96,8 +98,8 @@ PRIOR_NOISE_DEG = 0.05
 #: 0.2 deg); the contact angle's tolerances (a ground pin's radius within 0.01 mm,
 #: 0.05 deg; the orbit radius within 0.05 mm, 0.09 deg; the wire's diameter within
 #: 0.04 mm, drawn wire of 3 mm, 0.10 deg). It was 0.1 deg (the repeatability and the pin
-#: alone): on the independent physical model's development seeds 350000-350309 (play lost
-#: on every bend) 24 of 32 backlash intervals held the truth, 32 of 32 with 0.25 deg.
+#: alone): on the independent physical model (play lost on every bend) 24 of 32 backlash
+#: intervals held the truth, 32 of 32 with 0.25 deg.
 UNFITTED_PRIOR_SD: tuple[tuple[str, float], ...] = (("approach_deg", 0.25),)
 #: The span's elastic bow is known, not fitted: beam theory gives the loaded leg's lead
 #: over the tangent construction's chord, ``M l / (6 EI)`` (share 1: the moment falls
@@ -154,13 +156,81 @@ DISCREPANCY_BOUND_DEG = 0.25
 DISCREPANCY_P = 0.01
 
 
+@dataclass(frozen=True)
+class DiscrepancyForm:
+    """The model-form discrepancy's form: Legendre degree, coefficient bound (deg), the
+    bend magnitudes (deg) mapped onto [-1, 1], and whether the causes are fitted with it
+    profiled out (True) or without it (False: inside a small bound it would absorb them).
+
+    The default is the bounded discrepancy of a baseline that is the machine's form
+    (:data:`DISCREPANCY_DEGREE`, :data:`DISCREPANCY_BOUND_DEG` over 0-180 deg). A machine
+    the simulation's form does not describe has its no-effect relation learned from the
+    session instead (:func:`learned_form`)."""
+
+    degree: int = DISCREPANCY_DEGREE
+    bound_deg: float = DISCREPANCY_BOUND_DEG
+    span_deg: tuple[float, float] = (0.0, 180.0)
+    fit_with_causes: bool = False
+
+
+_DEFAULT_FORM = DiscrepancyForm()
+_FORM: ContextVar[DiscrepancyForm] = ContextVar("discrepancy_form", default=_DEFAULT_FORM)
+
+
+@contextmanager
+def discrepancy_form(form: DiscrepancyForm) -> Iterator[DiscrepancyForm]:
+    """Every fit, profile and interval within the block uses ``form``."""
+    token = _FORM.set(form)
+    try:
+        yield form
+    finally:
+        _FORM.reset(token)
+
+
+def current_form() -> DiscrepancyForm:
+    """The discrepancy's form in use (:func:`discrepancy_form`)."""
+    return _FORM.get()
+
+
+#: The learned no-effect curve: Legendre up to this degree in the bend magnitude (one
+#: fewer than the session's distinct magnitudes) ...
+LEARNED_DEGREE_MAX = 5
+#: ... each coefficient within this share of the largest bend: a simulation whose form
+#: misses the machine by more than a tenth of the bend is not a description of it.
+LEARNED_BOUND_SHARE = 0.1
+
+
+def learned_form(trials: TrialTable) -> DiscrepancyForm:
+    """The no-effect relation learned from the session itself: a smooth curve in the
+    bend magnitude, the same in both directions, for loaded and released angles (never
+    the pin: the head's kinematics are the machine's whatever its material and dies),
+    fitted as nuisance together with every cause. What it cannot absorb is what the
+    catalogue's causes are tested on: the direction's sign (offset, backlash,
+    asymmetry, axis offset, tilt), the order (drift) and the pin (the head's causes)."""
+    mags = np.abs(np.asarray(trials.commanded_pin_deg, dtype=np.float64))
+    distinct = np.unique(np.round(mags, 1))
+    degree = int(min(LEARNED_DEGREE_MAX, max(distinct.size - 1, 1)))
+    lo, hi = float(distinct.min()), float(distinct.max())
+    if hi - lo < 1.0:
+        lo, hi = 0.0, max(hi, 1.0)
+    return DiscrepancyForm(
+        degree=degree,
+        bound_deg=LEARNED_BOUND_SHARE * hi,
+        span_deg=(lo, hi),
+        fit_with_causes=True,
+    )
+
+
 def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
-    """Design matrix (3 N, 2 (degree + 1)) of the discrepancy over stacked observations."""
+    """Design matrix (3 N, 2 (degree + 1)) of the discrepancy over stacked observations
+    (the form in use: :func:`current_form`)."""
+    form = _FORM.get()
     n = len(trials)
-    u = np.clip(np.abs(trials.commanded_pin_deg) / 90.0 - 1.0, -1.0, 1.0)
-    legendre = np.polynomial.legendre.legvander(u, DISCREPANCY_DEGREE)  # (n, d + 1)
+    lo, hi = form.span_deg
+    u = np.clip((np.abs(trials.commanded_pin_deg) - lo) / ((hi - lo) / 2.0) - 1.0, -1.0, 1.0)
+    legendre = np.polynomial.legendre.legvander(u, form.degree)  # (n, d + 1)
     signed = trials.direction_sign[:, None] * legendre
-    m = DISCREPANCY_DEGREE + 1
+    m = form.degree + 1
     out = np.zeros((3 * n, 2 * m))
     out[:n, :m] = signed
     out[n : 2 * n, m:] = signed
@@ -185,7 +255,7 @@ def _profile_discrepancy(
     """Bounded least-squares discrepancy coefficients for residuals ``r`` (finite rows):
     the unconstrained solution when it lies within the bounds, else bounded-variable
     least squares. ``factor``: :func:`_discrepancy_factor` of ``basis``, when known."""
-    bound = DISCREPANCY_BOUND_DEG
+    bound = _FORM.get().bound_deg
     beta = np.zeros(basis.shape[1])
     used, q, tri = factor if factor is not None else _discrepancy_factor(basis)
     if not used.any():
@@ -649,7 +719,7 @@ def _interval(
     The centre's move is the joint fit's answer only if the model is right: the dead
     zone held at nominal also takes up model-form error along its own shape, and its
     pull then moves the centre the wrong way (a scale's centre moved 2.3 standard
-    errors away from the truth on development seeds, the estimate held it). Neither
+    errors away from the truth on the independent model, the estimate held it). Neither
     fit is known to be the right one, so the interval holds both."""
     if not math.isfinite(se):
         return (lo, hi)
@@ -713,6 +783,12 @@ def fit_model(
         The residuals and Jacobian already known at the point ``x`` (a fold started
         where the fit on every trial ended; see :class:`_Solution`).
     """
+    learned = _FORM.get().fit_with_causes
+    discrepancy = discrepancy or learned
+    # the learned curve takes the material's and the geometry's shape: the strength and
+    # the die radius are held at the user's values (fitted beside it they are not
+    # separable from it and wander to their bounds)
+    nuisance = nuisance and not learned
     names = _as_causes(causes)
     specs = [EFFECTS[c] for c in names]
     nuis = nuisance_for(params) if nuisance else ()
@@ -868,6 +944,7 @@ def fit_model(
     for x_start, f in starts:
         forms[:] = f
         frozen = [1 + m + i for i, c in enumerate(names) if _whole_steps(c, f[i])]
+        frozen = [0, *frozen] if learned else frozen
         trial = _least_squares(resid, x_start, lower, upper, scale, frozen, jac=fd_jac)
         if sol is None or trial.cost < sol.cost:
             sol, best_forms = trial, list(f)
@@ -896,6 +973,8 @@ def fit_model(
     # the prior residuals are not observations; a general form's shape parameters were
     # chosen from the data too, so they count as parameters
     n_obs, n_par = r.size - m, sol.x.size + sum(len(f) for f in forms)
+    if learned:  # the learned curve's coefficients are fitted parameters too
+        n_par += int(np.any(basis_ok != 0, axis=0).sum())
     rss = float(np.sum(r**2))
     dof = n_obs - n_par
     solution = None
@@ -977,7 +1056,7 @@ def fit_model(
             # expected change over many steps, the step's phase unknown). It was the
             # continuous form's derivative, which on a plan of alternating directions
             # (a sweep) is nearly nil, the home shifts cancelling, while the steps lost
-            # whole do not cancel: development sweeps (seeds 100000-100029) with a drift
+            # whole do not cancel: sweeps with a drift
             # fitted at a held-out RMSE of 0.03-0.2 deg (baseline 0.5-1.5) had an interval
             # holding 0 and named nothing
             j = 1 + m + i
@@ -987,9 +1066,26 @@ def fit_model(
             jac = np.array(jac, dtype=np.float64, copy=True)
             if hi_x[j] > lo_x[j]:
                 jac[:, j] = (resid(hi_x) - resid(lo_x)) / (hi_x[j] - lo_x[j])
+    if learned:
+        # the curve was fitted with the causes (``jac`` is of the profiled residuals): the
+        # unfitted priors count only off it, and it has no prior of its own to add
+        q_disc = np.linalg.qr(basis_ok[:, np.any(basis_ok != 0, axis=0)])[0]
+        cols = cols - q_disc @ (q_disc.T @ cols)
+        basis_ok = np.zeros((basis_ok.shape[0], 0))
+        jac = np.array(jac, dtype=np.float64, copy=True)
+        jac[:, 0] = 0.0
+    held = 1 if learned else 0  # the strength held: no column of its own
     se, shift, model_form_p = _standard_errors(
-        jac, rss / max(dof, 1), basis_ok, cols, r, noise_disc, clusters=np.tile(cluster, 3)[ok]
+        jac[:, held:],
+        rss / max(dof, 1),
+        basis_ok,
+        cols,
+        r,
+        noise_disc,
+        clusters=np.tile(cluster, 3)[ok],
     )
+    if held:
+        se, shift = np.concatenate([[math.inf], se]), np.concatenate([[0.0], shift])
     center = sol.x + shift
     return dataclasses.replace(
         point,
@@ -1309,6 +1405,7 @@ def grouped_kfold_cv(
     """Held-out residuals: fit on all folds but one, predict the one, for every fold
     (with ``discrepancy``, the model and the bounded discrepancy are fitted together on
     the other folds and both predict the held-out one)."""
+    discrepancy = discrepancy or _FORM.get().fit_with_causes
     names = _as_causes(causes)
     n = len(trials)
     n_blocks = len(BLOCKS)
@@ -1353,6 +1450,14 @@ def grouped_kfold_cv(
         mask = np.tile(held, n_blocks)
         out[mask] = r[mask]
         out_d[mask] = (r - basis @ np.asarray(fit.discrepancy))[mask]
+    if _FORM.get().fit_with_causes:
+        # the learned curve is the machine's no-effect relation, a nuisance like its
+        # geometry: held at its fit on every trial (profiled from the held-out residuals
+        # together), the causes are what is held out
+        ok = np.isfinite(out)
+        out_d = np.full_like(out, np.nan)
+        out_d[ok] = out[ok] - basis[ok] @ _profile_discrepancy(out[ok], basis[ok])
+        out = out_d
     return CrossValidation(
         causes=names, residual_deg=out, residual_discrepancy_deg=out_d if discrepancy else None
     )

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.fitting import DISCREPANCY_BOUND_DEG, ModelFit, discrepancy_basis, predict
+from cvmeasure.diagnose.fitting import ModelFit, current_form, discrepancy_basis, predict
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
 
@@ -186,7 +186,7 @@ def _separation(
     a = _whiten(np.column_stack([columns, basis]), n, rows, sigma_deg, rho)
     k = basis.shape[1]
     prior = np.zeros((k, a.shape[1]))
-    prior[:, columns.shape[1] :] = np.eye(k) / (DISCREPANCY_BOUND_DEG / math.sqrt(3.0))
+    prior[:, columns.shape[1] :] = np.eye(k) / (current_form().bound_deg / math.sqrt(3.0))
     a = np.vstack([a, prior])
     d = np.concatenate([d, np.zeros(k)])
     coef = np.linalg.lstsq(a, d, rcond=None)[0]

@@ -25,8 +25,18 @@ from cvmeasure.diagnose.fitting import (
     _profile_discrepancy,
     discrepancy_basis,
 )
+from cvmeasure.sim.model import simulate
+from cvmeasure.sim.params import SimParams
 
-__all__ = ["PureError", "Misfit", "pure_error", "lack_of_fit", "lack_of_fit_residuals"]
+__all__ = [
+    "PureError",
+    "Misfit",
+    "pure_error",
+    "lack_of_fit",
+    "lack_of_fit_residuals",
+    "springback_rms_deg",
+    "curve_rms_deg",
+]
 
 #: Lack of fit beyond this p-value ...
 MISFIT_P = 1e-6
@@ -135,3 +145,21 @@ def lack_of_fit_residuals(
         rss_discrepancy_deg2=float(r @ r),
     )
     return lack_of_fit(trials, fit)
+
+
+def springback_rms_deg(trials: TrialTable, params: SimParams) -> float:
+    """RMS springback (deg, loaded less released magnitude) the description ``params``
+    predicts over the session's bends: the size of the material's part of the bend."""
+    sim = simulate(np.asarray(trials.commanded_pin_deg, dtype=np.float64), params, ())
+    spring = np.abs(sim.loaded_bend_deg) - np.abs(sim.unloaded_bend_deg)
+    ok = np.isfinite(spring)
+    return float(np.sqrt(np.mean(spring[ok] ** 2))) if ok.any() else math.nan
+
+
+def curve_rms_deg(trials: TrialTable, fit: ModelFit) -> float:
+    """RMS (deg) of ``fit``'s discrepancy over the loaded and released angles."""
+    n = len(trials)
+    if not fit.discrepancy:
+        return 0.0
+    curve = discrepancy_basis(trials)[: 2 * n] @ np.asarray(fit.discrepancy, dtype=np.float64)
+    return float(np.sqrt(np.mean(curve**2)))

@@ -27,7 +27,7 @@ from cvmeasure.driver.protocol import (
 from cvmeasure.driver.transport import Link
 from cvmeasure.errors import DeviceError, DeviceTimeoutError
 
-__all__ = ["BoardConnection", "IDLE", "MOVING"]
+__all__ = ["BoardConnection", "BoardStuckError", "IDLE", "MOVING"]
 
 log = logging.getLogger("cvmeasure.driver.stream")
 
@@ -37,6 +37,21 @@ MOVING = (MachineStat.RUN, MachineStat.CYCLE, MachineStat.JOG, MachineStat.HOMIN
 _MOVING = MOVING
 #: States in which ``sr.line`` is the runtime's line (the block being run or held).
 _IN_CYCLE = (*MOVING, MachineStat.HOLD)
+
+
+class BoardStuckError(DeviceTimeoutError):
+    """A board that is not idle neither moves nor answers: its motion is frozen.
+
+    ``line`` is the last ``sr.line`` it reported (None when it said nothing).
+    """
+
+    def __init__(self, line: int | None, stuck_s: float, url: str) -> None:
+        self.line = line
+        where = f"line N{line}" if line is not None else "its line"
+        super().__init__(
+            f"{url}: the board is not idle but has neither moved nor answered for "
+            f"{stuck_s:g} s at {where} (its motion is frozen)"
+        )
 
 
 class BoardConnection:
@@ -186,13 +201,20 @@ class BoardConnection:
                 return dict(self.state)
         return None
 
-    def wait_idle(self, *, timeout_s: float, query_timeout_s: float) -> dict[str, Any]:
+    def wait_idle(
+        self, *, timeout_s: float, query_timeout_s: float, stuck_s: float | None = None
+    ) -> dict[str, Any]:
         """Let a running machine finish what it holds; its full status once idle.
 
         A board whose planner is full reads no command until a slot frees, so each
-        status query may wait for the machine. DeviceTimeoutError after ``timeout_s``.
+        status query may wait for the machine. DeviceTimeoutError after ``timeout_s``;
+        :class:`BoardStuckError` as soon as a machine that is not idle has neither
+        moved, changed line nor answered for ``stuck_s`` (a frozen runtime never
+        finishes: waiting would hang).
         """
         deadline = time.monotonic() + timeout_s
+        seen: tuple[Any, ...] | None = None
+        seen_t = time.monotonic()
         while True:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
@@ -207,10 +229,16 @@ class BoardConnection:
                 # its planner is full (the query is read when a slot frees), or a reply
                 # to a line of the dead connection arrived first: ask again
                 self.drain(0.05)
-                continue
-            if state.get("stat") not in _MOVING:
+                state = None
+            if state is not None and state.get("stat") not in _MOVING:
                 return state
-            self.next_message(min(0.1, remaining))
+            now_seen = tuple(self.state.get(k) for k in ("line", "posx", "posy", "posz", "posa"))
+            if now_seen != seen:
+                seen, seen_t = now_seen, time.monotonic()
+            elif stuck_s is not None and time.monotonic() - seen_t > stuck_s:
+                raise BoardStuckError(self.state.get("line"), stuck_s, self.link.url)
+            if state is not None:
+                self.next_message(min(0.1, remaining))
 
     def flush_board(self, *, timeout_s: float) -> bool:
         """Feedhold + queue flush; wait for the flush's rx report. True when it came."""

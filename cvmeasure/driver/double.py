@@ -29,6 +29,11 @@ proposes:
   the die and the bent wire's shape are known (:meth:`FakeTinyG.machine_state`,
   :meth:`FakeTinyG.wire_shape_mm`).
 
+Modules: :mod:`~cvmeasure.driver.double_records` (faults, bends, snapshots),
+:mod:`~cvmeasure.driver.double_firmware` (line reader, commands, G-code, executor,
+reports); this one holds the pty, the thread, the interrupt layer, the faults' firing,
+the realtime characters and the machine's simulation.
+
 Simplifications, stated: the RX "wire" has no baud-rate delay (bytes arrive as
 fast as the host writes them); a feedhold stops instantly (no deceleration);
 a reset keeps the positions.
@@ -37,7 +42,6 @@ a reset keeps the positions.
 from __future__ import annotations
 
 import errno
-import json
 import logging
 import math
 import os
@@ -47,14 +51,26 @@ import time
 import tty
 from collections import deque
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
+from cvmeasure.driver.double_firmware import FirmwareLayer
+from cvmeasure.driver.double_records import (
+    BANNER,
+    DEFAULT_MAX_RATE,
+    FAULT_KINDS,
+    LINE_REPORTS,
+    BendRecord,
+    DoubleStats,
+    Fault,
+    FaultKind,
+    LineReport,
+    MachineState,
+    PlannedMove,
+)
 from cvmeasure.driver.protocol import (
     AXES,
-    INPUT_LINE_MAX,
     PLANNER_HEADROOM,
     PLANNER_SLOTS,
     RX_BUFFER_BYTES,
@@ -63,15 +79,10 @@ from cvmeasure.driver.protocol import (
     XON,
     XON_LOW_WATER,
     FooterStyle,
-    GcodeError,
     MachineStat,
-    Status,
-    format_exception,
     format_queue_report,
     format_response,
     format_rx_report,
-    format_status_report,
-    parse_block,
 )
 
 __all__ = [
@@ -87,152 +98,8 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-FaultKind = Literal["drop_byte", "malformed_reply", "alarm", "stall", "vanish", "error_status"]
-#: The faults the double can inject.
-FAULT_KINDS: tuple[str, ...] = (
-    "drop_byte",
-    "malformed_reply",
-    "alarm",
-    "stall",
-    "vanish",
-    "error_status",
-)
-#: How ``sr.line`` reads after a queue flush: ``"executing"`` (the line the machine was
-#: running) or ``"parsed"`` (TinyG firmware: the last line it parsed, flushed ones included).
-LineReport = Literal["executing", "parsed"]
-LINE_REPORTS: tuple[str, ...] = ("executing", "parsed")
 
-#: Shortest move TinyG plans (MIN_SEGMENT_USEC), machine seconds.
-MIN_MOVE_S = 0.0025
-#: Axis maximum rates (units/min) used for G0, as seen in Pensa's 2016 logs.
-DEFAULT_MAX_RATE = {"x": 7500.0, "y": 10000.0, "z": 30000.0, "a": 7500.0}
-_SR_FIELDS = ("line", "posx", "posy", "posz", "posa", "vel", "stat")
-_BANNER = {"fv": 0.97, "fb": 440.21, "hp": 1, "hv": 8, "id": "cvmeasure-double"}
-
-
-@dataclass(frozen=True)
-class Fault:
-    """One fault to inject, once.
-
-    Attributes
-    ----------
-    kind : one of :data:`FAULT_KINDS`.
-    at_line : the 1-based count of lines the board has received (JSON and
-        G-code) at which it fires: ``drop_byte`` drops a byte of that line,
-        ``malformed_reply`` garbles its reply, ``stall`` freezes the board when
-        it reads it, ``vanish`` closes the port right after answering it (the
-        answer may go with the port), ``alarm``
-        trips the limit switch when its move starts executing, ``error_status``
-        rejects that G-code line with status 130 (it is not run; the lines after
-        it are, as TinyG does).
-    byte_index : for ``drop_byte``, which byte of the line (0 = the first); past its
-        end, the terminator is dropped and the line merges with the next.
-    duration_s : for ``stall``, how long the board freezes (wall seconds).
-    """
-
-    kind: FaultKind
-    at_line: int
-    byte_index: int = 0
-    duration_s: float = 1.0
-
-    def __post_init__(self) -> None:
-        if self.kind not in FAULT_KINDS:
-            raise ValueError(f"unknown fault {self.kind!r}; use one of {', '.join(FAULT_KINDS)}")
-        if self.at_line < 1:
-            raise ValueError("at_line counts from 1")
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "kind": self.kind,
-            "at_line": self.at_line,
-            "byte_index": self.byte_index,
-            "duration_s": self.duration_s,
-        }
-
-
-@dataclass(frozen=True)
-class BendRecord:
-    """One bend the double executed (simulated), in execution order.
-
-    ``feed_before_mm`` is the wire fed since the previous bend (or the start);
-    angles are signed, machine frame (CCW positive), degrees.
-    """
-
-    line_number: int | None
-    feed_before_mm: float
-    pin_deg: float
-    loaded_bend_deg: float
-    unloaded_bend_deg: float
-
-    def to_dict(self) -> dict[str, Any]:
-        return dict(self.__dict__)
-
-
-@dataclass(frozen=True)
-class MachineState:
-    """A snapshot of the double's machine.
-
-    Attributes
-    ----------
-    pin_deg : X, the pin's rotation from home (signed, deg).
-    feed_mm : Y, wire fed since power-up (mm).
-    duck : Z (0 = pin up, 180 = ducked).
-    stat : ``sr.stat`` (:class:`MachineStat`).
-    line : ``sr.line``, the N word of the executing (or last executed) block.
-    bend_angle_deg : the wire leg's angle at the die right now (loaded while the
-        pin holds it, unloaded after release, 0 after a feed), deg.
-    head_deg : the head's real rotation from home (signed, deg): while the pin holds a
-        bend, X after the machine's command effects (play lost, an offset, a drift), where
-        a photo sees the pin; X otherwise.
-    holding : the pin is pressing the wire.
-    bends : every bend executed so far.
-    planner_depth : moves queued (including the executing one).
-    rx_bytes : bytes waiting in the RX ring.
-    """
-
-    pin_deg: float
-    feed_mm: float
-    duck: float
-    stat: int
-    line: int
-    bend_angle_deg: float
-    holding: bool
-    bends: tuple[BendRecord, ...]
-    planner_depth: int
-    rx_bytes: int
-    head_deg: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        d = dict(self.__dict__)
-        d["bends"] = [b.to_dict() for b in self.bends]
-        return d
-
-
-@dataclass
-class _Move:
-    seq: int
-    line_number: int | None
-    text: str
-    target: dict[str, float]
-    duration_s: float
-    rate: float
-    start: dict[str, float] | None = None
-    elapsed_s: float = 0.0
-
-
-@dataclass
-class _Stats:
-    rx_dropped_bytes: int = 0
-    rx_peak_bytes: int = 0
-    xoff_sent: int = 0
-    xon_sent: int = 0
-    lines_received: int = 0
-    faults_fired: list[str] = field(default_factory=list)
-    completed: list[int | None] = field(default_factory=list)
-    partial: list[int | None] = field(default_factory=list)
-
-
-class FakeTinyG:
+class FakeTinyG(FirmwareLayer):
     """A TinyG v8-like bender on a pseudo-terminal, driving the simulation.
 
     Parameters
@@ -289,7 +156,7 @@ class FakeTinyG:
         self._master: int | None = None
         self._slave_keep: int | None = None
         self.port = ""
-        self.stats = _Stats()
+        self.stats = DoubleStats()
         self._reset_board(keep_position=False)
         # the machine (physical; survives resets and reconnects)
         self._bends: list[BendRecord] = []
@@ -374,7 +241,7 @@ class FakeTinyG:
         self._xoff = False
         self._tx = bytearray()
         self._tx_paused = False
-        self._planner: deque[_Move] = deque()
+        self._planner: deque[PlannedMove] = deque()
         self._stat = MachineStat.READY
         self._line = 0
         self._last_parsed_line: int | None = None
@@ -588,7 +455,7 @@ class FakeTinyG:
             self._reset_req = False
             self._drop_planner()
             self._reset_board(keep_position=True)
-            self._send(format_response({**_BANNER, "msg": "SYSTEM READY"}, 0, 0, style="g2"))
+            self._send(format_response({**BANNER, "msg": "SYSTEM READY"}, 0, 0, style="g2"))
             return
         if self._hold_req:
             self._hold_req = False
@@ -628,187 +495,6 @@ class FakeTinyG:
         self._planner.clear()
         self._model_pos = dict(self._pos)
 
-    # ------------------------------------------------------------------ line reader
-
-    def _free_slots(self) -> int:
-        return self.slots - len(self._planner)
-
-    def _read_lines(self, now: float) -> None:
-        while self._stall_until <= now and self._pending_stall_line is None:
-            if self._free_slots() < self.headroom:
-                return
-            cut = -1
-            for i, b in enumerate(self._ring):
-                if b in (0x0A, 0x0D):
-                    cut = i
-                    break
-            if cut < 0:
-                if len(self._ring) >= self.rx_size:  # a line longer than the buffer
-                    self._ring.clear()
-                    self._send(format_response({}, Status.INPUT_TOO_LONG, self.rx_size))
-                return
-            raw = bytes(self._ring[:cut])
-            del self._ring[: cut + 1]
-            self._check_xon()
-            if not raw:
-                continue  # an empty line: no response in JSON mode
-            self.stats.lines_received += 1
-            count = self.stats.lines_received
-            stall = self._fault("stall", count)
-            if stall is not None and raw.lstrip().startswith(b"{"):
-                self.stats.faults_fired[-1] += " (on a JSON command)"
-            if stall is not None:
-                self._stall_until = now + stall.duration_s
-                self._pending_stall_line = (raw, len(raw) + 1)
-                return
-            self._process_line(raw, len(raw) + 1, now)
-            if self._master is None:
-                return
-
-    def _process_line(self, raw: bytes, nbytes: int, now: float) -> None:
-        count = self.stats.lines_received
-        text = raw.decode("ascii", errors="replace").strip()
-        if len(raw) + 1 > INPUT_LINE_MAX:
-            body, status = {}, int(Status.INPUT_TOO_LONG)
-        elif text.startswith("{"):
-            body, status = self._json_command(text, now)
-        elif text[:1] in ("$", "?"):
-            body, status = {}, int(Status.UNRECOGNIZED_NAME)
-        else:
-            body, status = self._gcode(text, count, now)
-        if self._settings["jv"] == 0:
-            return  # silent: no response at all (why hosts must never set it)
-        reply = format_response(body, status, nbytes, style=self.footer_style)
-        if self._fault("malformed_reply", count) is not None:
-            reply = reply[: max(3, len(reply) // 2)] + b"\n"
-        self._send(reply)
-        if self._fault("vanish", count) is not None:
-            self._vanish()
-
-    def _json_command(self, text: str, now: float) -> tuple[dict[str, Any], int]:
-        try:
-            obj = json.loads(text)
-        except json.JSONDecodeError:
-            return {}, int(Status.JSON_SYNTAX)
-        if not isinstance(obj, dict):
-            return {}, int(Status.MALFORMED_COMMAND)
-        out: dict[str, Any] = {}
-        for key, value in obj.items():
-            if key == "sr":
-                if isinstance(value, dict):
-                    out["sr"] = value
-                else:
-                    out["sr"] = self._sr_values()
-            elif key == "qr":
-                out["qr"] = self._free_slots()
-            elif key == "rx":
-                out["rx"] = self.rx_size - len(self._ring)
-            elif key == "clear":
-                if self._stat == MachineStat.ALARM:
-                    self._set_stat(MachineStat.STOP, now)
-                out["clear"] = 1
-            elif key == "qf":
-                self._flush_req = True
-                out["qf"] = 1
-            elif key in self._settings:
-                if value is not None and key not in ("fv", "fb"):
-                    if not isinstance(value, (int, float)) or isinstance(value, bool):
-                        return {}, int(Status.BAD_NUMBER)
-                    self._settings[key] = value
-                out[key] = self._settings[key]
-            else:
-                return {}, int(Status.UNRECOGNIZED_NAME)
-        return out, 0
-
-    def _gcode(self, text: str, seq: int, now: float) -> tuple[dict[str, Any], int]:
-        try:
-            block = parse_block(text)
-        except GcodeError as exc:
-            return {}, exc.status
-        if self._stat in (MachineStat.ALARM, MachineStat.SHUTDOWN):
-            return {}, int(Status.MACHINE_ALARMED)
-        if self._fault("error_status", seq) is not None:
-            return {}, int(Status.GCODE_GENERIC)
-        if block.line_number is not None:
-            self._last_parsed_line = block.line_number
-        relative = self._relative
-        mode = block.distance_mode
-        if mode is not None:
-            relative = mode == "relative"
-        motion = block.motion if block.motion is not None else self._motion
-        feed = block.feed if block.feed is not None else self._feed_rate
-        moved = {k: v for k, v in block.axes.items() if k in AXES}
-        if 28.3 in block.g_codes:
-            self._relative, self._feed_rate = relative, feed
-            self._model_pos.update(moved)
-            self._pos.update(moved)
-            return {}, 0
-        target = dict(self._model_pos)
-        for axis, value in moved.items():
-            target[axis] = target[axis] + value if relative else value
-        deltas = {a: target[a] - self._model_pos[a] for a in AXES}
-        distance = math.sqrt(sum(d * d for d in deltas.values()))
-        duration, rate = 0.0, 0.0
-        if distance > 0:
-            if motion == 1:
-                if not feed or feed <= 0:
-                    return {}, int(Status.FEEDRATE_MISSING)
-                duration, rate = distance / feed * 60.0, feed
-            else:
-                duration = max(abs(d) / self.max_rate[a] * 60.0 for a, d in deltas.items() if d)
-                rate = distance / duration * 60.0
-            if duration < MIN_MOVE_S:
-                return {}, int(Status.MINIMUM_TIME_MOVE)
-        self._relative, self._motion, self._feed_rate = relative, motion, feed
-        if distance == 0 and block.line_number is None:
-            return {}, 0  # modal-only block: nothing to execute
-        self._model_pos = target
-        self._planner.append(_Move(seq, block.line_number, text, target, duration, rate))
-        if self._stat not in (MachineStat.HOLD,):
-            self._set_stat(MachineStat.RUN, now)
-            self._advance(0.0, now)  # an idle machine starts the move at once
-        return {}, 0
-
-    # ------------------------------------------------------------------ executor
-
-    def _advance(self, dt: float, now: float) -> None:
-        while self._planner and self._stat == MachineStat.RUN:
-            head = self._planner[0]
-            if head.start is None:
-                head.start = dict(self._pos)
-                if head.line_number is not None:
-                    self._line = head.line_number
-                if self._fault("alarm", head.seq) is not None:
-                    self._alarm(now)
-                    return
-                self._machine_move_start(head)
-            remaining = head.duration_s - head.elapsed_s
-            step = min(dt, remaining)
-            head.elapsed_s += step
-            dt -= step
-            frac = 1.0 if head.duration_s <= 0 else min(1.0, head.elapsed_s / head.duration_s)
-            for a in AXES:
-                self._pos[a] = head.start[a] + (head.target[a] - head.start[a]) * frac
-            if head.elapsed_s >= head.duration_s:
-                self._pos = dict(head.target)
-                self._planner.popleft()
-                self.stats.completed.append(head.line_number)
-                self._machine_move_done(head, complete=True)
-                continue
-            return
-        if not self._planner and self._stat == MachineStat.RUN:
-            self._set_stat(MachineStat.STOP, now)
-
-    def _alarm(self, now: float) -> None:
-        self._send(format_exception(Status.LIMIT_SWITCH_HIT, "limit switch hit"))
-        self._drop_planner()
-        self._set_stat(MachineStat.ALARM, now)
-
-    def _set_stat(self, stat: MachineStat, now: float) -> None:
-        if stat != self._stat:
-            self._stat = stat
-            self._sr_due = 0.0  # report a state change at once
-
     # ------------------------------------------------------------------ machine (simulation)
 
     def _simulate(self, pin_deg: float) -> tuple[float, float, float]:
@@ -820,12 +506,12 @@ class FakeTinyG:
         )
         return float(res.loaded_bend_deg[0]), float(res.unloaded_bend_deg[0]), float(res.pin_deg[0])
 
-    def _machine_move_start(self, move: _Move) -> None:
+    def _machine_move_start(self, move: PlannedMove) -> None:
         if move.start is not None and move.target["y"] != move.start["y"]:
             self._release()
             self._bend_at_die = 0.0
 
-    def _machine_move_done(self, move: _Move, *, complete: bool) -> None:
+    def _machine_move_done(self, move: PlannedMove, *, complete: bool) -> None:
         start = move.start or self._pos
         dy = self._pos["y"] - start["y"]
         if dy:
@@ -859,37 +545,3 @@ class FakeTinyG:
         self._feed_since_bend = 0.0
         self._bend_at_die = unloaded
         self._holding = None
-
-    # ------------------------------------------------------------------ reports
-
-    def _sr_values(self) -> dict[str, Any]:
-        head = self._planner[0] if self._planner else None
-        moving = self._stat == MachineStat.RUN and head is not None and head.start is not None
-        return {
-            "line": self._line,
-            "posx": self._pos["x"],
-            "posy": self._pos["y"],
-            "posz": self._pos["z"],
-            "posa": self._pos["a"],
-            "vel": head.rate if moving and head is not None else 0.0,
-            "stat": int(self._stat),
-        }
-
-    def _reports(self, now: float) -> None:
-        if self._settings["qv"]:
-            free = self._free_slots()
-            if free != self._qr_last:
-                self._qr_last = free
-                self._send(format_queue_report(free))
-        if not self._settings["sv"] or now < self._sr_due:
-            return
-        values = {
-            k: round(v, 3) if isinstance(v, float) else v for k, v in self._sr_values().items()
-        }
-        changed = {k: v for k, v in values.items() if self._sr_last.get(k) != v}
-        if self._settings["sv"] == 2:
-            changed = values
-        if changed:
-            self._sr_last.update(changed)
-            self._send(format_status_report(changed))
-        self._sr_due = now + max(float(self._settings["si"]), 1.0) / 1000.0

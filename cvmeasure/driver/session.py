@@ -404,17 +404,8 @@ def run_session(
     out.mkdir(parents=True, exist_ok=True)
     log_path = out / LOG_NAME
     plan = config.plan()
-    plan_json = [[d, a] for d, a in plan]
-    done: dict[int, SessionStep] = {}
     resumed = log_path.exists()
-    interrupted: set[int] = set()
-    if resumed:
-        done, interrupted = _read_resume(log_path, plan_json)
-    else:
-        append_jsonl(
-            log_path,
-            {"event": "start", "plan": plan_json, "config": config.to_dict(), "time_utc": _now()},
-        )
+    done, interrupted = _open_log(log_path, config, plan)
     options = dict(measure_options or {})
     bent: list[int] = []
     previous_direction: str | None = None  # unknown pin side: the first bend ducks across
@@ -451,6 +442,39 @@ def run_session(
         if progress is not None:
             progress(len(done), len(plan), record)
     steps = tuple(done[i] for i in sorted(done))
+    calibration = _fit_session(steps, config, plan, model, name, log_path)
+    return SessionResult(
+        steps=steps,
+        calibration=calibration,
+        bent_this_run=tuple(bent),
+        resumed=resumed,
+        log_path=log_path,
+    )
+
+
+def _open_log(
+    log_path: Path, config: SessionConfig, plan: list[tuple[str, float]]
+) -> tuple[dict[int, SessionStep], set[int]]:
+    """Resume the log (steps done, steps interrupted mid-bend) or start it with the plan."""
+    plan_json = [[d, a] for d, a in plan]
+    if log_path.exists():
+        return _read_resume(log_path, plan_json)
+    append_jsonl(
+        log_path,
+        {"event": "start", "plan": plan_json, "config": config.to_dict(), "time_utc": _now()},
+    )
+    return {}, set()
+
+
+def _fit_session(
+    steps: tuple[SessionStep, ...],
+    config: SessionConfig,
+    plan: list[tuple[str, float]],
+    model: str,
+    name: str,
+    log_path: Path,
+) -> Calibration:
+    """The calibration fitted to the session's steps, with their photo warnings attached."""
     try:
         calibration = fit_calibration(
             [s.sample() for s in steps],
@@ -461,16 +485,9 @@ def run_session(
         )
     except ValueError as exc:
         raise InputError(log_path, f"cannot fit a calibration to this session: {exc}") from None
-    calibration = replace(
+    return replace(
         calibration,
         provenance={**calibration.provenance, "warnings": session_warnings_json(steps)},
-    )
-    return SessionResult(
-        steps=steps,
-        calibration=calibration,
-        bent_this_run=tuple(bent),
-        resumed=resumed,
-        log_path=log_path,
     )
 
 

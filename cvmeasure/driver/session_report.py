@@ -24,7 +24,7 @@ from cvmeasure.material.calibration import Calibration
 from cvmeasure.material.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
 from cvmeasure.warning import StageWarning
 
-__all__ = ["plot_calibration", "write_session_report"]
+__all__ = ["calibration_figure_png", "plot_calibration", "write_session_report"]
 
 _COLOURS = {
     "linear": "tab:blue",
@@ -34,7 +34,8 @@ _COLOURS = {
 }
 
 
-def _figure_png(calibration: Calibration) -> bytes:
+def calibration_figure_png(calibration: Calibration) -> bytes:
+    """PNG bytes of the calibration's data, fitted curves and residuals per direction."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -89,7 +90,7 @@ def _figure_png(calibration: Calibration) -> bytes:
 
 def plot_calibration(calibration: Calibration, path: str | os.PathLike[str]) -> Path:
     """Write the data / fits / residuals plot of a calibration as PNG (atomically)."""
-    return atomic_write_bytes(path, _figure_png(calibration))
+    return atomic_write_bytes(path, calibration_figure_png(calibration))
 
 
 def write_session_report(
@@ -124,7 +125,7 @@ def write_session_report(
         f"{len(calibration.samples)} bends; compensation model <b>{e(calibration.model)}</b>; "
         f"created {e(calibration.created_utc)}.</p>",
         "<h2>Springback curves and residuals</h2>",
-        html_img(_figure_png(calibration), "springback curves", css_class="figure"),
+        html_img(calibration_figure_png(calibration), "springback curves", css_class="figure"),
         "<h2>Model scores (leave-one-angle-out, deg)</h2><table><tr><th>model</th>",
     ]
     directions = [d for d in DIRECTIONS if calibration.samples_of(d)]

@@ -4,8 +4,12 @@ The host algorithm of reference ``diwire-tinyg.md`` section 2.10:
 
 * JSON mode; the session settings are sent one at a time (send-response);
 * at most ``window_lines`` lines **and** ``window_bytes`` bytes in flight
-  (default 4 and 200 of the board's 254-byte receive buffer), so the buffer
-  cannot overflow; XON/XOFF stays on as the safety net (the tty honours it);
+  (default 1 and 200 of the board's 254-byte receive buffer), so the buffer
+  cannot overflow; XON/XOFF stays on as the safety net (the tty honours it).
+  One line at a time by default: TinyG acks a line once it is parsed and queued,
+  so the planner stays full all the same, and no later line is already in the
+  board when a line is rejected (the board would skip it and run the next ones),
+  loses its LF (it would run merged with the next) or its ack is uncertain;
 * each ``{"r":...}`` acks the head of the in-flight FIFO and its footer's byte
   count must equal that line's length: a mismatch (a dropped or garbled byte),
   a non-zero status, a reply that cannot be parsed, a reset banner, an alarm
@@ -40,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from cvmeasure.driver.connection import IDLE as _IDLE
-from cvmeasure.driver.connection import BoardConnection
+from cvmeasure.driver.connection import BoardConnection, BoardStuckError
 from cvmeasure.driver.job import JobLine, job_sha256, prepare_job
 from cvmeasure.driver.protocol import (
     AXES,
@@ -110,7 +114,8 @@ FIRMWARE_QUERIES: tuple[dict[str, Any], ...] = ({"fv": None}, {"fb": None})
 class StreamConfig:
     """Tunables of the streamer (times in wall seconds).
 
-    window_lines, window_bytes : lines and bytes allowed in flight.
+    window_lines, window_bytes : lines and bytes allowed in flight (one line: a
+        rejected, merged or unacknowledged line is never overtaken by a later one).
     stall_timeout_s : silence from the board, while it owes an ack or is
         running, after which the job is stopped as stalled.
     flush_timeout_s : how long a safe stop waits for the board's flush report.
@@ -120,7 +125,7 @@ class StreamConfig:
         the lines it already holds (its ``sr.line`` is then exact).
     """
 
-    window_lines: int = 4
+    window_lines: int = 1
     window_bytes: int = 200
     stall_timeout_s: float = 5.0
     flush_timeout_s: float = 5.0
@@ -259,6 +264,8 @@ class _Run:
     sent: int = 0
     last_progress_t: float = 0.0
     last_progress_line: int | None = None
+    #: the last job line written to the board (acked or in flight)
+    last_sent: JobLine | None = None
 
     def log(self, record: dict[str, Any]) -> None:
         if self.journal is not None:
@@ -282,16 +289,8 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     held: dict[str, Any] | None = None
     flush_sent = False
     if board.error is None and reason != "port_gone":
-        try:
-            held = board.hold(timeout_s=run.config.flush_timeout_s)
-            flush_sent = True
-            flushed = board.flush_board(timeout_s=run.config.flush_timeout_s)
-            if not flushed:
-                detail += "; the board did not confirm the flush (unresponsive)"
-            else:
-                state = board.query_status(timeout_s=run.config.command_timeout_s)
-        except DeviceError as exc:
-            detail += f"; stopping failed: {exc}"
+        held, state, flush_sent, problem = _halt(run, reason)
+        detail += problem
     running = held if held is not None else state
     if line is None and number is None and running is not None:
         # an alarm names the line the machine was executing when it tripped
@@ -330,6 +329,32 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
     )
     run.log({"event": "stop", **stop.to_dict(), "running_line": board.running_line})
     raise JobStopped(stop)
+
+
+def _halt(run: _Run, reason: str) -> tuple[dict[str, Any] | None, dict[str, Any] | None, bool, str]:
+    """Feedhold and flush: (held report, status after the flush, flush sent, problem).
+
+    A stall with the machine idle had nothing queued (it ran all it parsed): the line
+    in flight may wait in the board's input without its end (a lost LF), and a status
+    query sent now would merge with it, so the flush (which clears the input) comes
+    first and the status after it is exact, as a held report is.
+    """
+    board, config = run.board, run.config
+    idle = reason == "stall" and board.state.get("stat") in _IDLE
+    held = state = None
+    flush_sent = False
+    try:
+        if not idle:
+            held = board.hold(timeout_s=config.flush_timeout_s)
+        flush_sent = True
+        if not board.flush_board(timeout_s=config.flush_timeout_s):
+            return held, None, True, "; the board did not confirm the flush (unresponsive)"
+        state = board.query_status(timeout_s=config.command_timeout_s)
+    except DeviceError as exc:
+        return held, state, flush_sent, f"; stopping failed: {exc}"
+    if idle and state.get("stat") in _IDLE:
+        held = state
+    return held, state, True, ""
 
 
 def _handle(run: _Run, msg: Message) -> None:
@@ -540,9 +565,18 @@ def _resume_plan(
     start_pos, last, lower, lower_how = journal_evidence(run.journal, sha, source, force=force)
     # a board still running (the host died mid-job) finishes the lines it holds:
     # flushing them would make TinyG report the last line it *parsed*, not run
-    settled = board.wait_idle(
-        timeout_s=config.settle_timeout_s, query_timeout_s=config.command_timeout_s
-    )
+    try:
+        settled = board.wait_idle(
+            timeout_s=config.settle_timeout_s,
+            query_timeout_s=config.command_timeout_s,
+            stuck_s=config.stall_timeout_s,
+        )
+    except BoardStuckError as exc:
+        line = exc.line if exc.line is not None else last.get("line_number")
+        raise DeviceError(
+            f"cannot resume at line N{line}: {exc}; check the machine, reset the board "
+            "(power it off and on), then resume"
+        ) from None
     if not board.flush_board(timeout_s=config.flush_timeout_s):
         raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
     state = _setup(board, config, xonxoff)
@@ -639,13 +673,13 @@ def _check_rejected(run: _Run, last: Mapping[str, Any], board_line: int, force: 
 def _check_board(run: _Run) -> None:
     board = run.board
     if board.error is not None:
-        # nothing in flight (e.g. the write of the next line failed): name the last
-        # line the board reported, so the user still learns where the job was
+        # a board cut off runs on through all it parsed: it ends at the line in
+        # flight, or at the last one sent (the board's last report is older)
         head = run.inflight[0] if run.inflight else None
         _stop(
             run,
             "port_gone",
-            head or _line_by_number(run.job, board.state.get("line")),
+            head or run.last_sent or _line_by_number(run.job, board.state.get("line")),
             str(board.error),
         )
 
@@ -655,10 +689,12 @@ def _watchdog(run: _Run, waiting_for: str) -> None:
     if silence > run.config.stall_timeout_s:
         head = run.inflight[0] if run.inflight else None
         line = run.board.state.get("line")
+        # the machine is where the board last said it was: the line in flight may wait
+        # behind a full planner, so the board's line is the one the stop names
         _stop(
             run,
             "stall",
-            head or _line_by_number(run.job, line),
+            _line_by_number(run.job, line) or head,
             f"no word from the board for {silence:.1f} s while waiting for {waiting_for}",
             number=line,
         )
@@ -727,6 +763,7 @@ def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
                     _check_board(run)
                 run.inflight.append(line)
                 run.sent += 1
+                run.last_sent = line
                 i += 1
                 if run.progress:
                     run.progress(line.index + 1, n_total, board.state.get("line"))

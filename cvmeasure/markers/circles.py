@@ -112,34 +112,49 @@ def refine_candidates(
     return results  # type: ignore[return-value]
 
 
-def split_half_cov(points_px: np.ndarray, fit: CircleFit) -> np.ndarray:
-    """Centre covariance (px^2) from how fits to halves of the edge disagree with the whole.
+def split_half_cov(
+    points: np.ndarray, fit: CircleFit, *, correlation_factor: float = 1.0
+) -> np.ndarray:
+    """Centre covariance from how fits to halves of the edge disagree with the whole,
+    beyond what their sampling explains (units of ``points``, squared).
 
     The inlier edge points are split in two halves round the centre, four ways (the
     split line every 45 deg); each half's circle, fitted with the radius free,
-    differs from the whole's centre by ``d``; returns the mean of ``d d^T`` over the
-    eight halves. For a whole, clean edge this is a few times the sampling
-    covariance; for an edge bent by a cover or a shadow's edge, its systematic part.
+    differs from the whole's centre by ``d``. Under sampling error alone ``d d^T``
+    averages ``C_half - C_whole`` (the whole nests the half); what is left of the mean
+    of ``d d^T - (C_half - C_whole)`` over the eight halves (negative eigenvalues
+    clipped) is the systematic part a cover or a shadow's edge leaves: about zero for a
+    whole, clean edge, which the sampling covariance already holds. Fit it where the
+    disc is a circle (on the plate, on a plane pose): the halves of a tilted view's
+    ellipse disagree by its shape alone. ``correlation_factor`` as for the whole's fit.
     """
-    pts = np.asarray(points_px, dtype=np.float64)
+    pts = np.asarray(points, dtype=np.float64)
     c = np.asarray(fit.centre)
     off = pts - c
     resid = np.abs(np.hypot(off[:, 0], off[:, 1]) - fit.radius)
-    keep = resid < 3.0 * max(fit.rms_residual, 0.05)
+    keep = resid < 3.0 * max(fit.rms_residual, 0.0025 * fit.radius)
     pts, off = pts[keep], off[keep]
     theta = np.arctan2(off[:, 1], off[:, 0])
-    diffs = []
+    whole = np.asarray(fit.covariance)
+    acc, n = np.zeros((2, 2)), 0
     for split in np.radians([0.0, 45.0, 90.0, 135.0]):
         side = np.mod(theta - split, 2 * math.pi) < math.pi
         for half in (side, ~side):
             if half.sum() < MIN_EDGE_POINTS:
                 continue
             try:
-                part = fit_circle_robust(pts[half], init=(c[0], c[1], fit.radius), stop=FIT_STOP_PX)
+                part = fit_circle_robust(
+                    pts[half],
+                    init=(c[0], c[1], fit.radius),
+                    stop=FIT_STOP_PX,
+                    correlation_factor=correlation_factor,
+                )
             except (ValueError, np.linalg.LinAlgError):
                 continue
-            diffs.append(np.asarray(part.centre) - c)
-    if not diffs:
+            d = np.asarray(part.centre) - c
+            acc += np.outer(d, d) - (np.asarray(part.covariance) - whole)
+            n += 1
+    if not n:
         return np.zeros((2, 2))
-    d = np.asarray(diffs)
-    return d.T @ d / len(d)
+    vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T) / n)
+    return (vecs * np.clip(vals, 0.0, None)) @ vecs.T

@@ -192,11 +192,14 @@ def measure_heights(
     n_res, n_par = fit.fun.size, fit.x.size
     chi2 = float(fit.fun @ fit.fun)
     rms = math.sqrt(chi2 / max(n_res - n_par, 1))
-    # scaled by the residuals' own scatter (the Birge ratio), both ways: the centres'
-    # covariances are the edge fits' and can overstate what the sweep shows; never below
-    # a quarter of the stated one (a lucky few photos must not claim too much)
-    cov = np.linalg.pinv(fit.jac.T @ fit.jac) * max(rms, MIN_BIRGE) ** 2
     n = len(ROLES)
+    # the photos' part scaled by the residuals' own scatter (the Birge ratio), both ways,
+    # never below a quarter of the stated one (a lucky few photos must not claim too
+    # much); the prior's rows (the last n) are not: the photos say nothing about it
+    jac = np.asarray(fit.jac)
+    data, prior_rows = jac[:-n], jac[-n:]
+    info = data.T @ data / max(rms, MIN_BIRGE) ** 2 + prior_rows.T @ prior_rows
+    cov = np.linalg.pinv(info)
     h_cov = cov[:n, :n]
     h_sigma = np.sqrt(np.diag(h_cov))
     markers = tuple(

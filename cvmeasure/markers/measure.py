@@ -24,9 +24,12 @@ a camera square to the plate. A kit without heights is measured flat, with a
 warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
-Stated uncertainties are sampling errors of the edge fits (with a floor per
-centre); they do not include camera or plane calibration errors, print or
-mounting tolerances of the markers, or lateral chromatic aberration.
+Stated uncertainties are sampling errors of the edge fits, taken where the disc is
+a circle (on the plate on a plane pose), with a floor per centre and, for a disc
+partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
+sampling; on a plane pose the kit's height uncertainties are added. They do not
+include camera or plane calibration errors, print or mounting tolerances of the
+markers, or lateral chromatic aberration.
 
 Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
 resolution) and in the green channel for RAW/16-bit data (``edge=`` to choose):
@@ -200,10 +203,16 @@ def _lateral_colour(
 
 
 def _on_frame(
-    fits: _Fits, cov_imgs: Mapping[str, np.ndarray], kit: MarkerKit, frame: MeasureFrame
+    fits: _Fits, uneven: set[str], kit: MarkerKit, frame: MeasureFrame
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], list[PlaneDisc]]:
     """Each disc's circle fitted in ``frame`` (its edge mapped at its own height above the
-    plate on a plane pose): centres, their covariances, and the discs on the plane."""
+    plate on a plane pose): centres, their covariances, and the discs on the plane.
+
+    A centre's covariance is the sampling error of the fit in the frame, where the disc
+    is a circle (in the image a tilted view makes it an ellipse, and a circle fitted
+    there reads that shape as edge noise: sigmas several times the errors), the floor
+    mapped from the image, and for the ``uneven`` roles (partly hidden or in a shadow)
+    what the halves of the edge disagree on beyond their sampling, in the frame too."""
     heights = {r: kit.height_mm(r) for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for height in dict.fromkeys(heights.values()):
@@ -236,7 +245,11 @@ def _on_frame(
                 stop=FIT_STOP_PX,
             )
         centres[role] = np.array(fit_f.centre)
-        covs[role] = jac @ cov_imgs[role] @ jac.T
+        cov = np.asarray(fit_f.covariance) + CENTRE_FLOOR_PX**2 * (jac @ jac.T)
+        if role in uneven:
+            cf = ray_correlation_factor(fit.radius)
+            cov = cov + split_half_cov(pts_f, fit_f, correlation_factor=cf)
+        covs[role] = cov
         if frame.name == "plane":
             seen = fit.coverage >= HIDDEN_COVERAGE
             shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if seen else None
@@ -274,11 +287,14 @@ def _measure_ours(
         warnings.extend([lateral] if lateral is not None else [])
     delta_e = colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     cov_imgs: dict[str, np.ndarray] = {}
+    uneven: set[str] = set()
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
         if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
             # partly hidden or in a shadow: what the edge's two halves disagree on, too
-            cov_img = cov_img + split_half_cov(edges.points_px, fit)
+            uneven.add(role)
+            cf = ray_correlation_factor(fit.radius)
+            cov_img = cov_img + split_half_cov(edges.points_px, fit, correlation_factor=cf)
         cov_imgs[role] = cov_img
         markers[role] = MarkerMeasurement(
             role,
@@ -296,7 +312,7 @@ def _measure_ours(
         centres = {r: np.array(f.centre) for r, (f, _) in fits.items()}
         covs = dict(cov_imgs)
     else:
-        centres, covs, discs = _on_frame(fits, cov_imgs, kit, frame)
+        centres, covs, discs = _on_frame(fits, uneven, kit, frame)
         if frame.plane is not None:
             height = abs(float(frame.plane.camera_centre_mm[2]))
             warnings.extend(plane_warnings(discs, kit, height))

@@ -19,6 +19,7 @@ from cvmeasure.part.fit import (
     chord_coverage,
 )
 from cvmeasure.part.locate import MAX_WIRE_MM, board_exclusion
+from cvmeasure.part.morph import dilated_at
 from cvmeasure.part.result import ArcResult
 from cvmeasure.warning import StageWarning
 
@@ -51,14 +52,13 @@ def ends_at_a_boundary(
             return "the photo's edge"
     if board is None:
         return ""
-    near_board = cv2.dilate(
-        board_exclusion(board, plane, shape).astype(np.uint8),
+    # the board's mask dilated by the reach, read at the end points only
+    near_board = dilated_at(
+        board_exclusion(board, plane, shape),
         cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * int(reach) + 1,) * 2),
+        np.round(ends_px).astype(int),
     )
-    for x, y in np.round(ends_px).astype(int):
-        if 0 <= y < h and 0 <= x < w and near_board[y, x]:
-            return "the board"
-    return ""
+    return "the board" if near_board.any() else ""
 
 
 #: An end point's uncertainty that could move the bend per chord by more than this (deg) is

@@ -17,6 +17,7 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
 from cvmeasure.part.ends import EndShape
+from cvmeasure.part.morph import dilate_local
 from cvmeasure.part.segment import WireMask, gray_float, segment_wire
 
 __all__ = [
@@ -166,7 +167,7 @@ def outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarr
 
     gray = gray_float(image)
     near = max(3, int(round(0.5 * wire.width_px)) | 1)
-    band = cv2.dilate(
+    band = dilate_local(
         wire.mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (near, near))
     ).astype(bool)
     level = max(wire.threshold, 0.5 * wire.contrast)

@@ -9,6 +9,7 @@ wire's half-width, and the least-cost continuous path through a table of costs.
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import minimum_filter1d
 
 __all__ = [
     "PROFILE_STEP_PX",
@@ -114,11 +115,11 @@ def symmetric_centres(
         raise ValueError("profiles too short for rho_px + search_px")
     shifts = np.arange(-kc, kc + 1)
     cost = np.empty((len(p), len(shifts)))
-    u = np.arange(1, ku + 1)
+    diff = np.empty((len(p), ku))
     for j, c in enumerate(shifts):
-        a = p[:, mid + c + u]
-        b = p[:, mid + c - u]
-        cost[:, j] = np.mean((a - b) ** 2, axis=1)
+        # samples c + 1 .. c + ku against c - 1 .. c - ku (views: no gathers)
+        np.subtract(p[:, mid + c + 1 : mid + c + ku + 1], p[:, mid + c - 1 :: -1][:, :ku], diff)
+        cost[:, j] = np.einsum("ij,ij->i", diff, diff) / ku
     rows = np.arange(len(p))
     if max_slope_px is None:
         k = np.argmin(cost, axis=1)
@@ -356,25 +357,25 @@ def asymmetry_ratio(
 
 def least_cost_path(cost: np.ndarray, reach: int) -> np.ndarray:
     """Column per row (P,) minimising the summed cost with |k_i - k_(i-1)| <= reach."""
-    from numpy.lib.stride_tricks import sliding_window_view
-
     n_rows, n_cols = cost.shape
     # scale each row to its own range so that no single profile dominates
     lo = cost.min(axis=1, keepdims=True)
     span = np.maximum(cost.max(axis=1, keepdims=True) - lo, 1e-12)
     c = (cost - lo) / span
-    back = np.empty((n_rows, n_cols), dtype=np.int64)
-    total = c[0].copy()
-    cols = np.arange(n_cols)
+    # forward: each row's least total through it (a running minimum over the reach, in C);
+    # backward: the first column of least total within reach of the next row's choice
+    # (the same choice, ties to the lowest column, as keeping each row's argmins)
+    totals = np.empty((n_rows, n_cols))
+    totals[0] = c[0]
     for i in range(1, n_rows):
-        win = sliding_window_view(np.pad(total, reach, constant_values=np.inf), 2 * reach + 1)
-        j = np.argmin(win, axis=1)
-        back[i] = cols + j - reach
-        total = c[i] + win[cols, j]
+        totals[i] = c[i] + minimum_filter1d(
+            totals[i - 1], 2 * reach + 1, mode="constant", cval=np.inf
+        )
     path = np.empty(n_rows, dtype=np.int64)
-    path[-1] = int(np.argmin(total))
+    path[-1] = int(np.argmin(totals[-1]))
     for i in range(n_rows - 1, 0, -1):
-        path[i - 1] = back[i, path[i]]
+        lo = max(0, int(path[i]) - reach)
+        path[i - 1] = lo + int(np.argmin(totals[i - 1, lo : int(path[i]) + reach + 1]))
     return path
 
 

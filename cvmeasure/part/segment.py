@@ -24,6 +24,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure.part.morph import dilate_local
+
 __all__ = ["WireMask", "segment_wire", "gray_float", "longest_skeleton_path"]
 
 Sheet = Literal["dark", "light"]
@@ -252,7 +254,7 @@ def segment_wire(
         mask, path = filled, path_small
     mask_b = mask.astype(bool)
     inside = gray[mask_b]
-    ring = cv2.dilate(
+    ring = dilate_local(
         mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(max_wire_width_px),) * 2)
     )
     around = ring.astype(bool) & ~mask_b

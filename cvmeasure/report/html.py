@@ -13,6 +13,9 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import cv2
+
+from cvmeasure.part.track import bends_from_records, track_bends, tracking_png
 from cvmeasure.report import plots
 from cvmeasure.report.thumbnails import find_photo, overlay_thumbnail
 from cvmeasure.warning import StageWarning
@@ -378,7 +381,6 @@ def _warnings_section(records: Sequence[Mapping[str, Any]]) -> list[str]:
 
 def _tracking_section(records: Sequence[Mapping[str, Any]]) -> list[str]:
     """Control charts per vertex when at least 3 records carry bends against one design."""
-    from cvmeasure.part.track import bends_from_records, track_bends, tracking_png
 
     try:
         names, design_deg, measured = bends_from_records(records)
@@ -413,7 +415,6 @@ def _thumb_cell(record: Mapping[str, Any], roots: tuple[Path, ...], width_px: in
     path = find_photo(record, roots)
     if path is None:
         return "<td>photo not found</td>"
-    import cv2
 
     try:
         jpeg = overlay_thumbnail(record, path, width_px=width_px)

@@ -7,8 +7,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
+from cvmeasure.imageio import read_photo
 from cvmeasure.report.plots import numeric
 
 __all__ = ["find_photo", "overlay_thumbnail"]
@@ -40,9 +42,6 @@ def find_photo(record: Mapping[str, Any], roots: tuple[Path, ...] = ()) -> Path 
 
 def _read_small(path: Path, width_px: int) -> tuple[np.ndarray, float]:
     """An 8-bit BGR image at most ``width_px`` wide and its scale (thumbnail px per photo px)."""
-    import cv2
-
-    from cvmeasure.imageio import read_photo
 
     if path.suffix.lower() in (".jpg", ".jpeg"):
         from PIL import Image
@@ -89,9 +88,6 @@ def _read_crop(
     path: Path, box: tuple[float, float, float, float], width_px: int
 ) -> tuple[np.ndarray, float, float, float]:
     """The region ``box`` (x0, y0, x1, y1 photo px) of the photo at ``width_px``; (img, ox, oy, scale)."""
-    import cv2
-
-    from cvmeasure.imageio import read_photo
 
     full = read_photo(path).bgr8()
     h, w = full.shape[:2]
@@ -132,7 +128,6 @@ def overlay_thumbnail(
     Otherwise it shows the whole photo; a record with top-level ``x_px``,
     ``y_px``, ``r_px`` (a disc) gets its circle.
     """
-    import cv2
 
     circles = _marker_circles(record)
     line_px = _points(record.get("centreline_px"))

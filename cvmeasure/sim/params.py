@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import Any, Literal
 
 from cvmeasure.errors import InputError
+from cvmeasure.fileio import atomic_write_json, read_json
+from cvmeasure.sim.effects import effects_from_dicts
 
 __all__ = ["HardeningLaw", "HARDENING_LAWS", "SimParams", "params_from_json", "params_to_json"]
 
@@ -163,8 +165,6 @@ def params_from_json(path: str | PathLike[str]) -> tuple[SimParams, tuple[Any, .
     InputError
         When the file is missing, corrupt, or holds an unknown or invalid value.
     """
-    from cvmeasure.fileio import read_json
-    from cvmeasure.sim.effects import effects_from_dicts
 
     data = read_json(path, what="params JSON")
     if not isinstance(data, dict):
@@ -185,7 +185,6 @@ def params_to_json(
     extra: dict[str, Any] | None = None,
 ) -> Path:
     """Write params (and effects, and any ``extra`` keys) to a params JSON, atomically."""
-    from cvmeasure.fileio import atomic_write_json
 
     obj: dict[str, Any] = params.to_dict()
     obj["effects"] = [e.to_dict() for e in effects]

@@ -160,6 +160,36 @@ def test_pinned_runs_each_on_a_core_of_its_own(tmp_path, monkeypatch):
 
 
 @pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_side_lane_runs_unpinned_beside_the_pinned_queue(tmp_path, monkeypatch):
+    """SIDE_LANE benchmarks run unpinned, at the same time as the pinned ones, one at a time."""
+    import os
+
+    import benchmarks.__main__ as runner
+
+    cores = sorted(os.sched_getaffinity(0))[:1]
+    everywhere = len(os.sched_getaffinity(0))
+
+    def command(name, quick):
+        script = (
+            "import os, time; t0 = time.time(); time.sleep(0.6); "
+            f"open({str(tmp_path)!r} + '/{name}', 'w').write("
+            "f'{len(os.sched_getaffinity(0))} {t0} {time.time()}')"
+        )
+        return [sys.executable, "-c", script]
+
+    monkeypatch.setattr(runner, "_command_of", command)
+    done = runner._run_pinned(["p"], False, 60.0, cores, side=["s1", "s2"])
+    assert {k: v[0] for k, v in done.items()} == {"p": 0, "s1": 0, "s2": 0}
+    runs = {n: (tmp_path / n).read_text().split() for n in ("p", "s1", "s2")}
+    spans = {n: (float(r[1]), float(r[2])) for n, r in runs.items()}
+    assert int(runs["p"][0]) == 1
+    assert int(runs["s1"][0]) == everywhere and int(runs["s2"][0]) == everywhere
+    side = sorted([spans["s1"], spans["s2"]])
+    assert side[0][1] <= side[1][0]  # one side benchmark at a time
+    assert spans["p"][0] < side[0][1]  # the pinned one ran beside the first side one
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
 def test_cores_run_timing_benchmarks_alone_after_the_parallel_part(bench_dirs, monkeypatch):
     """--cores 2: decode_speed runs alone after the parallel part, batch last; each child is told."""
     import os
@@ -168,9 +198,10 @@ def test_cores_run_timing_benchmarks_alone_after_the_parallel_part(bench_dirs, m
 
     calls: list[tuple[str, tuple[str, ...]]] = []
 
-    def pinned(names, quick, timeout_s, cores):
+    def pinned(names, quick, timeout_s, cores, side=()):
         calls.append(("parallel", tuple(names)))
-        return {n: (0, 1.0, "") for n in names}
+        calls.append(("side", tuple(side)))
+        return {n: (0, 1.0, "") for n in [*names, *side]}
 
     def one(name, quick, timeout_s, schedule="alone"):
         calls.append(("alone", (name,)))
@@ -181,9 +212,11 @@ def test_cores_run_timing_benchmarks_alone_after_the_parallel_part(bench_dirs, m
     monkeypatch.setattr(runner, "write_results_md", lambda **kw: bench_dirs / "RESULTS.md")
     if len(os.sched_getaffinity(0)) < 2:
         pytest.skip("needs two cores for --cores 2")
-    assert runner.main(["--cores", "2", "batch", "decode_speed", "sim_speed", "markers"]) == 0
+    names = ["batch", "decode_speed", "sim_speed", "serial_heldout", "markers"]
+    assert runner.main(["--cores", "2", *names]) == 0
     assert calls == [
         ("parallel", ("sim_speed", "markers")),
+        ("side", ("serial_heldout",)),
         ("alone", ("decode_speed",)),
         ("alone", ("batch",)),
     ]

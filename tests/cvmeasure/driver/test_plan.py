@@ -77,7 +77,7 @@ def test_calibration_fit_unchanged_by_the_order(model):
 def test_report_figure_with_repeated_bends():
     # repeats are averaged into one angle per curve, so the lowest single bend can lie
     # below the curve's domain: the report drew it over the raw range and refused
-    from cvmeasure.driver.session_report import _figure_png
+    from cvmeasure.driver.session_report import calibration_figure_png
 
     calibration = fit_calibration(_samples(diagnosis_plan(MODES["quick"]), seed=4))
-    assert _figure_png(calibration)[:8] == b"\x89PNG\r\n\x1a\n"
+    assert calibration_figure_png(calibration)[:8] == b"\x89PNG\r\n\x1a\n"

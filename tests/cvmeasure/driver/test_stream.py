@@ -78,7 +78,9 @@ def test_sim_url_and_progress(job, tmp_path):
 
 FAULTS = [
     (Fault("drop_byte", 30, byte_index=5), "desync"),
-    (Fault("drop_byte", 31, byte_index=99), "desync"),  # the line terminator itself
+    # the line terminator itself: with one line in flight the board waits for the rest of
+    # the line and never acks it (nothing follows that it could run merged with)
+    (Fault("drop_byte", 31, byte_index=99), "stall"),
     (Fault("malformed_reply", 30), "malformed"),
     (Fault("alarm", 30), "alarm"),
     (Fault("stall", 30, duration_s=1.6), "stall"),
@@ -133,19 +135,26 @@ def test_a_rejected_line_is_never_skipped_silently(job, tmp_path):
     """
     _, clean_shape, _, _ = run_clean(job)
     outcomes = {}
+
     # (a) a slow machine: the lines after the rejected one wait in the planner, the stop
-    # flushes them; (b) a fast one that was reading slowly: the host had sent the next
-    # lines, which run at once after the rejected one (deterministic: the stall holds them)
-    for label, speedup, faults in (
-        ("slow", 50.0, [Fault("error_status", 22)]),
-        ("fast", 20000.0, [Fault("stall", 40, duration_s=0.3), Fault("error_status", 40)]),
+    # flushes them; (b) a fast one that was reading slowly: with the default single line
+    # in flight nothing follows the rejected line, (c) with four in flight the host had
+    # sent the next lines, which run at once after it (deterministic: the stall holds them)
+    def fast():
+        return [Fault("stall", 40, duration_s=0.3), Fault("error_status", 40)]
+
+    four = StreamConfig(window_lines=4, stall_timeout_s=1.0, flush_timeout_s=5.0)
+    for label, speedup, faults, config in (
+        ("slow", 50.0, [Fault("error_status", 22)], FAST),
+        ("fast", 20000.0, fast(), FAST),
+        ("fast, 4 in flight", 20000.0, fast(), four),
     ):
         journal = tmp_path / f"{label}.journal.jsonl"
         board = FakeTinyG(speedup=speedup, faults=faults, line_report="parsed").start()
         try:
             link = open_link(board.port)
             with pytest.raises(JobStopped) as info:
-                stream_job(link, job.lines, journal=journal, config=FAST)
+                stream_job(link, job.lines, journal=journal, config=config)
             link.close()
             stop = info.value.stop
             assert stop.reason == "error" and "status 130" in stop.detail
@@ -166,7 +175,7 @@ def test_a_rejected_line_is_never_skipped_silently(job, tmp_path):
                 link.close()
         finally:
             board.close()
-    assert outcomes == {"slow": "completed", "fast": "refused"}
+    assert outcomes == {"slow": "completed", "fast": "completed", "fast, 4 in flight": "refused"}
 
 
 def test_resume_needs_the_journal_of_this_job(job, tmp_path):

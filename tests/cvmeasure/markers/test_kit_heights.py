@@ -86,6 +86,10 @@ def test_heights_measured_from_a_sweep_through_the_cli(tmp_path, capsys):
     assert main([*args, "-o", str(out), "--json"]) == 0
     said = json.loads(capsys.readouterr().out)
     assert said["n_photos"] == 10 and said["n_straight"] == 2 and not said["warnings"]
+    # the sweep's residuals in units of the centres' stated uncertainty: about 1 when the
+    # centres' covariance is what the photos show (a circle fitted to the tilted view's
+    # ellipse in the image read its shape as noise: 0.2, sigmas 2-3 times too wide)
+    assert 0.5 < said["rms"] < 2.0, said["rms"]
     measured = load_kit(out)
     # the same bends from a calibration session's log (its loaded photos)
     log = tmp_path / "session.jsonl"
