@@ -215,6 +215,8 @@ def measure_part(
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None
+    if planned:  # the part is fitted with the polygon bent's own chords
+        divisions = _planned_divisions(reference_mm, divisions)
     chords, divisions, divisions_from = _chord_count(centreline_mm, divisions, planned, warnings)
     reference_mm, fractions = _bent(centreline_mm, design, divisions, reference_mm)
     ours, circle, poly = _fit_arc(centreline_mm, divisions, source, fractions)
@@ -382,6 +384,16 @@ def _width_lift(
         plane, centre.points_px, centre.edge_width_px, wire_diameter_mm=wire_diameter_mm,
         axis_height_mm=base_mm,
     )  # fmt: skip
+
+
+def _planned_divisions(reference_mm: np.ndarray, divisions: int | None) -> int:
+    """The chord count of the polygon bent; ValueError when ``divisions`` says another."""
+    n = len(np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)) - 1
+    if n < 1:
+        raise ValueError("reference_mm must hold at least 2 vertices")
+    if divisions is not None and divisions != n:
+        raise ValueError(f"divisions {divisions} but the polygon bent has {n} chords")
+    return n
 
 
 def _bent(

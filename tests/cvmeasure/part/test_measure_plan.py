@@ -74,3 +74,22 @@ def test_without_a_plan_the_corners_are_kept_and_equal_chords_misread():
         reference_mm=design.chords(4),
     )  # fmt: skip
     assert old.comparison.bends.max_abs_error_deg > 1.0
+
+
+def test_the_polygon_bent_sets_the_chord_count_even_when_the_photo_shows_another():
+    """The job's polygon (here with a straight vertex the photo cannot see) fixes N; the
+    photo's own count is only warned about. Taking the photo's count failed the fit."""
+    verts, photo = _photo("zigzag")
+    mid = 0.5 * (verts[1] + verts[2])
+    bent = np.vstack((verts[:2], mid, verts[2:]))  # 5 chords, one vertex of 0 deg
+    design = DesignPath(bent, False, "polyline", "zigzag")
+    m = measure_part(
+        photo.bgr, BOARD, photo.camera, design=design, allow_mirror=False, reference_mm=bent,
+    )  # fmt: skip
+    assert m.result.divisions == 5
+    assert "divisions_mismatch" in [w.code for w in m.warnings]
+    bends = m.comparison.bends
+    np.testing.assert_allclose(bends.design_bend_deg, [45.0, 0.0, -45.0, 45.0], atol=1e-9)
+    assert bends.max_abs_error_deg < VERTEX_BEND_DEG
+    with pytest.raises(ValueError, match="polygon bent has 5 chords"):
+        measure_part(photo.bgr, BOARD, photo.camera, divisions=4, reference_mm=bent)
