@@ -189,7 +189,8 @@ class PlaneModel:
     def lens_uncertainty_mm(self) -> dict[str, float | None]:
         """The camera calibration's own uncertainty, in mm on this plane.
 
-        ``sigma_mm``: median 1-sigma projection uncertainty (corner noise and the errors a view's corners share);
+        ``sigma_mm``: median 1-sigma projection uncertainty (corner noise and the errors
+        a view's corners share);
         ``cross_validation_mm``: the even/odd halves' central disagreement, which
         also holds model error -- the honest figure. None when the camera JSON
         does not carry them (not written by ``cvmeasure calibrate``, or rescaled).
