@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import subprocess
 import sys
 import tempfile
@@ -290,7 +291,11 @@ def main(argv: list[str] | None = None) -> dict:
     p = argparse.ArgumentParser(prog="python -m benchmarks.mitsuba_markers", description=__doc__)
     p.add_argument("--quick", action="store_true", help="small renders, 4 bender photos")
     p.add_argument(
-        "--cache", type=Path, default=Path(tempfile.gettempdir()) / "cvmeasure_mitsuba_cache"
+        "--cache",
+        type=Path,
+        default=Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        / "cvmeasure_mitsuba",
+        help="renders kept by their parameters (default: the user's cache folder)",
     )
     p.add_argument("--photos", type=int, help="bender photos (default 24; 4 with --quick)")
     args = p.parse_args(argv)
