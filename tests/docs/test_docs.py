@@ -70,18 +70,8 @@ def test_every_page_is_linked():
         assert rel in linked or page.parent.relative_to(ROOT).as_posix() + "/" in linked, rel
 
 
-#: Library folders and modules whose comments are checked here (the others' owners check
-#: theirs): no development seeds or tuning history in code either.
-LIBRARY = [
-    *sorted((ROOT / "cvmeasure" / "part").glob("*.py")),
-    *sorted((ROOT / "cvmeasure" / "calibration").glob("*.py")),
-    *sorted((ROOT / "cvmeasure" / "sim").glob("*.py")),
-    *[
-        ROOT / "cvmeasure" / f"{m}.py"
-        for m in ("api", "contracts", "geometry", "camera", "agreement")
-    ],
-    ROOT / "cvmeasure" / "__init__.py",
-]
+#: Every library module: no development seeds or tuning history in code comments either.
+LIBRARY = sorted((ROOT / "cvmeasure").rglob("*.py"))
 
 
 @pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(ROOT)))
