@@ -514,6 +514,66 @@ def correct_calibration(
     """
     if not 0.0 < gain <= 1.0:
         raise ValueError(f"gain must be in (0, 1], got {gain}")
+    t, m, sig, offsets = _checked_inputs(
+        calibration, design, target_deg, measured_deg, sigma_deg, vertex_offset_deg
+    )
+    bent_pin = np.asarray(corrected_pin_commands(calibration, t, offsets))
+    base = _base_compensation(calibration)
+    pin_per_final = _pin_per_final(base, t)
+    # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
+    factor = noise_factor(calibration, design, bent_pin, m, sig)
+    unbent = _unbent(t, m, np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9)))
+    prev = _last_of_job(calibration, design, t.size)
+    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
+    # with the machine's response measured (ratio) the damping can be lighter, still < 1
+    step = max(gain, informed_gain) / ratio if ratio else gain
+    # evidence accumulates while a vertex's pin stays the same (k parts, sigma / sqrt(k)): a
+    # first look acts beyond first_look_sigma, later ones beyond deadband_sigma of the mean
+    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    pool = _pooled_errors(calibration, design, bent_pin, m - t, sig, floor, factor, ratio or 1.0)
+    band = np.where(pool.k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
+    error = pool.mean_deg
+    notes = _suspect_notes(pool.suspect) + _dead_zone_shortfalls(t, error, band, unbent)
+    curves, updates, corrected = _move_knots(calibration, base, t, error, band, unbent, step, notes)
+    comp = replace(calibration.compensation, springback=curves)
+    new_cal = replace(calibration, compensation=comp)
+    offsets, pins = _next_pins(new_cal, t, bent_pin - step * corrected * pin_per_final)
+    correction = Correction(
+        part=part,
+        design=design,
+        bends=int(t.size),
+        gain=float(gain),
+        deadband_sigma=float(deadband_sigma),
+        first_look_sigma=float(first_look_sigma),
+        min_deadband_deg=float(min_deadband_deg),
+        target_deg=tuple(float(v) for v in t),
+        measured_deg=tuple(float(v) for v in m),
+        error_deg=tuple(float(v) for v in m - t),
+        curve_updates=tuple(updates),
+        vertex_offset_deg=tuple(float(v) for v in offsets),
+        pin_deg=pins,
+        bent_pin_deg=tuple(float(v) for v in bent_pin),
+        model_final_per_pin=tuple(float(1.0 / v) for v in pin_per_final),
+        response_ratio=ratio,
+        unbent=tuple(bool(v) for v in unbent),
+        sigma_deg=tuple(float(v) for v in sig),
+        noise_factor=factor,
+        suspect=tuple(bool(v) for v in pool.suspect),
+        notes=tuple(notes),
+    )
+    history = {"corrections": [*corrections_of(calibration), correction.to_dict()]}
+    return replace(new_cal, provenance={**calibration.provenance, **history}), correction
+
+
+def _checked_inputs(
+    calibration: Calibration,
+    design: str,
+    target_deg: ArrayLike,
+    measured_deg: ArrayLike,
+    sigma_deg: ArrayLike | None,
+    vertex_offset_deg: ArrayLike | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Wanted and measured bends, their sigmas and the offsets bent with, checked (deg)."""
     t = np.asarray(target_deg, dtype=np.float64).ravel()
     m = np.asarray(measured_deg, dtype=np.float64).ravel()
     if t.shape != m.shape or t.size == 0:
@@ -533,48 +593,66 @@ def correct_calibration(
     )
     if offsets.shape != t.shape:
         raise ValueError("vertex_offset_deg must have one value per vertex")
-    error = m - t
-    sign = np.where(t < 0, -1.0, 1.0)
-    prev = _last_of_job(calibration, design, t.size)
-    bent_pin = np.asarray(corrected_pin_commands(calibration, t, offsets))
-    base = _base_compensation(calibration)
+    return t, m, sig, offsets
+
+
+def _pin_per_final(base: Any, t: np.ndarray) -> np.ndarray:
+    """d pin / d final bend of the model at each wanted bend (1 where nothing is wanted)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CompensationRangeWarning)
-        pin_per_final = np.array(
+        return np.array(
             [
                 _slope(lambda x: base.compensate(x, outside="warn"), float(tt)) if tt else 1.0
                 for tt in t
             ]
         )
-    # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
-    factor = noise_factor(calibration, design, bent_pin, m, sig)
-    sig_eff = np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9))
-    # A vertex bent less than its noise, or the wrong way, was not bent at all: the pin
-    # stopped short of the wire (a dead zone: backlash, home offset and lost steps
-    # together exceed the wanted bend). Its error says only that the shortfall is at least
-    # the wanted bend; it is read from the same direction's bent vertices instead.
-    unbent = (sign * m < UNBENT_SIGMA * sig_eff) & (np.abs(t) > 2.0 * UNBENT_SIGMA * sig_eff)
-    ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
-    # once the machine's own response has been measured (ratio), the step is known to a
-    # few per cent and the damping can be lighter: still < 1, so never an overshoot
-    step = max(gain, informed_gain) / ratio if ratio else gain
-    # Evidence accumulates while a vertex's pin stays the same: its error is the mean
-    # over the job's consecutive parts bent with this very pin (k of them), whose noise is
-    # sigma / sqrt(k). A first look (k = 1) acts only on errors beyond ``first_look_sigma``
-    # sigmas (large errors are corrected at once); later looks beyond ``deadband_sigma``
-    # sigmas of the mean. A converged job is thus not kicked about by noise.
-    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
-    pool = _pooled_errors(calibration, design, bent_pin, error, sig, floor, factor, ratio or 1.0)
-    k = pool.k
-    band = np.where(k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
-    error = pool.mean_deg
-    notes: list[str] = []
-    if pool.suspect.any():
-        notes.append(
-            f"vertices {', '.join(str(int(i)) for i in np.flatnonzero(pool.suspect))}: "
-            "error unlike the earlier parts bent with this pin (a measurement outlier or a "
-            "jump of the process); not pooled until the next part shows it again"
-        )
+
+
+def _unbent(t: np.ndarray, m: np.ndarray, sig_eff: np.ndarray) -> np.ndarray:
+    """Vertices not bent at all: bent less than their noise, or the wrong way.
+
+    The pin stopped short of the wire (a dead zone: backlash, home offset and lost steps
+    together exceed the wanted bend). Such a vertex's error says only that the shortfall
+    is at least the wanted bend; it is read from the same direction's bent vertices.
+    """
+    sign = np.where(t < 0, -1.0, 1.0)
+    return (sign * m < UNBENT_SIGMA * sig_eff) & (np.abs(t) > 2.0 * UNBENT_SIGMA * sig_eff)
+
+
+def _next_pins(
+    new_cal: Calibration, t: np.ndarray, wanted_pin: np.ndarray
+) -> tuple[np.ndarray, Any]:
+    """Per-vertex offsets (deg) and pins that bend ``wanted_pin`` under ``new_cal``.
+
+    The job's next pins are set per vertex: the pin the part was bent with, moved by the
+    damped error this correction removes. The curve's knots serve later jobs; whatever
+    they (and their interpolation between knots) do to this job's vertices, the offsets
+    take back, so no vertex is corrected twice and an untouched vertex keeps its pin.
+    """
+    offsets = wanted_pin - np.asarray(corrected_pin_commands(new_cal, t))
+    return offsets, corrected_pin_commands(new_cal, t, offsets)
+
+
+def _suspect_notes(suspect: np.ndarray) -> list[str]:
+    """A note naming the vertices whose error is unlike their earlier parts' (not pooled)."""
+    if not suspect.any():
+        return []
+    return [
+        f"vertices {', '.join(str(int(i)) for i in np.flatnonzero(suspect))}: "
+        "error unlike the earlier parts bent with this pin (a measurement outlier or a "
+        "jump of the process); not pooled until the next part shows it again"
+    ]
+
+
+def _dead_zone_shortfalls(
+    t: np.ndarray,
+    error: np.ndarray,
+    band: np.ndarray,
+    unbent: np.ndarray,
+) -> list[str]:
+    """Set each unbent vertex's error from its direction's bent ones (in place); notes."""
+    sign = np.where(t < 0, -1.0, 1.0)
+    notes = []
     for direction in ("ccw", "cw"):
         d_idx = np.array([tt != 0 and direction_of(tt) == direction for tt in t])
         stuck = d_idx & unbent
@@ -588,10 +666,29 @@ def correct_calibration(
             f"{direction}: {int(stuck.sum())} vertices not bent at all (dead zone); their "
             f"shortfall is taken as max(wanted bend, the direction's median {short:.2f} deg)"
         )
+    return notes
+
+
+def _move_knots(
+    calibration: Calibration,
+    base: Any,
+    t: np.ndarray,
+    error: np.ndarray,
+    band: np.ndarray,
+    unbent: np.ndarray,
+    step: float,
+    notes: list[str],
+) -> tuple[dict[str, Any], list[dict[str, Any]], np.ndarray]:
+    """Move each direction's curve knot by its group's significant mean error.
+
+    Returns the moved curves, the updates made and, per vertex, the error (aim deg) this
+    correction removes; notes are appended to ``notes``.
+    """
+    sign = np.where(t < 0, -1.0, 1.0)
     curves = dict(calibration.compensation.springback)
     bent_curves = dict(calibration.compensation.springback)
     updates: list[dict[str, Any]] = []
-    corrected = np.zeros(t.size)  # per vertex: the error (aim deg) this correction removes
+    corrected = np.zeros(t.size)
     for direction in ("ccw", "cw"):
         idx = np.flatnonzero([(tt != 0 and direction_of(tt) == direction) for tt in t])
         if idx.size == 0:
@@ -640,41 +737,7 @@ def correct_calibration(
                     "vertices": [int(i) for i in live],
                 }
             )
-    # The job's next pins are set per vertex: the pin the part was bent with, moved by the
-    # damped error this correction removes. The curve's knots serve later jobs; whatever
-    # they (and their interpolation between knots) do to this job's vertices, the offsets
-    # take back, so no vertex is corrected twice and an untouched vertex keeps its pin.
-    wanted_pin = bent_pin - step * corrected * pin_per_final
-    comp = replace(calibration.compensation, springback=curves)
-    history = corrections_of(calibration)
-    new_cal = replace(calibration, compensation=comp)
-    offsets = wanted_pin - np.asarray(corrected_pin_commands(new_cal, t))
-    pins = corrected_pin_commands(new_cal, t, offsets)
-    correction = Correction(
-        part=part,
-        design=design,
-        bends=int(t.size),
-        gain=float(gain),
-        deadband_sigma=float(deadband_sigma),
-        first_look_sigma=float(first_look_sigma),
-        min_deadband_deg=float(min_deadband_deg),
-        target_deg=tuple(float(v) for v in t),
-        measured_deg=tuple(float(v) for v in m),
-        error_deg=tuple(float(v) for v in m - t),
-        curve_updates=tuple(updates),
-        vertex_offset_deg=tuple(float(v) for v in offsets),
-        pin_deg=pins,
-        bent_pin_deg=tuple(float(v) for v in bent_pin),
-        model_final_per_pin=tuple(float(1.0 / v) for v in pin_per_final),
-        response_ratio=ratio,
-        unbent=tuple(bool(v) for v in unbent),
-        sigma_deg=tuple(float(v) for v in sig),
-        noise_factor=factor,
-        suspect=tuple(bool(v) for v in pool.suspect),
-        notes=tuple(notes),
-    )
-    provenance = {**calibration.provenance, "corrections": [*history, correction.to_dict()]}
-    return replace(new_cal, provenance=provenance), correction
+    return curves, updates, corrected
 
 
 def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarray:
