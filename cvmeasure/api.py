@@ -40,7 +40,8 @@ from cvmeasure.kit import load_kit as _read_kit
 from cvmeasure.markers.measure import measure_photo_file, measure_trial
 from cvmeasure.material.calibration import Calibration, fit_calibration, save_calibration
 from cvmeasure.material.calibration import load_calibration as _read_material
-from cvmeasure.material.correct import Correction, correct_from_part
+from cvmeasure.material.correct import Correction
+from cvmeasure.material.correct_part import correct_from_part
 from cvmeasure.part.measure import PartMeasurement
 from cvmeasure.part.measure import measure_part as _measure_part
 from cvmeasure.sim import SimParams, params_from_json, params_to_json

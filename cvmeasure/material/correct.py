@@ -53,7 +53,7 @@ again from the samples (and so drops the corrections' knots).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -74,15 +74,11 @@ __all__ = [
     "DEFAULT_GAIN",
     "DEFAULT_INFORMED_GAIN",
     "Correction",
-    "machine_bends_from_comparison",
     "correct_calibration",
     "job_vertex_offsets",
     "corrected_pin_commands",
     "corrections_of",
-    "correct_from_part",
-    "target_bends_deg",
     "noise_factor",
-    "orient_to_job",
     "UNBENT_SIGMA",
 ]
 
@@ -193,18 +189,6 @@ class Correction:
             "suspect": list(self.suspect),
             "notes": list(self.notes),
         }
-
-
-def machine_bends_from_comparison(comparison: Any) -> tuple[np.ndarray, np.ndarray]:
-    """(wanted, measured) machine-frame final bends per vertex from a :class:`BendComparison`.
-
-    The comparison's bends are turns of the design polyline (counter-clockwise
-    positive walking from the first, fed-first point); the machine bend is
-    minus the turn (:func:`cvmeasure.driver.gcode.bend_list`).
-    """
-    return -np.asarray(comparison.design_bend_deg, float), -np.asarray(
-        comparison.measured_bend_deg, float
-    )
 
 
 def corrections_of(calibration: Calibration) -> list[dict[str, Any]]:
@@ -738,124 +722,3 @@ def _move_knots(
                 }
             )
     return curves, updates, corrected
-
-
-def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarray:
-    """Machine-frame wanted bends (deg) of a chord polyline, fed from its first point."""
-    from cvmeasure.design import bend_angles_deg
-
-    return -bend_angles_deg(np.asarray(chord_vertices_mm, dtype=np.float64))
-
-
-#: The other end-to-end orientation is used when its bends' RMS error is below this
-#: share of the registered one's.
-TURN_RATIO = 0.5
-
-
-def orient_to_job(
-    target_deg: ArrayLike, measured_deg: ArrayLike, sigma_deg: ArrayLike | None
-) -> tuple[np.ndarray, np.ndarray | None, bool]:
-    """The measured bends in job order, choosing the end the job was fed from.
-
-    The registration of a part onto its design picks the end-to-end orientation by
-    shape alone; a part far from its design (the first part on an uncorrected
-    machine), of a design nearly symmetric end to end, can fit better reversed.
-    Reversed, the bends read ``-measured[::-1]``; the job's wanted bends decide: the
-    other orientation is used when its RMS error is below :data:`TURN_RATIO` of the
-    registered one's (a symmetric design gives equal errors and keeps the registration).
-    Returns (measured, sigma, turned), machine frame, deg.
-    """
-    t = np.asarray(target_deg, float)
-    m = np.asarray(measured_deg, float)
-    alt = -m[::-1]
-    rms = float(np.sqrt(np.mean((m - t) ** 2)))
-    rms_alt = float(np.sqrt(np.mean((alt - t) ** 2)))
-    if rms_alt < TURN_RATIO * rms:
-        sig = None if sigma_deg is None else np.asarray(sigma_deg, float)[::-1]
-        return alt, sig, True
-    return m, None if sigma_deg is None else np.asarray(sigma_deg, float), False
-
-
-def correct_from_part(
-    calibration: Calibration,
-    measurement: Any,
-    design: Any,
-    *,
-    design_name: str = "design",
-    reference_mm: Any = None,
-    gain: float = DEFAULT_GAIN,
-    deadband_sigma: float = 2.5,
-    min_deadband_deg: float = 0.02,
-) -> tuple[Calibration, Correction, Any]:
-    """Correct from a measured part; return (calibration, correction, the next job).
-
-    Parameters
-    ----------
-    measurement : a :class:`~cvmeasure.part.measure.PartMeasurement` measured with
-        ``design`` (its ``comparison.bends`` are used; the chord count N is the one
-        found in the photo).
-    design : the design wire (:class:`cvmeasure.design.DesignPath`).
-    reference_mm : ndarray (N+1, 2), the polygon the part was bent as
-        (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, the one the measurement was
-        compared with): the next job bends it again, same feeds, only the pins corrected.
-        None: the polygon the planner makes of ``design`` in the N chords measured
-        (:func:`cvmeasure.wireplan.bent_polygon`).
-
-    Returns
-    -------
-    (Calibration, Correction, GcodeJob)
-
-    Raises
-    ------
-    InputError
-        The part has no per-vertex bends (no chords found, no design comparison).
-    """
-    from cvmeasure.driver.gcode import GcodeJob, bend_list, gcode_lines
-    from cvmeasure.errors import InputError
-    from cvmeasure.wireplan import bent_polygon
-
-    comp = measurement.comparison
-    if comp is None or comp.bends is None:
-        raise InputError(
-            measurement.source,
-            "no per-vertex bends against the design (no chord vertices found in the photo)",
-        )
-    target, measured = machine_bends_from_comparison(comp.bends)
-    sigma = measurement.vertex_bend_sigma_deg
-    if sigma is not None:
-        sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
-    measured, sigma, turned = orient_to_job(target, measured, sigma)
-    if reference_mm is not None:
-        chords = np.asarray(reference_mm, dtype=np.float64)
-    else:
-        # the count measured (given or found), as the planner bends the design in it
-        chords = bent_polygon(design, len(target) + 1)
-    bends = bend_list(chords, source=design_name)
-    if len(bends.bends_deg) != len(target):
-        raise InputError(
-            design_name,
-            f"{len(target)} vertices measured but the job has {len(bends.bends_deg)} bends "
-            "(straight vertices merged)",
-        )
-    cal, corr = correct_calibration(
-        calibration,
-        bends.bends_deg,
-        measured,
-        sigma_deg=sigma,
-        part=measurement.source,
-        design=design_name,
-        gain=gain,
-        deadband_sigma=deadband_sigma,
-        min_deadband_deg=min_deadband_deg,
-    )
-    if turned:
-        note = (
-            "the photo's registration matched the part end to end reversed; its bends fit the "
-            "job far better the other way round, which was used"
-        )
-        corr = replace(corr, notes=(*corr.notes, note))
-        history = corrections_of(cal)
-        history[-1] = corr.to_dict()
-        cal = replace(cal, provenance={**cal.provenance, "corrections": history})
-    lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
-    return cal, corr, GcodeJob(lines, bends, corr.pin_deg)

@@ -219,7 +219,7 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     from cvmeasure.cli import main
     from cvmeasure.design import load_design
     from cvmeasure.fileio import atomic_write_json
-    from cvmeasure.material.correct import target_bends_deg
+    from cvmeasure.material.correct_part import target_bends_deg
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     a0, a1 = np.radians(15.0), np.radians(165.0)
@@ -277,7 +277,7 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
 
 
 def test_a_part_registered_end_to_end_reversed_is_turned_back_by_the_job():
-    from cvmeasure.material.correct import orient_to_job
+    from cvmeasure.material.correct_part import orient_to_job
 
     # random 21 of the closed-loop benchmark: nearly symmetric end to end, 2.4 deg off
     target = np.array([18.719, -5.63, -7.953, 4.169, 8.621, -3.111, 3.848, -17.8])
