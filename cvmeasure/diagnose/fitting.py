@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from scipy import special as special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
-from cvmeasure.diagnose.discrepancy import _FORM, Factor, _discrepancy_factor, _profile_discrepancy
+from cvmeasure.diagnose.discrepancy import _FORM, _profile_discrepancy
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_BOUND_DEG as DISCREPANCY_BOUND_DEG
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_DEGREE as DISCREPANCY_DEGREE
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_P as DISCREPANCY_P
@@ -32,32 +32,29 @@ from cvmeasure.diagnose.discrepancy import discrepancy_form as discrepancy_form
 from cvmeasure.diagnose.discrepancy import learned_form as learned_form
 from cvmeasure.diagnose.forms import _DRIFT_RATE_GRID as _DRIFT_RATE_GRID
 from cvmeasure.diagnose.forms import (
-    _GRID_POINTS,
     _STRENGTH_BOUNDS,
     FORM_PRIOR_SD,
-    PRIOR_NOISE_DEG,
     Shape,
     _as_causes,
     _shape_bounds,
     nuisance_for,
 )
 from cvmeasure.diagnose.forms import FORMS as FORMS
-from cvmeasure.diagnose.model_fit import CrossValidation, ModelFit, _Solution
+from cvmeasure.diagnose.model_fit import CrossValidation, ModelFit
 from cvmeasure.diagnose.predict import (
-    _CAMERA,
     _drift_rate_residuals,
-    _observed_minus,
-    _PointMemo,
     _scaled,
-    _tilted,
     predict,
     residuals,
 )
-from cvmeasure.diagnose.solve import (
-    _forward_difference_jacobian,
-    _least_squares,
-    _profile_quantised_drift,
-    _whole_steps,
+from cvmeasure.diagnose.problem import (
+    _Fitted,
+    _fitted_point,
+    _Problem,
+    _profile_drifts,
+    _solve,
+    _start,
+    _whole_step_secants,
 )
 from cvmeasure.diagnose.solve import _interval as _interval
 from cvmeasure.diagnose.solve import _standard_errors as _standard_errors
@@ -186,230 +183,50 @@ def fit_model(
     # separable from it and wander to their bounds)
     nuisance = nuisance and not learned
     names = _as_causes(causes)
-    specs = [EFFECTS[c] for c in names]
-    nuis = nuisance_for(params) if nuisance else ()
-    m = len(nuis)
-
-    keep = np.tile(np.ones(len(trials), dtype=bool) if rows is None else np.asarray(rows), 3)
-    basis_all = discrepancy_basis(trials)[keep] if discrepancy else None
-
     forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
     if isinstance(start, ModelFit) and len(start.shapes) == len(names):
         forms = list(start.shapes)
-
-    def raw(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        return _residuals_full(x)[keep]
-
-    # the points evaluated (the grid's best is the solver's start, its final point is
-    # evaluated again below)
-    seen = _PointMemo()
-    seed_forms = tuple(forms)
-    if _seed is not None:
-        seen.put(_seed[0], seed_forms, _seed[1])
-
-    def _residuals_full(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        known = seen.get(x, forms)
-        if known is not None:
-            return known
-        out = residuals(
-            trials,
-            params,
-            base_effects,
-            names,
-            x[0],
-            x[1 + m :],
-            nuisance=x[1 : 1 + m],
-            shapes=forms,
-        )
-        seen.put(x, forms, out)
-        return out
-
-    prior_centre = np.array([float(getattr(params, n.key)) for n in nuis])
-    prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
-
-    resid_seen = _PointMemo()
-    factors: dict[bytes, Factor] = {}
-
-    def with_priors(x: NDArray[np.float64], r: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The least-squares residuals at ``x`` from its raw residuals ``r``."""
-        ok = np.isfinite(r)
-        prior = (x[1 : 1 + m] - prior_centre) * prior_weight
-        if basis_all is None:
-            return np.concatenate([r[ok], prior])
-        basis = basis_all[ok]
-        key = ok.tobytes()
-        if key not in factors:  # the measured rows rarely change between points
-            factors[key] = _discrepancy_factor(basis)
-        beta = _profile_discrepancy(r[ok], basis, factors[key])
-        return np.concatenate([r[ok] - basis @ beta, prior])
-
-    def resid(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        known = resid_seen.get(x, forms)
-        if known is not None:
-            return known
-        out = with_priors(x, raw(x))
-        resid_seen.put(x, forms, out)
-        return out
-
-    def resid_rates(
-        x: NDArray[np.float64], index: int, rates: NDArray[np.float64]
-    ) -> list[NDArray[np.float64]]:
-        """``resid`` at ``x`` with ``x[index]`` (a drift's rate) at each of ``rates``, the
-        same numbers from one simulation for them all (a whole-step drift's profile)."""
-        full = _drift_rate_residuals(trials, params, base_effects, names, x, m, index, rates, forms)
-        out = []
-        for v, row in zip(rates, full, strict=True):
-            point = x.copy()
-            point[index] = v
-            out.append(with_priors(point, row[keep]))
-        return out
-
-    def fd_jac(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        if (
-            _seed is not None
-            and m == 0
-            and tuple(forms) == seed_forms
-            and x.tobytes() == _seed[0].tobytes()
-        ):
-            known_rows = _seed[2][keep][np.isfinite(raw(x))]
-            if known_rows.shape[0] == resid(x).size and np.all(np.isfinite(known_rows)):
-                return np.ascontiguousarray(known_rows.T).T  # the layout of the differences
-        return _forward_difference_jacobian(resid, x, lower, upper)
-
-    nominal = [float((known or {}).get(n.key, getattr(params, n.key))) for n in nuis]
-    alternatives: list[tuple[int, float, Shape]] = []  # (index, start value, form)
-    if isinstance(start, ModelFit):
-        start_nuis = list(start.nuisance) if len(start.nuisance) == m else nominal
-        x0 = np.array([start.strength_scale, *start_nuis, *start.values], dtype=np.float64)
-    elif start is not None:
-        x0 = np.array([start[0], *nominal, *start[1]], dtype=np.float64)
-    else:
-        known = known or {}
-        x0 = np.array([1.0, *nominal] + [known.get(c, 0.0) for c in names], dtype=np.float64)
-        x0[1 + m :] = np.clip(x0[1 + m :], [s.lower for s in specs], [s.upper for s in specs])
-        for i, (c, spec) in enumerate(zip(names, specs, strict=True), start=1 + m):
-            if c in known:
-                continue
-            grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
-            per_form = []
-            untilted = None
-            if c == _CAMERA:  # the rest of the model is the same at every grid point
-                rest = [k for k in range(len(names)) if k != i - 1 - m]
-                untilted = predict(
-                    trials,
-                    params,
-                    [e for e in base_effects if e.name != _CAMERA],
-                    [names[k] for k in rest],
-                    x0[0],
-                    [x0[1 + m + k] for k in rest],
-                    nuisance=x0[1 : 1 + m],
-                    shapes=[forms[k] for k in rest],
-                )
-            for form in FORMS.get(c, ((),)):
-                forms[i - 1 - m] = form
-                costs = []
-                for v in grid:
-                    x0[i] = v
-                    if untilted is None:
-                        r = resid(x0)
-                    else:
-                        full = _observed_minus(trials, _tilted(untilted, v, form))
-                        seen.put(x0, forms, full)
-                        r = with_priors(x0, full[keep])
-                    costs.append(float(np.sum(r**2)))
-                j = int(np.argmin(costs))
-                per_form.append((costs[j], float(grid[j]), form))
-            per_form.sort(key=lambda t: t[0])
-            x0[i], forms[i - 1 - m] = per_form[0][1], per_form[0][2]
-            if len(per_form) > 1:  # the grid is coarse: the runner-up form is refined too
-                alternatives.append((i, per_form[1][1], per_form[1][2]))
-    lower = np.array([_STRENGTH_BOUNDS[0], *(n.lower for n in nuis), *(s.lower for s in specs)])
-    upper = np.array([_STRENGTH_BOUNDS[1], *(n.upper for n in nuis), *(s.upper for s in specs)])
-    # keep the start strictly inside the bounds (least_squares requires it)
-    span = upper - lower
-    x0 = np.clip(x0, lower + 1e-9 * span, upper - 1e-9 * span)
-    scale = np.array(
-        [0.1, *(0.5 * n.prior_sd for n in nuis), *(max(abs(s.typical[1]), 1e-3) for s in specs)]
+    problem = _Problem(
+        trials,
+        params,
+        base_effects,
+        names,
+        [EFFECTS[c] for c in names],
+        nuisance_for(params) if nuisance else (),
+        forms,
+        rows=rows,
+        discrepancy=discrepancy,
+        seed=_seed,
+        drift_rates=_drift_rate_residuals,
     )
-    starts = [(x0, list(forms))]
-    for i, v, form in alternatives:
-        alt_x, alt_forms = x0.copy(), list(forms)
-        alt_x[i], alt_forms[i - 1 - m] = v, form
-        starts.append((np.clip(alt_x, lower + 1e-9 * span, upper - 1e-9 * span), alt_forms))
-    sol, best_forms = None, list(forms)
-    for x_start, f in starts:
-        forms[:] = f
-        frozen = [1 + m + i for i, c in enumerate(names) if _whole_steps(c, f[i])]
-        frozen = [0, *frozen] if learned else frozen
-        trial = _least_squares(resid, x_start, lower, upper, scale, frozen, jac=fd_jac)
-        if sol is None or trial.cost < sol.cost:
-            sol, best_forms = trial, list(f)
-    forms[:] = best_forms
-    assert sol is not None
-    for i, c in enumerate(names):
-        shape = dict(forms[i])
-        # a drift alone, its form chosen on the grid here: every home-shifting form on an
-        # absolute grid of rates too (beside another cause only the form it fitted, about
-        # its rate: the absolute grid cost 0.1-0.3 s of CPU per fit at 100 trials rate by
-        # rate; each form's grid in one simulation (resid_rates) it is ~0.03 s, but beside a
-        # backlash there its two refits far from the fit cost 0.6 s: docs/diagnosis.md)
-        wide = len(names) == 1 and start is None and c not in (known or {})
-        if c == "drift" and not shape.get("step_deg") and (shape.get("home_shift") or wide):
-            quantised = _profile_quantised_drift(
-                resid, sol, 1 + m + i, forms, i, lower, upper, scale, wide=wide, rows=resid_rates
-            )
-            if quantised is not None:
-                sol = quantised
-    r = sol.fun
-    r0 = raw(sol.x)
-    ok = np.isfinite(r0)
-    basis_ok = (basis_all if basis_all is not None else discrepancy_basis(trials)[keep])[ok]
-    beta = _profile_discrepancy(r0[ok], basis_ok)
-    rss_disc = float(np.sum((r0[ok] - basis_ok @ beta) ** 2))
-    # the prior residuals are not observations; a general form's shape parameters were
-    # chosen from the data too, so they count as parameters
-    n_obs, n_par = r.size - m, sol.x.size + sum(len(f) for f in forms)
-    if learned:  # the learned curve's coefficients are fitted parameters too
-        n_par += int(np.any(basis_ok != 0, axis=0).sum())
-    rss = float(np.sum(r**2))
-    dof = n_obs - n_par
-    solution = None
-    if rows is None and basis_all is None:  # the folds of its cross-validation start here
-        full = _residuals_full(sol.x)
-        measured = np.isfinite(full)
-        jac_full = np.full((full.size, sol.x.size), np.nan)
-        jac_full[measured] = sol.jac[: int(measured.sum())]
-        solution = _Solution(
-            trials, params, tuple(base_effects), names, tuple(forms), sol.x.copy(), full, jac_full
-        )
-    point = ModelFit(  # the fitted point; its intervals follow unless not wanted
-        causes=names,
-        strength_scale=float(sol.x[0]),
-        values=tuple(float(v) for v in sol.x[1 + m :]),
-        intervals=tuple((math.nan, math.nan) for _ in names),
-        strength_interval=(math.nan, math.nan),
-        rss_deg2=rss,
-        n_obs=n_obs,
-        n_params=n_par,
-        nuisance=tuple(float(v) for v in sol.x[1 : 1 + m]),
-        shapes=tuple(forms),
-        discrepancy=tuple(float(v) for v in beta),
-        rss_discrepancy_deg2=rss_disc,
-        solution=solution,
-    )
+    x0, alternatives = _start(problem, start, known)
+    sol = _solve(problem, x0, alternatives, learned)
+    searched = {c for c in names if start is None and c not in (known or {})}
+    sol = _profile_drifts(problem, sol, searched)
+    point, fitted = _fitted_point(problem, sol, learned)
     if not intervals:
-        return dataclasses.replace(point, residual_deg=_residuals_full(sol.x))
+        return dataclasses.replace(point, residual_deg=problem.full(sol.x))
+    return _with_intervals(problem, point, fitted, learned)
+
+
+def _unfitted_columns(problem: _Problem, fitted: _Fitted) -> NDArray[np.float64]:
+    """(observation rows, one column per prior): the change of the residuals per prior
+    standard deviation of each machine parameter held at its value
+    (:func:`unfitted_priors`) and of each form's continuous shape chosen from a grid
+    (:data:`FORM_PRIOR_SD`)."""
+    trials, params, names, forms = problem.trials, problem.params, problem.names, problem.forms
+    lay, x, keep, ok, r0 = problem.layout, fitted.sol.x, problem.keep, fitted.ok, fitted.raw_deg
     unfitted = []
     for key, sd in unfitted_priors(params):  # prediction change per prior sd
         moved = params.replace(**{key: float(getattr(params, key)) + sd})
         shifted = residuals(
             trials,
             moved,
-            base_effects,
+            problem.base_effects,
             names,
-            sol.x[0],
-            sol.x[1 + m :],
-            nuisance=sol.x[1 : 1 + m],
+            x[lay.strength],
+            x[lay.causes],
+            nuisance=x[lay.nuisance],
             shapes=forms,
         )[keep]
         unfitted.append((r0 - shifted)[ok])
@@ -426,42 +243,33 @@ def fit_model(
             shifted = residuals(
                 trials,
                 params,
-                base_effects,
+                problem.base_effects,
                 names,
-                sol.x[0],
-                sol.x[1 + m :],
-                nuisance=sol.x[1 : 1 + m],
+                x[lay.strength],
+                x[lay.causes],
+                nuisance=x[lay.nuisance],
                 shapes=moved_forms,
             )[keep]
             unfitted.append((r0 - shifted)[ok] * (sd / step))
-    cols = np.column_stack(unfitted) if unfitted else np.zeros((int(ok.sum()), 0))
+    return np.column_stack(unfitted) if unfitted else np.zeros((int(ok.sum()), 0))
+
+
+def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned: bool) -> ModelFit:
+    """``point`` with its 95 % intervals and model-form p-value, what is not fitted carried
+    (:func:`~cvmeasure.diagnose.solve._standard_errors`)."""
+    sol, basis_ok, dof, lay = fitted.sol, fitted.basis_ok, fitted.dof, problem.layout
+    cols = _unfitted_columns(problem, fitted)
     # the noise left once the discrepancy is taken too (the residual variance of the
     # fit, rss / dof, also carries the model-form wave)
     k_disc = int(np.any(basis_ok != 0, axis=0).sum())
-    noise_disc = rss_disc / max(dof - k_disc, 1)
+    noise_disc = fitted.rss_discrepancy_deg2 / max(dof - k_disc, 1)
     # clusters of observation rows (of r0[ok]) whose errors may be shared: the loaded and
     # released photo of one bend, and every bend of one repeated command (the model-form
     # error of an angle is the same for all its repeats)
+    rows, trials = problem.rows, problem.trials
     command = trials.commanded_pin_deg if rows is None else trials.commanded_pin_deg[rows]
     cluster = np.unique(np.round(command, 1), return_inverse=True)[1]
-    jac = sol.jac
-    for i, c in enumerate(names):
-        if _whole_steps(c, forms[i]):
-            # whole steps: the residuals are flat between steps; the rate's sensitivity is
-            # the secant of the quantised form over half to 1.5 times the rate (the
-            # expected change over many steps, the step's phase unknown). It was the
-            # continuous form's derivative, which on a plan of alternating directions
-            # (a sweep) is nearly nil, the home shifts cancelling, while the steps lost
-            # whole do not cancel: sweeps with a drift
-            # fitted at a held-out RMSE of 0.03-0.2 deg (baseline 0.5-1.5) had an interval
-            # holding 0 and named nothing
-            j = 1 + m + i
-            rate = float(sol.x[j])
-            lo_x, hi_x = sol.x.copy(), sol.x.copy()
-            lo_x[j], hi_x[j] = 0.5 * rate, min(1.5 * rate, float(upper[j]))
-            jac = np.array(jac, dtype=np.float64, copy=True)
-            if hi_x[j] > lo_x[j]:
-                jac[:, j] = (resid(hi_x) - resid(lo_x)) / (hi_x[j] - lo_x[j])
+    jac = _whole_step_secants(problem, sol)
     if learned:
         # the curve was fitted with the causes (``jac`` is of the profiled residuals): the
         # unfitted priors count only off it, and it has no prior of its own to add
@@ -469,20 +277,21 @@ def fit_model(
         cols = cols - q_disc @ (q_disc.T @ cols)
         basis_ok = np.zeros((basis_ok.shape[0], 0))
         jac = np.array(jac, dtype=np.float64, copy=True)
-        jac[:, 0] = 0.0
+        jac[:, lay.strength] = 0.0
     held = 1 if learned else 0  # the strength held: no column of its own
     se, shift, model_form_p = _standard_errors(
         jac[:, held:],
-        rss / max(dof, 1),
+        fitted.rss_deg2 / max(dof, 1),
         basis_ok,
         cols,
-        r,
+        sol.fun,
         noise_disc,
-        clusters=np.tile(cluster, 3)[ok],
+        clusters=np.tile(cluster, 3)[fitted.ok],
     )
     if held:
         se, shift = np.concatenate([[math.inf], se]), np.concatenate([[0.0], shift])
     center = sol.x + shift
+    s = lay.strength
     return dataclasses.replace(
         point,
         intervals=tuple(
@@ -494,10 +303,10 @@ def fit_model(
                 spec.upper,
                 keep=float(sol.x[i]),
             )
-            for i, spec in enumerate(specs, start=1 + m)
+            for i, spec in ((lay.cause(k), spec) for k, spec in enumerate(problem.specs))
         ),
         strength_interval=_interval(
-            float(center[0]), float(se[0]), dof, *_STRENGTH_BOUNDS, keep=float(sol.x[0])
+            float(center[s]), float(se[s]), dof, *_STRENGTH_BOUNDS, keep=float(sol.x[s])
         ),
         model_form_p=model_form_p,
     )

@@ -112,3 +112,28 @@ def _as_causes(causes: str | Sequence[str]) -> Causes:
     if isinstance(causes, str):
         return () if causes == "none" else (causes,)
     return tuple(c for c in causes if c != "none")
+
+
+@dataclass(frozen=True)
+class ParamLayout:
+    """Where each parameter sits in a fit's packed vector ``x`` (the solver's): the
+    strength scale, then the nuisance geometry (:data:`NUISANCE`, ``n_nuisance`` of
+    them), then each cause's value (units of its effect)."""
+
+    n_nuisance: int
+    #: index of the strength scale (fitted yield / nominal yield)
+    strength: int = 0
+
+    @property
+    def nuisance(self) -> slice:
+        """The nuisance geometry's values."""
+        return slice(1, 1 + self.n_nuisance)
+
+    @property
+    def causes(self) -> slice:
+        """The causes' values, in the order of the causes."""
+        return slice(1 + self.n_nuisance, None)
+
+    def cause(self, k: int) -> int:
+        """Index of the ``k``-th cause's value."""
+        return 1 + self.n_nuisance + k
