@@ -45,40 +45,24 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.bow import BOW_RIVALS, _bow_decides
-from cvmeasure.diagnose.discover import DiscoveredTerm, discover
-from cvmeasure.diagnose.evidence import (
-    _DISCOVERED,
-    TIE_RATIO,
-    _alone_excluding_no_effect,
-    _evidence,
-    _held_out_tie,
-    _holds_no_effect,
-)
 from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS as TIE_STANDARD_ERRORS
 from cvmeasure.diagnose.evidence import _held_out_excess as _held_out_excess
 from cvmeasure.diagnose.fitting import (
     ModelFit,
-    current_form,
-    discrepancy_basis,
     discrepancy_form,
     fit_model,
     group_folds,
     grouped_kfold_cv,
     learned_form,
 )
-from cvmeasure.diagnose.intervals import _averaged, _widened
 from cvmeasure.diagnose.misfit import (
     curve_rms_deg,
-    lack_of_fit,
-    lack_of_fit_residuals,
     springback_rms_deg,
 )
 from cvmeasure.diagnose.naming import _name_causes, _scores, _settle_pair, _try_causes
-from cvmeasure.diagnose.residuals import leftover_structure, residual_trends
+from cvmeasure.diagnose.residuals import residual_trends
 from cvmeasure.diagnose.result import CandidateResult, Diagnosis
 from cvmeasure.diagnose.rules import (
     GROSS_MISFIT_DEG,
@@ -90,11 +74,18 @@ from cvmeasure.diagnose.rules import (
     _subset_by_group,
     cv_groups,
 )
-from cvmeasure.diagnose.terms import (
-    ORDER_EXPERIMENT,
-    _kept_against_terms,
-    _order_confounded,
-    _terms_beside,
+from cvmeasure.diagnose.verdict import (
+    _baseline,
+    _check_interval,
+    _check_misfit,
+    _first_verdict,
+    _leftover,
+    _terms_or_name,
+    _tie_notes,
+    _ties,
+    _weigh_against_terms,
+    _weights,
+    _widen,
 )
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
@@ -345,21 +336,7 @@ def _diagnose_once(
     Parameters and errors as :func:`diagnose`.
     """
     params = params or SimParams()
-    if len(trials) < MIN_TRIALS:
-        raise ValueError(f"need at least {MIN_TRIALS} trials to diagnose, got {len(trials)}")
-    names = tuple(n for n in (candidates or EFFECT_NAMES) if n != "none")
-    for n in names:
-        if n not in EFFECTS:
-            raise ValueError(f"unknown candidate {n!r}")
-    notes: list[str] = []
-    if len(trials) > MAX_TRIALS:
-        n_all = len(trials)
-        trials = _subset_by_group(trials, MAX_TRIALS)
-        notes.append(
-            f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
-            "parts, order kept) to bound the time; intervals are those of the subset"
-        )
-    notes.extend(_design_notes(trials))
+    trials, names, notes = _admitted(trials, candidates)
     groups, note = cv_groups(trials)
     if note:
         notes.append(note)
@@ -382,246 +359,66 @@ def _diagnose_once(
     naming = _name_causes(ctx, results, base_fit, base_cv, max_causes)
     naming, pair_tie = _settle_pair(naming, results, groups)
     notes.extend(naming.notes)
-    experiment = naming.experiment
-    if experiment is None and not trials.both_directions:
-        experiment = "add reverse bends (the same angles in the other direction)"
-    elif experiment is None and not trials.has_loaded:
-        experiment = "photograph the loaded angle (pin still engaged) as well as the released one"
-    ext_fit = naming.fit
-    base_res = base_fit.residuals(trials, params, ctx.base_effects)
-    ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
-    cause, ext_cv = naming.cause, naming.cv_rmse_deg
-    basis = discrepancy_basis(trials)
-    base_res_d = base_res - basis @ np.asarray(base_fit.discrepancy)
-    gain_of = base_fit.head_sensitivity(trials, params, ctx.base_effects)
-    found = discover(
-        trials,
-        base_res_d,
-        groups,
-        ctx.fold_masks,
-        head_gain=gain_of,
-        refit=base_fit.nuisance_jacobian(trials, params, ctx.base_effects),
-    )
-    if base_fit.sigma_deg > GROSS_MISFIT_DEG:  # the simulation does not describe these data
-        found = dataclasses.replace(found, terms=())
-    mean_terms = [t for t in found.terms if t.term != "scatter"]
-    named_cv = naming.cv_discrepancy_rmse_deg if cause != "none" else base_cv_disc
+    base = _baseline(ctx, base_fit, base_cv, base_cv_disc, groups)
     scores = _scores(results, naming)
-    named_bic = max(
-        (v for k, v in scores.items() if set(k.split(" + ")) == set(naming.fit.causes)),
-        default=0.0,
-    )
-    # what the library still finds in the named cause's residuals
-    beside: tuple[DiscoveredTerm, ...] = ()
-    if cause != "none":
-        beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
-
-    # discovered terms replace a catalogue name only when they are better both held out
-    # (by min_cv_gain) and in evidence (a larger evidence weight: delta BIC with their
-    # coefficients and their choice from the library counted)
-    def terms_win() -> bool:
-        return found.rmse_after_deg <= (1.0 - min_cv_gain) * named_cv and (
-            found.delta_bic > named_bic
-        )
-
-    if cause != "none" and mean_terms and terms_win():
-        # the terms were fitted together with the discrepancy: so are the named causes
-        # before they are compared (fitted without it, a cause's parameter takes up the
-        # model-form error and the comparison is unfair to the catalogue); so fitted,
-        # they keep their name only at a typical size and leaving nothing the library
-        # finds. A pair's first cause alone is tried too (its second may be spurious).
-        options = [(naming.fit, named_cv, named_bic)]
-        if len(naming.fit.causes) == 2:
-            options += [
-                (c.fit, c.cv_discrepancy_rmse_deg, c.delta_bic)
-                for c in results
-                if c.fit.causes == naming.fit.causes[:1]
-            ]
-        for option, option_cv, option_bic in options:
-            kept = _kept_against_terms(ctx, option, base_fit, groups)
-            if kept is None:
-                continue
-            named_cv, named_bic = min(option_cv, kept[0]), max(option_bic, kept[1])
-            if terms_win():
-                continue
-            if option is not naming.fit:
-                notes.append(
-                    f"{naming.fit.causes[1]} dropped: {option.causes[0]} alone, fitted with "
-                    "the model-form discrepancy, explains the data better than the terms "
-                    "outside the catalogue"
-                )
-                cause, ext_fit = option.causes[0], option
-                ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
-                ext_cv = next(c.cv_rmse_deg for c in results if c.fit is option)
-                beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
-            for key in [k for k in scores if set(k.split(" + ")) == set(option.causes)]:
-                scores[key] = named_bic
-            break
-    # a cause (a pair: one of its causes) is named only when its 95 % interval (the
-    # discrepancy, the dead zone and the shared errors carried) excludes no effect: its
-    # evidence (a delta BIC and a held-out gain against baseline + a *bounded*
-    # discrepancy) can be model-form error beyond the bound, which its interval carries
-    null_held = _holds_no_effect(ext_fit)
-    refused_cv = math.nan  # held-out RMSE of a cause refused for its interval (discrepancy out)
-    if cause not in ("none", "unexplained") and len(null_held) == len(ext_fit.causes) > 0:
-        alone = _alone_excluding_no_effect(results, ext_fit.causes)
-        if alone is not None:
-            # two causes sharing one signature hold no effect together (each can take
-            # the other's share) while one alone excludes it: that one is named
-            notes.append(
-                f"{' + '.join(ext_fit.causes)} not named together: each 95 % interval holds "
-                f"no effect beside the other; {alone.cause} alone excludes it"
-            )
-            cause, ext_fit, ext_cv = alone.cause, alone.fit, alone.cv_rmse_deg
-            named_cv = alone.cv_discrepancy_rmse_deg
-            ext_res = ext_fit.residuals(trials, params, ctx.base_effects)
-            beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
-        else:
-            notes.append(
-                f"{', '.join(null_held)} not named: the 95 % interval with the model-form "
-                "error carried holds no effect"
-            )
-            refused_cv = named_cv
-            cause, ext_fit, ext_res, ext_cv, beside = "none", base_fit, base_res, base_cv, ()
-    # terms outside the catalogue do not stand in for a catalogue cause refused above that
-    # explains the held-out data better than they do: what the data show is that cause's
-    # signature at a size the plan cannot tell from none (e.g. a backlash lost on every
-    # bend within the dead zone's tolerance), not a new mechanism
-    beat_refused = not math.isfinite(refused_cv) or not mean_terms
-    beat_refused = beat_refused or found.rmse_after_deg < refused_cv
-    if found.terms and cause == "none" and not beat_refused:
-        notes.append(
-            f"terms outside the catalogue ({', '.join(t.term for t in found.terms)}) explain "
-            f"the held-out data worse than the cause refused above ({found.rmse_after_deg:.3f} "
-            f"vs {refused_cv:.3f} deg): not reported"
-        )
-    if found.terms and (
-        (cause == "none" and beat_refused) or (cause != "none" and mean_terms and terms_win())
-    ):
-        if cause != "none":
-            notes.append(
-                "terms outside the catalogue explain the data better than "
-                f"{', '.join(ext_fit.causes)} (held-out "
-                f"{found.rmse_after_deg:.3f} vs {named_cv:.3f} deg, model-form discrepancy "
-                f"profiled out; delta BIC {found.delta_bic:.0f} vs {named_bic:.0f}): no "
-                "catalogue name is given"
-            )
-        cause, ext_fit = "unexplained", base_fit
-        ext_res = base_res - found.correction_deg
-        if mean_terms:
-            ext_cv = base_cv * found.rmse_after_deg / max(found.rmse_before_deg, 1e-12)
-        else:
-            ext_cv = base_cv
-        discovered = found.terms
-    else:
-        discovered = beside
-    if ext_fit.causes:
-        ext_fit = _widened(ctx, ext_fit)
-        if cause not in ("none", "unexplained"):
-            ext_fit = _averaged(ctx, ext_fit, naming, results, groups)
-    if mean_terms and math.isfinite(found.delta_bic):
-        scores[_DISCOVERED] = found.delta_bic
-    evidence = _evidence(scores)
-    tie: tuple[str, ...] = ()
-    if cause not in ("none", "unexplained") and len(ext_fit.causes) == 1:
-        named_result = next((c for c in results if c.fit.causes == ext_fit.causes), None)
-        if named_result is not None:
-            tie = _held_out_tie(named_result, results, groups)
-    elif cause not in ("none", "unexplained") and set(ext_fit.causes) == set(naming.fit.causes):
-        tie = pair_tie
-    # an order-dependent term outside the catalogue that reproduces the named causes'
-    # change of the predictions on this plan ties them: the name is not a pick
-    order_ties: list[tuple[str, str]] = []
-    if ext_fit.causes:
-        order_ties = _order_confounded(ctx, base_fit, base_res - ext_res, gain_of)
-    if tie:
-        notes.append(
-            f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
-            f"mean squared error within {TIE_STANDARD_ERRORS:g} standard error over the CV "
-            "groups): the data do not tell them apart"
-        )
-    if order_ties:
-        tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:])
-        tie = (*tie, *(name for _, name in order_ties))
-    # a name is a pick only when the named causes explain the held-out data at least as
-    # well as the discovered terms (both with the discrepancy profiled out); terms better
-    # held out, though not by min_cv_gain, tie them
-    term_ties = [t.term for t in mean_terms if t.term not in tie]
-    if cause not in ("none", "unexplained") and term_ties and found.rmse_after_deg < named_cv:
-        tie = (tie[0] if tie else " + ".join(ext_fit.causes), *tie[1:], *term_ties)
-        notes.append(
-            f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
-            f"data at least as well as {', '.join(ext_fit.causes)} ({found.rmse_after_deg:.3f} "
-            f"vs {named_cv:.3f} deg, model-form discrepancy profiled out): the name is not "
-            "a pick"
-        )
-    ties = [e for e, w in evidence[1:] if w >= TIE_RATIO * evidence[0][1]]
-    if ties:
-        notes.append(
-            f"tie: {', '.join(ties)} explain the data about as well as {evidence[0][0]} "
-            "(evidence weights within a delta BIC of 2)"
-        )
-    for t in discovered:
-        notes.append(
-            f"discovered: {t.words} ({t.term}, held-out gain {100 * t.held_out_gain:.0f} %)"
-        )
-    for words, _ in order_ties:
-        notes.append(
-            f"{', '.join(ext_fit.causes)} cannot be told from {words} on this plan "
-            "(the trial order and the previous bend follow the angle): a tie is reported, "
-            f"not a pick; {ORDER_EXPERIMENT}"
-        )
-        experiment = experiment or ORDER_EXPERIMENT
-    if cause == "unexplained":
-        n_terms = sum(len(t.coefficients_deg) for t in found.terms)
-        misfit = lack_of_fit_residuals(trials, ext_res, base_fit.n_params + n_terms)
-    else:
-        misfit = lack_of_fit(trials, ext_fit if ext_fit.causes else base_fit)
-    if misfit is not None and misfit.refused:
-        # the least bad of wrong models is no name: the machine is not what the params say
-        # (terms outside the catalogue found stay reported, as what is left unexplained)
-        notes.append(misfit.note())
-        if cause != "unexplained":
-            cause, ext_fit, ext_res, ext_cv, discovered = "none", base_fit, base_res, base_cv, ()
-        tie = ()
-        experiment = "describe the machine with --params (its geometry and wire) and diagnose again"
-    left_res = ext_res
-    if current_form().fit_with_causes and ext_fit.discrepancy:
-        # the learned curve is the machine's no-effect relation, not a leftover
-        left_res = ext_res - basis @ np.asarray(ext_fit.discrepancy)
-    leftover = leftover_structure(trials, left_res, list(ctx.fold_masks))
-    if leftover.unnamed:
-        notes.append(
-            f"a discrepancy remains that no named cause explains (a smoother along the "
-            f"commanded angle lowers the held-out residual RMSE by {100 * leftover.gain:.0f} %): "
-            "check the geometry parameters (die radius, pin radius and orbit, head axis) "
-            "or look for two causes at once"
-        )
+    v = _first_verdict(ctx, base, naming, scores, groups, notes)
+    _weigh_against_terms(ctx, base, v, naming, results, scores, groups)
+    refused_cv = _check_interval(ctx, base, v, results, groups)
+    _terms_or_name(ctx, base, v, refused_cv)
+    _widen(ctx, v, naming, results, groups)
+    evidence = _weights(base, scores)
+    order_ties = _ties(ctx, base, v, naming, results, pair_tie, groups)
+    _tie_notes(v, evidence, order_ties)
+    misfit = _check_misfit(ctx, base, v)
+    leftover = _leftover(ctx, base, v)
     return Diagnosis(
-        cause=cause,
-        params=ext_fit.param_values(),
-        intervals=ext_fit.param_intervals(),
+        cause=v.cause,
+        params=v.fit.param_values(),
+        intervals=v.fit.param_intervals(),
         baseline_rmse_deg=base_cv,
-        extended_rmse_deg=ext_cv,
+        extended_rmse_deg=v.cv_rmse_deg,
         candidates=tuple(results),
         second_candidates=naming.second_round,
         other_pairs=naming.other_pairs,
         baseline_fit=base_fit,
-        extended_fit=ext_fit,
-        baseline_residual_deg=base_res,
-        extended_residual_deg=ext_res,
-        trends_before=tuple(residual_trends(trials, base_res)),
-        trends_after=tuple(residual_trends(trials, ext_res)),
+        extended_fit=v.fit,
+        baseline_residual_deg=base.residual_deg,
+        extended_residual_deg=v.residual_deg,
+        trends_before=tuple(residual_trends(trials, base.residual_deg)),
+        trends_after=tuple(residual_trends(trials, v.residual_deg)),
         identifiability=naming.identifiability,
-        recommended_experiment=experiment,
+        recommended_experiment=v.experiment,
         leftover=leftover,
         nominal_params=params,
         n_trials=len(trials),
         n_folds=len(ctx.fold_masks),
         notes=tuple(notes),
-        discovered=tuple(discovered),
+        discovered=tuple(v.discovered),
         evidence=evidence,
-        tie=tie,
-        discovered_rmse_deg=found.rmse_after_deg if mean_terms else math.nan,
+        tie=v.tie,
+        discovered_rmse_deg=base.found.rmse_after_deg if base.mean_terms else math.nan,
         misfit=misfit,
     )
+
+
+def _admitted(
+    trials: TrialTable, candidates: Sequence[str] | None
+) -> tuple[TrialTable, tuple[str, ...], list[str]]:
+    """The trials diagnosed (at most MAX_TRIALS of them), the candidates' names and the
+    notes on the design; ValueError with too few trials or an unknown candidate."""
+    if len(trials) < MIN_TRIALS:
+        raise ValueError(f"need at least {MIN_TRIALS} trials to diagnose, got {len(trials)}")
+    names = tuple(n for n in (candidates or EFFECT_NAMES) if n != "none")
+    for n in names:
+        if n not in EFFECTS:
+            raise ValueError(f"unknown candidate {n!r}")
+    notes: list[str] = []
+    if len(trials) > MAX_TRIALS:
+        n_all = len(trials)
+        trials = _subset_by_group(trials, MAX_TRIALS)
+        notes.append(
+            f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
+            "parts, order kept) to bound the time; intervals are those of the subset"
+        )
+    notes.extend(_design_notes(trials))
+    return trials, names, notes
