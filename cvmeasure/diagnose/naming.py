@@ -299,6 +299,51 @@ def _name_causes(
             "nothing is named"
         )
         return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+    outcomes, best, ext = _best_outcome(ctx, accepted, results, base_fit, max_causes)
+    ext_fit = _first_cause_first(ext.fit, best, results)
+    close = [
+        c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
+    ]
+    if close and len(ext_fit.causes) == 1:
+        notes.append(
+            f"{', '.join(close)} explain the data almost as well as {best.cause} "
+            "(held-out RMSE within 5 %)"
+        )
+    experiment = _confounded_notes(ext, notes)
+    notes.extend(ext.notes)
+    notes.extend(_at_bound_notes(ext_fit))
+    if ext_fit.sigma_deg > GROSS_MISFIT_DEG:
+        notes.append(
+            f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
+            "simulation does not describe these data (check signs, units and columns of the "
+            f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
+        )
+        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+    pair = ext.pairs[0] if len(ext_fit.causes) == 2 and ext.pairs else None
+    named_set = frozenset(ext_fit.causes)
+    return _Naming(
+        ext_fit.causes[0],
+        ext_fit,
+        ext.cv_rmse_deg,
+        ext.identifiability,
+        ext.second_round,
+        experiment,
+        tuple(notes),
+        ext.cv_discrepancy_rmse_deg,
+        pair,
+        _each_once([c for _, o in outcomes for c in o.pairs], named_set),
+        _each_once([c for _, o in outcomes for c in o.unsized], named_set),
+    )
+
+
+def _best_outcome(
+    ctx: _Context,
+    accepted: Sequence[CandidateResult],
+    results: Sequence[CandidateResult],
+    base_fit: ModelFit,
+    max_causes: int,
+) -> tuple[list[tuple[CandidateResult, _Extension]], CandidateResult, _Extension]:
+    """Every first cause of the beam extended, and the best: (outcomes, first, extension)."""
     # greedy with a small beam: the best few single causes each get their second round
     firsts = [c for c in accepted if c.cv_rmse_deg <= BEAM_RATIO * accepted[0].cv_rmse_deg]
     outcomes = [(first, _extend(ctx, first, results, max_causes)) for first in firsts[:BEAM_WIDTH]]
@@ -312,7 +357,13 @@ def _name_causes(
         o for o, e in zip(outcomes, evidence_of, strict=True) if e >= top - ctx.min_delta_bic
     ]
     best, ext = min(plausible, key=lambda o: o[1].cv_rmse_deg)
-    ext_fit = ext.fit
+    return outcomes, best, ext
+
+
+def _first_cause_first(
+    ext_fit: ModelFit, best: CandidateResult, results: Sequence[CandidateResult]
+) -> ModelFit:
+    """A named pair ordered with the cause that alone predicts held-out data best first."""
     # a named pair's first cause is the one that alone predicts held-out data best with
     # the discrepancy profiled out (as the pair itself is ranked): the raw held-out RMSE
     # also carries the baseline's model-form wave along the angle, which on a repeats
@@ -326,14 +377,11 @@ def _name_causes(
     }
     if len(ext_fit.causes) == 2 and single_cv[ext_fit.causes[1]] < single_cv[best.cause]:
         ext_fit = ext_fit.reordered(ext_fit.causes[::-1])
-    close = [
-        c.cause for c in accepted if c is not best and c.cv_rmse_deg <= 1.05 * best.cv_rmse_deg
-    ]
-    if close and len(ext_fit.causes) == 1:
-        notes.append(
-            f"{', '.join(close)} explain the data almost as well as {best.cause} "
-            "(held-out RMSE within 5 %)"
-        )
+    return ext_fit
+
+
+def _confounded_notes(ext: _Extension, notes: list[str]) -> str | None:
+    """A note per pair the design cannot tell apart; the first experiment that would."""
     confounded = [i for i in ext.identifiability if not i.separable]
     for i in confounded:
         how = i.experiment or "no experiment in the catalogue separates them"
@@ -341,54 +389,36 @@ def _name_causes(
             f"{i.causes[0]} and {i.causes[1]} cannot be told apart on this data "
             f"(signature similarity {i.similarity:.3f}); {how}"
         )
-    experiment = next((i.experiment for i in confounded if i.experiment), None)
-    notes.extend(ext.notes)
+    return next((i.experiment for i in confounded if i.experiment), None)
+
+
+def _at_bound_notes(fit: ModelFit) -> list[str]:
+    """A note when a cause sits at its physical bound."""
     at_bound = [
         f"{c} ({EFFECTS[c].param} = {v:.4g} {EFFECTS[c].unit})"
-        for c, v in zip(ext_fit.causes, ext_fit.values, strict=True)
+        for c, v in zip(fit.causes, fit.values, strict=True)
         if np.isclose(v, EFFECTS[c].lower) or np.isclose(v, EFFECTS[c].upper)
     ]
-    if at_bound:
-        notes.append(
-            f"{', '.join(at_bound)} at its physical bound: the data want more than the "
-            "catalogue allows; treat the name with suspicion"
-        )
-    if ext_fit.sigma_deg > GROSS_MISFIT_DEG:
-        notes.append(
-            f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
-            "simulation does not describe these data (check signs, units and columns of the "
-            f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
-        )
-        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
-    pair = ext.pairs[0] if len(ext_fit.causes) == 2 and ext.pairs else None
-    named_set = set(ext_fit.causes)
+    if not at_bound:
+        return []
+    return [
+        f"{', '.join(at_bound)} at its physical bound: the data want more than the "
+        "catalogue allows; treat the name with suspicion"
+    ]
 
-    def each_once(kept: Sequence[CandidateResult]) -> tuple[CandidateResult, ...]:
-        # each set of causes once (the one best held out), the named set left out
-        best: dict[frozenset[str], CandidateResult] = {}
-        for c in kept:
-            key = frozenset(c.fit.causes)
-            if key != named_set and (
-                key not in best or c.cv_discrepancy_rmse_deg < best[key].cv_discrepancy_rmse_deg
-            ):
-                best[key] = c
-        return tuple(best.values())
 
-    other_pairs = each_once([c for _, o in outcomes for c in o.pairs])
-    unsized = each_once([c for _, o in outcomes for c in o.unsized])
-    return _Naming(
-        ext_fit.causes[0],
-        ext_fit,
-        ext.cv_rmse_deg,
-        ext.identifiability,
-        ext.second_round,
-        experiment,
-        tuple(notes),
-        ext.cv_discrepancy_rmse_deg,
-        pair,
-        other_pairs,
-        unsized,
-    )
+def _each_once(
+    kept: Sequence[CandidateResult], named_set: frozenset[str]
+) -> tuple[CandidateResult, ...]:
+    """Each set of causes once (the one best held out), the named set left out."""
+    best: dict[frozenset[str], CandidateResult] = {}
+    for c in kept:
+        key = frozenset(c.fit.causes)
+        if key != named_set and (
+            key not in best or c.cv_discrepancy_rmse_deg < best[key].cv_discrepancy_rmse_deg
+        ):
+            best[key] = c
+    return tuple(best.values())
 
 
 def _scores(results: Sequence[CandidateResult], naming: _Naming) -> dict[str, float]:
