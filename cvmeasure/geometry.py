@@ -385,12 +385,38 @@ def fit_circles_robust(
     correlation_factors : per set (default 1.0 each).
     iterations, tukey_c, min_scale, stop : as :func:`fit_circle_robust`.
     """
-    b = len(point_sets)
-    out: list[CircleFit | None] = [None] * b
+    out: list[CircleFit | None] = [None] * len(point_sets)
     sets = [np.asarray(p, dtype=np.float64).reshape(-1, 2) for p in point_sets]
+    batch = _padded_batch(sets, inits)
+    if batch is None:
+        return out
+    use, counts, valid, px, py, starts = batch
+    theta, w = _iterate_circles(
+        px, py, valid, counts, np.array(starts, dtype=np.float64),
+        iterations=iterations, tukey_c=tukey_c, min_scale=min_scale, stop=stop,
+    )  # fmt: skip
+    cf = (
+        np.ones(len(use))
+        if correlation_factors is None
+        else np.array([correlation_factors[i] for i in use], dtype=np.float64)
+    )
+    for i, fit in zip(use, _circle_summaries(px, py, theta, w, counts, cf), strict=True):
+        out[i] = fit
+    return out
+
+
+def _padded_batch(
+    sets: list[np.ndarray], inits: list[tuple[float, float, float] | None] | None
+) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray, list] | None:
+    """The usable sets padded to one length, with their starts (None when none is usable).
+
+    Returns the sets' indices, point counts, the valid-point mask, x and y (B, N) and
+    each set's start (cx, cy, r); a set with fewer than 3 or non-finite points, or whose
+    Taubin start fails, is left out.
+    """
     use = [i for i, p in enumerate(sets) if p.shape[0] >= 3]
     if not use:
-        return out
+        return None
     n_max = max(sets[i].shape[0] for i in use)
     # padded with each set's first point (finite distances; weight 0 throughout)
     xy = np.empty((len(use), n_max, 2))
@@ -403,7 +429,7 @@ def fit_circles_robust(
         use = [i for i, f in zip(use, finite, strict=True) if f]
         xy = xy[finite]
         if not use:
-            return out
+            return None
     counts = np.array([sets[i].shape[0] for i in use])
     valid = np.arange(n_max)[None, :] < counts[:, None]
     px, py = xy[:, :, 0], xy[:, :, 1]
@@ -417,9 +443,25 @@ def fit_circles_robust(
         counts, valid, px, py = counts[keep], valid[keep], px[keep], py[keep]
         starts = [starts[k] for k in keep]
         if not use:
-            return out
-    theta = np.array(starts, dtype=np.float64)  # (B, 3): cx, cy, r
-    m = len(use)
+            return None
+    return use, counts, valid, px, py, starts
+
+
+def _iterate_circles(
+    px: np.ndarray,
+    py: np.ndarray,
+    valid: np.ndarray,
+    counts: np.ndarray,
+    theta: np.ndarray,
+    *,
+    iterations: int,
+    tukey_c: float,
+    min_scale: float,
+    stop: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tukey-weighted Gauss-Newton of every set at once: circles (B, 3) and last weights."""
+    m = theta.shape[0]
+    n_max = px.shape[1]
     validf = valid.astype(np.float64)
     w = validf.copy()
     scale = np.zeros(m)
@@ -480,7 +522,19 @@ def fit_circles_robust(
         theta = np.array(th)
         if not active.any():
             break
-    # the summaries at the final circles, with the last weights (as fit_circle_robust)
+    return theta, w
+
+
+def _circle_summaries(
+    px: np.ndarray,
+    py: np.ndarray,
+    theta: np.ndarray,
+    w: np.ndarray,
+    counts: np.ndarray,
+    cf: np.ndarray,
+) -> list[CircleFit]:
+    """Each set's :class:`CircleFit` at its final circle, with its last weights."""
+    m = theta.shape[0]
     dx = px - theta[:, 0:1]
     dy = py - theta[:, 1:2]
     dist = np.maximum(np.sqrt(np.square(dx) + np.square(dy)), 1e-12)
@@ -492,19 +546,14 @@ def fit_circles_robust(
     dof = np.maximum(1.0, w.sum(axis=1) - 3.0)
     s2 = np.einsum("bn,bn,bn->b", w, res, res) / dof
     inv = np.array([_inverse_sym3(g) for g in jtwj.tolist()])
-    cf = (
-        np.ones(m)
-        if correlation_factors is None
-        else np.array([correlation_factors[i] for i in use], dtype=np.float64)
-    )
     cov = inv * (s2 * cf)[:, None, None]
     ang = np.arctan2(dy, dx)
     bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
     bins += 36 * np.arange(m)[:, None]
     sectors = np.bincount(bins[inl], minlength=36 * m).reshape(m, 36)
     coverage = (sectors > 0).sum(axis=1) / 36.0
-    for k, i in enumerate(use):
-        out[i] = CircleFit(
+    return [
+        CircleFit(
             (float(theta[k, 0]), float(theta[k, 1])),
             float(theta[k, 2]),
             cov[k, :2, :2].copy(),
@@ -514,7 +563,8 @@ def fit_circles_robust(
             float(coverage[k]) if n_in[k] else 0.0,
             float(math.sqrt(max(cov[k, 2, 2], 0.0))),
         )
-    return out
+        for k in range(m)
+    ]
 
 
 def _inverse_sym3(a: list[list[float]]) -> list[list[float]]:

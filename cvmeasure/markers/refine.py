@@ -211,6 +211,59 @@ def _box(dy2: np.ndarray, dx2: np.ndarray, r2: float) -> tuple[slice, slice]:
     return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
 
 
+def _disc_and_ring_levels(
+    bgr: np.ndarray,
+    centre_px: tuple[float, float],
+    radius_px: float,
+    ring_ratio: float,
+    band: float,
+) -> tuple[tuple[int, int], np.ndarray, np.ndarray, np.ndarray, float] | None:
+    """The region about a disc in linear light and the disc's and ring's median colours.
+
+    Returns the region's top-left corner (px), the region (linear), the disc's and the
+    ring's median linear colours and the share of ring pixels clipped at full scale;
+    None when the region or its masks are too small.
+    """
+    import cv2
+
+    h, w = bgr.shape[:2]
+    cx, cy = centre_px
+    half = int(math.ceil(radius_px * max(ring_ratio, 1.0 + band) * 1.05 + 4))
+    x0, x1 = max(0, int(cx) - half), min(w, int(cx) + half + 1)
+    y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
+    if x1 - x0 < 5 or y1 - y0 < 5:
+        return None
+    top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
+    raw = bgr[y0:y1, x0:x1]
+    roi = _linear_roi(raw)
+    # squared distances from the centre: the masks without a square root per pixel
+    dy2 = (np.arange(y0, y1, dtype=np.float64) - cy) ** 2
+    dx2 = (np.arange(x0, x1, dtype=np.float64) - cx) ** 2
+    d2 = dy2[:, None] + dx2[None, :]
+    outer_r = radius_px * ring_ratio
+    gap = outer_r - radius_px
+    inner = d2 < (0.6 * radius_px) ** 2
+    ring = (d2 > (radius_px + 0.3 * gap) ** 2) & (d2 < (outer_r - 0.15 * gap) ** 2)
+    n_inner, n_ring = np.count_nonzero(inner), np.count_nonzero(ring)
+    if n_inner < 3 or n_ring < 3:
+        return None
+    if raw.dtype == np.uint8:
+        # histograms over each mask's bounding box only (the inner disc's is ~1/7 of the region)
+        box = _box(dy2, dx2, (0.6 * radius_px) ** 2)
+        disc_c = _median_levels(raw[box], SRGB8_TO_LINEAR, inner[box].view(np.uint8), n_inner)
+        box = _box(dy2, dx2, (outer_r - 0.15 * gap) ** 2)
+        ring_c = _median_levels(raw[box], SRGB8_TO_LINEAR, ring[box].view(np.uint8), n_ring)
+        # ring pixels with a channel at 254 or 255: those not in range 0..253 on every channel
+        below = cv2.inRange(raw, (0, 0, 0), (253, 253, 253))
+        n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring.view(np.uint8)))
+    else:
+        disc_c = np.median(roi[inner], axis=0)
+        ring_c = np.median(roi[ring], axis=0)
+        n_clipped = np.count_nonzero((raw.max(axis=2) >= top - 1) & ring)
+    clipped_fraction = n_clipped / n_ring
+    return (x0, y0), roi, disc_c, ring_c, clipped_fraction
+
+
 def disc_edge_points(
     bgr: np.ndarray,
     centre_px: tuple[float, float],
@@ -250,41 +303,11 @@ def disc_edge_points(
     """
     import cv2
 
-    h, w = bgr.shape[:2]
     cx, cy = centre_px
-    half = int(math.ceil(radius_px * max(ring_ratio, 1.0 + band) * 1.05 + 4))
-    x0, x1 = max(0, int(cx) - half), min(w, int(cx) + half + 1)
-    y0, y1 = max(0, int(cy) - half), min(h, int(cy) + half + 1)
-    if x1 - x0 < 5 or y1 - y0 < 5:
+    levels = _disc_and_ring_levels(bgr, centre_px, radius_px, ring_ratio, band)
+    if levels is None:
         return _NO_EDGE
-    top = 255.0 if bgr.dtype == np.uint8 else float(np.iinfo(bgr.dtype).max)
-    raw = bgr[y0:y1, x0:x1]
-    roi = _linear_roi(raw)
-    # squared distances from the centre: the masks without a square root per pixel
-    dy2 = (np.arange(y0, y1, dtype=np.float64) - cy) ** 2
-    dx2 = (np.arange(x0, x1, dtype=np.float64) - cx) ** 2
-    d2 = dy2[:, None] + dx2[None, :]
-    outer_r = radius_px * ring_ratio
-    gap = outer_r - radius_px
-    inner = d2 < (0.6 * radius_px) ** 2
-    ring = (d2 > (radius_px + 0.3 * gap) ** 2) & (d2 < (outer_r - 0.15 * gap) ** 2)
-    n_inner, n_ring = np.count_nonzero(inner), np.count_nonzero(ring)
-    if n_inner < 3 or n_ring < 3:
-        return _NO_EDGE
-    if raw.dtype == np.uint8:
-        # histograms over each mask's bounding box only (the inner disc's is ~1/7 of the region)
-        box = _box(dy2, dx2, (0.6 * radius_px) ** 2)
-        disc_c = _median_levels(raw[box], SRGB8_TO_LINEAR, inner[box].view(np.uint8), n_inner)
-        box = _box(dy2, dx2, (outer_r - 0.15 * gap) ** 2)
-        ring_c = _median_levels(raw[box], SRGB8_TO_LINEAR, ring[box].view(np.uint8), n_ring)
-        # ring pixels with a channel at 254 or 255: those not in range 0..253 on every channel
-        below = cv2.inRange(raw, (0, 0, 0), (253, 253, 253))
-        n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring.view(np.uint8)))
-    else:
-        disc_c = np.median(roi[inner], axis=0)
-        ring_c = np.median(roi[ring], axis=0)
-        n_clipped = np.count_nonzero((raw.max(axis=2) >= top - 1) & ring)
-    clipped_fraction = n_clipped / n_ring
+    (x0, y0), roi, disc_c, ring_c, clipped_fraction = levels
     axis = disc_c - ring_c
     norm2 = float(axis @ axis)
     disc_t, ring_t = _encode8(disc_c), _encode8(ring_c)

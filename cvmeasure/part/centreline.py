@@ -478,75 +478,136 @@ def _silhouette_centres(
         # shadow's soft outer edge), was not searched: the last centimetre of a lifted end
         # then lay on the shadow, or had no pairs
         near = FIRST_PASS_REACH if n_pass == 0 else 0.2
-        # the strongest pair of gradient peaks a width apart about the centre; where there
-        # is none (a penumbra joined to one side blurs its edge), the edges found from
-        # inside (:func:`outer_edges`). Not the other way round: on a light sheet a dark
-        # wire's gently shaded body is flat to that test and a soft shadow ramp joins one
-        # side, so a shadow's outer edge and the highlight's can pass for the wire there
-        left, right = silhouette_edges(
-            prof, offsets, width_px, tolerance=tol, centre_tolerance=near
+        left, right, width, pair = _edges_of_pass(prof, offsets, width_px, tol, near)
+        shift, from_left, from_right, shadow, towards = _one_rule_shift(
+            prof, normals, offsets, left, right, width, pair, width_px, step_px
         )
-        width = right - left
-        pair = np.abs(width / width_px - 1.0) <= tol
-        left2, right2 = outer_edges(prof[~pair], offsets, width_px)
-        fill = np.nonzero(~pair)[0]
-        left[fill], right[fill] = left2, right2
-        width = right - left
-        pair = np.abs(width / width_px - 1.0) <= tol
-        w_eff = float(np.median(width[pair])) if pair.sum() >= 10 else width_px
-        shift = np.where(pair, 0.5 * (left + right), np.nan)
-        from_left = left + 0.5 * w_eff
-        from_right = right - 0.5 * w_eff
-        # the sharper edge (a penumbra joined to the silhouette softens it), unless
-        # the shadow says; an edge that would move the centre far does not count
-        sharp_l, sharp_r = edge_gradient(prof, offsets, left), edge_gradient(prof, offsets, right)
-        near_l = np.abs(np.nan_to_num(from_left, nan=np.inf)) <= 0.25 * width_px
-        near_r = np.abs(np.nan_to_num(from_right, nan=np.inf)) <= 0.25 * width_px
-        use_left = near_l & (~near_r | (sharp_l >= sharp_r))
-        shadow = _shadow_side(prof, normals, left, right, offsets)
-        if shadow is not None:
-            towards = normals @ shadow  # > 0: the shadow lies on the + (right) side
-            use_left = np.where(np.abs(towards) > 0.05, towards > 0, use_left)
-        # one rule along a stretch of wire (the majority over two widths), so that a
-        # chord is not measured partly by pairs and partly by one edge
-        rule = np.where(pair, 0, np.where(use_left & near_l, 1, np.where(near_r, 2, -1)))
-        rule = majority_filter(rule, max(3, int(round(2.0 * width_px / step_px))))
-        shift = np.where(
-            (rule == 0) & pair,
-            0.5 * (left + right),
-            np.where(
-                (rule == 1) & near_l, from_left, np.where((rule == 2) & near_r, from_right, np.nan)
-            ),
-        )
-        if pair.mean() >= PAIRS_ONLY_SHARE:
-            # clean pairs along most of the wire: the gaps are left open (the fits need no
-            # centre there) rather than filled by one edge, which a shadow's or a
-            # highlight's edge can stand in for over a stretch (4 px off on a lab render);
-            # but not a gap as long as a chord (no clean pair along a chord near the light's
-            # azimuth on a light sheet): without centres its line came from the centres
-            # bracketing the gap, a vertex bend off by a degree or more
-            long_gap = long_runs(~pair, LONG_GAP_WIDTHS * width_px / step_px)
-            shift = np.where(pair, 0.5 * (left + right), np.where(long_gap, shift, np.nan))
         shift = despike(shift, window)
         ok = np.isfinite(shift)
         coverage = float(ok.mean())
         if ok.sum() < 5:
             raise ValueError("no silhouette edges of the wire's width along the path")
         if final and shadow is not None:
-            # the lit side's edge moved by half the width, where a pair's midpoint is used
-            lit_rule = np.where(np.abs(towards) > 0.05, np.where(towards > 0, 1, 2), 0)
-            lit_rule = majority_filter(lit_rule, max(3, int(round(2.0 * width_px / step_px))))
-            lit_edge = np.where(
-                lit_rule == 1, from_left, np.where(lit_rule == 2, from_right, np.nan)
+            lit = _lit_centres(
+                centres, normals, shift, ok, towards, from_left, from_right, width_px, step_px
             )
-            # every centre (not only the pairs' midpoints: a chord would mix the two)
-            swap = np.isfinite(lit_edge) & (np.abs(lit_edge) <= 0.25 * width_px)
-            delta = np.where(swap & np.isfinite(shift), lit_edge - shift, 0.0)
-            lit = (centres + (shift + delta)[:, None] * normals)[ok]
         centres = (centres + shift[:, None] * normals)[ok]
         widths = np.where(pair, width, np.nan)[ok]
         if not final:
             centres = resample_path(centres, step_px)
+    centres, widths, lit = _trim_stray_runs(centres, widths, lit, step_px, width_px)
+    # the last profiles, re-centred on the edges' midpoints (for the end points)
+    normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
+    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit
+
+
+def _edges_of_pass(
+    prof: np.ndarray, offsets: np.ndarray, width_px: float, tol: float, near: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Left and right silhouette edges of every profile (px), their width and the clean pairs.
+
+    The strongest pair of gradient peaks a width apart about the centre; where there is
+    none, the edges found from inside (:func:`outer_edges`).
+    """
+    # Not the other way round (a penumbra joined to one side blurs its edge): on a light
+    # sheet a dark wire's gently shaded body is flat to that test and a soft shadow ramp
+    # joins one side, so a shadow's outer edge and the highlight's can pass for the wire
+    left, right = silhouette_edges(prof, offsets, width_px, tolerance=tol, centre_tolerance=near)
+    width = right - left
+    pair = np.abs(width / width_px - 1.0) <= tol
+    left2, right2 = outer_edges(prof[~pair], offsets, width_px)
+    fill = np.nonzero(~pair)[0]
+    left[fill], right[fill] = left2, right2
+    width = right - left
+    pair = np.abs(width / width_px - 1.0) <= tol
+    return left, right, width, pair
+
+
+def _one_rule_shift(
+    prof: np.ndarray,
+    normals: np.ndarray,
+    offsets: np.ndarray,
+    left: np.ndarray,
+    right: np.ndarray,
+    width: np.ndarray,
+    pair: np.ndarray,
+    width_px: float,
+    step_px: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Each profile's centre offset (px along its normal, NaN where none) by one rule.
+
+    Returns the offsets, the centres from the left and from the right edge, the shadow's
+    image direction (None when not seen) and each normal's component towards it.
+    """
+    towards = None
+    w_eff = float(np.median(width[pair])) if pair.sum() >= 10 else width_px
+    shift = np.where(pair, 0.5 * (left + right), np.nan)
+    from_left = left + 0.5 * w_eff
+    from_right = right - 0.5 * w_eff
+    # the sharper edge (a penumbra joined to the silhouette softens it), unless
+    # the shadow says; an edge that would move the centre far does not count
+    sharp_l, sharp_r = edge_gradient(prof, offsets, left), edge_gradient(prof, offsets, right)
+    near_l = np.abs(np.nan_to_num(from_left, nan=np.inf)) <= 0.25 * width_px
+    near_r = np.abs(np.nan_to_num(from_right, nan=np.inf)) <= 0.25 * width_px
+    use_left = near_l & (~near_r | (sharp_l >= sharp_r))
+    shadow = _shadow_side(prof, normals, left, right, offsets)
+    if shadow is not None:
+        towards = normals @ shadow  # > 0: the shadow lies on the + (right) side
+        use_left = np.where(np.abs(towards) > 0.05, towards > 0, use_left)
+    # one rule along a stretch of wire (the majority over two widths), so that a
+    # chord is not measured partly by pairs and partly by one edge
+    rule = np.where(pair, 0, np.where(use_left & near_l, 1, np.where(near_r, 2, -1)))
+    rule = majority_filter(rule, max(3, int(round(2.0 * width_px / step_px))))
+    shift = np.where(
+        (rule == 0) & pair,
+        0.5 * (left + right),
+        np.where(
+            (rule == 1) & near_l, from_left, np.where((rule == 2) & near_r, from_right, np.nan)
+        ),
+    )
+    if pair.mean() >= PAIRS_ONLY_SHARE:
+        # clean pairs along most of the wire: the gaps are left open (the fits need no
+        # centre there) rather than filled by one edge, which a shadow's or a
+        # highlight's edge can stand in for over a stretch (4 px off on a lab render);
+        # but not a gap as long as a chord (no clean pair along a chord near the light's
+        # azimuth on a light sheet): without centres its line came from the centres
+        # bracketing the gap, a vertex bend off by a degree or more
+        long_gap = long_runs(~pair, LONG_GAP_WIDTHS * width_px / step_px)
+        shift = np.where(pair, 0.5 * (left + right), np.where(long_gap, shift, np.nan))
+    return shift, from_left, from_right, shadow, towards
+
+
+def _lit_centres(
+    centres: np.ndarray,
+    normals: np.ndarray,
+    shift: np.ndarray,
+    ok: np.ndarray,
+    towards: np.ndarray,
+    from_left: np.ndarray,
+    from_right: np.ndarray,
+    width_px: float,
+    step_px: float,
+) -> np.ndarray:
+    """The centres with the lit side's edge moved by half the width, where it is near."""
+    # the lit side's edge moved by half the width, where a pair's midpoint is used
+    lit_rule = np.where(np.abs(towards) > 0.05, np.where(towards > 0, 1, 2), 0)
+    lit_rule = majority_filter(lit_rule, max(3, int(round(2.0 * width_px / step_px))))
+    lit_edge = np.where(lit_rule == 1, from_left, np.where(lit_rule == 2, from_right, np.nan))
+    # every centre (not only the pairs' midpoints: a chord would mix the two)
+    swap = np.isfinite(lit_edge) & (np.abs(lit_edge) <= 0.25 * width_px)
+    delta = np.where(swap & np.isfinite(shift), lit_edge - shift, 0.0)
+    lit = (centres + (shift + delta)[:, None] * normals)[ok]
+    return lit
+
+
+def _trim_stray_runs(
+    centres: np.ndarray,
+    widths: np.ndarray,
+    lit: np.ndarray | None,
+    step_px: float,
+    width_px: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Drop a short run of centres cut off from the rest by a gap at either end."""
     # a short run of centres cut off from the rest by a gap at either end (false edges
     # beside a cap's highlight: 3 px off the axis on a lab render) is not the wire's
     gap = np.nonzero(np.hypot(*np.diff(centres, axis=0).T) > 3.0 * step_px)[0]
@@ -555,6 +616,4 @@ def _silhouette_centres(
     if len(centres[lo:hi]) >= 5:
         centres, widths = centres[lo:hi], widths[lo:hi]
         lit = None if lit is None else lit[lo:hi]
-    # the last profiles, re-centred on the edges' midpoints (for the end points)
-    normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
-    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit
+    return centres, widths, lit

@@ -151,6 +151,13 @@ def compare_with_design(
     return DesignComparison(design_source, reg, dev, design_arc, bends)
 
 
+def _check_arguments(method: str, divisions: int | None) -> None:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    if divisions is not None and divisions < 1:
+        raise ValueError(f"divisions must be >= 1, got {divisions}")
+
+
 def measure_part(
     image: np.ndarray,
     board: BoardSpec | None,
@@ -199,10 +206,7 @@ def measure_part(
     Raises InputError (no board, no wire, a part the divisions cannot describe) or
     ValueError (an unknown ``method``, ``divisions < 1``).
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    if divisions is not None and divisions < 1:
-        raise ValueError(f"divisions must be >= 1, got {divisions}")
+    _check_arguments(method, divisions)
     moved_given = plane is not None
     plane, wire, centre, centreline_mm = measure_centreline_mm(
         image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
