@@ -309,17 +309,65 @@ def discover(
     not reported as terms."""
     r = np.asarray(residual_deg, dtype=np.float64)
     n = len(trials)
-    cols = library(trials, head_gain)
-    forced: tuple[str, ...] = ()
-    if refit is not None and np.size(refit):
-        cols[_REFIT] = np.asarray(refit, dtype=np.float64).reshape(3 * n, -1)
-        forced = (_REFIT,)
+    cols, forced = _columns(trials, head_gain, refit)
     names = list(cols)
     ok = np.isfinite(r)  # the pin too: a drive term must move it, model-form error does not
     y = r[ok]
     sel = {k: v[ok] for k, v in cols.items()}
-    unique, group_of = np.unique(np.asarray(groups), return_inverse=True)
     trial_of = np.tile(np.arange(n), 3)[ok]
+    family_counts, stable = _stable_terms(y, sel, names, forced, groups, trial_of, seed)
+    before = float(np.sqrt(np.mean(y**2))) if y.size else math.nan
+    empty = Discovery((), before, before, np.zeros(3 * n))
+    scatter = _scatter(trials, r)
+    if not stable:
+        return Discovery((scatter,), before, before, np.zeros(3 * n)) if scatter else empty
+    x = np.column_stack([sel[c] for c in (*forced, *stable)])
+    after = _held_out_rmse(x, y, folds, trial_of)
+    gain = 1.0 - after / before if before > 0 else 0.0
+    if gain < MIN_GAIN:
+        return Discovery((scatter,), before, before, np.zeros(3 * n)) if scatter else empty
+    beta, *_ = np.linalg.lstsq(x, y, rcond=None)
+    resid = y - x @ beta
+    n_forced = sum(sel[c].shape[1] for c in forced)
+    widths = [sel[c].shape[1] for c in stable]
+    terms = _found_terms(x, y, beta, resid, n_forced, stable, widths, family_counts, gain)
+    if scatter:
+        terms.append(scatter)
+    full = np.zeros(3 * n)
+    full[ok] = x @ beta
+    return Discovery(
+        tuple(terms), before, after, full, _terms_delta_bic(x, y, resid, n_forced, len(stable))
+    )
+
+
+def _columns(
+    trials: TrialTable,
+    head_gain: NDArray[np.float64] | None,
+    refit: NDArray[np.float64] | None,
+) -> tuple[dict[str, NDArray[np.float64]], tuple[str, ...]]:
+    """The library's columns (stacked rows) and the names of those every fit carries
+    (the machine's linearised refit, :data:`_REFIT`)."""
+    cols = library(trials, head_gain)
+    forced: tuple[str, ...] = ()
+    if refit is not None and np.size(refit):
+        cols[_REFIT] = np.asarray(refit, dtype=np.float64).reshape(3 * len(trials), -1)
+        forced = (_REFIT,)
+    return cols, forced
+
+
+def _stable_terms(
+    y: NDArray[np.float64],
+    sel: dict[str, NDArray[np.float64]],
+    names: Sequence[str],
+    forced: tuple[str, ...],
+    groups: Sequence[str],
+    trial_of: NDArray[np.int_],
+    seed: int,
+) -> tuple[dict[str, int], list[str]]:
+    """Stability selection over bootstrap resamples of the CV groups: how often each
+    family of terms is selected, and the families selected in STABILITY of the
+    resamples (each as its most selected member)."""
+    unique, group_of = np.unique(np.asarray(groups), return_inverse=True)
     design = np.column_stack([sel[k] for k in names]) if names else np.zeros((y.size, 0))
     widths = np.cumsum([0] + [sel[k].shape[1] for k in names])
     spans = {
@@ -327,18 +375,7 @@ def discover(
     }
     # per-group sums of the normal equations: a resample's are their weighted sum
     row_group = group_of.reshape(-1)[trial_of]
-
-    def group_sums(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.bincount(row_group, weights=v, minlength=unique.size)
-
-    n_cols = design.shape[1]
-    gram_g = np.zeros((unique.size, n_cols, n_cols))
-    for i in range(n_cols):
-        for j in range(i, n_cols):
-            gram_g[:, i, j] = gram_g[:, j, i] = group_sums(design[:, i] * design[:, j])
-    xty_g = np.column_stack([group_sums(design[:, i] * y) for i in range(n_cols)])
-    yty_g = group_sums(y**2)
-    rows_g = np.bincount(row_group, minlength=unique.size)
+    gram_g, xty_g, yty_g, rows_g = _group_normal_equations(design, y, row_group, unique.size)
     rng = np.random.default_rng(seed)
     counts: dict[str, int] = {k: 0 for k in names}
     for _ in range(RESAMPLES):
@@ -367,13 +404,38 @@ def discover(
         for f, c in family_counts.items()
         if c >= STABILITY * RESAMPLES
     ]
-    before = float(np.sqrt(np.mean(y**2))) if y.size else math.nan
-    empty = Discovery((), before, before, np.zeros(3 * n))
-    scatter = _scatter(trials, r)
-    if not stable:
-        return Discovery((scatter,), before, before, np.zeros(3 * n)) if scatter else empty
-    x = np.column_stack([sel[c] for c in (*forced, *stable)])
-    # grouped held-out gain of the stable set
+    return family_counts, stable
+
+
+def _group_normal_equations(
+    design: NDArray[np.float64],
+    y: NDArray[np.float64],
+    row_group: NDArray[np.int_],
+    n_groups: int,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.int_]]:
+    """Per CV group: X^T X, X^T y, y^T y and the number of rows."""
+
+    def group_sums(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.bincount(row_group, weights=v, minlength=n_groups)
+
+    n_cols = design.shape[1]
+    gram_g = np.zeros((n_groups, n_cols, n_cols))
+    for i in range(n_cols):
+        for j in range(i, n_cols):
+            gram_g[:, i, j] = gram_g[:, j, i] = group_sums(design[:, i] * design[:, j])
+    xty_g = np.column_stack([group_sums(design[:, i] * y) for i in range(n_cols)])
+    yty_g = group_sums(y**2)
+    rows_g = np.bincount(row_group, minlength=n_groups)
+    return gram_g, xty_g, yty_g, rows_g
+
+
+def _held_out_rmse(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    folds: Sequence[NDArray[np.bool_]],
+    trial_of: NDArray[np.int_],
+) -> float:
+    """Grouped held-out RMSE (deg) of the residuals ``y`` less the terms ``x``."""
     held = np.full(y.size, np.nan)
     for mask in folds:
         test = mask[trial_of]
@@ -381,19 +443,27 @@ def discover(
             continue
         beta = np.linalg.lstsq(x[~test], y[~test], rcond=None)[0]
         held[test] = y[test] - x[test] @ beta
-    after = float(np.sqrt(np.nanmean(held**2)))
-    gain = 1.0 - after / before if before > 0 else 0.0
-    if gain < MIN_GAIN:
-        return Discovery((scatter,), before, before, np.zeros(3 * n)) if scatter else empty
-    beta, *_ = np.linalg.lstsq(x, y, rcond=None)
-    resid = y - x @ beta
+    return float(np.sqrt(np.nanmean(held**2)))
+
+
+def _found_terms(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    beta: NDArray[np.float64],
+    resid: NDArray[np.float64],
+    n_forced: int,
+    stable: Sequence[str],
+    widths: Sequence[int],
+    family_counts: dict[str, int],
+    gain: float,
+) -> list[DiscoveredTerm]:
+    """The stable terms with their coefficients and 95 % intervals (deg)."""
     dof = max(y.size - x.shape[1], 1)
     cov = np.linalg.pinv(x.T @ x) * float(np.sum(resid**2)) / dof
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     t = float(special.stdtrit(dof, 0.975))
-    terms, i = [], sum(sel[c].shape[1] for c in forced)
-    for c in stable:
-        w = sel[c].shape[1]
+    terms, i = [], n_forced
+    for c, w in zip(stable, widths, strict=True):
         b, e = beta[i : i + w], se[i : i + w]
         terms.append(
             DiscoveredTerm(
@@ -406,15 +476,22 @@ def discover(
             )
         )
         i += w
-    if scatter:
-        terms.append(scatter)
-    full = np.zeros(3 * n)
-    full[ok] = x @ beta
-    n_forced = sum(sel[c].shape[1] for c in forced)
+    return terms
+
+
+def _terms_delta_bic(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    resid: NDArray[np.float64],
+    n_forced: int,
+    n_terms: int,
+) -> float:
+    """BIC improvement of the mean terms over the residuals they were found in (each
+    coefficient counted, and one more per term for its choice from the library)."""
     rss0 = float(np.sum(y**2))
     if n_forced:
         xf = x[:, :n_forced]
         rss0 = float(np.sum((y - xf @ np.linalg.lstsq(xf, y, rcond=None)[0]) ** 2))
-    k = x.shape[1] - n_forced + len(stable)
+    k = x.shape[1] - n_forced + n_terms
     dbic = y.size * math.log(max(rss0, 1e-12) / max(float(np.sum(resid**2)), 1e-12))
-    return Discovery(tuple(terms), before, after, full, dbic - k * math.log(y.size))
+    return dbic - k * math.log(y.size)

@@ -19,12 +19,12 @@ import numpy as np
 from scipy.special import fdtrc
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.fitting import (
+from cvmeasure.diagnose.discrepancy import (
     DISCREPANCY_BOUND_DEG,
-    ModelFit,
     _profile_discrepancy,
     discrepancy_basis,
 )
+from cvmeasure.diagnose.model_fit import ModelFit
 from cvmeasure.sim.model import simulate
 from cvmeasure.sim.params import SimParams
 

@@ -1,0 +1,174 @@
+"""The simulation's predictions and residuals for a fitted point (deg, stacked by blocks)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvmeasure.contracts import TrialTable
+from cvmeasure.diagnose.discrepancy import discrepancy_basis
+from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, _as_causes
+from cvmeasure.geometry import wrap_deg
+from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
+from cvmeasure.sim.params import SimParams
+
+
+def _scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
+    extra = {n.key: float(v) for n, v in zip(NUISANCE, nuisance, strict=False)}
+    return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale, **extra)
+
+
+def _effects(
+    base_effects: Sequence[Effect],
+    causes: Causes,
+    values: Sequence[float],
+    shapes: Sequence[Shape] = (),
+) -> tuple[Effect, ...]:
+    kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
+    forms = list(shapes) + [()] * (len(causes) - len(shapes))
+    added = tuple(
+        Effect(c, min(max(float(v), EFFECTS[c].lower), EFFECTS[c].upper), f)
+        for c, v, f in zip(causes, values, forms, strict=True)
+    )
+    return (*kept, *added)
+
+
+def predict(
+    trials: TrialTable,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    causes: str | Sequence[str],
+    strength_scale: float,
+    values: Sequence[float] = (),
+    *,
+    nuisance: Sequence[float] = (),
+    shapes: Sequence[Shape] = (),
+    commanded_pin_deg: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """Predicted observations of the trials under a model, stacked like
+    :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg);
+    ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
+    res = simulate(
+        trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg,
+        _scaled(params, strength_scale, nuisance),
+        _effects(base_effects, _as_causes(causes), values, shapes),
+        bend_index=trials.bend_index,
+    )
+    return np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
+
+
+def residuals(
+    trials: TrialTable,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    causes: str | Sequence[str],
+    strength_scale: float,
+    values: Sequence[float] = (),
+    *,
+    nuisance: Sequence[float] = (),
+    discrepancy: Sequence[float] = (),
+    shapes: Sequence[Shape] = (),
+) -> NDArray[np.float64]:
+    """Measured minus predicted, stacked by blocks (loaded, unloaded, pin); NaN = not measured."""
+    predicted = predict(
+        trials,
+        params,
+        base_effects,
+        causes,
+        strength_scale,
+        values,
+        nuisance=nuisance,
+        shapes=shapes,
+    )
+    r = _observed_minus(trials, predicted)
+    if len(discrepancy):
+        r = r - discrepancy_basis(trials) @ np.asarray(discrepancy, dtype=np.float64)
+    return r
+
+
+#: Points whose residuals one fit keeps (a start grid has at most 12 x 9).
+_MEMO_POINTS = 128
+
+
+class _PointMemo:
+    """Residual arrays of one fit keyed by the parameter point and the causes' forms,
+    the oldest dropped beyond :data:`_MEMO_POINTS`; arrays are copied in and out."""
+
+    def __init__(self) -> None:
+        self._kept: dict[tuple[bytes, tuple[Shape, ...]], NDArray[np.float64]] = {}
+
+    @staticmethod
+    def _key(x: NDArray[np.float64], forms: Sequence[Shape]) -> tuple[bytes, tuple[Shape, ...]]:
+        return np.asarray(x, dtype=np.float64).tobytes(), tuple(forms)
+
+    def get(self, x: NDArray[np.float64], forms: Sequence[Shape]) -> NDArray[np.float64] | None:
+        value = self._kept.get(self._key(x, forms))
+        return None if value is None else value.copy()
+
+    def put(
+        self, x: NDArray[np.float64], forms: Sequence[Shape], value: NDArray[np.float64]
+    ) -> None:
+        if len(self._kept) >= _MEMO_POINTS:
+            self._kept.pop(next(iter(self._kept)))
+        self._kept[self._key(x, forms)] = value.copy()
+
+
+def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Measured minus ``predicted`` (stacked by blocks along the last axis; leading axes:
+    several predictions); pin angles wrapped as directions."""
+    r = trials.observations() - predicted
+    n = len(trials)
+    r[..., 2 * n :] = wrap_deg(r[..., 2 * n :])  # pin angles are directions
+    return r
+
+
+def _drift_rate_residuals(
+    trials: TrialTable,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    causes: Causes,
+    x: NDArray[np.float64],
+    m: int,
+    index: int,
+    rates: NDArray[np.float64],
+    shapes: Sequence[Shape],
+) -> NDArray[np.float64]:
+    """(K, 3 N): :func:`residuals` at the point ``x`` of :func:`fit_model` (strength, ``m``
+    nuisance values, the causes' values) with ``x[index]``, a drift's rate, at each of
+    ``rates`` (clipped to the drift's bounds as :func:`_effects` clips it): the same
+    numbers from one vectorised simulation (:func:`simulate_drift_rates`) instead of K."""
+    spec = EFFECTS["drift"]
+    effects = _effects(base_effects, causes, x[1 + m :], shapes)
+    clipped = [min(max(float(v), spec.lower), spec.upper) for v in rates]
+    res = simulate_drift_rates(
+        trials.commanded_pin_deg,
+        _scaled(params, x[0], x[1 : 1 + m]),
+        effects,
+        clipped,
+        bend_index=trials.bend_index,
+    )
+    predicted = np.concatenate(
+        [res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg], axis=-1
+    )
+    return _observed_minus(trials, predicted)
+
+
+#: A measurement-stage cause: it changes only how the camera sees the simulated angles,
+#: so the grid over it projects one simulation instead of simulating every grid point.
+_CAMERA = "camera_tilt"
+
+
+def _tilted(untilted: NDArray[np.float64], value: float, form: Shape) -> NDArray[np.float64]:
+    """Predicted observations (stacked by blocks) of a simulation without camera tilt,
+    seen by the camera of ``camera_tilt`` = ``value`` in ``form`` (what
+    :func:`cvmeasure.sim.simulate` does with the effect on)."""
+    spec = EFFECTS[_CAMERA]
+    effect = Effect(_CAMERA, min(max(float(value), spec.lower), spec.upper), form)
+    axis = effect.shape_value("tilt_axis_deg")
+    tilt = float(effect.value)
+    return np.concatenate(
+        [apply_camera_tilt_deg(block, tilt, axis) for block in np.split(untilted, 3)]
+    )

@@ -1,0 +1,120 @@
+"""Terms outside the catalogue against the named causes: the causes refitted with the
+discrepancy, the terms left beside them, and order-dependent terms that tie them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cvmeasure.diagnose.discover import Discovery, discover, library, term_words
+from cvmeasure.diagnose.fitting import ModelFit, discrepancy_basis, fit_model, grouped_kfold_cv
+from cvmeasure.diagnose.identify import CONFOUNDED_SIMILARITY
+from cvmeasure.diagnose.rules import _Context, _delta_bic, _typical_size
+
+if TYPE_CHECKING:
+    pass
+
+
+def _kept_against_terms(
+    ctx: _Context, fit: ModelFit, base_fit: ModelFit, groups: Sequence[str]
+) -> tuple[float, float] | None:
+    """Held-out RMSE (deg) and delta BIC of ``fit``'s causes refitted with the
+    discrepancy, or None when so fitted a cause is below its typical size
+    (:func:`_typical_size`) or the library still finds a term in their residuals."""
+    joint, joint_cv, joint_bic = _joint_with_discrepancy(ctx, fit, base_fit)
+    if not _typical_size(joint):
+        return None
+    left = _terms_beside(
+        ctx, joint, joint.residuals(ctx.trials, ctx.params, ctx.base_effects), groups
+    )
+    if any(t.term != "scatter" for t in left.terms):
+        return None
+    return joint_cv, joint_bic
+
+
+def _terms_beside(
+    ctx: _Context, fit: ModelFit, residual_deg: NDArray[np.float64], groups: Sequence[str]
+) -> Discovery:
+    """What the library of :mod:`~cvmeasure.diagnose.discover` finds in ``fit``'s
+    residuals (deg, (3N,)) once its model-form discrepancy is taken out."""
+    trials, params = ctx.trials, ctx.params
+    return discover(
+        trials,
+        residual_deg - discrepancy_basis(trials) @ np.asarray(fit.discrepancy),
+        groups,
+        ctx.fold_masks,
+        head_gain=fit.head_sensitivity(trials, params, ctx.base_effects),
+        refit=fit.nuisance_jacobian(trials, params, ctx.base_effects),
+    )
+
+
+def _joint_with_discrepancy(
+    ctx: _Context, fit: ModelFit, base_fit: ModelFit
+) -> tuple[ModelFit, float, float]:
+    """``fit``'s causes refitted together with the bounded model-form discrepancy, its
+    held-out RMSE (deg; the discrepancy fitted with the model on the other folds) and
+    its delta BIC against ``base_fit``."""
+    joint = fit_model(
+        ctx.trials,
+        ctx.params,
+        fit.causes,
+        base_effects=ctx.base_effects,
+        start=fit,
+        discrepancy=True,
+    )
+    held = grouped_kfold_cv(
+        ctx.trials,
+        ctx.params,
+        fit.causes,
+        ctx.fold_masks,
+        base_effects=ctx.base_effects,
+        full_fit=joint,
+        discrepancy=True,
+    )
+    return joint, held.rmse_after_discrepancy_deg(ctx.trials), _delta_bic(base_fit, joint)
+
+
+#: Library terms that depend on the order of the bends, not only on each bend.
+ORDER_TERMS = ("warm_up", "order_squared", "previous_bend")
+ORDER_EXPERIMENT = "bend the same angles in a random order"
+
+
+def _order_confounded(
+    ctx: _Context,
+    base_fit: ModelFit,
+    change_deg: NDArray[np.float64],
+    head_gain: NDArray[np.float64],
+) -> list[tuple[str, str]]:
+    """Order-dependent library terms (:data:`ORDER_TERMS`) whose columns reproduce the
+    named causes' change of the predictions on this plan (|cosine| above
+    CONFOUNDED_SIMILARITY after projecting out the machine's nuisance directions): on
+    an ordered plan a warm-up or the previous bend can look like a catalogue cause.
+    Each as (its words with the similarity, its library name)."""
+    n = len(ctx.trials)
+    rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)
+    jac = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)[rows]
+    q = np.linalg.qr(jac)[0]
+
+    def project(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return v - q @ (q.T @ v)
+
+    sig = project(change_deg[rows])
+    norm = float(np.sum(sig**2))
+    if norm <= 0:
+        return []
+    best: dict[str, tuple[float, str]] = {}  # family -> (similarity, member)
+    for name, cols in library(ctx.trials, head_gain).items():
+        family = next((f for f in ORDER_TERMS if name.startswith(f)), None)
+        if family is None:
+            continue
+        x = np.column_stack([project(c[rows]) for c in cols.T])
+        fit = x @ np.linalg.lstsq(x, sig, rcond=None)[0]
+        similarity = math.sqrt(max(float(sig @ fit) / norm, 0.0))
+        if similarity > max(CONFOUNDED_SIMILARITY, best.get(family, (0.0, ""))[0]):
+            best[family] = (similarity, name)
+    return [(f"{term_words(name)} (similarity {sim:.4f})", name) for sim, name in best.values()]
