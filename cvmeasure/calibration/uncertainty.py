@@ -144,6 +144,20 @@ def _covariance_names(result: CalibrationResult) -> tuple[str, ...]:
     )
 
 
+def _marginal(
+    result: CalibrationResult, cov: np.ndarray, n_warp: int, sigma2: float, dof: int
+) -> ParameterCovariance:
+    """The intrinsics' and poses' block of ``cov`` (the warp's ``n_warp`` last rows out)."""
+    keep = cov.shape[0] - n_warp
+    return ParameterCovariance(
+        _covariance_names(result),
+        len(result.std_devs),
+        cov[:keep, :keep],
+        float(np.sqrt(sigma2)),
+        dof,
+    )
+
+
 def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
     """Covariance of intrinsics and poses: sigma^2 (J^T J)^-1 with sigma^2 = |r|^2 / (2N - P).
 
@@ -153,14 +167,7 @@ def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
     """
     r, jac, n_warp = _residuals_and_jacobian(result)
     cov, sigma2, dof = gauss_markov_covariance(r, jac)
-    keep = cov.shape[0] - n_warp
-    return ParameterCovariance(
-        _covariance_names(result),
-        len(result.std_devs),
-        cov[:keep, :keep],
-        float(np.sqrt(sigma2)),
-        dof,
-    )
+    return _marginal(result, cov, n_warp, sigma2, dof)
 
 
 def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
@@ -208,14 +215,7 @@ def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
     root = half @ u
     cov_s = (root * np.maximum(lam, 1.0)) @ root.T
     cov = cov_s * np.outer(scale, scale)
-    keep = cov.shape[0] - n_warp
-    return ParameterCovariance(
-        _covariance_names(result),
-        len(result.std_devs),
-        cov[:keep, :keep],
-        float(np.sqrt(sigma2)),
-        dof,
-    )
+    return _marginal(result, cov, n_warp, sigma2, dof)
 
 
 def _unpack(params: np.ndarray, base: CameraModel, n_i: int):
