@@ -623,10 +623,13 @@ def _send_all(run: _Run, lines: Sequence[JobLine]) -> None:
                     board.write(encode_line(line.text))
                 except DeviceError as exc:
                     board.error = board.error or exc
-                    _check_board(run)
+                # counted as sent even when the write raised: the bytes can be out and
+                # parsed before the drain fails (a port gone mid-line), so the board may
+                # end at this line
                 run.inflight.append(line)
                 run.sent += 1
                 run.last_sent = line
+                _check_board(run)
                 i += 1
                 if run.progress:
                     run.progress(line.index + 1, n_total, board.state.get("line"))
