@@ -41,7 +41,10 @@ moves) and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas
 over ``sqrt(k)``, so a converged job is not kicked about by measurement noise (one
 photo's outlier weighs ``1/k`` in the mean instead of starting a correction). The
 sigmas are the part's stated ones scaled by :func:`noise_factor` (the job's own
-part-to-part scatter, once it repeats).
+part-to-part scatter, once it repeats). A pooled error past its band is corrected less
+:data:`SHRINK_SIGMA` sigmas of its estimate (a soft threshold), and a group's mean is
+given only to members whose own readings agree with it: a reading just past the band,
+which may be noise, moves a vertex by little, never by the whole band.
 
 The calibration keeps every correction in ``provenance["corrections"]`` (a list,
 oldest first; :meth:`Correction.to_dict`): which part photo, which design,
@@ -99,6 +102,9 @@ POOL_PARTS = 10
 #: This part's error differing from the job's pooled earlier parts (same pin) by more
 #: than this many combined sigmas is a suspect jump (see :func:`_pooled_errors`).
 JUMP_SIGMA = 6.0
+#: A significant error is corrected less this many sigmas of its estimate (see
+#: :func:`_move_knots`).
+SHRINK_SIGMA = 1.0
 #: A vertex whose measured bend (in the wanted direction) is below this many sigmas was
 #: not bent at all (see :func:`correct_calibration`).
 UNBENT_SIGMA = 3.0
@@ -464,6 +470,7 @@ def correct_calibration(
     min_deadband_deg: float = 0.02,
     informed_gain: float = DEFAULT_INFORMED_GAIN,
     vertex_offset_deg: ArrayLike | None = None,
+    shrink_sigma: float = SHRINK_SIGMA,
 ) -> tuple[Calibration, Correction]:
     """Correct a calibration from one part's per-vertex final bends (see the module notes).
 
@@ -484,6 +491,10 @@ def correct_calibration(
         sigma is at least ``min_deadband_deg / deadband_sigma``.
     vertex_offset_deg : the offsets the part was bent with; None = the latest in
         the calibration's history for this design and N.
+    shrink_sigma : a significant error pooled over two or more parts is corrected
+        less this many standard uncertainties of its estimate (a soft threshold: the
+        correction is what the measurement shows beyond its noise, so a mean just past
+        the dead band moves a vertex by a little, not by the whole band).
 
     Returns
     -------
@@ -518,7 +529,13 @@ def correct_calibration(
     band = np.where(pool.k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
     error = pool.mean_deg
     notes = _suspect_notes(pool.suspect) + _dead_zone_shortfalls(t, error, band, unbent)
-    curves, updates, corrected = _move_knots(calibration, base, t, error, band, unbent, step, notes)
+    # a pooled error (a job settling: a low band that noise crosses now and then) moves a
+    # vertex only by what it shows beyond its uncertainty; a first look past
+    # first_look_sigma is no noise and is corrected whole
+    spread = np.where(unbent | (pool.k <= 1), 0.0, shrink_sigma * pool.sigma_deg)
+    curves, updates, corrected = _move_knots(
+        calibration, base, t, error, (band, spread), unbent, step, notes
+    )
     comp = replace(calibration.compensation, springback=curves)
     new_cal = replace(calibration, compensation=comp)
     offsets, pins = _next_pins(new_cal, t, bent_pin - step * corrected * pin_per_final)
@@ -653,21 +670,33 @@ def _dead_zone_shortfalls(
     return notes
 
 
+def _soft(error: Any, spread: Any) -> np.ndarray:
+    """``error`` moved towards 0 by ``spread`` (deg), never past it (a soft threshold)."""
+    e = np.asarray(error, float)
+    return np.sign(e) * np.maximum(np.abs(e) - np.asarray(spread, float), 0.0)
+
+
 def _move_knots(
     calibration: Calibration,
     base: Any,
     t: np.ndarray,
     error: np.ndarray,
-    band: np.ndarray,
+    band_spread: tuple[np.ndarray, np.ndarray],
     unbent: np.ndarray,
     step: float,
     notes: list[str],
 ) -> tuple[dict[str, Any], list[dict[str, Any]], np.ndarray]:
     """Move each direction's curve knot by its group's significant mean error.
 
+    ``band_spread`` is, per vertex, (the dead band an error must exceed, the amount a
+    significant error is shrunk by: ``shrink_sigma`` sigmas of its estimate). A vertex
+    whose own error is significant is corrected by it, shrunk; one whose own is not
+    takes its group's shrunk mean only when its own reading agrees with that mean within
+    its band (a group mean is not forced on a member whose reading says otherwise).
     Returns the moved curves, the updates made and, per vertex, the error (aim deg) this
     correction removes; notes are appended to ``notes``.
     """
+    band, spread = band_spread
     sign = np.where(t < 0, -1.0, 1.0)
     curves = dict(calibration.compensation.springback)
     bent_curves = dict(calibration.compensation.springback)
@@ -684,7 +713,7 @@ def _move_knots(
         for group in _groups(mags):
             members = idx[group]
             own = np.abs(error[members]) > band[members]
-            corrected[members] = np.where(own, error[members], 0.0)
+            corrected[members] = np.where(own, _soft(error[members], spread[members]), 0.0)
             live = members[~unbent[members]]  # a dead-zone vertex says nothing of the curve
             if live.size == 0:
                 continue
@@ -692,11 +721,14 @@ def _move_knots(
             group_band = float(np.sqrt(np.mean(band[live] ** 2)) / np.sqrt(live.size))
             if abs(e_mag) <= group_band:
                 continue
-            # the group's mean is significant: every member takes it, plus its own rest
-            # when that rest is itself beyond the vertex's band
-            corrected[live] = np.where(own[~unbent[members]], error[live], sign[live] * e_mag)
+            e_use = float(_soft(e_mag, np.sqrt(np.mean(spread[live] ** 2) / live.size)))
+            # the group's mean is significant: a member without its own significant error
+            # takes it when its reading agrees with it within its band
+            agrees = np.abs(error[live] - sign[live] * e_mag) <= band[live]
+            group_share = np.where(agrees, sign[live] * e_use, 0.0)
+            corrected[live] = np.where(own[~unbent[members]], corrected[live], group_share)
             final = float(np.mean(np.abs(t[live])))
-            shift = -step * e_mag
+            shift = -step * e_use
             # the knot moves from where the part was bent (the calibration it was bent
             # with), not from a curve already moved by a neighbouring group
             before = _loaded_at(bent_curves[direction], final)
