@@ -14,6 +14,7 @@ from cvmeasure.material.calibration import (
     save_calibration,
 )
 from cvmeasure.material.correct import (
+    DEFAULT_GAIN,
     correct_calibration,
     corrected_pin_commands,
     corrections_of,
@@ -105,7 +106,7 @@ def test_a_vertex_left_alone_keeps_its_pin_when_neighbouring_knots_move():
     assert abs(corrected_pin_commands(cal2, [12.0])[0] - before[1]) > 0.3
     # the corrected vertices move by gain * error through the model's slope, once
     slope = np.asarray(corr.model_final_per_pin)
-    np.testing.assert_allclose((after - before)[[0, 2]] * slope[[0, 2]], 0.9, rtol=1e-6)
+    np.testing.assert_allclose((after - before)[[0, 2]] * slope[[0, 2]], DEFAULT_GAIN, rtol=1e-6)
 
 
 def test_stated_sigmas_too_small_are_scaled_by_the_jobs_own_scatter():
@@ -307,7 +308,7 @@ def test_a_group_mean_is_not_forced_on_a_member_whose_reading_disagrees():
     moved_final = (np.asarray(corr.pin_deg) - before) * np.asarray(corr.model_final_per_pin)
     assert moved_final[0] == pytest.approx(0.0, abs=1e-9)
     # the others are corrected by the gain times their own (first-look, unshrunk) error
-    np.testing.assert_allclose(moved_final[1:], -0.9 * (measured - target)[1:], rtol=1e-6)
+    np.testing.assert_allclose(moved_final[1:], -DEFAULT_GAIN * (measured - target)[1:], rtol=1e-6)
 
 
 def test_a_settled_job_is_not_walked_about_by_noise():
