@@ -485,19 +485,16 @@ def correct_calibration(
     sigma_deg : standard uncertainty of each measured bend (deg); None = 0 (only
         ``min_deadband_deg`` then).
     part, design : names for the history; ``design`` with N keys the per-vertex offsets.
-    gain : damping in (0, 1] while the machine's response is assumed to be the model's.
-    informed_gain : damping once the response has been measured from two parts of the
-        job (their pin and bend changes); the larger of the two is used.
+    gain, informed_gain : damping in (0, 1] while the machine's response is the model's,
+        and once measured from two parts of the job; the larger of the two is used.
     deadband_sigma, first_look_sigma, min_deadband_deg : the dead band: an error
         seen once is corrected beyond ``first_look_sigma`` sigmas; the mean of k
         parts bent with the same pin beyond ``deadband_sigma * sigma / sqrt(k)``;
         sigma is at least ``min_deadband_deg / deadband_sigma``.
     vertex_offset_deg : the offsets the part was bent with; None = the latest in
         the calibration's history for this design and N.
-    shrink_sigma : a significant error pooled over two or more parts is corrected
-        less this many standard uncertainties of its estimate (a soft threshold: the
-        correction is what the measurement shows beyond its noise, so a mean just past
-        the dead band moves a vertex by a little, not by the whole band).
+    shrink_sigma : a significant error pooled over two or more parts is corrected less
+        this many sigmas of its estimate (see :func:`_band_and_spread`).
 
     Returns
     -------
@@ -520,22 +517,17 @@ def correct_calibration(
     pin_per_final = _pin_per_final(base, t)
     # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
     factor = noise_factor(calibration, design, bent_pin, m, sig)
-    unbent = _unbent(t, m, np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9)))
+    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    unbent = _unbent(t, m, np.maximum(sig * factor, floor))
     prev = _last_of_job(calibration, design, t.size)
     ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
     # with the machine's response measured (ratio) the damping can be lighter, still < 1
     step = max(gain, informed_gain) / ratio if ratio else gain
-    # evidence accumulates while a vertex's pin stays the same (k parts, sigma / sqrt(k)): a
-    # first look acts beyond first_look_sigma, later ones beyond deadband_sigma of the mean
-    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    # evidence accumulates while a vertex's pin stays the same (k parts, sigma / sqrt(k))
     pool = _pooled_errors(calibration, design, bent_pin, m - t, sig, floor, factor, ratio or 1.0)
-    band = np.where(pool.k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
+    band, spread = _band_and_spread(pool, unbent, (first_look_sigma, deadband_sigma, shrink_sigma))
     error = pool.mean_deg
     notes = _suspect_notes(pool.suspect) + _dead_zone_shortfalls(t, error, band, unbent)
-    # a pooled error (a job settling: a low band that noise crosses now and then) moves a
-    # vertex only by what it shows beyond its uncertainty; a first look past
-    # first_look_sigma is no noise and is corrected whole
-    spread = np.where(unbent | (pool.k <= 1), 0.0, shrink_sigma * pool.sigma_deg)
     curves, updates, corrected = _move_knots(
         calibration, base, t, error, (band, spread), unbent, step, notes
     )
@@ -567,6 +559,23 @@ def correct_calibration(
     )
     history = {"corrections": [*corrections_of(calibration), correction.to_dict()]}
     return replace(new_cal, provenance={**calibration.provenance, **history}), correction
+
+
+def _band_and_spread(
+    pool: _Pool, unbent: np.ndarray, sigmas: tuple[float, float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per vertex (deg): the dead band its error must exceed, and what a significant error
+    is shrunk by. ``sigmas`` = (first_look_sigma, deadband_sigma, shrink_sigma).
+
+    A pooled error (a job settling: a low band that noise crosses now and then) moves a
+    vertex only by what it shows beyond its uncertainty (a soft threshold), so a mean just
+    past the band moves it by a little, not by the whole band; a first look past
+    ``first_look_sigma`` is no noise and is corrected whole, as is a dead-zone shortfall.
+    """
+    first_look, deadband, shrink = sigmas
+    band = np.where(pool.k == 1, first_look, deadband) * pool.sigma_deg
+    spread = np.where(unbent | (pool.k <= 1), 0.0, shrink * pool.sigma_deg)
+    return band, spread
 
 
 def _checked_inputs(
