@@ -29,6 +29,7 @@ import numpy as np
 
 from cvmeasure.design import divide_into_chords
 from cvmeasure.geometry import CircleFit, wrap_deg
+from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
     "chord_coverage",
@@ -422,8 +423,6 @@ def count_chords(
     is kept only when the N-chord polyline fits the centreline far better than a
     circle does (a smooth arc turns evenly and has no peaks).
     """
-    from scipy.signal import find_peaks
-
     from cvmeasure.geometry import fit_circle_robust
 
     pts = _check_points(ordered_points_mm, 8)
@@ -452,14 +451,14 @@ def count_chords(
     # once more from the windows away from the peaks found
     distance = max(1, round(min_chord_mm / step_mm))
     sigma = float(np.percentile(dev, 10)) / 0.126 + 1e-9
-    peaks, _ = find_peaks(dev, height=max(min_turn_deg, 5.0 * sigma), distance=distance)
+    peaks = find_peaks(dev, height=max(min_turn_deg, 5.0 * sigma), distance=distance)
     quiet = np.ones(len(dev), dtype=bool)
     for p in peaks:
         quiet[max(0, p - 2 * half - k) : p + 2 * half + k + 1] = False
     if quiet.sum() >= 20:
         sigma = 1.4826 * float(np.median(dev[quiet])) / 0.6745 + 1e-9
     height = max(min_turn_deg, 5.0 * sigma)
-    peaks, _ = find_peaks(dev, height=height, distance=distance)
+    peaks = find_peaks(dev, height=height, distance=distance)
     fits: dict[int, PolylineFit] = {}
     if len(peaks) == 0:
         # chords so short that no window is quiet hide their peaks: try every count
