@@ -100,7 +100,7 @@ def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
     """
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.driver.gcode import bend_list, gcode_lines
+    from cvmeasure.gcode import bend_list, gcode_lines
     from cvmeasure.material.correct import corrected_pin_commands
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part

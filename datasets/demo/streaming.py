@@ -22,10 +22,10 @@ __all__ = ["demo_step"]
 def demo_step(out_dir: Path, *, seed: int = 7) -> DemoSection:
     """Run the streaming demo; write the G-code and its journal under ``out_dir``."""
     from cvmeasure.design import arc_points_mm, bend_angles_deg
-    from cvmeasure.driver.gcode import design_job
     from cvmeasure.driver.stream import JobStopped, StreamConfig, stream_job
     from cvmeasure.driver.transport import open_link
     from cvmeasure.fileio import atomic_write_text
+    from cvmeasure.gcode import design_job
     from cvmeasure.testing.double import FakeTinyG, Fault
 
     rng = np.random.default_rng(seed)

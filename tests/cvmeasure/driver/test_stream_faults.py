@@ -13,7 +13,6 @@ import time
 import pytest
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import (
     FIRMWARE_QUERIES,
     SETUP_COMMANDS,
@@ -23,6 +22,7 @@ from cvmeasure.driver.stream import (
 )
 from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import DeviceError
+from cvmeasure.gcode import design_job
 from cvmeasure.testing.double import FakeTinyG, Fault
 
 FAST = StreamConfig(stall_timeout_s=1.0, flush_timeout_s=5.0)

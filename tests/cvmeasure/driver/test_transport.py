@@ -11,10 +11,10 @@ import pytest
 import serial
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import StreamConfig, stream_job
 from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import InputError
+from cvmeasure.gcode import design_job
 from cvmeasure.testing.double import FakeTinyG, Fault
 from cvmeasure.testing.protocol_sim import parse_sim_url
 
