@@ -41,6 +41,7 @@ __all__ = [
     "arc_geometry",
     "arc_angle_from_chord_deg",
     "sagitta_radius_mm",
+    "fit_line",
 ]
 
 
@@ -161,7 +162,7 @@ class PolylineFit:
         }
 
 
-def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust total-least-squares line: (point on it, unit direction, inlier mask).
 
     Two trimming passes drop points farther than 3 robust sigmas (1.4826 MAD)
@@ -296,7 +297,7 @@ def fit_polyline(
                 sel = (s >= a) & (s <= b)
             if sel.sum() < 2:
                 raise ValueError("too few centreline points for the number of divisions")
-            p0, d, inl = _fit_line(pts[sel])
+            p0, d, inl = fit_line(pts[sel])
             # orient along the traversal
             if np.dot(pts[sel][-1] - pts[sel][0], d) < 0:
                 d = -d
