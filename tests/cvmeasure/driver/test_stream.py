@@ -10,8 +10,6 @@ import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm, bend_angles_deg
-from cvmeasure.driver.double import FakeTinyG, Fault
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.protocol import QueueReport
 from cvmeasure.driver.stream import (
     JobStopped,
@@ -24,6 +22,8 @@ from cvmeasure.driver.stream import (
 from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import DeviceError, InputError
 from cvmeasure.fileio import read_jsonl
+from cvmeasure.gcode import design_job
+from cvmeasure.testing.double import FakeTinyG, Fault
 
 # a stall needs a full second of silence, so a loaded CI machine does not fake one
 FAST = StreamConfig(stall_timeout_s=1.0, flush_timeout_s=5.0)
