@@ -454,8 +454,14 @@ def render_board(scene: BoardScene, board_png: Path, cache_dir: Path) -> Path:
 
 @dataclass(frozen=True)
 class PartScene:
-    """A finished part: a round wire bent to one circular arc, lying on a white matte sheet
-    beside the board sheet (the photo ``cvmeasure part`` takes). Lengths in mm."""
+    """A finished part: a round wire bent to one circular arc, lying on a matte sheet beside
+    the board sheet (the photo ``cvmeasure part`` takes). Lengths in mm.
+
+    ``chords`` 0 renders a smooth arc (3 deg facets); N > 0 renders the polygon of N equal
+    chords a bender makes, its vertices on the circle of ``radius_mm``. ``sheet_rgb`` is the
+    matte sheet's linear reflectance, or ``sheet_texture`` (a PNG given to ``render_part``)
+    names a printed texture (cork, wood) instead. ``lift_mm`` raises the wire's far end off
+    the sheet (the part rocking on its near end)."""
 
     radius_mm: float = 40.0
     arc_angle_deg: float = 120.0
@@ -465,19 +471,31 @@ class PartScene:
         default_factory=lambda: CameraRig(eye_mm=(0.0, -30.0, 700.0), target_mm=(0.0, 0.0, 0.0))
     )
     spp: int = 16
+    chords: int = 0
+    sheet_rgb: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    sheet_texture: str = ""
+    lamp_mm: tuple[float, float, float] = (300.0, 200.0, 150.0)
+    steel_alpha: float = 0.25
+    lift_mm: float = 0.0
 
 
 def part_truth(scene: PartScene) -> dict:
     """The arc's radius, chord, sagitta and arc angle on the wire centreline (mm, deg)."""
     half = math.radians(scene.arc_angle_deg) / 2.0
     r = scene.radius_mm
-    return {
+    out = {
         "radius_mm": r,
         "chord_width_mm": 2.0 * r * math.sin(half),
         "height_mm": r * (1.0 - math.cos(half)),
         "arc_angle_deg": scene.arc_angle_deg,
         "wire_diameter_mm": scene.wire_diameter_mm,
+        "lift_mm": scene.lift_mm,
     }
+    if scene.chords > 0:
+        out["divisions"] = scene.chords
+        out["segment_bend_deg"] = scene.arc_angle_deg / scene.chords
+        out["chord_mm"] = 2.0 * r * math.sin(half / scene.chords)
+    return out
 
 
 def _arc_shapes(
@@ -487,17 +505,19 @@ def _arc_shapes(
     z = sheet_z_mm + rw
     half = math.radians(scene.arc_angle_deg) / 2.0
     yaw = math.radians(scene.yaw_deg)
-    n = max(8, int(scene.arc_angle_deg / 3.0))
+    n = scene.chords if scene.chords > 0 else max(8, int(scene.arc_angle_deg / 3.0))
     ang = yaw + np.linspace(-half, half, n + 1)
+    # a lift raises the far end, the wire pivoting about the near end's contact point
+    rise = np.linspace(0.0, scene.lift_mm, n + 1)
     pts = [
         [
             centre_xy[0] + scene.radius_mm * math.cos(a),
             centre_xy[1] + scene.radius_mm * math.sin(a),
-            z,
+            z + dz,
         ]
-        for a in ang
+        for a, dz in zip(ang, rise, strict=True)
     ]
-    steel = _metal("Fe", 0.25)
+    steel = _metal("Fe", scene.steel_alpha)
     shapes: dict[str, dict] = {}
     for i in range(n):
         shapes[f"arc{i}"] = {
@@ -512,22 +532,37 @@ def _arc_shapes(
     return shapes
 
 
-def render_part(scene: PartScene, board_png: Path, cache_dir: Path) -> tuple[Path, dict]:
-    """Render a finished part beside the board (cached); return the JPEG path and its truth."""
+def _sheet_bsdf(scene: PartScene, texture_png: Path | None) -> dict:
+    if scene.sheet_texture:
+        if texture_png is None:
+            raise ValueError(f"sheet texture {scene.sheet_texture!r} needs its PNG")
+        tex = {"type": "bitmap", "filename": str(texture_png), "filter_type": "bilinear"}
+        return {"type": "diffuse", "reflectance": tex}
+    return {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(scene.sheet_rgb)}}
+
+
+def render_part(
+    scene: PartScene, board_png: Path, cache_dir: Path, texture_png: Path | None = None
+) -> tuple[Path, dict]:
+    """Render a finished part beside the board (cached); return the JPEG path and its truth.
+
+    ``texture_png`` is the matte sheet's printed texture when ``scene.sheet_texture`` names one.
+    """
     mi = _mi()
-    key = _key("part", asdict(scene), [Path(board_png)])
+    extra = [Path(board_png)] + ([Path(texture_png)] if scene.sheet_texture else [])
+    key = _key("part", asdict(scene), extra)
     cache_dir = Path(cache_dir)
     cache_dir.mkdir(parents=True, exist_ok=True)
     jpg = cache_dir / f"part_{key}.jpg"
     truth = part_truth(scene)
     if not jpg.exists():
         tf = mi.ScalarTransform4f
-        d = _base_scene(mi, scene.rig, scene.spp, (300.0, 200.0, 150.0))
+        d = _base_scene(mi, scene.rig, scene.spp, scene.lamp_mm)
         d["sheet"] = _sheet_shape(mi, Path(board_png), (0.0, 0.0, 0.0), (-110.0, 0.0, 0.0))
         d["matte"] = {
             "type": "rectangle",
-            "to_world": tf().translate([140.0, 0.0, 0.05]).scale([100.0, 80.0, 1.0]),
-            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.8, 0.8, 0.8]}},
+            "to_world": tf().translate([140.0, 0.0, 0.05]).scale([100.0, 95.0, 1.0]),
+            "bsdf": _sheet_bsdf(scene, texture_png),
         }
         # the arc's midpoint sits over the matte sheet's centre
         mid = math.radians(scene.yaw_deg)

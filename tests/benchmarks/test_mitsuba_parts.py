@@ -1,0 +1,84 @@
+"""The Mitsuba part benchmark's bookkeeping: the truth is the rendered arc, the score is fair."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+mi = pytest.importorskip("mitsuba", reason="mitsuba not installed (pip install cvmeasure[heldout])")
+
+from benchmarks.heldout.mitsuba_scenes import PartScene, part_truth, render_part  # noqa: E402
+from benchmarks.mitsuba_parts import part_rig, score  # noqa: E402
+
+
+def _board_png(tmp_path: Path) -> Path:
+    cli = str(Path(sys.executable).with_name("cvmeasure"))
+    out = tmp_path / "board.png"
+    subprocess.run([cli, "targets", "charuco", "-o", str(out)], capture_output=True, check=True)
+    return out
+
+
+def _fit_circle(xy: np.ndarray) -> tuple[np.ndarray, float]:
+    a = np.column_stack([2 * xy, np.ones(len(xy))])
+    sol, *_ = np.linalg.lstsq(a, (xy**2).sum(axis=1), rcond=None)
+    centre = sol[:2]
+    return centre, float(math.sqrt(sol[2] + centre @ centre))
+
+
+def test_rendered_arc_has_the_truth_radius_and_chords(tmp_path: Path) -> None:
+    rig = part_rig(480, 320)
+    scene = PartScene(
+        radius_mm=60.0,
+        arc_angle_deg=120.0,
+        wire_diameter_mm=3.0,
+        yaw_deg=0.0,
+        rig=rig,
+        spp=4,
+        chords=8,
+        sheet_rgb=(0.02, 0.02, 0.02),
+    )
+    truth = part_truth(scene)
+    assert truth["segment_bend_deg"] == pytest.approx(15.0)
+    assert truth["chord_mm"] == pytest.approx(2 * 60.0 * math.sin(math.radians(7.5)))
+    jpg, truth2 = render_part(scene, _board_png(tmp_path), tmp_path)
+    assert truth2 == truth
+    # bright steel on the black card: back-project its pixels to the wire's axis plane
+    img = cv2.imread(str(jpg), cv2.IMREAD_GRAYSCALE).astype(float)
+    k = rig.matrix()
+    rot, t = rig.world_to_camera()
+    ys, xs = np.nonzero(img > 80)
+    rays = rot.T @ np.linalg.inv(k) @ np.vstack([xs, ys, np.ones_like(xs)])
+    eye = -rot.T @ t
+    z = 0.05 + scene.wire_diameter_mm / 2.0
+    s = (z - eye[2]) / rays[2]
+    world = eye[:2, None] + s * rays[:2]
+    on_matte = (world[0] > 60.0) & (world[0] < 235.0) & (np.abs(world[1]) < 90.0)
+    assert on_matte.sum() > 50
+    centre, radius = _fit_circle(world[:, on_matte].T)
+    # the arc's midpoint sits over the matte's centre, its centre R - sagitta / 2 behind it
+    back = 60.0 - truth["height_mm"] / 2.0
+    assert centre == pytest.approx([140.0 - back, 0.0], abs=1.0)
+    # pixels of 0.8 mm along chords inside the circle: the fit is within 1.5 %, not the truth
+    assert radius == pytest.approx(60.0, rel=0.015)
+
+
+def test_score_counts_refusals_warnings_and_silent_misses() -> None:
+    truth = {"radius_mm": 50.0, "segment_bend_deg": 10.0}
+    good = {"radius_mm": 50.1, "segment_bend_deg": 10.02, "divisions": 9, "warnings": []}
+    assert score(truth, 0, good)["verdict"] == "ok"
+    assert score(truth, 2, {})["verdict"] == "refused"
+    off = {"radius_mm": 50.5, "segment_bend_deg": 10.0, "divisions": 9}
+    gap = [{"code": "part_centreline_gap", "message": "..."}]
+    # a centreline gap covers the bends, not the radius: 1 % off under it is silent
+    assert score(truth, 0, {**off, "warnings": gap})["verdict"] == "silent"
+    inconsistent = [{"code": "part_arc_inconsistent", "message": "..."}]
+    assert score(truth, 0, {**off, "warnings": inconsistent})["verdict"] == "warned"
+    bent = {"radius_mm": 50.0, "segment_bend_deg": 10.2, "divisions": 9}
+    assert score(truth, 0, {**bent, "warnings": gap})["verdict"] == "warned"
+    assert score(truth, 0, {**bent, "warnings": []})["verdict"] == "silent"
