@@ -99,8 +99,19 @@ def _view_rig(rig: CameraRig) -> CameraRig:
     return CameraRig(rig.width_px, rig.height_px, rig.fov_x_deg)
 
 
-def scenes(n: int, rig: CameraRig, spp: int, seed: int = 41) -> list[tuple[PartScene, str, str]]:
-    """``n`` part scenes cycling sheets, lamps and steel finish; radius, arc and chords drawn."""
+#: Lifts of the parts rocked on one end (mm; the far end off the sheet).
+LIFTS_MM = (1.0, 2.0, 3.0, 1.5)
+
+
+def scenes(
+    n: int, rig: CameraRig, spp: int, seed: int = 41, lifts: tuple[float, ...] = ()
+) -> list[tuple[PartScene, str, str]]:
+    """``n`` part scenes cycling sheets, lamps and steel finish; radius, arc and chords drawn.
+
+    With ``lifts`` each scene's far end stands that much off the sheet (one scene per lift).
+    """
+    if lifts:
+        n = len(lifts)
     rng = np.random.default_rng(seed)
     out = []
     names = list(SHEETS)
@@ -124,6 +135,7 @@ def scenes(n: int, rig: CameraRig, spp: int, seed: int = 41) -> list[tuple[PartS
             sheet_texture="cork" if SHEETS[sheet] is None else "",
             lamp_mm=LAMPS[lamp],
             steel_alpha=STEEL_ALPHAS[i % len(STEEL_ALPHAS)],
+            lift_mm=lifts[i] if lifts else 0.0,
         )
         out.append((scene, sheet, lamp))
     return out
@@ -244,6 +256,7 @@ _COLUMNS = [
     "lamp",
     "steel_alpha",
     "wire_mm",
+    "lift_mm",
     "R_mm",
     "arc_deg",
     "N",
@@ -265,6 +278,7 @@ def _row(shot: Shot, rc: int, rec: dict, err: str, s: dict) -> list:
         shot.lamp,
         sc.steel_alpha,
         sc.wire_diameter_mm,
+        sc.lift_mm,
         sc.radius_mm,
         sc.arc_angle_deg,
         sc.chords,
@@ -322,12 +336,21 @@ def main(argv: list[str] | None = None) -> dict:
     )
     p.add_argument("--photos", type=int, help="part photos (default 24; 4 with --quick)")
     p.add_argument("--threads", type=int, default=1, help="render threads (default 1)")
+    p.add_argument(
+        "--lifted",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=f"also {len(LIFTS_MM)} parts lifted {min(LIFTS_MM):g}-{max(LIFTS_MM):g} mm at one end "
+        "(default on; off with --quick)",
+    )
     args = p.parse_args(argv)
     import drjit as dr
 
     dr.set_thread_count(args.threads)
     w, h, spp, n = (1200, 800, 8, 4) if args.quick else (1800, 1200, 8, 24)
     n = args.photos or n
+    if args.lifted is None:
+        args.lifted = not args.quick
     rig = part_rig(w, h)
     work = Path(tempfile.mkdtemp(prefix="mitsuba_parts_"))
     board_png = work / "board.png"
@@ -340,7 +363,8 @@ def main(argv: list[str] | None = None) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     cam = _calibrate(rig, spp, board_png, board, args.cache, work)
     shots = []
-    for i, (scene, sheet, lamp) in enumerate(scenes(n, rig, spp)):
+    lifted = scenes(0, rig, spp, seed=43, lifts=LIFTS_MM) if args.lifted else []
+    for i, (scene, sheet, lamp) in enumerate(scenes(n, rig, spp) + lifted):
         jpg, truth = render_part(
             scene, board_png, args.cache, cork if scene.sheet_texture else None
         )
@@ -355,7 +379,13 @@ def main(argv: list[str] | None = None) -> dict:
         rows.append(_row(shot, rc, rec, err, s))
     measure_s = time.perf_counter() - t1
     calib = json.loads(cam.read_text())
-    metrics = _metrics(scores, n)
+    metrics = _metrics(scores, len(scores))
+    flat = [s for s, shot in zip(scores, shots, strict=True) if shot.scene.lift_mm == 0.0]
+    if len(flat) < len(scores):
+        metrics += [
+            Metric(f"{m.name}, flat parts only", m.value, m.unit, None, None)
+            for m in _metrics(flat, len(flat))[1:6]
+        ]
     metrics += [
         Metric("calibration rms", calib.get("rms_px"), "px", None, None),
         Metric(
@@ -384,7 +414,8 @@ def main(argv: list[str] | None = None) -> dict:
             "(mitsuba_markers' poses) through the same lens",
             "parts: a round steel wire (rough conductor, GGX alpha 0.1/0.25/0.4; 2 or 3 mm) bent "
             f"to N equal chords of >= {MIN_CHORD_MM:g} mm (N 6-16) with vertices on the circle, "
-            "R 40-85 mm, arc 60-150 deg, lying flat; sheets white, dark grey card, black card, "
+            "R 40-85 mm, arc 60-150 deg, lying flat (and, unless --no-lifted, "
+            f"{len(LIFTS_MM)} more rocked on one end, the far end {min(LIFTS_MM):g}-{max(LIFTS_MM):g} mm up); sheets white, dark grey card, black card, "
             "printed cork; the default lamp (22 deg) or a low one (8 deg)",
             "measured with `cvmeasure part PHOTO --board --camera --wire-diameter-mm D --json` "
             "(chord count found in the photo); truth: the circle's radius and arc angle / N",

@@ -498,6 +498,19 @@ def part_truth(scene: PartScene) -> dict:
     return out
 
 
+def _lifted(flat_xy: np.ndarray, lift_mm: float) -> np.ndarray:
+    """The rigid part tilted about a horizontal axis through its first end (perpendicular to
+    the end-to-end chord) until its far end stands ``lift_mm`` higher: (N, 3) x, y and rise (mm)."""
+    chord = flat_xy[-1] - flat_xy[0]
+    length = float(np.linalg.norm(chord))
+    u = chord / length
+    tilt = math.asin(min(lift_mm / length, 1.0))
+    along = (flat_xy - flat_xy[0]) @ u
+    across = flat_xy - flat_xy[0] - along[:, None] * u
+    xy = flat_xy[0] + across + (along * math.cos(tilt))[:, None] * u
+    return np.column_stack([xy, along * math.sin(tilt)])
+
+
 def _arc_shapes(
     scene: PartScene, centre_xy: tuple[float, float], sheet_z_mm: float
 ) -> dict[str, dict]:
@@ -507,16 +520,16 @@ def _arc_shapes(
     yaw = math.radians(scene.yaw_deg)
     n = scene.chords if scene.chords > 0 else max(8, int(scene.arc_angle_deg / 3.0))
     ang = yaw + np.linspace(-half, half, n + 1)
-    # a lift raises the far end, the wire pivoting about the near end's contact point
-    rise = np.linspace(0.0, scene.lift_mm, n + 1)
-    pts = [
+    flat = np.array(
         [
-            centre_xy[0] + scene.radius_mm * math.cos(a),
-            centre_xy[1] + scene.radius_mm * math.sin(a),
-            z + dz,
+            [
+                centre_xy[0] + scene.radius_mm * math.cos(a),
+                centre_xy[1] + scene.radius_mm * math.sin(a),
+            ]
+            for a in ang
         ]
-        for a, dz in zip(ang, rise, strict=True)
-    ]
+    )
+    pts = [[x, y, z + dz] for x, y, dz in _lifted(flat, scene.lift_mm)]
     steel = _metal("Fe", scene.steel_alpha)
     shapes: dict[str, dict] = {}
     for i in range(n):

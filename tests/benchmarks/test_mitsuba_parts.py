@@ -13,7 +13,7 @@ import pytest
 
 mi = pytest.importorskip("mitsuba", reason="mitsuba not installed (pip install cvmeasure[heldout])")
 
-from benchmarks.heldout.mitsuba_scenes import PartScene, part_truth, render_part  # noqa: E402
+from benchmarks.heldout.mitsuba_scenes import PartScene, _lifted, part_truth, render_part  # noqa: E402
 from benchmarks.mitsuba_parts import part_rig, score  # noqa: E402
 
 
@@ -82,3 +82,17 @@ def test_score_counts_refusals_warnings_and_silent_misses() -> None:
     bent = {"radius_mm": 50.0, "segment_bend_deg": 10.2, "divisions": 9}
     assert score(truth, 0, {**bent, "warnings": gap})["verdict"] == "warned"
     assert score(truth, 0, {**bent, "warnings": []})["verdict"] == "silent"
+
+
+def test_a_lifted_part_is_the_flat_one_tilted_rigidly() -> None:
+    ang = np.radians(np.linspace(-50.0, 50.0, 9))
+    flat = np.column_stack([70.0 * np.cos(ang), 70.0 * np.sin(ang)])
+    up = _lifted(flat, 2.5)
+    assert up[0] == pytest.approx([*flat[0], 0.0])
+    assert up[-1, 2] == pytest.approx(2.5)
+    # every distance of the part is kept: the 3D shape (radius, bends) is the truth's
+    d_flat = np.linalg.norm(flat[:, None] - flat[None], axis=-1)
+    flat3 = np.column_stack([flat, np.zeros(len(flat))])
+    d_up = np.linalg.norm(up[:, None] - up[None], axis=-1)
+    assert d_up == pytest.approx(np.linalg.norm(flat3[:, None] - flat3[None], axis=-1), abs=1e-9)
+    assert d_flat.max() > 100.0
