@@ -91,7 +91,7 @@ def _time_calibration(n_views: int, seed: int) -> dict[str, float]:
     """
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.lens.pipeline import calibrate_detections, detect_photos
     from cvmeasure_datasets.demo.calibration import planned_poses
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)

@@ -22,8 +22,6 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.board import load_board as _read_board
-from cvmeasure.calibration.pipeline import CalibrationReport, calibrate_detections, detect_photos
-from cvmeasure.calibration.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
 from cvmeasure.camera import CameraModel, save_camera
 from cvmeasure.camera import load_camera as _read_camera
 from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
@@ -37,6 +35,8 @@ from cvmeasure.gcode import GcodeJob, SimCompensator, design_job
 from cvmeasure.imageio import Photo, read_photo
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.kit import load_kit as _read_kit
+from cvmeasure.lens.pipeline import CalibrationReport, calibrate_detections, detect_photos
+from cvmeasure.lens.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
 from cvmeasure.markers.measure import measure_photo_file, measure_trial
 from cvmeasure.material.calibration import Calibration, fit_calibration, save_calibration
 from cvmeasure.material.calibration import load_calibration as _read_material

@@ -693,7 +693,7 @@ def measure_photo_file(
             raise ValueError("give a plane or a board to find one in the photo, not both")
         if camera is None:
             raise InputError(source, "rectifying to a board's plane needs the camera")
-        from cvmeasure.calibration.plane import estimate_plane
+        from cvmeasure.lens.plane import estimate_plane
 
         plane = estimate_plane(photo.gray8(), board, camera, source=source)
     options.setdefault("photo", source)

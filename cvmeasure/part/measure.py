@@ -1,6 +1,6 @@
 """One photo of a finished part -> its arc quantities, bends and deviation from the design.
 
-Pipeline: the ChArUco board fixes the plane (:func:`cvmeasure.calibration.plane.estimate_plane`:
+Pipeline: the ChArUco board fixes the plane (:func:`cvmeasure.lens.plane.estimate_plane`:
 undistorted pixels -> board mm); the wire is segmented beside the board
 (:mod:`~cvmeasure.part.segment`); its sub-pixel centreline
 (:mod:`~cvmeasure.part.centreline`) is mapped to board mm; then

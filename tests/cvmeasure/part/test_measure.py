@@ -186,7 +186,7 @@ def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
 def test_raised_plane_mapping_inverts_the_projection():
     import cv2
 
-    from cvmeasure.calibration.plane import estimate_plane
+    from cvmeasure.lens.plane import estimate_plane
 
     photo = _photo("short", "dark")
     plane = estimate_plane(photo.bgr, BOARD, photo.camera)
