@@ -44,7 +44,7 @@ from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import Diagnosis, diagnose
 from cvmeasure.driver.plan import swept_plan
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
-from cvmeasure.material.calibration import MODES
+from cvmeasure.material.bender_calibration import MODES
 from cvmeasure.sim import EFFECTS, Effect, SimParams, simulate
 from cvmeasure_datasets import physical_bender as pb
 

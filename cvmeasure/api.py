@@ -38,8 +38,12 @@ from cvmeasure.kit import load_kit as _read_kit
 from cvmeasure.lens.pipeline import CalibrationReport, calibrate_detections, detect_photos
 from cvmeasure.lens.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
 from cvmeasure.markers.measure import measure_photo_file, measure_trial
-from cvmeasure.material.calibration import Calibration, fit_calibration, save_calibration
-from cvmeasure.material.calibration import load_calibration as _read_material
+from cvmeasure.material.bender_calibration import (
+    BenderCalibration,
+    fit_calibration,
+    save_calibration,
+)
+from cvmeasure.material.bender_calibration import load_calibration as _read_material
 from cvmeasure.material.correct import Correction
 from cvmeasure.material.correct_part import correct_from_part
 from cvmeasure.part.measure import PartMeasurement
@@ -96,7 +100,7 @@ class CameraCalibration:
 class CorrectedJob:
     """The closed loop's output: the corrected material calibration, what changed, the next job."""
 
-    material: Calibration
+    material: BenderCalibration
     correction: Correction
     job: GcodeJob
 
@@ -134,7 +138,7 @@ def load_design(path: PathLike) -> Design:
     return _read_design(path)
 
 
-def load_material(path: PathLike) -> Calibration:
+def load_material(path: PathLike) -> BenderCalibration:
     """Read a material calibration (``diwire-material/1`` JSON)."""
     return _read_material(path)
 
@@ -166,7 +170,7 @@ def save(path: PathLike, result: Any) -> Path:
         return save_camera(path, result)
     if isinstance(result, PlaneModel):
         return result.save(path)
-    if isinstance(result, Calibration):
+    if isinstance(result, BenderCalibration):
         return save_calibration(path, result)
     if isinstance(result, TrialTable):
         return result.write_csv(path)
@@ -214,7 +218,7 @@ def _photo(photo: Photo | PathLike | np.ndarray, source: str) -> Photo:
     return read_photo(photo)
 
 
-def _material(material: Calibration | PathLike) -> Calibration:
+def _material(material: BenderCalibration | PathLike) -> BenderCalibration:
     return load_material(material) if isinstance(material, str | os.PathLike) else material
 
 
@@ -435,7 +439,7 @@ def fit_material(
     model: str = "linear",
     motion_model: str = "pchip",
     name: str | None = None,
-) -> Calibration:
+) -> BenderCalibration:
     """Fit the springback compensation to measured trials (``cvmeasure fit``).
 
     ``model``: ``"linear"``, ``"cubic"``, ``"pchip"`` or ``"physical"``; every model is
@@ -490,7 +494,7 @@ def diagnose_trials(
 
 def gcode_for(
     design: Design | DesignPath | PathLike,
-    material: Calibration | PathLike | None = None,
+    material: BenderCalibration | PathLike | None = None,
     *,
     divisions: int | None = None,
     min_segment_mm: float = 12.0,
@@ -526,7 +530,7 @@ def gcode_for(
 def correct(
     part: PartMeasurement,
     design: Design | DesignPath | PathLike,
-    material: Calibration | PathLike,
+    material: BenderCalibration | PathLike,
     *,
     gain: float = 0.9,
     deadband_sigma: float = 2.5,

@@ -39,7 +39,7 @@ from cvmeasure.lens.detect import detect_board
 from cvmeasure.markers.colour import kit_colour_model
 from cvmeasure.markers.detect import find_markers
 from cvmeasure.markers.overlay import draw_overlay as draw_marker_overlay
-from cvmeasure.material.calibration import MODES
+from cvmeasure.material.bender_calibration import MODES
 from cvmeasure.part.overlay import draw_overlay as draw_part_overlay
 from cvmeasure.sim import simulate
 

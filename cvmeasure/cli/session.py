@@ -239,7 +239,7 @@ def _write_outputs(args: argparse.Namespace, result, session_dir: Path) -> dict[
 
     from cvmeasure.contracts import TrialTable
     from cvmeasure.driver.session_report import write_session_report
-    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.material.bender_calibration import save_calibration
     from cvmeasure.provenance import provenance
 
     calibration = result.calibration

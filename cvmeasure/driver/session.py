@@ -17,7 +17,7 @@ way) a session:
 A session killed at any point resumes from its log: completed angles are never
 bent again; an angle that was bent but not completely recorded is bent again
 on fresh wire. At the end the samples are fitted
-(:func:`~cvmeasure.material.calibration.fit_calibration`).
+(:func:`~cvmeasure.material.bender_calibration.fit_calibration`).
 
 The machine is anything with ``run(lines)`` (send G-code lines and return once
 every move has finished): :class:`StreamedBender` drives a board through the
@@ -48,7 +48,7 @@ from cvmeasure.driver.camera import Camera
 from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
-from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
+from cvmeasure.material.bender_calibration import MODES, BenderCalibration, fit_calibration
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -199,7 +199,7 @@ class SessionResult:
     """A finished session: its steps in plan order, the fitted calibration, what this run bent."""
 
     steps: tuple[SessionStep, ...]
-    calibration: Calibration
+    calibration: BenderCalibration
     bent_this_run: tuple[int, ...]
     resumed: bool
     log_path: Path
@@ -443,7 +443,7 @@ def _fit_session(
     model: str,
     name: str,
     log_path: Path,
-) -> Calibration:
+) -> BenderCalibration:
     """The calibration fitted to the session's steps, with their photo warnings attached."""
     try:
         calibration = fit_calibration(

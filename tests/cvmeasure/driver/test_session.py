@@ -20,7 +20,7 @@ from cvmeasure.driver.session import (
     read_session_log,
     session_gcode,
 )
-from cvmeasure.material.calibration import load_calibration
+from cvmeasure.material.bender_calibration import load_calibration
 from cvmeasure.sim import simulate
 from cvmeasure.testing.bender import simulated_bender
 from cvmeasure_datasets.simcamera import double_photo_state
