@@ -23,7 +23,7 @@ The machine is anything with ``run(lines)`` (send G-code lines and return once
 every move has finished): :class:`StreamedBender` drives a board through the
 streamer, a real one or the TinyG double (``sim://``), whose simulated machine
 state the photo lab's simulated camera
-(:class:`cvmeasure_datasets.simcamera.SimulatedCamera`) renders.
+(:class:`cvmeasure_datasets.simcapture.SimulatedCapture`) renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
 "config": {...}}``, ``{"event": "fed", "step": i, "feed_mm": ..., "refeed": ...}``
@@ -44,7 +44,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from cvmeasure.contracts import MachinePhotoResult, Trial
-from cvmeasure.driver.camera import Camera
+from cvmeasure.driver.capture import CaptureDevice
 from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
@@ -322,7 +322,7 @@ def _photo_name(step: int, direction: str, angle: float, which: str) -> str:
 
 def run_session(
     machine: Machine,
-    camera: Camera,
+    camera: CaptureDevice,
     out_dir: str | os.PathLike[str],
     *,
     config: SessionConfig = SessionConfig(),
@@ -340,7 +340,7 @@ def run_session(
     ----------
     machine : Machine
         The bender (``run(lines)`` returns once the moves are done).
-    camera : Camera
+    camera : CaptureDevice
         Takes the loaded and unloaded photos.
     out_dir : path
         Session folder: ``session.jsonl`` (the log) and ``photos/``. An existing
@@ -497,7 +497,7 @@ def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:
 
 def _bend_and_measure(
     machine: Machine,
-    camera: Camera,
+    camera: CaptureDevice,
     out: Path,
     step: int,
     direction: str,
