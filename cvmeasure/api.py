@@ -306,7 +306,7 @@ def measure_bender_photo(
     camera: CameraModel | PathLike | None = None,
     plane: PlaneModel | PathLike | None = None,
     board: BoardSpec | PathLike | None = None,
-    method: str = "ours",
+    method: str = "edge_fit",
     space: str = "lab",
     edge: str | None = None,
     heights: str = "none",
@@ -320,7 +320,8 @@ def measure_bender_photo(
     camera : the calibrated camera; without it angles are measured in image pixels.
     plane : the plate's plane (``measure_plane``); markers are then measured at their
         kit heights. Or ``board``: find that board in this photo (needs ``camera``).
-    method : ``"ours"`` or ``"seed"`` (the seed paper's baseline, image pixels only).
+    method : ``"edge_fit"`` or ``"seed_hough"`` (the seed paper's baseline, image pixels
+        only); the older ``"ours"`` / ``"seed"`` are read too.
     space : colour space of the segmentation, ``"lab"`` or ``"rgb"``.
     edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``, or
         None (by the photo's type).
@@ -380,7 +381,7 @@ def measure_part(
     divisions: int | None = None,
     moved_photo: Photo | PathLike | np.ndarray | None = None,
     shadow_lift: bool = True,
-    method: str = "ours",
+    method: str = "centreline_fit",
     allow_mirror: bool = True,
 ) -> PartMeasurement:
     """Measure a finished part lying beside the board (``cvmeasure part``).
@@ -398,8 +399,9 @@ def measure_part(
     divisions : the chord count the part was bent in; None finds it in the photo.
     moved_photo : a second photo of the part slid on the plate: the lift is then
         measured from the two views (needs ``board`` and ``wire_diameter_mm``).
-    method : which method gives the headline values: ``"ours"``, ``"ellipse"`` or
-        ``"sagitta"`` (the seed paper's two).
+    method : which method gives the headline values: ``"centreline_fit"``,
+        ``"seed_ellipse"`` or ``"seed_sagitta"`` (the seed paper's two); the older
+        ``"ours"``, ``"ellipse"``, ``"sagitta"`` are read too.
     allow_mirror : the design may be matched mirrored (the part photographed upside down).
 
     Returns

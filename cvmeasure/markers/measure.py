@@ -87,6 +87,7 @@ from cvmeasure.markers.refine import (
     ray_correlation_factor,
 )
 from cvmeasure.markers.seed_baseline import seed_find_circles
+from cvmeasure.method_names import MARKER_METHODS, marker_method
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -107,8 +108,8 @@ __all__ = [
     "SEED_CENTRE_SIGMA_PX",
 ]
 
-Method = Literal["ours", "seed"]
-METHODS: tuple[str, ...] = ("ours", "seed")
+Method = Literal["edge_fit", "seed_hough"]
+METHODS: tuple[str, ...] = MARKER_METHODS
 #: How marker heights are treated without a plane pose: "none" (bounded, warned
 #: about) or "parallel" (corrected assuming a camera square to the plate; needs a camera).
 HeightMode = Literal["none", "parallel"]
@@ -356,7 +357,7 @@ def measure_machine_photo(
     *,
     camera: CameraModel | None = None,
     plane: Any = None,
-    method: Method = "ours",
+    method: Method = "edge_fit",
     space: ColourSpace = "lab",
     colour_model: ColourModel | None = None,
     linear: bool = False,
@@ -376,7 +377,8 @@ def measure_machine_photo(
     plane : the marker plane (:class:`cvmeasure.contracts.PlaneModel`, from ``cvmeasure
         plane`` or a board in the photo); with it, angles are computed on the plane through
         the plane's own camera (``camera`` must then be that camera or None).
-    method : "ours" (colour model + sub-pixel fits) or "seed" (the paper's baseline).
+    method : "edge_fit" (colour model + sub-pixel fits of the discs' edges) or "seed_hough"
+        (the paper's baseline); the older "ours" / "seed" are read too.
     space : colour space of the segmentation, "lab" or "rgb".
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
     linear : the image holds linear (gamma 1) data, e.g. from RAW.
@@ -402,6 +404,7 @@ def measure_machine_photo(
     MarkerNotFoundError (an InputError)
         A marker is missing or ambiguous: names the role(s) and why.
     """
+    method = marker_method(method)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
     if space not in ("lab", "rgb"):
@@ -488,7 +491,7 @@ def _centres(
 
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
     # only regions and the search's copy are read; else its whole image is made here
-    lazy = isinstance(bgr, LazyBGR) and not linear and method == "ours"
+    lazy = isinstance(bgr, LazyBGR) and not linear and method == "edge_fit"
     img = bgr if lazy else np.asanyarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
@@ -500,10 +503,10 @@ def _centres(
             )
     height_state: str | None = None
     height_bound: dict[str, float] | None = None
-    if method == "seed":
+    if method == "seed_hough":
         if camera is not None or plane is not None:
             raise ValueError(
-                "the seed method measures in image pixels: it takes no camera or plane"
+                "the seed_hough method measures in image pixels: it takes no camera or plane"
             )
         transform = MeasureFrame("image")
         markers, centres, covs, warnings = _measure_seed(bgr8, kit, space, source)
@@ -542,7 +545,7 @@ def frame_centres(
     """The discs' centres of one photo in the angles' frame (on a plane pose: the plate,
     mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
     for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
-    return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
+    return _centres(bgr, kit, camera, plane, "edge_fit", "lab", None, linear, edge, "none", source)
 
 
 def _plane_heights(
@@ -711,7 +714,7 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
     pixels as the full decode up to rounding), or None, and the caller decodes the whole
     file as before, for anything else: not a YCbCr JPEG with 4:4:4/4:2:2/4:2:0 chroma,
     a damaged file, more than :data:`cvmeasure.imageio.MAX_PHOTO_PIXELS`, no
-    libturbojpeg, a linear file or options this path does not take (method "seed").
+    libturbojpeg, a linear file or options this path does not take (method "seed_hough").
     """
     from pathlib import Path
 
@@ -720,7 +723,7 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
 
     p = Path(path)
     if (
-        options.get("method", "ours") != "ours"
+        marker_method(options.get("method", "edge_fit")) != "edge_fit"
         or options.get("linear")
         or is_raw(p)
         or is_linear_name(p)

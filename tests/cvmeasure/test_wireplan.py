@@ -165,7 +165,7 @@ def test_zigzag_perfect_part_reads_45_against_the_bent_polygon(tmp_path):
     board = dense * np.array([1.0, -1.0])  # board frame, y down
     turns = bend_angles_deg(board)
     vertex_bends = turns[np.abs(turns) > 1.0]
-    arc = ArcResult("ours", 100.0, 150.0, 10.0, 45.0, 4)
+    arc = ArcResult("centreline_fit", 100.0, 150.0, 10.0, 45.0, 4)
     comp = compare_with_design(
         board, vertex_bends, arc, load_design(svg).wire(), reference_mm=plan.vertices_mm
     )
