@@ -75,6 +75,7 @@ FORMS: dict[str, tuple[Shape, ...]] = {
         (("home_shift", 1.0),),
         (("home_shift", 1.0), ("load_exponent", 1.0)),
     ),
+    "springback_asymmetry": ((), (("loaded_deg", -1.0),), (("loaded_deg", 1.0),)),
     "camera_tilt": tuple((("tilt_axis_deg", float(a)),) if a else () for a in range(-75, 91, 15)),
 }
 

@@ -335,6 +335,11 @@ def _forward(
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])
+    if "springback_asymmetry" in values and shapes.get("loaded_deg", 0.0):
+        # the span's curvature follows the wire's strength by direction: the loaded leg
+        # (and the released one with it) moves by loaded_deg per unit of asymmetry
+        shift = shapes["loaded_deg"] * direction * values["springback_asymmetry"]
+        theta_l = np.where(theta_l > 0, np.maximum(theta_l + shift, 0.0), theta_l)
     if params.span_bow_share:
         # the leg beyond the pin leads the chord by (a share of) the span's elastic bow;
         # released, that elastic curvature is part of the span term, so the bow moves

@@ -355,3 +355,18 @@ def test_simulate_drift_rates_is_simulate_at_each_rate(shape):
             np.testing.assert_array_equal(getattr(batch, name)[k], getattr(one, name))
     with pytest.raises(ValueError, match="drift"):
         simulate_drift_rates(cmd, params, rest, rates, bend_index=index)
+
+
+def test_a_strength_by_direction_moves_the_loaded_leg_in_its_general_form():
+    """``loaded_deg`` per unit of asymmetry: the stronger direction's loaded (and released)
+    bend moves by ``loaded_deg * alpha``, the weaker one's by minus that; the narrow form
+    leaves the loaded bend alone."""
+    p = SimParams()
+    cmd = [60.0, -60.0, 120.0, -120.0]
+    narrow = simulate(cmd, p, [Effect("springback_asymmetry", 0.4)])
+    general = simulate(cmd, p, [Effect("springback_asymmetry", 0.4, (("loaded_deg", -1.0),))])
+    np.testing.assert_allclose(narrow.loaded_bend_deg, simulate(cmd, p).loaded_bend_deg)
+    shift = np.abs(general.loaded_bend_deg) - np.abs(narrow.loaded_bend_deg)
+    np.testing.assert_allclose(shift, [-0.4, 0.4, -0.4, 0.4], atol=1e-9)
+    # the springback is the narrow form's (the leg moves, the release from it does not)
+    np.testing.assert_allclose(general.springback_deg, narrow.springback_deg, atol=0.02)
