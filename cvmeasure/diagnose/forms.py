@@ -80,6 +80,12 @@ FORMS: dict[str, tuple[Shape, ...]] = {
 }
 
 
+#: Causes whose general form is tried only alone: the loaded leg an asymmetric wire moves
+#: by direction would also take up a second cause's own difference by direction (a
+#: compliance's lag under a pin torque that differs by direction), so in a pair the
+#: narrow form is kept and the two stay told apart by that difference.
+ALONE_FORMS: frozenset[str] = frozenset({"springback_asymmetry"})
+
 #: Head steps (deg) a drift shifting home may lose whole (``step_deg``): after the fit with
 #: a continuous home shift, its rate is profiled on a fine grid for each step size and the
 #: quantised form is kept when it fits better (see :func:`_profile_quantised_drift`).
