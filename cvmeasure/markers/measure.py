@@ -25,7 +25,10 @@ warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
 Stated uncertainties are sampling errors of the edge fits, taken where the disc is
-a circle (on the plate on a plane pose), with a floor per centre and, for a disc
+a circle (on the plate on a plane pose), with a floor per centre, what the disc's edge
+read in another channel weighting (green for luminance edges) disagrees on (the
+shift demosaicing, blur, JPEG or shading gives an edge, which the residuals cannot
+see; not taken where lateral colour switched the edges to green) and, for a disc
 partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
 sampling; on a plane pose the kit's height uncertainties are added. They do not
 include camera or plane calibration errors, print or mounting tolerances of the
@@ -245,8 +248,9 @@ def _on_frame(
     A centre's covariance is the sampling error of the fit in the frame, where the disc
     is a circle (in the image a tilted view makes it an ellipse, and a circle fitted
     there reads that shape as edge noise: sigmas several times the errors), the floor
-    mapped from the image, and for the ``uneven`` roles (partly hidden or in a shadow)
-    what the halves of the edge disagree on beyond their sampling, in the frame too."""
+    mapped from the image, what the edge read another way (``other``, image px)
+    disagrees on, and for the ``uneven`` roles (partly hidden or in a shadow) what the
+    halves of the edge disagree on beyond their sampling, both fitted in the frame too."""
     heights = {r: kit.height_mm(r) for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     other_f: dict[str, np.ndarray] = {}
