@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from cvmeasure.geometry import fit_circle_robust
+from cvmeasure.kit import default_kit
+from cvmeasure.markers import measure_machine_photo
 from cvmeasure.markers.circles import edge_mode_cov
+from cvmeasure_datasets import render_bender_photo
+from cvmeasure_datasets.effects import SceneEffects
 
 
 def _edge(rng, n=300, r=40.0, noise=0.05, shift=(0.0, 0.0)):
@@ -47,11 +51,6 @@ def test_too_few_points_add_nothing():
 
 
 def test_centre_sigma_on_demosaiced_photos_holds_the_true_centres():
-    from cvmeasure.kit import default_kit
-    from cvmeasure.markers import measure_machine_photo
-    from cvmeasure_datasets import render_bender_photo
-    from cvmeasure_datasets.effects import SceneEffects
-
     z = []
     for seed in (2, 3):
         photo = render_bender_photo(
