@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cvmeasure.driver.gcode import SHALLOW_SESSION_ANGLES_DEG
+from cvmeasure.gcode import SHALLOW_SESSION_ANGLES_DEG
 
 __all__ = ["LoopDesign", "draw_designs", "seed_designs", "hidden_machine", "SHALLOW_ANGLES"]
 

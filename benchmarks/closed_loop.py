@@ -3,7 +3,7 @@
 Designs of every shape an operator draws (equal and unequal chords, arcs, S-curves,
 the seed's half circle and saddle; ``benchmarks/_loop_shapes.py``) are planned as
 ``cvmeasure gcode`` plans them (:mod:`cvmeasure.wireplan`) and streamed to the TinyG
-double (:class:`cvmeasure.driver.double.FakeTinyG`) with effects hidden from the tool:
+double (:class:`cvmeasure.testing.double.FakeTinyG`) with effects hidden from the tool:
 gear backlash, a home offset, lost steps bend after bend (drift) and a wire whose yield
 stress differs from the model's. The photo lab renders the part the double actually
 bent (:meth:`FakeTinyG.wire_shape_mm`, through ``cvmeasure_datasets.render_part_photo``);
@@ -76,9 +76,9 @@ def bend_on_machine(lines, machine, effects, seed) -> tuple[np.ndarray, np.ndarr
     """Stream a job to a freshly homed TinyG double (the stream must go through), and bend it
     on the held-out machine: (true final bends (machine deg), the part's centreline (mm))."""
     from benchmarks.heldout.bend_job import bend_job
-    from cvmeasure.driver.double import FakeTinyG
     from cvmeasure.driver.stream import stream_job
     from cvmeasure.driver.transport import open_link
+    from cvmeasure.testing.double import FakeTinyG
 
     with FakeTinyG(speedup=2000.0) as board:
         link = open_link(board.port)
@@ -100,7 +100,7 @@ def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
     """
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.driver.gcode import bend_list, gcode_lines
+    from cvmeasure.gcode import bend_list, gcode_lines
     from cvmeasure.material.correct import corrected_pin_commands
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part

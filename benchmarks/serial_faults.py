@@ -17,7 +17,7 @@ against the job:
 
 Controller models: ``heldout`` (written from TinyG's documentation apart from this
 project's code; used when ``benchmarks/heldout`` is present) and ``double`` (the
-project's own :class:`~cvmeasure.driver.double.FakeTinyG`, in its two ``sr.line``
+project's own :class:`~cvmeasure.testing.double.FakeTinyG`, in its two ``sr.line``
 modes, through ``sim://``-less pty access).
 """
 
@@ -311,7 +311,7 @@ _DOUBLE_FAULTS = {
 def run_double(
     job: list[str], fault: str, work: Path, env: dict[str, str], line_report: str
 ) -> RunResult:
-    from cvmeasure.driver.double import FakeTinyG, Fault
+    from cvmeasure.testing.double import FakeTinyG, Fault
 
     kind, _, rest = fault.partition("@")
     at, _, arg = rest.partition(":")

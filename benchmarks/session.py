@@ -81,10 +81,10 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.driver.session import (
         SessionConfig,
         run_session,
-        simulated_bender,
     )
     from cvmeasure.material.compensation import SPRINGBACK_MODELS
     from cvmeasure.sim import parse_effect, simulate
+    from cvmeasure.testing.bender import simulated_bender
     from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
     scale = 0.25 if args.quick else 0.5

@@ -1,8 +1,8 @@
 """Streaming a 2,000-line job to the TinyG double under every injected fault (issue 7).
 
 Each run streams a 2,000-line bending job (a random part of ~600 bends made by
-``cvmeasure.driver.gcode``) through a real pseudo-terminal to
-:class:`~cvmeasure.driver.double.FakeTinyG` (timed moves sped up), with one
+``cvmeasure.gcode``) through a real pseudo-terminal to
+:class:`~cvmeasure.testing.double.FakeTinyG` (timed moves sped up), with one
 fault injected at a random line (or one of every kind, or none). Whenever the
 streamer stops the job, it is resumed from the journal and the board's report
 until it completes. Counted afterwards, from the double's own record of the
@@ -22,12 +22,12 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from cvmeasure.driver.double import FAULT_KINDS, FakeTinyG, Fault
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import JobStopped, StreamConfig, stream_job
 from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import DeviceError
 from cvmeasure.fileio import read_jsonl
+from cvmeasure.gcode import design_job
+from cvmeasure.testing.double import FAULT_KINDS, FakeTinyG, Fault
 
 SECTION = "Streaming to the TinyG double: 2,000-line jobs under injected faults"
 

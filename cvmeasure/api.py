@@ -31,9 +31,9 @@ from cvmeasure.design import Design, DesignPath
 from cvmeasure.design import load_design as _read_design
 from cvmeasure.diagnose import Diagnosis
 from cvmeasure.diagnose import diagnose as _diagnose
-from cvmeasure.driver.gcode import GcodeJob, SimCompensator, design_job
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
+from cvmeasure.gcode import GcodeJob, SimCompensator, design_job
 from cvmeasure.imageio import Photo, read_photo
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.kit import load_kit as _read_kit

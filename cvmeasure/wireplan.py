@@ -25,7 +25,7 @@ and kept in the job's header.
 
 Frames: the design frame (x right, y up, mm); turns counter-clockwise positive walking
 from the first (fed-first) point; machine bends are minus the turns
-(:func:`cvmeasure.driver.gcode.bend_list`).
+(:func:`cvmeasure.gcode.bend_list`).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ DEFAULT_JOIN_GAP_MM = 0.01
 DEFAULT_CLEARANCE_MM = 1.0
 #: A longer wire is a unit error, not a part (the feed of a desktop bender), mm.
 MAX_WIRE_MM = 3000.0
-#: Turns below this are straight (no bend), deg (as :mod:`cvmeasure.driver.gcode`).
+#: Turns below this are straight (no bend), deg (as :mod:`cvmeasure.gcode`).
 _STRAIGHT_DEG = 0.01
 _PLAN_TAG = "; plan "
 

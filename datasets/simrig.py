@@ -39,7 +39,7 @@ class SimRig(Rig):
         effects: tuple[Any, ...] = (),
     ) -> None:
         import cvmeasure_datasets
-        from cvmeasure.driver.double import FakeTinyG
+        from cvmeasure.testing.double import FakeTinyG
 
         self.scale = scale
         self.seed = seed
@@ -192,7 +192,7 @@ class SimRig(Rig):
 
     def lose_link(self, after_lines: int = 3) -> None:
         """Pull the double's cable ``after_lines`` lines from now (the simulated serial loss)."""
-        from cvmeasure.driver.double import Fault
+        from cvmeasure.testing.double import Fault
 
         with self.double._lock:
             line = self.double.stats.lines_received + after_lines

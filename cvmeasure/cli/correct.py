@@ -40,8 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--gain",
         type=positive_float,
-        default=0.9,
-        help="damping gain (0, 1] of a first correction, default 0.9 (from the job's second "
+        default=0.95,
+        help="damping gain (0, 1] of a first correction, default 0.95 (from the job's second "
         "part on, the measured response sets the step)",
     )
     p.add_argument(

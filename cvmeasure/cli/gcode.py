@@ -44,8 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure import __version__
-    from cvmeasure.driver.gcode import SimCompensator, design_job
     from cvmeasure.fileio import atomic_write_text
+    from cvmeasure.gcode import SimCompensator, design_job
 
     plan = plan_from_args(args, args.design)
     if args.material is not None:

@@ -183,11 +183,12 @@ def _open_machine_and_camera(
 ) -> tuple[object, object]:
     """The bender and the camera: the TinyG double + simulated camera, or the real ones."""
     from cvmeasure.driver.camera import open_camera
-    from cvmeasure.driver.session import StreamedBender, simulated_bender
+    from cvmeasure.driver.session import StreamedBender
     from cvmeasure.driver.transport import open_link
     from cvmeasure.errors import InputError
 
     if args.simulate:
+        from cvmeasure.testing.bender import simulated_bender
         from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
         machine = simulated_bender(params=params, effects=effects, speedup=args.speedup)

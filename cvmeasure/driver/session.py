@@ -58,7 +58,6 @@ __all__ = [
     "SessionResult",
     "SessionInterrupted",
     "StreamedBender",
-    "simulated_bender",
     "nominal_pin_for_loaded_deg",
     "session_gcode",
     "run_session",
@@ -307,35 +306,6 @@ class StreamedBender:
         self.link.close()
         if self.double is not None:
             self.double.close()
-
-
-def simulated_bender(
-    *,
-    params: Any = None,
-    effects: Sequence[Any] = (),
-    speedup: float = 200.0,
-    faults: Sequence[Any] = (),
-) -> StreamedBender:
-    """The TinyG double on a fresh pseudo-terminal, behind the streamer.
-
-    The double simulates the machine with :mod:`cvmeasure.sim` (``params``,
-    ``effects``); moves run ``speedup`` times faster than the real machine;
-    ``faults`` (:class:`~cvmeasure.driver.double.Fault`) are injected.
-    ``bender.double`` is the :class:`~cvmeasure.driver.double.FakeTinyG`;
-    ``bender.close()`` stops it.
-    """
-    from cvmeasure.driver.double import FakeTinyG
-    from cvmeasure.driver.transport import open_link
-
-    double = FakeTinyG(
-        speedup=speedup, sim_params=params, sim_effects=effects, faults=faults
-    ).start()
-    try:
-        link = open_link("sim://", double=double)
-    except BaseException:
-        double.close()
-        raise
-    return StreamedBender(link, double=double)
 
 
 # ----------------------------------------------------------------------------- the session

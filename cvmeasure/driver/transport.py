@@ -2,13 +2,17 @@
 
 ``open_link(url)`` accepts everything :func:`serial.serial_for_url` does (a
 device path such as ``/dev/ttyUSB0`` or ``COM3``, ``loop://``, ``socket://host:port``,
-``spy://...``) plus our own ``sim://``: a :class:`~cvmeasure.driver.double.FakeTinyG`
-started on a fresh pseudo-terminal and opened through pyserial like a real
-port. ``sim://`` options are URL query parameters::
+``spy://...``) plus ``sim://``: the TinyG double
+(:class:`~cvmeasure.testing.double.FakeTinyG`) started on a fresh pseudo-terminal
+and opened through pyserial like a real port. ``sim://`` is a pyserial URL handler
+(:mod:`cvmeasure.testing.protocol_sim`): this module only adds its package's name to
+``serial.protocol_handler_packages``, so the double is imported the first time a
+``sim://`` URL is opened and never by the driver itself. ``sim://`` options are URL
+query parameters::
 
     sim://?speedup=50&footer=440&line_report=parsed&fault=stall@40&fault=drop_byte@12:5
 
-(``fault=KIND@LINE[:BYTE_INDEX]``; see :class:`~cvmeasure.driver.double.Fault`).
+(``fault=KIND@LINE[:BYTE_INDEX]``; see :class:`~cvmeasure.testing.double.Fault`).
 A port that does not exist raises :class:`~cvmeasure.errors.InputError` naming it.
 """
 
@@ -16,10 +20,8 @@ from __future__ import annotations
 
 import errno
 import logging
-import math
 from dataclasses import dataclass
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 import serial
 
@@ -28,12 +30,16 @@ try:  # POSIX: pyserial's flush() raises termios.error when the port has vanishe
 except ImportError:  # pragma: no cover - Windows
     _TermiosError = OSError  # type: ignore[misc,assignment]
 
-from cvmeasure.driver.double import LINE_REPORTS, FakeTinyG, Fault
 from cvmeasure.errors import DeviceError, InputError
 
-__all__ = ["Link", "open_link", "parse_sim_url", "DEFAULT_BAUD"]
+__all__ = ["Link", "open_link", "DEFAULT_BAUD", "SIM_HANDLER_PACKAGE"]
 
 log = logging.getLogger(__name__)
+
+#: The package holding pyserial's ``protocol_sim`` handler (the TinyG double).
+SIM_HANDLER_PACKAGE = "cvmeasure.testing"
+if SIM_HANDLER_PACKAGE not in serial.protocol_handler_packages:
+    serial.protocol_handler_packages.append(SIM_HANDLER_PACKAGE)
 
 #: TinyG's USB baud rate.
 DEFAULT_BAUD = 115200
@@ -47,13 +53,14 @@ class Link:
     ----------
     url : what was asked for.
     serial : the open pyserial object.
-    double : the :class:`FakeTinyG` started for a ``sim://`` URL, else None.
+    double : the :class:`~cvmeasure.testing.double.FakeTinyG` started for a
+        ``sim://`` URL (owned and stopped by the port), else None.
     xonxoff : whether software flow control is on (host side, tty level).
     """
 
     url: str
     serial: Any
-    double: FakeTinyG | None = None
+    double: Any = None
     xonxoff: bool = True
 
     def write(self, data: bytes) -> None:
@@ -75,59 +82,13 @@ class Link:
             raise DeviceError(f"{self.url}: port gone ({exc})") from exc
 
     def close(self) -> None:
-        try:
-            self.serial.close()
-        finally:
-            if self.double is not None:
-                self.double.close()
+        self.serial.close()  # a sim:// port stops its double
 
     def __enter__(self) -> Link:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def parse_sim_url(url: str) -> dict[str, Any]:
-    """Keyword arguments of :class:`FakeTinyG` from a ``sim://`` URL.
-
-    Raises
-    ------
-    InputError
-        An unknown option or a malformed value (naming the URL).
-    """
-    query = parse_qs(urlsplit(url).query, keep_blank_values=True)
-    kwargs: dict[str, Any] = {}
-    faults: list[Fault] = []
-    try:
-        for key, values in query.items():
-            if key == "speedup":
-                kwargs["speedup"] = float(values[-1])
-                if not 0 < kwargs["speedup"] < math.inf:
-                    raise ValueError(f"speedup must be a finite number > 0, got {values[-1]!r}")
-            elif key == "footer":
-                kwargs["footer_style"] = values[-1]
-            elif key == "line_report":
-                if values[-1] not in LINE_REPORTS:
-                    raise ValueError(f"line_report must be one of {', '.join(LINE_REPORTS)}")
-                kwargs["line_report"] = values[-1]
-            elif key == "fault":
-                for v in values:
-                    kind, _, rest = v.partition("@")
-                    line, _, extra = rest.partition(":")
-                    f = Fault(kind, int(line))  # type: ignore[arg-type]
-                    if extra:
-                        if kind == "stall":
-                            f = Fault(kind, int(line), duration_s=float(extra))  # type: ignore[arg-type]
-                        else:
-                            f = Fault(kind, int(line), byte_index=int(extra))  # type: ignore[arg-type]
-                    faults.append(f)
-            else:
-                raise ValueError(f"unknown option {key!r} (speedup, footer, line_report, fault)")
-    except ValueError as exc:
-        raise InputError(url, f"bad sim:// URL: {exc}") from None
-    kwargs["faults"] = tuple(faults)
-    return kwargs
 
 
 def open_link(
@@ -137,7 +98,7 @@ def open_link(
     xonxoff: bool = True,
     timeout_s: float = 0.02,
     write_timeout_s: float = 10.0,
-    double: FakeTinyG | None = None,
+    double: Any = None,
 ) -> Link:
     """Open the board at ``url`` (8N1, software flow control by default).
 
@@ -155,12 +116,8 @@ def open_link(
     InputError
         The port does not exist or cannot be opened, or the URL is malformed.
     """
-    started: FakeTinyG | None = None
     target = url
-    if url.lower().startswith("sim://"):
-        if double is None:
-            started = FakeTinyG(**parse_sim_url(url)).start()
-            double = started
+    if double is not None and url.lower().startswith("sim://"):
         target = double.port
     try:
         port = serial.serial_for_url(
@@ -170,15 +127,13 @@ def open_link(
             timeout=timeout_s,
             write_timeout=write_timeout_s,
         )
+    except InputError:
+        raise
     except ValueError as exc:
-        if started:
-            started.close()
         raise InputError(url, f"cannot open port: {exc}") from None
     except (serial.SerialException, OSError) as exc:
-        if started:
-            started.close()
         code = getattr(exc, "errno", None)
         if code == errno.ENOENT or "No such file" in str(exc):
             raise InputError(url, "no such serial port") from None
         raise InputError(url, f"cannot open serial port: {exc}") from None
-    return Link(url=url, serial=port, double=started, xonxoff=xonxoff)
+    return Link(url=url, serial=port, double=getattr(port, "double", None), xonxoff=xonxoff)

@@ -27,10 +27,13 @@ backlash, home offset and lost steps) is censored: its shortfall is taken as the
 larger of the wanted bend and the median shortfall of its direction's bent
 vertices, and it moves no knot and is left out of the response estimate.
 
-The correction is damped (``gain`` < 1, default 0.9): with the true
+The correction is damped (``gain`` < 1, default 0.95): with the true
 response slope ``s = d final / d aim`` near 1, each error is multiplied by
 ``1 - gain * s``, which converges without sign changes for ``0 < gain * s < 1``
-(a springback or scale 10 % off the model still does not oscillate). From the
+and converges for ``gain * s < 2`` (a slope 10 % over the model's overshoots by
+4.5 % of the error, within the noise for a first part's errors). A heavier damping
+leaves a tenth of a first part's error, at the noise of one reading, for the
+settled job's pooled corrections to find later, moving vertices part after part. From the
 second part of a job on, the machine's response is measured (the pooled ratio
 of bend change to pin change between its last two parts, over the model's) and
 the step becomes ``informed_gain / ratio`` (default 0.95). The dead band: an error
@@ -41,7 +44,10 @@ moves) and the mean of ``k`` is corrected beyond ``deadband_sigma`` (2.5) sigmas
 over ``sqrt(k)``, so a converged job is not kicked about by measurement noise (one
 photo's outlier weighs ``1/k`` in the mean instead of starting a correction). The
 sigmas are the part's stated ones scaled by :func:`noise_factor` (the job's own
-part-to-part scatter, once it repeats).
+part-to-part scatter, once it repeats). A pooled error past its band is corrected less
+:data:`SHRINK_SIGMA` sigmas of its estimate (a soft threshold), and a group's mean is
+given only to members whose own readings agree with it: a reading just past the band,
+which may be noise, moves a vertex by little, never by the whole band.
 
 The calibration keeps every correction in ``provenance["corrections"]`` (a list,
 oldest first; :meth:`Correction.to_dict`): which part photo, which design,
@@ -85,7 +91,7 @@ __all__ = [
 #: Wanted final angles closer than this (deg) share one curve correction.
 GROUP_GAP_DEG = 0.5
 #: Default damping gain of a correction.
-DEFAULT_GAIN = 0.9
+DEFAULT_GAIN = 0.95
 #: Damping gain once the machine's response has been measured (see :func:`correct_calibration`).
 DEFAULT_INFORMED_GAIN = 0.95
 _CURVE_MODELS = ("linear", "pchip")
@@ -99,6 +105,9 @@ POOL_PARTS = 10
 #: This part's error differing from the job's pooled earlier parts (same pin) by more
 #: than this many combined sigmas is a suspect jump (see :func:`_pooled_errors`).
 JUMP_SIGMA = 6.0
+#: A significant error is corrected less this many sigmas of its estimate (see
+#: :func:`_move_knots`).
+SHRINK_SIGMA = 1.0
 #: A vertex whose measured bend (in the wanted direction) is below this many sigmas was
 #: not bent at all (see :func:`correct_calibration`).
 UNBENT_SIGMA = 3.0
@@ -464,6 +473,7 @@ def correct_calibration(
     min_deadband_deg: float = 0.02,
     informed_gain: float = DEFAULT_INFORMED_GAIN,
     vertex_offset_deg: ArrayLike | None = None,
+    shrink_sigma: float = SHRINK_SIGMA,
 ) -> tuple[Calibration, Correction]:
     """Correct a calibration from one part's per-vertex final bends (see the module notes).
 
@@ -475,15 +485,16 @@ def correct_calibration(
     sigma_deg : standard uncertainty of each measured bend (deg); None = 0 (only
         ``min_deadband_deg`` then).
     part, design : names for the history; ``design`` with N keys the per-vertex offsets.
-    gain : damping in (0, 1] while the machine's response is assumed to be the model's.
-    informed_gain : damping once the response has been measured from two parts of the
-        job (their pin and bend changes); the larger of the two is used.
+    gain, informed_gain : damping in (0, 1] while the machine's response is the model's,
+        and once measured from two parts of the job; the larger of the two is used.
     deadband_sigma, first_look_sigma, min_deadband_deg : the dead band: an error
         seen once is corrected beyond ``first_look_sigma`` sigmas; the mean of k
         parts bent with the same pin beyond ``deadband_sigma * sigma / sqrt(k)``;
         sigma is at least ``min_deadband_deg / deadband_sigma``.
     vertex_offset_deg : the offsets the part was bent with; None = the latest in
         the calibration's history for this design and N.
+    shrink_sigma : a significant error pooled over two or more parts is corrected less
+        this many sigmas of its estimate (see :func:`_band_and_spread`).
 
     Returns
     -------
@@ -506,19 +517,20 @@ def correct_calibration(
     pin_per_final = _pin_per_final(base, t)
     # the stated sigmas, scaled by the job's own part-to-part scatter once it repeats
     factor = noise_factor(calibration, design, bent_pin, m, sig)
-    unbent = _unbent(t, m, np.maximum(sig * factor, min_deadband_deg / max(deadband_sigma, 1e-9)))
+    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    unbent = _unbent(t, m, np.maximum(sig * factor, floor))
     prev = _last_of_job(calibration, design, t.size)
     ratio = _response_ratio(prev, bent_pin, m, float(np.median(sig)), unbent)
     # with the machine's response measured (ratio) the damping can be lighter, still < 1
     step = max(gain, informed_gain) / ratio if ratio else gain
-    # evidence accumulates while a vertex's pin stays the same (k parts, sigma / sqrt(k)): a
-    # first look acts beyond first_look_sigma, later ones beyond deadband_sigma of the mean
-    floor = min_deadband_deg / max(deadband_sigma, 1e-9)
+    # evidence accumulates while a vertex's pin stays the same (k parts, sigma / sqrt(k))
     pool = _pooled_errors(calibration, design, bent_pin, m - t, sig, floor, factor, ratio or 1.0)
-    band = np.where(pool.k == 1, first_look_sigma, deadband_sigma) * pool.sigma_deg
+    band, spread = _band_and_spread(pool, unbent, (first_look_sigma, deadband_sigma, shrink_sigma))
     error = pool.mean_deg
     notes = _suspect_notes(pool.suspect) + _dead_zone_shortfalls(t, error, band, unbent)
-    curves, updates, corrected = _move_knots(calibration, base, t, error, band, unbent, step, notes)
+    curves, updates, corrected = _move_knots(
+        calibration, base, t, error, (band, spread), unbent, step, notes
+    )
     comp = replace(calibration.compensation, springback=curves)
     new_cal = replace(calibration, compensation=comp)
     offsets, pins = _next_pins(new_cal, t, bent_pin - step * corrected * pin_per_final)
@@ -547,6 +559,23 @@ def correct_calibration(
     )
     history = {"corrections": [*corrections_of(calibration), correction.to_dict()]}
     return replace(new_cal, provenance={**calibration.provenance, **history}), correction
+
+
+def _band_and_spread(
+    pool: _Pool, unbent: np.ndarray, sigmas: tuple[float, float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per vertex (deg): the dead band its error must exceed, and what a significant error
+    is shrunk by. ``sigmas`` = (first_look_sigma, deadband_sigma, shrink_sigma).
+
+    A pooled error (a job settling: a low band that noise crosses now and then) moves a
+    vertex only by what it shows beyond its uncertainty (a soft threshold), so a mean just
+    past the band moves it by a little, not by the whole band; a first look past
+    ``first_look_sigma`` is no noise and is corrected whole, as is a dead-zone shortfall.
+    """
+    first_look, deadband, shrink = sigmas
+    band = np.where(pool.k == 1, first_look, deadband) * pool.sigma_deg
+    spread = np.where(unbent | (pool.k <= 1), 0.0, shrink * pool.sigma_deg)
+    return band, spread
 
 
 def _checked_inputs(
@@ -653,21 +682,33 @@ def _dead_zone_shortfalls(
     return notes
 
 
+def _soft(error: Any, spread: Any) -> np.ndarray:
+    """``error`` moved towards 0 by ``spread`` (deg), never past it (a soft threshold)."""
+    e = np.asarray(error, float)
+    return np.sign(e) * np.maximum(np.abs(e) - np.asarray(spread, float), 0.0)
+
+
 def _move_knots(
     calibration: Calibration,
     base: Any,
     t: np.ndarray,
     error: np.ndarray,
-    band: np.ndarray,
+    band_spread: tuple[np.ndarray, np.ndarray],
     unbent: np.ndarray,
     step: float,
     notes: list[str],
 ) -> tuple[dict[str, Any], list[dict[str, Any]], np.ndarray]:
     """Move each direction's curve knot by its group's significant mean error.
 
+    ``band_spread`` is, per vertex, (the dead band an error must exceed, the amount a
+    significant error is shrunk by: ``shrink_sigma`` sigmas of its estimate). A vertex
+    whose own error is significant is corrected by it, shrunk; one whose own is not
+    takes its group's shrunk mean only when its own reading agrees with that mean within
+    its band (a group mean is not forced on a member whose reading says otherwise).
     Returns the moved curves, the updates made and, per vertex, the error (aim deg) this
     correction removes; notes are appended to ``notes``.
     """
+    band, spread = band_spread
     sign = np.where(t < 0, -1.0, 1.0)
     curves = dict(calibration.compensation.springback)
     bent_curves = dict(calibration.compensation.springback)
@@ -684,7 +725,7 @@ def _move_knots(
         for group in _groups(mags):
             members = idx[group]
             own = np.abs(error[members]) > band[members]
-            corrected[members] = np.where(own, error[members], 0.0)
+            corrected[members] = np.where(own, _soft(error[members], spread[members]), 0.0)
             live = members[~unbent[members]]  # a dead-zone vertex says nothing of the curve
             if live.size == 0:
                 continue
@@ -692,11 +733,14 @@ def _move_knots(
             group_band = float(np.sqrt(np.mean(band[live] ** 2)) / np.sqrt(live.size))
             if abs(e_mag) <= group_band:
                 continue
-            # the group's mean is significant: every member takes it, plus its own rest
-            # when that rest is itself beyond the vertex's band
-            corrected[live] = np.where(own[~unbent[members]], error[live], sign[live] * e_mag)
+            e_use = float(_soft(e_mag, np.sqrt(np.mean(spread[live] ** 2) / live.size)))
+            # the group's mean is significant: a member without its own significant error
+            # takes it when its reading agrees with it within its band
+            agrees = np.abs(error[live] - sign[live] * e_mag) <= band[live]
+            group_share = np.where(agrees, sign[live] * e_use, 0.0)
+            corrected[live] = np.where(own[~unbent[members]], corrected[live], group_share)
             final = float(np.mean(np.abs(t[live])))
-            shift = -step * e_mag
+            shift = -step * e_use
             # the knot moves from where the part was bent (the calibration it was bent
             # with), not from a curve already moved by a neighbouring group
             before = _loaded_at(bent_curves[direction], final)

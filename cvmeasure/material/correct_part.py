@@ -15,6 +15,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from cvmeasure.design import bend_angles_deg
+from cvmeasure.errors import InputError
+from cvmeasure.gcode import GcodeJob, bend_list, gcode_lines
 from cvmeasure.material.calibration import Calibration
 from cvmeasure.material.correct import (
     DEFAULT_GAIN,
@@ -22,6 +25,7 @@ from cvmeasure.material.correct import (
     correct_calibration,
     corrections_of,
 )
+from cvmeasure.wireplan import bent_polygon
 
 __all__ = [
     "TURN_RATIO",
@@ -37,7 +41,7 @@ def machine_bends_from_comparison(comparison: Any) -> tuple[np.ndarray, np.ndarr
 
     The comparison's bends are turns of the design polyline (counter-clockwise
     positive walking from the first, fed-first point); the machine bend is
-    minus the turn (:func:`cvmeasure.driver.gcode.bend_list`).
+    minus the turn (:func:`cvmeasure.gcode.bend_list`).
     """
     return -np.asarray(comparison.design_bend_deg, float), -np.asarray(
         comparison.measured_bend_deg, float
@@ -46,7 +50,6 @@ def machine_bends_from_comparison(comparison: Any) -> tuple[np.ndarray, np.ndarr
 
 def target_bends_deg(chord_vertices_mm: Sequence[Any] | np.ndarray) -> np.ndarray:
     """Machine-frame wanted bends (deg) of a chord polyline, fed from its first point."""
-    from cvmeasure.design import bend_angles_deg
 
     return -bend_angles_deg(np.asarray(chord_vertices_mm, dtype=np.float64))
 
@@ -114,9 +117,6 @@ def correct_from_part(
     InputError
         The part has no per-vertex bends (no chords found, no design comparison).
     """
-    from cvmeasure.driver.gcode import GcodeJob, bend_list, gcode_lines
-    from cvmeasure.errors import InputError
-    from cvmeasure.wireplan import bent_polygon
 
     comp = measurement.comparison
     if comp is None or comp.bends is None:

@@ -34,6 +34,8 @@ __all__ = [
     "compare_bends",
     "resample_by_length",
     "point_to_polyline",
+    "PolylineIndex",
+    "kabsch",
 ]
 
 
@@ -52,7 +54,7 @@ def point_to_polyline(
 
     The sign is positive to the left of the polyline's direction of travel.
     Exact: every segment is tried for every point (in chunks); see
-    :class:`_PolylineIndex` for the fast variant used by the registration.
+    :class:`PolylineIndex` for the fast variant used by the registration.
     """
     p = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
     v = np.asarray(vertices_mm, dtype=np.float64).reshape(-1, 2)
@@ -79,7 +81,7 @@ def point_to_polyline(
     return feet, signed, along
 
 
-class _PolylineIndex:
+class PolylineIndex:
     """Closest points on a dense polyline via a k-d tree of its vertices.
 
     The nearest of the ``k`` nearest vertices' adjacent segments; exact whenever
@@ -95,6 +97,7 @@ class _PolylineIndex:
         self.k = min(k, len(self.v))
 
     def feet(self, points_mm: np.ndarray) -> np.ndarray:
+        """The closest point on the polyline (N, 2) to each of ``points_mm`` (N, 2), mm."""
         p = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
         _, idx = self.tree.query(p, k=self.k)
         idx = np.asarray(idx).reshape(len(p), -1)
@@ -109,7 +112,7 @@ class _PolylineIndex:
         return foot[np.arange(len(p)), best]
 
 
-def _kabsch(src: np.ndarray, dst: np.ndarray, *, mirror: bool) -> tuple[np.ndarray, np.ndarray]:
+def kabsch(src: np.ndarray, dst: np.ndarray, *, mirror: bool) -> tuple[np.ndarray, np.ndarray]:
     """Rotation (or mirror-rotation) R and translation t minimising |R src + t - dst|."""
     ms, md = src.mean(axis=0), dst.mean(axis=0)
     h = (src - ms).T @ (dst - md)
@@ -177,14 +180,14 @@ def register_to_design(
         raise ValueError("need >= 3 measured points and >= 2 design points")
     src = resample_by_length(meas, samples)
     dst = resample_by_length(des, samples)
-    index = _PolylineIndex(des)
+    index = PolylineIndex(des)
     best: Registration | None = None
     for rev in (False, True):
         target = dst[::-1] if rev else dst
         for mirror in (False, True) if allow_mirror else (False,):
-            r, t = _kabsch(src, target, mirror=mirror)
+            r, t = kabsch(src, target, mirror=mirror)
             for _ in range(iterations):
-                r_new, t_new = _kabsch(src, index.feet(src @ r.T + t), mirror=mirror)
+                r_new, t_new = kabsch(src, index.feet(src @ r.T + t), mirror=mirror)
                 change = np.abs(r_new - r).max() + np.abs(t_new - t).max()
                 r, t = r_new, t_new
                 if change < 1e-12:

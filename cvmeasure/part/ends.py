@@ -13,6 +13,7 @@ from typing import Literal
 
 import numpy as np
 
+from cvmeasure.part.fit import fit_line
 from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
 
 __all__ = ["INTO_SHADOW_COS", "SHADOW_STEP_SHARE", "SHADOW_DARKER", "EndShape", "end_point"]
@@ -69,8 +70,6 @@ def end_point(
     half-widths from the last one (the last centres can be pulled by the
     cap's shadow); the cap is searched along that line.
     """
-    from cvmeasure.part.fit import _fit_line
-
     pts = centres if head else centres[::-1]
     prof = profiles if head else profiles[::-1]
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
@@ -78,7 +77,7 @@ def end_point(
     if sel.sum() < 5:
         sel = np.zeros(len(pts), dtype=bool)
         sel[: min(len(pts), 10)] = True
-    p0, d, _ = _fit_line(pts[sel])
+    p0, d, _ = fit_line(pts[sel])
     if d @ (pts[0] - pts[sel][-1]) < 0:
         d = -d  # outward
     first = pts[sel][0]

@@ -29,6 +29,7 @@ import numpy as np
 
 from cvmeasure.design import divide_into_chords
 from cvmeasure.geometry import CircleFit, wrap_deg
+from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
     "chord_coverage",
@@ -40,6 +41,7 @@ __all__ = [
     "arc_geometry",
     "arc_angle_from_chord_deg",
     "sagitta_radius_mm",
+    "fit_line",
 ]
 
 
@@ -160,7 +162,7 @@ class PolylineFit:
         }
 
 
-def _fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fit_line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Robust total-least-squares line: (point on it, unit direction, inlier mask).
 
     Two trimming passes drop points farther than 3 robust sigmas (1.4826 MAD)
@@ -295,7 +297,7 @@ def fit_polyline(
                 sel = (s >= a) & (s <= b)
             if sel.sum() < 2:
                 raise ValueError("too few centreline points for the number of divisions")
-            p0, d, inl = _fit_line(pts[sel])
+            p0, d, inl = fit_line(pts[sel])
             # orient along the traversal
             if np.dot(pts[sel][-1] - pts[sel][0], d) < 0:
                 d = -d
@@ -422,8 +424,6 @@ def count_chords(
     is kept only when the N-chord polyline fits the centreline far better than a
     circle does (a smooth arc turns evenly and has no peaks).
     """
-    from scipy.signal import find_peaks
-
     from cvmeasure.geometry import fit_circle_robust
 
     pts = _check_points(ordered_points_mm, 8)
@@ -452,14 +452,14 @@ def count_chords(
     # once more from the windows away from the peaks found
     distance = max(1, round(min_chord_mm / step_mm))
     sigma = float(np.percentile(dev, 10)) / 0.126 + 1e-9
-    peaks, _ = find_peaks(dev, height=max(min_turn_deg, 5.0 * sigma), distance=distance)
+    peaks = find_peaks(dev, height=max(min_turn_deg, 5.0 * sigma), distance=distance)
     quiet = np.ones(len(dev), dtype=bool)
     for p in peaks:
         quiet[max(0, p - 2 * half - k) : p + 2 * half + k + 1] = False
     if quiet.sum() >= 20:
         sigma = 1.4826 * float(np.median(dev[quiet])) / 0.6745 + 1e-9
     height = max(min_turn_deg, 5.0 * sigma)
-    peaks, _ = find_peaks(dev, height=height, distance=distance)
+    peaks = find_peaks(dev, height=height, distance=distance)
     fits: dict[int, PolylineFit] = {}
     if len(peaks) == 0:
         # chords so short that no window is quiet hide their peaks: try every count

@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.part.compare import PolylineIndex, kabsch, resample_by_length
 
 __all__ = [
     "MAX_LIFT_MM",
@@ -315,21 +316,19 @@ def _rigid(theta: float, shift: np.ndarray, pts: np.ndarray) -> np.ndarray:
 def _register_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Rigid (angle rad, shift) taking the curve ``src`` onto ``dst`` (ICP to the curve),
     and the mask of ``src`` points whose foot lies inside ``dst`` (2 mm from its ends)."""
-    from cvmeasure.part.compare import _kabsch, _PolylineIndex, resample_by_length
-
     a = resample_by_length(src, 200)
     b = resample_by_length(dst, 200)
     best = None
     for cand in (a, a[::-1]):
-        r, t = _kabsch(cand, b, mirror=False)
+        r, t = kabsch(cand, b, mirror=False)
         rms = float(np.sqrt(np.mean(np.sum((cand @ r.T + t - b) ** 2, axis=1))))
         if best is None or rms < best[0]:
             best = (rms, r, t)
     _, r, t = best
-    index = _PolylineIndex(dst)
+    index = PolylineIndex(dst)
     for _ in range(30):
         moved = src @ r.T + t
-        r, t = _kabsch(src, index.feet(moved), mirror=False)
+        r, t = kabsch(src, index.feet(moved), mirror=False)
     theta = float(np.arctan2(r[1, 0], r[0, 0]))
     feet = index.feet(src @ r.T + t)
     s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(dst, axis=0).T))))
@@ -343,9 +342,7 @@ def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
     """Signed distance (N,) of points from a dense curve (M, 2), left of travel positive."""
     from scipy.spatial import cKDTree
 
-    from cvmeasure.part.compare import _PolylineIndex
-
-    feet = _PolylineIndex(curve).feet(points)
+    feet = PolylineIndex(curve).feet(points)
     tangent = np.gradient(curve, axis=0)
     _, k = cKDTree(curve).query(points)
     tg = tangent[k] / np.maximum(np.linalg.norm(tangent[k], axis=1), 1e-12)[:, None]

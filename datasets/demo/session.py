@@ -26,11 +26,11 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     from cvmeasure.driver.session import (
         SessionConfig,
         run_session,
-        simulated_bender,
     )
     from cvmeasure.driver.session_report import write_session_report
     from cvmeasure.material.calibration import save_calibration
     from cvmeasure.sim import Effect, pin_command_for_angle, simulate
+    from cvmeasure.testing.bender import simulated_bender
     from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
 
     effects = (Effect("backlash", _BACKLASH_DEG),)

@@ -2,7 +2,7 @@
 
 The seed paper's half circle (R 100 mm, 20 chords, 9 degree bends) becomes
 G-code with the simulation's compensation, is streamed over a real
-pseudo-terminal to :class:`~cvmeasure.driver.double.FakeTinyG`, whose USB port
+pseudo-terminal to :class:`~cvmeasure.testing.double.FakeTinyG`, whose USB port
 vanishes part-way; the job is resumed from its journal, and the wire the
 double bent (simulated) is compared with the design.
 """
@@ -22,11 +22,11 @@ __all__ = ["demo_step"]
 def demo_step(out_dir: Path, *, seed: int = 7) -> DemoSection:
     """Run the streaming demo; write the G-code and its journal under ``out_dir``."""
     from cvmeasure.design import arc_points_mm, bend_angles_deg
-    from cvmeasure.driver.double import FakeTinyG, Fault
-    from cvmeasure.driver.gcode import design_job
     from cvmeasure.driver.stream import JobStopped, StreamConfig, stream_job
     from cvmeasure.driver.transport import open_link
     from cvmeasure.fileio import atomic_write_text
+    from cvmeasure.gcode import design_job
+    from cvmeasure.testing.double import FakeTinyG, Fault
 
     rng = np.random.default_rng(seed)
     design = arc_points_mm((0.0, 0.0), 100.0, 90.0, 180.0, chords=20)

@@ -241,7 +241,7 @@ def test_a_bend_far_below_the_calibration_is_refused_naming_the_session(tmp_path
 
 def test_seed_saddle_from_the_shallow_session_is_calibrated(tmp_path, capsys):
     import cvmeasure_datasets
-    from cvmeasure.driver.gcode import SHALLOW_SESSION_ANGLES_DEG
+    from cvmeasure.gcode import SHALLOW_SESSION_ANGLES_DEG
     from cvmeasure.material.calibration import save_calibration
     from cvmeasure.sim import simulate
 

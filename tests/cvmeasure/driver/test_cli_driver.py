@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from cvmeasure.cli import main
-from cvmeasure.driver.double import FakeTinyG, Fault
 from cvmeasure.fileio import read_jsonl
 from cvmeasure.sim import pin_command_for_angle
+from cvmeasure.testing.double import FakeTinyG, Fault
 
 HALF_SVG = (
     '<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="300mm" viewBox="0 0 300 300">'

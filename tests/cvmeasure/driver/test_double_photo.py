@@ -8,9 +8,9 @@ from cvmeasure.driver.session import (
     SessionConfig,
     nominal_pin_for_loaded_deg,
     session_gcode,
-    simulated_bender,
 )
 from cvmeasure.sim import SimParams, parse_effect, simulate
+from cvmeasure.testing.bender import simulated_bender
 from cvmeasure_datasets.simcamera import double_photo_state
 
 

@@ -19,10 +19,10 @@ from cvmeasure.driver.session import (
     nominal_pin_for_loaded_deg,
     read_session_log,
     session_gcode,
-    simulated_bender,
 )
 from cvmeasure.material.calibration import load_calibration
 from cvmeasure.sim import simulate
+from cvmeasure.testing.bender import simulated_bender
 from cvmeasure_datasets.simcamera import double_photo_state
 
 REPO = Path(__file__).resolve().parents[3]
@@ -245,9 +245,9 @@ def test_real_session_needs_port_and_camera(tmp_path, capsys):
 
 
 def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
-    from cvmeasure.driver.double import Fault
     from cvmeasure.driver.session import run_session
     from cvmeasure.errors import DeviceError
+    from cvmeasure.testing.double import Fault
     from cvmeasure_datasets.simcamera import SimulatedCamera
 
     config = SessionConfig(mode="custom", angles_deg=(10.0, 30.0))

@@ -13,8 +13,6 @@ import time
 import pytest
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.driver.double import FakeTinyG, Fault
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import (
     FIRMWARE_QUERIES,
     SETUP_COMMANDS,
@@ -24,6 +22,8 @@ from cvmeasure.driver.stream import (
 )
 from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import DeviceError
+from cvmeasure.gcode import design_job
+from cvmeasure.testing.double import FakeTinyG, Fault
 
 FAST = StreamConfig(stall_timeout_s=1.0, flush_timeout_s=5.0)
 #: lines the double reads before N1: settings, identification, {"ex"}, {"sr":null}, N0

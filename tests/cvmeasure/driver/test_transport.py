@@ -11,11 +11,12 @@ import pytest
 import serial
 
 from cvmeasure.design import arc_points_mm
-from cvmeasure.driver.double import FakeTinyG, Fault
-from cvmeasure.driver.gcode import design_job
 from cvmeasure.driver.stream import StreamConfig, stream_job
-from cvmeasure.driver.transport import open_link, parse_sim_url
+from cvmeasure.driver.transport import open_link
 from cvmeasure.errors import InputError
+from cvmeasure.gcode import design_job
+from cvmeasure.testing.double import FakeTinyG, Fault
+from cvmeasure.testing.protocol_sim import parse_sim_url
 
 
 def test_parse_sim_url():

@@ -1,6 +1,6 @@
 """What the TinyG double injects and records: faults, bends, machine snapshots.
 
-The data side of :mod:`cvmeasure.driver.double`: the faults a test asks for, the bends
+The data side of :mod:`cvmeasure.testing.double`: the faults a test asks for, the bends
 the simulated machine made, a snapshot of the machine, and the double's own counters.
 """
 

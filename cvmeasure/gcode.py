@@ -24,12 +24,17 @@ Three pure steps:
    checked by :func:`~cvmeasure.driver.protocol.encode_line`: never a realtime
    character, ``$``, ``?`` or a control character.
 
-:func:`design_job` chains the three.
+:func:`design_job` chains the three. Jobs are made here, on the design and material
+side; :mod:`cvmeasure.driver` only streams them (it checks lines with the same
+:func:`~cvmeasure.driver.protocol.encode_line`). :mod:`cvmeasure.sim` is imported only
+where the default compensator needs it: a job compensated from a calibration never does,
+and it adds a tenth of a second to start-up.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -37,8 +42,10 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import ArrayLike
 
+from cvmeasure.design import bend_angles_deg, chord_lengths_mm
 from cvmeasure.driver.protocol import encode_line
 from cvmeasure.errors import InputError
+from cvmeasure.material.compensation import CompensationRangeWarning
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -214,8 +221,6 @@ def bend_list(
         Closed shape, fewer than 2 points, a segment shorter than
         ``min_segment_mm`` or a bend beyond ``max_bend_deg`` (named, with its value).
     """
-    from cvmeasure.design import bend_angles_deg, chord_lengths_mm
-
     pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
     if closed or (len(pts) > 2 and np.allclose(pts[0], pts[-1], atol=1e-6)):
         raise InputError(source, "closed shape: a wire part must have two free ends")
@@ -353,10 +358,6 @@ def _extrapolated_below(
     t = abs(target_deg)
     if t >= f0 or t < max(f0 - (f1 - f0), 0.5 * f0) or f1 <= f0:
         return None
-    import warnings
-
-    from cvmeasure.material.compensation import CompensationRangeWarning
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", CompensationRangeWarning)

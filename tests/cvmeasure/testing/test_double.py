@@ -8,7 +8,6 @@ import time
 import pytest
 import serial
 
-from cvmeasure.driver.double import FakeTinyG, Fault
 from cvmeasure.driver.protocol import (
     LineSplitter,
     Response,
@@ -17,6 +16,7 @@ from cvmeasure.driver.protocol import (
     parse_message,
 )
 from cvmeasure.sim import pin_command_for_angle
+from cvmeasure.testing.double import FakeTinyG, Fault
 
 
 class Host:

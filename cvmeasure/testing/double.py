@@ -29,8 +29,8 @@ proposes:
   the die and the bent wire's shape are known (:meth:`FakeTinyG.machine_state`,
   :meth:`FakeTinyG.wire_shape_mm`).
 
-Modules: :mod:`~cvmeasure.driver.double_records` (faults, bends, snapshots),
-:mod:`~cvmeasure.driver.double_firmware` (line reader, commands, G-code, executor,
+Modules: :mod:`~cvmeasure.testing.double_records` (faults, bends, snapshots),
+:mod:`~cvmeasure.testing.double_firmware` (line reader, commands, G-code, executor,
 reports); this one holds the pty, the thread, the interrupt layer, the faults' firing,
 the realtime characters and the machine's simulation.
 
@@ -55,20 +55,6 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.driver.double_firmware import FirmwareLayer
-from cvmeasure.driver.double_records import (
-    BANNER,
-    DEFAULT_MAX_RATE,
-    FAULT_KINDS,
-    LINE_REPORTS,
-    BendRecord,
-    DoubleStats,
-    Fault,
-    FaultKind,
-    LineReport,
-    MachineState,
-    PlannedMove,
-)
 from cvmeasure.driver.protocol import (
     AXES,
     PLANNER_HEADROOM,
@@ -83,6 +69,20 @@ from cvmeasure.driver.protocol import (
     format_queue_report,
     format_response,
     format_rx_report,
+)
+from cvmeasure.testing.double_firmware import FirmwareLayer
+from cvmeasure.testing.double_records import (
+    BANNER,
+    DEFAULT_MAX_RATE,
+    FAULT_KINDS,
+    LINE_REPORTS,
+    BendRecord,
+    DoubleStats,
+    Fault,
+    FaultKind,
+    LineReport,
+    MachineState,
+    PlannedMove,
 )
 
 __all__ = [

@@ -1,6 +1,6 @@
 """The TinyG double's firmware layer: line reader, JSON and G-code, executor, reports.
 
-A mixin of :class:`cvmeasure.driver.double.FakeTinyG`, which owns the state it reads
+A mixin of :class:`cvmeasure.testing.double.FakeTinyG`, which owns the state it reads
 (planner, settings, positions) and the pty; split out so each module keeps one job.
 """
 
@@ -10,10 +10,6 @@ import json
 import math
 from typing import Any
 
-from cvmeasure.driver.double_records import (
-    MIN_MOVE_S,
-    PlannedMove,
-)
 from cvmeasure.driver.protocol import (
     AXES,
     INPUT_LINE_MAX,
@@ -25,6 +21,10 @@ from cvmeasure.driver.protocol import (
     format_response,
     format_status_report,
     parse_block,
+)
+from cvmeasure.testing.double_records import (
+    MIN_MOVE_S,
+    PlannedMove,
 )
 
 __all__ = ["FirmwareLayer"]

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from cvmeasure.design import arc_points_mm, bend_angles_deg
-from cvmeasure.driver.gcode import (
+from cvmeasure.driver.protocol import parse_block, track_positions
+from cvmeasure.errors import InputError
+from cvmeasure.gcode import (
     MachineLayout,
     bend_list,
     design_job,
     gcode_lines,
     pin_commands,
 )
-from cvmeasure.driver.protocol import parse_block, track_positions
-from cvmeasure.errors import InputError
 from cvmeasure.sim import pin_command_for_angle, simulate
 
 
