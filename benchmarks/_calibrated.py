@@ -5,10 +5,10 @@ hide every calibration error a user has). Instead, as a user would:
 
 * :func:`calibrated_camera`: 12 ChArUco views (14x10, 20/15 mm) are rendered with
   the renderer's lens, written as JPEG, read back, and calibrated by
-  :mod:`cvmeasure.calibration` (the same code as ``cvmeasure calibrate``);
+  :mod:`cvmeasure.lens` (the same code as ``cvmeasure calibrate``);
 * :func:`plane_for_pose`: a photo of the same board lying on the measurement
   plane, taken from the bender photo's camera pose, gives the plane
-  (:func:`cvmeasure.calibration.plane.estimate_plane` with the calibrated camera).
+  (:func:`cvmeasure.lens.plane.estimate_plane` with the calibrated camera).
 
 The renderer's truth is used only to score the errors.
 """
@@ -42,7 +42,7 @@ def calibrated_camera(scale: float, *, seed: int = 7) -> tuple[CameraModel, dict
     renderer's lens in %) for the benchmark's notes.
     """
     import cvmeasure_datasets
-    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.lens.pipeline import calibrate_detections, detect_photos
     from cvmeasure_datasets.demo.calibration import planned_poses
 
     true_camera = cvmeasure_datasets.default_camera().scaled(scale)
@@ -85,8 +85,8 @@ def plane_for_pose(
     import cv2
 
     import cvmeasure_datasets
-    from cvmeasure.calibration.plane import estimate_plane
     from cvmeasure.imageio import read_photo
+    from cvmeasure.lens.plane import estimate_plane
     from cvmeasure_datasets.optics import Pose
 
     rot, t_mm = pose.extrinsics(frame)

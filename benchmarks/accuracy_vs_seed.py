@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> dict:
                 rec["white_clipped_fraction"] = estimate_white(img).clipped_fraction
             for name, variant_kit in kits.items():
                 try:
-                    res = measure_machine_photo(img, variant_kit, method="seed")
+                    res = measure_machine_photo(img, variant_kit, method="seed_hough")
                 except InputError:
                     rec[name] = None
                     continue

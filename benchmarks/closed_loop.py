@@ -50,7 +50,7 @@ def session_calibration(machine, effects, *, noise_deg=0.05, seed=0):
     from benchmarks.heldout.bender_physics import simulate_trials
     from cvmeasure.contracts import Trial
     from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-    from cvmeasure.material.calibration import fit_calibration
+    from cvmeasure.material.bender_calibration import fit_calibration
 
     angles = SHALLOW_ANGLES
     pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]

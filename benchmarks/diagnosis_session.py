@@ -44,7 +44,7 @@ from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import Diagnosis, diagnose
 from cvmeasure.driver.plan import swept_plan
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
-from cvmeasure.material.calibration import MODES
+from cvmeasure.material.bender_calibration import MODES
 from cvmeasure.sim import EFFECTS, Effect, SimParams, simulate
 from cvmeasure_datasets import physical_bender as pb
 
@@ -147,9 +147,16 @@ def _pb_pin(
     machine: pb.Machine, head_deg: np.ndarray, hidden: tuple[pb.Hidden, ...] = ()
 ) -> np.ndarray:
     """The pin's angle on the loaded photo (machine frame) for the true head rotation, seen
-    through the camera's tilt like the bends."""
+    through the camera's tilt like the bends. The photo reads it from the origin marker,
+    which sits on the die at the nominal head axis: a hidden axis offset moves the pin's
+    orbit, not the marker."""
     s = np.where(head_deg < 0, -1.0, 1.0)
-    pin = s * (machine.home_pin_deg + np.abs(head_deg))
+    phi = np.radians(machine.home_pin_deg + np.abs(head_deg))  # about the true axis
+    e = sum(h.params["axis_offset_mm"] for h in hidden if h.name == "axis_offset")
+    seen = np.arctan2(
+        e * s + machine.pin_orbit_mm * np.sin(phi), machine.pin_orbit_mm * np.cos(phi)
+    )
+    pin = s * np.degrees(phi + np.angle(np.exp(1j * (seen - phi))))
     for h in hidden:
         if h.name == "camera_tilt":
             pin = pb._tilted(pin, h.params["tilt_deg"], h.params.get("tilt_axis_deg", 0.0))

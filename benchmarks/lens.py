@@ -27,10 +27,10 @@ def _true_values(camera) -> dict[str, float]:
 def _accuracy(scale: float, n_views: int, seed: int) -> tuple[list[Metric], list[list], dict]:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
-    from cvmeasure.calibration.plane import estimate_plane
-    from cvmeasure.calibration.uncertainty import projection_diff
     from cvmeasure.imageio import read_photo
+    from cvmeasure.lens.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.lens.plane import estimate_plane
+    from cvmeasure.lens.uncertainty import projection_diff
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     cam = cvmeasure_datasets.default_camera().scaled(scale)
@@ -146,8 +146,8 @@ def _false_negative(dets, cam) -> tuple[list[Metric], list[list]]:
     """The model-error warning on a lens richer than the fitted model (issue 16): the same
     rendered views (the seed lens: k1 k2 p1 p2 k3) fitted with model 1 (k1) and model 2
     (k1 k2). Does the cross-validation still say "model error"?"""
-    from cvmeasure.calibration.pipeline import CROSS_VALIDATION_RATIO_LIMIT, calibrate_detections
-    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.lens.pipeline import CROSS_VALIDATION_RATIO_LIMIT, calibrate_detections
+    from cvmeasure.lens.uncertainty import projection_diff
 
     metrics, rows = [], []
     for model, missing in (("1", "k2 p1 p2 k3"), ("2", "p1 p2 k3")):
@@ -193,9 +193,9 @@ def _one_run(scale: float, n_views: int, seed: int):
 
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.detect import detect_board
-    from cvmeasure.calibration.solve import calibrate_views
-    from cvmeasure.calibration.uncertainty import projection_uncertainty
+    from cvmeasure.lens.detect import detect_board
+    from cvmeasure.lens.solve import calibrate_views
+    from cvmeasure.lens.uncertainty import projection_uncertainty
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     cam = cvmeasure_datasets.default_camera().scaled(scale)
@@ -270,8 +270,8 @@ def _real_sets() -> list[list]:
     import cv2
 
     from cvmeasure.board import board_from_dict
-    from cvmeasure.calibration.detect import detect_board
-    from cvmeasure.calibration.pipeline import calibrate_detections
+    from cvmeasure.lens.detect import detect_board
+    from cvmeasure.lens.pipeline import calibrate_detections
 
     root = REAL
     sets = [

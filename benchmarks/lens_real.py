@@ -106,7 +106,7 @@ def _detect_glob(pattern: str, spec: dict) -> list:
     import cv2
 
     from cvmeasure.board import board_from_dict
-    from cvmeasure.calibration.detect import detect_board
+    from cvmeasure.lens.detect import detect_board
 
     board = board_from_dict(spec)
     return [
@@ -128,7 +128,7 @@ def _photonvision_detections(kept_only: bool = False) -> list:
     7x7 inner corners, 25.4 mm."""
     import ast
 
-    from cvmeasure.calibration.detect import BoardDetection
+    from cvmeasure.lens.detect import BoardDetection
 
     path = REAL / "photonvision-lifecam-charuco-8x8" / "reference_mrcal_123png"
     data = json.loads((path / "calibration_data.json").read_text())
@@ -153,13 +153,13 @@ def _values(camera, names) -> dict[str, float]:
 
 
 def _choice_text(choice: dict) -> str:
-    from cvmeasure.calibration.pipeline import model_choice_text
+    from cvmeasure.lens.pipeline import model_choice_text
 
     return model_choice_text(choice)
 
 
 def _real_sets() -> tuple[list[Metric], list[Table], list[str]]:
-    from cvmeasure.calibration.pipeline import calibrate_detections
+    from cvmeasure.lens.pipeline import calibrate_detections
 
     rows, choice_rows, metrics, warp_rows, issue_rows = [], [], [], [], []
     sigma_rows: list[list] = []
@@ -353,9 +353,9 @@ _FLAT_PUBLISHED = (
 def _sigma_evidence(name: str, model: str, pub: dict, rep) -> list[list]:
     """Rows of the sigma table for one set: fx, fy, cx, cy of the default solve ``rep``
     against the published values, with its formal, stated and view-jackknife sigmas."""
-    from cvmeasure.calibration.solve import calibrate_views
-    from cvmeasure.calibration.uncertainty import parameter_covariance
-    from cvmeasure.calibration.warp import refine_board_warp
+    from cvmeasure.lens.solve import calibrate_views
+    from cvmeasure.lens.uncertainty import parameter_covariance
+    from cvmeasure.lens.warp import refine_board_warp
 
     res = rep.result
     formal = parameter_covariance(res).std_devs()
@@ -426,7 +426,7 @@ def _plain_opencv_z(dets, size, model: str, pub: dict, sigma: dict) -> float:
     corner found: worst |value - published| / our sigma."""
     import cv2
 
-    from cvmeasure.calibration.solve import model_flags
+    from cvmeasure.lens.solve import model_flags
 
     ok = [d for d in dets if d.ok]
     objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in ok]
@@ -447,7 +447,7 @@ def _published_camera(pub: dict, size):
 
 def _issue39_row(name, dets, size, model, pub, dflt, auto, z_dflt) -> list:
     """One row of the issue-39 table (and, past column 11, what the metrics need)."""
-    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.lens.uncertainty import projection_diff
 
     choice = auto.model_choice or {}
     cands = [c for c in choice.get("candidates", []) if c.get("held_out_rms_px") is not None]
@@ -549,8 +549,8 @@ def _render_set(
     kept there. Returns (camera, detections)."""
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.detect import detect_board
     from cvmeasure.camera import CameraModel
+    from cvmeasure.lens.detect import detect_board
     from cvmeasure_datasets.demo.calibration import planned_poses
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
@@ -595,8 +595,8 @@ def _auto_choice(
 ) -> tuple[list[Metric], list[Table], list[str]]:
     """--model auto on renders whose lens is exactly model 1, 2 and 5: how often it picks
     the true model or a richer one, and the picked model's projection error vs the truth."""
-    from cvmeasure.calibration.pipeline import calibrate_detections, choose_model
-    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.lens.pipeline import calibrate_detections, choose_model
+    from cvmeasure.lens.uncertainty import projection_diff
 
     metrics, rows = [], []
     for true_model, dist in _AUTO_LENSES.items():
@@ -691,8 +691,8 @@ _Z_PARAMS = ("fx", "fy", "cx", "cy", *_DIST5)
 
 
 def _renders(scale: float, n_views: int, runs: int) -> tuple[list[Metric], list[Table], list[str]]:
-    from cvmeasure.calibration.pipeline import CROSS_VALIDATION_RATIO_LIMIT, calibrate_detections
-    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.lens.pipeline import CROSS_VALIDATION_RATIO_LIMIT, calibrate_detections
+    from cvmeasure.lens.uncertainty import projection_diff
 
     rows, zs, fired, ratios, autos, truth_p95 = [], [], [], [], [], []
     zs_on, warp_z, warp_used, fired_on, too_simple = [], [], [], [], []
@@ -1089,7 +1089,7 @@ def _mrcal_side_by_side(
 
 
 def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
-    from cvmeasure.calibration.pipeline import calibrate_detections
+    from cvmeasure.lens.pipeline import calibrate_detections
 
     why = _mrcal_available()
     if why:
@@ -1122,7 +1122,7 @@ def _mrcal() -> tuple[list[Metric], list[Table], list[str]]:
             _PUBLISHED_SETS[3][4],
         ),
     ]
-    from cvmeasure.calibration.uncertainty import parameter_covariance, projection_uncertainty
+    from cvmeasure.lens.uncertainty import parameter_covariance, projection_uncertainty
 
     rows, unc_rows, warp_rows, metrics, notes = [], [], [], [], []
     worst_z, worst_unc = 0.0, 0.0
@@ -1271,8 +1271,8 @@ def _mrcal_published_recipe() -> tuple[list[Metric], list[Table], list[str]]:
     regularization: what of the gap to the published values is the recipe, not the corners."""
     import ast
 
-    from cvmeasure.calibration.pipeline import calibrate_detections
-    from cvmeasure.calibration.solve import calibrate_views
+    from cvmeasure.lens.pipeline import calibrate_detections
+    from cvmeasure.lens.solve import calibrate_views
 
     why = _mrcal_available()
     if why or not REAL.is_dir():
@@ -1411,8 +1411,8 @@ def _known_warp(runs: int) -> tuple[list[Metric], list[Table], list[str]]:
     import cv2
 
     import cvmeasure_datasets
-    from cvmeasure.calibration.detect import BoardDetection
-    from cvmeasure.calibration.pipeline import calibrate_detections
+    from cvmeasure.lens.detect import BoardDetection
+    from cvmeasure.lens.pipeline import calibrate_detections
 
     why = _mrcal_available()
     if why:

@@ -341,7 +341,7 @@ def main(argv: list[str] | None = None) -> dict:
             "0.7-1.15, vignetting, shot+read noise, blur 0.4-1 px, JPEG quality 80-96), the seed "
             "camera's lens distortion, random yaw, 800-900 mm; the last fifth tilted 4-10 deg.",
             "ours, as a user measures: the camera calibrated from "
-            f"{calibration['views']} rendered ChArUco photos by cvmeasure.calibration (RMS "
+            f"{calibration['views']} rendered ChArUco photos by cvmeasure.lens (RMS "
             f"{calibration['rms_px']:.3f} px; focal length {calibration['focal_error_pct']:+.4f} %, "
             f"principal point {calibration['principal_point_error_px']:.2f} px off the renderer's "
             "lens); a tilted photo is measured on the plane estimated from a photo of the board "

@@ -431,7 +431,7 @@ def main(argv: list[str] | None = None) -> dict:
             f"photos rendered at scale {scale} ({'2304x1536' if args.quick else '4608x3072'} px), "
             f"part parameters from seed {args.seed}; errors are measured - true",
             "measured as a user does: the camera calibrated from "
-            f"{calibration['views']} rendered ChArUco photos by cvmeasure.calibration (RMS "
+            f"{calibration['views']} rendered ChArUco photos by cvmeasure.lens (RMS "
             f"{calibration['rms_px']:.3f} px, focal length {calibration['focal_error_pct']:+.4f} % "
             "off the renderer's lens; rescaled for the smaller photos of the resolution table), "
             "the plane from the board in each photo; the renderer's truth only scores",

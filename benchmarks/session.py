@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> dict:
     from cvmeasure.material.compensation import SPRINGBACK_MODELS
     from cvmeasure.sim import parse_effect, simulate
     from cvmeasure.testing.bender import simulated_bender
-    from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
+    from cvmeasure_datasets.simcapture import SimulatedCapture, double_photo_state
 
     scale = 0.25 if args.quick else 0.5
     quick_config = SessionConfig(mode="custom", angles_deg=QUICK_ANGLES)
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> dict:
         effects = tuple(parse_effect(t) for t in effect_texts)
         with tempfile.TemporaryDirectory() as tmp:
             bender = simulated_bender(speedup=200.0, effects=effects)
-            camera = SimulatedCamera(
+            camera = SimulatedCapture(
                 Path(tmp) / "photos",
                 lambda b=bender: double_photo_state(b.double),
                 scale=scale,

@@ -50,7 +50,7 @@ def _time_sizes(n_photos: int, repeats: int, seed0: int) -> list[dict[str, Any]]
 
                 def seed_run(img=img):
                     try:
-                        return measure_machine_photo(img, kit, method="seed")
+                        return measure_machine_photo(img, kit, method="seed_hough")
                     except InputError:
                         return None
 
@@ -91,7 +91,7 @@ def _time_calibration(n_views: int, seed: int) -> dict[str, float]:
     """
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.pipeline import calibrate_detections, detect_photos
+    from cvmeasure.lens.pipeline import calibrate_detections, detect_photos
     from cvmeasure_datasets.demo.calibration import planned_poses
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
@@ -316,7 +316,7 @@ def main(argv: list[str] | None = None) -> dict:
         "wall-clock medians are listed beside).",
         "decode: cv2.imread of the JPEG. ours: measure_machine_photo(img, kit, camera=...) "
         "(colour search on a reduced copy, sub-pixel edge fits at full size, lens distortion "
-        "removed). seed: measure_machine_photo(img, kit, method='seed') (the paper's "
+        "removed). seed: measure_machine_photo(img, kit, method='seed_hough') (the paper's "
         "LAB boxes + medianBlur(7) + HoughCircles per marker, arctan2; timed also when it "
         "misses a marker, since it ran to the end).",
         "The speed target compares the methods' own work on the decoded photo; read from "

@@ -22,8 +22,6 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.board import load_board as _read_board
-from cvmeasure.calibration.pipeline import CalibrationReport, calibrate_detections, detect_photos
-from cvmeasure.calibration.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
 from cvmeasure.camera import CameraModel, save_camera
 from cvmeasure.camera import load_camera as _read_camera
 from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
@@ -37,9 +35,15 @@ from cvmeasure.gcode import GcodeJob, SimCompensator, design_job
 from cvmeasure.imageio import Photo, read_photo
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.kit import load_kit as _read_kit
+from cvmeasure.lens.pipeline import CalibrationReport, calibrate_detections, detect_photos
+from cvmeasure.lens.plane import DEFAULT_TOLERANCE_DEG, estimate_plane
 from cvmeasure.markers.measure import measure_photo_file, measure_trial
-from cvmeasure.material.calibration import Calibration, fit_calibration, save_calibration
-from cvmeasure.material.calibration import load_calibration as _read_material
+from cvmeasure.material.bender_calibration import (
+    BenderCalibration,
+    fit_calibration,
+    save_calibration,
+)
+from cvmeasure.material.bender_calibration import load_calibration as _read_material
 from cvmeasure.material.correct import Correction
 from cvmeasure.material.correct_part import correct_from_part
 from cvmeasure.part.measure import PartMeasurement
@@ -96,7 +100,7 @@ class CameraCalibration:
 class CorrectedJob:
     """The closed loop's output: the corrected material calibration, what changed, the next job."""
 
-    material: Calibration
+    material: BenderCalibration
     correction: Correction
     job: GcodeJob
 
@@ -134,7 +138,7 @@ def load_design(path: PathLike) -> Design:
     return _read_design(path)
 
 
-def load_material(path: PathLike) -> Calibration:
+def load_material(path: PathLike) -> BenderCalibration:
     """Read a material calibration (``diwire-material/1`` JSON)."""
     return _read_material(path)
 
@@ -166,7 +170,7 @@ def save(path: PathLike, result: Any) -> Path:
         return save_camera(path, result)
     if isinstance(result, PlaneModel):
         return result.save(path)
-    if isinstance(result, Calibration):
+    if isinstance(result, BenderCalibration):
         return save_calibration(path, result)
     if isinstance(result, TrialTable):
         return result.write_csv(path)
@@ -214,7 +218,7 @@ def _photo(photo: Photo | PathLike | np.ndarray, source: str) -> Photo:
     return read_photo(photo)
 
 
-def _material(material: Calibration | PathLike) -> Calibration:
+def _material(material: BenderCalibration | PathLike) -> BenderCalibration:
     return load_material(material) if isinstance(material, str | os.PathLike) else material
 
 
@@ -302,7 +306,7 @@ def measure_bender_photo(
     camera: CameraModel | PathLike | None = None,
     plane: PlaneModel | PathLike | None = None,
     board: BoardSpec | PathLike | None = None,
-    method: str = "ours",
+    method: str = "edge_fit",
     space: str = "lab",
     edge: str | None = None,
     heights: str = "none",
@@ -316,7 +320,8 @@ def measure_bender_photo(
     camera : the calibrated camera; without it angles are measured in image pixels.
     plane : the plate's plane (``measure_plane``); markers are then measured at their
         kit heights. Or ``board``: find that board in this photo (needs ``camera``).
-    method : ``"ours"`` or ``"seed"`` (the seed paper's baseline, image pixels only).
+    method : ``"edge_fit"`` or ``"seed_hough"`` (the seed paper's baseline, image pixels
+        only); the older ``"ours"`` / ``"seed"`` are read too.
     space : colour space of the segmentation, ``"lab"`` or ``"rgb"``.
     edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``, or
         None (by the photo's type).
@@ -376,7 +381,7 @@ def measure_part(
     divisions: int | None = None,
     moved_photo: Photo | PathLike | np.ndarray | None = None,
     shadow_lift: bool = True,
-    method: str = "ours",
+    method: str = "centreline_fit",
     allow_mirror: bool = True,
 ) -> PartMeasurement:
     """Measure a finished part lying beside the board (``cvmeasure part``).
@@ -394,8 +399,9 @@ def measure_part(
     divisions : the chord count the part was bent in; None finds it in the photo.
     moved_photo : a second photo of the part slid on the plate: the lift is then
         measured from the two views (needs ``board`` and ``wire_diameter_mm``).
-    method : which method gives the headline values: ``"ours"``, ``"ellipse"`` or
-        ``"sagitta"`` (the seed paper's two).
+    method : which method gives the headline values: ``"centreline_fit"``,
+        ``"seed_ellipse"`` or ``"seed_sagitta"`` (the seed paper's two); the older
+        ``"ours"``, ``"ellipse"``, ``"sagitta"`` are read too.
     allow_mirror : the design may be matched mirrored (the part photographed upside down).
 
     Returns
@@ -435,7 +441,7 @@ def fit_material(
     model: str = "linear",
     motion_model: str = "pchip",
     name: str | None = None,
-) -> Calibration:
+) -> BenderCalibration:
     """Fit the springback compensation to measured trials (``cvmeasure fit``).
 
     ``model``: ``"linear"``, ``"cubic"``, ``"pchip"`` or ``"physical"``; every model is
@@ -490,7 +496,7 @@ def diagnose_trials(
 
 def gcode_for(
     design: Design | DesignPath | PathLike,
-    material: Calibration | PathLike | None = None,
+    material: BenderCalibration | PathLike | None = None,
     *,
     divisions: int | None = None,
     min_segment_mm: float = 12.0,
@@ -526,7 +532,7 @@ def gcode_for(
 def correct(
     part: PartMeasurement,
     design: Design | DesignPath | PathLike,
-    material: Calibration | PathLike,
+    material: BenderCalibration | PathLike,
     *,
     gain: float = 0.9,
     deadband_sigma: float = 2.5,

@@ -6,7 +6,7 @@ The camera JSON (spec ``camera JSON``) holds ``image_size`` [w, h],
 ``camera_matrix`` (3x3), ``dist_coeffs`` (OpenCV order, 4/5/8/12/14 values) and,
 when written by ``cvmeasure calibrate``, the calibration record that lets a
 user judge and redo the solve (RMS, standard deviations, per-view errors,
-views used and rejected, ...), kept verbatim in :attr:`CameraModel.calibration`.
+views used and rejected, ...), kept verbatim in :attr:`CameraModel.lens_record`.
 """
 
 from __future__ import annotations
@@ -36,13 +36,13 @@ class CameraModel:
     image_size_px : (width, height) in pixels.
     camera_matrix : ndarray (3, 3), float64, pixels.
     dist_coeffs : ndarray (K,), float64, OpenCV order (k1 k2 p1 p2 [k3 [k4 k5 k6 [s1..s4 [tx ty]]]]).
-    calibration : dict, everything else the camera JSON holds (RMS, sigmas, views...).
+    lens_record : dict, everything else the camera JSON holds (RMS, sigmas, views...).
     """
 
     image_size_px: tuple[int, int]
     camera_matrix: np.ndarray
     dist_coeffs: np.ndarray
-    calibration: dict[str, Any] = field(default_factory=dict)
+    lens_record: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         k = np.asarray(self.camera_matrix, dtype=np.float64).reshape(3, 3)
@@ -168,7 +168,7 @@ class CameraModel:
             "camera_matrix": self.camera_matrix.tolist(),
             "dist_coeffs": self.dist_coeffs.tolist(),
         }
-        for key, value in self.calibration.items():
+        for key, value in self.lens_record.items():
             out.setdefault(key, value)
         return out
 

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_csv_rows, write_csv_rows
 from cvmeasure.kit import ROLES
+from cvmeasure.method_names import marker_method
 from cvmeasure.plane_model import PLANE_FORMAT, PlaneModel, apply_homography
 from cvmeasure.warning import StageWarning
 
@@ -609,7 +610,7 @@ class MachinePhotoResult:
     uncertainty_deg: Mapping[str, float]
     warnings: tuple[StageWarning, ...] = ()
     photo: str | None = None
-    method: str = "ours"
+    method: str = "edge_fit"
     space: str = "lab"
     frame: str = "image"
     heights: str | None = None
@@ -635,7 +636,7 @@ class MachinePhotoResult:
         )
         if self.frame != "image":
             out["frame"] = self.frame
-        if self.method != "ours":
+        if self.method != "edge_fit":
             out["method"] = self.method
         if self.heights is not None:
             out["heights"] = self.heights
@@ -657,7 +658,7 @@ class MachinePhotoResult:
                 uncertainty_deg={k: float(v) for k, v in dict(d["uncertainty_deg"]).items()},
                 warnings=tuple(StageWarning.from_json(w) for w in d.get("warnings", ())),
                 photo=d.get("photo"),
-                method=str(d.get("method", "ours")),
+                method=marker_method(str(d.get("method", "edge_fit"))),
                 frame=str(d.get("frame", "image")),
                 heights=None if d.get("heights") is None else str(d["heights"]),
                 height_bound_deg=None

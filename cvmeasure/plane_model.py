@@ -195,7 +195,7 @@ class PlaneModel:
         also holds model error -- the honest figure. None when the camera JSON
         does not carry them (not written by ``cvmeasure calibrate``, or rescaled).
         """
-        cal = self.camera.calibration or {}
+        cal = self.camera.lens_record or {}
         unc = (cal.get("projection_uncertainty") or {}).get("median_px")
         cv = (cal.get("cross_validation") or {}).get("central_60pct_rms_px")
         return {

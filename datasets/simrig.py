@@ -55,10 +55,10 @@ class SimRig(Rig):
         self._lock = threading.Lock()
 
     def bender_camera(self, folder: Path) -> Any:
-        from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
+        from cvmeasure_datasets.simcapture import SimulatedCapture, double_photo_state
 
         double = self.double
-        return SimulatedCamera(
+        return SimulatedCapture(
             folder, lambda: double_photo_state(double), scale=self.scale, seed=self.seed
         )
 
@@ -70,7 +70,7 @@ class SimRig(Rig):
     def _render(self, kind: str, index: int) -> Any:
         import cvmeasure_datasets
         from cvmeasure_datasets.demo.calibration import planned_poses
-        from cvmeasure_datasets.simcamera import double_photo_state
+        from cvmeasure_datasets.simcapture import double_photo_state
 
         board, cam, seed = adapter.BOARD, self.camera_model, self.seed + index
         if kind == "board_view":
@@ -153,7 +153,7 @@ class SimRig(Rig):
         import cv2
 
         import cvmeasure_datasets
-        from cvmeasure_datasets.simcamera import double_photo_state
+        from cvmeasure_datasets.simcapture import double_photo_state
 
         s = double_photo_state(self.double)
         key = (round(s.pin_angle_deg, 1), round(s.bend_angle_deg, 1), width_px)

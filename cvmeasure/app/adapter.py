@@ -22,8 +22,6 @@ import numpy as np
 
 import cvmeasure
 from cvmeasure.board import CharucoBoardSpec
-from cvmeasure.calibration.coverage import RECOMMENDED_VIEWS, image_coverage
-from cvmeasure.calibration.detect import detect_board
 from cvmeasure.contracts import Trial
 from cvmeasure.design import DesignPath
 from cvmeasure.driver.session import (
@@ -36,10 +34,12 @@ from cvmeasure.driver.session import (
 )
 from cvmeasure.driver.stream import StreamControl, prepare_job, stream_job
 from cvmeasure.errors import InputError
+from cvmeasure.lens.coverage import RECOMMENDED_VIEWS, image_coverage
+from cvmeasure.lens.detect import detect_board
 from cvmeasure.markers.colour import kit_colour_model
 from cvmeasure.markers.detect import find_markers
 from cvmeasure.markers.overlay import draw_overlay as draw_marker_overlay
-from cvmeasure.material.calibration import MODES
+from cvmeasure.material.bender_calibration import MODES
 from cvmeasure.part.overlay import draw_overlay as draw_part_overlay
 from cvmeasure.sim import simulate
 

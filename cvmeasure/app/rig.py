@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from cvmeasure.app import adapter
-from cvmeasure.driver.camera import open_camera
+from cvmeasure.driver.capture import open_capture
 from cvmeasure.errors import InputError
 
 __all__ = ["Rig", "PartMark", "RealRig", "open_rig"]
@@ -76,7 +76,7 @@ class RealRig(Rig):
         self.port = port
         self.link = adapter.open_link(port)
         try:
-            self.camera = open_camera(camera_url, folder / "photos")
+            self.camera = open_capture(camera_url, folder / "photos")
         except ValueError as exc:
             self.link.close()
             raise InputError("camera", str(exc)) from None

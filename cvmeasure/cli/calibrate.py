@@ -56,13 +56,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.calibration.pipeline import (
-        calibrate_detections,
-        detect_photos,
-    )
     from cvmeasure.camera import implausible_distortion, save_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import to_jsonable
+    from cvmeasure.lens.pipeline import (
+        calibrate_detections,
+        detect_photos,
+    )
     from cvmeasure.provenance import provenance
 
     board = load_board(args.board)
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _print_report(report, path: Path) -> None:
     """The human summary: model choice, warp decision, cross-validation, intrinsics, warnings."""
-    from cvmeasure.calibration.pipeline import model_choice_text
+    from cvmeasure.lens.pipeline import model_choice_text
 
     cv = report.cross_validation
     print(f"camera JSON: {path}")

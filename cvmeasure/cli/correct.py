@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_text, to_jsonable
     from cvmeasure.imageio import read_photo
-    from cvmeasure.material.calibration import load_calibration, save_calibration
+    from cvmeasure.material.bender_calibration import load_calibration, save_calibration
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part
     from cvmeasure.warning import StageWarning

@@ -37,7 +37,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.errors import InputError
-    from cvmeasure.material.calibration import fit_calibration, read_trials_csv, save_calibration
+    from cvmeasure.material.bender_calibration import (
+        fit_calibration,
+        read_trials_csv,
+        save_calibration,
+    )
     from cvmeasure.provenance import provenance
 
     samples = read_trials_csv(args.trials)

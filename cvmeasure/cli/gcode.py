@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
 
     plan = plan_from_args(args, args.design)
     if args.material is not None:
-        from cvmeasure.material.calibration import load_calibration
+        from cvmeasure.material.bender_calibration import load_calibration
 
         compensation = load_calibration(args.material)
     elif args.params is not None:

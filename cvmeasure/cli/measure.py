@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from cvmeasure.method_names import MARKER_METHOD_ALIASES, MARKER_METHODS, marker_method
+
 __all__ = ["register", "run"]
 
 
@@ -73,7 +75,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=Path,
         help="draw markers, frame and angles: a PNG for one photo, a folder for several",
     )
-    p.add_argument("--method", choices=("ours", "seed"), default="ours", help="default ours")
+    p.add_argument(
+        "--method",
+        choices=(*MARKER_METHODS, *MARKER_METHOD_ALIASES),
+        default=MARKER_METHODS[0],
+        metavar="{" + ",".join(MARKER_METHODS) + "}",
+        help=f"default {MARKER_METHODS[0]} (the older names ours, seed are read too)",
+    )
     p.add_argument("--space", choices=("lab", "rgb"), default="lab", help="default lab")
     p.add_argument(
         "--edge",
@@ -121,10 +129,11 @@ def _measure_setup(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
     if args.flat_kit:
         kit = kit.flat()
     camera = load_camera(args.camera) if args.camera else None
-    if args.method == "seed" and (camera is not None or args.plane or args.board):
+    args.method = marker_method(args.method)
+    if args.method == "seed_hough" and (camera is not None or args.plane or args.board):
         raise InputError(
-            "--method seed",
-            "the seed method measures in image pixels: it takes no --camera, --plane or --board",
+            "--method seed_hough",
+            "the seed_hough method measures in image pixels: it takes no --camera, --plane or --board",
         )
     plane = PlaneModel.load(args.plane, camera=camera) if args.plane else None
     if args.heights == "parallel" and (camera is None or args.plane or args.board):

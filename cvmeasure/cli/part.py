@@ -9,6 +9,7 @@ from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
 from cvmeasure.cli.options import int_in, non_negative_float, positive_float
+from cvmeasure.method_names import PART_METHOD_ALIASES, PART_METHODS
 
 __all__ = ["register", "run"]
 
@@ -53,9 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_plan_options(p, job=True, divisions=False)
     p.add_argument(
         "--method",
-        choices=("ours", "ellipse", "sagitta"),
-        default="ours",
-        help="method of the headline values (default ours; all are reported under 'methods')",
+        choices=(*PART_METHODS, *PART_METHOD_ALIASES),
+        default=PART_METHODS[0],
+        metavar="{" + ",".join(PART_METHODS) + "}",
+        help=f"method of the headline values (default {PART_METHODS[0]}; all are reported under "
+        "'methods'; the older names ours, ellipse, sagitta are read too)",
     )
     _add_wire_and_lift_options(p)
     p.add_argument("--overlay", type=Path, help="write the photo with the found centreline (PNG)")

@@ -50,11 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.calibration.plane import estimate_plane, rectify_image
     from cvmeasure.camera import load_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
     from cvmeasure.imageio import read_photo
+    from cvmeasure.lens.plane import estimate_plane, rectify_image
     from cvmeasure.provenance import provenance
 
     board = load_board(args.board)

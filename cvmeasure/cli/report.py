@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
 def _calibration_report(args: argparse.Namespace) -> int:
     """A calibration JSON: the calibration's own report (curves, scores, bends, warnings)."""
     from cvmeasure.driver.session_report import write_session_report
-    from cvmeasure.material.calibration import load_calibration
+    from cvmeasure.material.bender_calibration import load_calibration
 
     calibration = load_calibration(args.results)
     path = write_session_report(args.output, calibration)

@@ -182,18 +182,18 @@ def _open_machine_and_camera(
     args: argparse.Namespace, session_dir: Path, params: object, effects: tuple[object, ...]
 ) -> tuple[object, object]:
     """The bender and the camera: the TinyG double + simulated camera, or the real ones."""
-    from cvmeasure.driver.camera import open_camera
+    from cvmeasure.driver.capture import open_capture
     from cvmeasure.driver.session import StreamedBender
     from cvmeasure.driver.transport import open_link
     from cvmeasure.errors import InputError
 
     if args.simulate:
         from cvmeasure.testing.bender import simulated_bender
-        from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
+        from cvmeasure_datasets.simcapture import SimulatedCapture, double_photo_state
 
         machine = simulated_bender(params=params, effects=effects, speedup=args.speedup)
         double = machine.double
-        camera = SimulatedCamera(
+        camera = SimulatedCapture(
             session_dir / "photos",
             lambda: double_photo_state(double, params),
             scale=args.scale,
@@ -210,7 +210,7 @@ def _open_machine_and_camera(
         if any(not sep or not name for name, sep, _ in pairs):
             raise InputError("--camera-setting", "expected NAME=VALUE")
         options_cam["settings"] = {name: value for name, _, value in pairs}
-    camera = open_camera(args.camera, session_dir / "photos", **options_cam)
+    camera = open_capture(args.camera, session_dir / "photos", **options_cam)
     return StreamedBender(open_link(args.port)), camera
 
 
@@ -239,7 +239,7 @@ def _write_outputs(args: argparse.Namespace, result, session_dir: Path) -> dict[
 
     from cvmeasure.contracts import TrialTable
     from cvmeasure.driver.session_report import write_session_report
-    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.material.bender_calibration import save_calibration
     from cvmeasure.provenance import provenance
 
     calibration = result.calibration

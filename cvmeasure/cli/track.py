@@ -86,7 +86,7 @@ def _with_comparison(record: dict, plan, design_source: str) -> dict:
     from cvmeasure.part.measure import ArcResult, compare_with_design
 
     arc = ArcResult(
-        "ours",
+        "centreline_fit",
         float(record["radius_mm"]),
         float(record["chord_width_mm"]),
         float(record["height_mm"]),

@@ -33,6 +33,7 @@ from cvmeasure.diagnose.discrepancy import learned_form as learned_form
 from cvmeasure.diagnose.forms import _DRIFT_RATE_GRID as _DRIFT_RATE_GRID
 from cvmeasure.diagnose.forms import (
     _STRENGTH_BOUNDS,
+    ALONE_FORMS,
     FORM_PRIOR_SD,
     Shape,
     _as_causes,
@@ -186,6 +187,8 @@ def fit_model(
     forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
     if isinstance(start, ModelFit) and len(start.shapes) == len(names):
         forms = list(start.shapes)
+    if len(names) > 1:  # in a pair these keep their narrow form (see ALONE_FORMS)
+        forms = [() if c in ALONE_FORMS else f for c, f in zip(names, forms, strict=True)]
     problem = _Problem(
         trials,
         params,

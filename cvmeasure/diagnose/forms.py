@@ -75,9 +75,16 @@ FORMS: dict[str, tuple[Shape, ...]] = {
         (("home_shift", 1.0),),
         (("home_shift", 1.0), ("load_exponent", 1.0)),
     ),
+    "springback_asymmetry": ((), (("loaded_deg", -1.0),), (("loaded_deg", 1.0),)),
     "camera_tilt": tuple((("tilt_axis_deg", float(a)),) if a else () for a in range(-75, 91, 15)),
 }
 
+
+#: Causes whose general form is tried only alone: the loaded leg an asymmetric wire moves
+#: by direction would also take up a second cause's own difference by direction (a
+#: compliance's lag under a pin torque that differs by direction), so in a pair the
+#: narrow form is kept and the two stay told apart by that difference.
+ALONE_FORMS: frozenset[str] = frozenset({"springback_asymmetry"})
 
 #: Head steps (deg) a drift shifting home may lose whole (``step_deg``): after the fit with
 #: a continuous home shift, its rate is profiled on a fine grid for each step size and the

@@ -24,6 +24,7 @@ from cvmeasure.diagnose.discrepancy import (
 from cvmeasure.diagnose.forms import (
     _GRID_POINTS,
     _STRENGTH_BOUNDS,
+    ALONE_FORMS,
     FORMS,
     PRIOR_NOISE_DEG,
     Causes,
@@ -245,7 +246,8 @@ def _grid_start(problem: _Problem, x0: NDArray[np.float64], k: int) -> Alternati
             nuisance=x0[lay.nuisance],
             shapes=[forms[j] for j in rest],
         )
-    for form in FORMS.get(c, ((),)):
+    tried = ((),) if c in ALONE_FORMS and len(names) > 1 else FORMS.get(c, ((),))
+    for form in tried:
         forms[k] = form
         costs = []
         for v in grid:

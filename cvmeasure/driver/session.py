@@ -17,13 +17,13 @@ way) a session:
 A session killed at any point resumes from its log: completed angles are never
 bent again; an angle that was bent but not completely recorded is bent again
 on fresh wire. At the end the samples are fitted
-(:func:`~cvmeasure.material.calibration.fit_calibration`).
+(:func:`~cvmeasure.material.bender_calibration.fit_calibration`).
 
 The machine is anything with ``run(lines)`` (send G-code lines and return once
 every move has finished): :class:`StreamedBender` drives a board through the
 streamer, a real one or the TinyG double (``sim://``), whose simulated machine
 state the photo lab's simulated camera
-(:class:`cvmeasure_datasets.simcamera.SimulatedCamera`) renders.
+(:class:`cvmeasure_datasets.simcapture.SimulatedCapture`) renders.
 
 Log records (one JSON object per line): ``{"event": "start", "plan": [...],
 "config": {...}}``, ``{"event": "fed", "step": i, "feed_mm": ..., "refeed": ...}``
@@ -44,11 +44,11 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from cvmeasure.contracts import MachinePhotoResult, Trial
-from cvmeasure.driver.camera import Camera
+from cvmeasure.driver.capture import CaptureDevice
 from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
-from cvmeasure.material.calibration import MODES, Calibration, fit_calibration
+from cvmeasure.material.bender_calibration import MODES, BenderCalibration, fit_calibration
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -199,7 +199,7 @@ class SessionResult:
     """A finished session: its steps in plan order, the fitted calibration, what this run bent."""
 
     steps: tuple[SessionStep, ...]
-    calibration: Calibration
+    calibration: BenderCalibration
     bent_this_run: tuple[int, ...]
     resumed: bool
     log_path: Path
@@ -322,7 +322,7 @@ def _photo_name(step: int, direction: str, angle: float, which: str) -> str:
 
 def run_session(
     machine: Machine,
-    camera: Camera,
+    camera: CaptureDevice,
     out_dir: str | os.PathLike[str],
     *,
     config: SessionConfig = SessionConfig(),
@@ -340,7 +340,7 @@ def run_session(
     ----------
     machine : Machine
         The bender (``run(lines)`` returns once the moves are done).
-    camera : Camera
+    camera : CaptureDevice
         Takes the loaded and unloaded photos.
     out_dir : path
         Session folder: ``session.jsonl`` (the log) and ``photos/``. An existing
@@ -443,7 +443,7 @@ def _fit_session(
     model: str,
     name: str,
     log_path: Path,
-) -> Calibration:
+) -> BenderCalibration:
     """The calibration fitted to the session's steps, with their photo warnings attached."""
     try:
         calibration = fit_calibration(
@@ -497,7 +497,7 @@ def session_warnings_json(steps: Sequence[SessionStep]) -> list[dict[str, str]]:
 
 def _bend_and_measure(
     machine: Machine,
-    camera: Camera,
+    camera: CaptureDevice,
     out: Path,
     step: int,
     direction: str,

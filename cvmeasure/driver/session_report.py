@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_text
-from cvmeasure.material.calibration import Calibration
+from cvmeasure.material.bender_calibration import BenderCalibration
 from cvmeasure.material.compensation import DIRECTIONS, SPRINGBACK_MODELS, fit_springback
 from cvmeasure.warning import StageWarning
 
@@ -34,7 +34,7 @@ _COLOURS = {
 }
 
 
-def calibration_figure_png(calibration: Calibration) -> bytes:
+def calibration_figure_png(calibration: BenderCalibration) -> bytes:
     """PNG bytes of the calibration's data, fitted curves and residuals per direction."""
     import matplotlib
 
@@ -88,14 +88,14 @@ def calibration_figure_png(calibration: Calibration) -> bytes:
     return buf.getvalue()
 
 
-def plot_calibration(calibration: Calibration, path: str | os.PathLike[str]) -> Path:
+def plot_calibration(calibration: BenderCalibration, path: str | os.PathLike[str]) -> Path:
     """Write the data / fits / residuals plot of a calibration as PNG (atomically)."""
     return atomic_write_bytes(path, calibration_figure_png(calibration))
 
 
 def write_session_report(
     path: str | os.PathLike[str],
-    calibration: Calibration,
+    calibration: BenderCalibration,
     steps: Sequence[Any] = (),
     *,
     session_dir: str | os.PathLike[str] | None = None,
@@ -107,7 +107,7 @@ def write_session_report(
     ----------
     path : path
         The HTML file.
-    calibration : Calibration
+    calibration : BenderCalibration
     steps : sequence of SessionStep
         The session's steps (for the overlays and the photo names).
     session_dir : path, optional
@@ -180,7 +180,7 @@ def write_session_report(
     return atomic_write_text(path, html_page(f"Calibration {calibration.name}", parts))
 
 
-def _warnings_section(calibration: Calibration) -> list[str]:
+def _warnings_section(calibration: BenderCalibration) -> list[str]:
     """The session's photo warnings (``provenance.warnings``), one row per photo and code."""
     e = html.escape
     rows = calibration.provenance.get("warnings") or []

@@ -22,7 +22,13 @@ from cvmeasure.markers.refine import (
     ray_correlation_factor,
 )
 
-__all__ = ["MIN_EDGE_POINTS", "refine_candidate", "refine_candidates", "split_half_cov"]
+__all__ = [
+    "MIN_EDGE_POINTS",
+    "edge_mode_cov",
+    "refine_candidate",
+    "refine_candidates",
+    "split_half_cov",
+]
 
 #: Fewest edge points a disc needs for a centre.
 MIN_EDGE_POINTS = 12
@@ -157,4 +163,38 @@ def split_half_cov(
     if not n:
         return np.zeros((2, 2))
     vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T) / n)
+    return (vecs * np.clip(vals, 0.0, None)) @ vecs.T
+
+
+def edge_mode_cov(
+    points: np.ndarray, fit: CircleFit, *, correlation_factor: float = 1.0
+) -> np.ndarray:
+    """Centre covariance from how the circle of the same disc's edge read another way
+    (``points``: another channel weighting of the same photo) disagrees with ``fit``,
+    beyond that circle's sampling (units of ``points``, squared).
+
+    Demosaicing, blur, JPEG and shading move a disc's edge differently in each
+    channel weighting, and each weighting's centre by a few hundredths of a pixel
+    that the residuals round a circle cannot see: the difference ``d`` between the
+    two centres samples that bias. Two readings biased alike but independently
+    differ by twice a reading's bias variance, plus their sampling: the term is half
+    of ``d d^T`` less the other circle's sampling covariance (the two readings'
+    noise is shared in part; the other, a single channel, is the noisier), negative
+    eigenvalues clipped; zeros when the points form no circle.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.shape[0] < MIN_EDGE_POINTS:
+        return np.zeros((2, 2))
+    try:
+        other = fit_circle_robust(
+            pts,
+            init=(fit.centre[0], fit.centre[1], fit.radius),
+            stop=FIT_STOP_PX,
+            correlation_factor=correlation_factor,
+        )
+    except (ValueError, np.linalg.LinAlgError):
+        return np.zeros((2, 2))
+    d = np.asarray(other.centre) - np.asarray(fit.centre)
+    acc = 0.5 * (np.outer(d, d) - np.asarray(other.covariance))
+    vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T))
     return (vecs * np.clip(vals, 0.0, None)) @ vecs.T

@@ -25,7 +25,10 @@ warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
 Stated uncertainties are sampling errors of the edge fits, taken where the disc is
-a circle (on the plate on a plane pose), with a floor per centre and, for a disc
+a circle (on the plate on a plane pose), with a floor per centre, what the disc's edge
+read in another channel weighting (green for luminance edges) disagrees on (the
+shift demosaicing, blur, JPEG or shading gives an edge, which the residuals cannot
+see; not taken where lateral colour switched the edges to green) and, for a disc
 partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
 sampling; on a plane pose the kit's height uncertainties are added. They do not
 include camera or plane calibration errors, print or mounting tolerances of the
@@ -67,7 +70,12 @@ from cvmeasure.markers.checks import (
     marker_warnings,
     plane_warnings,
 )
-from cvmeasure.markers.circles import refine_candidate, refine_candidates, split_half_cov
+from cvmeasure.markers.circles import (
+    edge_mode_cov,
+    refine_candidate,
+    refine_candidates,
+    split_half_cov,
+)
 from cvmeasure.markers.colour import ColourModel, ColourSpace, kit_colour_model
 from cvmeasure.markers.detect import find_markers
 from cvmeasure.markers.frame import MeasureFrame, measure_frame
@@ -80,13 +88,16 @@ from cvmeasure.markers.heights import (
 )
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
+    EDGE_MODE,
     EDGE_MODES,
     FIT_STOP_PX,
     UNEVEN_RING_SPREAD,
     channel_shifts_px,
+    disc_edge_points,
     ray_correlation_factor,
 )
 from cvmeasure.markers.seed_baseline import seed_find_circles
+from cvmeasure.method_names import MARKER_METHODS, marker_method
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -107,8 +118,8 @@ __all__ = [
     "SEED_CENTRE_SIGMA_PX",
 ]
 
-Method = Literal["ours", "seed"]
-METHODS: tuple[str, ...] = ("ours", "seed")
+Method = Literal["edge_fit", "seed_hough"]
+METHODS: tuple[str, ...] = MARKER_METHODS
 #: How marker heights are treated without a plane pose: "none" (bounded, warned
 #: about) or "parallel" (corrected assuming a camera square to the plate; needs a camera).
 HeightMode = Literal["none", "parallel"]
@@ -202,8 +213,35 @@ def _lateral_colour(
     )
 
 
+def _other_edges(
+    bgr: np.ndarray, fits: _Fits, kit: MarkerKit, edge: str | None
+) -> dict[str, np.ndarray]:
+    """Each disc's edge points read in another channel weighting (green for luminance or
+    colour edges, luminance for green ones) round its settled circle (image px): where
+    the two disagree, demosaicing, blur, JPEG or shading moved the edge
+    (:func:`edge_mode_cov`)."""
+    other = "luma" if (edge or EDGE_MODE) == "green" else "green"
+    out = {}
+    for role, (fit, edges) in fits.items():
+        spec = kit.by_role(role)
+        got = disc_edge_points(
+            bgr,
+            fit.centre,
+            fit.radius,
+            spec.ring_mm / spec.diameter_mm,
+            edge=other,
+            local_levels=edges.ring_spread >= UNEVEN_RING_SPREAD,
+        )
+        out[role] = got.points_px
+    return out
+
+
 def _on_frame(
-    fits: _Fits, uneven: set[str], kit: MarkerKit, frame: MeasureFrame
+    fits: _Fits,
+    uneven: set[str],
+    kit: MarkerKit,
+    frame: MeasureFrame,
+    other: Mapping[str, np.ndarray],
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], list[PlaneDisc]]:
     """Each disc's circle fitted in ``frame`` (its edge mapped at its own height above the
     plate on a plane pose): centres, their covariances, and the discs on the plane.
@@ -211,17 +249,22 @@ def _on_frame(
     A centre's covariance is the sampling error of the fit in the frame, where the disc
     is a circle (in the image a tilted view makes it an ellipse, and a circle fitted
     there reads that shape as edge noise: sigmas several times the errors), the floor
-    mapped from the image, and for the ``uneven`` roles (partly hidden or in a shadow)
-    what the halves of the edge disagree on beyond their sampling, in the frame too."""
+    mapped from the image, what the edge read another way (``other``, image px)
+    disagrees on, and for the ``uneven`` roles (partly hidden or in a shadow) what the
+    halves of the edge disagree on beyond their sampling, both fitted in the frame too."""
     heights = {r: kit.height_mm(r) for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    other_f: dict[str, np.ndarray] = {}
     for height in dict.fromkeys(heights.values()):
         # the discs at one height mapped in one call, their circles fitted together
         group = [r for r in fits if heights[r] == height]
+        alts = [r for r in group if r in other]
         got = frame.at_height(height).mapped_with_jacobians(
-            [fits[r][0].centre for r in group], [fits[r][1].points_px for r in group]
+            [fits[r][0].centre for r in group + alts],
+            [fits[r][1].points_px for r in group] + [other[r] for r in alts],
         )
-        mapped.update(zip(group, got, strict=True))
+        mapped.update(zip(group, got[: len(group)], strict=True))
+        other_f.update((r, g[2]) for r, g in zip(alts, got[len(group) :], strict=True))
     roles = list(fits)
     inits = []
     for role in roles:
@@ -246,9 +289,11 @@ def _on_frame(
             )
         centres[role] = np.array(fit_f.centre)
         cov = np.asarray(fit_f.covariance) + CENTRE_FLOOR_PX**2 * (jac @ jac.T)
+        cf = ray_correlation_factor(fit.radius)
         if role in uneven:
-            cf = ray_correlation_factor(fit.radius)
             cov = cov + split_half_cov(pts_f, fit_f, correlation_factor=cf)
+        if role in other_f:
+            cov = cov + edge_mode_cov(other_f[role], fit_f, correlation_factor=cf)
         covs[role] = cov
         if frame.name == "plane":
             seen = fit.coverage >= HIDDEN_COVERAGE
@@ -285,16 +330,21 @@ def _measure_ours(
     if edge is None:  # default luminance edges: green where the lens shows lateral colour
         lateral = _lateral_colour(bgr, fits, search, kit)
         warnings.extend([lateral] if lateral is not None else [])
+        other = {} if lateral is not None else _other_edges(bgr, fits, kit, edge)
+    else:
+        other = _other_edges(bgr, fits, kit, edge)
     delta_e = colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     cov_imgs: dict[str, np.ndarray] = {}
     uneven: set[str] = set()
     for role, (fit, edges) in fits.items():
         cov_img = fit.covariance + np.eye(2) * CENTRE_FLOOR_PX**2
+        cf = ray_correlation_factor(fit.radius)
         if fit.coverage < HIDDEN_COVERAGE or edges.ring_spread >= UNEVEN_RING_SPREAD:
             # partly hidden or in a shadow: what the edge's two halves disagree on, too
             uneven.add(role)
-            cf = ray_correlation_factor(fit.radius)
             cov_img = cov_img + split_half_cov(edges.points_px, fit, correlation_factor=cf)
+        if role in other:
+            cov_img = cov_img + edge_mode_cov(other[role], fit, correlation_factor=cf)
         cov_imgs[role] = cov_img
         markers[role] = MarkerMeasurement(
             role,
@@ -312,7 +362,7 @@ def _measure_ours(
         centres = {r: np.array(f.centre) for r, (f, _) in fits.items()}
         covs = dict(cov_imgs)
     else:
-        centres, covs, discs = _on_frame(fits, uneven, kit, frame)
+        centres, covs, discs = _on_frame(fits, uneven, kit, frame, other)
         if frame.plane is not None:
             height = abs(float(frame.plane.camera_centre_mm[2]))
             warnings.extend(plane_warnings(discs, kit, height))
@@ -356,7 +406,7 @@ def measure_machine_photo(
     *,
     camera: CameraModel | None = None,
     plane: Any = None,
-    method: Method = "ours",
+    method: Method = "edge_fit",
     space: ColourSpace = "lab",
     colour_model: ColourModel | None = None,
     linear: bool = False,
@@ -376,7 +426,8 @@ def measure_machine_photo(
     plane : the marker plane (:class:`cvmeasure.contracts.PlaneModel`, from ``cvmeasure
         plane`` or a board in the photo); with it, angles are computed on the plane through
         the plane's own camera (``camera`` must then be that camera or None).
-    method : "ours" (colour model + sub-pixel fits) or "seed" (the paper's baseline).
+    method : "edge_fit" (colour model + sub-pixel fits of the discs' edges) or "seed_hough"
+        (the paper's baseline); the older "ours" / "seed" are read too.
     space : colour space of the segmentation, "lab" or "rgb".
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
     linear : the image holds linear (gamma 1) data, e.g. from RAW.
@@ -402,6 +453,7 @@ def measure_machine_photo(
     MarkerNotFoundError (an InputError)
         A marker is missing or ambiguous: names the role(s) and why.
     """
+    method = marker_method(method)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
     if space not in ("lab", "rgb"):
@@ -488,7 +540,7 @@ def _centres(
 
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
     # only regions and the search's copy are read; else its whole image is made here
-    lazy = isinstance(bgr, LazyBGR) and not linear and method == "ours"
+    lazy = isinstance(bgr, LazyBGR) and not linear and method == "edge_fit"
     img = bgr if lazy else np.asanyarray(bgr)
     if img.ndim != 3 or img.shape[2] != 3:
         raise InputError(source, "not a colour photo")
@@ -500,10 +552,10 @@ def _centres(
             )
     height_state: str | None = None
     height_bound: dict[str, float] | None = None
-    if method == "seed":
+    if method == "seed_hough":
         if camera is not None or plane is not None:
             raise ValueError(
-                "the seed method measures in image pixels: it takes no camera or plane"
+                "the seed_hough method measures in image pixels: it takes no camera or plane"
             )
         transform = MeasureFrame("image")
         markers, centres, covs, warnings = _measure_seed(bgr8, kit, space, source)
@@ -542,7 +594,7 @@ def frame_centres(
     """The discs' centres of one photo in the angles' frame (on a plane pose: the plate,
     mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
     for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
-    return _centres(bgr, kit, camera, plane, "ours", "lab", None, linear, edge, "none", source)
+    return _centres(bgr, kit, camera, plane, "edge_fit", "lab", None, linear, edge, "none", source)
 
 
 def _plane_heights(
@@ -693,7 +745,7 @@ def measure_photo_file(
             raise ValueError("give a plane or a board to find one in the photo, not both")
         if camera is None:
             raise InputError(source, "rectifying to a board's plane needs the camera")
-        from cvmeasure.calibration.plane import estimate_plane
+        from cvmeasure.lens.plane import estimate_plane
 
         plane = estimate_plane(photo.gray8(), board, camera, source=source)
     options.setdefault("photo", source)
@@ -711,7 +763,7 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
     pixels as the full decode up to rounding), or None, and the caller decodes the whole
     file as before, for anything else: not a YCbCr JPEG with 4:4:4/4:2:2/4:2:0 chroma,
     a damaged file, more than :data:`cvmeasure.imageio.MAX_PHOTO_PIXELS`, no
-    libturbojpeg, a linear file or options this path does not take (method "seed").
+    libturbojpeg, a linear file or options this path does not take (method "seed_hough").
     """
     from pathlib import Path
 
@@ -720,7 +772,7 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
 
     p = Path(path)
     if (
-        options.get("method", "ours") != "ours"
+        marker_method(options.get("method", "edge_fit")) != "edge_fit"
         or options.get("linear")
         or is_raw(p)
         or is_linear_name(p)

@@ -52,7 +52,7 @@ which may be noise, moves a vertex by little, never by the whole band.
 The calibration keeps every correction in ``provenance["corrections"]`` (a list,
 oldest first; :meth:`Correction.to_dict`): which part photo, which design,
 the errors, the curve knots moved and the per-vertex offsets. A correction
-edits the fitted curve, not the raw samples: :meth:`Calibration.refit` starts
+edits the fitted curve, not the raw samples: :meth:`BenderCalibration.refit` starts
 again from the samples (and so drops the corrections' knots).
 """
 
@@ -66,7 +66,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cvmeasure.material.calibration import Calibration
+from cvmeasure.material.bender_calibration import BenderCalibration
 from cvmeasure.material.compensation import (
     Compensation,
     CompensationRangeWarning,
@@ -200,19 +200,19 @@ class Correction:
         }
 
 
-def corrections_of(calibration: Calibration) -> list[dict[str, Any]]:
+def corrections_of(calibration: BenderCalibration) -> list[dict[str, Any]]:
     """The calibration's correction history (oldest first; empty when none)."""
     return list(calibration.provenance.get("corrections", []))
 
 
-def _last_of_job(calibration: Calibration, design: str, bends: int) -> dict[str, Any] | None:
+def _last_of_job(calibration: BenderCalibration, design: str, bends: int) -> dict[str, Any] | None:
     for c in reversed(corrections_of(calibration)):
         if c.get("design") == design and int(c.get("bends", -1)) == bends:
             return c
     return None
 
 
-def job_vertex_offsets(calibration: Calibration, design: str, bends: int) -> np.ndarray:
+def job_vertex_offsets(calibration: BenderCalibration, design: str, bends: int) -> np.ndarray:
     """The latest per-vertex pin offsets (deg) for this design and bend count, else zeros."""
     last = _last_of_job(calibration, design, bends)
     return np.zeros(bends) if last is None else np.asarray(last["vertex_offset_deg"], float)
@@ -251,7 +251,9 @@ def _response_ratio(
 
 
 def corrected_pin_commands(
-    calibration: Calibration, target_deg: ArrayLike, vertex_offset_deg: ArrayLike | None = None
+    calibration: BenderCalibration,
+    target_deg: ArrayLike,
+    vertex_offset_deg: ArrayLike | None = None,
 ) -> tuple[float, ...]:
     """Pin commands (deg): the calibration's for the wanted bends plus per-vertex pin offsets.
 
@@ -267,7 +269,7 @@ def corrected_pin_commands(
     return tuple(float(p) for p in out)
 
 
-def _base_compensation(calibration: Calibration) -> Compensation:
+def _base_compensation(calibration: BenderCalibration) -> Compensation:
     """The compensation fitted to the raw samples alone (no correction knots): its slopes."""
     pin = [s.commanded_pin_deg for s in calibration.samples]
     loaded = [s.loaded_bend_deg for s in calibration.samples]
@@ -293,7 +295,7 @@ class _Pool:
 
 
 def _pooled_errors(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     design: str,
     bent_pin: np.ndarray,
     error: np.ndarray,
@@ -373,7 +375,7 @@ MAX_NOISE_FACTOR = 5.0
 
 
 def noise_factor(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     design: str,
     bent_pin: np.ndarray,
     measured: np.ndarray,
@@ -460,7 +462,7 @@ def _with_knot(curve: SpringbackCurve, final_deg: float, loaded_deg: float) -> S
 
 
 def correct_calibration(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     target_deg: ArrayLike,
     measured_deg: ArrayLike,
     *,
@@ -474,7 +476,7 @@ def correct_calibration(
     informed_gain: float = DEFAULT_INFORMED_GAIN,
     vertex_offset_deg: ArrayLike | None = None,
     shrink_sigma: float = SHRINK_SIGMA,
-) -> tuple[Calibration, Correction]:
+) -> tuple[BenderCalibration, Correction]:
     """Correct a calibration from one part's per-vertex final bends (see the module notes).
 
     Parameters
@@ -498,7 +500,7 @@ def correct_calibration(
 
     Returns
     -------
-    (Calibration, Correction)
+    (BenderCalibration, Correction)
         The corrected calibration (history appended) and the correction.
 
     Raises
@@ -579,7 +581,7 @@ def _band_and_spread(
 
 
 def _checked_inputs(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     design: str,
     target_deg: ArrayLike,
     measured_deg: ArrayLike,
@@ -633,7 +635,7 @@ def _unbent(t: np.ndarray, m: np.ndarray, sig_eff: np.ndarray) -> np.ndarray:
 
 
 def _next_pins(
-    new_cal: Calibration, t: np.ndarray, wanted_pin: np.ndarray
+    new_cal: BenderCalibration, t: np.ndarray, wanted_pin: np.ndarray
 ) -> tuple[np.ndarray, Any]:
     """Per-vertex offsets (deg) and pins that bend ``wanted_pin`` under ``new_cal``.
 
@@ -689,7 +691,7 @@ def _soft(error: Any, spread: Any) -> np.ndarray:
 
 
 def _move_knots(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     base: Any,
     t: np.ndarray,
     error: np.ndarray,

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike
 from cvmeasure.design import bend_angles_deg
 from cvmeasure.errors import InputError
 from cvmeasure.gcode import GcodeJob, bend_list, gcode_lines
-from cvmeasure.material.calibration import Calibration
+from cvmeasure.material.bender_calibration import BenderCalibration
 from cvmeasure.material.correct import (
     DEFAULT_GAIN,
     Correction,
@@ -84,7 +84,7 @@ def orient_to_job(
 
 
 def correct_from_part(
-    calibration: Calibration,
+    calibration: BenderCalibration,
     measurement: Any,
     design: Any,
     *,
@@ -93,7 +93,7 @@ def correct_from_part(
     gain: float = DEFAULT_GAIN,
     deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
-) -> tuple[Calibration, Correction, Any]:
+) -> tuple[BenderCalibration, Correction, Any]:
     """Correct from a measured part; return (calibration, correction, the next job).
 
     Parameters
@@ -110,7 +110,7 @@ def correct_from_part(
 
     Returns
     -------
-    (Calibration, Correction, GcodeJob)
+    (BenderCalibration, Correction, GcodeJob)
 
     Raises
     ------

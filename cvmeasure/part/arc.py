@@ -57,7 +57,7 @@ def arc_from_points(
         circle = fit_circle_robust(pts)
         geo = arc_geometry(circle, pts)
         chord, height = geo.chord_width_mm, geo.height_mm
-    result = ArcResult("ours", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
+    result = ArcResult("centreline_fit", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
     return result, circle, poly
 
 

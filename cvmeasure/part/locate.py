@@ -95,7 +95,7 @@ def measure_centreline_mm(
     InputError
         No board (named by the calibration stage), or no wire beside it.
     """
-    from cvmeasure.calibration.plane import estimate_plane
+    from cvmeasure.lens.plane import estimate_plane
 
     if plane is None:
         if board is None or camera is None:

@@ -1,17 +1,18 @@
 """One photo of a finished part -> its arc quantities, bends and deviation from the design.
 
-Pipeline: the ChArUco board fixes the plane (:func:`cvmeasure.calibration.plane.estimate_plane`:
+Pipeline: the ChArUco board fixes the plane (:func:`cvmeasure.lens.plane.estimate_plane`:
 undistorted pixels -> board mm); the wire is segmented beside the board
 (:mod:`~cvmeasure.part.segment`); its sub-pixel centreline
 (:mod:`~cvmeasure.part.centreline`) is mapped to board mm; then
 
-* ``method="ours"`` (default): with ``divisions`` N, a polyline of N chords is
+* ``method="centreline_fit"`` (default): with ``divisions`` N, a polyline of N chords is
   fitted (:func:`~cvmeasure.part.fit.fit_polyline`), its vertex bends are the
   per-segment bends, and the circle through its vertices gives the radius and
   the arc angle; without N, a robust geometric circle fit of the centreline;
-* ``"ellipse"`` / ``"sagitta"``: the seed paper's methods on the wire's outline
+* ``"seed_ellipse"`` / ``"seed_sagitta"``: the seed paper's methods on the wire's outline
   (:mod:`~cvmeasure.part.seed_methods`). All three are always computed and
-  reported under ``methods``; ``method`` chooses the headline values.
+  reported under ``methods``; ``method`` chooses the headline values (older
+  names are read too: :func:`cvmeasure.method_names.part_method`).
 
 Sign and frames: positions in the board frame (mm). Signed bends are
 counter-clockwise positive in the board frame's (x, y) -- the sense the
@@ -34,6 +35,7 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit
+from cvmeasure.method_names import part_method
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -166,7 +168,7 @@ def measure_part(
     divisions: int | None = None,
     design: DesignPath | None = None,
     design_source: str = "design",
-    method: Method = "ours",
+    method: Method = "centreline_fit",
     axis_height_mm: float | None = None,
     end_shape: EndShape = "round",
     source: str = "photo",
@@ -206,6 +208,7 @@ def measure_part(
     Raises InputError (no board, no wire, a part the divisions cannot describe) or
     ValueError (an unknown ``method``, ``divisions < 1``).
     """
+    method = part_method(method)
     _check_arguments(method, divisions)
     moved_given = plane is not None
     plane, wire, centre, centreline_mm = measure_centreline_mm(
@@ -662,16 +665,14 @@ def _seed_methods(
     warnings: list[StageWarning],
 ) -> tuple[dict[str, ArcResult], dict[str, SeedArc]]:
     """The seed paper's ellipse and sagitta methods on the wire's outline, beside ours."""
-    methods: dict[str, ArcResult] = {"ours": ours}
+    methods: dict[str, ArcResult] = {"centreline_fit": ours}
     seed_arcs: dict[str, SeedArc] = {}
     outline = outline_mm(image, wire, plane)
-    for name, fn in (("ellipse", ellipse_method), ("sagitta", sagitta_method)):
+    for name, fn in (("seed_ellipse", ellipse_method), ("seed_sagitta", sagitta_method)):
         try:
             arc = fn(outline)
         except ValueError as exc:
-            warnings.append(
-                StageWarning("seed_method_failed", f"the seed's {name} method failed: {exc}")
-            )
+            warnings.append(StageWarning("seed_method_failed", f"the {name} method failed: {exc}"))
             continue
         seed_arcs[name] = arc
         methods[name] = ArcResult(
@@ -692,14 +693,17 @@ def _result_warnings(
 ) -> list[StageWarning]:
     """What the result's reader must know: seed methods that disagree, an S-curve, uncertain
     or cut ends, a short arc, a tilted plane."""
-    ours = methods["ours"]
+    ours = methods["centreline_fit"]
     warnings: list[StageWarning] = []
     for name, arc in methods.items():
-        if name != "ours" and abs(arc.arc_angle_deg - ours.arc_angle_deg) > ARC_DISAGREE_DEG:
+        if (
+            name != "centreline_fit"
+            and abs(arc.arc_angle_deg - ours.arc_angle_deg) > ARC_DISAGREE_DEG
+        ):
             warnings.append(
                 StageWarning(
                     "seed_method_disagrees",
-                    f"the seed's {name} method gives an arc of {arc.arc_angle_deg:.1f} deg where "
+                    f"the {name} method gives an arc of {arc.arc_angle_deg:.1f} deg where "
                     f"the centreline spans {ours.arc_angle_deg:.1f} deg: its figures do not "
                     "describe this part",
                 )

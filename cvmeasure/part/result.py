@@ -13,6 +13,7 @@ from typing import Any, Literal
 import numpy as np
 
 from cvmeasure.geometry import CircleFit
+from cvmeasure.method_names import PART_METHODS
 from cvmeasure.part.compare import (
     BendComparison,
     Deviation,
@@ -27,9 +28,9 @@ from cvmeasure.warning import StageWarning
 __all__ = ["Method", "METHODS", "ArcResult", "DesignComparison", "PartMeasurement"]
 
 
-Method = Literal["ours", "ellipse", "sagitta"]
+Method = Literal["centreline_fit", "seed_ellipse", "seed_sagitta"]
 
-METHODS: tuple[str, ...] = ("ours", "ellipse", "sagitta")
+METHODS: tuple[str, ...] = PART_METHODS
 
 
 @dataclass(frozen=True)

@@ -257,7 +257,7 @@ class SeedArc:
 
     Attributes
     ----------
-    method : ``"ellipse"`` or ``"sagitta"``.
+    method : ``"seed_ellipse"`` or ``"seed_sagitta"``.
     radius_mm, chord_width_mm, height_mm, arc_angle_deg : as in the spec.
     end_points_mm : ndarray (2, 2) the arc's end points it found (ellipse), or
         the rectangle's chord-side corners (sagitta).
@@ -374,7 +374,7 @@ def ellipse_method(outline_mm: np.ndarray) -> SeedArc:
     if height <= 0:
         raise ValueError("the ellipse lies on one side of its chord; no arc height")
     return SeedArc(
-        method="ellipse",
+        method="seed_ellipse",
         radius_mm=sagitta_radius_mm(d, height),
         chord_width_mm=d,
         height_mm=height,
@@ -404,7 +404,7 @@ def sagitta_method(outline_mm: np.ndarray) -> SeedArc:
         raise ValueError("the outline is a straight line; no arc height")
     box = cv2.boxPoints(rect).astype(np.float64) + shift
     return SeedArc(
-        method="sagitta",
+        method="seed_sagitta",
         radius_mm=sagitta_radius_mm(d, h),
         chord_width_mm=d,
         height_mm=h,

@@ -223,6 +223,18 @@ EFFECTS: dict[str, EffectSpec] = {
             (0.25, 0.6),
             True,
             "springback differs by direction (coil set, Bauschinger): *(1 + dir * alpha)",
+            (
+                ShapeSpec(
+                    "loaded_deg",
+                    "deg",
+                    -3.0,
+                    3.0,
+                    0.0,
+                    "the loaded leg moves too, by this much per unit of asymmetry (bend "
+                    "magnitude, + with the stronger direction): the span's curvature follows "
+                    "the wire's strength",
+                ),
+            ),
         ),
         EffectSpec(
             "camera_tilt",

@@ -16,8 +16,10 @@ signed like the command; ``springback_deg = sign(loaded) * (loaded - unloaded)``
 ``pin_deg`` is the actual signed head rotation from home after the command
 effects (what the head really did), in the units of the command;
 ``pin_angle_deg`` is the same pin position in the machine frame of the spec
-(angle of origin -> pin from +x, origin = head axis), as a photo of the loaded
-bend measures it: ``dir * (phi_contact - approach_deg + |r|)``.
+(angle of origin -> pin from +x), as a photo of the loaded bend measures it:
+from the origin marker, which sits on the die at the nominal head axis, so
+``dir * (phi_contact - approach_deg + |r|)`` on a nominal machine and, with the
+axis ``e`` off the marker, about ``(e / R_p) cos(phi)`` (rad) more.
 """
 
 from __future__ import annotations
@@ -32,7 +34,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from cvmeasure.geometry import mod_positive, wrap_deg
 from cvmeasure.sim.effects import Effect
-from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, loaded_angle_and_lever
+from cvmeasure.sim.kinematics import (
+    HeadGeometry,
+    contact_angle_deg,
+    head_geometry,
+    loaded_angle_and_lever,
+)
 from cvmeasure.sim.params import SimParams
 from cvmeasure.sim.springback import SpringbackLaw, springback_law
 
@@ -258,6 +265,26 @@ def _torque_nm(
     return np.where(theta_l > 0, torque, 0.0)
 
 
+def _pin_seen_deg(
+    geom: HeadGeometry, nominal: HeadGeometry, phi_deg: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The pin's angle (deg, mirrored die frame of the bend) seen from the origin marker.
+
+    The marker sits on the die at the head axis the machine was built with (``nominal``);
+    a photo reads the pin from it. An axis offset moves the pin's orbit, not the marker:
+    with the axis ``e`` off it, the reading is ``phi + (e / R_p) cos(phi)`` (rad) to first
+    order, not the head's own angle ``phi``.
+    """
+    if geom is nominal:
+        return phi_deg
+    phi = np.radians(phi_deg)
+    dx = np.asarray(geom.axis_x_mm) - np.asarray(nominal.axis_x_mm)
+    dy = np.asarray(geom.axis_y_mm) - np.asarray(nominal.axis_y_mm)
+    seen = np.arctan2(dy + geom.pin_orbit_mm * np.sin(phi), dx + geom.pin_orbit_mm * np.cos(phi))
+    # the same turn as phi (continuous past 180 deg): only the small difference is wrapped
+    return phi_deg + np.degrees(wrap_rad(seen - phi))
+
+
 def _forward(
     cmd: NDArray[np.float64],
     params: SimParams,
@@ -304,10 +331,15 @@ def _forward(
             phi = phi0 + np.maximum(r - lag, 0.0)
             theta_l, lever = loaded_angle_and_lever(geom, phi)
         r = phi - phi0
-    pin_machine = wrap_deg(direction * phi)
+    pin_machine = wrap_deg(direction * _pin_seen_deg(geom, nominal, phi))
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
     if "springback_asymmetry" in values:
         affine = affine * (1.0 + direction * values["springback_asymmetry"])
+    if "springback_asymmetry" in values and shapes.get("loaded_deg", 0.0):
+        # the span's curvature follows the wire's strength by direction: the loaded leg
+        # (and the released one with it) moves by loaded_deg per unit of asymmetry
+        shift = shapes["loaded_deg"] * direction * values["springback_asymmetry"]
+        theta_l = np.where(theta_l > 0, np.maximum(theta_l + shift, 0.0), theta_l)
     if params.span_bow_share:
         # the leg beyond the pin leads the chord by (a share of) the span's elastic bow;
         # released, that elastic curvature is part of the span term, so the bow moves

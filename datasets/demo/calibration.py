@@ -95,12 +95,12 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     """Calibrate from 8 rendered views (922 x 614), then check a plane tilted 3 degrees."""
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.calibration.detect import detect_board
-    from cvmeasure.calibration.pipeline import calibrate_detections
-    from cvmeasure.calibration.plane import estimate_plane
-    from cvmeasure.calibration.uncertainty import projection_diff
     from cvmeasure.camera import save_camera
     from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.lens.detect import detect_board
+    from cvmeasure.lens.pipeline import calibrate_detections
+    from cvmeasure.lens.plane import estimate_plane
+    from cvmeasure.lens.uncertainty import projection_diff
 
     t0 = time.perf_counter()
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)

@@ -105,7 +105,7 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     seed_notes = []
     for key, photo in photos.items():
         try:
-            s = measure_machine_photo(photo.bgr, kit, method="seed")
+            s = measure_machine_photo(photo.bgr, kit, method="seed_hough")
             seed_notes.append(
                 f"{key}: bend error {s.bend_angle_deg - truth[key]['bend_angle_deg']:+.3f} deg"
             )

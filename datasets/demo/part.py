@@ -82,11 +82,9 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
             0.03,
         ),
     ]
-    for name in ("ellipse", "sagitta"):
+    for name in ("seed_ellipse", "seed_sagitta"):
         if name in m.methods:
-            rows.append(
-                DemoRow(f"radius (seed {name} method)", m.methods[name].radius_mm, 100.0, "mm")
-            )
+            rows.append(DemoRow(f"radius ({name} method)", m.methods[name].radius_mm, 100.0, "mm"))
     return DemoSection(
         title="finished part: the seed's half circle vs its design",
         rows=rows,

@@ -28,15 +28,15 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
         run_session,
     )
     from cvmeasure.driver.session_report import write_session_report
-    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.material.bender_calibration import save_calibration
     from cvmeasure.sim import Effect, pin_command_for_angle, simulate
     from cvmeasure.testing.bender import simulated_bender
-    from cvmeasure_datasets.simcamera import SimulatedCamera, double_photo_state
+    from cvmeasure_datasets.simcapture import SimulatedCapture, double_photo_state
 
     effects = (Effect("backlash", _BACKLASH_DEG),)
     session_dir = Path(out_dir) / "session"
     bender = simulated_bender(effects=effects, speedup=500.0)
-    camera = SimulatedCamera(
+    camera = SimulatedCapture(
         session_dir / "photos", lambda: double_photo_state(bender.double), scale=0.2, seed=seed
     )
     try:

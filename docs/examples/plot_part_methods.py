@@ -49,7 +49,7 @@ ax.plot(
     color="tab:red",
     lw=0.8,
 )
-ell = m.seed_arcs.get("ellipse")
+ell = m.seed_arcs.get("seed_ellipse")
 if ell is not None and ell.ellipse is not None:
     (ex, ey), (a, b), ang = (
         ell.ellipse.centre_mm,

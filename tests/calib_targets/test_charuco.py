@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import board_from_dict
-from cvmeasure.calibration.detect import detect_board
 from cvmeasure.cli import main
+from cvmeasure.lens.detect import detect_board
 from cvmeasure_calib_targets.charuco import (
     board_black_rects_mm,
     render_board_sheet,

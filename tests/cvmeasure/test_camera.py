@@ -19,7 +19,7 @@ def test_roundtrip_keeps_calibration_record(tmp_path):
     back = load_camera(path)
     np.testing.assert_array_equal(back.camera_matrix, cam.camera_matrix)
     np.testing.assert_array_equal(back.dist_coeffs, cam.dist_coeffs)
-    assert back.calibration == {"rms_px": 0.2}
+    assert back.lens_record == {"rms_px": 0.2}
     assert json.loads(path.read_text())["image_size"] == [4608, 3072]
 
 

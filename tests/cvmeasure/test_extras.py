@@ -11,7 +11,7 @@ import pytest
 
 from cvmeasure.batch import _dask_client
 from cvmeasure.cli import main
-from cvmeasure.driver.camera import GPhoto2Camera
+from cvmeasure.driver.capture import GPhoto2Capture
 from cvmeasure.extras import EXTRAS, MissingExtraError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,7 +56,7 @@ def test_raw_photo_without_the_raw_extra(tmp_path, monkeypatch, capsys):
 def test_camera_without_the_camera_extra(tmp_path, monkeypatch):
     _without(monkeypatch, "gphoto2")
     with pytest.raises(MissingExtraError, match=r"cvmeasure\[camera\]") as info:
-        GPhoto2Camera(tmp_path)
+        GPhoto2Capture(tmp_path)
     assert info.value.extra == "camera"
 
 

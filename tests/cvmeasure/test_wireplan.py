@@ -165,7 +165,7 @@ def test_zigzag_perfect_part_reads_45_against_the_bent_polygon(tmp_path):
     board = dense * np.array([1.0, -1.0])  # board frame, y down
     turns = bend_angles_deg(board)
     vertex_bends = turns[np.abs(turns) > 1.0]
-    arc = ArcResult("ours", 100.0, 150.0, 10.0, 45.0, 4)
+    arc = ArcResult("centreline_fit", 100.0, 150.0, 10.0, 45.0, 4)
     comp = compare_with_design(
         board, vertex_bends, arc, load_design(svg).wire(), reference_mm=plan.vertices_mm
     )
@@ -192,7 +192,7 @@ def _session(angles):
     """A calibration session of these wanted loaded angles on the nominal simulated bender."""
     from cvmeasure.contracts import Trial
     from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-    from cvmeasure.material.calibration import fit_calibration
+    from cvmeasure.material.bender_calibration import fit_calibration
     from cvmeasure.sim import simulate
 
     pins = [nominal_pin_for_loaded_deg(a, d) for d in ("ccw", "cw") for a in angles]
@@ -207,7 +207,7 @@ def _session(angles):
 def test_seed_saddle_from_the_high_session_is_extrapolated_and_said_so(tmp_path, capsys):
     """The saddle's 0.91 deg end bends lie below the high mode's 1.55 deg: stated rule."""
     import cvmeasure_datasets
-    from cvmeasure.material.calibration import MODES, save_calibration
+    from cvmeasure.material.bender_calibration import MODES, save_calibration
     from cvmeasure.sim import simulate
 
     verts = cvmeasure_datasets.saddle_part(200.0, 20.0, 13).vertices_mm
@@ -227,7 +227,7 @@ def test_seed_saddle_from_the_high_session_is_extrapolated_and_said_so(tmp_path,
 
 
 def test_a_bend_far_below_the_calibration_is_refused_naming_the_session(tmp_path, capsys):
-    from cvmeasure.material.calibration import MODES, save_calibration
+    from cvmeasure.material.bender_calibration import MODES, save_calibration
 
     verts = polygon_from_chords([40, 40], [0.5])
     svg = _write(tmp_path, "flat.svg", _polyline_svg([(20 + x, 100 - y) for x, y in verts]))
@@ -242,7 +242,7 @@ def test_a_bend_far_below_the_calibration_is_refused_naming_the_session(tmp_path
 def test_seed_saddle_from_the_shallow_session_is_calibrated(tmp_path, capsys):
     import cvmeasure_datasets
     from cvmeasure.gcode import SHALLOW_SESSION_ANGLES_DEG
-    from cvmeasure.material.calibration import save_calibration
+    from cvmeasure.material.bender_calibration import save_calibration
     from cvmeasure.sim import simulate
 
     verts = cvmeasure_datasets.saddle_part(200.0, 20.0, 13).vertices_mm

@@ -136,8 +136,8 @@ def test_truth_gives_the_tilt_direction_plane_reports(tilt_direction_deg, yaw_de
     """The render's scene-frame tilt direction and the plane check's image-frame one differ;
     the truth's ``tilt_direction_image_deg`` is what ``cvmeasure plane`` measures."""
     from cvmeasure.board import DEFAULT_BOARD
-    from cvmeasure.calibration.plane import estimate_plane
     from cvmeasure.geometry import wrap_deg
+    from cvmeasure.lens.plane import estimate_plane
     from cvmeasure_datasets import Lighting, render_board_view
 
     pose = Pose(

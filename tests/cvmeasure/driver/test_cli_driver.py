@@ -49,7 +49,7 @@ def test_gcode_from_svg_uses_the_simulation_inverse(half_gcode):
 
 def test_gcode_with_a_calibration_json(tmp_path, capsys):
     from cvmeasure.contracts import TrialTable
-    from cvmeasure.material.calibration import fit_calibration, save_calibration
+    from cvmeasure.material.bender_calibration import fit_calibration, save_calibration
     from cvmeasure.sim import simulate
 
     angles = [5, 10, 15, 20, 30, 45, 60, 75, 90, 110, 130]

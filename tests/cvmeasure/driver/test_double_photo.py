@@ -11,7 +11,7 @@ from cvmeasure.driver.session import (
 )
 from cvmeasure.sim import SimParams, parse_effect, simulate
 from cvmeasure.testing.bender import simulated_bender
-from cvmeasure_datasets.simcamera import double_photo_state
+from cvmeasure_datasets.simcapture import double_photo_state
 
 
 @pytest.mark.parametrize("effect", ["backlash=0.5", "offset=0.8"])

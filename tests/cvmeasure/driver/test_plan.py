@@ -11,7 +11,7 @@ import pytest
 from cvmeasure.contracts import Trial
 from cvmeasure.driver.plan import diagnosis_plan, swept_plan
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
-from cvmeasure.material.calibration import MODES, fit_calibration
+from cvmeasure.material.bender_calibration import MODES, fit_calibration
 from cvmeasure.sim import simulate
 
 

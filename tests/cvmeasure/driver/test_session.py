@@ -20,10 +20,10 @@ from cvmeasure.driver.session import (
     read_session_log,
     session_gcode,
 )
-from cvmeasure.material.calibration import load_calibration
+from cvmeasure.material.bender_calibration import load_calibration
 from cvmeasure.sim import simulate
 from cvmeasure.testing.bender import simulated_bender
-from cvmeasure_datasets.simcamera import double_photo_state
+from cvmeasure_datasets.simcapture import double_photo_state
 
 REPO = Path(__file__).resolve().parents[3]
 ANGLES = "5,20,60"  # 6 bends: small enough for a fast test, spans the seed's 9 deg
@@ -199,7 +199,7 @@ class _LensCapCamera:
     def capture(self, name: str):
         import cv2
 
-        from cvmeasure.driver.camera import CapturedPhoto
+        from cvmeasure.driver.capture import CapturedPhoto
         from cvmeasure.fileio import atomic_write_bytes
 
         ok, jpeg = cv2.imencode(".jpg", np.full((96, 128, 3), 40, np.uint8))
@@ -248,7 +248,7 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
     from cvmeasure.driver.session import run_session
     from cvmeasure.errors import DeviceError
     from cvmeasure.testing.double import Fault
-    from cvmeasure_datasets.simcamera import SimulatedCamera
+    from cvmeasure_datasets.simcapture import SimulatedCapture
 
     config = SessionConfig(mode="custom", angles_deg=(10.0, 30.0))
     probe = simulated_bender(speedup=500.0)  # where does the first bend's G1 X line land?
@@ -261,7 +261,7 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
 
     def session(faults):
         bender = simulated_bender(speedup=500.0, faults=faults)
-        camera = SimulatedCamera(
+        camera = SimulatedCapture(
             tmp_path / "s" / "photos", lambda: double_photo_state(bender.double), scale=0.2
         )
         try:
@@ -288,9 +288,9 @@ def test_session_reads_kit_and_camera_files(tmp_path, capsys):
     from cvmeasure.camera import save_camera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.kit import default_kit
-    from cvmeasure_datasets.simcamera import PhotoState, SimulatedCamera
+    from cvmeasure_datasets.simcapture import PhotoState, SimulatedCapture
 
-    probe = SimulatedCamera(tmp_path / "probe", lambda: PhotoState(0.0, 0.0), scale=0.2)
+    probe = SimulatedCapture(tmp_path / "probe", lambda: PhotoState(0.0, 0.0), scale=0.2)
     camera_json = save_camera(tmp_path / "camera.json", probe.capture("x").camera)
     kit_json = atomic_write_json(tmp_path / "kit.json", default_kit().to_dict())
     out = tmp_path / "cal.json"

@@ -176,7 +176,10 @@ def test_seed_method_and_rgb_space_from_the_cli(files, capsys):
         (["--kit", "{kit}", "--board", "{kit}"], "needs --camera"),
         (["--kit", "{kit}", "--camera", "{kit}"], "camera"),
         (["--kit", "{kit}", "--plane", "{kit}"], "lacks a 3x3 'H_board_image'"),
-        (["--kit", "{kit}", "--method", "seed", "--camera", "{camera}"], "seed method measures"),
+        (
+            ["--kit", "{kit}", "--method", "seed", "--camera", "{camera}"],
+            "seed_hough method measures",
+        ),
         (["--kit", "{kit}", "--plane", "{kit}", "--camera", "{camera}"], "H_board_image"),
     ],
 )

@@ -110,8 +110,8 @@ def test_lens_model_and_plane_remove_tilt_and_distortion_bias(render, flat_kit):
     )
     rect = measure_machine_photo(photo.bgr, kit, plane=plane)
     assert rect.frame == "plane"
-    with pytest.raises(ValueError, match="seed method"):
-        measure_machine_photo(photo.bgr, kit, plane=plane, method="seed")
+    with pytest.raises(ValueError, match="seed_hough method"):
+        measure_machine_photo(photo.bgr, kit, plane=plane, method="seed_hough")
     err_raw = abs(raw.bend_angle_deg - photo.truth["bend_angle_deg"])
     err_rect = abs(rect.bend_angle_deg - photo.truth["bend_angle_deg"])
     assert err_raw > 0.3  # a 12 degree tilt foreshortens angles
@@ -212,9 +212,9 @@ def test_wrong_kit_is_reported_not_measured(render):
 def test_seed_method_runs_on_a_clean_photo_and_is_coarser(render):
     photo = render(light=Lighting.clean(), seed=9)
     kit = default_kit()
-    seed = measure_machine_photo(photo.bgr, kit, method="seed")
+    seed = measure_machine_photo(photo.bgr, kit, method="seed")  # the older name is read
     ours = measure_machine_photo(photo.bgr, kit, camera=photo.camera)
-    assert seed.method == "seed"
+    assert seed.method == "seed_hough"
     assert seed.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=3.0)
     assert seed.uncertainty_deg["bend_angle_deg"] > 5 * ours.uncertainty_deg["bend_angle_deg"]
 

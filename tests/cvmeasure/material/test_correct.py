@@ -7,7 +7,7 @@ import pytest
 
 from cvmeasure.contracts import Trial
 from cvmeasure.driver.session import nominal_pin_for_loaded_deg
-from cvmeasure.material.calibration import (
+from cvmeasure.material.bender_calibration import (
     MODES,
     fit_calibration,
     load_calibration,

@@ -51,7 +51,7 @@ def test_arcs_on_both_sheets(kind, sheet):
     truth = photo.truth
     n = truth["divisions"]
     m = measure_part(photo.bgr, BOARD, photo.camera, divisions=n, source=f"{kind}-{sheet}")
-    assert m.result.method == "ours"
+    assert m.result.method == "centreline_fit"
     assert m.result.radius_mm == pytest.approx(truth["radius_mm"], rel=RADIUS_REL)
     assert m.result.segment_bend_deg == pytest.approx(
         truth["arc_angle_deg"] / n, abs=SEGMENT_BEND_DEG
@@ -67,17 +67,19 @@ def test_arcs_on_both_sheets(kind, sheet):
     _, dist, _ = point_to_polyline(m.centreline_mm, np.asarray(truth["part"]["centreline_mm"]))
     assert np.sqrt(np.mean(dist**2)) < 0.05
     # the seed's methods ran on the same photo, and were worse on the radius
-    assert set(m.methods) == {"ours", "ellipse", "sagitta"}
-    for name in ("ellipse", "sagitta"):
+    assert set(m.methods) == {"centreline_fit", "seed_ellipse", "seed_sagitta"}
+    for name in ("seed_ellipse", "seed_sagitta"):
         err = abs(m.methods[name].radius_mm / truth["radius_mm"] - 1)
         assert err > abs(m.result.radius_mm / truth["radius_mm"] - 1)
 
 
 def test_headline_method_can_be_the_seeds():
     photo = _photo("half", "dark")
-    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, method="sagitta")
-    assert m.result.method == "sagitta"
-    assert m.result.radius_mm == m.methods["sagitta"].radius_mm
+    m = measure_part(
+        photo.bgr, BOARD, photo.camera, divisions=10, method="sagitta"
+    )  # the older name is read
+    assert m.result.method == "seed_sagitta"
+    assert m.result.radius_mm == m.methods["seed_sagitta"].radius_mm
     with pytest.raises(ValueError, match="method must be one of"):
         measure_part(photo.bgr, BOARD, photo.camera, method="hough")  # type: ignore[arg-type]
 
@@ -118,14 +120,14 @@ def test_without_divisions_the_vertices_are_found_in_the_photo():
 @pytest.mark.parametrize("kind", ["half", "short"])
 def test_a_seed_method_far_from_the_centreline_is_warned_about(kind):
     photo = _photo(kind, "light")
-    m = measure_part(photo.bgr, BOARD, photo.camera, method="ellipse")
-    ours = m.methods["ours"].arc_angle_deg
-    for name in ("ellipse", "sagitta"):
+    m = measure_part(photo.bgr, BOARD, photo.camera, method="seed_ellipse")
+    ours = m.methods["centreline_fit"].arc_angle_deg
+    for name in ("seed_ellipse", "seed_sagitta"):
         if name not in m.methods:
             continue
         far = abs(m.methods[name].arc_angle_deg - ours) > 10.0
         said = any(
-            w.code == "seed_method_disagrees" and f"the seed's {name} method" in w.message
+            w.code == "seed_method_disagrees" and f"the {name} method" in w.message
             for w in m.warnings
         )
         assert far == said, (name, m.methods[name].arc_angle_deg, ours)
@@ -186,7 +188,7 @@ def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
 def test_raised_plane_mapping_inverts_the_projection():
     import cv2
 
-    from cvmeasure.calibration.plane import estimate_plane
+    from cvmeasure.lens.plane import estimate_plane
 
     photo = _photo("short", "dark")
     plane = estimate_plane(photo.bgr, BOARD, photo.camera)

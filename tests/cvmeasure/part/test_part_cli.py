@@ -101,7 +101,7 @@ def test_part_json_overlay_and_plot(files, capsys):
     assert len(result["vertex_bend_deg"]) == 9
     for key in ("chord_width_mm", "height_mm"):
         assert result[key] == pytest.approx(truth[key], abs=0.4)
-    assert set(result["methods"]) == {"ours", "ellipse", "sagitta"}
+    assert set(result["methods"]) == {"centreline_fit", "seed_ellipse", "seed_sagitta"}
     cmp = result["comparison"]
     assert cmp["deviation"]["rms_mm"] < 0.1
     assert cmp["bends"]["max_abs_error_deg"] < 0.25
@@ -126,7 +126,7 @@ def test_part_table_output(files, capsys):
     )
     assert code == 0
     text = capsys.readouterr().out
-    assert "radius_mm" in text and "[ellipse]" in text and "[sagitta]" in text
+    assert "radius_mm" in text and "[seed_ellipse]" in text and "[seed_sagitta]" in text
 
 
 def test_part_with_a_plane_json_needs_no_camera(files, capsys):

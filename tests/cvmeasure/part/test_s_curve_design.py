@@ -48,7 +48,7 @@ def test_polygon_arc_of_a_symmetric_s_and_a_straight_wire_is_a_line():
 def test_compare_with_an_s_design_matches_its_bends():
     design = DesignPath(S_MM, False, "polyline", "<polyline id=s>")
     seen_board = S_MM * np.array([1.0, -1.0])  # board frame (y down as the camera sees it)
-    measured = ArcResult("ours", math.inf, 84.0, 7.6, 0.0, 3)
+    measured = ArcResult("centreline_fit", math.inf, 84.0, 7.6, 0.0, 3)
     cmp = compare_with_design(seen_board, np.array([-45.0, 45.0]), measured, design)
     assert cmp.bends is not None
     np.testing.assert_allclose(cmp.bends.design_bend_deg, [45.0, -45.0], atol=1e-9)

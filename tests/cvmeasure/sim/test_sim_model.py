@@ -152,11 +152,32 @@ def test_pin_angle_in_machine_frame():
     np.testing.assert_allclose(res.pin_angle_deg[:2], [phi_c, -phi_c], atol=1e-9)
     assert res.pin_angle_deg[2] == pytest.approx(phi_c - p.approach_deg)  # home
     assert res.pin_angle_deg[3] == pytest.approx(phi_c - p.approach_deg + 100.0)
-    # backlash moves the pin, axis offset does not
+    # backlash moves the pin
     moved = simulate([100.0], p, [Effect("backlash", 2.0)]).pin_angle_deg[0]
     assert moved == pytest.approx(res.pin_angle_deg[3] - 2.0)
-    same = simulate([100.0], p, [Effect("axis_offset", 0.3)]).pin_angle_deg[0]
-    assert same == pytest.approx(res.pin_angle_deg[3])
+
+
+@pytest.mark.parametrize("command_deg", [40.0, 100.0, 150.0, -40.0, -100.0, -150.0])
+@pytest.mark.parametrize("offset_mm", [0.3, -0.5])
+def test_pin_is_read_from_the_origin_marker_when_the_head_axis_is_off_it(command_deg, offset_mm):
+    """The marker sits on the die at the nominal axis; an axis offset moves the orbit.
+
+    The head turns by the same angle about its own (offset) axis, so the pin centre is
+    ``(0, e) + R_p (cos phi, sin phi)`` in the machine frame (``phi`` the head's angle,
+    mirrored for a clockwise bend) and a photo reads ``atan2`` of that from the marker:
+    about ``(e / R_p) cos(phi)`` rad off ``phi``, up to 2.4 deg at 0.5 mm on a 12 mm orbit.
+    """
+    p = SimParams()
+    head = simulate([command_deg], p).pin_angle_deg[0]  # the head's angle: no offset
+    seen = simulate([command_deg], p, [Effect("axis_offset", offset_mm)]).pin_angle_deg[0]
+    a = np.radians(head)
+    expected = np.degrees(
+        np.arctan2(offset_mm + p.pin_orbit_mm * np.sin(a), p.pin_orbit_mm * np.cos(a))
+    )
+    assert seen == pytest.approx(expected, abs=1e-9)
+    first_order = head + np.degrees(offset_mm / p.pin_orbit_mm * np.cos(a))
+    assert seen == pytest.approx(first_order, abs=0.05)
+    assert abs(seen - head) > 0.5 * abs(np.degrees(offset_mm / p.pin_orbit_mm * np.cos(a)))
 
 
 def test_compliance_lag_follows_the_load():
@@ -334,3 +355,18 @@ def test_simulate_drift_rates_is_simulate_at_each_rate(shape):
             np.testing.assert_array_equal(getattr(batch, name)[k], getattr(one, name))
     with pytest.raises(ValueError, match="drift"):
         simulate_drift_rates(cmd, params, rest, rates, bend_index=index)
+
+
+def test_a_strength_by_direction_moves_the_loaded_leg_in_its_general_form():
+    """``loaded_deg`` per unit of asymmetry: the stronger direction's loaded (and released)
+    bend moves by ``loaded_deg * alpha``, the weaker one's by minus that; the narrow form
+    leaves the loaded bend alone."""
+    p = SimParams()
+    cmd = [60.0, -60.0, 120.0, -120.0]
+    narrow = simulate(cmd, p, [Effect("springback_asymmetry", 0.4)])
+    general = simulate(cmd, p, [Effect("springback_asymmetry", 0.4, (("loaded_deg", -1.0),))])
+    np.testing.assert_allclose(narrow.loaded_bend_deg, simulate(cmd, p).loaded_bend_deg)
+    shift = np.abs(general.loaded_bend_deg) - np.abs(narrow.loaded_bend_deg)
+    np.testing.assert_allclose(shift, [-0.4, 0.4, -0.4, 0.4], atol=1e-9)
+    # the springback is the narrow form's (the leg moves, the release from it does not)
+    np.testing.assert_allclose(general.springback_deg, narrow.springback_deg, atol=0.02)

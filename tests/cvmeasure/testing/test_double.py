@@ -147,11 +147,13 @@ def test_xoff_stops_the_host_before_the_buffer_overflows():
         errors: list = []
         t = threading.Thread(target=_fill, args=(host, 80, errors))
         t.start()
-        t.join(timeout=5)
+        t.join(timeout=30)  # the writer ends when a write blocks 0.5 s (slower on a loaded host)
         assert b.stats.xoff_sent >= 1
         assert errors, "the host's write should block on XOFF"
         assert b.stats.rx_dropped_bytes == 0
-        assert b.machine_state().planner_depth == 29  # 32 slots, reads stop below 4 free
+        # 32 slots, reads stop below 4 free: 29, or 28 for the instant between a move
+        # finishing (one a second) and the next line read into its slot
+        assert b.machine_state().planner_depth in (28, 29)
         host.close()
 
 

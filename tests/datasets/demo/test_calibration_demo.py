@@ -17,5 +17,5 @@ def test_demo_step_meets_its_tolerances(tmp_path):
     assert abs(rows["focal length fx"].error) <= 1e-3 * rows["focal length fx"].true
     assert abs(rows["plane tilt (one photo)"].error) <= 0.05
     cam = load_camera(tmp_path / "calibration" / "camera.json")
-    assert cam.calibration["cross_validation"] is not None
+    assert cam.lens_record["cross_validation"] is not None
     assert json.loads((tmp_path / "calibration" / "plane.json").read_text())["tilt_deg"] > 2.9

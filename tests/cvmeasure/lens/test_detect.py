@@ -8,7 +8,7 @@ import pytest
 from _calib_synth import look_at_pose, render_view
 
 from cvmeasure.board import board_from_dict
-from cvmeasure.calibration.detect import detect_board, detect_charuco, subpix_half_window_px
+from cvmeasure.lens.detect import detect_board, detect_charuco, subpix_half_window_px
 
 CORNER_ATOL_PX = 0.3  # worst corner vs exact projection on the test renderer (~0.06 px RMS)
 
@@ -165,7 +165,7 @@ def test_a_charuco_photo_is_not_taken_for_a_chessboard(shared_real, pattern):
 
 def test_real_chessboard_photos_pass_the_check(shared_real):
     """Every photo of OpenCV's left/right sets where either detector finds the 9x6 board."""
-    from cvmeasure.calibration.detect import verify_chessboard
+    from cvmeasure.lens.detect import verify_chessboard
 
     files = sorted((shared_real / "opencv-samples-chessboard-9x6").glob("*/*.jpg"))
     checked = 0

@@ -7,17 +7,17 @@ import numpy as np
 import pytest
 from _calib_synth import random_poses, synthetic_detections
 
-from cvmeasure.calibration.coverage import image_coverage
-from cvmeasure.calibration.detect import BoardDetection
-from cvmeasure.calibration.solve import calibrate_views
-from cvmeasure.calibration.uncertainty import (
+from cvmeasure.camera import CameraModel
+from cvmeasure.lens.coverage import image_coverage
+from cvmeasure.lens.detect import BoardDetection
+from cvmeasure.lens.solve import calibrate_views
+from cvmeasure.lens.uncertainty import (
     cross_validate,
     parameter_covariance,
     projection_diff,
     projection_uncertainty,
     view_clustered_covariance,
 )
-from cvmeasure.camera import CameraModel
 
 
 def test_covariance_matches_opencv_sigmas(charuco_board, true_camera):
@@ -196,7 +196,7 @@ def test_coverage_warnings_name_the_missing_photos():
 def test_degenerate_fronto_parallel_set_is_flagged(charuco_board, true_camera):
     from _calib_synth import look_at_pose
 
-    from cvmeasure.calibration.pipeline import calibrate_detections
+    from cvmeasure.lens.pipeline import calibrate_detections
 
     # Three fronto-parallel views at one distance: focal length and distance trade off.
     poses = [look_at_pose(charuco_board, 400.0, 0.0, 0.0, (d, 0.0)) for d in (0, 10, 20)]

@@ -1,6 +1,6 @@
 """A simulated camera for calibration sessions: renders a simulated machine's state.
 
-:class:`SimulatedCamera` implements :class:`cvmeasure.driver.camera.Camera`
+:class:`SimulatedCapture` implements :class:`cvmeasure.driver.capture.CaptureDevice`
 (``capture(name) -> CapturedPhoto``) with the photo lab's
 :func:`~cvmeasure_datasets.bender.render_bender_photo`; :func:`double_photo_state`
 reads what a photo of the TinyG double's machine shows. It lives in the lab,
@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cvmeasure.driver.camera import CapturedPhoto
+from cvmeasure.driver.capture import CapturedPhoto
 
-__all__ = ["PhotoState", "SimulatedCamera", "double_photo_state", "photo_state"]
+__all__ = ["PhotoState", "SimulatedCapture", "double_photo_state", "photo_state"]
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class PhotoState:
 
 
 @dataclass
-class SimulatedCamera:
+class SimulatedCapture:
     """Renders the machine's current state with the synthetic photo lab.
 
     Parameters

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import board_from_dict
-from cvmeasure.calibration.detect import detect_board
-from cvmeasure.calibration.pipeline import calibrate_detections
-from cvmeasure.calibration.uncertainty import projection_diff
 from cvmeasure.camera import CameraModel
+from cvmeasure.lens.detect import detect_board
+from cvmeasure.lens.pipeline import calibrate_detections
+from cvmeasure.lens.uncertainty import projection_diff
 
 
 def _detect(files, spec):
@@ -108,7 +108,7 @@ def test_a_foreign_photo_leaves_the_good_views_unchanged(shared_real, charuco_bo
     the last digit; with the check disabled it is taken as a board and the result moves."""
     from _calib_synth import look_at_pose, render_view
 
-    import cvmeasure.calibration.detect as detect_module
+    import cvmeasure.lens.detect as detect_module
 
     spec = {"type": "chessboard", "inner_x": 9, "inner_y": 6, "square_mm": 25.0}
     files = sorted((shared_real / "opencv-samples-chessboard-9x6" / "left").glob("*.jpg"))
@@ -144,8 +144,8 @@ def test_lifecam_rejection_close_to_the_published_solves(shared_real):
     import ast
     import json
 
-    from cvmeasure.calibration.detect import BoardDetection
-    from cvmeasure.calibration.solve import calibrate_views
+    from cvmeasure.lens.detect import BoardDetection
+    from cvmeasure.lens.solve import calibrate_views
 
     path = shared_real / "photonvision-lifecam-charuco-8x8" / "reference_mrcal_123png"
     data = json.loads((path / "calibration_data.json").read_text())

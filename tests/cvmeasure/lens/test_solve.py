@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from _calib_synth import random_poses, synthetic_detections
 
-from cvmeasure.calibration.detect import detect_board
-from cvmeasure.calibration.solve import DISTORTION_MODELS, calibrate_views, model_flags
-from cvmeasure.calibration.uncertainty import projection_diff
 from cvmeasure.camera import CameraModel
 from cvmeasure.errors import InputError
+from cvmeasure.lens.detect import detect_board
+from cvmeasure.lens.solve import DISTORTION_MODELS, calibrate_views, model_flags
+from cvmeasure.lens.uncertainty import projection_diff
 
 FOCAL_RTOL = 3e-3  # 12 views at 960x640 on the test renderer
 PP_ATOL_PX = 3.0

@@ -12,7 +12,7 @@ the plane of its left and right edges (board frame, +z as the board frame's z ax
 together with the two warp values by ``scipy.optimize.least_squares`` with analytic
 Jacobians from ``cv2.projectPoints``; :func:`warp_test` says whether the data show a warp
 (its chi-square against its covariance, the same Jacobian as
-:func:`~cvmeasure.calibration.uncertainty.parameter_covariance`).
+:func:`~cvmeasure.lens.uncertainty.parameter_covariance`).
 
 References
 ----------
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.calibration.detect import BoardDetection
+from cvmeasure.lens.detect import BoardDetection
 
 __all__ = [
     "BoardWarp",
@@ -229,7 +229,7 @@ def refine_board_warp(
 ):
     """Refine a solved calibration with mrcal's two-parameter board warp.
 
-    ``result`` is a :class:`~cvmeasure.calibration.solve.CalibrationResult` (its corners,
+    ``result`` is a :class:`~cvmeasure.lens.solve.CalibrationResult` (its corners,
     its model's free intrinsics and its poses are the start); intrinsics, distortion,
     poses and the warp are solved together by ``scipy.optimize.least_squares`` (sparse
     analytic Jacobian). Returns the same result with the refined camera, poses, RMS,

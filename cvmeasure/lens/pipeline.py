@@ -14,16 +14,17 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.calibration.coverage import Coverage, image_coverage
-from cvmeasure.calibration.detect import BoardDetection, detect_board
-from cvmeasure.calibration.solve import (
+from cvmeasure.camera import CameraModel
+from cvmeasure.lens.coverage import Coverage, image_coverage
+from cvmeasure.lens.detect import BoardDetection, detect_board
+from cvmeasure.lens.solve import (
     DISTORTION_MODELS,
     CalibrationResult,
     DistortionModel,
     calibrate_views,
     view_residuals_px,
 )
-from cvmeasure.calibration.uncertainty import (
+from cvmeasure.lens.uncertainty import (
     CrossValidation,
     ProjectionUncertainty,
     central_mask,
@@ -32,9 +33,8 @@ from cvmeasure.calibration.uncertainty import (
     projection_uncertainty,
     view_clustered_covariance,
 )
-from cvmeasure.calibration.warp import board_extent_mm
-from cvmeasure.calibration.warp_decision import decide_board_warp
-from cvmeasure.camera import CameraModel
+from cvmeasure.lens.warp import board_extent_mm
+from cvmeasure.lens.warp_decision import decide_board_warp
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -544,9 +544,9 @@ def calibrate_detections(
     Raises :class:`~cvmeasure.errors.InputError` (naming ``source``) when too
     few views are usable. ``model="auto"`` picks it with :func:`choose_model`.
     ``board_warp``: ``"auto"`` solves mrcal's two-parameter board warp with the lens
-    (:mod:`cvmeasure.calibration.warp`) and keeps it only when the lens model's extension
+    (:mod:`cvmeasure.lens.warp`) and keeps it only when the lens model's extension
     still sees the bow, every group of views does, and it moves the lens beyond noise
-    (:func:`~cvmeasure.calibration.warp_decision.decide_board_warp`), ``"on"`` always keeps it, ``"off"``
+    (:func:`~cvmeasure.lens.warp_decision.decide_board_warp`), ``"on"`` always keeps it, ``"off"``
     never solves it; the report's ``board_warp`` says which, with the warp in mm and its
     sigma. The cross-validation's halves are solved the same way. With ``cross_check`` and
     a model given (not ``"auto"``), :func:`richer_model_test` also asks whether the next

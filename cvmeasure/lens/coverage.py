@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.calibration.detect import BoardDetection
+from cvmeasure.lens.detect import BoardDetection
 from cvmeasure.warning import StageWarning
 
 __all__ = ["Coverage", "image_coverage", "EDGE_BAND", "MIN_GOOD_TILT_DEG", "RECOMMENDED_VIEWS"]

@@ -129,7 +129,7 @@ def random_poses(
 
 def synthetic_detections(board, camera: CameraModel, poses, noise_px: float, rng, *, size=None):
     """Exact corner projections plus Gaussian noise, as BoardDetection objects (no rendering)."""
-    from cvmeasure.calibration.detect import BoardDetection
+    from cvmeasure.lens.detect import BoardDetection
 
     obj = board.corners_mm()
     ids = np.arange(len(obj))

@@ -24,9 +24,9 @@ from typing import Any, Literal
 
 import numpy as np
 
-from cvmeasure.calibration.detect import MIN_CORNERS, BoardDetection
 from cvmeasure.camera import CameraModel
 from cvmeasure.errors import InputError
+from cvmeasure.lens.detect import MIN_CORNERS, BoardDetection
 
 __all__ = [
     "DistortionModel",
@@ -161,7 +161,7 @@ class CalibrationResult:
     rounds : int
         Solves run by the rejection loop.
     board_warp : BoardWarp or None
-        The board's bow solved with the lens (:mod:`cvmeasure.calibration.warp`), or None
+        The board's bow solved with the lens (:mod:`cvmeasure.lens.warp`), or None
         for a flat board.
     """
 
@@ -345,7 +345,7 @@ def calibrate_views(
         Fewer usable views raise :class:`InputError` naming ``source``.
     board_warp : bool
         Refine the result with mrcal's two-parameter board warp
-        (:func:`cvmeasure.calibration.warp.refine_board_warp`) on the corners the
+        (:func:`cvmeasure.lens.warp.refine_board_warp`) on the corners the
         rejection kept; ``board_extent_mm`` is the corner grid it is relative to (default:
         every corner the detections saw).
 
@@ -399,7 +399,7 @@ def calibrate_views(
         rounds,
     )
     if board_warp:
-        from cvmeasure.calibration.warp import refine_board_warp
+        from cvmeasure.lens.warp import refine_board_warp
 
         out = refine_board_warp(out, extent_mm=board_extent_mm)
     return out

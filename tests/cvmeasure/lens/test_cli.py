@@ -103,7 +103,7 @@ def test_calibrate_human_output_and_models(photo_dir, tmp_path, capsys):
     if code == 0:
         cam = load_camera(out)
         assert len(cam.dist_coeffs) == 8
-        unc_max = cam.calibration.get("projection_uncertainty", {}).get("max_px", 0.0)
+        unc_max = cam.lens_record.get("projection_uncertainty", {}).get("max_px", 0.0)
         ill = bool(np.any(np.abs(cam.dist_coeffs) > 10.0)) or unc_max > 10 * max(cam.image_size_px)
         assert ("ill-conditioned" in captured.out) == ill
     else:
@@ -123,7 +123,7 @@ def test_calibrate_board_warp_flag(photo_dir, tmp_path, capsys):
         text = capsys.readouterr().out
         line = [t for t in text.splitlines() if t.startswith("board warp")]
         cams[mode] = load_camera(out)
-        warp = cams[mode].calibration["board_warp"]
+        warp = cams[mode].lens_record["board_warp"]
         if mode == "off":
             assert not line and warp is None
             continue
@@ -135,7 +135,7 @@ def test_calibrate_board_warp_flag(photo_dir, tmp_path, capsys):
         assert "flat within noise" in line[0], line  # the renderer's board is flat
         assert abs(warp["warp_mm"][0]) <= 3 * warp["sigma_mm"][0]
     assert cams["auto"].fx == cams["off"].fx
-    assert "--board-warp on" in cams["on"].calibration["provenance"]["command"]
+    assert "--board-warp on" in cams["on"].lens_record["provenance"]["command"]
 
 
 def test_calibrate_bad_inputs_exit_2(photo_dir, tmp_path, capsys):

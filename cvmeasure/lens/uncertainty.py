@@ -5,7 +5,7 @@
   Jacobian, scaled by the residual variance (Gauss-Markov).
 * :func:`view_clustered_covariance` -- the same, allowing for errors the corners of one
   view share (the larger, direction by direction, of the formal covariance and the
-  view-clustered sandwich): what :func:`~cvmeasure.calibration.pipeline.calibrate_detections`
+  view-clustered sandwich): what :func:`~cvmeasure.lens.pipeline.calibrate_detections`
   states.
 * :func:`projection_uncertainty` -- propagates a covariance to the pixel a
   fixed 3-D point projects to, across a grid over the image, as mrcal does
@@ -33,10 +33,10 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.calibration.detect import BoardDetection
-from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
-from cvmeasure.calibration.warp import gauss_markov_covariance
 from cvmeasure.camera import CameraModel
+from cvmeasure.lens.detect import BoardDetection
+from cvmeasure.lens.solve import CalibrationResult, calibrate_views
+from cvmeasure.lens.warp import gauss_markov_covariance
 
 __all__ = [
     "ParameterCovariance",
@@ -109,7 +109,7 @@ def _residuals_and_jacobian(result: CalibrationResult) -> tuple[np.ndarray, Any,
     n_i = len(result.std_devs)
     n_v = len(result.views)
     if result.board_warp is not None:
-        from cvmeasure.calibration.warp import warp_jacobian
+        from cvmeasure.lens.warp import warp_jacobian
 
         w = result.board_warp
         r, jac_w = warp_jacobian(

@@ -1,19 +1,19 @@
 """Cameras for calibration sessions: a real DSLR (gphoto2) and a watched folder.
 
-Every backend implements :class:`Camera`: ``capture(name) -> CapturedPhoto``
+Every backend implements :class:`CaptureDevice`: ``capture(name) -> CapturedPhoto``
 takes one photo and stores it as a file ``<out_dir>/<name><ext>``. Backends:
 
-:class:`GPhoto2Camera`
+:class:`GPhoto2Capture`
     a camera on USB through libgphoto2 (python-gphoto2): capture, download,
     read and change settings. Tested with libgphoto2's own virtual camera
     (:func:`virtual_camera_env`), which serves the JPEGs of a folder.
-:class:`WatchedFolderCamera`
+:class:`WatchedFolderCapture`
     tethering software (or a person) writes the photos into a folder; capture
     waits for the next new, completely written file.
-:class:`cvmeasure_datasets.simcamera.SimulatedCamera` (the photo lab, not this
+:class:`cvmeasure_datasets.simcapture.SimulatedCapture` (the photo lab, not this
 package) renders a simulated machine's state and implements the same protocol.
 
-:func:`open_camera` picks one by URL: ``gphoto2://`` (first camera found) or
+:func:`open_capture` picks one by URL: ``gphoto2://`` (first camera found) or
 ``gphoto2://usb:001,004`` (a port), ``folder:///path/to/incoming``.
 Failures raise :class:`~cvmeasure.errors.DeviceError` (no camera, capture
 failed) or :class:`~cvmeasure.errors.DeviceTimeoutError` (no photo in time).
@@ -37,10 +37,10 @@ from cvmeasure.fileio import atomic_write_bytes
 
 __all__ = [
     "CapturedPhoto",
-    "Camera",
-    "GPhoto2Camera",
-    "WatchedFolderCamera",
-    "open_camera",
+    "CaptureDevice",
+    "GPhoto2Capture",
+    "WatchedFolderCapture",
+    "open_capture",
     "virtual_camera_env",
 ]
 
@@ -76,7 +76,7 @@ class CapturedPhoto:
 
 
 @runtime_checkable
-class Camera(Protocol):
+class CaptureDevice(Protocol):
     """What a calibration session needs from a camera."""
 
     def capture(self, name: str) -> CapturedPhoto:
@@ -97,7 +97,7 @@ def virtual_camera_env(folder: str | os.PathLike[str]) -> Iterator[Path]:
 
     Sets ``VCAMERADIR`` and switches ``IOLIBS`` to the wheel's ``vusb`` iolib
     (what python-gphoto2's own tests do) for the duration of the block; new
-    :class:`GPhoto2Camera` objects then find a "Nikon DSC D750" whose captures
+    :class:`GPhoto2Capture` objects then find a "Nikon DSC D750" whose captures
     are copies of the first JPEG in ``folder``. The environment is restored on exit.
     """
     require("gphoto2", "camera", "gphoto2 virtual camera")  # sets IOLIBS/CAMLIBS on import
@@ -120,7 +120,7 @@ def virtual_camera_env(folder: str | os.PathLike[str]) -> Iterator[Path]:
                 os.environ[key] = value
 
 
-class GPhoto2Camera:
+class GPhoto2Capture:
     """A camera driven through libgphoto2: capture, download, settings.
 
     Parameters
@@ -260,7 +260,7 @@ class GPhoto2Camera:
                 self._camera.exit()
             self._camera = None
 
-    def __enter__(self) -> GPhoto2Camera:
+    def __enter__(self) -> GPhoto2Capture:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -270,7 +270,7 @@ class GPhoto2Camera:
 # ----------------------------------------------------------------------------- watched folder
 
 
-class WatchedFolderCamera:
+class WatchedFolderCapture:
     """Photos written into a folder by tethering software, taken one at a time.
 
     ``capture(name)`` optionally calls ``trigger()`` (e.g. something that
@@ -357,7 +357,7 @@ class WatchedFolderCamera:
 # ----------------------------------------------------------------------------- by URL
 
 
-def open_camera(url: str, out_dir: str | os.PathLike[str], **options: Any) -> Camera:
+def open_capture(url: str, out_dir: str | os.PathLike[str], **options: Any) -> CaptureDevice:
     """Open a camera by URL.
 
     ``gphoto2://`` (first camera), ``gphoto2://usb:001,004`` (that port) or
@@ -374,7 +374,7 @@ def open_camera(url: str, out_dir: str | os.PathLike[str], **options: Any) -> Ca
     parsed = urlparse(url)
     if parsed.scheme == "gphoto2":
         port = unquote(url[len("gphoto2://") :]) or None
-        return GPhoto2Camera(out_dir, port=port, **options)
+        return GPhoto2Capture(out_dir, port=port, **options)
     if parsed.scheme == "folder":
-        return WatchedFolderCamera(unquote(parsed.path), out_dir, **options)
+        return WatchedFolderCapture(unquote(parsed.path), out_dir, **options)
     raise ValueError(f"unknown camera URL {url!r}; use gphoto2://[port] or folder:///path")

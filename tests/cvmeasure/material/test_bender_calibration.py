@@ -11,10 +11,10 @@ from cvmeasure.contracts import TrialTable
 from cvmeasure.driver.session import nominal_pin_for_loaded_deg
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import write_csv_rows
-from cvmeasure.material.calibration import (
+from cvmeasure.material.bender_calibration import (
     FORMAT,
     MODES,
-    Calibration,
+    BenderCalibration,
     calibration_plan,
     fit_calibration,
     load_calibration,
@@ -79,7 +79,7 @@ def test_round_trip_keeps_samples_models_and_compensation(tmp_path):
     assert s0["uncertainty_deg"]["springback_deg"] == pytest.approx(np.hypot(0.01, 0.01))
     assert set(d["scores"]) == {"linear", "cubic", "pchip", "physical"}
     again = load_calibration(path)
-    assert isinstance(again, Calibration)
+    assert isinstance(again, BenderCalibration)
     assert again.samples == cal.samples
     for target in (9.0, -9.0, 44.4, -101.0):
         assert again.compensate(target) == pytest.approx(cal.compensate(target), abs=1e-12)

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 from _calib_synth import look_at_pose, render_view
 
-from cvmeasure.calibration.detect import detect_board
-from cvmeasure.calibration.plane import (
+from cvmeasure.errors import InputError
+from cvmeasure.lens.detect import detect_board
+from cvmeasure.lens.plane import (
     estimate_plane,
     fit_plane,
     rectify_image,
     worst_angle_error_deg,
 )
-from cvmeasure.errors import InputError
 
 TILT_ATOL_DEG = 0.15  # the test renderer's corners scatter ~0.06 px at 960x640
 MAP_ATOL_MM = 0.1
@@ -135,7 +135,7 @@ def test_bad_inputs_raise_input_error(charuco_board, true_camera):
 def test_real_near_frontal_frames(shared_real):
     """SimpleSLAM frames whose tilt the data README gives (2.8, 3.2, 3.5 deg)."""
     from cvmeasure.board import ChessboardSpec
-    from cvmeasure.calibration.solve import calibrate_views
+    from cvmeasure.lens.solve import calibrate_views
 
     folder = shared_real / "opencv-contrib-simpleslam-chessboard-9x6" / "images"
     board = ChessboardSpec(9, 6, 20.0)

@@ -31,14 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
-from cvmeasure.calibration.warp import (
+from cvmeasure.errors import InputError
+from cvmeasure.lens.solve import CalibrationResult, calibrate_views
+from cvmeasure.lens.warp import (
     WARP_SIGNIFICANT_P,
     WarpTest,
     refine_board_warp,
     warp_test,
 )
-from cvmeasure.errors import InputError
 
 __all__ = ["WarpDecision", "decide_board_warp", "EXTENSION_MODEL", "LENS_SHIFT_SIGMAS"]
 

@@ -2,25 +2,25 @@
 
 Stages (each a module of pure functions returning frozen result dataclasses):
 
-* :mod:`~cvmeasure.calibration.detect` -- ChArUco / chessboard corners;
-* :mod:`~cvmeasure.calibration.solve` -- ``calibrateCameraExtended`` with a
+* :mod:`~cvmeasure.lens.detect` -- ChArUco / chessboard corners;
+* :mod:`~cvmeasure.lens.solve` -- ``calibrateCameraExtended`` with a
   distortion-model choice and iterative rejection of bad corners and views;
-* :mod:`~cvmeasure.calibration.uncertainty` -- projection uncertainty across
+* :mod:`~cvmeasure.lens.uncertainty` -- projection uncertainty across
   the image (mrcal-style) and the cross-validation difference of two halves;
-* :mod:`~cvmeasure.calibration.coverage` -- image coverage, tilt variety, and
+* :mod:`~cvmeasure.lens.coverage` -- image coverage, tilt variety, and
   what photos to add;
-* :mod:`~cvmeasure.calibration.plane` -- plane tilt, scale, the affine verdict
+* :mod:`~cvmeasure.lens.plane` -- plane tilt, scale, the affine verdict
   and the rectifying homography to board millimetres;
-* :mod:`~cvmeasure.calibration.pipeline` -- all of the above for a set of photos,
+* :mod:`~cvmeasure.lens.pipeline` -- all of the above for a set of photos,
   and the camera JSON record.
 """
 
-from cvmeasure.calibration.coverage import Coverage, image_coverage
-from cvmeasure.calibration.detect import BoardDetection, detect_board
-from cvmeasure.calibration.pipeline import CalibrationReport, calibrate_detections, detect_photos
-from cvmeasure.calibration.plane import PlaneModel, estimate_plane, fit_plane, rectify_image
-from cvmeasure.calibration.solve import CalibrationResult, calibrate_views
-from cvmeasure.calibration.uncertainty import (
+from cvmeasure.lens.coverage import Coverage, image_coverage
+from cvmeasure.lens.detect import BoardDetection, detect_board
+from cvmeasure.lens.pipeline import CalibrationReport, calibrate_detections, detect_photos
+from cvmeasure.lens.plane import PlaneModel, estimate_plane, fit_plane, rectify_image
+from cvmeasure.lens.solve import CalibrationResult, calibrate_views
+from cvmeasure.lens.uncertainty import (
     CrossValidation,
     ProjectionDiff,
     ProjectionUncertainty,

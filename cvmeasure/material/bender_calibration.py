@@ -5,7 +5,7 @@ both directions (loaded and unloaded bend angles measured by the camera, their
 uncertainties, the pin commands), the springback and motion curves fitted to
 them (:mod:`cvmeasure.material.compensation`) and how every model scored.
 The raw samples are always kept, so any model can be refitted later
-(:meth:`Calibration.refit`).
+(:meth:`BenderCalibration.refit`).
 
 Format (JSON, all angles in degrees, signed angles counter-clockwise positive)::
 
@@ -68,7 +68,7 @@ from cvmeasure.material.compensation import (
 __all__ = [
     "FORMAT",
     "MODES",
-    "Calibration",
+    "BenderCalibration",
     "calibration_plan",
     "fit_calibration",
     "read_trials_csv",
@@ -131,7 +131,7 @@ def _mode_name(angles: Sequence[float]) -> str:
 
 
 @dataclass(frozen=True)
-class Calibration:
+class BenderCalibration:
     """A material calibration: raw samples, fitted compensation and model scores.
 
     Build one with :func:`fit_calibration`; use :meth:`compensate` for pin
@@ -163,7 +163,7 @@ class Calibration:
 
     def refit(
         self, model: SpringbackModel, *, motion_model: MotionModel | None = None
-    ) -> Calibration:
+    ) -> BenderCalibration:
         """The same samples with another springback (and motion) model."""
         mm = motion_model or next(iter(self.compensation.motion.values())).model
         new = fit_calibration(
@@ -196,7 +196,7 @@ class Calibration:
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> Calibration:
+    def from_dict(cls, d: Mapping[str, Any]) -> BenderCalibration:
         """Build from a dictionary already checked by :func:`validate_calibration_dict`."""
         samples = tuple(
             Trial.from_dict(s) for direction in DIRECTIONS for s in d["samples"].get(direction, [])
@@ -255,7 +255,7 @@ def fit_calibration(
     mode: str | None = None,
     angles_deg: Sequence[float] | None = None,
     provenance: Mapping[str, Any] | None = None,
-) -> Calibration:
+) -> BenderCalibration:
     """Fit the compensation to calibration samples and score every springback model.
 
     Parameters
@@ -287,7 +287,7 @@ def fit_calibration(
         targets = sorted({s.target_deg for s in samples if s.target_deg is not None})
         angles_deg = tuple(targets)
     angles = tuple(float(a) for a in angles_deg)
-    return Calibration(
+    return BenderCalibration(
         samples=tuple(samples),
         compensation=comp,
         scores=_score_models(samples),
@@ -441,18 +441,18 @@ def validate_calibration_dict(d: Any, path: str | os.PathLike[str] = "<calibrati
                     raise _fail(path, f"{where}.coef", f"{model} needs {need} coefficients")
 
 
-def save_calibration(path: str | os.PathLike[str], calibration: Calibration) -> Path:
+def save_calibration(path: str | os.PathLike[str], calibration: BenderCalibration) -> Path:
     """Validate, then write the calibration JSON atomically; return the path."""
     d = calibration.to_dict()
     validate_calibration_dict(d, path)
     return atomic_write_json(path, d)
 
 
-def load_calibration(path: str | os.PathLike[str]) -> Calibration:
+def load_calibration(path: str | os.PathLike[str]) -> BenderCalibration:
     """Read and validate a calibration JSON; InputError names the file and the problem."""
     d = read_json(path, what="calibration JSON")
     validate_calibration_dict(d, path)
     try:
-        return Calibration.from_dict(d)
+        return BenderCalibration.from_dict(d)
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(path, f"invalid calibration: {exc}") from None

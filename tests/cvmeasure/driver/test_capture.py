@@ -9,11 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
-from cvmeasure.driver.camera import (
-    Camera,
-    GPhoto2Camera,
-    WatchedFolderCamera,
-    open_camera,
+from cvmeasure.driver.capture import (
+    CaptureDevice,
+    GPhoto2Capture,
+    WatchedFolderCapture,
+    open_capture,
     virtual_camera_env,
 )
 from cvmeasure.errors import DeviceError, DeviceTimeoutError
@@ -33,8 +33,8 @@ def vcamera_folder(tmp_path):
 
 def test_gphoto2_virtual_camera_capture_and_settings(tmp_path, vcamera_folder):
     root, jpeg, image = vcamera_folder
-    with virtual_camera_env(root), GPhoto2Camera(tmp_path / "out") as cam:
-        assert isinstance(cam, Camera)
+    with virtual_camera_env(root), GPhoto2Capture(tmp_path / "out") as cam:
+        assert isinstance(cam, CaptureDevice)
         assert "D750" in cam.model
         first = cam.capture("loaded_001")
         second = cam.capture("unloaded_001")
@@ -63,18 +63,18 @@ def test_gphoto2_wrong_port_and_no_camera(tmp_path, vcamera_folder):
         virtual_camera_env(root),
         pytest.raises(DeviceError, match="no camera on gphoto2 port usb:009,009"),
     ):
-        open_camera("gphoto2://usb:009,009", tmp_path)
+        open_capture("gphoto2://usb:009,009", tmp_path)
     # outside the virtual environment this machine has no camera at all
     with pytest.raises(DeviceError, match="no camera found|could not open"):
-        GPhoto2Camera(tmp_path)
+        GPhoto2Capture(tmp_path)
 
 
 def test_watched_folder_waits_for_a_complete_new_file(tmp_path):
     incoming = tmp_path / "incoming"
     incoming.mkdir()
     (incoming / "old.jpg").write_bytes(b"old")  # present before: never taken
-    cam = open_camera(f"folder://{incoming}", tmp_path / "session", timeout_s=5.0, settle_s=0.1)
-    assert isinstance(cam, WatchedFolderCamera)
+    cam = open_capture(f"folder://{incoming}", tmp_path / "session", timeout_s=5.0, settle_s=0.1)
+    assert isinstance(cam, WatchedFolderCapture)
     payload = bytes(range(256)) * 400
 
     def tether_writes_slowly():
@@ -92,7 +92,7 @@ def test_watched_folder_waits_for_a_complete_new_file(tmp_path):
     assert photo.path == tmp_path / "session" / "loaded_001.jpg"
     assert photo.path.read_bytes() == payload  # not a half-written copy
     with pytest.raises(DeviceTimeoutError, match="no new photo appeared"):
-        WatchedFolderCamera(incoming, tmp_path / "s2", timeout_s=0.2).capture("x")
+        WatchedFolderCapture(incoming, tmp_path / "s2", timeout_s=0.2).capture("x")
 
 
 def test_trigger_and_bad_urls(tmp_path):
@@ -104,23 +104,23 @@ def test_trigger_and_bad_urls(tmp_path):
         calls.append(1)
         (incoming / f"IMG_{len(calls)}.png").write_bytes(b"png")
 
-    cam = WatchedFolderCamera(incoming, tmp_path / "out", settle_s=0.05, trigger=trigger)
+    cam = WatchedFolderCapture(incoming, tmp_path / "out", settle_s=0.05, trigger=trigger)
     assert cam.capture("a").path.read_bytes() == b"png"
     assert cam.capture("b").path.name == "b.png" and len(calls) == 2
     with pytest.raises(DeviceError, match="does not exist"):
-        WatchedFolderCamera(tmp_path / "missing", tmp_path)
+        WatchedFolderCapture(tmp_path / "missing", tmp_path)
     with pytest.raises(ValueError, match="unknown camera URL"):
-        open_camera("ftp://x", tmp_path)
+        open_capture("ftp://x", tmp_path)
 
 
 def test_simulated_camera_renders_the_machine_state(tmp_path):
     from cvmeasure.imageio import read_photo
     from cvmeasure.kit import default_kit
     from cvmeasure.markers.measure import measure_machine_photo
-    from cvmeasure_datasets.simcamera import PhotoState, SimulatedCamera
+    from cvmeasure_datasets.simcapture import PhotoState, SimulatedCapture
 
     state = PhotoState(pin_angle_deg=-25.0, bend_angle_deg=-37.5)
-    cam = SimulatedCamera(tmp_path, lambda: state, scale=0.2, seed=5)
+    cam = SimulatedCapture(tmp_path, lambda: state, scale=0.2, seed=5)
     shot = cam.capture("loaded_001")
     assert shot.path == tmp_path / "loaded_001.jpg" and shot.camera is not None
     assert shot.truth["bend_angle_deg"] == pytest.approx(-37.5, abs=1e-9)

@@ -1,4 +1,4 @@
-"""Board warp solved with the lens (cvmeasure.calibration.warp), on synthetic corners.
+"""Board warp solved with the lens (cvmeasure.lens.warp), on synthetic corners.
 
 The warped corners are generated here from mrcal's published formula written out
 independently (``z = wx 4 xr (1 - xr) + wy 4 yr (1 - yr)``), not with the module's code.
@@ -12,12 +12,12 @@ import pytest
 from _calib_synth import random_poses
 
 from cvmeasure.board import ChessboardSpec
-from cvmeasure.calibration.detect import BoardDetection
-from cvmeasure.calibration.pipeline import calibrate_detections
-from cvmeasure.calibration.solve import calibrate_views
-from cvmeasure.calibration.uncertainty import parameter_covariance
-from cvmeasure.calibration.warp import warp_test
 from cvmeasure.camera import CameraModel
+from cvmeasure.lens.detect import BoardDetection
+from cvmeasure.lens.pipeline import calibrate_detections
+from cvmeasure.lens.solve import calibrate_views
+from cvmeasure.lens.uncertainty import parameter_covariance
+from cvmeasure.lens.warp import warp_test
 
 BOARD = ChessboardSpec(inner_x=9, inner_y=6, square_mm=25.0)
 CAMERA = CameraModel(

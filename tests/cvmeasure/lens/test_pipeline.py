@@ -9,7 +9,7 @@ import pytest
 from _calib_synth import random_poses, synthetic_detections
 
 from cvmeasure.board import board_from_dict
-from cvmeasure.calibration.pipeline import calibrate_detections
+from cvmeasure.lens.pipeline import calibrate_detections
 
 
 def _printed(report) -> list[str]:
@@ -80,7 +80,7 @@ def test_auto_model_keeps_distortion_the_held_out_error_cannot_see(charuco_board
     corners (F-test), and model 1's error shows at the edge of the image, where the
     whole-image held-out error weighs it as much as the centre: a k1 k2 lens gets 2, a
     k1 k2 p1 p2 k3 lens 5, and auto's model is closer to the truth."""
-    from cvmeasure.calibration.uncertainty import projection_diff
+    from cvmeasure.lens.uncertainty import projection_diff
 
     size = true_camera.image_size_px
     for dist, want in (
@@ -121,7 +121,7 @@ def test_a_dropped_view_leaves_no_trace(charuco_board, true_camera):
     """A foreign view (another lens) first costs good corners, then is dropped: every
     corner of the remaining views is re-admitted, so the result is that of the good
     views alone."""
-    from cvmeasure.calibration.solve import calibrate_views
+    from cvmeasure.lens.solve import calibrate_views
 
     size = true_camera.image_size_px
     poses = random_poses(charuco_board, 10, 41, distance_mm=380.0)
@@ -145,8 +145,8 @@ def test_a_model_simpler_than_the_lens_is_warned_about_though_the_halves_agree()
     false-negative check). The richer model's F-test on the same corners catches it; on a
     lens that is exactly model 1 it stays quiet."""
     from cvmeasure.board import ChessboardSpec
-    from cvmeasure.calibration.uncertainty import projection_diff
     from cvmeasure.camera import CameraModel
+    from cvmeasure.lens.uncertainty import projection_diff
 
     board = ChessboardSpec(inner_x=9, inner_y=6, square_mm=25.0)
     k = np.array([[1000.0, 0.0, 645.0], [0.0, 1002.0, 478.0], [0.0, 0.0, 1.0]])
