@@ -27,6 +27,8 @@ from cvmeasure.errors import InputError
 from cvmeasure.warning import has_code
 
 SECTION = "Finished parts: ours vs the seed's ellipse and sagitta methods"
+#: the result keys' labels of the part methods (the JSON and RESULTS.md columns kept)
+_LABEL = {"centreline_fit": "ours", "seed_ellipse": "ellipse", "seed_sagitta": "sagitta"}
 
 RADIUS_TARGET_PCT = 0.3
 BEND_TARGET_DEG = 0.03
@@ -137,7 +139,8 @@ def _run_case(case: dict, scale: float, camera) -> dict:
     }
     if case["kind"] == "arc":
         true_seg = truth["arc_angle_deg"] / case["divisions"]
-        for name, res in m.methods.items():
+        for method, res in m.methods.items():
+            name = _LABEL.get(method, method)
             out[f"{name}_radius_err_pct"] = 100.0 * (res.radius_mm / truth["radius_mm"] - 1.0)
             out[f"{name}_segment_bend_err_deg"] = res.segment_bend_deg - true_seg
     return out
