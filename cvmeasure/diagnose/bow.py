@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, _held_out_excess
+from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, held_out_excess
 from cvmeasure.diagnose.fitting import ModelFit, fit_model, group_folds, grouped_kfold_cv
 from cvmeasure.diagnose.result import Diagnosis
 from cvmeasure.diagnose.rules import MIN_CV_GAIN, cv_groups
@@ -38,7 +38,7 @@ class _BowDecision:
     bowed_fits: dict[str, ModelFit] = field(default_factory=dict)  # each rival with the bow
 
 
-def _bow_decides(
+def bow_decides(
     trials: TrialTable,
     params: SimParams,
     result: Diagnosis,
@@ -86,7 +86,7 @@ def _bow_decides(
         bowed_res[name] = held.residual_after_discrepancy_deg(trials)
         bowed[name] = held.rmse_after_discrepancy_deg(trials)
     best_bowed = min(BOW_RIVALS, key=lambda n: bowed[n])
-    excess = _held_out_excess(straight.cv_residual_deg, bowed_res[best_bowed], groups)
+    excess = held_out_excess(straight.cv_residual_deg, bowed_res[best_bowed], groups)
     if excess is None:
         return None
     # two models of the machine, each with its better rival: the one whose rival explains

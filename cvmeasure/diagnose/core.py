@@ -46,9 +46,9 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.bow import BOW_RIVALS, _bow_decides
+from cvmeasure.diagnose.bow import BOW_RIVALS, bow_decides
 from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS as TIE_STANDARD_ERRORS
-from cvmeasure.diagnose.evidence import _held_out_excess as _held_out_excess
+from cvmeasure.diagnose.evidence import held_out_excess as held_out_excess
 from cvmeasure.diagnose.fitting import (
     ModelFit,
     discrepancy_form,
@@ -61,7 +61,7 @@ from cvmeasure.diagnose.misfit import (
     curve_rms_deg,
     springback_rms_deg,
 )
-from cvmeasure.diagnose.naming import _name_causes, _scores, _settle_pair, _try_causes
+from cvmeasure.diagnose.naming import candidate_scores, name_causes, settle_pair, try_causes
 from cvmeasure.diagnose.residuals import residual_trends
 from cvmeasure.diagnose.result import CandidateResult, Diagnosis
 from cvmeasure.diagnose.rules import (
@@ -70,22 +70,22 @@ from cvmeasure.diagnose.rules import (
     MIN_DELTA_BIC,
     MIN_TRIALS,
     RESOLUTION_DEG,
-    _Context,
-    _subset_by_group,
+    Context,
     cv_groups,
+    subset_by_group,
 )
 from cvmeasure.diagnose.verdict import (
-    _baseline,
-    _check_interval,
-    _check_misfit,
-    _first_verdict,
-    _leftover,
-    _terms_or_name,
-    _tie_notes,
-    _ties,
-    _weigh_against_terms,
-    _weights,
-    _widen,
+    baseline,
+    check_interval,
+    check_misfit,
+    first_verdict,
+    leftover_check,
+    terms_or_name,
+    tie_notes,
+    tie_report,
+    verdict_weights,
+    weigh_against_terms,
+    widen,
 )
 from cvmeasure.sim.effects import EFFECT_NAMES, EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
@@ -247,7 +247,7 @@ def _diagnose_form(
     # not asked of more trials than MAX_TRIALS (diagnosed on a subset)
     bow = None
     if len(trials) <= MAX_TRIALS:
-        bow = _bow_decides(trials, params, result, tuple(base_effects), folds, min_cv_gain)
+        bow = bow_decides(trials, params, result, tuple(base_effects), folds, min_cv_gain)
     if bow is None:
         return _with_follow_up(trials, result, base_effects, follow_up)
     straight = result
@@ -340,7 +340,7 @@ def _diagnose_once(
     groups, note = cv_groups(trials)
     if note:
         notes.append(note)
-    ctx = _Context(
+    ctx = Context(
         trials=trials,
         params=params,
         base_effects=tuple(base_effects),
@@ -355,22 +355,22 @@ def _diagnose_once(
     )
     base_cv = base_cv_res.rmse_deg
     base_cv_disc = base_cv_res.rmse_after_discrepancy_deg(trials)
-    results = _try_causes(ctx, base_fit, base_cv_disc, names)
-    naming = _name_causes(ctx, results, base_fit, base_cv, max_causes)
-    naming, pair_tie = _settle_pair(naming, results, groups)
+    results = try_causes(ctx, base_fit, base_cv_disc, names)
+    naming = name_causes(ctx, results, base_fit, base_cv, max_causes)
+    naming, pair_tie = settle_pair(naming, results, groups)
     notes.extend(naming.notes)
-    base = _baseline(ctx, base_fit, base_cv, base_cv_disc, groups)
-    scores = _scores(results, naming)
-    v = _first_verdict(ctx, base, naming, scores, groups, notes)
-    _weigh_against_terms(ctx, base, v, naming, results, scores, groups)
-    refused_cv = _check_interval(ctx, base, v, results, groups)
-    _terms_or_name(ctx, base, v, refused_cv)
-    _widen(ctx, v, naming, results, groups)
-    evidence = _weights(base, scores)
-    order_ties = _ties(ctx, base, v, naming, results, pair_tie, groups)
-    _tie_notes(v, evidence, order_ties)
-    misfit = _check_misfit(ctx, base, v)
-    leftover = _leftover(ctx, base, v)
+    base = baseline(ctx, base_fit, base_cv, base_cv_disc, groups)
+    scores = candidate_scores(results, naming)
+    v = first_verdict(ctx, base, naming, scores, groups, notes)
+    weigh_against_terms(ctx, base, v, naming, results, scores, groups)
+    refused_cv = check_interval(ctx, base, v, results, groups)
+    terms_or_name(ctx, base, v, refused_cv)
+    widen(ctx, v, naming, results, groups)
+    evidence = verdict_weights(base, scores)
+    order_ties = tie_report(ctx, base, v, naming, results, pair_tie, groups)
+    tie_notes(v, evidence, order_ties)
+    misfit = check_misfit(ctx, base, v)
+    leftover = leftover_check(ctx, base, v)
     return Diagnosis(
         cause=v.cause,
         params=v.fit.param_values(),
@@ -415,7 +415,7 @@ def _admitted(
     notes: list[str] = []
     if len(trials) > MAX_TRIALS:
         n_all = len(trials)
-        trials = _subset_by_group(trials, MAX_TRIALS)
+        trials = subset_by_group(trials, MAX_TRIALS)
         notes.append(
             f"diagnosed on a random subset of {len(trials)} of the {n_all} trials (whole "
             "parts, order kept) to bound the time; intervals are those of the subset"

@@ -48,22 +48,22 @@ class DiscrepancyForm:
 
 
 _DEFAULT_FORM = DiscrepancyForm()
-_FORM: ContextVar[DiscrepancyForm] = ContextVar("discrepancy_form", default=_DEFAULT_FORM)
+FORM: ContextVar[DiscrepancyForm] = ContextVar("discrepancy_form", default=_DEFAULT_FORM)
 
 
 @contextmanager
 def discrepancy_form(form: DiscrepancyForm) -> Iterator[DiscrepancyForm]:
     """Every fit, profile and interval within the block uses ``form``."""
-    token = _FORM.set(form)
+    token = FORM.set(form)
     try:
         yield form
     finally:
-        _FORM.reset(token)
+        FORM.reset(token)
 
 
 def current_form() -> DiscrepancyForm:
     """The discrepancy's form in use (:func:`discrepancy_form`)."""
-    return _FORM.get()
+    return FORM.get()
 
 
 #: The learned no-effect curve: Legendre up to this degree in the bend magnitude (one
@@ -98,7 +98,7 @@ def learned_form(trials: TrialTable) -> DiscrepancyForm:
 def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
     """Design matrix (3 N, 2 (degree + 1)) of the discrepancy over stacked observations
     (the form in use: :func:`current_form`)."""
-    form = _FORM.get()
+    form = FORM.get()
     n = len(trials)
     lo, hi = form.span_deg
     u = np.clip((np.abs(trials.commanded_pin_deg) - lo) / ((hi - lo) / 2.0) - 1.0, -1.0, 1.0)
@@ -114,7 +114,7 @@ def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
 Factor = tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]]
 
 
-def _discrepancy_factor(basis: NDArray[np.float64]) -> Factor:
+def discrepancy_factor(basis: NDArray[np.float64]) -> Factor:
     """(columns used, q, R) of the QR factorisation of the discrepancy's used columns."""
     used = np.any(basis != 0, axis=0)
     if not used.any():
@@ -123,15 +123,15 @@ def _discrepancy_factor(basis: NDArray[np.float64]) -> Factor:
     return used, q, tri
 
 
-def _profile_discrepancy(
+def profile_discrepancy(
     r: NDArray[np.float64], basis: NDArray[np.float64], factor: Factor | None = None
 ) -> NDArray[np.float64]:
     """Bounded least-squares discrepancy coefficients for residuals ``r`` (finite rows):
     the unconstrained solution when it lies within the bounds, else bounded-variable
     least squares. ``factor``: :func:`_discrepancy_factor` of ``basis``, when known."""
-    bound = _FORM.get().bound_deg
+    bound = FORM.get().bound_deg
     beta = np.zeros(basis.shape[1])
-    used, q, tri = factor if factor is not None else _discrepancy_factor(basis)
+    used, q, tri = factor if factor is not None else discrepancy_factor(basis)
     if not used.any():
         return beta
     # ||r - a b||^2 = ||q^T r - R b||^2 + const (a = q R): the same minimisers on the

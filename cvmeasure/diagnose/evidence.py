@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 TIE_STANDARD_ERRORS = 1.0
 
 
-def _held_out_excess(
+def held_out_excess(
     named_deg: NDArray[np.float64], other_deg: NDArray[np.float64], groups: Sequence[str]
 ) -> tuple[float, float] | None:
     """(mean, standard error) per observation of ``other``'s squared held-out residuals less
@@ -42,7 +42,7 @@ def _held_out_excess(
     return mean, math.sqrt(g / (g - 1) * float(np.sum(dev**2))) / float(ok.sum())
 
 
-def _held_out_tie(
+def held_out_tie(
     named: CandidateResult,
     others: Sequence[CandidateResult],
     groups: Sequence[str],
@@ -61,7 +61,7 @@ def _held_out_tie(
     for c in others:
         if c is named or not c.accepted or c.cv_residual_deg is None:
             continue
-        excess = _held_out_excess(named.cv_residual_deg, c.cv_residual_deg, groups)
+        excess = held_out_excess(named.cv_residual_deg, c.cv_residual_deg, groups)
         if excess is not None and excess[0] <= TIE_STANDARD_ERRORS * excess[1]:
             tied.append(label(c))
     return (label(named), *tied) if tied else ()
@@ -72,10 +72,10 @@ TIE_RATIO = math.exp(-1.0)  # delta BIC of 2
 
 
 #: The explanation "terms outside the catalogue" in the evidence weights.
-_DISCOVERED = "unexplained (discovered terms)"
+DISCOVERED = "unexplained (discovered terms)"
 
 
-def _evidence(scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
+def evidence_weights(scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
     """Evidence weights (BIC approximation of posterior probabilities, equal priors) of
     the explanations scored by :func:`_scores` (and the discovered terms); best first."""
     top = max(scores.values())
@@ -84,7 +84,7 @@ def _evidence(scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
     return tuple(sorted(((k, v / total) for k, v in raw.items()), key=lambda kv: -kv[1]))
 
 
-def _alone_excluding_no_effect(
+def alone_excluding_no_effect(
     results: Sequence[CandidateResult], causes: Sequence[str]
 ) -> CandidateResult | None:
     """Of a refused pair's causes, the accepted single one whose own interval excludes no
@@ -95,12 +95,12 @@ def _alone_excluding_no_effect(
         c
         for c in results
         if c.accepted and len(c.fit.causes) == 1 and c.cause in causes
-        if not _holds_no_effect(c.fit)
+        if not holds_no_effect(c.fit)
     ]
     return min(alone, key=lambda c: c.cv_discrepancy_rmse_deg, default=None)
 
 
-def _holds_no_effect(fit: ModelFit) -> list[str]:
+def holds_no_effect(fit: ModelFit) -> list[str]:
     """The causes of ``fit`` whose 95 % interval holds 0 (every catalogue effect's
     no-effect value).
 

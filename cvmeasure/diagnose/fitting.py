@@ -21,44 +21,44 @@ from numpy.typing import NDArray
 from scipy import special as special
 
 from cvmeasure.contracts import BLOCKS, TrialTable
-from cvmeasure.diagnose.discrepancy import _FORM, _profile_discrepancy
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_BOUND_DEG as DISCREPANCY_BOUND_DEG
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_DEGREE as DISCREPANCY_DEGREE
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_P as DISCREPANCY_P
+from cvmeasure.diagnose.discrepancy import FORM, profile_discrepancy
 from cvmeasure.diagnose.discrepancy import DiscrepancyForm as DiscrepancyForm
 from cvmeasure.diagnose.discrepancy import current_form as current_form
 from cvmeasure.diagnose.discrepancy import discrepancy_basis as discrepancy_basis
 from cvmeasure.diagnose.discrepancy import discrepancy_form as discrepancy_form
 from cvmeasure.diagnose.discrepancy import learned_form as learned_form
-from cvmeasure.diagnose.forms import _DRIFT_RATE_GRID as _DRIFT_RATE_GRID
 from cvmeasure.diagnose.forms import (
-    _STRENGTH_BOUNDS,
     ALONE_FORMS,
     FORM_PRIOR_SD,
+    STRENGTH_BOUNDS,
     Shape,
-    _as_causes,
-    _shape_bounds,
+    as_causes,
     nuisance_for,
+    shape_bounds,
 )
+from cvmeasure.diagnose.forms import DRIFT_RATE_GRID as DRIFT_RATE_GRID
 from cvmeasure.diagnose.forms import FORMS as FORMS
 from cvmeasure.diagnose.model_fit import CrossValidation, ModelFit
 from cvmeasure.diagnose.predict import (
-    _drift_rate_residuals,
-    _scaled,
+    drift_rate_residuals,
     predict,
     residuals,
+    scaled,
 )
 from cvmeasure.diagnose.problem import (
-    _Fitted,
-    _fitted_point,
-    _Problem,
-    _profile_drifts,
-    _solve,
-    _start,
-    _whole_step_secants,
+    Fitted,
+    Problem,
+    fitted_point,
+    profile_drifts,
+    solve_problem,
+    start_vector,
+    whole_step_secants,
 )
-from cvmeasure.diagnose.solve import _interval as _interval
-from cvmeasure.diagnose.solve import _standard_errors as _standard_errors
+from cvmeasure.diagnose.solve import profile_interval as profile_interval
+from cvmeasure.diagnose.solve import standard_errors as standard_errors
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
 
@@ -177,19 +177,19 @@ def fit_model(
         The residuals and Jacobian already known at the point ``x`` (a fold started
         where the fit on every trial ended; see :class:`_Solution`).
     """
-    learned = _FORM.get().fit_with_causes
+    learned = FORM.get().fit_with_causes
     discrepancy = discrepancy or learned
     # the learned curve takes the material's and the geometry's shape: the strength and
     # the die radius are held at the user's values (fitted beside it they are not
     # separable from it and wander to their bounds)
     nuisance = nuisance and not learned
-    names = _as_causes(causes)
+    names = as_causes(causes)
     forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
     if isinstance(start, ModelFit) and len(start.shapes) == len(names):
         forms = list(start.shapes)
     if len(names) > 1:  # in a pair these keep their narrow form (see ALONE_FORMS)
         forms = [() if c in ALONE_FORMS else f for c, f in zip(names, forms, strict=True)]
-    problem = _Problem(
+    problem = Problem(
         trials,
         params,
         base_effects,
@@ -200,19 +200,19 @@ def fit_model(
         rows=rows,
         discrepancy=discrepancy,
         seed=_seed,
-        drift_rates=_drift_rate_residuals,
+        drift_rates=drift_rate_residuals,
     )
-    x0, alternatives = _start(problem, start, known)
-    sol = _solve(problem, x0, alternatives, learned)
+    x0, alternatives = start_vector(problem, start, known)
+    sol = solve_problem(problem, x0, alternatives, learned)
     searched = {c for c in names if start is None and c not in (known or {})}
-    sol = _profile_drifts(problem, sol, searched)
-    point, fitted = _fitted_point(problem, sol, learned)
+    sol = profile_drifts(problem, sol, searched)
+    point, fitted = fitted_point(problem, sol, learned)
     if not intervals:
         return dataclasses.replace(point, residual_deg=problem.full(sol.x))
     return _with_intervals(problem, point, fitted, learned)
 
 
-def _unfitted_columns(problem: _Problem, fitted: _Fitted) -> NDArray[np.float64]:
+def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     """(observation rows, one column per prior): the change of the residuals per prior
     standard deviation of each machine parameter held at its value
     (:func:`unfitted_priors`) and of each form's continuous shape chosen from a grid
@@ -239,7 +239,7 @@ def _unfitted_columns(problem: _Problem, fitted: _Fitted) -> NDArray[np.float64]
             if c == "drift" and not shape.get("home_shift"):
                 continue  # the load exponent is only tried with the home shift
             value = shape.get(key, 0.0)
-            lo, hi = _shape_bounds(c, key)
+            lo, hi = shape_bounds(c, key)
             step = sd if value + sd <= hi or value - sd < lo else -sd  # inside the bounds
             shape[key] = value + step
             moved_forms = [*forms[:i], tuple(shape.items()), *forms[i + 1 :]]
@@ -257,7 +257,7 @@ def _unfitted_columns(problem: _Problem, fitted: _Fitted) -> NDArray[np.float64]
     return np.column_stack(unfitted) if unfitted else np.zeros((int(ok.sum()), 0))
 
 
-def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned: bool) -> ModelFit:
+def _with_intervals(problem: Problem, point: ModelFit, fitted: Fitted, learned: bool) -> ModelFit:
     """``point`` with its 95 % intervals and model-form p-value, what is not fitted carried
     (:func:`~cvmeasure.diagnose.solve._standard_errors`)."""
     sol, basis_ok, dof, lay = fitted.sol, fitted.basis_ok, fitted.dof, problem.layout
@@ -272,7 +272,7 @@ def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned
     rows, trials = problem.rows, problem.trials
     command = trials.commanded_pin_deg if rows is None else trials.commanded_pin_deg[rows]
     cluster = np.unique(np.round(command, 1), return_inverse=True)[1]
-    jac = _whole_step_secants(problem, sol)
+    jac = whole_step_secants(problem, sol)
     if learned:
         # the curve was fitted with the causes (``jac`` is of the profiled residuals): the
         # unfitted priors count only off it, and it has no prior of its own to add
@@ -282,7 +282,7 @@ def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned
         jac = np.array(jac, dtype=np.float64, copy=True)
         jac[:, lay.strength] = 0.0
     held = 1 if learned else 0  # the strength held: no column of its own
-    se, shift, model_form_p = _standard_errors(
+    se, shift, model_form_p = standard_errors(
         jac[:, held:],
         fitted.rss_deg2 / max(dof, 1),
         basis_ok,
@@ -298,7 +298,7 @@ def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned
     return dataclasses.replace(
         point,
         intervals=tuple(
-            _interval(
+            profile_interval(
                 float(center[i]),
                 float(se[i]),
                 dof,
@@ -308,8 +308,8 @@ def _with_intervals(problem: _Problem, point: ModelFit, fitted: _Fitted, learned
             )
             for i, spec in ((lay.cause(k), spec) for k, spec in enumerate(problem.specs))
         ),
-        strength_interval=_interval(
-            float(center[s]), float(se[s]), dof, *_STRENGTH_BOUNDS, keep=float(sol.x[s])
+        strength_interval=profile_interval(
+            float(center[s]), float(se[s]), dof, *STRENGTH_BOUNDS, keep=float(sol.x[s])
         ),
         model_form_p=model_form_p,
     )
@@ -338,8 +338,8 @@ def grouped_kfold_cv(
     """Held-out residuals: fit on all folds but one, predict the one, for every fold
     (with ``discrepancy``, the model and the bounded discrepancy are fitted together on
     the other folds and both predict the held-out one)."""
-    discrepancy = discrepancy or _FORM.get().fit_with_causes
-    names = _as_causes(causes)
+    discrepancy = discrepancy or FORM.get().fit_with_causes
+    names = as_causes(causes)
     n = len(trials)
     n_blocks = len(BLOCKS)
     out = np.full(n_blocks * n, np.nan)
@@ -347,7 +347,7 @@ def grouped_kfold_cv(
     basis = discrepancy_basis(trials)
     # the nuisance geometry stays at its full-data fit within the folds (the same for
     # every model compared: the machine is measured once); strength and causes are refitted
-    fold_params = _scaled(params, 1.0, full_fit.nuisance) if full_fit is not None else params
+    fold_params = scaled(params, 1.0, full_fit.nuisance) if full_fit is not None else params
     seed = None
     state = full_fit.solution if full_fit is not None else None
     if (
@@ -383,13 +383,13 @@ def grouped_kfold_cv(
         mask = np.tile(held, n_blocks)
         out[mask] = r[mask]
         out_d[mask] = (r - basis @ np.asarray(fit.discrepancy))[mask]
-    if _FORM.get().fit_with_causes:
+    if FORM.get().fit_with_causes:
         # the learned curve is the machine's no-effect relation, a nuisance like its
         # geometry: held at its fit on every trial (profiled from the held-out residuals
         # together), the causes are what is held out
         ok = np.isfinite(out)
         out_d = np.full_like(out, np.nan)
-        out_d[ok] = out[ok] - basis[ok] @ _profile_discrepancy(out[ok], basis[ok])
+        out_d[ok] = out[ok] - basis[ok] @ profile_discrepancy(out[ok], basis[ok])
         out = out_d
     return CrossValidation(
         causes=names, residual_deg=out, residual_discrepancy_deg=out_d if discrepancy else None

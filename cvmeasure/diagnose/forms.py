@@ -14,8 +14,8 @@ import numpy as np
 from cvmeasure.sim.effects import EFFECTS
 from cvmeasure.sim.params import SimParams
 
-_STRENGTH_BOUNDS = (0.2, 5.0)
-_GRID_POINTS = 9
+STRENGTH_BOUNDS = (0.2, 5.0)
+GRID_POINTS = 9
 
 
 @dataclass(frozen=True)
@@ -91,14 +91,14 @@ ALONE_FORMS: frozenset[str] = frozenset({"springback_asymmetry"})
 #: quantised form is kept when it fits better (see :func:`_profile_quantised_drift`).
 DRIFT_STEPS_DEG: tuple[float, ...] = (0.03, 0.06, 0.12)
 #: Rates profiled for a quantised drift, as multiples of the continuous form's rate.
-_DRIFT_RATE_FACTORS = np.linspace(0.4, 1.6, 25)
+DRIFT_RATE_FACTORS = np.linspace(0.4, 1.6, 25)
 #: Rates (head deg per bend at the reference torque) profiled for a quantised drift
 #: whatever the continuous form's rate: with whole steps the home shift of alternating
 #: directions need not cancel (a loss of about half a step per bend loses a step on every
 #: other bend, all one way on a sweep: a steady walk of home), so the continuous form's
 #: rate (near 0, or several times the truth, on such plans) is no guide to it. 12 % apart;
 #: the best point is profiled again on a fine grid about it (+-6 %).
-_DRIFT_RATE_GRID = np.geomspace(0.01, 0.5, 35)
+DRIFT_RATE_GRID = np.geomspace(0.01, 0.5, 35)
 
 #: Continuous shape parameters of a form chosen from the grid of :data:`FORMS`, with the
 #: standard deviation of the grid's rounding (uniform within half a step: step / sqrt(12)):
@@ -109,13 +109,13 @@ FORM_PRIOR_SD: dict[str, tuple[tuple[str, float], ...]] = {
 }
 
 
-def _shape_bounds(cause: str, key: str) -> tuple[float, float]:
+def shape_bounds(cause: str, key: str) -> tuple[float, float]:
     """Bounds of a shape parameter of a cause (see cvmeasure.sim.effects)."""
     spec = EFFECTS[cause].shape_spec(key)
     return (spec.lower, spec.upper)
 
 
-def _as_causes(causes: str | Sequence[str]) -> Causes:
+def as_causes(causes: str | Sequence[str]) -> Causes:
     if isinstance(causes, str):
         return () if causes == "none" else (causes,)
     return tuple(c for c in causes if c != "none")

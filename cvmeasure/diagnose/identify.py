@@ -112,7 +112,7 @@ def _add_pin(d: TrialTable) -> TrialTable:
     )
 
 
-def _widen(d: TrialTable) -> TrialTable:
+def widen(d: TrialTable) -> TrialTable:
     if d.both_directions:
         sign = np.where(np.arange(len(d)) % 2 == 0, 1.0, -1.0)
     else:
@@ -149,7 +149,7 @@ EXPERIMENTS: tuple[tuple[str, Callable[[TrialTable], TrialTable]], ...] = (
     ("add reverse bends (the same angles in the other direction)", _add_reverse),
     ("photograph the loaded angle (pin still engaged) as well as the released one", _add_loaded),
     ("measure the pin angle on the loaded photos (measured_pin_deg)", _add_pin),
-    ("widen the range of bend angles (about 5-150 deg, both directions)", _widen),
+    ("widen the range of bend angles (about 5-150 deg, both directions)", widen),
     ("shuffle the bend order or re-home mid-part (separates drift from angle)", _shuffle),
 )
 

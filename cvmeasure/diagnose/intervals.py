@@ -9,18 +9,18 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from cvmeasure.diagnose.evidence import _held_out_tie
+from cvmeasure.diagnose.evidence import held_out_tie
 from cvmeasure.diagnose.fitting import DISCREPANCY_P, ModelFit, fit_model
-from cvmeasure.diagnose.naming import _Naming
+from cvmeasure.diagnose.naming import Naming
 from cvmeasure.diagnose.result import CandidateResult
-from cvmeasure.diagnose.rules import _Context
+from cvmeasure.diagnose.rules import Context
 from cvmeasure.sim.effects import EFFECTS
 
 if TYPE_CHECKING:
     pass
 
 
-def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
+def widened(ctx: Context, fit: ModelFit) -> ModelFit:
     """The fit with its 95 % intervals widened by the model form: the causes are refitted
     with the bounded discrepancy profiled out of every residual, and each interval
     becomes the hull of the two fits' 95 % intervals (within the bounds), so it holds
@@ -44,10 +44,10 @@ def _widened(ctx: _Context, fit: ModelFit) -> ModelFit:
     return dataclasses.replace(fit, intervals=tuple(out))
 
 
-def _averaged(
-    ctx: _Context,
+def averaged(
+    ctx: Context,
     fit: ModelFit,
-    naming: _Naming,
+    naming: Naming,
     results: Sequence[CandidateResult],
     groups: Sequence[str],
 ) -> ModelFit:
@@ -72,10 +72,10 @@ def _averaged(
         return fit
     others = [c for c in pool if c is not named and key & set(c.fit.causes) and c.fit.intervals]
     by_label = {" + ".join(c.fit.causes): c for c in others}
-    tied = _held_out_tie(named, others, groups, lambda c: " + ".join(c.fit.causes))
+    tied = held_out_tie(named, others, groups, lambda c: " + ".join(c.fit.causes))
     out = list(fit.intervals)
     for label in tied[1:]:
-        alt = _widened(ctx, by_label[label].fit)
+        alt = widened(ctx, by_label[label].fit)
         for i, c in enumerate(fit.causes):
             if c in alt.causes:
                 alo, ahi = alt.intervals[alt.causes.index(c)]

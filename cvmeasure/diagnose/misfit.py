@@ -21,8 +21,8 @@ from scipy.special import fdtrc
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.discrepancy import (
     DISCREPANCY_BOUND_DEG,
-    _profile_discrepancy,
     discrepancy_basis,
+    profile_discrepancy,
 )
 from cvmeasure.diagnose.model_fit import ModelFit
 from cvmeasure.sim.model import simulate
@@ -132,7 +132,7 @@ def lack_of_fit_residuals(
     ok = np.isfinite(residual_deg)
     basis = discrepancy_basis(trials)[ok]
     r = residual_deg[ok]
-    r = r - basis @ _profile_discrepancy(r, basis)
+    r = r - basis @ profile_discrepancy(r, basis)
     fit = ModelFit(
         causes=(),
         strength_scale=1.0,

@@ -12,15 +12,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discrepancy import _profile_discrepancy, discrepancy_basis
+from cvmeasure.diagnose.discrepancy import discrepancy_basis, profile_discrepancy
 from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, nuisance_for
-from cvmeasure.diagnose.predict import _effects, _scaled, predict, residuals
+from cvmeasure.diagnose.predict import effects_with, predict, residuals, scaled
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
 
 
 @dataclass(frozen=True)
-class _Solution:
+class Solution:
     """Where a fit on every trial ended (without the discrepancy), so that the folds of its
     cross-validation, which start there, need not simulate that point again: the
     residuals and the forward-difference Jacobian of one fold at that point are rows of
@@ -66,7 +66,7 @@ class ModelFit:
     #: (chi-square; below DISCREPANCY_P the data show a model-form error)
     model_form_p: float = math.nan
     #: where the solver ended (a fit on every trial without the discrepancy), for the folds
-    solution: _Solution | None = field(default=None, repr=False, compare=False)
+    solution: Solution | None = field(default=None, repr=False, compare=False)
     #: measured minus predicted over every trial at the fitted point (3 N,), as
     #: :meth:`residuals` gives it with the params fitted on (None: not kept)
     residual_deg: NDArray[np.float64] | None = field(default=None, repr=False, compare=False)
@@ -95,11 +95,11 @@ class ModelFit:
 
     def effects(self) -> tuple[Effect, ...]:
         """The fitted effects (clipped to their physical bounds)."""
-        return _effects((), self.causes, self.values, self.shapes)
+        return effects_with((), self.causes, self.values, self.shapes)
 
     def params(self, base: SimParams) -> SimParams:
         """``base`` with the fitted material strength and nuisance geometry."""
-        return _scaled(base, self.strength_scale, self.nuisance)
+        return scaled(base, self.strength_scale, self.nuisance)
 
     def nuisance_values(self) -> dict[str, float]:
         return {n.key: v for n, v in zip(NUISANCE, self.nuisance, strict=False)}
@@ -235,7 +235,7 @@ class CrossValidation:
         if ok.any():
             basis = discrepancy_basis(trials)[ok]
             r = self.residual_deg[ok]
-            out[ok] = r - basis @ _profile_discrepancy(r, basis)
+            out[ok] = r - basis @ profile_discrepancy(r, basis)
         return out
 
     def rmse_after_discrepancy_deg(self, trials: TrialTable) -> float:

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, _held_out_tie
+from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, held_out_tie
 from cvmeasure.diagnose.fitting import ModelFit, fit_model, grouped_kfold_cv
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
 from cvmeasure.diagnose.result import CandidateResult
@@ -20,10 +20,10 @@ from cvmeasure.diagnose.rules import (
     GROSS_MISFIT_DEG,
     PAIR_PLAUSIBLE_RATIO,
     RESOLUTION_DEG,
-    _Context,
-    _delta_bic,
-    _plausible,
-    _structure_left,
+    Context,
+    bic_gain,
+    is_plausible,
+    structure_left,
 )
 from cvmeasure.sim.effects import EFFECTS
 
@@ -50,7 +50,7 @@ class _Extension:
 
 
 @dataclass(frozen=True)
-class _Naming:
+class Naming:
     """The causes named (or none), the model that names them and the notes on why."""
 
     cause: str
@@ -78,8 +78,8 @@ class _Naming:
 REFORMED: tuple[str, ...] = ("camera_tilt",)
 
 
-def _try_causes(
-    ctx: _Context,
+def try_causes(
+    ctx: Context,
     named: ModelFit,
     named_cv: float,
     tried: Sequence[str],
@@ -119,7 +119,7 @@ def _try_causes(
             )
             if reformed.rss_deg2 < fit.rss_deg2:
                 fit = reformed
-        dbic = _delta_bic(named, fit)
+        dbic = bic_gain(named, fit)
         if not cv_all and dbic < ctx.min_delta_bic:
             out.append(CandidateResult(name, math.nan, fit, dbic, False))
             continue
@@ -143,7 +143,7 @@ def _try_causes(
 
 
 def _extend(
-    ctx: _Context, first: CandidateResult, results: Sequence[CandidateResult], max_causes: int
+    ctx: Context, first: CandidateResult, results: Sequence[CandidateResult], max_causes: int
 ) -> _Extension:
     """Identifiability of a first cause, and a second cause on top when structure is left."""
     masks = list(ctx.fold_masks)
@@ -161,10 +161,10 @@ def _extend(
     pairs: list[CandidateResult] = []
     unsized: list[CandidateResult] = []
     cv_disc = first.cv_discrepancy_rmse_deg
-    if max_causes > 1 and _structure_left(
+    if max_causes > 1 and structure_left(
         ctx.trials, first.fit, ctx.params, ctx.base_effects, masks
     ):
-        round2 = _try_causes(
+        round2 = try_causes(
             ctx,
             first.fit,
             first.cv_discrepancy_rmse_deg,
@@ -188,7 +188,7 @@ def _extend(
                 f"{', '.join(stuck)} alone (delta BIC): the pair is not named"
             )
         more = [c for c in more if c.cause not in stuck]
-        unsized = [c for c in more if not _plausible(c.fit)]
+        unsized = [c for c in more if not is_plausible(c.fit)]
         # a pair with a cause far beyond its typical size takes the place of a mechanism
         # the catalogue lacks: the next accepted pair is tried, at most BEAM_WIDTH of them.
         # (Structure left beyond the discrepancy no longer refuses a pair: on the
@@ -199,7 +199,7 @@ def _extend(
         # evidence test of step 3b.)
         refused = []
         for c in more[:BEAM_WIDTH]:
-            if _plausible(c.fit):
+            if is_plausible(c.fit):
                 break
             refused.append(c.cause)
         if refused:
@@ -209,7 +209,7 @@ def _extend(
                 "catalogue does not name; not named"
             )
         more = [c for c in more[:BEAM_WIDTH] if c.cause not in refused]
-        pairs = [c for c in more if _plausible(c.fit)]
+        pairs = [c for c in more if is_plausible(c.fit)]
         if more:
             fit, cv = more[0].fit, more[0].cv_rmse_deg
             cv_disc = more[0].cv_discrepancy_rmse_deg
@@ -222,9 +222,9 @@ def _extend(
     )
 
 
-def _settle_pair(
-    naming: _Naming, results: Sequence[CandidateResult], groups: Sequence[str]
-) -> tuple[_Naming, tuple[str, ...]]:
+def settle_pair(
+    naming: Naming, results: Sequence[CandidateResult], groups: Sequence[str]
+) -> tuple[Naming, tuple[str, ...]]:
     """A named pair checked for held-out ties with the other pairs the beam could name
     and those it could not name for a cause beyond its typical size (the
     one-standard-error rule of :func:`_held_out_tie`): the naming and the tie.
@@ -246,7 +246,7 @@ def _settle_pair(
         return naming, ()
     order = naming.fit.causes
     rivals = (*naming.other_pairs, *naming.unsized_pairs)
-    tie = _held_out_tie(
+    tie = held_out_tie(
         named,
         rivals,
         groups,
@@ -283,13 +283,13 @@ def _settle_pair(
     return single, ()
 
 
-def _name_causes(
-    ctx: _Context,
+def name_causes(
+    ctx: Context,
     results: Sequence[CandidateResult],
     base_fit: ModelFit,
     base_cv: float,
     max_causes: int,
-) -> _Naming:
+) -> Naming:
     """Pick the cause(s) among the accepted candidates, or name none, with the notes why."""
     accepted = [c for c in results if c.accepted]
     notes: list[str] = []
@@ -298,7 +298,7 @@ def _name_causes(
             f"no candidate beats the noise floor (held-out RMSE {base_cv:.3f} deg); "
             "nothing is named"
         )
-        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+        return Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
     outcomes, best, ext = _best_outcome(ctx, accepted, results, base_fit, max_causes)
     ext_fit = _first_cause_first(ext.fit, best, results)
     close = [
@@ -318,10 +318,10 @@ def _name_causes(
             "simulation does not describe these data (check signs, units and columns of the "
             f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
         )
-        return _Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+        return Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
     pair = ext.pairs[0] if len(ext_fit.causes) == 2 and ext.pairs else None
     named_set = frozenset(ext_fit.causes)
-    return _Naming(
+    return Naming(
         ext_fit.causes[0],
         ext_fit,
         ext.cv_rmse_deg,
@@ -337,7 +337,7 @@ def _name_causes(
 
 
 def _best_outcome(
-    ctx: _Context,
+    ctx: Context,
     accepted: Sequence[CandidateResult],
     results: Sequence[CandidateResult],
     base_fit: ModelFit,
@@ -351,7 +351,7 @@ def _best_outcome(
     # (a delta BIC within min_delta_bic of the best outcome's): a pair stuck where its
     # first cause took up another's signature can predict held-out data slightly
     # better while explaining far less than that other cause alone
-    evidence_of = [_delta_bic(base_fit, o[1].fit) for o in outcomes]
+    evidence_of = [bic_gain(base_fit, o[1].fit) for o in outcomes]
     top = max(evidence_of)
     plausible = [
         o for o, e in zip(outcomes, evidence_of, strict=True) if e >= top - ctx.min_delta_bic
@@ -421,7 +421,7 @@ def _each_once(
     return tuple(best.values())
 
 
-def _scores(results: Sequence[CandidateResult], naming: _Naming) -> dict[str, float]:
+def candidate_scores(results: Sequence[CandidateResult], naming: Naming) -> dict[str, float]:
     """Delta BIC against the baseline + discrepancy of nothing, each single cause and
     the named pair."""
     scores = {"none": 0.0}

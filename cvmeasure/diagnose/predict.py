@@ -9,19 +9,19 @@ from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.discrepancy import discrepancy_basis
-from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, _as_causes
+from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, as_causes
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
 from cvmeasure.sim.params import SimParams
 
 
-def _scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
+def scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
     extra = {n.key: float(v) for n, v in zip(NUISANCE, nuisance, strict=False)}
     return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale, **extra)
 
 
-def _effects(
+def effects_with(
     base_effects: Sequence[Effect],
     causes: Causes,
     values: Sequence[float],
@@ -53,8 +53,8 @@ def predict(
     ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
     res = simulate(
         trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg,
-        _scaled(params, strength_scale, nuisance),
-        _effects(base_effects, _as_causes(causes), values, shapes),
+        scaled(params, strength_scale, nuisance),
+        effects_with(base_effects, as_causes(causes), values, shapes),
         bend_index=trials.bend_index,
     )
     return np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
@@ -83,7 +83,7 @@ def residuals(
         nuisance=nuisance,
         shapes=shapes,
     )
-    r = _observed_minus(trials, predicted)
+    r = observed_minus(trials, predicted)
     if len(discrepancy):
         r = r - discrepancy_basis(trials) @ np.asarray(discrepancy, dtype=np.float64)
     return r
@@ -93,7 +93,7 @@ def residuals(
 _MEMO_POINTS = 128
 
 
-class _PointMemo:
+class PointMemo:
     """Residual arrays of one fit keyed by the parameter point and the causes' forms,
     the oldest dropped beyond :data:`_MEMO_POINTS`; arrays are copied in and out."""
 
@@ -116,7 +116,7 @@ class _PointMemo:
         self._kept[self._key(x, forms)] = value.copy()
 
 
-def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
+def observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArray[np.float64]:
     """Measured minus ``predicted`` (stacked by blocks along the last axis; leading axes:
     several predictions); pin angles wrapped as directions."""
     r = trials.observations() - predicted
@@ -125,7 +125,7 @@ def _observed_minus(trials: TrialTable, predicted: NDArray[np.float64]) -> NDArr
     return r
 
 
-def _drift_rate_residuals(
+def drift_rate_residuals(
     trials: TrialTable,
     params: SimParams,
     base_effects: Sequence[Effect],
@@ -141,11 +141,11 @@ def _drift_rate_residuals(
     ``rates`` (clipped to the drift's bounds as :func:`_effects` clips it): the same
     numbers from one vectorised simulation (:func:`simulate_drift_rates`) instead of K."""
     spec = EFFECTS["drift"]
-    effects = _effects(base_effects, causes, x[1 + m :], shapes)
+    effects = effects_with(base_effects, causes, x[1 + m :], shapes)
     clipped = [min(max(float(v), spec.lower), spec.upper) for v in rates]
     res = simulate_drift_rates(
         trials.commanded_pin_deg,
-        _scaled(params, x[0], x[1 : 1 + m]),
+        scaled(params, x[0], x[1 : 1 + m]),
         effects,
         clipped,
         bend_index=trials.bend_index,
@@ -153,20 +153,20 @@ def _drift_rate_residuals(
     predicted = np.concatenate(
         [res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg], axis=-1
     )
-    return _observed_minus(trials, predicted)
+    return observed_minus(trials, predicted)
 
 
 #: A measurement-stage cause: it changes only how the camera sees the simulated angles,
 #: so the grid over it projects one simulation instead of simulating every grid point.
-_CAMERA = "camera_tilt"
+CAMERA = "camera_tilt"
 
 
-def _tilted(untilted: NDArray[np.float64], value: float, form: Shape) -> NDArray[np.float64]:
+def tilted_curve(untilted: NDArray[np.float64], value: float, form: Shape) -> NDArray[np.float64]:
     """Predicted observations (stacked by blocks) of a simulation without camera tilt,
     seen by the camera of ``camera_tilt`` = ``value`` in ``form`` (what
     :func:`cvmeasure.sim.simulate` does with the effect on)."""
-    spec = EFFECTS[_CAMERA]
-    effect = Effect(_CAMERA, min(max(float(value), spec.lower), spec.upper), form)
+    spec = EFFECTS[CAMERA]
+    effect = Effect(CAMERA, min(max(float(value), spec.lower), spec.upper), form)
     axis = effect.shape_value("tilt_axis_deg")
     tilt = float(effect.value)
     return np.concatenate(

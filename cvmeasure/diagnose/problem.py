@@ -17,35 +17,35 @@ from scipy import optimize
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.discrepancy import (
     Factor,
-    _discrepancy_factor,
-    _profile_discrepancy,
     discrepancy_basis,
+    discrepancy_factor,
+    profile_discrepancy,
 )
 from cvmeasure.diagnose.forms import (
-    _GRID_POINTS,
-    _STRENGTH_BOUNDS,
     ALONE_FORMS,
     FORMS,
+    GRID_POINTS,
     PRIOR_NOISE_DEG,
+    STRENGTH_BOUNDS,
     Causes,
     Nuisance,
     ParamLayout,
     Shape,
 )
-from cvmeasure.diagnose.model_fit import ModelFit, _Solution
+from cvmeasure.diagnose.model_fit import ModelFit, Solution
 from cvmeasure.diagnose.predict import (
-    _CAMERA,
-    _observed_minus,
-    _PointMemo,
-    _tilted,
+    CAMERA,
+    PointMemo,
+    observed_minus,
     predict,
     residuals,
+    tilted_curve,
 )
 from cvmeasure.diagnose.solve import (
-    _forward_difference_jacobian,
-    _least_squares,
-    _profile_quantised_drift,
-    _whole_steps,
+    forward_difference_jacobian,
+    profile_quantised_drift,
+    solve_least_squares,
+    whole_steps,
 )
 from cvmeasure.sim.effects import Effect
 from cvmeasure.sim.params import SimParams
@@ -57,7 +57,7 @@ Seed = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
 DriftRates = Callable[..., NDArray[np.float64]]
 
 
-class _Problem:
+class Problem:
     """One fit's least squares over ``x`` (:class:`ParamLayout`): the residuals at a point
     (each point simulated once), with the nuisance priors appended and the discrepancy
     profiled out when fitted with it, and their Jacobian. ``forms`` (each cause's form)
@@ -91,18 +91,18 @@ class _Problem:
         self.drift_rates = drift_rates
         # the points evaluated (the grid's best is the solver's start, its final point is
         # evaluated again after the solver)
-        self.seen = _PointMemo()
+        self.seen = PointMemo()
         if seed is not None:
             self.seen.put(seed[0], self.seed_forms, seed[1])
-        self.resid_seen = _PointMemo()
+        self.resid_seen = PointMemo()
         self.factors: dict[bytes, Factor] = {}
         self.prior_centre = np.array([float(getattr(params, n.key)) for n in nuis])
         self.prior_weight = np.array([PRIOR_NOISE_DEG / n.prior_sd for n in nuis])
         self.lower = np.array(
-            [_STRENGTH_BOUNDS[0], *(n.lower for n in nuis), *(s.lower for s in specs)]
+            [STRENGTH_BOUNDS[0], *(n.lower for n in nuis), *(s.lower for s in specs)]
         )
         self.upper = np.array(
-            [_STRENGTH_BOUNDS[1], *(n.upper for n in nuis), *(s.upper for s in specs)]
+            [STRENGTH_BOUNDS[1], *(n.upper for n in nuis), *(s.upper for s in specs)]
         )
         self.scale = np.array(
             [0.1, *(0.5 * n.prior_sd for n in nuis), *(max(abs(s.typical[1]), 1e-3) for s in specs)]
@@ -140,8 +140,8 @@ class _Problem:
         basis = self.basis_all[ok]
         key = ok.tobytes()
         if key not in self.factors:  # the measured rows rarely change between points
-            self.factors[key] = _discrepancy_factor(basis)
-        beta = _profile_discrepancy(r[ok], basis, self.factors[key])
+            self.factors[key] = discrepancy_factor(basis)
+        beta = profile_discrepancy(r[ok], basis, self.factors[key])
         return np.concatenate([r[ok] - basis @ beta, prior])
 
     def resid(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -188,15 +188,15 @@ class _Problem:
             known_rows = seed[2][self.keep][np.isfinite(self.raw(x))]
             if known_rows.shape[0] == self.resid(x).size and np.all(np.isfinite(known_rows)):
                 return np.ascontiguousarray(known_rows.T).T  # the layout of the differences
-        return _forward_difference_jacobian(self.resid, x, self.lower, self.upper)
+        return forward_difference_jacobian(self.resid, x, self.lower, self.upper)
 
 
 #: An alternative start: (cause index, its value, its form).
 Alternative = tuple[int, float, Shape]
 
 
-def _start(
-    problem: _Problem,
+def start_vector(
+    problem: Problem,
     start: ModelFit | tuple[float, Sequence[float]] | None,
     known: dict[str, float] | None,
 ) -> tuple[NDArray[np.float64], list[Alternative]]:
@@ -225,21 +225,21 @@ def _start(
     return x0, alternatives
 
 
-def _grid_start(problem: _Problem, x0: NDArray[np.float64], k: int) -> Alternative | None:
+def _grid_start(problem: Problem, x0: NDArray[np.float64], k: int) -> Alternative | None:
     """Cause ``k``'s value in ``x0`` and its form in ``problem.forms`` set to the best
     point of a grid over its bounds, each form of :data:`FORMS` tried; the runner-up
     form's best point, None with one form."""
     lay, names, forms = problem.layout, problem.names, problem.forms
     c, spec, i = names[k], problem.specs[k], lay.cause(k)
-    grid = np.linspace(spec.lower, spec.upper, _GRID_POINTS)
+    grid = np.linspace(spec.lower, spec.upper, GRID_POINTS)
     per_form = []
     untilted = None
-    if c == _CAMERA:  # the rest of the model is the same at every grid point
+    if c == CAMERA:  # the rest of the model is the same at every grid point
         rest = [j for j in range(len(names)) if j != k]
         untilted = predict(
             problem.trials,
             problem.params,
-            [e for e in problem.base_effects if e.name != _CAMERA],
+            [e for e in problem.base_effects if e.name != CAMERA],
             [names[j] for j in rest],
             x0[lay.strength],
             [x0[lay.cause(j)] for j in rest],
@@ -255,7 +255,7 @@ def _grid_start(problem: _Problem, x0: NDArray[np.float64], k: int) -> Alternati
             if untilted is None:
                 r = problem.resid(x0)
             else:
-                full = _observed_minus(problem.trials, _tilted(untilted, v, form))
+                full = observed_minus(problem.trials, tilted_curve(untilted, v, form))
                 problem.seen.put(x0, forms, full)
                 r = problem.with_priors(x0, full[problem.keep])
             costs.append(float(np.sum(r**2)))
@@ -268,8 +268,8 @@ def _grid_start(problem: _Problem, x0: NDArray[np.float64], k: int) -> Alternati
     return None
 
 
-def _solve(
-    problem: _Problem,
+def solve_problem(
+    problem: Problem,
     x0: NDArray[np.float64],
     alternatives: Sequence[Alternative],
     learned: bool,
@@ -290,9 +290,9 @@ def _solve(
     sol, best_forms = None, list(forms)
     for x_start, f in starts:
         forms[:] = f
-        frozen = [lay.cause(k) for k, c in enumerate(problem.names) if _whole_steps(c, f[k])]
+        frozen = [lay.cause(k) for k, c in enumerate(problem.names) if whole_steps(c, f[k])]
         frozen = [lay.strength, *frozen] if learned else frozen
-        trial = _least_squares(
+        trial = solve_least_squares(
             problem.resid, x_start, lower, upper, problem.scale, frozen, jac=problem.fd_jac
         )
         if sol is None or trial.cost < sol.cost:
@@ -302,8 +302,8 @@ def _solve(
     return sol
 
 
-def _profile_drifts(
-    problem: _Problem, sol: optimize.OptimizeResult, searched: set[str]
+def profile_drifts(
+    problem: Problem, sol: optimize.OptimizeResult, searched: set[str]
 ) -> optimize.OptimizeResult:
     """``sol`` with a drift's steps lost whole when that fits better
     (:func:`~cvmeasure.diagnose.solve._profile_quantised_drift`). ``searched``: the
@@ -318,7 +318,7 @@ def _profile_drifts(
         # backlash there its two refits far from the fit cost 0.6 s: docs/diagnosis.md)
         wide = len(names) == 1 and c in searched
         if c == "drift" and not shape.get("step_deg") and (shape.get("home_shift") or wide):
-            quantised = _profile_quantised_drift(
+            quantised = profile_quantised_drift(
                 problem.resid,
                 sol,
                 problem.layout.cause(k),
@@ -336,7 +336,7 @@ def _profile_drifts(
 
 
 @dataclass(frozen=True)
-class _Fitted:
+class Fitted:
     """The fitted point's numbers the intervals need beside its :class:`ModelFit`."""
 
     sol: optimize.OptimizeResult
@@ -348,9 +348,9 @@ class _Fitted:
     dof: int
 
 
-def _fitted_point(
-    problem: _Problem, sol: optimize.OptimizeResult, learned: bool
-) -> tuple[ModelFit, _Fitted]:
+def fitted_point(
+    problem: Problem, sol: optimize.OptimizeResult, learned: bool
+) -> tuple[ModelFit, Fitted]:
     """The fitted point as a :class:`ModelFit` (intervals NaN) and its numbers."""
     lay, forms = problem.layout, problem.forms
     r = sol.fun
@@ -360,7 +360,7 @@ def _fitted_point(
     basis_ok = (
         basis_all if basis_all is not None else discrepancy_basis(problem.trials)[problem.keep]
     )[ok]
-    beta = _profile_discrepancy(r0[ok], basis_ok)
+    beta = profile_discrepancy(r0[ok], basis_ok)
     rss_disc = float(np.sum((r0[ok] - basis_ok @ beta) ** 2))
     # the prior residuals are not observations; a general form's shape parameters were
     # chosen from the data too, so they count as parameters
@@ -374,7 +374,7 @@ def _fitted_point(
         measured = np.isfinite(full)
         jac_full = np.full((full.size, sol.x.size), np.nan)
         jac_full[measured] = sol.jac[: int(measured.sum())]
-        solution = _Solution(
+        solution = Solution(
             problem.trials,
             problem.params,
             tuple(problem.base_effects),
@@ -399,14 +399,14 @@ def _fitted_point(
         rss_discrepancy_deg2=rss_disc,
         solution=solution,
     )
-    return point, _Fitted(sol, r0, ok, basis_ok, rss, rss_disc, n_obs - n_par)
+    return point, Fitted(sol, r0, ok, basis_ok, rss, rss_disc, n_obs - n_par)
 
 
-def _whole_step_secants(problem: _Problem, sol: optimize.OptimizeResult) -> NDArray[np.float64]:
+def whole_step_secants(problem: Problem, sol: optimize.OptimizeResult) -> NDArray[np.float64]:
     """The solution's Jacobian with a whole-step drift's rate column replaced by a secant."""
     jac = sol.jac
     for k, c in enumerate(problem.names):
-        if _whole_steps(c, problem.forms[k]):
+        if whole_steps(c, problem.forms[k]):
             # whole steps: the residuals are flat between steps; the rate's sensitivity is
             # the secant of the quantised form over half to 1.5 times the rate (the
             # expected change over many steps, the step's phase unknown). It was the

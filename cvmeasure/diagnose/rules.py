@@ -52,7 +52,7 @@ MIN_TRIALS = 8
 PAIR_PLAUSIBLE_RATIO = 1.5
 
 
-def _plausible(fit: ModelFit) -> bool:
+def is_plausible(fit: ModelFit) -> bool:
     """Every cause of ``fit`` within PAIR_PLAUSIBLE_RATIO of its typical size."""
     return all(
         abs(v) <= PAIR_PLAUSIBLE_RATIO * max(abs(x) for x in EFFECTS[c].typical)
@@ -68,7 +68,7 @@ def _plausible(fit: ModelFit) -> bool:
 JOINT_MIN_TYPICAL_SHARE = 0.5
 
 
-def _typical_size(fit: ModelFit) -> bool:
+def typical_size(fit: ModelFit) -> bool:
     """Every cause of ``fit`` at least JOINT_MIN_TYPICAL_SHARE of its typical size."""
     return all(
         abs(v) >= JOINT_MIN_TYPICAL_SHARE * min(abs(x) for x in EFFECTS[c].typical)
@@ -76,7 +76,7 @@ def _typical_size(fit: ModelFit) -> bool:
     )
 
 
-def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
+def bic_gain(base: ModelFit, fit: ModelFit) -> float:
     """BIC improvement of ``fit`` over ``base``, both with the bounded model-form
     discrepancy profiled out of their residuals (floored at the resolution)."""
     n = fit.n_obs
@@ -87,7 +87,7 @@ def _delta_bic(base: ModelFit, fit: ModelFit) -> float:
     return float(n * math.log(rss0 / rss1) - extra * math.log(n))
 
 
-def _structure_left(
+def structure_left(
     trials: TrialTable,
     fit: ModelFit,
     params: SimParams,
@@ -127,7 +127,7 @@ def cv_groups(trials: TrialTable) -> tuple[tuple[str, ...], str | None]:
     return keys, "; ".join(notes) or None
 
 
-def _subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable:
+def subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable:
     """About ``size`` trials: whole CV groups drawn at random, in their original order."""
     groups = np.asarray(trials.group)
     unique, counts = np.unique(groups, return_counts=True)
@@ -141,7 +141,7 @@ def _subset_by_group(trials: TrialTable, size: int, seed: int = 0) -> TrialTable
 
 
 @dataclass(frozen=True)
-class _Context:
+class Context:
     """What every step of one diagnosis works on."""
 
     trials: TrialTable

@@ -14,15 +14,15 @@ from scipy import optimize, special
 
 from cvmeasure.diagnose.discrepancy import DISCREPANCY_BOUND_DEG, DISCREPANCY_P
 from cvmeasure.diagnose.forms import (
-    _DRIFT_RATE_FACTORS,
-    _DRIFT_RATE_GRID,
+    DRIFT_RATE_FACTORS,
+    DRIFT_RATE_GRID,
     DRIFT_STEPS_DEG,
     FORMS,
     Shape,
 )
 
 
-def _interval(
+def profile_interval(
     center: float, se: float, dof: int, lo: float, hi: float, *, keep: float | None = None
 ) -> tuple[float, float]:
     """Student-t 95 % interval about ``center`` within ``[lo, hi]``; with ``keep`` (the
@@ -47,7 +47,7 @@ def _interval(
 _FD_REL_STEP = float(np.finfo(np.float64).eps ** 0.5)
 
 
-def _forward_difference_jacobian(
+def forward_difference_jacobian(
     fun: Any,
     x: NDArray[np.float64],
     lower: NDArray[np.float64],
@@ -79,12 +79,12 @@ def _forward_difference_jacobian(
     return jac_t.T  # the layout scipy's own differences have
 
 
-def _whole_steps(cause: str, form: Shape) -> bool:
+def whole_steps(cause: str, form: Shape) -> bool:
     """Whether a cause's form loses whole steps (residuals flat in its parameter)."""
     return cause == "drift" and bool(dict(form).get("step_deg"))
 
 
-def _least_squares(
+def solve_least_squares(
     resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     x0: NDArray[np.float64],
     lower: NDArray[np.float64],
@@ -156,7 +156,7 @@ def _per_rate(resid: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> Ra
     return rows
 
 
-def _profile_quantised_drift(
+def profile_quantised_drift(
     resid: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     sol: optimize.OptimizeResult,
     index: int,
@@ -192,7 +192,7 @@ def _profile_quantised_drift(
     if not wide and rate <= 0.0:
         return None
     rates = np.concatenate(
-        [rate * _DRIFT_RATE_FACTORS if rate > 0 else [], _DRIFT_RATE_GRID if wide else []]
+        [rate * DRIFT_RATE_FACTORS if rate > 0 else [], DRIFT_RATE_GRID if wide else []]
     )
     rates = np.minimum(rates, upper[index])
     best: tuple[float, float, Shape] | None = None
@@ -209,20 +209,20 @@ def _profile_quantised_drift(
     x = sol.x.copy()
     x[index] = best[1]
     x = np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
-    fit = _least_squares(resid, x, lower, upper, scale, [index])
+    fit = solve_least_squares(resid, x, lower, upper, scale, [index])
     x = fit.x.copy()
     fine = best[1] * (1.0 + np.linspace(-0.06, 0.06, 13))
     costs = [float(np.sum(r**2)) for r in rows(x, index, np.minimum(fine, upper[index]))]
     x[index] = min(float(fine[int(np.argmin(costs))]), upper[index])
     x = np.clip(x, lower + 1e-9 * span, upper - 1e-9 * span)
-    fit = _least_squares(resid, x, lower, upper, scale, [index])
+    fit = solve_least_squares(resid, x, lower, upper, scale, [index])
     if fit.cost < sol.cost:
         return fit
     forms[cause] = continuous
     return None
 
 
-def _standard_errors(
+def standard_errors(
     jac: NDArray[np.float64],
     noise_var_deg2: float,
     basis: NDArray[np.float64],

@@ -14,22 +14,22 @@ from numpy.typing import NDArray
 from cvmeasure.diagnose.discover import Discovery, discover, library, term_words
 from cvmeasure.diagnose.fitting import ModelFit, discrepancy_basis, fit_model, grouped_kfold_cv
 from cvmeasure.diagnose.identify import CONFOUNDED_SIMILARITY
-from cvmeasure.diagnose.rules import _Context, _delta_bic, _typical_size
+from cvmeasure.diagnose.rules import Context, bic_gain, typical_size
 
 if TYPE_CHECKING:
     pass
 
 
-def _kept_against_terms(
-    ctx: _Context, fit: ModelFit, base_fit: ModelFit, groups: Sequence[str]
+def kept_against_terms(
+    ctx: Context, fit: ModelFit, base_fit: ModelFit, groups: Sequence[str]
 ) -> tuple[float, float] | None:
     """Held-out RMSE (deg) and delta BIC of ``fit``'s causes refitted with the
     discrepancy, or None when so fitted a cause is below its typical size
     (:func:`_typical_size`) or the library still finds a term in their residuals."""
     joint, joint_cv, joint_bic = _joint_with_discrepancy(ctx, fit, base_fit)
-    if not _typical_size(joint):
+    if not typical_size(joint):
         return None
-    left = _terms_beside(
+    left = terms_beside(
         ctx, joint, joint.residuals(ctx.trials, ctx.params, ctx.base_effects), groups
     )
     if any(t.term != "scatter" for t in left.terms):
@@ -37,8 +37,8 @@ def _kept_against_terms(
     return joint_cv, joint_bic
 
 
-def _terms_beside(
-    ctx: _Context, fit: ModelFit, residual_deg: NDArray[np.float64], groups: Sequence[str]
+def terms_beside(
+    ctx: Context, fit: ModelFit, residual_deg: NDArray[np.float64], groups: Sequence[str]
 ) -> Discovery:
     """What the library of :mod:`~cvmeasure.diagnose.discover` finds in ``fit``'s
     residuals (deg, (3N,)) once its model-form discrepancy is taken out."""
@@ -54,7 +54,7 @@ def _terms_beside(
 
 
 def _joint_with_discrepancy(
-    ctx: _Context, fit: ModelFit, base_fit: ModelFit
+    ctx: Context, fit: ModelFit, base_fit: ModelFit
 ) -> tuple[ModelFit, float, float]:
     """``fit``'s causes refitted together with the bounded model-form discrepancy, its
     held-out RMSE (deg; the discrepancy fitted with the model on the other folds) and
@@ -76,7 +76,7 @@ def _joint_with_discrepancy(
         full_fit=joint,
         discrepancy=True,
     )
-    return joint, held.rmse_after_discrepancy_deg(ctx.trials), _delta_bic(base_fit, joint)
+    return joint, held.rmse_after_discrepancy_deg(ctx.trials), bic_gain(base_fit, joint)
 
 
 #: Library terms that depend on the order of the bends, not only on each bend.
@@ -84,8 +84,8 @@ ORDER_TERMS = ("warm_up", "order_squared", "previous_bend")
 ORDER_EXPERIMENT = "bend the same angles in a random order"
 
 
-def _order_confounded(
-    ctx: _Context,
+def order_confounded(
+    ctx: Context,
     base_fit: ModelFit,
     change_deg: NDArray[np.float64],
     head_gain: NDArray[np.float64],

@@ -15,26 +15,26 @@ from numpy.typing import NDArray
 
 from cvmeasure.diagnose.discover import DiscoveredTerm, Discovery, discover
 from cvmeasure.diagnose.evidence import (
-    _DISCOVERED,
+    DISCOVERED,
     TIE_RATIO,
     TIE_STANDARD_ERRORS,
-    _alone_excluding_no_effect,
-    _evidence,
-    _held_out_tie,
-    _holds_no_effect,
+    alone_excluding_no_effect,
+    evidence_weights,
+    held_out_tie,
+    holds_no_effect,
 )
 from cvmeasure.diagnose.fitting import ModelFit, current_form, discrepancy_basis
-from cvmeasure.diagnose.intervals import _averaged, _widened
+from cvmeasure.diagnose.intervals import averaged, widened
 from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
-from cvmeasure.diagnose.naming import _Naming
+from cvmeasure.diagnose.naming import Naming
 from cvmeasure.diagnose.residuals import LeftoverCheck, leftover_structure
 from cvmeasure.diagnose.result import CandidateResult
-from cvmeasure.diagnose.rules import GROSS_MISFIT_DEG, _Context
+from cvmeasure.diagnose.rules import GROSS_MISFIT_DEG, Context
 from cvmeasure.diagnose.terms import (
     ORDER_EXPERIMENT,
-    _kept_against_terms,
-    _order_confounded,
-    _terms_beside,
+    kept_against_terms,
+    order_confounded,
+    terms_beside,
 )
 
 
@@ -70,8 +70,8 @@ class _Verdict:
     tie: tuple[str, ...] = ()
 
 
-def _baseline(
-    ctx: _Context,
+def baseline(
+    ctx: Context,
     base_fit: ModelFit,
     cv_rmse_deg: float,
     cv_discrepancy_rmse_deg: float,
@@ -107,10 +107,10 @@ def _baseline(
     )
 
 
-def _first_verdict(
-    ctx: _Context,
+def first_verdict(
+    ctx: Context,
     base: _Baseline,
-    naming: _Naming,
+    naming: Naming,
     scores: dict[str, float],
     groups: Sequence[str],
     notes: list[str],
@@ -133,7 +133,7 @@ def _first_verdict(
     # what the library still finds in the named cause's residuals
     beside: tuple[DiscoveredTerm, ...] = ()
     if cause != "none":
-        beside = _terms_beside(ctx, ext_fit, ext_res, groups).terms
+        beside = terms_beside(ctx, ext_fit, ext_res, groups).terms
     return _Verdict(
         cause, ext_fit, ext_res, naming.cv_rmse_deg, named_cv, named_bic, beside, notes, experiment
     )
@@ -149,11 +149,11 @@ def _terms_win(base: _Baseline, v: _Verdict, min_cv_gain: float) -> bool:
     )
 
 
-def _weigh_against_terms(
-    ctx: _Context,
+def weigh_against_terms(
+    ctx: Context,
     base: _Baseline,
     v: _Verdict,
-    naming: _Naming,
+    naming: Naming,
     results: Sequence[CandidateResult],
     scores: dict[str, float],
     groups: Sequence[str],
@@ -175,7 +175,7 @@ def _weigh_against_terms(
             if c.fit.causes == naming.fit.causes[:1]
         ]
     for option, option_cv, option_bic in options:
-        kept = _kept_against_terms(ctx, option, base.fit, groups)
+        kept = kept_against_terms(ctx, option, base.fit, groups)
         if kept is None:
             continue
         v.named_cv_deg, v.named_bic = min(option_cv, kept[0]), max(option_bic, kept[1])
@@ -190,14 +190,14 @@ def _weigh_against_terms(
             v.cause, v.fit = option.causes[0], option
             v.residual_deg = v.fit.residuals(ctx.trials, ctx.params, ctx.base_effects)
             v.cv_rmse_deg = next(c.cv_rmse_deg for c in results if c.fit is option)
-            v.beside = _terms_beside(ctx, v.fit, v.residual_deg, groups).terms
+            v.beside = terms_beside(ctx, v.fit, v.residual_deg, groups).terms
         for key in [k for k in scores if set(k.split(" + ")) == set(option.causes)]:
             scores[key] = v.named_bic
         break
 
 
-def _check_interval(
-    ctx: _Context,
+def check_interval(
+    ctx: Context,
     base: _Baseline,
     v: _Verdict,
     results: Sequence[CandidateResult],
@@ -209,11 +209,11 @@ def _check_interval(
     discrepancy) can be model-form error beyond the bound, which its interval carries.
     Returns the held-out RMSE (discrepancy out) of a cause refused for its interval
     (NaN: none)."""
-    null_held = _holds_no_effect(v.fit)
+    null_held = holds_no_effect(v.fit)
     refused_cv = math.nan
     if v.cause in ("none", "unexplained") or not (len(null_held) == len(v.fit.causes) > 0):
         return refused_cv
-    alone = _alone_excluding_no_effect(results, v.fit.causes)
+    alone = alone_excluding_no_effect(results, v.fit.causes)
     if alone is not None:
         # two causes sharing one signature hold no effect together (each can take
         # the other's share) while one alone excludes it: that one is named
@@ -224,7 +224,7 @@ def _check_interval(
         v.cause, v.fit, v.cv_rmse_deg = alone.cause, alone.fit, alone.cv_rmse_deg
         v.named_cv_deg = alone.cv_discrepancy_rmse_deg
         v.residual_deg = v.fit.residuals(ctx.trials, ctx.params, ctx.base_effects)
-        v.beside = _terms_beside(ctx, v.fit, v.residual_deg, groups).terms
+        v.beside = terms_beside(ctx, v.fit, v.residual_deg, groups).terms
     else:
         v.notes.append(
             f"{', '.join(null_held)} not named: the 95 % interval with the model-form "
@@ -236,7 +236,7 @@ def _check_interval(
     return refused_cv
 
 
-def _terms_or_name(ctx: _Context, base: _Baseline, v: _Verdict, refused_cv: float) -> None:
+def terms_or_name(ctx: Context, base: _Baseline, v: _Verdict, refused_cv: float) -> None:
     """The discovered terms reported in place of the name when they win (``"unexplained"``),
     else the terms found beside the name."""
     found, mean_terms = base.found, base.mean_terms
@@ -277,26 +277,26 @@ def _terms_or_name(ctx: _Context, base: _Baseline, v: _Verdict, refused_cv: floa
         v.discovered = v.beside
 
 
-def _widen(
-    ctx: _Context,
+def widen(
+    ctx: Context,
     v: _Verdict,
-    naming: _Naming,
+    naming: Naming,
     results: Sequence[CandidateResult],
     groups: Sequence[str],
 ) -> None:
     """The named causes' intervals widened by the model form and averaged over the
     explanations the held-out data do not tell apart."""
     if v.fit.causes:
-        v.fit = _widened(ctx, v.fit)
+        v.fit = widened(ctx, v.fit)
         if v.cause not in ("none", "unexplained"):
-            v.fit = _averaged(ctx, v.fit, naming, results, groups)
+            v.fit = averaged(ctx, v.fit, naming, results, groups)
 
 
-def _ties(
-    ctx: _Context,
+def tie_report(
+    ctx: Context,
     base: _Baseline,
     v: _Verdict,
-    naming: _Naming,
+    naming: Naming,
     results: Sequence[CandidateResult],
     pair_tie: tuple[str, ...],
     groups: Sequence[str],
@@ -309,7 +309,7 @@ def _ties(
     if named and len(v.fit.causes) == 1:
         named_result = next((c for c in results if c.fit.causes == v.fit.causes), None)
         if named_result is not None:
-            tie = _held_out_tie(named_result, results, groups)
+            tie = held_out_tie(named_result, results, groups)
     elif named and set(v.fit.causes) == set(naming.fit.causes):
         tie = pair_tie
     # an order-dependent term outside the catalogue that reproduces the named causes'
@@ -317,7 +317,7 @@ def _ties(
     order_ties: list[tuple[str, str]] = []
     if v.fit.causes:
         change = base.residual_deg - v.residual_deg
-        order_ties = _order_confounded(ctx, base.fit, change, base.head_gain)
+        order_ties = order_confounded(ctx, base.fit, change, base.head_gain)
     if tie:
         v.notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
@@ -344,15 +344,15 @@ def _ties(
     return order_ties
 
 
-def _weights(base: _Baseline, scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
+def verdict_weights(base: _Baseline, scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
     """The explanations' evidence weights (:func:`_evidence`), the discovered terms
     among them (added to ``scores``)."""
     if base.mean_terms and math.isfinite(base.found.delta_bic):
-        scores[_DISCOVERED] = base.found.delta_bic
-    return _evidence(scores)
+        scores[DISCOVERED] = base.found.delta_bic
+    return evidence_weights(scores)
 
 
-def _tie_notes(
+def tie_notes(
     v: _Verdict,
     evidence: tuple[tuple[str, float], ...],
     order_ties: Sequence[tuple[str, str]],
@@ -378,7 +378,7 @@ def _tie_notes(
         v.experiment = v.experiment or ORDER_EXPERIMENT
 
 
-def _check_misfit(ctx: _Context, base: _Baseline, v: _Verdict) -> Misfit | None:
+def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
     """The lack-of-fit test of the explanation; refused, nothing is named."""
     if v.cause == "unexplained":
         n_terms = sum(len(t.coefficients_deg) for t in base.found.terms)
@@ -399,7 +399,7 @@ def _check_misfit(ctx: _Context, base: _Baseline, v: _Verdict) -> Misfit | None:
     return misfit
 
 
-def _leftover(ctx: _Context, base: _Baseline, v: _Verdict) -> LeftoverCheck:
+def leftover_check(ctx: Context, base: _Baseline, v: _Verdict) -> LeftoverCheck:
     """Structure the explanation leaves along the commanded angle, with a note."""
     left_res = v.residual_deg
     if current_form().fit_with_causes and v.fit.discrepancy:

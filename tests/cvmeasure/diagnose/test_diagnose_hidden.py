@@ -256,7 +256,7 @@ def test_a_compliance_and_a_scale_within_one_standard_error_are_reported_as_a_ti
     assert any("elastic bow" in n and "is in the model" in n for n in result.notes)
     groups, _ = core.cv_groups(case.trials)
     single = {c.cause: c for c in result.candidates if len(c.fit.causes) == 1 and c.accepted}
-    excess = core._held_out_excess(
+    excess = core.held_out_excess(
         single["compliance"].cv_residual_deg, single["scale"].cv_residual_deg, groups
     )
     assert excess is not None and abs(excess[0]) <= core.TIE_STANDARD_ERRORS * excess[1]

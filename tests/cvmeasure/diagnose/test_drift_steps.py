@@ -120,10 +120,10 @@ def test_the_profile_over_rates_in_one_simulation_is_the_profile_rate_by_rate(
             )
         return np.array(out)
 
-    monkeypatch.setattr(fitting, "_drift_rate_residuals", rate_by_rate)
+    monkeypatch.setattr(fitting, "drift_rate_residuals", rate_by_rate)
     reference = fit_model(case.trials, SimParams(), "drift")
     # the wide profile ran: two home-shifting forms by three steps, then the fine grid
-    assert len(grids) == 7 and sum(grids) >= 6 * len(fitting._DRIFT_RATE_GRID)
+    assert len(grids) == 7 and sum(grids) >= 6 * len(fitting.DRIFT_RATE_GRID)
     assert batched.shapes == reference.shapes
     assert batched.values == reference.values
     assert batched.strength_scale == reference.strength_scale
@@ -151,5 +151,5 @@ def test_a_drift_on_repeats_is_named_drift_shifting_home_in_whole_steps(seed):
     }
     named = singles.pop("drift")
     for rival in singles.values():
-        excess = core._held_out_excess(named.cv_residual_deg, rival.cv_residual_deg, groups)
+        excess = core.held_out_excess(named.cv_residual_deg, rival.cv_residual_deg, groups)
         assert excess is not None and excess[0] > core.TIE_STANDARD_ERRORS * excess[1]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.diagnose import core, diagnose, fitting
-from cvmeasure.diagnose.fitting import _standard_errors
+from cvmeasure.diagnose.fitting import standard_errors
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS, SimParams
 from cvmeasure_datasets import physical_bender as pb
 from cvmeasure_datasets.trials import hidden_case
@@ -21,7 +21,7 @@ def _linear_case(nuisance_column, *, seed=3, n=200, noise=0.05, truth=(1.0, 0.4)
     theta = float(x @ y / (x @ x))  # conditional fit (a = 0)
     r = y - theta * x
     var = float(r @ r) / (n - 1)
-    se, shift, _ = _standard_errors(-x[:, None], var, np.zeros((n, 0)), g[:, None], r, var)
+    se, shift, _ = standard_errors(-x[:, None], var, np.zeros((n, 0)), g[:, None], r, var)
     return theta, float(se[0]), float(shift[0]), noise / float(np.sqrt(x @ x))
 
 
@@ -118,7 +118,7 @@ def test_errors_shared_within_a_command_are_carried_by_the_cluster_sandwich():
             r = y - y.mean()
             var = float(r @ r) / (labels.size - 1)
             basis = np.zeros((labels.size, 0))
-            se, _, _ = _standard_errors(-x[:, None], var, basis, basis, r, var, clusters=labels)
+            se, _, _ = standard_errors(-x[:, None], var, basis, basis, r, var, clusters=labels)
             ses.append(se[0])
             errors.append(y.mean())
         spread.append((float(np.median(ses)), float(np.std(errors))))
@@ -133,10 +133,10 @@ def test_a_moved_centre_gives_the_hull_of_both_intervals():
     # interval holds the t-interval about each (the joint fit's answer is right only if
     # the model is, its pull can be model-form error)
     t = float(fitting.special.stdtrit(40, 0.975))
-    lo, hi = fitting._interval(0.025, 0.001, 40, -0.15, 0.15, keep=0.030)
+    lo, hi = fitting.profile_interval(0.025, 0.001, 40, -0.15, 0.15, keep=0.030)
     assert lo == pytest.approx(0.025 - t * 0.001)
     assert hi == pytest.approx(0.030 + t * 0.001)
-    assert fitting._interval(0.025, 0.001, 40, -0.15, 0.029, keep=0.030)[1] == 0.029  # bound
+    assert fitting.profile_interval(0.025, 0.001, 40, -0.15, 0.029, keep=0.030)[1] == 0.029  # bound
 
 
 @pytest.mark.parametrize(("seed", "plan"), [(300005, "random"), (300018, "sweep")])
