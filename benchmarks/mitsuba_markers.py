@@ -34,6 +34,10 @@ from benchmarks.heldout.mitsuba_scenes import (
 SECTION = "Marker angles on Mitsuba 3 renders (held-out renderer)"
 
 _CLI = str(Path(sys.executable).with_name("cvmeasure"))
+#: where renders are kept by their parameters (both Mitsuba benchmarks share it)
+RENDER_CACHE = (
+    Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "cvmeasure_mitsuba"
+)
 _VIEWS = [
     ((0.0, 0.0, 0.0), (10.0, 5.0, -130.0)),
     ((0.45, 0.0, 0.05), (10.0, 5.0, -110.0)),
@@ -293,8 +297,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument(
         "--cache",
         type=Path,
-        default=Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        / "cvmeasure_mitsuba",
+        default=RENDER_CACHE,
         help="renders kept by their parameters (default: the user's cache folder)",
     )
     p.add_argument("--photos", type=int, help="bender photos (default 24; 4 with --quick)")

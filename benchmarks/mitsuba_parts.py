@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import subprocess
 import sys
 import tempfile
@@ -35,7 +34,7 @@ from benchmarks.heldout.mitsuba_scenes import (
     render_board,
     render_part,
 )
-from benchmarks.mitsuba_markers import _VIEWS
+from benchmarks.mitsuba_markers import _VIEWS, RENDER_CACHE
 
 SECTION = "Finished parts on Mitsuba 3 renders (held-out renderer)"
 
@@ -330,8 +329,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument(
         "--cache",
         type=Path,
-        default=Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-        / "cvmeasure_mitsuba",
+        default=RENDER_CACHE,
         help="renders kept by their parameters (default: the user's cache folder)",
     )
     p.add_argument("--photos", type=int, help="part photos (default 24; 4 with --quick)")
