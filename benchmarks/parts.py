@@ -24,11 +24,13 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from cvmeasure.errors import InputError
+from cvmeasure.method_names import PART_METHOD_ALIASES
 from cvmeasure.warning import has_code
 
 SECTION = "Finished parts: ours vs the seed's ellipse and sagitta methods"
-#: the result keys' labels of the part methods (the JSON and RESULTS.md columns kept)
-_LABEL = {"centreline_fit": "ours", "seed_ellipse": "ellipse", "seed_sagitta": "sagitta"}
+#: the result keys' labels of the part methods: their older names (the JSON and RESULTS.md
+#: columns kept)
+_LABEL = {current: older for older, current in PART_METHOD_ALIASES.items()}
 
 RADIUS_TARGET_PCT = 0.3
 BEND_TARGET_DEG = 0.03
