@@ -118,3 +118,33 @@ def order_confounded(
         if similarity > max(CONFOUNDED_SIMILARITY, best.get(family, (0.0, ""))[0]):
             best[family] = (similarity, name)
     return [(f"{term_words(name)} (similarity {sim:.4f})", name) for sim, name in best.values()]
+
+
+def beside_confounded(
+    ctx: Context,
+    base_fit: ModelFit,
+    change_deg: NDArray[np.float64],
+    head_gain: NDArray[np.float64],
+    beside: Sequence[str],
+    sigma_deg: float,
+) -> list[str]:
+    """The library terms found beside the named causes (``beside``, library names) when
+    they, with the machine's nuisance directions, reproduce the causes' change of the
+    predictions on this plan (``change_deg``, (3 N,)): the part of it only the causes
+    explain, in the named fit's residual variance (``sigma_deg``), carries less evidence
+    than a cause needs to be named (a chi-square less the log of the observations, the BIC
+    of one parameter, below ``ctx.min_delta_bic``). The causes then stand in for a
+    mechanism outside the catalogue as well as for themselves: the name is not a pick.
+    Empty otherwise (or with no term beside)."""
+    if not beside or not (sigma_deg > 0):
+        return []
+    n = len(ctx.trials)
+    rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)
+    lib = library(ctx.trials, head_gain)
+    cols = [base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)]
+    cols += [lib[t] for t in beside if t in lib]
+    x = np.column_stack(cols)[rows]
+    y = change_deg[rows]
+    unique = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+    evidence = float(unique @ unique) / sigma_deg**2 - math.log(max(int(rows.sum()), 2))
+    return list(beside) if evidence < ctx.min_delta_bic else []

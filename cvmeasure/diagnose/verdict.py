@@ -32,6 +32,7 @@ from cvmeasure.diagnose.result import CandidateResult
 from cvmeasure.diagnose.rules import GROSS_MISFIT_DEG, Context
 from cvmeasure.diagnose.terms import (
     ORDER_EXPERIMENT,
+    beside_confounded,
     kept_against_terms,
     order_confounded,
     terms_beside,
@@ -315,9 +316,17 @@ def tie_report(
     # an order-dependent term outside the catalogue that reproduces the named causes'
     # change of the predictions on this plan ties them: the name is not a pick
     order_ties: list[tuple[str, str]] = []
+    beside_ties: list[str] = []
     if v.fit.causes:
         change = base.residual_deg - v.residual_deg
         order_ties = order_confounded(ctx, base.fit, change, base.head_gain)
+        if named:
+            # the terms the library still finds beside the name, when they reproduce
+            # what the name explains, tie it
+            terms = [t.term for t in v.beside if t.term != "scatter"]
+            beside_ties = beside_confounded(
+                ctx, base.fit, change, base.head_gain, terms, v.fit.sigma_deg
+            )
     if tie:
         v.notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
@@ -327,6 +336,14 @@ def tie_report(
     if order_ties:
         tie = (tie[0] if tie else " + ".join(v.fit.causes), *tie[1:])
         tie = (*tie, *(name for _, name in order_ties))
+    beside_ties = [t for t in beside_ties if t not in tie]
+    if beside_ties:
+        tie = (tie[0] if tie else " + ".join(v.fit.causes), *tie[1:], *beside_ties)
+        v.notes.append(
+            f"tie: terms outside the catalogue found beside {', '.join(v.fit.causes)} "
+            f"({', '.join(beside_ties)}) reproduce what it explains on this plan (the part "
+            "only it explains is within the evidence a cause needs): the name is not a pick"
+        )
     # a name is a pick only when the named causes explain the held-out data at least as
     # well as the discovered terms (both with the discrepancy profiled out); terms better
     # held out, though not by min_cv_gain, tie them
