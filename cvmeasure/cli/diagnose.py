@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             result.extended_effects(effects),
             extra={
                 "diagnosis": {
-                    "cause": result.cause,
+                    "cause": result.cause.primary,
                     "causes": list(result.causes),
                     "params": out["params"],
                     "intervals": out["intervals"],
