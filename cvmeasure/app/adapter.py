@@ -24,7 +24,7 @@ import cvmeasure
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.contracts import Trial
 from cvmeasure.design import DesignPath
-from cvmeasure.diagnose.result import Cause, CauseKind
+from cvmeasure.diagnose.result import CauseKind
 from cvmeasure.driver.session import (
     SessionConfig,
     SessionInterrupted,
@@ -386,7 +386,7 @@ def diagnose_session(trials: Any) -> SessionDiagnosis:
         )
     else:
         sentence = (
-            f"most likely {Cause.of(d.causes).label}: it cuts the held-out error from "
+            f"most likely {d.cause.label}: it cuts the held-out error from "
             f"{d.baseline_rmse_deg:.3f} to {d.extended_rmse_deg:.3f} deg ({gain:.0f} %)"
         )
     rows: tuple[tuple[str, float], ...] = ()
