@@ -342,7 +342,7 @@ def tie_report(
         tie = (*tie, *(name for _, name in order_ties))
     beside_ties = [t for t in beside_ties if t not in tie]
     if beside_ties:
-        tie = (tie[0] if tie else " + ".join(v.fit.causes), *tie[1:], *beside_ties)
+        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *beside_ties)
         v.notes.append(
             f"tie: terms outside the catalogue found beside {', '.join(v.fit.causes)} "
             f"({', '.join(beside_ties)}) reproduce what it explains on this plan (the part "

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure_datasets import physical_bender as pb
 
@@ -38,7 +38,7 @@ def test_a_warm_up_named_drift_is_tied_with_the_terms_beside_it():
     # only listed)
     trials, _ = _session(507, "warm_up")
     result = diagnose(trials, follow_up=False)
-    assert result.cause == "drift"
+    assert result.cause == Cause.of(["drift"])
     assert result.tie[0] == "drift"
     assert any(t.startswith("warm_up") for t in result.tie[1:]), result.tie
     assert any("reproduce what it explains" in n for n in result.notes), result.notes
@@ -49,7 +49,7 @@ def test_a_scale_with_terms_beside_it_is_still_named_alone():
     # discrepancy leaves) do not reproduce the scale's own change: named, no tie
     trials, hidden = _session(601, "scale")
     result = diagnose(trials, follow_up=False)
-    assert result.cause == "scale" and result.tie == ()
+    assert result.cause == Cause.of(["scale"]) and result.tie == ()
     assert result.discovered  # the terms are there, and do not tie it
     lo, hi = result.intervals["scale"]
     assert lo <= hidden.params["scale"] <= hi
