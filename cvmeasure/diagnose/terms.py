@@ -131,12 +131,13 @@ def beside_confounded(
     """The library terms found beside the named causes (``beside``, library names) when
     they, with the machine's nuisance directions, reproduce the causes' change of the
     predictions on this plan (``change_deg``, (3 N,)): the part of it only the causes
-    explain, in the named fit's residual variance (``sigma_deg``), carries less evidence
+    explain, in the named fit's residual variance (``sigma_deg``: with the model-form
+    discrepancy profiled out, as a cause's evidence is weighed), carries less evidence
     than a cause needs to be named (a chi-square less the log of the observations, the BIC
     of one parameter, below ``ctx.min_delta_bic``). The causes then stand in for a
     mechanism outside the catalogue as well as for themselves: the name is not a pick.
     Empty otherwise (or with no term beside)."""
-    if not beside or not (sigma_deg > 0):
+    if not beside or not (sigma_deg > 0):  # NaN: no discrepancy profiled
         return []
     n = len(ctx.trials)
     rows = np.isfinite(change_deg) & (np.arange(3 * n) < 2 * n)

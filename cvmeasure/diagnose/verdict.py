@@ -327,10 +327,12 @@ def tie_report(
         if named:
             # the terms the library still finds beside the name, when they reproduce
             # what the name explains, tie it
+            # (weighed in the residual variance left once the model-form discrepancy is
+            # profiled out: a cause's evidence is taken against baseline + discrepancy)
             terms = [t.term for t in v.beside if t.term != "scatter"]
-            beside_ties = beside_confounded(
-                ctx, base.fit, change, base.head_gain, terms, v.fit.sigma_deg
-            )
+            dof = max(v.fit.n_obs - v.fit.n_params, 1)
+            sigma = math.sqrt(v.fit.rss_discrepancy_deg2 / dof)
+            beside_ties = beside_confounded(ctx, base.fit, change, base.head_gain, terms, sigma)
     if tie:
         v.notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
