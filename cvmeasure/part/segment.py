@@ -171,16 +171,23 @@ def _wire_like(
 
 
 def _longest_filled_path(
-    found: list[tuple[float, int]], labels: np.ndarray, stats: np.ndarray
-) -> tuple[float, np.ndarray, np.ndarray]:
+    found: list[tuple[float, int]], labels: np.ndarray, stats: np.ndarray, wide: float
+) -> tuple[float, np.ndarray, np.ndarray] | None:
     """Of the longest skeletons, the one with the longest path once its holes are filled
-    (a stray disc's or ring's outline has a long skeleton but, filled, no long path):
-    (path length, its filled mask, the path), in the reduced image's pixels."""
+    (a stray disc's or ring's outline has a long skeleton but, filled, no long path)
+    and no wider than a wire along it (filled area over path length at most ``wide``: a
+    sheet's grainy margin around the left-out board passes the skeleton test, as its
+    speckle has a long skeleton, but filled it is a band tens of wires wide):
+    (path length, its filled mask, the path), in the reduced image's pixels; None when
+    no candidate is wire-like."""
     import cv2
     from skimage.morphology import skeletonize
 
     best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for _, lab in sorted(found, reverse=True)[:CANDIDATES]:
+    tried = 0
+    for _, lab in sorted(found, reverse=True):
+        if tried == CANDIDATES:
+            break
         x, y, w, h, _ = stats[lab]
         comp_box = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
         # fill holes (a specular crest can split the mask along the wire)
@@ -189,11 +196,13 @@ def _longest_filled_path(
         cv2.drawContours(filled_box, contours, -1, 1, thickness=cv2.FILLED)
         path_box = longest_skeleton_path(skeletonize(filled_box.astype(bool)))
         plen = float(np.sum(np.hypot(*np.diff(path_box, axis=0).T)))
+        if float(filled_box.sum()) / max(plen, 1.0) > wide:
+            continue
+        tried += 1
         if best is None or plen > best[0]:
             filled = np.zeros(labels.shape, dtype=np.uint8)
             filled[y : y + h, x : x + w] = filled_box
             best = (plen, filled, path_box + np.array([x, y], dtype=np.float64))
-    assert best is not None
     return best
 
 
@@ -258,7 +267,10 @@ def segment_wire(
     found = _wire_like(count, labels, stats, min_length_px * factor * 0.5, wide)
     if not found:
         return None
-    path_len, filled, path_small = _longest_filled_path(found, labels, stats)
+    chosen = _longest_filled_path(found, labels, stats, wide)
+    if chosen is None:
+        return None
+    path_len, filled, path_small = chosen
     if path_len / factor < min_length_px:
         return None
     # back to full size
