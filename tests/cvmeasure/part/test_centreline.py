@@ -142,7 +142,7 @@ def test_polished_wire_whose_limbs_mirror_the_sheet_is_centred_by_symmetry():
     cl = measure_centreline(
         img, _rough_path(axis, 1.0), width_guess_px=1.2 * radius_px, wire_width_px=2 * radius_px
     )
-    assert cl.centre_from.startswith("symmetry (edges the wire's width apart along only")
+    assert cl.centre_from.startswith("symmetry (the edges seen are")
     assert cl.coverage > 0.9
     _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
     assert np.sqrt(np.mean(dist**2)) < 0.05
