@@ -94,6 +94,10 @@ SYMMETRIC_WIRE_MAX = 0.12
 #: symmetric centres are not a wire's (the path runs on a little into a joined shadow).
 SILHOUETTE_MIN_SHARE_OF_PATH = 0.85
 
+#: Least share of the profiles with a centre between silhouette edges (or from one edge)
+#: for those to be used; below it the symmetric centres are, where they are a wire's.
+SILHOUETTE_MIN_COVERAGE = 0.5
+
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
 
@@ -333,6 +337,10 @@ def _silhouette_if_whole(
     misfit = found[6]
     if misfit > PAIR_TOLERANCE and symmetry <= SYMMETRIC_WIRE_MAX:
         return f"the edges seen are {100 * misfit:.0f} % off the wire's width apart (median)"
+    # edges along too little of the wire to say it is one (a grainy sheet's noise in its
+    # flanks), while its profiles are a round wire's symmetric ones along it: those say it
+    if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
+        return f"silhouette edges along only {100 * found[3]:.0f} % of it"
     return found[:6]
 
 

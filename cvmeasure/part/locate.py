@@ -7,6 +7,7 @@ centreline and maps it to board millimetres on the plane of the wire's axis.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -114,18 +115,18 @@ def measure_centreline_mm(
         raise InputError(source, "no wire found beside the board")
     # the longest thin line whose profiles are a wire's: a longer one can be an edge of the
     # board's sheet, a grainy strip as thin as a wire and not round across
-    first_error: InputError | None = None
+    errors: list[InputError] = []
     for wire in candidates:
         try:
             centre = _wire_centreline(
                 image, wire, plane, height, end_shape, wire_diameter_mm, source
             )
         except InputError as exc:
-            first_error = first_error or exc
+            errors.append(exc)
             continue
+        wire = replace(wire, passed_over=tuple(e.problem for e in errors))
         return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=height)
-    assert first_error is not None
-    raise first_error
+    raise errors[0]
 
 
 def _wire_centreline(

@@ -50,6 +50,8 @@ class WireMask:
     contrast : median absolute difference wire - background inside the mask.
     threshold : the difference level the mask was cut at.
     width_px : rough wire width (mask area / path length), pixels.
+    passed_over : why each longer thin line was not taken for the wire (empty when this
+        is the longest; set by :func:`cvmeasure.part.locate.measure_centreline_mm`).
     """
 
     mask: np.ndarray
@@ -59,6 +61,7 @@ class WireMask:
     contrast: float
     threshold: float
     width_px: float
+    passed_over: tuple[str, ...] = ()
 
     @property
     def length_px(self) -> float:

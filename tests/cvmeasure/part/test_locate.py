@@ -59,3 +59,5 @@ def test_a_longer_grainy_strip_is_passed_over_for_the_wire():
     )
     _, dist, _ = point_to_polyline(centre.points_px[1:-1], axis_px)
     assert np.median(np.abs(dist)) < 0.5
+    # the line passed over is reported (measure_part warns part_wire_not_longest)
+    assert len(wire.passed_over) == 1 and "no wire found" in wire.passed_over[0]
