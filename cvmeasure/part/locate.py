@@ -114,9 +114,11 @@ def measure_centreline_mm(
     if not candidates:
         raise InputError(source, "no wire found beside the board")
     # the longest thin line whose profiles are a wire's: a longer one can be an edge of the
-    # board's sheet, a grainy strip as thin as a wire and not round across
+    # board's sheet, a grainy strip as thin as a wire and not round across. Only for a wire
+    # of known diameter, whose profiles are tested between edges its width apart: without
+    # it a cluttered desk's shorter lines pass the symmetry test alone
     errors: list[InputError] = []
-    for wire in candidates:
+    for wire in candidates if wire_diameter_mm is not None else candidates[:1]:
         try:
             centre = _wire_centreline(
                 image, wire, plane, height, end_shape, wire_diameter_mm, source
