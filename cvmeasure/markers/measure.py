@@ -224,7 +224,9 @@ def _other_edges(
     colour edges, luminance for green ones) round its settled circle (image px): where
     the two disagree, demosaicing, blur, JPEG or shading moved the edge
     (:func:`edge_mode_cov`)."""
-    other = "luma" if (edge or EDGE_MODE) == "green" else "green"
+    # shade edges against luminance: the two weigh a light disc's wall and the shadow
+    # on its ring differently, so they part by what that shading does to the edge
+    other = "luma" if (edge or EDGE_MODE) in ("green", SHADE_EDGES) else "green"
     out = {}
     for role, (fit, edges) in fits.items():
         spec = kit.by_role(role)
@@ -574,8 +576,9 @@ def _centres(
             # RAW or 16-bit data: no chroma subsampling to avoid, and no in-camera
             # lateral-colour correction either, so the green channel is the better edge
             edge = "green"
-        elif edge is None and kit.has_heights:
-            # raised caps: their step walls read alike on every disc (SHADE_EDGES)
+        elif edge is None and kit.has_heights and transform.plane is not None:
+            # raised caps measured at their heights: their step walls read alike on every
+            # disc (SHADE_EDGES); without a pose the heights' own bound is far larger
             edge = SHADE_EDGES
         markers, centres, covs, warnings = _measure_ours(
             work, bgr8, kit, model, transform, source, edge, probe and edge != "green"

@@ -17,6 +17,8 @@ import pytest
 
 from cvmeasure.colorimetry import srgb_encode_floats
 from cvmeasure.geometry import fit_circle_robust
+from cvmeasure.kit import default_kit
+from cvmeasure.markers import measure_machine_photo
 from cvmeasure.markers.refine import disc_edge_points
 
 CENTRE = (60.3, 59.6)
@@ -84,3 +86,23 @@ def test_a_wall_lit_as_the_top_reads_alike_in_shade_and_luminance():
         bgr = _cap_image(disc, 1.0)
         for edge in ("luma", "shade"):
             assert abs(_centre_x(bgr, edge) - (CENTRE[0] - WALL_PX / 2)) < 0.03, (disc, edge)
+
+
+def test_caps_at_heights_on_a_plane_pose_are_measured_in_shade_by_default():
+    pytest.importorskip("cvmeasure_datasets.discs3d")
+    from cvmeasure_datasets.discs3d import DiscScene, render_discs_at_heights
+
+    from .test_marker_heights import SQUARE, _camera, true_plane
+
+    kit = default_kit()
+    bgr, _ = render_discs_at_heights(DiscScene(-60.0, -50.0, pose=SQUARE), camera=_camera(), seed=3)
+    plane = true_plane(_camera(), SQUARE)
+
+    def pin(kit, **kw):
+        return measure_machine_photo(bgr, kit, **kw).pin_angle_deg
+
+    assert pin(kit, plane=plane) == pin(kit, plane=plane, edge="shade")
+    assert pin(kit, plane=plane) != pin(kit, plane=plane, edge="luma")
+    # a flat kit, or no pose (the heights' own bound is far larger): luminance edges
+    assert pin(kit.flat(), plane=plane) == pin(kit.flat(), plane=plane, edge="luma")
+    assert pin(kit, camera=_camera()) == pin(kit, camera=_camera(), edge="luma")
