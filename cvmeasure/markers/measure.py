@@ -576,9 +576,10 @@ def _centres(
             # RAW or 16-bit data: no chroma subsampling to avoid, and no in-camera
             # lateral-colour correction either, so the green channel is the better edge
             edge = "green"
-        elif edge is None and kit.has_heights and transform.plane is not None:
-            # raised caps measured at their heights: their step walls read alike on every
-            # disc (SHADE_EDGES); without a pose the heights' own bound is far larger
+        elif edge is None and kit.has_steps:
+            # faces standing on their rings: the steps' walls read alike on every disc
+            # (SHADE_EDGES); flush faces keep luminance, which JPEG and demosaicing keep
+            # sharpest (shade edges cost 2-3x the angle error on the photo lab's renders)
             edge = SHADE_EDGES
         markers, centres, covs, warnings = _measure_ours(
             work, bgr8, kit, model, transform, source, edge, probe and edge != "green"

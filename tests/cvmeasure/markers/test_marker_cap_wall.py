@@ -11,13 +11,16 @@ of ``WALL_PX * max(0, -cos t)``), whatever the disc's colour.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
 
 from cvmeasure.colorimetry import srgb_encode_floats
+from cvmeasure.errors import InputError
 from cvmeasure.geometry import fit_circle_robust
-from cvmeasure.kit import default_kit
+from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.markers import measure_machine_photo
 from cvmeasure.markers.refine import disc_edge_points
 
@@ -88,21 +91,30 @@ def test_a_wall_lit_as_the_top_reads_alike_in_shade_and_luminance():
             assert abs(_centre_x(bgr, edge) - (CENTRE[0] - WALL_PX / 2)) < 0.03, (disc, edge)
 
 
-def test_caps_at_heights_on_a_plane_pose_are_measured_in_shade_by_default():
+def test_a_kit_with_stepped_faces_is_measured_in_shade_by_default():
     pytest.importorskip("cvmeasure_datasets.discs3d")
     from cvmeasure_datasets.discs3d import DiscScene, render_discs_at_heights
 
     from .test_marker_heights import SQUARE, _camera, true_plane
 
     kit = default_kit()
+    stepped = replace(kit, markers=tuple(replace(m, step_mm=0.3) for m in kit.markers))
+    assert stepped.has_steps and not kit.has_steps
+    assert MarkerKit.from_dict(stepped.to_dict()) == stepped
     bgr, _ = render_discs_at_heights(DiscScene(-60.0, -50.0, pose=SQUARE), camera=_camera(), seed=3)
     plane = true_plane(_camera(), SQUARE)
 
     def pin(kit, **kw):
-        return measure_machine_photo(bgr, kit, **kw).pin_angle_deg
+        return measure_machine_photo(bgr, kit, plane=plane, **kw).pin_angle_deg
 
-    assert pin(kit, plane=plane) == pin(kit, plane=plane, edge="shade")
-    assert pin(kit, plane=plane) != pin(kit, plane=plane, edge="luma")
-    # a flat kit, or no pose (the heights' own bound is far larger): luminance edges
-    assert pin(kit.flat(), plane=plane) == pin(kit.flat(), plane=plane, edge="luma")
-    assert pin(kit, camera=_camera()) == pin(kit, camera=_camera(), edge="luma")
+    assert pin(stepped) == pin(stepped, edge="shade")
+    assert pin(stepped) != pin(stepped, edge="luma")
+    # flush faces (the built-in kit): luminance edges
+    assert pin(kit) == pin(kit, edge="luma")
+
+
+def test_a_negative_step_is_refused():
+    data = default_kit().to_dict()
+    data["markers"][0]["step_mm"] = -0.1
+    with pytest.raises(InputError, match="step_mm"):
+        MarkerKit.from_dict(data)
