@@ -324,7 +324,7 @@ def measure_bender_photo(
         only); the older ``"ours"`` / ``"seed"`` are read too.
     space : colour space of the segmentation, ``"lab"`` or ``"rgb"``.
     edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``,
-        ``"shade"``, or None (by the photo's type and the kit's heights).
+        ``"shade"``, or None (by the photo's type and the kit's ``step_mm``).
     heights : without a plane, ``"none"`` (bound the heights' effect) or ``"parallel"``.
 
     Raises

@@ -86,9 +86,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--edge",
         choices=("luma", "green", "colour", "shade"),
-        help="image the disc edges are found in (default: for JPEG/8-bit photos shade when "
-        "the kit's caps stand at heights (their step walls count alike on every disc), luma "
-        "for a flat kit; green for RAW/16-bit ones and for any lens with strong lateral colour)",
+        help="image the disc edges are found in (default: luma for JPEG/8-bit photos, shade "
+        "when the kit's markers have a step_mm (faces standing on their rings); green for "
+        "RAW/16-bit ones and for any lens with strong lateral colour)",
     )
     p.add_argument(
         "--heights",

@@ -34,9 +34,9 @@ sampling; on a plane pose the kit's height uncertainties are added. They do not
 include camera or plane calibration errors, print or mounting tolerances of the
 markers, or lateral chromatic aberration.
 
-Edges are found in linear luminance for 8-bit photos of a flat kit (JPEG keeps it
-at full resolution), in "shade" for 8-bit photos of a kit whose caps stand at heights
-(the caps' step walls then count alike on every disc:
+Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
+resolution), in "shade" for 8-bit photos of a kit whose markers' faces stand on their
+rings (``step_mm``: the steps' walls then count alike on every disc,
 :data:`cvmeasure.markers.refine.SHADE_EDGES`) and in the green channel for RAW/16-bit
 data (``edge=`` to choose): a lens's lateral chromatic aberration moves red and blue
 edges. By default the
@@ -441,7 +441,7 @@ def measure_machine_photo(
     edge : where disc edges are found: "luma" (JPEG's full-resolution component), "green"
         (immune to lateral chromatic aberration), "colour" or "shade" (see
         :data:`cvmeasure.markers.refine.EDGE_MODE`). Default for 8-bit photos (JPEGs):
-        "shade" for a kit with heights (raised caps), "luma" for a flat one, either
+        "shade" for a kit whose faces stand on their rings (``step_mm``), else "luma", either
         switched to "green" with a warning where the discs show lateral chromatic
         aberration; "green" for RAW/linear or 16-bit data.
     heights : without a plane pose, how the kit's marker heights are treated: "none"
