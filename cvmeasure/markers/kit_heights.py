@@ -62,6 +62,9 @@ MIN_PHOTOS = 3
 MIN_SPAN_DEG = 30.0
 #: Smallest scale of the heights' covariance by the residuals' RMS (see measure_heights).
 MIN_BIRGE = 0.5
+#: Singular values of the photos' whitened Jacobian below this fraction of the largest:
+#: directions the photos do not see (those seen are 1e-2 or more, the unseen 1e-5 or less).
+DATA_RANK_RTOL = 1e-4
 #: Whitened residuals' RMS above this: the photos disagree with the turning-markers model.
 POOR_FIT_RMS = 3.0
 
@@ -86,8 +89,9 @@ class MeasuredHeights:
     ``kit`` is the input kit with ``height_mm``, ``height_sigma_mm`` and
     ``height_covariance_mm2`` measured; ``nominal_mm`` the heights it started from;
     ``radii_mm`` the fitted distances of the turning markers from the origin marker;
-    ``rms`` the RMS of the residuals in units of their standard uncertainty (about 1
-    when the photos agree with the model); ``warnings`` what is in doubt.
+    ``rms`` the RMS of the photos' residuals in units of their standard uncertainty, per
+    degree of freedom (about 1 when the photos agree with the model); ``warnings`` what is
+    in doubt.
     """
 
     kit: MarkerKit
@@ -209,15 +213,20 @@ def measure_heights(
     ]
     args = (photos, kit_mm, prior, prior_sigma, centre, y_down, bend_sigma)
     fit = least_squares(_residuals, np.concatenate((prior, radii0)), args=args, x_scale=1.0)
-    n_res, n_par = fit.fun.size, fit.x.size
-    chi2 = float(fit.fun @ fit.fun)
-    rms = math.sqrt(chi2 / max(n_res - n_par, 1))
     n = len(ROLES)
-    # the photos' part scaled by the residuals' own scatter (the Birge ratio), both ways,
-    # never below a quarter of the stated one (a lucky few photos must not claim too
-    # much); the prior's rows (the last n) are not: the photos say nothing about it
     jac = np.asarray(fit.jac)
     data, prior_rows = jac[:-n], jac[-n:]
+    # the photos' scatter from their own residuals: the directions they leave to the prior
+    # (the unseen scale, the axis marker's height from a square pose) take none of their
+    # degrees of freedom, and the prior's residuals (caps off their nominal heights) are
+    # no scatter of the photos
+    sv = np.linalg.svd(data, compute_uv=False)
+    seen = int(np.sum(sv > DATA_RANK_RTOL * sv[0]))
+    res = fit.fun[:-n]
+    rms = math.sqrt(float(res @ res) / max(res.size - seen, 1))
+    # the photos' part scaled by that scatter (the Birge ratio), both ways, never below
+    # MIN_BIRGE of the stated one (a lucky few photos must not claim too much); the
+    # prior's rows are not: the photos say nothing about it
     info = data.T @ data / max(rms, MIN_BIRGE) ** 2 + prior_rows.T @ prior_rows
     cov = np.linalg.pinv(info)
     h_cov = cov[:n, :n]
