@@ -22,8 +22,8 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.board import load_board as _read_board
-from cvmeasure.camera import CameraModel, save_camera
-from cvmeasure.camera import load_camera as _read_camera
+from cvmeasure.camera_model import CameraModel, save_camera
+from cvmeasure.camera_model import load_camera as _read_camera
 from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
 from cvmeasure.design import Design, DesignPath
 from cvmeasure.design import load_design as _read_design

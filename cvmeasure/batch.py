@@ -44,7 +44,7 @@ if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used
     from concurrent.futures import Future
 
     from cvmeasure.board import BoardSpec
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.imageio import Photo
     from cvmeasure.kit import MarkerKit
@@ -130,7 +130,7 @@ class MeasureContext:
 
 @lru_cache(maxsize=8)
 def _load_camera(path: str) -> CameraModel:
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
 
     return load_camera(path)
 

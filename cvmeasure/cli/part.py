@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from cvmeasure.board import load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.coverage import Coverage, image_coverage
 from cvmeasure.lens.detect import BoardDetection, detect_board
 from cvmeasure.lens.solve import (

@@ -24,7 +24,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.lens.detect import MIN_CORNERS, BoardDetection
 

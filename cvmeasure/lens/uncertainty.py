@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import BoardDetection
 from cvmeasure.lens.solve import CalibrationResult, calibrate_views
 from cvmeasure.lens.warp import gauss_markov_covariance

@@ -54,7 +54,7 @@ from typing import Any, Literal
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, fit_circle_robust, fit_circles_robust

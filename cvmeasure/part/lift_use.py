@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.part.arc import arc_from_points
 from cvmeasure.part.ends import EndShape

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError

@@ -134,7 +134,7 @@ def test_cli_part_moved(tmp_path, capsys):
     wire diameter the option is refused (exit 2) naming it."""
     import cv2
 
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
     from cvmeasure.fileio import atomic_write_json
 

@@ -209,7 +209,7 @@ def test_raised_plane_mapping_inverts_the_projection():
 
 def test_real_board_photos_without_a_wire_are_refused(shared_real):
     """Real photos of a ChArUco board on a cluttered desk: thin lines, but no wire."""
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.errors import InputError
     from cvmeasure.imageio import read_photo
 

@@ -96,7 +96,7 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
 
     import cv2
 
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
 
     photo, _ = _photo("dark", 3.0, 55.0, 300.0, 9104)
