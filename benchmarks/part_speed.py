@@ -151,6 +151,7 @@ def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
     from cvmeasure.camera_model import load_camera
     from cvmeasure.imageio import read_photo
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
 
     image = read_photo(case["photo"]).bgr
     second = read_photo(case["moved"]).bgr if moved else None
@@ -162,7 +163,14 @@ def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
         camera = load_camera(case["args"][3])
         kw = {}
     c0 = time.process_time()
-    m = measure_part(image, board, camera, divisions=case["divisions"], moved_image=second, **kw)
+    m = measure_part(
+        image,
+        board,
+        camera,
+        options=PartOptions(divisions=case["divisions"]),
+        moved_image=second,
+        **kw,
+    )
     return time.process_time() - c0, m
 
 

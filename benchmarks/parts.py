@@ -100,6 +100,7 @@ def _run_case(case: dict, scale: float, camera) -> dict:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     if case["kind"] == "arc":
@@ -121,7 +122,7 @@ def _run_case(case: dict, scale: float, camera) -> dict:
         part=part, board=board, sheet=case["sheet"], pose=pose, seed=case["seed"], scale=scale
     )
     t0 = time.perf_counter()
-    m = measure_part(photo.bgr, board, camera, divisions=case["divisions"])
+    m = measure_part(photo.bgr, board, camera, options=PartOptions(divisions=case["divisions"]))
     seconds = time.perf_counter() - t0
     truth = photo.truth
     true_bends = np.asarray(truth["segment_bend_deg"], dtype=np.float64)
@@ -191,6 +192,7 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
     import cvmeasure_datasets
     from benchmarks._calibrated import plane_for_pose
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure_datasets.round_wire import render_round_wire
 
     part = cvmeasure_datasets.arc_part(
@@ -239,9 +241,17 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
             # 'round' is measure_part's default (the lift from the cast shadow, corrected
             # when good enough); 'width' the same photo with shadow_lift=False (bounded)
             m = measure_part(
-                photo.bgr, None, None, plane=plane, wire_diameter_mm=diameter,
-                divisions=case["divisions"], moved_image=second, shadow_lift=name != "width",
-            )  # fmt: skip
+                photo.bgr,
+                None,
+                None,
+                plane=plane,
+                options=PartOptions(
+                    divisions=case["divisions"],
+                    wire=WireOptions(diameter_mm=diameter),
+                    lift=LiftOptions(shadow=name != "width"),
+                ),
+                moved_image=second,
+            )
         except InputError as exc:
             out[f"{name}_refused"] = str(exc)
             continue

@@ -325,6 +325,7 @@ def _part_rows(args, scale, camera, n):
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.errors import InputError
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure_datasets import Pose, arc_part, render_part_photo
     from cvmeasure_datasets.effects import SceneEffects
 
@@ -370,10 +371,14 @@ def _part_rows(args, scale, camera, n):
                     photo.bgr,
                     board,
                     camera,
-                    divisions=part.divisions,
-                    # a round wire: silhouette centreline, axis at its radius, lift bound
-                    axis_height_mm=None if fx.wire_3d else 0.0,
-                    wire_diameter_mm=part.wire_diameter_mm if fx.wire_3d else None,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        # a round wire: silhouette centreline, axis at its radius, lift bound
+                        wire=WireOptions(
+                            axis_height_mm=None if fx.wire_3d else 0.0,
+                            diameter_mm=part.wire_diameter_mm if fx.wire_3d else None,
+                        ),
+                    ),
                 )
             except InputError as exc:
                 print(f"part {row} photo {i}: refused ({exc})", flush=True)
@@ -398,9 +403,15 @@ def _part_rows(args, scale, camera, n):
             # the same photo with the lift only bounded from the width (--no-shadow-lift)
             try:
                 m0 = measure_part(
-                    photo.bgr, board, camera, divisions=part.divisions, axis_height_mm=None,
-                    wire_diameter_mm=part.wire_diameter_mm, shadow_lift=False,
-                )  # fmt: skip
+                    photo.bgr,
+                    board,
+                    camera,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        wire=WireOptions(axis_height_mm=None, diameter_mm=part.wire_diameter_mm),
+                        lift=LiftOptions(shadow=False),
+                    ),
+                )
             except InputError as exc:
                 print(f"part {row} photo {i} with --no-shadow-lift: refused ({exc})", flush=True)
                 width["refused"] += 1
@@ -418,9 +429,15 @@ def _part_rows(args, scale, camera, n):
             )  # fmt: skip
             try:
                 m2 = measure_part(
-                    photo.bgr, board, camera, divisions=part.divisions, axis_height_mm=None,
-                    wire_diameter_mm=part.wire_diameter_mm, moved_image=second.bgr,
-                )  # fmt: skip
+                    photo.bgr,
+                    board,
+                    camera,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        wire=WireOptions(axis_height_mm=None, diameter_mm=part.wire_diameter_mm),
+                    ),
+                    moved_image=second.bgr,
+                )
             except InputError as exc:
                 print(f"part {row} photo {i} with the slid photo: refused ({exc})", flush=True)
                 moved["refused"] += 1

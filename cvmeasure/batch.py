@@ -397,13 +397,13 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
     from cvmeasure.part.measure import measure_part as measure_part_photo
+    from cvmeasure.part.options import PartOptions
 
     board, camera = context.board(), context.camera()
     if board is None or camera is None:
         raise InputError(photo.path, "a part photo needs the board (--board) and camera (--camera)")
-    result = measure_part_photo(
-        photo.bgr, board, camera, divisions=context.option("divisions"), source=photo.path
-    )
+    options = PartOptions(divisions=context.option("divisions"))
+    result = measure_part_photo(photo.bgr, board, camera, options=options, source=photo.path)
     return _as_record(result.to_dict())
 
 

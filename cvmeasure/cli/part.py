@@ -141,6 +141,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
     from cvmeasure.imageio import read_photo
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure.provenance import provenance
 
     if args.plot and not args.design:
@@ -176,22 +177,25 @@ def run(args: argparse.Namespace) -> int:
     if args.moved and args.plane:
         raise InputError("--moved", "the moved photo's plane comes from its board: use --board")
     moved = read_photo(args.moved).bgr if args.moved else None
+    options = PartOptions(
+        divisions=args.divisions if plan is None else None,
+        method=args.method,
+        wire=WireOptions(
+            diameter_mm=diameter, end_shape=args.ends, axis_height_mm=args.axis_height_mm
+        ),
+        lift=LiftOptions(shadow=args.shadow_lift is not False),
+    )
     m = measure_part(
         photo.bgr,
         board,
         camera,
-        divisions=args.divisions if plan is None else None,
+        options=options,
+        plane=plane,
         design=design,
         design_source=str(args.design) if args.design else "design",
         reference_mm=None if plan is None else plan.vertices_mm,
-        method=args.method,
-        axis_height_mm=args.axis_height_mm,
-        end_shape=args.ends,
-        source=str(args.photo),
-        wire_diameter_mm=diameter,
         moved_image=moved,
-        plane=plane,
-        shadow_lift=args.shadow_lift is not False,
+        source=str(args.photo),
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:

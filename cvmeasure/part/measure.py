@@ -35,7 +35,6 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit
-from cvmeasure.method_names import part_method
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -55,9 +54,8 @@ from cvmeasure.part.compare import (
     deviation_profile,
     register_to_design,
 )
-from cvmeasure.part.ends import EndShape
 from cvmeasure.part.fit import ChordCount, PolylineFit, count_chords, fit_polyline
-from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, estimate_lift, lift_bound_mm
+from cvmeasure.part.lift import LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
     LIFT_BEND_DEG,
     LIFT_RADIUS_PCT,
@@ -70,6 +68,7 @@ from cvmeasure.part.lift_use import (
     shadow_unusable,
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.result import METHODS, ArcResult, DesignComparison, Method, PartMeasurement
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask
@@ -84,13 +83,16 @@ __all__ = [
     "ArcResult",
     "DesignComparison",
     "PartMeasurement",
+    "PartOptions",
+    "WireOptions",
+    "LiftOptions",
     "measure_part",
     "measure_centreline_mm",
     "compare_with_design",
     "arc_from_points",
     "chord_and_height_mm",
 ]
-# (the result types, arc_from_points, chord_and_height_mm and measure_centreline_mm are
+# (the result and option types, arc_from_points, chord_and_height_mm and measure_centreline_mm are
 # re-exported: this module is where a part measurement is asked for)
 
 #: A seed method's arc angle this far (deg) from the centreline's is warned about.
@@ -153,33 +155,19 @@ def compare_with_design(
     return DesignComparison(design_source, reg, dev, design_arc, bends)
 
 
-def _check_arguments(method: str, divisions: int | None) -> None:
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    if divisions is not None and divisions < 1:
-        raise ValueError(f"divisions must be >= 1, got {divisions}")
-
-
 def measure_part(
     image: np.ndarray,
     board: BoardSpec | None,
     camera: CameraModel | None,
     *,
-    divisions: int | None = None,
+    options: PartOptions | None = None,
+    plane: PlaneModel | None = None,
     design: DesignPath | None = None,
     design_source: str = "design",
-    method: Method = "centreline_fit",
-    axis_height_mm: float | None = None,
-    end_shape: EndShape = "round",
-    source: str = "photo",
-    allow_mirror: bool = True,
-    wire_diameter_mm: float | None = None,
-    plane: PlaneModel | None = None,
-    max_lift_mm: float = MAX_LIFT_MM,
+    reference_mm: np.ndarray | None = None,
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
-    shadow_lift: bool = True,
-    reference_mm: np.ndarray | None = None,
+    source: str = "photo",
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -189,27 +177,27 @@ def measure_part(
     board, camera : the board lying in the part's plane and the calibrated camera; or
         ``plane``, measured elsewhere (``cvmeasure plane``: ``board`` is then only left
         out of the wire search and may be None, ``camera`` is unused).
-    divisions : the chord count N bent; None finds the vertices (:func:`count_chords`);
-        given, a warning says when the photo shows another count.
-    design, design_source, allow_mirror : the design wire, its name, and whether the
-        comparison may try the mirror image. ``method``: the headline (:data:`METHODS`).
-    axis_height_mm : the wire axis' height above the board's plane (mm, towards the
-        camera); None: the wire's radius with ``wire_diameter_mm``, else 0.
-    wire_diameter_mm : the wire's diameter: the centreline between its silhouette edges,
-        and the lift off the plate read (:mod:`cvmeasure.part.lift_use`) from
-        ``moved_image`` (the part slid; its plane ``moved_plane``) or the cast shadow
-        (``shadow_lift``), corrected when consistent with the bound, else bounded (at most
-        ``max_lift_mm``); reported in ``lift``, the sigmas and ``part_lifted``.
-    end_shape : ``"round"`` or ``"flat"`` wire ends. ``source``: the photo's name.
+    options : how to measure (:class:`~cvmeasure.part.options.PartOptions`: the chord
+        count, the headline method, the wire stock, the lift); None: the defaults.
+        With the wire's diameter, the lift off the plate is read
+        (:mod:`cvmeasure.part.lift_use`) from ``moved_image`` or the cast shadow,
+        corrected when consistent with the bound, else bounded; reported in ``lift``,
+        the sigmas and ``part_lifted``.
+    design, design_source : the design wire and its name (compared with, see
+        :func:`compare_with_design`).
     reference_mm : (N+1, 2) the polygon bent (design frame, mm; ``WirePlan.vertices_mm``):
         the part is fitted with its N chords, vertices starting where it has them, and
         compared with it. Default: the planner's polygon of ``design`` in N chords.
+    moved_image, moved_plane : a second photo of the part slid on the plate, and its
+        plane (default: found from ``board``, or ``plane`` when that was given).
+    source : the photo's name (in messages and the result).
 
-    Raises InputError (no board, no wire, a part the divisions cannot describe) or
-    ValueError (an unknown ``method``, ``divisions < 1``).
+    Raises InputError (no board, no wire, a part the divisions cannot describe).
     """
-    method = part_method(method)
-    _check_arguments(method, divisions)
+    opts = PartOptions() if options is None else options
+    wire_opts, lift_opts = opts.wire, opts.lift
+    method, divisions, wire_diameter_mm = opts.method, opts.divisions, wire_opts.diameter_mm
+    axis_height_mm, end_shape = wire_opts.axis_height_mm, wire_opts.end_shape
     moved_given = plane is not None
     plane, wire, centre, centreline_mm = measure_centreline_mm(
         image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
@@ -236,11 +224,12 @@ def measure_part(
             centre.centre_from,
         )  # fmt: skip
         warnings += [moved_warning] if moved_warning else []
-    elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
-        bound_mm = lift_bound_mm(lift, max_lift_mm)
+    elif lift_opts.shadow and wire_diameter_mm is not None and centre.centre_from == "silhouette":
+        bound_mm = lift_bound_mm(lift, lift_opts.max_lift_mm)
         reading = _shadow_reading(image, plane, centre, wire_diameter_mm, base_mm, bound_mm)
     fit = _with_lift(image, plane, centre, flat, reading, divisions, base_mm, source, warnings)
     if wire_diameter_mm is not None and fit.lift_info is None:
+        max_lift_mm = lift_opts.max_lift_mm
         _bound_lift(fit, plane, centre, lift, reading, divisions, base_mm, max_lift_mm, warnings)
     ours, poly, vpoly = fit.ours, fit.poly, fit.vpoly
     bend_sigma = _checked_sigma(fit, centre, plane, divisions, warnings)
@@ -253,7 +242,7 @@ def measure_part(
     if design is not None:
         comparison = compare_with_design(
             fit.centreline_mm, None if vpoly is None else vpoly.bend_deg, methods[method],
-            design, design_source=design_source, allow_mirror=allow_mirror,
+            design, design_source=design_source, allow_mirror=opts.allow_mirror,
             reference_mm=reference_mm,
         )  # fmt: skip
     return _assemble(

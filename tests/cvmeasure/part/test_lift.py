@@ -9,6 +9,7 @@ import cvmeasure_datasets
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, lift_bound_mm, rocked_lift
 from cvmeasure.part.lift_use import lifted_points_mm
 from cvmeasure.part.measure import arc_from_points, measure_part
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.parts import lifted_centreline
@@ -89,7 +90,12 @@ def test_a_lifted_lab_part_is_warned_about_and_within_its_stated_bound():
         effects=SceneEffects(wire_3d=True, part_lift_mm=3.0),
     )
     m = measure_part(
-        photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM, shadow_lift=False
+        photo.bgr,
+        board,
+        photo.camera,
+        options=PartOptions(
+            divisions=8, wire=WireOptions(diameter_mm=WIRE_MM), lift=LiftOptions(shadow=False)
+        ),
     )
     radius_err_pct = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
     assert abs(radius_err_pct) > 0.3  # the lift matters here

@@ -12,6 +12,7 @@ import pytest
 import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_centreline_mm
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.shadow import estimate_lift_shadow
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
@@ -192,9 +193,15 @@ def test_the_photo_labs_lifted_part_is_corrected_from_its_shadow():
 
     photo, _, _ = _lab_photo(2101, 1, 2.0)
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera,
-        divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
-    )  # fmt: skip
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(
+            divisions=photo.truth["divisions"],
+            wire=WireOptions(diameter_mm=WIRE_MM),
+            lift=LiftOptions(shadow=True),
+        ),
+    )
     assert m.lift is not None and m.lift["used"] == "correction", m.lift
     assert abs(m.lift["lift_mm"] - 2.0) < 2.0 * m.lift["lift_sigma_mm"] + 0.1
     assert abs(100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)) < 0.3
@@ -242,9 +249,15 @@ def test_a_textured_lab_sheet_is_not_corrected_silently_wrong():
 
     photo = _lab_render(2000, 1, replace(SceneEffects.all_on(), part_lift_mm=0.0))  # light
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera,
-        divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
-    )  # fmt: skip
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(
+            divisions=photo.truth["divisions"],
+            wire=WireOptions(diameter_mm=WIRE_MM),
+            lift=LiftOptions(shadow=True),
+        ),
+    )
     assert m.lift is not None
     if m.lift["used"] == "correction":
         assert abs(m.lift["lift_mm"]) < 2.0 * m.lift["lift_sigma_mm"]
@@ -398,8 +411,11 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     photo = _lab_render(2002, 0, replace(SceneEffects.all_on(), part_lift_mm=3.0))  # dark
     n = photo.truth["divisions"]
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera, divisions=n, wire_diameter_mm=WIRE_MM,
-    )  # fmt: skip
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(divisions=n, wire=WireOptions(diameter_mm=WIRE_MM)),
+    )
     assert m.lift is not None and m.lift["used"] == "correction", m.lift
     assert m.lift["source"] == "shadow"
     assert 2.0 * m.lift["lift_sigma_mm"] > SHADOW_MAX_2SIGMA_MM  # the case this is about
@@ -506,7 +522,11 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
             lambda *a, **k: _faked_shadow(real(*a, **k), lift_mm, sigma_mm),
         )  # fmt: skip
     m = measure.measure_part(
-        photo.bgr, None, None, plane=plane, wire_diameter_mm=WIRE_MM, divisions=7
+        photo.bgr,
+        None,
+        None,
+        plane=plane,
+        options=PartOptions(divisions=7, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
     assert m.lift is not None and m.lift["used"] == used, m.lift
     lifted = [str(w) for w in m.warnings if w.code == "part_lifted"]
