@@ -239,7 +239,7 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
                                    ("moved", 3.0, moved.bgr), ("width", 3.0, None)):  # fmt: skip
         try:
             # 'round' is measure_part's default (the lift from the cast shadow, corrected
-            # when good enough); 'width' the same photo with shadow_lift=False (bounded)
+            # when good enough); 'width' the same photo with LiftOptions(shadow=False) (bounded)
             m = measure_part(
                 photo.bgr,
                 None,
@@ -462,7 +462,7 @@ def main(argv: list[str] | None = None) -> dict:
             "random azimuth at 40-70 deg elevation (highlight off the top, soft shadow), lifted "
             "0 / 1.5 / 3 mm at one end (a rigid tilt; the truth is the part's own shape), "
             "no Bayer, depth of field or clutter; the plane from a board photo at the same pose "
-            "(benchmarks/_calibrated.plane_for_pose); 'round' = measure_part(wire_diameter_mm=3) "
+            "(benchmarks/_calibrated.plane_for_pose); 'round' = measure_part with WireOptions(diameter_mm=3) "
             "(the default: the lift from the wire's cast shadow, corrected when its 2 sigma is "
             "at most 2 mm and it is no more than 2 sigma above the lift bound (above the bound: "
             "corrected at the bound), else bounded; vertex bends from each chord's cross-profile), "
@@ -470,7 +470,7 @@ def main(argv: list[str] | None = None) -> dict:
             f"'moved' = with a second photo of the part slid {MOVED_SHIFT_MM:.0f} mm along x "
             "(same pose, lift and light; measure_part(moved_image=...), cvmeasure part --moved): "
             "the lift measured from the two views and corrected; 'width' = the one photo "
-            "with measure_part(shadow_lift=False) (cvmeasure part --no-shadow-lift): the lift "
+            "with LiftOptions(shadow=False) (cvmeasure part --no-shadow-lift): the lift "
             "only bounded from the wire's apparent width (the default before the shadow)",
             "silently wrong: a quantity off issue 14's target with no warning that covers it "
             "(docs/conventions.md): the radius by part_arc_inconsistent, the bend per chord "
@@ -652,7 +652,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
 
 
 def _width_metrics(rows: list[dict]) -> list[Metric]:
-    """The same one photo with ``shadow_lift=False``: the lift only bounded from the wire's
+    """The same one photo with ``LiftOptions(shadow=False)``: the lift only bounded from the wire's
     width (informative: the other path, no target of its own)."""
     st = _corrected_stats(rows, "width")
     ok = st.ok

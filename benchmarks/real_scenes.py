@@ -795,7 +795,7 @@ def main(argv: list[str] | None = None) -> dict:
             "its 2 sigma <= 2 mm and it is consistent with the lift bound (no more than 2 sigma "
             "above it; above it, corrected at the bound; a 2 sigma over 1 mm then the stated "
             "effect), else bounded from the edges' width); '--no-shadow-lift': the same photos "
-            "with shadow_lift=False (the lift only bounded); 'warned' lists "
+            "with LiftOptions(shadow=False) (the lift only bounded); 'warned' lists "
             f"{', '.join(PART_WARNINGS)}; the lifted part's truth is the rigid part's own "
             "radius and bends. 'two photos': the round-wire rows measured again with a second "
             f"photo of the part slid {PART_SHIFT_MM:.0f} mm along the board's y "

@@ -49,17 +49,29 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure import jpegplanes
 from cvmeasure.board import BoardSpec
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, fit_circle_robust, fit_circles_robust
-from cvmeasure.imageio import Photo, to_bgr8
+from cvmeasure.imageio import (
+    MAX_PHOTO_PIXELS,
+    Photo,
+    is_jpeg_data,
+    is_linear_name,
+    is_raw,
+    read_photo,
+    to_bgr8,
+)
+from cvmeasure.jpegplanes import LazyBGR
 from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.markers.angles import machine_angles
 from cvmeasure.markers.checks import (
     HIDDEN_COVERAGE,
@@ -536,8 +548,6 @@ def _centres(
 ) -> FrameCentres:
     """The markers found, refined and mapped into the angles' frame (options checked by
     :func:`measure_machine_photo`)."""
-    from cvmeasure.jpegplanes import LazyBGR
-
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
     # only regions and the search's copy are read; else its whole image is made here
     lazy = isinstance(bgr, LazyBGR) and not linear and method == "edge_fit"
@@ -722,8 +732,6 @@ def measure_photo_file(
     ``camera``). Other options go to :func:`measure_machine_photo`. InputError
     names the file for an unreadable photo, a missing board or marker.
     """
-    from cvmeasure.imageio import read_photo
-
     if not isinstance(photo, Photo):
         lazy = _jpeg_planes_bgr(photo, options) if board is None else None
         if lazy is not None:
@@ -745,7 +753,6 @@ def measure_photo_file(
             raise ValueError("give a plane or a board to find one in the photo, not both")
         if camera is None:
             raise InputError(source, "rectifying to a board's plane needs the camera")
-        from cvmeasure.lens.plane import estimate_plane
 
         plane = estimate_plane(photo.gray8(), board, camera, source=source)
     options.setdefault("photo", source)
@@ -765,11 +772,6 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
     a damaged file, more than :data:`cvmeasure.imageio.MAX_PHOTO_PIXELS`, no
     libturbojpeg, a linear file or options this path does not take (method "seed_hough").
     """
-    from pathlib import Path
-
-    from cvmeasure import jpegplanes
-    from cvmeasure.imageio import MAX_PHOTO_PIXELS, is_jpeg_data, is_linear_name, is_raw
-
     p = Path(path)
     if (
         marker_method(options.get("method", "edge_fit")) != "edge_fit"
