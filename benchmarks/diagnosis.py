@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.sim import EFFECT_NAMES, EFFECTS, Effect, SimParams, pin_command_for_angle
 from cvmeasure_datasets.trials import draw_effect, hidden_case, measure_trials, random_plan
 
@@ -42,7 +42,7 @@ def _run_case(seed: int, effect: str, n_trials: int, **kw) -> dict:
         "hidden": effect,
         "value": case.effect.value,
         "noise_deg": case.noise_deg,
-        "named": result.cause,
+        "named": result.cause.primary,
         "causes": list(result.causes),
         "gain": result.gain,
         "baseline_rmse_deg": result.baseline_rmse_deg,
@@ -51,7 +51,7 @@ def _run_case(seed: int, effect: str, n_trials: int, **kw) -> dict:
         "experiment": result.recommended_experiment,
         "confounded": any(not i.separable for i in result.identifiability),
     }
-    if effect != "none" and result.cause == effect:
+    if effect != "none" and result.cause.primary == effect:
         key = EFFECTS[effect].param
         lo, hi = result.intervals[key]
         row.update(estimate=result.params[key], lo=lo, hi=hi, covered=lo <= case.effect.value <= hi)
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> dict:
             noise = float(rng.uniform(0.03, 0.1))
             trials = measure_trials(random_plan(rng, n_trials), effects, noise, rng)
             result = diagnose(trials)
-            both += set(result.causes) == {n for n, _ in pair}
+            both += result.cause == Cause.of(n for n, _ in pair)
             gains.append(result.gain)
         pair_rows.append(
             [
@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> dict:
             commands = np.round(np.asarray(pin_command_for_angle(targets)), 1)
             noise = float(rng.uniform(0.03, 0.1))
             result = diagnose(measure_trials(commands, (hidden,), noise, rng))
-            named_right += result.cause == effect
+            named_right += result.cause.primary == effect
         std_rows.append([effect, n_std, round(100 * named_right / n_std, 1)])
 
     # power: smaller magnitudes than the typical range, at the worst noise (0.1 deg)
@@ -212,7 +212,7 @@ def main(argv: list[str] | None = None) -> dict:
                 trials = measure_trials(
                     random_plan(rng, n_trials), (Effect(effect, value),), 0.1, rng
                 )
-                hits += diagnose(trials).cause == effect
+                hits += diagnose(trials).cause.primary == effect
             shares.append(round(100 * hits / n_power, 1))
         power_rows.append([effect, EFFECTS[effect].typical[0], EFFECTS[effect].unit, *shares])
 
@@ -229,7 +229,7 @@ def main(argv: list[str] | None = None) -> dict:
             case = hidden_case(seed, effect="none", n_trials=n_trials, params=truth)
             seed += 1
             result = diagnose(case.trials, SimParams())
-            named[result.cause] += 1
+            named[result.cause.primary] += 1
             flagged += result.leftover.unnamed
         robust_rows.append(
             [

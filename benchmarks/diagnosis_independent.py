@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from cvmeasure.diagnose import Diagnosis, diagnose
+from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.sim import EFFECTS
 from cvmeasure_datasets import physical_bender as pb
 
@@ -118,7 +118,7 @@ def _catalogue_names(row: dict) -> set[str]:
 def _tied_outside(row: dict) -> bool:
     """The result reports a tie between its named causes and a term outside the
     catalogue (the two cannot be told apart on this plan): a tie, not a pick."""
-    return any(not all(p in EFFECTS for p in t.split(" + ")) for t in row["tie"])
+    return any(Cause.parse(t) is None for t in row["tie"])
 
 
 def _picked_catalogue(row: dict) -> bool:

@@ -41,7 +41,7 @@ import numpy as np
 
 from benchmarks import Metric, Table, finish
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose import Diagnosis, diagnose
+from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.driver.plan import swept_plan
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.material.bender_calibration import MODES
@@ -360,13 +360,13 @@ def outside_flagged(row: dict) -> bool:
         or row["refused"]
         or bool(row["discovered"])
         or row["unnamed_flag"]
-        or any(not all(p in EFFECTS for p in t.split(" + ")) for t in row["tie"])
+        or any(Cause.parse(t) is None for t in row["tie"])
     )
 
 
 def outside_misnamed(row: dict) -> bool:
     """A catalogue name given (not tied with a term outside it) for an outside mechanism."""
-    tied_outside = any(not all(p in EFFECTS for p in t.split(" + ")) for t in row["tie"])
+    tied_outside = any(Cause.parse(t) is None for t in row["tie"])
     return bool(_names(row)) and not tied_outside
 
 

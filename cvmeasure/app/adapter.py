@@ -24,6 +24,7 @@ import cvmeasure
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.contracts import Trial
 from cvmeasure.design import DesignPath
+from cvmeasure.diagnose.result import CauseKind
 from cvmeasure.driver.session import (
     SessionConfig,
     SessionInterrupted,
@@ -374,18 +375,18 @@ def diagnose_session(trials: Any) -> SessionDiagnosis:
     except ValueError as exc:
         return SessionDiagnosis(f"no diagnosis: {exc}", ())
     gain = 100.0 * d.gain
-    if d.cause == "none":
+    if d.cause.kind is CauseKind.NONE:
         sentence = (
             f"the nominal machine explains the bends (held-out error {d.baseline_rmse_deg:.3f} deg)"
         )
-    elif d.cause == "unexplained":
+    elif d.cause.kind is CauseKind.UNEXPLAINED:
         sentence = (
             "no known machine effect explains the bends (held-out error "
             f"{d.baseline_rmse_deg:.3f} deg): look at the machine before bending parts"
         )
     else:
         sentence = (
-            f"most likely {' + '.join(d.causes)}: it cuts the held-out error from "
+            f"most likely {d.cause.label}: it cuts the held-out error from "
             f"{d.baseline_rmse_deg:.3f} to {d.extended_rmse_deg:.3f} deg ({gain:.0f} %)"
         )
     rows: tuple[tuple[str, float], ...] = ()

@@ -60,6 +60,11 @@ def _summary(result: dict) -> str:
     if len(result["causes"]) > 1:
         lines.append(f"causes: {', '.join(result['causes'])}")
     for key, value in result["params"].items():
+        if key not in result["intervals"]:
+            # a shape chosen from a form's grid (e.g. the camera tilt's axis): it has no
+            # interval of its own; its rounding is carried in the other parameters' ones
+            lines.append(f"  {key} = {value:.4g}  (a form chosen on a grid; no interval)")
+            continue
         lo, hi = result["intervals"][key]
         lines.append(f"  {key} = {value:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
     lines.append(
@@ -120,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
             result.extended_effects(effects),
             extra={
                 "diagnosis": {
-                    "cause": result.cause,
+                    "cause": result.cause.primary,
                     "causes": list(result.causes),
                     "params": out["params"],
                     "intervals": out["intervals"],

@@ -220,11 +220,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_summary(m, out) -> None:
+    from cvmeasure.part.result import DivisionsSource
+
     r = m.result
     chords = {
-        "--divisions": f"{r.divisions} chords (--divisions)",
-        "photo": f"{r.divisions} chords (vertices found in the photo)",
-        "plan": f"{r.divisions} chords (the polygon bent, from the design or --job)",
+        DivisionsSource.GIVEN: f"{r.divisions} chords (--divisions)",
+        DivisionsSource.PHOTO: f"{r.divisions} chords (vertices found in the photo)",
+        DivisionsSource.PLAN: f"{r.divisions} chords (the polygon bent, from the design or --job)",
         None: "no chord vertices found (a smooth curve)",
     }[m.divisions_from]
     print(f"{m.source}  (method {r.method}; {chords})", file=out)

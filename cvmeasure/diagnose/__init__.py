@@ -9,9 +9,12 @@ simulated trials for tests and benchmarks. Trials are
 """
 
 from cvmeasure.diagnose.core import CandidateResult, Diagnosis, diagnose
+from cvmeasure.diagnose.result import Cause, CauseKind
 
 __all__ = [
     "CandidateResult",
+    "Cause",
+    "CauseKind",
     "Diagnosis",
     "diagnose",
 ]

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, held_out_excess
 from cvmeasure.diagnose.fitting import ModelFit, fit_model, group_folds, grouped_kfold_cv
-from cvmeasure.diagnose.result import Diagnosis
+from cvmeasure.diagnose.result import CauseKind, Diagnosis
 from cvmeasure.diagnose.rules import MIN_CV_GAIN, cv_groups
 from cvmeasure.sim.effects import Effect
 from cvmeasure.sim.params import SimParams
@@ -68,7 +68,10 @@ def bow_decides(
     if not singles or not all(n in singles for n in BOW_RIVALS):
         return None
     best = min(singles.values(), key=lambda c: c.cv_discrepancy_rmse_deg)
-    if best.cause not in BOW_RIVALS or result.cause not in (*BOW_RIVALS, "unexplained"):
+    named_rival = result.cause.primary in BOW_RIVALS  # a pair's first cause counts
+    if best.cause not in BOW_RIVALS or not (
+        named_rival or result.cause.kind is CauseKind.UNEXPLAINED
+    ):
         return None
     straight = best  # the better straight rival: the best single cause is one of them
     if straight.cv_residual_deg is None:
@@ -94,7 +97,7 @@ def bow_decides(
     # choosing it adds no parameter); terms outside the catalogue preferred to the straight
     # rivals must be beaten too
     use_bow = excess[0] < 0.0
-    if result.cause == "unexplained" and not (
+    if result.cause.kind is CauseKind.UNEXPLAINED and not (
         bowed[best_bowed] <= (1.0 - min_cv_gain) * result.discovered_rmse_deg
     ):
         use_bow = False  # the terms replaced the name by min_cv_gain: so must the name them

@@ -12,7 +12,7 @@ Steps, on measured trials:
    ``min_cv_gain`` and its full-data fit improves the BIC by at least
    ``min_delta_bic`` (one extra parameter; about p < 1e-3). The accepted
    candidate with the lowest held-out RMSE is the cause; when none is
-   accepted, nothing is named (``cause = "none"``): the residuals are at the
+   accepted, nothing is named (``Cause.none()``): the residuals are at the
    noise floor.
 4. A second cause on top of the first when structure is left (same rule,
    against the one-cause model + discrepancy; the best few first causes each
@@ -63,7 +63,7 @@ from cvmeasure.diagnose.misfit import (
 )
 from cvmeasure.diagnose.naming import candidate_scores, name_causes, settle_pair, try_causes
 from cvmeasure.diagnose.residuals import residual_trends
-from cvmeasure.diagnose.result import CandidateResult, Diagnosis
+from cvmeasure.diagnose.result import CandidateResult, Cause, CauseKind, Diagnosis
 from cvmeasure.diagnose.rules import (
     GROSS_MISFIT_DEG,
     MIN_CV_GAIN,
@@ -195,7 +195,11 @@ def diagnose(
         curve_deg = curve_rms_deg(trials, fit)
     if learned.misfit is not None and learned.misfit.refused:
         return result
-    if result.cause == "unexplained" and not _refused(result) and learned.cause != "none":
+    if (
+        result.cause.kind is CauseKind.UNEXPLAINED
+        and not _refused(result)
+        and learned.cause.kind is not CauseKind.NONE
+    ):
         # terms outside the catalogue explained the data within the noise: a catalogue
         # name through the learned curve would stand in for them (a warm-up as a drift)
         return result
@@ -233,7 +237,7 @@ def _form_misses(result: Diagnosis) -> bool:
     """The simulation's form (bounded discrepancy) leaves the data unexplained: refused
     for lack of fit, or explained only by terms outside the catalogue (then the learned
     curve may only say that nothing is there: the no-effect relation was the terms)."""
-    return _refused(result) or result.cause == "unexplained"
+    return _refused(result) or result.cause.kind is CauseKind.UNEXPLAINED
 
 
 def _diagnose_form(
@@ -255,13 +259,14 @@ def _diagnose_form(
         result = _diagnose_once(trials, dataclasses.replace(params, span_bow_share=1.0), **kwargs)
     notes = (*result.notes, bow.note)
     other = bow.straight if bow.use_bow else bow.bowed
-    if bow.tied and result.causes == (result.cause,) and result.cause in BOW_RIVALS:
-        if other != result.cause and other not in result.tie:
-            tie = (*(result.tie or (result.cause,)), other)
+    single = result.cause.primary if len(result.cause.effects) == 1 else None
+    if bow.tied and result.causes == result.cause.effects and single in BOW_RIVALS:
+        if other != single and other not in result.tie:
+            tie = (*(result.tie or (single,)), other)
             result = dataclasses.replace(result, tie=tie, notes=notes)
             # the rival added is fitted in the other model of the machine
             if bow.use_bow:
-                other_fit = _single_fit(straight, other)
+                other_fit = _single_fit(straight, Cause.of((other,)))
                 other_params = params
             else:
                 other_fit = bow.bowed_fits.get(other)
@@ -272,12 +277,11 @@ def _diagnose_form(
     return _with_follow_up(trials, result, base_effects, follow_up)
 
 
-def _single_fit(result: Diagnosis, label: str) -> ModelFit | None:
-    """The fit of ``result``'s candidate explaining the data by ``label`` (a cause, or a
-    pair ``a + b``), first round or second; None when not tried."""
-    causes = set(label.split(" + "))
+def _single_fit(result: Diagnosis, cause: Cause) -> ModelFit | None:
+    """The fit of ``result``'s candidate explaining the data by ``cause`` (one effect or a
+    pair), first round or second; None when not tried."""
     for c in (*result.candidates, *result.second_candidates, *result.other_pairs):
-        if set(c.fit.causes) == causes:
+        if Cause.of(c.fit.causes) == cause:
             return c.fit
     return None
 
@@ -298,10 +302,11 @@ def _with_follow_up(
 
     rivals: list[Rival] = []
     for label in result.tie:
-        if not all(c in EFFECTS for c in label.split(" + ")):
+        cause = Cause.parse(label)
+        if cause is None:
             continue  # a term outside the catalogue: no forward model to plan with
         fit, fitted_on = (overrides or {}).get(label, (None, result.nominal_params))
-        fit = fit or _single_fit(result, label)
+        fit = fit or _single_fit(result, cause)
         if fit is not None:
             rivals.append(Rival(label, fit, fitted_on))
     if len(rivals) < 2:

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from cvmeasure.diagnose.evidence import held_out_tie
 from cvmeasure.diagnose.fitting import DISCREPANCY_P, ModelFit, fit_model
 from cvmeasure.diagnose.naming import Naming
-from cvmeasure.diagnose.result import CandidateResult
+from cvmeasure.diagnose.result import CandidateResult, Cause
 from cvmeasure.diagnose.rules import Context
 from cvmeasure.sim.effects import EFFECTS
 
@@ -71,8 +71,8 @@ def averaged(
     if named is None:
         return fit
     others = [c for c in pool if c is not named and key & set(c.fit.causes) and c.fit.intervals]
-    by_label = {" + ".join(c.fit.causes): c for c in others}
-    tied = held_out_tie(named, others, groups, lambda c: " + ".join(c.fit.causes))
+    by_label = {Cause.of(c.fit.causes).label: c for c in others}
+    tied = held_out_tie(named, others, groups, lambda c: Cause.of(c.fit.causes).label)
     out = list(fit.intervals)
     for label in tied[1:]:
         alt = widened(ctx, by_label[label].fit)

@@ -13,7 +13,7 @@ import numpy as np
 from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS, held_out_tie
 from cvmeasure.diagnose.fitting import ModelFit, fit_model, grouped_kfold_cv
 from cvmeasure.diagnose.identify import Identifiability, check_identifiability
-from cvmeasure.diagnose.result import CandidateResult
+from cvmeasure.diagnose.result import CandidateResult, Cause
 from cvmeasure.diagnose.rules import (
     BEAM_RATIO,
     BEAM_WIDTH,
@@ -53,7 +53,7 @@ class _Extension:
 class Naming:
     """The causes named (or none), the model that names them and the notes on why."""
 
-    cause: str
+    cause: Cause
     fit: ModelFit
     cv_rmse_deg: float
     identifiability: tuple[Identifiability, ...]
@@ -250,12 +250,12 @@ def settle_pair(
         named,
         rivals,
         groups,
-        lambda c: " + ".join(order if c is named else c.fit.causes),
+        lambda c: Cause.of(order if c is named else c.fit.causes).label,
     )
     if not tie:
         return naming, ()
     first = named.fit.causes[0]
-    tied = [c for c in rivals if " + ".join(c.fit.causes) in tie[1:]]
+    tied = [c for c in rivals if Cause.of(c.fit.causes).label in tie[1:]]
     alone = next((c for c in results if c.fit.causes == (first,)), None)
     if alone is None or not all(first in c.fit.causes for c in tied):
         return naming, tie
@@ -273,7 +273,7 @@ def settle_pair(
     )
     single = dataclasses.replace(
         naming,
-        cause=first,
+        cause=Cause.of(alone.fit.causes),
         fit=alone.fit,
         cv_rmse_deg=alone.cv_rmse_deg,
         cv_discrepancy_rmse_deg=alone.cv_discrepancy_rmse_deg,
@@ -298,7 +298,7 @@ def name_causes(
             f"no candidate beats the noise floor (held-out RMSE {base_cv:.3f} deg); "
             "nothing is named"
         )
-        return Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+        return Naming(Cause.none(), base_fit, base_cv, (), (), None, tuple(notes))
     outcomes, best, ext = _best_outcome(ctx, accepted, results, base_fit, max_causes)
     ext_fit = _first_cause_first(ext.fit, best, results)
     close = [
@@ -318,11 +318,11 @@ def name_causes(
             "simulation does not describe these data (check signs, units and columns of the "
             f"trials file, and the params); {', '.join(ext_fit.causes)} not named"
         )
-        return Naming("none", base_fit, base_cv, (), (), None, tuple(notes))
+        return Naming(Cause.none(), base_fit, base_cv, (), (), None, tuple(notes))
     pair = ext.pairs[0] if len(ext_fit.causes) == 2 and ext.pairs else None
     named_set = frozenset(ext_fit.causes)
     return Naming(
-        ext_fit.causes[0],
+        Cause.of(ext_fit.causes),
         ext_fit,
         ext.cv_rmse_deg,
         ext.identifiability,
@@ -421,15 +421,16 @@ def _each_once(
     return tuple(best.values())
 
 
-def candidate_scores(results: Sequence[CandidateResult], naming: Naming) -> dict[str, float]:
+def candidate_scores(results: Sequence[CandidateResult], naming: Naming) -> dict[Cause, float]:
     """Delta BIC against the baseline + discrepancy of nothing, each single cause and
     the named pair."""
-    scores = {"none": 0.0}
+    scores = {Cause.none(): 0.0}
     for c in results:
         if math.isfinite(c.delta_bic):
-            scores[c.cause] = c.delta_bic
+            scores[Cause.of((c.cause,))] = c.delta_bic
     for c in naming.second_round:  # the pair named (a refused pair is not an explanation)
         if set(c.fit.causes) == set(naming.fit.causes) and math.isfinite(c.delta_bic):
             first = [x for x in c.fit.causes if x != c.cause]
-            scores[" + ".join([*first, c.cause])] = scores.get(first[0], 0.0) + c.delta_bic
+            pair = Cause.of((*first, c.cause))
+            scores[pair] = scores.get(Cause.of(first[:1]), 0.0) + c.delta_bic
     return scores

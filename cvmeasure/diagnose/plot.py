@@ -7,7 +7,7 @@ import io
 import numpy as np
 
 from cvmeasure.contracts import BLOCKS, TrialTable
-from cvmeasure.diagnose.core import Diagnosis
+from cvmeasure.diagnose.result import Cause, Diagnosis
 
 __all__ = ["residual_plot_png"]
 
@@ -33,7 +33,7 @@ def residual_plot_png(diagnosis: Diagnosis, trials: TrialTable, *, dpi: int = 10
     rows = (
         ("baseline (nuisance only)", diagnosis.baseline_residual_deg, diagnosis.baseline_fit),
         (
-            f"extended: {' + '.join(diagnosis.causes) or 'none'}",
+            f"extended: {Cause.of(diagnosis.causes).label}",
             diagnosis.extended_residual_deg,
             diagnosis.extended_fit,
         ),

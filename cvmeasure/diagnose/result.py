@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import enum
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -16,11 +17,113 @@ from cvmeasure.diagnose.identify import Identifiability
 from cvmeasure.diagnose.misfit import Misfit
 from cvmeasure.diagnose.residuals import LeftoverCheck, ResidualTrend
 from cvmeasure.diagnose.rules import MIN_CV_GAIN, MIN_DELTA_BIC
-from cvmeasure.sim.effects import Effect
+from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
 
 if TYPE_CHECKING:
     from cvmeasure.diagnose.follow_up import FollowUp
+
+
+class CauseKind(enum.Enum):
+    """What a diagnosis names: nothing, catalogue effects, or structure no catalogue
+    effect explains (terms outside the catalogue reported instead)."""
+
+    NONE = "none"
+    NAMED = "named"
+    UNEXPLAINED = "unexplained"
+
+
+#: How a set of named effects is written (``a + b``): the tie, the evidence, the notes.
+PAIR_SEPARATOR = " + "
+
+
+@dataclass(frozen=True, eq=False)
+class Cause:
+    """The explanation a diagnosis names: a set of catalogue effect names
+    (``docs/conventions.md``'s effect table, ``none`` excluded), strongest first, or one
+    of the two states without a name (:class:`CauseKind`).
+
+    Two causes are equal when they name the same set, in any order; :attr:`label` writes
+    them as the diagnosis JSON and the CLI always have (``"a + b"``, ``"none"``,
+    ``"unexplained"``) and :meth:`from_label` reads that text back."""
+
+    kind: CauseKind
+    effects: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if (self.kind is CauseKind.NAMED) != bool(self.effects):
+            raise ValueError(f"a {self.kind.value} cause names no effects: {self.effects!r}")
+        for name in self.effects:
+            if name not in EFFECTS or name == "none":
+                raise ValueError(f"unknown effect {name!r}")
+        if len(set(self.effects)) != len(self.effects):
+            raise ValueError(f"an effect named twice: {self.effects!r}")
+
+    @classmethod
+    def of(cls, effects: Iterable[str]) -> Cause:
+        """The named ``effects`` (strongest first); no effects is :meth:`none`."""
+        names = tuple(effects)
+        return cls(CauseKind.NAMED, names) if names else cls.none()
+
+    @classmethod
+    def none(cls) -> Cause:
+        """Nothing named: the nominal machine explains the data."""
+        return cls(CauseKind.NONE)
+
+    @classmethod
+    def unexplained(cls) -> Cause:
+        """Structure that no catalogue effect explains."""
+        return cls(CauseKind.UNEXPLAINED)
+
+    @classmethod
+    def from_label(cls, label: str) -> Cause:
+        """The cause :attr:`label` wrote; ValueError for a name outside the catalogue."""
+        for kind in (CauseKind.NONE, CauseKind.UNEXPLAINED):
+            if label == kind.value:
+                return cls(kind)
+        return cls(CauseKind.NAMED, tuple(label.split(PAIR_SEPARATOR)))
+
+    @classmethod
+    def parse(cls, label: str) -> Cause | None:
+        """:meth:`from_label`, or None for a term outside the catalogue (a tie can hold
+        one, e.g. ``warm_up_45``)."""
+        try:
+            return cls.from_label(label)
+        except ValueError:
+            return None
+
+    @property
+    def named(self) -> bool:
+        """Whether catalogue effects are named."""
+        return self.kind is CauseKind.NAMED
+
+    @property
+    def label(self) -> str:
+        """``"a + b"`` (strongest first), ``"none"`` or ``"unexplained"``."""
+        return PAIR_SEPARATOR.join(self.effects) if self.named else self.kind.value
+
+    @property
+    def primary(self) -> str:
+        """The strongest effect named, else ``"none"`` / ``"unexplained"``: the
+        diagnosis JSON's ``cause`` key (``causes`` lists every effect)."""
+        return self.effects[0] if self.named else self.kind.value
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.effects
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, str):
+            # a silent False would hide a comparison left from when causes were text
+            raise TypeError(f"compare a Cause with a Cause, not the text {other!r}")
+        if not isinstance(other, Cause):
+            return NotImplemented
+        return self.kind is other.kind and frozenset(self.effects) == frozenset(other.effects)
+
+    def __hash__(self) -> int:
+        return hash((self.kind, frozenset(self.effects)))
+
+    def __str__(self) -> str:
+        return self.label
 
 
 @dataclass(frozen=True)
@@ -57,7 +160,7 @@ class CandidateResult:
 class Diagnosis:
     """Result of :func:`diagnose` (angles in degrees)."""
 
-    cause: str
+    cause: Cause
     params: dict[str, float]
     intervals: dict[str, tuple[float, float]]
     baseline_rmse_deg: float  # held-out
@@ -131,7 +234,7 @@ class Diagnosis:
     def to_dict(self) -> dict[str, Any]:
         base_yield = self.nominal_params.yield_mpa
         return {
-            "cause": self.cause,
+            "cause": self.cause.primary,
             "causes": list(self.causes),
             "params": dict(self.params),
             "intervals": {k: list(v) for k, v in self.intervals.items()},

@@ -28,7 +28,7 @@ from cvmeasure.diagnose.intervals import averaged, widened
 from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
 from cvmeasure.diagnose.naming import Naming
 from cvmeasure.diagnose.residuals import LeftoverCheck, leftover_structure
-from cvmeasure.diagnose.result import CandidateResult
+from cvmeasure.diagnose.result import CandidateResult, Cause, CauseKind
 from cvmeasure.diagnose.rules import GROSS_MISFIT_DEG, Context
 from cvmeasure.diagnose.terms import (
     ORDER_EXPERIMENT,
@@ -54,10 +54,10 @@ class _Baseline:
 
 @dataclass
 class _Verdict:
-    """The explanation as the steps settle it: the cause named (or ``"none"``,
-    ``"unexplained"``), its fit, residuals and held-out errors, and what is reported."""
+    """The explanation as the steps settle it: the cause named (or none, or
+    unexplained), its fit, residuals and held-out errors, and what is reported."""
 
-    cause: str
+    cause: Cause
     fit: ModelFit
     residual_deg: NDArray[np.float64]
     cv_rmse_deg: float
@@ -111,7 +111,7 @@ def first_verdict(
     ctx: Context,
     base: _Baseline,
     naming: Naming,
-    scores: dict[str, float],
+    scores: dict[Cause, float],
     groups: Sequence[str],
     notes: list[str],
 ) -> _Verdict:
@@ -125,14 +125,14 @@ def first_verdict(
     ext_fit = naming.fit
     ext_res = ext_fit.residuals(trials, ctx.params, ctx.base_effects)
     cause = naming.cause
-    named_cv = naming.cv_discrepancy_rmse_deg if cause != "none" else base.cv_discrepancy_rmse_deg
+    named_cv = naming.cv_discrepancy_rmse_deg if cause.named else base.cv_discrepancy_rmse_deg
     named_bic = max(
-        (v for k, v in scores.items() if set(k.split(" + ")) == set(naming.fit.causes)),
+        (v for k, v in scores.items() if k == Cause.of(naming.fit.causes)),
         default=0.0,
     )
     # what the library still finds in the named cause's residuals
     beside: tuple[DiscoveredTerm, ...] = ()
-    if cause != "none":
+    if cause.named:
         beside = terms_beside(ctx, ext_fit, ext_res, groups).terms
     return _Verdict(
         cause, ext_fit, ext_res, naming.cv_rmse_deg, named_cv, named_bic, beside, notes, experiment
@@ -155,12 +155,12 @@ def weigh_against_terms(
     v: _Verdict,
     naming: Naming,
     results: Sequence[CandidateResult],
-    scores: dict[str, float],
+    scores: dict[Cause, float],
     groups: Sequence[str],
 ) -> None:
     """When the terms win, the named causes refitted with the discrepancy are compared
     again (``v`` and ``scores`` updated)."""
-    if not (v.cause != "none" and base.mean_terms and _terms_win(base, v, ctx.min_cv_gain)):
+    if not (v.cause.named and base.mean_terms and _terms_win(base, v, ctx.min_cv_gain)):
         return
     # the terms were fitted together with the discrepancy: so are the named causes
     # before they are compared (fitted without it, a cause's parameter takes up the
@@ -187,11 +187,11 @@ def weigh_against_terms(
                 "the model-form discrepancy, explains the data better than the terms "
                 "outside the catalogue"
             )
-            v.cause, v.fit = option.causes[0], option
+            v.cause, v.fit = Cause.of(option.causes[:1]), option
             v.residual_deg = v.fit.residuals(ctx.trials, ctx.params, ctx.base_effects)
             v.cv_rmse_deg = next(c.cv_rmse_deg for c in results if c.fit is option)
             v.beside = terms_beside(ctx, v.fit, v.residual_deg, groups).terms
-        for key in [k for k in scores if set(k.split(" + ")) == set(option.causes)]:
+        for key in [k for k in scores if k == Cause.of(option.causes)]:
             scores[key] = v.named_bic
         break
 
@@ -211,17 +211,17 @@ def check_interval(
     (NaN: none)."""
     null_held = holds_no_effect(v.fit)
     refused_cv = math.nan
-    if v.cause in ("none", "unexplained") or not (len(null_held) == len(v.fit.causes) > 0):
+    if not v.cause.named or not (len(null_held) == len(v.fit.causes) > 0):
         return refused_cv
     alone = alone_excluding_no_effect(results, v.fit.causes)
     if alone is not None:
         # two causes sharing one signature hold no effect together (each can take
         # the other's share) while one alone excludes it: that one is named
         v.notes.append(
-            f"{' + '.join(v.fit.causes)} not named together: each 95 % interval holds "
+            f"{Cause.of(v.fit.causes).label} not named together: each 95 % interval holds "
             f"no effect beside the other; {alone.cause} alone excludes it"
         )
-        v.cause, v.fit, v.cv_rmse_deg = alone.cause, alone.fit, alone.cv_rmse_deg
+        v.cause, v.fit, v.cv_rmse_deg = Cause.of(alone.fit.causes), alone.fit, alone.cv_rmse_deg
         v.named_cv_deg = alone.cv_discrepancy_rmse_deg
         v.residual_deg = v.fit.residuals(ctx.trials, ctx.params, ctx.base_effects)
         v.beside = terms_beside(ctx, v.fit, v.residual_deg, groups).terms
@@ -231,13 +231,13 @@ def check_interval(
             "error carried holds no effect"
         )
         refused_cv = v.named_cv_deg
-        v.cause, v.fit, v.residual_deg = "none", base.fit, base.residual_deg
+        v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
         v.cv_rmse_deg, v.beside = base.cv_rmse_deg, ()
     return refused_cv
 
 
 def terms_or_name(ctx: Context, base: _Baseline, v: _Verdict, refused_cv: float) -> None:
-    """The discovered terms reported in place of the name when they win (``"unexplained"``),
+    """The discovered terms reported in place of the name when they win (unexplained),
     else the terms found beside the name."""
     found, mean_terms = base.found, base.mean_terms
     # terms outside the catalogue do not stand in for a catalogue cause refused above that
@@ -246,17 +246,21 @@ def terms_or_name(ctx: Context, base: _Baseline, v: _Verdict, refused_cv: float)
     # bend within the dead zone's tolerance), not a new mechanism
     beat_refused = not math.isfinite(refused_cv) or not mean_terms
     beat_refused = beat_refused or found.rmse_after_deg < refused_cv
-    if found.terms and v.cause == "none" and not beat_refused:
+    if found.terms and v.cause.kind is CauseKind.NONE and not beat_refused:
         v.notes.append(
             f"terms outside the catalogue ({', '.join(t.term for t in found.terms)}) explain "
             f"the held-out data worse than the cause refused above ({found.rmse_after_deg:.3f} "
             f"vs {refused_cv:.3f} deg): not reported"
         )
     if found.terms and (
-        (v.cause == "none" and beat_refused)
-        or (v.cause != "none" and mean_terms and _terms_win(base, v, ctx.min_cv_gain))
+        (v.cause.kind is CauseKind.NONE and beat_refused)
+        or (
+            v.cause.kind is not CauseKind.NONE
+            and mean_terms
+            and _terms_win(base, v, ctx.min_cv_gain)
+        )
     ):
-        if v.cause != "none":
+        if v.cause.kind is not CauseKind.NONE:
             v.notes.append(
                 "terms outside the catalogue explain the data better than "
                 f"{', '.join(v.fit.causes)} (held-out "
@@ -264,7 +268,7 @@ def terms_or_name(ctx: Context, base: _Baseline, v: _Verdict, refused_cv: float)
                 f"profiled out; delta BIC {found.delta_bic:.0f} vs {v.named_bic:.0f}): no "
                 "catalogue name is given"
             )
-        v.cause, v.fit = "unexplained", base.fit
+        v.cause, v.fit = Cause.unexplained(), base.fit
         v.residual_deg = base.residual_deg - found.correction_deg
         if mean_terms:
             v.cv_rmse_deg = (
@@ -288,7 +292,7 @@ def widen(
     explanations the held-out data do not tell apart."""
     if v.fit.causes:
         v.fit = widened(ctx, v.fit)
-        if v.cause not in ("none", "unexplained"):
+        if v.cause.named:
             v.fit = averaged(ctx, v.fit, naming, results, groups)
 
 
@@ -304,7 +308,7 @@ def tie_report(
     """``v.tie``: the explanations the held-out data do not tell from the named one
     (single causes, pairs, order-dependent terms, discovered terms), with the notes;
     returns the order-dependent terms that tie it ((words, library name))."""
-    named = v.cause not in ("none", "unexplained")
+    named = v.cause.named
     tie: tuple[str, ...] = ()
     if named and len(v.fit.causes) == 1:
         named_result = next((c for c in results if c.fit.causes == v.fit.causes), None)
@@ -325,7 +329,7 @@ def tie_report(
             "groups): the data do not tell them apart"
         )
     if order_ties:
-        tie = (tie[0] if tie else " + ".join(v.fit.causes), *tie[1:])
+        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
         tie = (*tie, *(name for _, name in order_ties))
     # a name is a pick only when the named causes explain the held-out data at least as
     # well as the discovered terms (both with the discrepancy profiled out); terms better
@@ -333,7 +337,7 @@ def tie_report(
     found = base.found
     term_ties = [t.term for t in base.mean_terms if t.term not in tie]
     if named and term_ties and found.rmse_after_deg < v.named_cv_deg:
-        tie = (tie[0] if tie else " + ".join(v.fit.causes), *tie[1:], *term_ties)
+        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *term_ties)
         v.notes.append(
             f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
             f"data at least as well as {', '.join(v.fit.causes)} ({found.rmse_after_deg:.3f} "
@@ -344,12 +348,13 @@ def tie_report(
     return order_ties
 
 
-def verdict_weights(base: _Baseline, scores: dict[str, float]) -> tuple[tuple[str, float], ...]:
-    """The explanations' evidence weights (:func:`_evidence`), the discovered terms
-    among them (added to ``scores``)."""
+def verdict_weights(base: _Baseline, scores: dict[Cause, float]) -> tuple[tuple[str, float], ...]:
+    """The explanations' evidence weights (:func:`_evidence`), each by its label, the
+    discovered terms among them."""
+    labelled = {k.label: v for k, v in scores.items()}
     if base.mean_terms and math.isfinite(base.found.delta_bic):
-        scores[DISCOVERED] = base.found.delta_bic
-    return evidence_weights(scores)
+        labelled[DISCOVERED] = base.found.delta_bic
+    return evidence_weights(labelled)
 
 
 def tie_notes(
@@ -380,7 +385,7 @@ def tie_notes(
 
 def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
     """The lack-of-fit test of the explanation; refused, nothing is named."""
-    if v.cause == "unexplained":
+    if v.cause.kind is CauseKind.UNEXPLAINED:
         n_terms = sum(len(t.coefficients_deg) for t in base.found.terms)
         misfit = lack_of_fit_residuals(ctx.trials, v.residual_deg, base.fit.n_params + n_terms)
     else:
@@ -389,8 +394,8 @@ def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
         # the least bad of wrong models is no name: the machine is not what the params say
         # (terms outside the catalogue found stay reported, as what is left unexplained)
         v.notes.append(misfit.note())
-        if v.cause != "unexplained":
-            v.cause, v.fit, v.residual_deg = "none", base.fit, base.residual_deg
+        if v.cause.kind is not CauseKind.UNEXPLAINED:
+            v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
             v.cv_rmse_deg, v.discovered = base.cv_rmse_deg, ()
         v.tie = ()
         v.experiment = (

@@ -19,6 +19,7 @@ from cvmeasure.part.compare import deviation_profile, register_to_design
 from cvmeasure.part.fit import fit_polyline
 from cvmeasure.part.measure import ArcResult, PartMeasurement, measure_part
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+from cvmeasure.part.result import DivisionsSource, PartWire, PlaneSummary
 from cvmeasure.part.seed_methods import (
     circle_ellipse_intersections,
     ellipse_method,
@@ -29,6 +30,9 @@ from cvmeasure.part.seed_methods import (
 __all__ = [
     "ArcResult",
     "PartMeasurement",
+    "PlaneSummary",
+    "PartWire",
+    "DivisionsSource",
     "measure_part",
     "PartOptions",
     "WireOptions",

@@ -69,7 +69,16 @@ from cvmeasure.part.lift_use import (
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
-from cvmeasure.part.result import METHODS, ArcResult, DesignComparison, Method, PartMeasurement
+from cvmeasure.part.result import (
+    METHODS,
+    ArcResult,
+    DesignComparison,
+    DivisionsSource,
+    Method,
+    PartMeasurement,
+    PartWire,
+    PlaneSummary,
+)
 from cvmeasure.part.seed_methods import SeedArc, ellipse_method, sagitta_method
 from cvmeasure.part.segment import WireMask
 from cvmeasure.part.shadow import estimate_lift_shadow
@@ -296,7 +305,7 @@ def _assemble(
     source: str,
     result: ArcResult,
     shape: str,
-    divisions_from: str | None,
+    divisions_from: DivisionsSource | None,
     chords: ChordCount,
     methods: dict[str, ArcResult],
     fit: _Fit,
@@ -325,13 +334,8 @@ def _assemble(
         centreline_px=centre.points_px,
         wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,
         circle=fit.circle,
-        plane={
-            "tilt_deg": plane.tilt_deg,
-            "mm_per_px": plane.mm_per_px,
-            "rms_px": plane.rms_px,
-            "corner_count": plane.corner_count,
-        },
-        wire={**wire.to_dict(), **centre.to_dict()},
+        plane=PlaneSummary(plane.tilt_deg, plane.mm_per_px, plane.rms_px, plane.corner_count),
+        wire=PartWire.of(wire.to_dict(), centre.to_dict()),
         lift=fit.lift_info,
         seed_arcs=seed_arcs,
         comparison=comparison,
@@ -454,17 +458,17 @@ def _chord_count(
     divisions: int | None,
     planned: bool,
     warnings: list[StageWarning],
-) -> tuple[ChordCount, int | None, str | None]:
+) -> tuple[ChordCount, int | None, DivisionsSource | None]:
     """The chord count found in the photo; the one used and where it came from.
 
     ``planned``: ``divisions`` is the chord count of the polygon bent (the plan's).
     """
     chords = count_chords(centreline_mm)
-    given = "plan" if planned else "--divisions"
+    given = DivisionsSource.PLAN if planned else DivisionsSource.GIVEN
     divisions_from = given if divisions is not None else None
     what = "the polygon bent has" if planned else "--divisions"
     if divisions is None and chords.divisions is not None:
-        divisions, divisions_from = chords.divisions, "photo"
+        divisions, divisions_from = chords.divisions, DivisionsSource.PHOTO
     elif divisions is not None and chords.divisions not in (None, divisions):
         warnings.append(
             StageWarning(

@@ -7,7 +7,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
+from enum import StrEnum
 from typing import Any, Literal
 
 import numpy as np
@@ -25,7 +26,16 @@ from cvmeasure.part.fit import (
 from cvmeasure.part.seed_methods import SeedArc
 from cvmeasure.warning import StageWarning
 
-__all__ = ["Method", "METHODS", "ArcResult", "DesignComparison", "PartMeasurement"]
+__all__ = [
+    "Method",
+    "METHODS",
+    "ArcResult",
+    "DesignComparison",
+    "DivisionsSource",
+    "PlaneSummary",
+    "PartWire",
+    "PartMeasurement",
+]
 
 
 Method = Literal["centreline_fit", "seed_ellipse", "seed_sagitta"]
@@ -86,6 +96,96 @@ class DesignComparison:
         }
 
 
+class DivisionsSource(StrEnum):
+    """Where a part's chord count came from.
+
+    ``GIVEN``: the caller's ``divisions`` (``--divisions``); ``PLAN``: the polygon bent
+    (the design's or the job's); ``PHOTO``: vertices found on the centreline. The value
+    is what ``to_dict`` writes; a smooth curve has no chord count (None).
+    """
+
+    GIVEN = "given"
+    PLAN = "plan"
+    PHOTO = "photo"
+
+
+@dataclass(frozen=True)
+class PlaneSummary:
+    """The board plane a part was measured on.
+
+    Attributes
+    ----------
+    tilt_deg : the plane's tilt from facing the camera, degrees.
+    mm_per_px : the plane's scale at the part, mm per pixel.
+    rms_px : the board corners' reprojection RMS, pixels.
+    corner_count : board corners the plane was fitted to.
+    """
+
+    tilt_deg: float
+    mm_per_px: float
+    rms_px: float
+    corner_count: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class PartWire:
+    """How the wire was found: its segmentation and its centreline (pixels).
+
+    Attributes
+    ----------
+    sheet : ``"dark"`` or ``"light"``: the sheet is darker or lighter than the wire.
+    background_level : median grey level around the wire (0-255).
+    contrast : median absolute wire - background difference inside the mask.
+    threshold : the difference level the mask was cut at.
+    width_px : rough wire width (mask area / path length), pixels.
+    length_px : the mask's path length, pixels.
+    area_px : the mask's area, pixels.
+    centre_from : how the centres were placed (``"symmetry"``, ``"silhouette"``, ...).
+    edge_width_px : median distance between the silhouette edges, pixels; else None.
+    points : centreline points.
+    half_width_px : apparent half-width (flank at half contrast), pixels.
+    rho_px : the half-window of the symmetric centres, pixels.
+    ends_px : the two end points (x, y), pixels.
+    rejected : profiles dropped in the last pass.
+    coverage : share of profiles with a symmetric centre.
+    asymmetry : median remaining profile asymmetry (0 symmetric, about 1 none).
+    end_uncertainty_px : how far inside each end a weaker step could be the cap, pixels.
+
+    See :class:`cvmeasure.part.segment.WireMask` and
+    :class:`cvmeasure.part.centreline.Centreline`, which this summarises without their
+    arrays.
+    """
+
+    sheet: str
+    background_level: float
+    contrast: float
+    threshold: float
+    width_px: float
+    length_px: float
+    area_px: int
+    centre_from: str
+    edge_width_px: float | None
+    points: int
+    half_width_px: float
+    rho_px: float
+    ends_px: list[list[float]]
+    rejected: int
+    coverage: float
+    asymmetry: float
+    end_uncertainty_px: list[float]
+
+    @classmethod
+    def of(cls, mask_summary: dict[str, Any], centreline_summary: dict[str, Any]) -> PartWire:
+        """From ``WireMask.to_dict()`` and ``Centreline.to_dict()``."""
+        return cls(**mask_summary, **centreline_summary)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
 @dataclass(frozen=True)
 class PartMeasurement:
     """Everything measured on one part photo.
@@ -104,15 +204,14 @@ class PartMeasurement:
     centreline_px : ndarray (M, 2) the same in photo pixels.
     wire_width_mm : apparent wire width (flanks at half contrast), mm.
     circle : the circle fit behind ``ours``.
-    plane : summary of the board plane (tilt, scale, reprojection RMS).
-    wire : summary of the segmentation.
+    plane : the board plane (:class:`PlaneSummary`).
+    wire : how the wire was found (:class:`PartWire`).
     comparison : against the design, when one was given.
     warnings : things a user should know (e.g. arcs too short for a stable radius).
     shape : ``"arc"`` (bends of one sign) or ``"s-curve"`` (a saddle: the bends change
         sign, so radius and arc angle describe no real arc).
-    divisions_from : where the chord count came from: ``"--divisions"``, ``"plan"`` (the
-        polygon bent, ``reference_mm``), ``"photo"`` (vertices found on the centreline)
-        or None (none: a smooth curve).
+    divisions_from : where the chord count came from (:class:`DivisionsSource`), or None
+        (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate
         (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
@@ -137,20 +236,20 @@ class PartMeasurement:
     centreline_px: np.ndarray
     wire_width_mm: float
     circle: CircleFit
-    plane: dict[str, Any]
-    wire: dict[str, Any]
+    plane: PlaneSummary
+    wire: PartWire
     seed_arcs: dict[str, SeedArc] = field(default_factory=dict)
     comparison: DesignComparison | None = None
     warnings: tuple[StageWarning, ...] = ()
     shape: str = "arc"
-    divisions_from: str | None = None
+    divisions_from: DivisionsSource | None = None
     chords_found: ChordCount | None = None
     lift: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
         out["divisions"] = self.result.divisions
-        out["divisions_from"] = self.divisions_from
+        out["divisions_from"] = None if self.divisions_from is None else self.divisions_from.value
         out["shape"] = self.shape
         out["chords_found"] = None if self.chords_found is None else self.chords_found.to_dict()
         out["vertex_bend_deg"] = (
@@ -165,8 +264,8 @@ class PartMeasurement:
         out["circle"] = self.circle.to_dict("mm")
         out["methods"] = {k: v.to_dict() for k, v in self.methods.items()}
         out["seed_arcs"] = {k: v.to_dict() for k, v in self.seed_arcs.items()}
-        out["plane"] = self.plane
-        out["wire"] = self.wire
+        out["plane"] = self.plane.to_dict()
+        out["wire"] = self.wire.to_dict()
         out["centreline_mm"] = self.centreline_mm.tolist()
         # for overlays: the centreline in photo pixels, at most 400 points
         step = max(1, len(self.centreline_px) // 400)

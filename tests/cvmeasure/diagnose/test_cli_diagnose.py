@@ -10,6 +10,7 @@ import pytest
 from cvmeasure.cli import main
 from cvmeasure.fileio import write_csv_rows
 from cvmeasure.sim import Effect, params_from_json, simulate
+from cvmeasure_datasets import physical_bender as pb
 from cvmeasure_datasets.trials import measure_trials, random_plan
 
 COLUMNS = ("trial", "commanded_pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "part")
@@ -174,3 +175,19 @@ def test_cli_json_is_the_library_result(offset_trials, capsys):
     printed = capsys.readouterr().out
     expected = to_jsonable(diagnose(TrialTable.read_csv(offset_trials)).to_dict())
     assert printed == json.dumps(expected, indent=2) + "\n"
+
+
+def test_text_summary_of_a_tilt_about_another_axis(tmp_path, capsys):
+    # a camera tilted about an axis the fit picks from its grid of forms: the axis is a
+    # parameter without an interval, and the text summary once stopped on it (KeyError)
+    case = pb.physical_case(426, ("camera_tilt", "scale"), plan="random", n_trials=60)
+    path = case.trials.write_csv(tmp_path / "t.csv")
+    saved = tmp_path / "ext.json"
+    assert main(["diagnose", str(path), "--save-params", str(saved)]) == 0
+    text = capsys.readouterr().out
+    assert text.splitlines()[0] == "cause: camera_tilt", text
+    axis = [ln for ln in text.splitlines() if ln.strip().startswith("tilt_axis_deg =")]
+    assert len(axis) == 1 and "no interval" in axis[0], text
+    scale = [ln for ln in text.splitlines() if ln.strip().startswith("scale =")]
+    assert len(scale) == 1 and "95 % interval" in scale[0], text
+    assert saved.exists()

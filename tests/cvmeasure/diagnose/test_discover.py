@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.core import cv_groups
 from cvmeasure.diagnose.discover import discover, library
 from cvmeasure.diagnose.fitting import group_folds
@@ -50,7 +50,7 @@ def test_pure_noise_discovers_nothing():
 def test_gear_runout_outside_the_catalogue_is_unexplained_not_named():
     case = pb.physical_case(43, "gear_runout", plan="random", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "unexplained" and result.causes == ()
+    assert result.cause == Cause.unexplained() and result.causes == ()
     assert any(t.term.startswith("gear_runout") for t in result.discovered)
     assert result.gain > 0.6
     d = result.to_dict()
@@ -66,13 +66,13 @@ def test_repeated_identical_bends_are_held_out_together_and_name_nothing(seed):
     assert len(set(groups)) == len(set(np.round(case.trials.commanded_pin_deg, 1))) < 60
     assert note and "repeated commands" in note
     result = diagnose(case.trials)
-    assert result.cause == "none" and result.causes == ()
+    assert result.cause == Cause.none() and result.causes == ()
 
 
 def test_evidence_weights_over_the_explanations():
     case = pb.physical_case(306, "backlash", plan="random", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "backlash"
+    assert result.cause.primary == "backlash"
     weights = dict(result.evidence)
     assert sum(weights.values()) == pytest.approx(1.0)
     # the explanation named carries the evidence (a second cause, if any, is listed with it)
@@ -92,7 +92,7 @@ def test_intervals_widened_by_the_model_form_hold_the_truth():
     # with the discrepancy and the dead zone) holds the truth
     case = pb.physical_case(118, "compliance", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "compliance"
+    assert result.cause.primary == "compliance"
     key = EFFECTS["compliance"].param
     truth = case.hidden[0].params[key]
     lo, hi = result.intervals[key]
@@ -122,7 +122,7 @@ def test_previous_bend_in_the_span_is_unexplained_with_its_coupling(seed, plan):
     # backlash on random orders, nothing discovered); its coupling is recovered
     case = pb.physical_case(seed, "short_segment", plan=plan, n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "unexplained" and result.causes == ()
+    assert result.cause == Cause.unexplained() and result.causes == ()
     terms = {t.term: t for t in result.discovered}
     assert "previous_bend" in terms, list(terms)
     truth = case.hidden[0].params["coupling_deg"]
@@ -137,7 +137,7 @@ def test_warm_up_is_unexplained_not_named_drift(seed, plan):
     # a loss that builds up and levels off is not the catalogue's drift (main: drift)
     case = pb.physical_case(seed, "warm_up", plan=plan, n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "unexplained" and result.causes == ()
+    assert result.cause == Cause.unexplained() and result.causes == ()
     assert any(t.term.startswith("warm_up") for t in result.discovered)
     assert result.gain > 0.6
 
@@ -151,7 +151,7 @@ def test_a_hidden_scale_is_named_not_displaced_by_a_smooth_discovered_term(seed,
     case = pb.physical_case(seed, "scale", plan=plan, n_trials=60)
     result = diagnose(case.trials)
     truth = case.hidden[0].params["scale"]
-    assert result.cause == "scale"
+    assert result.cause.primary == "scale"
     lo, hi = result.intervals["scale"]
     assert lo <= truth <= hi
     assert result.params["scale"] == pytest.approx(truth, rel=0.35)
@@ -162,7 +162,7 @@ def test_springback_scatter_is_found_with_its_size(seed, plan):
     # scatter of the springback growing with the bend (main: found on repeats plans only)
     case = pb.physical_case(seed, "springback_scatter", plan=plan, n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "unexplained" and result.causes == ()
+    assert result.cause == Cause.unexplained() and result.causes == ()
     (term,) = [t for t in result.discovered if t.term == "scatter"]
     truth = case.hidden[0].params["scatter_deg_per_100deg"]
     lo, hi = term.intervals_deg[0]
@@ -183,7 +183,7 @@ def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment(
     # be told from a warm-up on this plan and how to tell
     case = pb.physical_case(412, "warm_up", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "drift"
+    assert result.cause.primary == "drift"
     assert result.tie[0] == "drift" and any(t.startswith("warm_up") for t in result.tie)
     assert result.to_dict()["tie"] == list(result.tie)
     notes = [n for n in result.notes if "cannot be told from" in n and "warm-up" in n]
@@ -191,7 +191,7 @@ def test_an_order_term_indistinguishable_on_a_sweep_is_said_with_the_experiment(
     assert result.recommended_experiment == "bend the same angles in a random order"
     # the same mechanism bent in a random order is not given the catalogue name
     shuffled = diagnose(pb.physical_case(403, "warm_up", plan="random", n_trials=60).trials)
-    assert shuffled.cause == "unexplained"
+    assert shuffled.cause == Cause.unexplained()
 
 
 def test_two_causes_on_the_independent_model_are_both_named():
@@ -208,7 +208,7 @@ def test_two_causes_on_the_independent_model_are_both_named():
     named = []
     for seed, pair, plan in cases:
         result = diagnose(pb.physical_case(seed, pair, plan=plan, n_trials=60).trials)
-        if result.cause not in pair:
+        if result.cause.primary not in pair:
             # seed 401 (play of 1.2 deg lost on every bend): a drive compliance beside the
             # same asymmetry is the same nearly constant under-bend held out; the pair
             # named is reported as tied with the hidden one, not as a pick

@@ -68,7 +68,7 @@ def test_a_drift_losing_whole_steps_on_a_sweep_is_named_drift(seed):
     # (530009) before the absolute grid of rates over every home-shifting form
     case = pb.physical_case(seed, "drift", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "drift" and not result.tie, (result.cause, result.tie)
+    assert result.cause.primary == "drift" and not result.tie, (result.cause, result.tie)
     assert result.params.get("step_deg", 0.0) > 0.0  # whole steps
     if seed == 530008:  # the generator's form (exponent 1, 0.06 deg steps) and its rate
         truth = case.hidden[0].params
@@ -83,7 +83,7 @@ def test_a_drift_losing_whole_steps_on_a_sweep_is_named_drift(seed):
 def test_an_offset_on_a_sweep_is_still_named_offset():
     case = pb.physical_case(530100, "offset", plan="sweep", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "offset", (result.cause, result.tie)
+    assert result.cause.primary == "offset", (result.cause, result.tie)
     truth = case.hidden[0].params["offset_deg"]
     lo, hi = result.intervals["offset_deg"]
     assert lo <= truth <= hi, (lo, hi, truth)
@@ -140,7 +140,7 @@ def test_a_drift_on_repeats_is_named_drift_shifting_home_in_whole_steps(seed):
     # more than one standard error behind it held out (the tie rule of step 3)
     case = pb.physical_case(seed, "drift", plan="repeats", n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "drift" and result.causes == ("drift",), result.causes
+    assert result.cause.primary == "drift" and result.causes == ("drift",), result.causes
     assert not result.tie, result.tie
     assert result.params["home_shift"] == 1.0 and result.params["step_deg"] > 0.0
     groups, _ = core.cv_groups(case.trials)

@@ -45,7 +45,7 @@ def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidd
     more = pb.run_follow_up(case, plan.commanded_pin_deg, seed + 1)
     assert np.array_equal(more.trials.unloaded_bend_deg[:60], case.trials.unloaded_bend_deg)
     again = diagnose(more.trials, follow_up=False)
-    assert again.cause == hidden and again.tie == ()
+    assert again.cause.primary == hidden and again.tie == ()
     assert again.follow_up is None
 
 

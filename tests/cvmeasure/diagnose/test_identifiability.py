@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.identify import check_identifiability, signature, similarity
 from cvmeasure.sim import SimParams
 from cvmeasure_datasets.trials import hidden_case
@@ -15,9 +15,9 @@ from cvmeasure_datasets.trials import hidden_case
 def test_one_direction_confounds_backlash_and_offset():
     case = hidden_case(3, effect="backlash", n_trials=30, both_directions=False)
     result = diagnose(case.trials)
-    assert result.cause in ("backlash", "offset")
+    assert result.cause.primary in ("backlash", "offset")
     pair = {i.causes[1]: i for i in result.identifiability}
-    other = "offset" if result.cause == "backlash" else "backlash"
+    other = "offset" if result.cause.primary == "backlash" else "backlash"
     assert not pair[other].separable
     assert pair[other].similarity > 0.999
     assert "reverse bends" in result.recommended_experiment
@@ -26,7 +26,7 @@ def test_one_direction_confounds_backlash_and_offset():
 def test_without_loaded_angles_springback_asymmetry_needs_the_loaded_photo():
     case = hidden_case(4, effect="springback_asymmetry", n_trials=40, loaded=False)
     result = diagnose(case.trials)
-    assert result.cause != "none"
+    assert result.cause != Cause.none()
     confounded = [i for i in result.identifiability if not i.separable]
     assert confounded, "asymmetric springback is confounded with a machine cause here"
     assert "loaded angle" in result.recommended_experiment

@@ -51,7 +51,7 @@ def test_intervals_on_data_of_the_model_itself_hold_the_truth(seed):
     for name in (n for n in EFFECT_NAMES if n != "none"):
         case = hidden_case(seed, effect=name, n_trials=40)
         result = diagnose(case.trials)
-        assert result.cause == name
+        assert result.cause.primary == name
         lo, hi = result.intervals[EFFECTS[name].param]
         held.append(lo <= case.effect.value <= hi)
         # informative: narrower than a quarter of the typical size, plus the dead zone's
@@ -147,7 +147,7 @@ def test_a_scale_on_the_independent_model_is_held_when_the_dead_zones_pull_misle
     # (0.0275, 0.0322), -0.0425 outside (-0.0473, -0.0435))
     case = pb.physical_case(seed, "scale", plan=plan, n_trials=60)
     result = diagnose(case.trials)
-    assert result.cause == "scale"
+    assert result.cause.primary == "scale"
     truth = case.hidden[0].params["scale"]
     lo, hi = result.intervals["scale"]
     assert lo <= truth <= hi, (truth, (lo, hi))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.fitting import discrepancy_form, fit_model, learned_form
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import SimParams, parse_effect, simulate
@@ -39,7 +39,7 @@ def test_learned_form_spans_the_session():
 
 def test_no_effect_on_another_form_names_nothing_and_says_so():
     result = diagnose(_session())
-    assert result.cause == "none" and result.causes == ()
+    assert result.cause == Cause.none() and result.causes == ()
     assert result.misfit is not None and not result.misfit.refused
     assert result.learned is not None and result.learned.degree == 5
     assert result.to_dict()["learned_curve"]["span_deg"] == pytest.approx([18.1, 114.6], abs=0.05)

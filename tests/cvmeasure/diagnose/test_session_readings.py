@@ -31,7 +31,7 @@ def _session(effect: Effect, seed: int) -> TrialTable:
 @pytest.mark.parametrize("offset_mm", [0.35, -0.4])
 def test_an_axis_offset_read_from_the_marker_is_named_with_its_size(offset_mm):
     result = diagnose(_session(Effect("axis_offset", offset_mm), 7), follow_up=False)
-    assert result.cause == "axis_offset"
+    assert result.cause.primary == "axis_offset"
     lo, hi = result.intervals["axis_offset_mm"]
     assert lo <= offset_mm <= hi  # the 95 % interval holds the truth
     assert abs(result.params["axis_offset_mm"] - offset_mm) < 0.1  # mm

@@ -229,7 +229,7 @@ def test_a_side_lit_lab_wire_on_the_light_sheet_is_measured_to_its_caps():
         photo.camera,
         options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
-    assert m.wire["centre_from"] == "silhouette"
+    assert m.wire.centre_from == "silhouette"
     # the targets of issue 14: radius within 0.3 %, bend per chord within 0.03 deg
     assert abs(m.result.radius_mm / photo.truth["radius_mm"] - 1.0) < 0.003
     assert abs(float(m.result.segment_bend_deg) - 90.0 / 8) < 0.03
@@ -324,7 +324,7 @@ def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
     rot, t_mm = pose.extrinsics("board")
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
     off = [float(np.min(np.hypot(*(true_ends_px - e).T))) for e in m.centreline_px[[0, -1]]]
-    u = np.asarray(m.wire["end_uncertainty_px"])
+    u = np.asarray(m.wire.end_uncertainty_px)
     assert max(off) > 5.0, off  # the end is still taken at the shadow's edge: stated, not fixed
     # each end's stated uncertainty covers its distance from the truth
     assert np.all(np.asarray(off) <= u + 1.0), (off, u)
