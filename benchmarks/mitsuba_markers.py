@@ -199,13 +199,17 @@ _COLUMNS = [
     "bend_u",
 ]
 _HEIGHT_SIGMA_MM = 0.05
+#: How far each cap's coloured top stands on its white ring in the scenes (their inlay).
+_STEP_MM = 0.3
 
 
 def _described_kit(kit: Path, out: Path) -> Path:
-    """The kit with each cap's height stated as measured (the scenes stand them exactly there)."""
+    """The kit with each cap's height stated as measured (the scenes stand them exactly there)
+    and its coloured top's step above its ring, as the caps are built."""
     data = json.loads(kit.read_text())
     for m in data["markers"]:
         m["height_sigma_mm"] = _HEIGHT_SIGMA_MM
+        m["step_mm"] = _STEP_MM
     out.write_text(json.dumps(data, indent=1))
     return out
 
@@ -366,7 +370,8 @@ def main(argv: list[str] | None = None) -> dict:
             f"Mitsuba 3 scalar_rgb path tracing, {w}x{h} px, {spp} spp (bender photos {bender_spp}, reconstruction filter sigma 1 px), pinhole fov 34 deg, camera 430 mm above the plate",
             f"camera from `cvmeasure calibrate` on {len(_VIEWS)} rendered board views; plane from a board-on-plate render",
             "caps rendered at heights drawn within +-10 % of the built-in kit's nominal heights (as built); "
-            f"the described kit holds those heights with height_sigma_mm {_HEIGHT_SIGMA_MM}, the nominal kit is "
+            f"the described kit holds those heights with height_sigma_mm {_HEIGHT_SIGMA_MM} and the tops' "
+            f"step_mm {_STEP_MM}, the nominal kit is "
             "`cvmeasure targets markers --format json`",
             f"scenes cycle through {len(_LAMPS)} desk-lamp positions (one 21 deg above the plate, three low at 7-10 deg) "
             f"and {len(_SHEETS)} sheets (dark plate, black mat, light laminate)",

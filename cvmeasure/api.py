@@ -328,8 +328,8 @@ def measure_bender_photo(
     method : ``"edge_fit"`` or ``"seed_hough"`` (the seed paper's baseline, image pixels
         only); the older ``"ours"`` / ``"seed"`` are read too.
     space : colour space of the segmentation, ``"lab"`` or ``"rgb"``.
-    edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``, or
-        None (by the photo's type).
+    edge : image the disc edges are found in, ``"luma"``, ``"green"``, ``"colour"``,
+        ``"shade"``, or None (by the photo's type and the kit's ``step_mm``).
     heights : without a plane, ``"none"`` (bound the heights' effect) or ``"parallel"``.
 
     Raises

@@ -43,6 +43,12 @@ class MarkerSpec:
     tolerance, or what ``cvmeasure markers heights`` measured); a measurement on a
     plane pose carries it into the angles' stated uncertainty. ``None``: no stated
     uncertainty (taken as exact).
+
+    ``step_mm`` is how far the disc's printed face stands above its white ring, mm (a
+    coloured top printed or glued on the cap): the step's wall is then seen beside the
+    disc on the side facing the camera, and the disc's edges are found where every shade
+    of its colour reads as the disc (:data:`cvmeasure.markers.refine.SHADE_EDGES`).
+    ``None`` or 0: the face is flush with its ring.
     """
 
     role: str
@@ -54,6 +60,7 @@ class MarkerSpec:
     rgb_sigma: tuple[float, float, float] | None = None
     height_mm: float | None = None
     height_sigma_mm: float | None = None
+    step_mm: float | None = None
 
     @property
     def lab_d65(self) -> np.ndarray:
@@ -80,6 +87,8 @@ class MarkerSpec:
             out["height_mm"] = self.height_mm
         if self.height_sigma_mm is not None:
             out["height_sigma_mm"] = self.height_sigma_mm
+        if self.step_mm is not None:
+            out["step_mm"] = self.step_mm
         return out
 
 
@@ -111,6 +120,11 @@ class MarkerKit:
     def has_heights(self) -> bool:
         """True when every marker's height above the plate is known."""
         return all(m.height_mm is not None for m in self.markers)
+
+    @property
+    def has_steps(self) -> bool:
+        """True when a marker's printed face stands above its ring (``step_mm`` > 0)."""
+        return any((m.step_mm or 0.0) > 0.0 for m in self.markers)
 
     def height_mm(self, role: str) -> float:
         """The height of ``role``'s disc above the top plate, mm (0 for a flat kit)."""
@@ -181,6 +195,7 @@ class MarkerKit:
                     height_sigma_mm=_length(
                         m.get("height_sigma_mm"), "height_sigma_mm", minimum=0.0
                     ),
+                    step_mm=_length(m.get("step_mm"), "step_mm", minimum=0.0),
                 )
             except (KeyError, TypeError, ValueError) as exc:
                 raise InputError(source, f"marker #{i} is malformed: {exc}") from None

@@ -84,8 +84,9 @@ def _register_heights(msub: argparse._SubParsersAction) -> None:
     h.add_argument(
         "--prior-sigma-mm",
         type=positive_float,
-        default=2.0,
-        help="standard uncertainty of the nominal heights, mm (default 2)",
+        default=None,
+        help="standard uncertainty of every nominal height, mm (default: each cap within "
+        "10 %% of its nominal height, uniformly: 0.058 x the height; 2 mm without one)",
     )
     h.add_argument("-o", "--out", type=Path, required=True, help="kit JSON to write")
     h.add_argument("--json", action="store_true", help="print the result as JSON")

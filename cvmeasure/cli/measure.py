@@ -85,9 +85,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--space", choices=("lab", "rgb"), default="lab", help="default lab")
     p.add_argument(
         "--edge",
-        choices=("luma", "green", "colour"),
-        help="image the disc edges are found in (default: luma for JPEG/8-bit photos, green "
-        "for RAW/16-bit ones; green also for any lens with strong lateral colour)",
+        choices=("luma", "green", "colour", "shade"),
+        help="image the disc edges are found in (default: luma for JPEG/8-bit photos, shade "
+        "when the kit's markers have a step_mm (faces standing on their rings); green for "
+        "RAW/16-bit ones and for any lens with strong lateral colour)",
     )
     p.add_argument(
         "--heights",

@@ -18,10 +18,14 @@ measures them on the user's machine, from photos taken from the plane's pose:
   the heights of the wire markers against the axis marker.
 
 The heights are the least-squares solution of those conditions, each residual
-weighted by its centres' covariance, with the kit's nominal heights as a prior
-(``prior_sigma_mm`` each): what the photos cannot see (a common shift of every
-height, which no angle depends on) stays at the nominal value with the prior's
-uncertainty. The result is the kit with the measured ``height_mm``, their
+weighted by its centres' covariance, with the kit's nominal heights as a prior:
+each cap within :data:`~cvmeasure.markers.measure.NOMINAL_HEIGHT_TOLERANCE` of its
+nominal height, as a rectangular distribution (standard uncertainty
+``tolerance * height / sqrt(3)``). What the photos cannot see, every marker's
+distance to the camera scaled by one factor (a near-common shift of the heights),
+moves every disc by one homothety about the camera's foot point and so changes no
+angle; it stays at the nominal heights with the prior's uncertainty, which thus
+states the heights honestly without reaching the angles' sigma. The result is the kit with the measured ``height_mm``, their
 ``height_sigma_mm`` and their covariance ``height_covariance_mm2``, which a
 measurement on a plane pose carries into every angle's uncertainty.
 
@@ -43,12 +47,13 @@ from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles, pin_bend_deg
 from cvmeasure.markers.heights import move_to_heights
+from cvmeasure.markers.measure import NOMINAL_HEIGHT_TOLERANCE
 from cvmeasure.warning import StageWarning
 
-__all__ = ["SweepPhoto", "MeasuredHeights", "measure_heights", "PRIOR_SIGMA_MM"]
+__all__ = ["SweepPhoto", "MeasuredHeights", "measure_heights", "prior_sigmas_mm", "PRIOR_SIGMA_MM"]
 
-#: Standard uncertainty of the kit's nominal heights as the prior, mm (a printed cap
-#: seated on its part; caps 10 % off 18 mm are 1.8 mm off).
+#: Standard uncertainty (mm) of a marker the kit gives no height (a flat sticker in the
+#: kit, caps perhaps on the machine): nothing is known, a cap's few millimetres.
 PRIOR_SIGMA_MM = 2.0
 #: The roles that turn about the die's axis over a sweep.
 TURNING = ("pin", "wire_a", "wire_b")
@@ -57,6 +62,9 @@ MIN_PHOTOS = 3
 MIN_SPAN_DEG = 30.0
 #: Smallest scale of the heights' covariance by the residuals' RMS (see measure_heights).
 MIN_BIRGE = 0.5
+#: Singular values of the photos' whitened Jacobian below this fraction of the largest:
+#: directions the photos do not see (those seen are 1e-2 or more, the unseen 1e-5 or less).
+DATA_RANK_RTOL = 1e-4
 #: Whitened residuals' RMS above this: the photos disagree with the turning-markers model.
 POOR_FIT_RMS = 3.0
 
@@ -81,8 +89,9 @@ class MeasuredHeights:
     ``kit`` is the input kit with ``height_mm``, ``height_sigma_mm`` and
     ``height_covariance_mm2`` measured; ``nominal_mm`` the heights it started from;
     ``radii_mm`` the fitted distances of the turning markers from the origin marker;
-    ``rms`` the RMS of the residuals in units of their standard uncertainty (about 1
-    when the photos agree with the model); ``warnings`` what is in doubt.
+    ``rms`` the RMS of the photos' residuals in units of their standard uncertainty, per
+    degree of freedom (about 1 when the photos agree with the model); ``warnings`` what is
+    in doubt.
     """
 
     kit: MarkerKit
@@ -120,7 +129,7 @@ def _residuals(
     photos: Sequence[SweepPhoto],
     kit_mm: dict[str, float],
     prior_mm: np.ndarray,
-    prior_sigma_mm: float,
+    prior_sigma_mm: np.ndarray,
     camera_centre_mm: np.ndarray,
     y_down: bool,
     bend_sigma_deg: Sequence[float],
@@ -143,13 +152,24 @@ def _residuals(
     return np.asarray(out)
 
 
+def prior_sigmas_mm(kit: MarkerKit) -> np.ndarray:
+    """Standard uncertainty (mm) of each nominal height in :data:`ROLES` order.
+
+    A printed cap stands within :data:`NOMINAL_HEIGHT_TOLERANCE` of its nominal height,
+    any value in it as likely (GUM's rectangular distribution: ``a / sqrt(3)`` for a
+    half-width ``a``); a marker without a height: :data:`PRIOR_SIGMA_MM`.
+    """
+    tol = NOMINAL_HEIGHT_TOLERANCE / math.sqrt(3.0)
+    return np.array([tol * h if (h := kit.height_mm(r)) > 0 else PRIOR_SIGMA_MM for r in ROLES])
+
+
 def measure_heights(
     photos: Sequence[SweepPhoto],
     kit: MarkerKit,
     camera_centre_mm: Any,
     *,
     y_down: bool = True,
-    prior_sigma_mm: float = PRIOR_SIGMA_MM,
+    prior_sigma_mm: float | None = None,
 ) -> MeasuredHeights:
     """Measure the markers' heights from a sweep of photos from one plane pose.
 
@@ -161,7 +181,8 @@ def measure_heights(
         0 mm each).
     camera_centre_mm : the plane pose's camera centre in the plate frame (3,), mm.
     y_down : the plate frame's handedness as the measurement sees it.
-    prior_sigma_mm : standard uncertainty of the kit's heights as the prior, mm.
+    prior_sigma_mm : standard uncertainty of every nominal height as the prior, mm; None:
+        from the caps' tolerance (:func:`prior_sigmas_mm`).
 
     Raises
     ------
@@ -170,7 +191,7 @@ def measure_heights(
     """
     if len(photos) < MIN_PHOTOS:
         raise ValueError(f"need at least {MIN_PHOTOS} photos of a bend sweep, got {len(photos)}")
-    if prior_sigma_mm <= 0:
+    if prior_sigma_mm is not None and prior_sigma_mm <= 0:
         raise ValueError("prior_sigma_mm must be > 0")
     for p in photos:
         missing = [r for r in ROLES if r not in p.centres_mm]
@@ -179,6 +200,9 @@ def measure_heights(
     centre = np.asarray(camera_centre_mm, dtype=np.float64).reshape(3)
     kit_mm = {r: kit.height_mm(r) for r in ROLES}
     prior = np.array([kit_mm[r] for r in ROLES])
+    prior_sigma = (
+        prior_sigmas_mm(kit) if prior_sigma_mm is None else np.full(len(ROLES), prior_sigma_mm)
+    )
     bend_sigma = [
         machine_angles(p.centres_mm, p.covariances_mm2, y_down=y_down).bend_sigma_deg
         for p in photos
@@ -187,17 +211,22 @@ def measure_heights(
         float(np.median([np.hypot(*(p.centres_mm[r] - p.centres_mm["origin"])) for p in photos]))
         for r in TURNING
     ]
-    args = (photos, kit_mm, prior, prior_sigma_mm, centre, y_down, bend_sigma)
+    args = (photos, kit_mm, prior, prior_sigma, centre, y_down, bend_sigma)
     fit = least_squares(_residuals, np.concatenate((prior, radii0)), args=args, x_scale=1.0)
-    n_res, n_par = fit.fun.size, fit.x.size
-    chi2 = float(fit.fun @ fit.fun)
-    rms = math.sqrt(chi2 / max(n_res - n_par, 1))
     n = len(ROLES)
-    # the photos' part scaled by the residuals' own scatter (the Birge ratio), both ways,
-    # never below a quarter of the stated one (a lucky few photos must not claim too
-    # much); the prior's rows (the last n) are not: the photos say nothing about it
     jac = np.asarray(fit.jac)
     data, prior_rows = jac[:-n], jac[-n:]
+    # the photos' scatter from their own residuals: the directions they leave to the prior
+    # (the unseen scale, the axis marker's height from a square pose) take none of their
+    # degrees of freedom, and the prior's residuals (caps off their nominal heights) are
+    # no scatter of the photos
+    sv = np.linalg.svd(data, compute_uv=False)
+    seen = int(np.sum(sv > DATA_RANK_RTOL * sv[0]))
+    res = fit.fun[:-n]
+    rms = math.sqrt(float(res @ res) / max(res.size - seen, 1))
+    # the photos' part scaled by that scatter (the Birge ratio), both ways, never below
+    # MIN_BIRGE of the stated one (a lucky few photos must not claim too much); the
+    # prior's rows are not: the photos say nothing about it
     info = data.T @ data / max(rms, MIN_BIRGE) ** 2 + prior_rows.T @ prior_rows
     cov = np.linalg.pinv(info)
     h_cov = cov[:n, :n]

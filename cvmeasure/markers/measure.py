@@ -35,8 +35,11 @@ include camera or plane calibration errors, print or mounting tolerances of the
 markers, or lateral chromatic aberration.
 
 Edges are found in linear luminance for 8-bit photos (JPEG keeps it at full
-resolution) and in the green channel for RAW/16-bit data (``edge=`` to choose):
-a lens's lateral chromatic aberration moves red and blue edges. By default the
+resolution), in "shade" for 8-bit photos of a kit whose markers' faces stand on their
+rings (``step_mm``: the steps' walls then count alike on every disc,
+:data:`cvmeasure.markers.refine.SHADE_EDGES`) and in the green channel for RAW/16-bit
+data (``edge=`` to choose): a lens's lateral chromatic aberration moves red and blue
+edges. By default the
 red and blue edges of the discs farthest from the image centre are compared with
 green (a cheap probe of the regions already read); where they show lateral colour
 (:data:`LATERAL_CA_THRESHOLD`) the edges are taken in green and a warning says so
@@ -103,6 +106,7 @@ from cvmeasure.markers.refine import (
     EDGE_MODE,
     EDGE_MODES,
     FIT_STOP_PX,
+    SHADE_EDGES,
     UNEVEN_RING_SPREAD,
     channel_shifts_px,
     disc_edge_points,
@@ -232,7 +236,9 @@ def _other_edges(
     colour edges, luminance for green ones) round its settled circle (image px): where
     the two disagree, demosaicing, blur, JPEG or shading moved the edge
     (:func:`edge_mode_cov`)."""
-    other = "luma" if (edge or EDGE_MODE) == "green" else "green"
+    # shade edges against luminance: the two weigh a light disc's wall and the shadow
+    # on its ring differently, so they part by what that shading does to the edge
+    other = "luma" if (edge or EDGE_MODE) in ("green", SHADE_EDGES) else "green"
     out = {}
     for role, (fit, edges) in fits.items():
         spec = kit.by_role(role)
@@ -323,6 +329,7 @@ def _measure_ours(
     frame: MeasureFrame,
     source: str,
     edge: str | None = None,
+    probe_lateral: bool = True,
 ) -> _Measured:
     search = find_markers(bgr8, kit, model)
     failures = dict(search.failures)
@@ -339,7 +346,7 @@ def _measure_ours(
             fits[role] = got
     if failures:
         raise MarkerNotFoundError(source, {r: failures[r] for r in ROLES if r in failures}, kit)
-    if edge is None:  # default luminance edges: green where the lens shows lateral colour
+    if probe_lateral:  # default edges: green where the lens shows lateral colour
         lateral = _lateral_colour(bgr, fits, search, kit)
         warnings.extend([lateral] if lateral is not None else [])
         other = {} if lateral is not None else _other_edges(bgr, fits, kit, edge)
@@ -444,10 +451,11 @@ def measure_machine_photo(
     colour_model : a learnt colour model; the kit's colours (adapted to the photo's light) when None.
     linear : the image holds linear (gamma 1) data, e.g. from RAW.
     edge : where disc edges are found: "luma" (JPEG's full-resolution component), "green"
-        (immune to lateral chromatic aberration) or "colour" (see
-        :data:`cvmeasure.markers.refine.EDGE_MODE`). Default: "luma" for 8-bit photos
-        (JPEGs), switched to "green" with a warning where the discs show lateral
-        chromatic aberration; "green" for RAW/linear or 16-bit data.
+        (immune to lateral chromatic aberration), "colour" or "shade" (see
+        :data:`cvmeasure.markers.refine.EDGE_MODE`). Default for 8-bit photos (JPEGs):
+        "shade" for a kit whose faces stand on their rings (``step_mm``), else "luma", either
+        switched to "green" with a warning where the discs show lateral chromatic
+        aberration; "green" for RAW/linear or 16-bit data.
     heights : without a plane pose, how the kit's marker heights are treated: "none"
         (angles in the image, with ``height_bound_deg`` and a warning) or "parallel"
         (corrected assuming a camera square to the plate, needs ``camera``; the bound
@@ -573,12 +581,18 @@ def _centres(
         transform = measure_frame(camera, plane, img.shape, source)
         model = colour_model or kit_colour_model(kit, space)
         work = bgr8 if linear or img.dtype == np.uint8 else img
+        probe = edge is None
         if edge is None and (linear or img.dtype != np.uint8):
             # RAW or 16-bit data: no chroma subsampling to avoid, and no in-camera
             # lateral-colour correction either, so the green channel is the better edge
             edge = "green"
+        elif edge is None and kit.has_steps:
+            # faces standing on their rings: the steps' walls read alike on every disc
+            # (SHADE_EDGES); flush faces keep luminance, which JPEG and demosaicing keep
+            # sharpest (shade edges cost 2-3x the angle error on the photo lab's renders)
+            edge = SHADE_EDGES
         markers, centres, covs, warnings = _measure_ours(
-            work, bgr8, kit, model, transform, source, edge
+            work, bgr8, kit, model, transform, source, edge, probe and edge != "green"
         )
         if not kit.has_heights:
             height_state = "flat"  # the spec: a kit without heights is flat stickers

@@ -82,11 +82,25 @@ CENTRE_FLOOR_PX = 0.003
 #: bias it; p95 angle error 0.0022 deg vs 0.006 deg for "colour" on full-size
 #: renders), "green" (the green channel alone: immune to lateral chromatic
 #: aberration, which magnifies red and blue; the best choice for a lens with strong
-#: lateral colour), or "colour" (projection on the disc-to-ring colour difference,
-#: all channels). "luma" and "green" fall back to "colour" for a disc whose step in
-#: that image is less than MIN_STEP_SHARE of its colour difference.
+#: lateral colour), "colour" (projection on the disc-to-ring colour difference,
+#: all channels) or "shade" (the ring's colour with the disc's colour projected out:
+#: every shade of the disc's colour reads as the disc, see :data:`SHADE_EDGES`).
+#: "luma", "green" and "shade" fall back to "colour" for a disc whose step in that
+#: image is less than MIN_STEP_SHARE of its colour difference.
 EDGE_MODE = "luma"
-EDGE_MODES: tuple[str, ...] = ("luma", "green", "colour")
+EDGE_MODES: tuple[str, ...] = ("luma", "green", "colour", "shade")
+#: Why "shade" edges for raised caps: a cap's coloured top stands on its white ring by
+#: a step whose wall, darker or lighter than the top, is seen on the side facing the
+#: camera's foot point, just outside the top's edge. In luminance (or one channel) the
+#: wall counts as disc by ``(ring - wall) / (ring - disc)``: near 1 for a dark disc,
+#: up to 1.8 for a light one (the orange pin), so each disc's centre moves towards the
+#: foot point by its own share of the wall (Mitsuba renders: the pin 0.1 px, 0.04 deg
+#: of pin angle). Projected orthogonally to the disc's colour, every shade of that
+#: colour reads 0 (the disc) and the ring its own light: the wall counts exactly once
+#: for every disc, a common scale about the foot point that leaves the angles alone,
+#: and a shadow on the ring moves the edge as much as in luminance for a dark disc, half
+#: as much for a light one.
+SHADE_EDGES = "shade"
 MIN_STEP_SHARE = 0.25
 #: Ring levels round a disc (each ray's, smoothed over neighbours) spread by more than
 #: this share of the disc-to-ring step: uneven light (a shadow across the marker). The
@@ -301,7 +315,6 @@ def disc_edge_points(
         are not one light's (see :func:`_local_levels`). Needs a good circle to start
         (its ring samples must fall on the ring): the refinement's last pass.
     """
-    import cv2
 
     cx, cy = centre_px
     levels = _disc_and_ring_levels(bgr, centre_px, radius_px, ring_ratio, band)
@@ -315,6 +328,7 @@ def disc_edge_points(
     if norm2 <= 0:
         return EdgePoints(np.zeros((0, 2)), disc_t, ring_t, 0.0, clipped_fraction)
     mode = edge or EDGE_MODE
+    shade = None
     if mode not in EDGE_MODES:
         raise ValueError(f"unknown edge mode {mode!r}; valid: {EDGE_MODES}")
     # s = (value - ring) / (disc - ring) of one projection of the colour (a weighted sum
@@ -325,18 +339,13 @@ def disc_edge_points(
         weights = np.array([0.0, 1.0, 0.0])
     elif mode == "luma" and abs(float(axis @ _LUMA_BGR)) >= MIN_STEP_SHARE * math.sqrt(norm2):
         weights = _LUMA_BGR.astype(np.float64)
+    elif mode == "shade" and (shade := _shade_weights(disc_c, ring_c, norm2)) is not None:
+        weights = shade
     else:
         weights = axis.astype(np.float64)
-    step_level = float(axis.astype(np.float64) @ weights)
-    offset = float(ring_c.astype(np.float64) @ weights) / step_level
-    m = np.append(weights / step_level, -offset)[None, :]
-    s = cv2.transform(roi, m)
-    if blur_px > 0:
-        s = cv2.GaussianBlur(s, (0, 0), blur_px)
-
     n_rays = edge_ray_count(radius_px)
     radii, map_x, map_y = _ray_maps(cx - x0, cy - y0, radius_px, band, step_px, n_rays)
-    v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
+    v, offset = _ray_values(roi, weights, axis, ring_c, blur_px, map_x, map_y)
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
     # the ring's samples, for ring_spread (read only on the refinement's settled pass)
     # the samples at radii >= (1 + band / 2) r: the last ones (radii increase), a view
@@ -344,11 +353,59 @@ def disc_edge_points(
     n_disc = np.count_nonzero(radii <= (1 - band / 2) * radius_px)
     ring_samples = v[:, k_outer:] if min(len(v) // 4, n_disc, len(radii) - k_outer) >= 2 else None
     if local_levels:
-        v = _local_levels(v, radii, radius_px, band, offset)
+        check = None
+        luma_step = abs(float(axis @ _LUMA_BGR))
+        if weights is shade and luma_step >= MIN_STEP_SHARE * math.sqrt(norm2):
+            # every shade of the disc reads 1 here, so whether a ray's disc and ring share
+            # one light (a shadow, not a cover) is read in luminance, where the disc's
+            # level follows the light
+            check = _ray_values(roi, _LUMA_BGR.astype(np.float64), axis, ring_c, blur_px,
+                                map_x, map_y)  # fmt: skip
+        v = _local_levels(v, radii, radius_px, band, offset, check)
     rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
     cos, sin = _unit_rays(n_rays)
     points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
+
+
+def _ray_values(
+    roi: np.ndarray,
+    weights: np.ndarray,
+    axis: np.ndarray,
+    ring_c: np.ndarray,
+    blur_px: float,
+    map_x: np.ndarray,
+    map_y: np.ndarray,
+) -> tuple[np.ndarray, float]:
+    """The region weighted by ``weights`` (linear BGR), scaled to 1 on the disc and 0 on
+    the ring (``axis`` = disc - ring), blurred and sampled along the rays (-1 off the
+    region), and its offset ``ring . weights / step``: ``v + offset`` is proportional to
+    the light."""
+    import cv2
+
+    step_level = float(axis.astype(np.float64) @ weights)
+    offset = float(ring_c.astype(np.float64) @ weights) / step_level
+    m = np.append(weights / step_level, -offset)[None, :]
+    s = cv2.transform(roi, m)
+    if blur_px > 0:
+        s = cv2.GaussianBlur(s, (0, 0), blur_px)
+    v = cv2.remap(s, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=-1)
+    return v, offset
+
+
+def _shade_weights(disc_c: np.ndarray, ring_c: np.ndarray, norm2: float) -> np.ndarray | None:
+    """Channel weights (linear BGR) of "shade" edges: the ring's colour with the disc's
+    projected out, so that any shade of the disc's colour weighs 0; None where the
+    disc-to-ring step they leave is under :data:`MIN_STEP_SHARE` of the colour difference
+    (a disc near the ring's hue: grey)."""
+    disc = disc_c.astype(np.float64)
+    ring = ring_c.astype(np.float64)
+    d2 = float(disc @ disc)
+    weights = ring - (float(ring @ disc) / d2) * disc if d2 > 0 else ring
+    # the step (ring - disc) . weights = ring . weights against the weights' own size
+    if float(ring @ weights) < MIN_STEP_SHARE * math.sqrt(norm2 * float(weights @ weights)):
+        return None
+    return weights
 
 
 #: No edge found (a region too small, or no disc or ring pixels in it).
@@ -387,7 +444,12 @@ def _nearest_crossings(
 
 
 def _local_levels(
-    v: np.ndarray, radii: np.ndarray, radius_px: float, band: float, offset: float
+    v: np.ndarray,
+    radii: np.ndarray,
+    radius_px: float,
+    band: float,
+    offset: float,
+    check: tuple[np.ndarray, float] | None = None,
 ) -> np.ndarray:
     """Rays (rows of ``v``, 1 on the disc, 0 on the ring) rescaled to their own levels if uneven.
 
@@ -412,20 +474,33 @@ def _local_levels(
     if spread < UNEVEN_RING_SPREAD:
         return v
     step = disc - ring
-    # the light on each ray from its ring level; the disc level that light predicts
-    light = (ring + offset) / offset if offset != 0 else np.ones_like(ring)
-    disc_pred = light * (1.0 + offset) - offset
     flat = (np.ptp(v[:, inner], axis=1) < 0.3 * np.abs(step)) & (
         np.ptp(v[:, outer], axis=1) < 0.3 * np.abs(step)
     )
-    ok = (
-        (np.abs(step) >= MIN_LOCAL_STEP)
-        & (np.abs(disc - disc_pred) < LEVEL_RATIO_TOLERANCE * np.abs(disc_pred - ring))
-        & flat
-    )
+    ok = (np.abs(step) >= MIN_LOCAL_STEP) & flat & _one_light(v, inner, outer, offset, check)
     out = np.full_like(v, -1.0)
     out[ok] = (v[ok] - ring[ok, None]) / step[ok, None]
     return out
+
+
+def _one_light(
+    v: np.ndarray,
+    inner: np.ndarray,
+    outer: np.ndarray,
+    offset: float,
+    check: tuple[np.ndarray, float] | None,
+) -> np.ndarray:
+    """Rays whose disc level is the one their ring's light predicts, within
+    :data:`LEVEL_RATIO_TOLERANCE` of the step (a shadow, not a cover), read in ``v`` or,
+    given, in ``check`` (another weighting's rays and offset)."""
+    if check is not None:
+        v, offset = check
+    disc = np.median(v[:, inner], axis=1)
+    ring = np.median(v[:, outer], axis=1)
+    # the light on each ray from its ring level; the disc level that light predicts
+    light = (ring + offset) / offset if offset != 0 else np.ones_like(ring)
+    disc_pred = light * (1.0 + offset) - offset
+    return np.abs(disc - disc_pred) < LEVEL_RATIO_TOLERANCE * np.abs(disc_pred - ring)
 
 
 def _ray_crossings(

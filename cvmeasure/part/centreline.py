@@ -30,7 +30,12 @@ ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
 the profile's gradient; per profile, the pair of peaks whose distance is within
 8 % of the expected width, that step one up and one down, with no highlight
 beyond either, and whose summed strength is largest is the wire (the highlight's
-own edges are closer together, the shadow's outer edge farther out). The end
+own edges are closer together, the shadow's outer edge farther out). But a polished tube's limbs mirror the sheet just beside them (a
+ray grazing the limb goes on to the sheet), so on a dark sheet only the lit flank and the
+highlight stand out and edges the wire's width apart are found along a minority of it
+(the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
+then, where the profiles are a round wire's symmetric ones, their centres are kept
+(``centre_from`` says why). The end
 points are the caps' silhouettes on the axis less the half-width. The edges' distance is the wire's apparent width, which
 :mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
 
@@ -88,6 +93,10 @@ SYMMETRIC_WIRE_MAX = 0.12
 #: Least length of the silhouette centreline, as a share of the mask path's, when the
 #: symmetric centres are not a wire's (the path runs on a little into a joined shadow).
 SILHOUETTE_MIN_SHARE_OF_PATH = 0.85
+
+#: Least share of the profiles with a centre between silhouette edges (or from one edge)
+#: for those to be used; below it the symmetric centres are, where they are a wire's.
+SILHOUETTE_MIN_COVERAGE = 0.5
 
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
@@ -226,13 +235,13 @@ def measure_centreline(
             profiles_at, path, centres, offsets, float(wire_width_px), step_px, rough, window,
             symmetry,
         )  # fmt: skip
-        if found is not None:
+        if not isinstance(found, str):
             centres, prof_ok, widths, coverage, shadow, lit = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
-            centre_from = "symmetry (no silhouette edges along the whole wire)"
+            centre_from = f"symmetry ({found})"
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
     found_ends = [
@@ -295,8 +304,9 @@ def _silhouette_if_whole(
     rough: float,
     window: int,
     symmetry: float,
-) -> tuple | None:
-    """:func:`_silhouette_centres` when they follow the wire far enough, else None.
+) -> tuple | str:
+    """:func:`_silhouette_centres` when they follow the wire far enough and stand for its
+    silhouette, else why not (the symmetric centres are then used).
 
     ``centres`` are the symmetric ones, ``symmetry`` their remaining asymmetry.
     """
@@ -316,7 +326,22 @@ def _silhouette_if_whole(
         if symmetry <= SYMMETRIC_WIRE_MAX
         else SILHOUETTE_MIN_SHARE_OF_PATH * path_length(path)
     )
-    return found if found is not None and path_length(found[0]) >= reach_px else None
+    if found is None or path_length(found[0]) < reach_px:
+        return "no silhouette edges along the whole wire"
+    # the edges found are not the wire's width apart even in their median (not noise
+    # about it, a bias): what
+    # steps there is not the silhouette (a polished tube's limbs mirror the sheet beside
+    # them, so on a dark sheet only a lit flank and the highlight stand out, 7 of 11 px
+    # apart), and a centre from one of them moved by half the width guesses which. Where
+    # the profiles are a round wire's symmetric ones, their centre is the measured one
+    misfit = found[6]
+    if misfit > PAIR_TOLERANCE and symmetry <= SYMMETRIC_WIRE_MAX:
+        return f"the edges seen are {100 * misfit:.0f} % off the wire's width apart (median)"
+    # edges along too little of the wire to say it is one (a grainy sheet's noise in its
+    # flanks), while its profiles are a round wire's symmetric ones along it: those say it
+    if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
+        return f"silhouette edges along only {100 * found[3]:.0f} % of it"
+    return found[:6]
 
 
 def _inside_ends(
@@ -430,7 +455,7 @@ def _silhouette_centres(
     step_px: float,
     smooth_px: float,
     window: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None, float]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
     The edges are the strongest gradient pair a width apart (within 8 %, or 0.5 px;
@@ -457,10 +482,12 @@ def _silhouette_centres(
 
     Returns the centres, their profiles, the edge widths (px, NaN where only one
     edge was used), the share of profiles with a centre, the image direction in
-    which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen)
-    and the lit centres (None when the shadow's side is not seen).
+    which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen),
+    the lit centres (None when the shadow's side is not seen) and how far all edges'
+    distances (paired or not) are off the width, relative, by their median (last pass).
     """
     coverage = 1.0
+    typical_misfit = np.inf
     widths = np.zeros(0)
     lit = None
     # the edges' distance is the width within 5 %, or half a pixel on a thin wire (a
@@ -493,12 +520,14 @@ def _silhouette_centres(
             )
         centres = (centres + shift[:, None] * normals)[ok]
         widths = np.where(pair, width, np.nan)[ok]
+        seen = width[np.isfinite(width)] / width_px - 1.0
+        typical_misfit = abs(float(np.median(seen))) if seen.size else np.inf
         if not final:
             centres = resample_path(centres, step_px)
     centres, widths, lit = _trim_stray_runs(centres, widths, lit, step_px, width_px)
     # the last profiles, re-centred on the edges' midpoints (for the end points)
     normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
-    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit
+    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit, typical_misfit
 
 
 def _edges_of_pass(

@@ -7,6 +7,7 @@ centreline and maps it to board millimetres on the plane of the wire's axis.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -17,7 +18,7 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
 from cvmeasure.part.ends import EndShape
-from cvmeasure.part.segment import WireMask, gray_float, segment_wire
+from cvmeasure.part.segment import WireMask, gray_float, wire_candidates
 
 __all__ = [
     "MAX_WIRE_MM",
@@ -104,14 +105,42 @@ def measure_centreline_mm(
     height = axis_height_for(axis_height_mm, wire_diameter_mm)
     mm_per_px = plane.mm_per_px
     exclude = None if board is None else board_exclusion(board, plane, image.shape[:2])
-    wire = segment_wire(
+    candidates = wire_candidates(
         image,
         exclude=exclude,
         max_wire_width_px=MAX_WIRE_MM / mm_per_px,
         min_length_px=MIN_WIRE_MM / mm_per_px,
     )
-    if wire is None:
+    if not candidates:
         raise InputError(source, "no wire found beside the board")
+    # the longest thin line whose profiles are a wire's: a longer one can be an edge of the
+    # board's sheet, a grainy strip as thin as a wire and not round across. Only for a wire
+    # of known diameter, whose profiles are tested between edges its width apart: without
+    # it a cluttered desk's shorter lines pass the symmetry test alone
+    errors: list[InputError] = []
+    for wire in candidates if wire_diameter_mm is not None else candidates[:1]:
+        try:
+            centre = _wire_centreline(
+                image, wire, plane, height, end_shape, wire_diameter_mm, source
+            )
+        except InputError as exc:
+            errors.append(exc)
+            continue
+        wire = replace(wire, passed_over=tuple(e.problem for e in errors))
+        return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=height)
+    raise errors[0]
+
+
+def _wire_centreline(
+    image: np.ndarray,
+    wire: WireMask,
+    plane: PlaneModel,
+    height: float,
+    end_shape: EndShape,
+    wire_diameter_mm: float | None,
+    source: str,
+) -> Centreline:
+    """The centreline of one candidate line, or InputError saying why it is no wire."""
     width_px = None
     if wire_diameter_mm is not None:
         # the diameter over the local scale at the axis' height, about the wire's middle
@@ -145,7 +174,7 @@ def measure_centreline_mm(
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)",
         )
-    return plane, wire, centre, plane.image_to_plane_mm(centre.points_px, height_mm=height)
+    return centre
 
 
 def axis_height_for(axis_height_mm: float | None, wire_diameter_mm: float | None) -> float:

@@ -109,7 +109,8 @@ ARC_DISAGREE_DEG = 10.0
 
 _EDGES_LOST = StageWarning(
     "round_wire_edges_lost",
-    "the wire's silhouette edges were not found along the whole wire, so the centreline is "
+    "the wire's silhouette edges were not used (not found along the whole wire, or not its "
+    "width apart: a polished wire's limbs mirror the sheet), so the centreline is "
     "the profiles' centre of symmetry, which a side-lit highlight or a shadow can pull off "
     "the axis; the lift was not bounded",
 )
@@ -216,6 +217,15 @@ def measure_part(
     warnings: list[StageWarning] = []
     if wire_diameter_mm is not None and centre.centre_from != "silhouette":
         warnings.append(_EDGES_LOST)
+    if wire.passed_over:
+        warnings.append(
+            StageWarning(
+                "part_wire_not_longest",
+                f"the longest thin line beside the board was not taken for the wire "
+                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
+                "are a round wire's: check on the overlay that it is the part",
+            )
+        )
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None

@@ -7,9 +7,10 @@ shadow. The mask therefore comes from the *absolute* difference between the
 photo and its local background, a median filter a few wire widths wide (a
 median keeps the sheet's and board's large step edges, so only thin structures
 stand out). The threshold sits well above the noise (a shadow joined to the
-wire does no harm: the mask is only a guide); the wire is the connected
-component outside the board with the longest path through its filled mask (of the
-longest skeletons: a stray disc's outline has a long skeleton, no long path). The mask only
+wire does no harm: the mask is only a guide); the candidates are the connected
+components outside the board no wider than a wire, longest path through the filled mask
+first (of the longest skeletons: a stray disc's outline has a long skeleton, no long
+path); the longest whose profiles are a wire's is the wire (:mod:`cvmeasure.part.locate`). The mask only
 gives the wire's topology and a
 first centre line: :mod:`cvmeasure.part.centreline` measures it sub-pixel.
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from cvmeasure.part.morph import dilate_local
 
-__all__ = ["WireMask", "segment_wire", "gray_float", "longest_skeleton_path"]
+__all__ = ["WireMask", "segment_wire", "wire_candidates", "gray_float", "longest_skeleton_path"]
 
 Sheet = Literal["dark", "light"]
 
@@ -49,6 +50,8 @@ class WireMask:
     contrast : median absolute difference wire - background inside the mask.
     threshold : the difference level the mask was cut at.
     width_px : rough wire width (mask area / path length), pixels.
+    passed_over : why each longer thin line was not taken for the wire (empty when this
+        is the longest; set by :func:`cvmeasure.part.locate.measure_centreline_mm`).
     """
 
     mask: np.ndarray
@@ -58,6 +61,7 @@ class WireMask:
     contrast: float
     threshold: float
     width_px: float
+    passed_over: tuple[str, ...] = ()
 
     @property
     def length_px(self) -> float:
@@ -170,17 +174,22 @@ def _wire_like(
     return found
 
 
-def _longest_filled_path(
-    found: list[tuple[float, int]], labels: np.ndarray, stats: np.ndarray
-) -> tuple[float, np.ndarray, np.ndarray]:
-    """Of the longest skeletons, the one with the longest path once its holes are filled
-    (a stray disc's or ring's outline has a long skeleton but, filled, no long path):
-    (path length, its filled mask, the path), in the reduced image's pixels."""
+def _filled_paths(
+    found: list[tuple[float, int]], labels: np.ndarray, stats: np.ndarray, wide: float
+) -> list[tuple[float, np.ndarray, np.ndarray]]:
+    """Of the longest skeletons, those no wider than a wire once their holes are filled,
+    longest path first (a stray disc's or ring's outline has a long skeleton but, filled,
+    no long path; a sheet's grainy margin around the left-out board passes the skeleton
+    test, as its speckle has a long skeleton, but filled it is a band tens of wires wide,
+    more than ``wide`` as filled area over path length): (path length, its filled mask,
+    the path), in the reduced image's pixels."""
     import cv2
     from skimage.morphology import skeletonize
 
-    best: tuple[float, np.ndarray, np.ndarray] | None = None
-    for _, lab in sorted(found, reverse=True)[:CANDIDATES]:
+    kept: list[tuple[float, np.ndarray, np.ndarray]] = []
+    for _, lab in sorted(found, reverse=True):
+        if len(kept) == CANDIDATES:
+            break
         x, y, w, h, _ = stats[lab]
         comp_box = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
         # fill holes (a specular crest can split the mask along the wire)
@@ -189,12 +198,12 @@ def _longest_filled_path(
         cv2.drawContours(filled_box, contours, -1, 1, thickness=cv2.FILLED)
         path_box = longest_skeleton_path(skeletonize(filled_box.astype(bool)))
         plen = float(np.sum(np.hypot(*np.diff(path_box, axis=0).T)))
-        if best is None or plen > best[0]:
-            filled = np.zeros(labels.shape, dtype=np.uint8)
-            filled[y : y + h, x : x + w] = filled_box
-            best = (plen, filled, path_box + np.array([x, y], dtype=np.float64))
-    assert best is not None
-    return best
+        if float(filled_box.sum()) / max(plen, 1.0) > wide:
+            continue
+        filled = np.zeros(labels.shape, dtype=np.uint8)
+        filled[y : y + h, x : x + w] = filled_box
+        kept.append((plen, filled, path_box + np.array([x, y], dtype=np.float64)))
+    return sorted(kept, key=lambda k: -k[0])
 
 
 def segment_wire(
@@ -204,7 +213,21 @@ def segment_wire(
     max_wire_width_px: float,
     min_length_px: float,
 ) -> WireMask | None:
-    """Find the wire in a photo.
+    """The wire in a photo: the longest of :func:`wire_candidates`, or None."""
+    found = wire_candidates(
+        image, exclude=exclude, max_wire_width_px=max_wire_width_px, min_length_px=min_length_px
+    )
+    return found[0] if found else None
+
+
+def wire_candidates(
+    image: np.ndarray,
+    *,
+    exclude: np.ndarray | None = None,
+    max_wire_width_px: float,
+    min_length_px: float,
+) -> list[WireMask]:
+    """The thin lines in a photo that could be the wire, longest first.
 
     Parameters
     ----------
@@ -217,7 +240,9 @@ def segment_wire(
 
     Returns
     -------
-    WireMask, or None when no wire-like structure is found.
+    list of WireMask, longest path first (at most ``CANDIDATES``); empty when no
+    wire-like structure is found. Which one is a wire is for its profiles to tell
+    (:func:`cvmeasure.part.locate.measure_centreline_mm`).
     """
     import cv2
 
@@ -257,11 +282,28 @@ def segment_wire(
     )
     found = _wire_like(count, labels, stats, min_length_px * factor * 0.5, wide)
     if not found:
-        return None
-    path_len, filled, path_small = _longest_filled_path(found, labels, stats)
-    if path_len / factor < min_length_px:
-        return None
-    # back to full size
+        return []
+    return [
+        _wire_mask(filled, path_small, path_len / factor, factor, g8, levels, threshold,
+                   max_wire_width_px)
+        for path_len, filled, path_small in _filled_paths(found, labels, stats, wide)
+        if path_len / factor >= min_length_px
+    ]  # fmt: skip
+
+
+def _wire_mask(
+    filled: np.ndarray,
+    path_small: np.ndarray,
+    length_px: float,
+    factor: float,
+    g8: np.ndarray,
+    levels: np.ndarray,
+    threshold: float,
+    max_wire_width_px: float,
+) -> WireMask:
+    """One candidate at full size: its mask, path, sheet, levels and rough width."""
+    import cv2
+
     if factor < 1.0:
         mask = cv2.resize(filled, (g8.shape[1], g8.shape[0]), interpolation=cv2.INTER_NEAREST)
         path = (path_small + 0.5) / factor - 0.5
@@ -286,5 +328,5 @@ def segment_wire(
         background_level=bg_level,
         contrast=float(np.median(np.abs(dev))),
         threshold=threshold,
-        width_px=float(mask_b.sum()) / max(path_len / factor, 1.0),
+        width_px=float(mask_b.sum()) / max(length_px, 1.0),
     )

@@ -244,13 +244,13 @@ def test_sixteen_bit_and_linear_input(render):
     assert b.bend_angle_deg == pytest.approx(a.bend_angle_deg, abs=1e-3)
     c = measure_machine_photo(photo.bgr.astype(np.uint16) * 257, kit, edge="luma")
     assert c.bend_angle_deg == pytest.approx(
-        measure_machine_photo(photo.bgr, kit).bend_angle_deg, abs=1e-3
+        measure_machine_photo(photo.bgr, kit, edge="luma").bend_angle_deg, abs=1e-3
     )
     with pytest.raises(ValueError, match="unknown method"):
         measure_machine_photo(photo.bgr, kit, method="magic")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="unknown edge mode"):
         measure_machine_photo(photo.bgr, kit, edge="hue")
-    for edge in ("green", "colour"):
+    for edge in ("green", "colour", "shade"):
         c = measure_machine_photo(photo.bgr, kit, edge=edge)
         assert c.bend_angle_deg == pytest.approx(photo.truth["bend_angle_deg"], abs=BEND_TOL_DEG)
 

@@ -129,3 +129,20 @@ def test_outer_edges_of_a_wire_with_a_broad_flat_crest(width_px, blur_px):
     # disc's edge, alike on both sides: the width reads low, the centre does not move)
     np.testing.assert_allclose(0.5 * (left + right), centre_px, atol=0.05)
     assert np.all(np.abs((right - left) / width_px - 1.0) < 0.1)
+
+
+def test_polished_wire_whose_limbs_mirror_the_sheet_is_centred_by_symmetry():
+    """A polished tube's limbs mirror the dark sheet beside them: only its middle stands
+    out, so no edge pair lies the wire's width apart; its symmetric profile centres it."""
+    axis = arc_points_mm((160.0, 330.0), 200.0, 240.0, 60.0, chords=6)
+    rng = np.random.default_rng(5)
+    radius_px = 5.0
+    t = _distance_to_axis(axis, flat=False) / radius_px
+    img = 35.0 + 150.0 * np.exp(-((t / 0.45) ** 2)) + rng.normal(0.0, 1.0, SIZE)
+    cl = measure_centreline(
+        img, _rough_path(axis, 1.0), width_guess_px=1.2 * radius_px, wire_width_px=2 * radius_px
+    )
+    assert cl.centre_from.startswith("symmetry (the edges seen are")
+    assert cl.coverage > 0.9
+    _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
+    assert np.sqrt(np.mean(dist**2)) < 0.05

@@ -66,3 +66,20 @@ def test_longest_path_drops_spurs():
 def test_gray_float_scales_16_bit():
     img16 = np.full((4, 4, 3), 65535, dtype=np.uint16)
     assert np.allclose(gray_float(img16), 255.0)
+
+
+def test_grainy_margin_around_the_board_is_not_the_wire():
+    """A bright, grainy sheet margin around the left-out board (its speckle has a long
+    skeleton) is no wire: filled it is far wider than one; the thin arc is chosen."""
+    rng = np.random.default_rng(3)
+    bgr, axis = _scene("dark", seed=1)
+    below = 40.0 + rng.normal(0, 1.5, (160, 400))  # more of the dark sheet, for the board
+    gray = np.vstack((bgr[..., 0].astype(np.float64), below))
+    gray[320:450, 20:380] = 200.0 + rng.normal(0, 10.0, (130, 360))  # the board's grainy sheet
+    exclude = np.zeros(gray.shape, dtype=bool)
+    exclude[340:430, 40:360] = True  # the board itself, left out; its margin is not
+    bgr = cv2.cvtColor(np.clip(gray, 0, 255).astype(np.uint8), cv2.COLOR_GRAY2BGR)
+    wm = segment_wire(bgr, exclude=exclude, max_wire_width_px=10, min_length_px=40)
+    assert wm is not None
+    d = np.min(np.hypot(*(wm.path_px[:, None, :] - axis[None]).transpose(2, 0, 1)), axis=1)
+    assert np.max(d) < 2.0

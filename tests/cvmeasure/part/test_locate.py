@@ -1,0 +1,63 @@
+"""The wire among the thin lines beside the board: the longest whose profiles are a wire's."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+import cvmeasure_datasets
+from cvmeasure.part.compare import point_to_polyline
+from cvmeasure.part.locate import measure_centreline_mm
+from cvmeasure.part.segment import wire_candidates
+from cvmeasure_datasets.optics import Pose
+from cvmeasure_datasets.round_wire import render_round_wire
+
+SCALE = 0.25  # 0.31 mm/px at 550 mm: the 3 mm wire is 10 px wide
+POSE = Pose(tilt_deg=1.0, tilt_direction_deg=30.0, distance_mm=550.0, offset_mm=(40.0, 20.0))
+
+
+@functools.lru_cache(maxsize=1)
+def _photo():
+    camera = cvmeasure_datasets.default_camera().scaled(SCALE)
+    part = cvmeasure_datasets.arc_part(50.0, 90.0, 6, wire_diameter_mm=3.0)
+    verts = part.placed(200.0, (0.0, 0.0))
+    return render_round_wire(
+        verts, camera=camera, pose=POSE, wire_diameter_mm=3.0, sheet="dark",
+        light_azimuth_deg=150.0, light_elev_deg=50.0, seed=7001,
+    )  # fmt: skip
+
+
+def test_a_longer_grainy_strip_is_passed_over_for_the_wire():
+    """A sheet's edge seen as a grainy strip as thin as a wire, longer than the part and
+    not round across (bright on one side, dark on the other), is the longest thin line;
+    the wire is the longest one whose profiles are a wire's."""
+    photo = _photo()
+    bgr = photo.bgr.copy()
+    rng = np.random.default_rng(11)
+    rot, t_mm = POSE.extrinsics("board")
+    axis_px = photo.plane.camera.project(photo.vertices_mm @ rot.T + t_mm)
+    h, w = bgr.shape[:2]
+    # a vertical strip well away from the wire, along most of the photo's height
+    x0 = (
+        int(axis_px[:, 0].min()) - 60
+        if axis_px[:, 0].min() > 120
+        else int(axis_px[:, 0].max()) + 60
+    )
+    rows = slice(int(0.1 * h), int(0.9 * h))
+    bgr[rows, x0 : x0 + 3] = np.clip(
+        150 + rng.normal(0, 40, (rows.stop - rows.start, 3, 3)), 0, 255
+    )
+    bgr[rows, x0 + 3 : x0 + 7] = np.clip(
+        90 + rng.normal(0, 40, (rows.stop - rows.start, 4, 3)), 0, 255
+    )
+    mm_per_px = photo.plane.mm_per_px
+    lines = wire_candidates(bgr, max_wire_width_px=7 / mm_per_px, min_length_px=15 / mm_per_px)
+    assert len(lines) >= 2 and abs(np.median(lines[0].path_px[:, 0]) - (x0 + 3)) < 10
+    _, wire, centre, _ = measure_centreline_mm(
+        bgr, None, None, wire_diameter_mm=3.0, plane=photo.plane
+    )
+    _, dist, _ = point_to_polyline(centre.points_px[1:-1], axis_px)
+    assert np.median(np.abs(dist)) < 0.5
+    # the line passed over is reported (measure_part warns part_wire_not_longest)
+    assert len(wire.passed_over) == 1 and "no wire found" in wire.passed_over[0]
