@@ -78,7 +78,7 @@ def test_lifted_parts_vertex_bends_hold_their_sigma():
     m = measure_part(
         photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=3.0, divisions=DIVISIONS
     )
-    assert m.lift["used"] == "correction" and m.lift["lift_mm"] >= 2.0  # measured 2.78 +- 0.21
+    assert m.lift.used == "correction" and m.lift.lift_mm >= 2.0  # measured 2.78 +- 0.21
     err = np.asarray(m.vertex_bend_deg) - 120.0 / DIVISIONS
     sigma = np.asarray(m.vertex_bend_sigma_deg)
     # measured: -0.009 0.002 0.003 0.002 0.046 -0.028 deg at sigmas 0.012-0.018 (part14s; the
