@@ -268,7 +268,7 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_gap_warning"] = has_code(m.warnings, "part_centreline_gap")
         # and a circle whose bend per chord disagrees with the vertex bends (part14t)
         out[f"{name}_arc_warning"] = has_code(m.warnings, "part_arc_inconsistent")
-        out[f"{name}_lift"] = m.lift
+        out[f"{name}_lift"] = None if m.lift is None else m.lift.to_dict()
         out[f"{name}_moved_unused"] = has_code(m.warnings, "moved_photo_unused")
     return out
 

@@ -392,11 +392,9 @@ def _part_rows(args, scale, camera, n):
                 vb_err = np.abs(m.vertex_bend_deg) - truth["arc_angle_deg"] / part.divisions
                 z += list(np.abs(vb_err) / np.asarray(m.vertex_bend_sigma_deg))
             if m.lift is not None:
-                bound.append(float(m.lift["effect_radius_pct"]))
+                bound.append(float(m.lift.effect_radius_pct))
                 shadow_read.append(
-                    round(float(m.lift["lift_mm"]), 2)
-                    if m.lift.get("source") == "shadow"
-                    else "bound"
+                    round(float(m.lift.lift_mm), 2) if m.lift.source == "shadow" else "bound"
                 )
             if not fx.wire_3d:
                 continue
@@ -449,8 +447,8 @@ def _part_rows(args, scale, camera, n):
             moved["bend"].append(
                 m2.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions
             )
-            if m2.lift is not None and m2.lift.get("used") == "correction":
-                moved["lift"].append(round(float(m2.lift["lift_mm"]), 2))
+            if m2.lift is not None and m2.lift.used == "correction":
+                moved["lift"].append(round(float(m2.lift.lift_mm), 2))
         out[row] = {
             "radius": radius_err,
             "bend": bend_err,

@@ -220,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_summary(m, out) -> None:
-    from cvmeasure.part.result import DivisionsSource
+    from cvmeasure.part.result import DivisionsSource, LiftSource, LiftUse
 
     r = m.result
     chords = {
@@ -268,19 +268,20 @@ def _print_summary(m, out) -> None:
                 f"{b.seed_absolute_error_deg:.3f} deg, relative {b.seed_relative_error_pct:.2f} %",
                 file=out,
             )
-    if m.lift is not None and m.lift["used"] == "correction":
-        seen = {"shadow": "the cast shadow"}.get(m.lift.get("source"), "the moved photo")
-        read = m.lift.get("read_lift_mm", m.lift["lift_mm"])
-        at = "" if read == m.lift["lift_mm"] else f" at the lift bound, {m.lift['lift_mm']:.2f} mm"
+    lift = m.lift
+    if lift is not None and lift.used is LiftUse.CORRECTION:
+        seen = "the cast shadow" if lift.source is LiftSource.SHADOW else "the moved photo"
+        read = lift.lift_mm if lift.read_lift_mm is None else lift.read_lift_mm
+        at = "" if read == lift.lift_mm else f" at the lift bound, {lift.lift_mm:.2f} mm"
         print(
             f"  lift off the plate (from {seen}): {read:.2f} +- "
-            f"{m.lift['lift_sigma_mm']:.2f} mm, corrected{at}",
+            f"{lift.lift_sigma_mm:.2f} mm, corrected{at}",
             file=out,
         )
-    elif m.lift is not None and m.lift.get("lift_mm") is not None:
+    elif lift is not None and lift.lift_mm is not None:
         print(
-            f"  lift off the plate (from the wire's width): {m.lift['lift_mm']:.2f} +- "
-            f"{m.lift['lift_sigma_mm']:.2f} mm, used as a {m.lift['used']}",
+            f"  lift off the plate (from the wire's width): {lift.lift_mm:.2f} +- "
+            f"{lift.lift_sigma_mm:.2f} mm, used as a {lift.used.value}",
             file=out,
         )
     for w in m.warnings:

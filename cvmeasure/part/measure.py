@@ -74,7 +74,10 @@ from cvmeasure.part.result import (
     ArcResult,
     DesignComparison,
     DivisionsSource,
+    LiftSource,
+    LiftUse,
     Method,
+    PartLift,
     PartMeasurement,
     PartWire,
     PlaneSummary,
@@ -363,7 +366,7 @@ class _Fit:
     poly: PolylineFit | None
     vpoly: PolylineFit | None = None
     sigma: np.ndarray | None = None  # the vertex bends' sigmas, deg
-    lift_info: dict[str, Any] | None = None
+    lift_info: PartLift | None = None
     warning: StageWarning | None = None
     # where the polygon bent has its vertices (shares of its length), None: equal chords
     fractions: np.ndarray | None = None
@@ -574,20 +577,24 @@ def _corrected_fit(
         fractions=fractions,
     )  # fmt: skip
     by_shadow = reading.shadow_info is not None
+    details = dict(reading.shadow_info if by_shadow else reading.moved_info)
+    details.pop("lift_mm", None)
     # lift_mm: the lift corrected with (the reading, or the bound it was read above);
     # read_lift_mm: the shadow's or the two photos' own reading
-    lift_info = {**lift_info, **(reading.shadow_info if by_shadow else reading.moved_info),
-                 "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
-                 "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
-                 "lift_mm": scale * corrected.lift.lift_mm,
-                 "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
+    lift_info = replace(
+        lift_info, used=LiftUse.CORRECTION,
+        source=LiftSource.SHADOW if by_shadow else LiftSource.MOVED_PHOTO,
+        bound_mm=2.0 * corrected.lift.lift_sigma_mm, lift_mm=scale * corrected.lift.lift_mm,
+        lift_sigma_mm=details.pop("lift_sigma_mm", None), read_lift_mm=corrected.lift.lift_mm,
+        details=details,
+    )  # fmt: skip
     if bend_sigma is not None and extra_sigma is not None:
         bend_sigma = np.hypot(bend_sigma, extra_sigma)
     fit = _Fit(centreline_mm, ours, circle, poly, vpoly, bend_sigma, lift_info, None, fractions)
     if (
-        lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
-        or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
-        or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
+        lift_info.effect_radius_pct > LIFT_RADIUS_PCT
+        or lift_info.effect_segment_bend_deg > LIFT_BEND_DEG
+        or lift_info.effect_bend_deg > LIFT_BEND_DEG
     ):
         corrected_as = "corrected"
         if scale < 1.0:  # read above the bound: corrected at the bound
@@ -599,9 +606,9 @@ def _corrected_fit(
             f"the {'shadow' if by_shadow else 'two photos'} put the lift "
             f"at {corrected.lift.lift_mm:.2f} +- "
             f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
-            f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
-            f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
-            f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg",
+            f"sigma) would move the radius by up to {lift_info.effect_radius_pct:.2f} %"
+            f", the bend per chord by up to {lift_info.effect_segment_bend_deg:.3f} deg "
+            f"and a vertex bend by up to {lift_info.effect_bend_deg:.3f} deg",
         )
     return fit
 
@@ -652,11 +659,7 @@ def _bound_lift(
         )
     if lift_warning:
         warnings.append(lift_warning)
-    if reading.moved_info is not None:
-        lift_info = {**lift_info, "moved": reading.moved_info}
-    if reading.shadow_info is not None:
-        lift_info = {**lift_info, "shadow": reading.shadow_info}
-    fit.lift_info = lift_info
+    fit.lift_info = replace(lift_info, moved=reading.moved_info, shadow=reading.shadow_info)
 
 
 def _seed_methods(

@@ -99,9 +99,9 @@ def test_a_lifted_lab_part_is_warned_about_and_within_its_stated_bound():
     )
     radius_err_pct = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
     assert abs(radius_err_pct) > 0.3  # the lift matters here
-    assert m.lift is not None and m.lift["bound_mm"] == pytest.approx(MAX_LIFT_MM)
-    assert abs(radius_err_pct) <= m.lift["effect_radius_pct"] + 0.1
-    assert m.lift["effect_radius_pct"] < 2.0  # a bound, not a shrug
+    assert m.lift is not None and m.lift.bound_mm == pytest.approx(MAX_LIFT_MM)
+    assert abs(radius_err_pct) <= m.lift.effect_radius_pct + 0.1
+    assert m.lift.effect_radius_pct < 2.0  # a bound, not a shrug
     assert has_code(m.warnings, "part_lifted")
     vertex_err = np.abs(np.asarray(m.vertex_bend_deg)) - 15.0
     assert np.all(np.abs(vertex_err) < 2.0 * np.asarray(m.vertex_bend_sigma_deg))

@@ -113,9 +113,9 @@ def test_the_photo_labs_part_slid_is_measured_on_its_own_plane(lift_mm, seed, sh
         options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
         moved_image=second.bgr,
     )
-    assert m.lift is not None and m.lift["used"] == "correction"
-    assert m.lift["lift_sigma_mm"] < 0.5
-    assert abs(m.lift["lift_mm"] - lift_mm) < 2.0 * m.lift["lift_sigma_mm"]
+    assert m.lift is not None and m.lift.used == "correction"
+    assert m.lift.lift_sigma_mm < 0.5
+    assert abs(m.lift.lift_mm - lift_mm) < 2.0 * m.lift.lift_sigma_mm
     assert abs(100.0 * (m.result.radius_mm / 62.0 - 1.0)) < 0.3
     assert abs(m.result.segment_bend_deg - 15.0) < 0.03
     assert not has_code(m.warnings, "moved_photo_unused")
@@ -132,7 +132,7 @@ def test_the_same_photo_twice_is_not_a_moved_photo():
     )
     unused = [w.message for w in m.warnings if w.code == "moved_photo_unused"]
     assert unused and "not moved" in unused[0]
-    assert m.lift["used"] == "bound" and m.lift["moved"]["lift_mm"] is None
+    assert m.lift.used == "bound" and m.lift.moved["lift_mm"] is None
     assert has_code(m.warnings, "part_lifted")
 
 

@@ -83,7 +83,7 @@ def test_lifted_parts_vertex_bends_hold_their_sigma():
         plane=photo.plane,
         options=PartOptions(divisions=DIVISIONS, wire=WireOptions(diameter_mm=3.0)),
     )
-    assert m.lift["used"] == "correction" and m.lift["lift_mm"] >= 2.0  # measured 2.78 +- 0.21
+    assert m.lift.used == "correction" and m.lift.lift_mm >= 2.0  # measured 2.78 +- 0.21
     err = np.asarray(m.vertex_bend_deg) - 120.0 / DIVISIONS
     sigma = np.asarray(m.vertex_bend_sigma_deg)
     # measured: -0.009 0.002 0.003 0.002 0.046 -0.028 deg at sigmas 0.012-0.018 (part14s; the

@@ -106,7 +106,7 @@ def test_a_lifted_part_is_refused_warned_about_or_right(sheet, lift_mm):
     radius_err_pct = abs(100.0 * (m.result.radius_mm / 50.0 - 1.0))
     bend_err = float(np.max(np.abs(np.abs(m.vertex_bend_deg) - 15.0)))
     warned = has_code(m.warnings, "part_lifted")
-    assert m.lift is not None and m.lift["used"] == "bound"
+    assert m.lift is not None and m.lift.used == "bound"
     assert warned or (radius_err_pct <= 0.3 and bend_err <= 0.03), (m.warnings, radius_err_pct)
 
 

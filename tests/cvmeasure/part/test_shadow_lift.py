@@ -202,8 +202,8 @@ def test_the_photo_labs_lifted_part_is_corrected_from_its_shadow():
             lift=LiftOptions(shadow=True),
         ),
     )
-    assert m.lift is not None and m.lift["used"] == "correction", m.lift
-    assert abs(m.lift["lift_mm"] - 2.0) < 2.0 * m.lift["lift_sigma_mm"] + 0.1
+    assert m.lift is not None and m.lift.used == "correction", m.lift
+    assert abs(m.lift.lift_mm - 2.0) < 2.0 * m.lift.lift_sigma_mm + 0.1
     assert abs(100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)) < 0.3
 
 
@@ -259,10 +259,10 @@ def test_a_textured_lab_sheet_is_not_corrected_silently_wrong():
         ),
     )
     assert m.lift is not None
-    if m.lift["used"] == "correction":
-        assert abs(m.lift["lift_mm"]) < 2.0 * m.lift["lift_sigma_mm"]
+    if m.lift.used == "correction":
+        assert abs(m.lift.lift_mm) < 2.0 * m.lift.lift_sigma_mm
     else:
-        assert m.lift["shadow"]["lift_mm"] is None or m.lift["shadow"]["lift_sigma_mm"] > 0.5
+        assert m.lift.shadow["lift_mm"] is None or m.lift.shadow["lift_sigma_mm"] > 0.5
 
 
 def test_a_dark_textured_lab_sheet_widens_the_shadow_lift():
@@ -416,15 +416,15 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
         photo.camera,
         options=PartOptions(divisions=n, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
-    assert m.lift is not None and m.lift["used"] == "correction", m.lift
-    assert m.lift["source"] == "shadow"
-    assert 2.0 * m.lift["lift_sigma_mm"] > SHADOW_MAX_2SIGMA_MM  # the case this is about
-    assert abs(m.lift["lift_mm"] - 3.0) < 2.0 * m.lift["lift_sigma_mm"]
+    assert m.lift is not None and m.lift.used == "correction", m.lift
+    assert m.lift.source == "shadow"
+    assert 2.0 * m.lift.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM  # the case this is about
+    assert abs(m.lift.lift_mm - 3.0) < 2.0 * m.lift.lift_sigma_mm
     assert has_code(m.warnings, "part_lifted")
     radius_err = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
-    assert abs(radius_err) < min(0.3, m.lift["effect_radius_pct"])
+    assert abs(radius_err) < min(0.3, m.lift.effect_radius_pct)
     bend_err = m.result.segment_bend_deg - photo.truth["arc_angle_deg"] / n
-    assert abs(bend_err) < m.lift["effect_segment_bend_deg"]
+    assert abs(bend_err) < m.lift.effect_segment_bend_deg
 
 
 @pytest.mark.parametrize(
@@ -528,19 +528,19 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
         plane=plane,
         options=PartOptions(divisions=7, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
-    assert m.lift is not None and m.lift["used"] == used, m.lift
+    assert m.lift is not None and m.lift.used == used, m.lift
     lifted = [str(w) for w in m.warnings if w.code == "part_lifted"]
     if used == "bound":
-        assert m.lift["source"] == "width" and m.lift["bound_mm"] == pytest.approx(3.0)
-        assert m.lift["shadow"]["lift_mm"] == pytest.approx(7.42)
+        assert m.lift.source == "width" and m.lift.bound_mm == pytest.approx(3.0)
+        assert m.lift.shadow["lift_mm"] == pytest.approx(7.42)
         assert len(lifted) == 1 and "shadow was not used" in lifted[0]
         assert "inconsistent" in lifted[0]
     else:
-        assert m.lift["source"] == "shadow"
-        assert m.lift["lift_mm"] == pytest.approx(3.0, abs=0.3)
+        assert m.lift.source == "shadow"
+        assert m.lift.lift_mm == pytest.approx(3.0, abs=0.3)
         if lift_mm is not None:  # read above the bound: the lift used is the bound
-            assert m.lift["lift_mm"] == pytest.approx(3.0)
-            assert m.lift["read_lift_mm"] == pytest.approx(lift_mm)
+            assert m.lift.lift_mm == pytest.approx(3.0)
+            assert m.lift.read_lift_mm == pytest.approx(lift_mm)
         else:
-            assert m.lift["read_lift_mm"] == m.lift["lift_mm"]
+            assert m.lift.read_lift_mm == m.lift.lift_mm
         assert abs(100.0 * (m.result.radius_mm / 60.0 - 1.0)) < 0.3
