@@ -52,6 +52,7 @@ __version__ = "0.1.0"
 
 #: The public API, all defined in :mod:`cvmeasure.api`.
 _API = (
+    "Cause",
     "CameraCalibration",
     "CorrectedJob",
     "PartOptions",

@@ -28,7 +28,7 @@ from cvmeasure.camera_model import load_camera as _read_camera
 from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
 from cvmeasure.design import Design, DesignPath
 from cvmeasure.design import load_design as _read_design
-from cvmeasure.diagnose import Diagnosis
+from cvmeasure.diagnose import Cause, Diagnosis
 from cvmeasure.diagnose import diagnose as _diagnose
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
@@ -55,6 +55,7 @@ from cvmeasure.warning import StageWarning
 from cvmeasure.wireplan import plan_design
 
 __all__ = [
+    "Cause",
     "CameraCalibration",
     "CorrectedJob",
     "PartOptions",
@@ -504,7 +505,9 @@ def diagnose_trials(
 
     ``params``: the nominal simulation parameters (or a params JSON, whose effects are
     kept as part of the model). The result names the cause(s) with a 95 % interval, or
-    says none explains the data, with terms discovered beyond the catalogue.
+    says none explains the data, with terms discovered beyond the catalogue. Its
+    ``cause`` is a :class:`Cause`: compare it with ``Cause.of(("backlash",))``, read its
+    ``effects``, or print its ``label``.
     (Named ``diagnose_trials`` because ``cvmeasure.diagnose`` is the subpackage.)
     """
     table = _trials(trials)
