@@ -217,18 +217,7 @@ def measure_part(
         source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
-    warnings: list[StageWarning] = []
-    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
-        warnings.append(_EDGES_LOST)
-    if wire.passed_over:
-        warnings.append(
-            StageWarning(
-                "part_wire_not_longest",
-                f"the longest thin line beside the board was not taken for the wire "
-                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
-                "are a round wire's: check on the overlay that it is the part",
-            )
-        )
+    warnings = _wire_found_warnings(wire, centre, wire_diameter_mm)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None
@@ -354,6 +343,25 @@ def _assemble(
         comparison=comparison,
         warnings=tuple(warnings),
     )
+
+
+def _wire_found_warnings(
+    wire: WireMask, centre: Centreline, wire_diameter_mm: float | None
+) -> list[StageWarning]:
+    """What the wire search warns about: a round wire's edges lost, a longer line passed over."""
+    warnings: list[StageWarning] = []
+    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+        warnings.append(_EDGES_LOST)
+    if wire.passed_over:
+        warnings.append(
+            StageWarning(
+                "part_wire_not_longest",
+                f"the longest thin line beside the board was not taken for the wire "
+                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
+                "are a round wire's: check on the overlay that it is the part",
+            )
+        )
+    return warnings
 
 
 @dataclass
