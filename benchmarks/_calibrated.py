@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import CharucoBoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 
 __all__ = ["BOARD", "CALIBRATION_VIEWS", "calibrated_camera", "plane_for_pose"]

@@ -104,6 +104,7 @@ def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
     from cvmeasure.material.correct import corrected_pin_commands
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
     from cvmeasure.wireplan import load_plan, plan_from_job
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
@@ -132,7 +133,7 @@ def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
             camera,
             design=ref.as_path(),
             source=f"{name} part {k}",
-            allow_mirror=False,  # the part lies as it left the machine
+            options=PartOptions(allow_mirror=False),  # the part lies as it left the machine
             reference_mm=ref.vertices_mm,
         )
         cal, corr, job = correct_from_part(

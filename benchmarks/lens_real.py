@@ -438,7 +438,7 @@ def _plain_opencv_z(dets, size, model: str, pub: dict, sigma: dict) -> float:
 
 
 def _published_camera(pub: dict, size):
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
 
     k = np.array([[pub["fx"], 0.0, pub["cx"]], [0.0, pub["fy"], pub["cy"]], [0.0, 0.0, 1.0]])
     dist = [pub[n] for n in _DIST8 if n in pub]
@@ -549,7 +549,7 @@ def _render_set(
     kept there. Returns (camera, detections)."""
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.lens.detect import detect_board
     from cvmeasure_datasets.demo.calibration import planned_poses
 

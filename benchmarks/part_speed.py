@@ -39,7 +39,7 @@ def _flat_case(folder: Path, scale: float, sheet: str, seed: int) -> dict[str, A
 
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.fileio import atomic_write_json
 
     board = CharucoBoardSpec(*BOARD_DIMS)
@@ -148,9 +148,10 @@ def _process(photo: Path, args: list[str]) -> tuple[float, float, float, dict]:
 def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
     """CPU seconds of measure_part on the decoded photo(s) (the decode not counted)."""
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.imageio import read_photo
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
 
     image = read_photo(case["photo"]).bgr
     second = read_photo(case["moved"]).bgr if moved else None
@@ -162,7 +163,14 @@ def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
         camera = load_camera(case["args"][3])
         kw = {}
     c0 = time.process_time()
-    m = measure_part(image, board, camera, divisions=case["divisions"], moved_image=second, **kw)
+    m = measure_part(
+        image,
+        board,
+        camera,
+        options=PartOptions(divisions=case["divisions"]),
+        moved_image=second,
+        **kw,
+    )
     return time.process_time() - c0, m
 
 

@@ -100,6 +100,7 @@ def _run_case(case: dict, scale: float, camera) -> dict:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
     if case["kind"] == "arc":
@@ -121,7 +122,7 @@ def _run_case(case: dict, scale: float, camera) -> dict:
         part=part, board=board, sheet=case["sheet"], pose=pose, seed=case["seed"], scale=scale
     )
     t0 = time.perf_counter()
-    m = measure_part(photo.bgr, board, camera, divisions=case["divisions"])
+    m = measure_part(photo.bgr, board, camera, options=PartOptions(divisions=case["divisions"]))
     seconds = time.perf_counter() - t0
     truth = photo.truth
     true_bends = np.asarray(truth["segment_bend_deg"], dtype=np.float64)
@@ -191,6 +192,7 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
     import cvmeasure_datasets
     from benchmarks._calibrated import plane_for_pose
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure_datasets.round_wire import render_round_wire
 
     part = cvmeasure_datasets.arc_part(
@@ -237,11 +239,19 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
                                    ("moved", 3.0, moved.bgr), ("width", 3.0, None)):  # fmt: skip
         try:
             # 'round' is measure_part's default (the lift from the cast shadow, corrected
-            # when good enough); 'width' the same photo with shadow_lift=False (bounded)
+            # when good enough); 'width' the same photo with LiftOptions(shadow=False) (bounded)
             m = measure_part(
-                photo.bgr, None, None, plane=plane, wire_diameter_mm=diameter,
-                divisions=case["divisions"], moved_image=second, shadow_lift=name != "width",
-            )  # fmt: skip
+                photo.bgr,
+                None,
+                None,
+                plane=plane,
+                options=PartOptions(
+                    divisions=case["divisions"],
+                    wire=WireOptions(diameter_mm=diameter),
+                    lift=LiftOptions(shadow=name != "width"),
+                ),
+                moved_image=second,
+            )
         except InputError as exc:
             out[f"{name}_refused"] = str(exc)
             continue
@@ -258,7 +268,7 @@ def _run_round_case(case: dict, scale: float, camera) -> dict:
         out[f"{name}_gap_warning"] = has_code(m.warnings, "part_centreline_gap")
         # and a circle whose bend per chord disagrees with the vertex bends (part14t)
         out[f"{name}_arc_warning"] = has_code(m.warnings, "part_arc_inconsistent")
-        out[f"{name}_lift"] = m.lift
+        out[f"{name}_lift"] = None if m.lift is None else m.lift.to_dict()
         out[f"{name}_moved_unused"] = has_code(m.warnings, "moved_photo_unused")
     return out
 
@@ -452,7 +462,7 @@ def main(argv: list[str] | None = None) -> dict:
             "random azimuth at 40-70 deg elevation (highlight off the top, soft shadow), lifted "
             "0 / 1.5 / 3 mm at one end (a rigid tilt; the truth is the part's own shape), "
             "no Bayer, depth of field or clutter; the plane from a board photo at the same pose "
-            "(benchmarks/_calibrated.plane_for_pose); 'round' = measure_part(wire_diameter_mm=3) "
+            "(benchmarks/_calibrated.plane_for_pose); 'round' = measure_part with WireOptions(diameter_mm=3) "
             "(the default: the lift from the wire's cast shadow, corrected when its 2 sigma is "
             "at most 2 mm and it is no more than 2 sigma above the lift bound (above the bound: "
             "corrected at the bound), else bounded; vertex bends from each chord's cross-profile), "
@@ -460,7 +470,7 @@ def main(argv: list[str] | None = None) -> dict:
             f"'moved' = with a second photo of the part slid {MOVED_SHIFT_MM:.0f} mm along x "
             "(same pose, lift and light; measure_part(moved_image=...), cvmeasure part --moved): "
             "the lift measured from the two views and corrected; 'width' = the one photo "
-            "with measure_part(shadow_lift=False) (cvmeasure part --no-shadow-lift): the lift "
+            "with LiftOptions(shadow=False) (cvmeasure part --no-shadow-lift): the lift "
             "only bounded from the wire's apparent width (the default before the shadow)",
             "silently wrong: a quantity off issue 14's target with no warning that covers it "
             "(docs/conventions.md): the radius by part_arc_inconsistent, the bend per chord "
@@ -642,7 +652,7 @@ def _moved_metrics(rows: list[dict]) -> list[Metric]:
 
 
 def _width_metrics(rows: list[dict]) -> list[Metric]:
-    """The same one photo with ``shadow_lift=False``: the lift only bounded from the wire's
+    """The same one photo with ``LiftOptions(shadow=False)``: the lift only bounded from the wire's
     width (informative: the other path, no target of its own)."""
     st = _corrected_stats(rows, "width")
     ok = st.ok

@@ -325,6 +325,7 @@ def _part_rows(args, scale, camera, n):
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.errors import InputError
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure_datasets import Pose, arc_part, render_part_photo
     from cvmeasure_datasets.effects import SceneEffects
 
@@ -370,10 +371,14 @@ def _part_rows(args, scale, camera, n):
                     photo.bgr,
                     board,
                     camera,
-                    divisions=part.divisions,
-                    # a round wire: silhouette centreline, axis at its radius, lift bound
-                    axis_height_mm=None if fx.wire_3d else 0.0,
-                    wire_diameter_mm=part.wire_diameter_mm if fx.wire_3d else None,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        # a round wire: silhouette centreline, axis at its radius, lift bound
+                        wire=WireOptions(
+                            axis_height_mm=None if fx.wire_3d else 0.0,
+                            diameter_mm=part.wire_diameter_mm if fx.wire_3d else None,
+                        ),
+                    ),
                 )
             except InputError as exc:
                 print(f"part {row} photo {i}: refused ({exc})", flush=True)
@@ -387,20 +392,24 @@ def _part_rows(args, scale, camera, n):
                 vb_err = np.abs(m.vertex_bend_deg) - truth["arc_angle_deg"] / part.divisions
                 z += list(np.abs(vb_err) / np.asarray(m.vertex_bend_sigma_deg))
             if m.lift is not None:
-                bound.append(float(m.lift["effect_radius_pct"]))
+                bound.append(float(m.lift.effect_radius_pct))
                 shadow_read.append(
-                    round(float(m.lift["lift_mm"]), 2)
-                    if m.lift.get("source") == "shadow"
-                    else "bound"
+                    round(float(m.lift.lift_mm), 2) if m.lift.source == "shadow" else "bound"
                 )
             if not fx.wire_3d:
                 continue
             # the same photo with the lift only bounded from the width (--no-shadow-lift)
             try:
                 m0 = measure_part(
-                    photo.bgr, board, camera, divisions=part.divisions, axis_height_mm=None,
-                    wire_diameter_mm=part.wire_diameter_mm, shadow_lift=False,
-                )  # fmt: skip
+                    photo.bgr,
+                    board,
+                    camera,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        wire=WireOptions(axis_height_mm=None, diameter_mm=part.wire_diameter_mm),
+                        lift=LiftOptions(shadow=False),
+                    ),
+                )
             except InputError as exc:
                 print(f"part {row} photo {i} with --no-shadow-lift: refused ({exc})", flush=True)
                 width["refused"] += 1
@@ -418,9 +427,15 @@ def _part_rows(args, scale, camera, n):
             )  # fmt: skip
             try:
                 m2 = measure_part(
-                    photo.bgr, board, camera, divisions=part.divisions, axis_height_mm=None,
-                    wire_diameter_mm=part.wire_diameter_mm, moved_image=second.bgr,
-                )  # fmt: skip
+                    photo.bgr,
+                    board,
+                    camera,
+                    options=PartOptions(
+                        divisions=part.divisions,
+                        wire=WireOptions(axis_height_mm=None, diameter_mm=part.wire_diameter_mm),
+                    ),
+                    moved_image=second.bgr,
+                )
             except InputError as exc:
                 print(f"part {row} photo {i} with the slid photo: refused ({exc})", flush=True)
                 moved["refused"] += 1
@@ -432,8 +447,8 @@ def _part_rows(args, scale, camera, n):
             moved["bend"].append(
                 m2.result.segment_bend_deg - truth["arc_angle_deg"] / part.divisions
             )
-            if m2.lift is not None and m2.lift.get("used") == "correction":
-                moved["lift"].append(round(float(m2.lift["lift_mm"]), 2))
+            if m2.lift is not None and m2.lift.used == "correction":
+                moved["lift"].append(round(float(m2.lift.lift_mm), 2))
         out[row] = {
             "radius": radius_err,
             "bend": bend_err,
@@ -778,7 +793,7 @@ def main(argv: list[str] | None = None) -> dict:
             "its 2 sigma <= 2 mm and it is consistent with the lift bound (no more than 2 sigma "
             "above it; above it, corrected at the bound; a 2 sigma over 1 mm then the stated "
             "effect), else bounded from the edges' width); '--no-shadow-lift': the same photos "
-            "with shadow_lift=False (the lift only bounded); 'warned' lists "
+            "with LiftOptions(shadow=False) (the lift only bounded); 'warned' lists "
             f"{', '.join(PART_WARNINGS)}; the lifted part's truth is the rigid part's own "
             "radius and bends. 'two photos': the round-wire rows measured again with a second "
             f"photo of the part slid {PART_SHIFT_MM:.0f} mm along the board's y "

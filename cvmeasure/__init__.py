@@ -15,8 +15,8 @@ Example
     cal = cvmeasure.calibrate_camera(["view01.jpg", "view02.jpg", ...], "board.json")
     cvmeasure.save("camera.json", cal)
     part = cvmeasure.measure_part(
-        "part.jpg", board="board.json", camera="camera.json",
-        design="half-circle.svg", wire_diameter_mm=2.0,
+        "part.jpg", board="board.json", camera="camera.json", design="half-circle.svg",
+        options=cvmeasure.PartOptions(wire=cvmeasure.WireOptions(diameter_mm=2.0)),
     )
     print(part.result.radius_mm, part.vertex_bend_deg, part.warnings)
     job = cvmeasure.gcode_for("half-circle.svg", "material.json")
@@ -29,7 +29,8 @@ Example
 ``measure_plane``           the plate's plane from a board photo -> ``PlaneModel``
 ``measure_bender_photo``    pin and bend angles of a bender photo
 ``measure_springback``      a loaded/unloaded pair -> a ``Trial``
-``measure_part``            a finished part (and against its design)
+``measure_part``            a finished part (and against its design); how:
+                            ``PartOptions`` (``WireOptions``, ``LiftOptions``)
 ``fit_material``            trials -> springback compensation (material calibration)
 ``diagnose_trials``         what the simulation gets wrong on measured trials
 ``gcode_for``               a design -> compensated G-code job
@@ -51,8 +52,12 @@ __version__ = "0.1.0"
 
 #: The public API, all defined in :mod:`cvmeasure.api`.
 _API = (
+    "Cause",
     "CameraCalibration",
     "CorrectedJob",
+    "PartOptions",
+    "WireOptions",
+    "LiftOptions",
     "calibrate_camera",
     "measure_plane",
     "measure_bender_photo",

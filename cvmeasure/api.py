@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -22,12 +23,12 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.board import load_board as _read_board
-from cvmeasure.camera import CameraModel, save_camera
-from cvmeasure.camera import load_camera as _read_camera
+from cvmeasure.camera_model import CameraModel, save_camera
+from cvmeasure.camera_model import load_camera as _read_camera
 from cvmeasure.contracts import MachinePhotoResult, PlaneModel, Trial, TrialTable
 from cvmeasure.design import Design, DesignPath
 from cvmeasure.design import load_design as _read_design
-from cvmeasure.diagnose import Diagnosis
+from cvmeasure.diagnose import Cause, Diagnosis
 from cvmeasure.diagnose import diagnose as _diagnose
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
@@ -48,13 +49,18 @@ from cvmeasure.material.correct import Correction
 from cvmeasure.material.correct_part import correct_from_part
 from cvmeasure.part.measure import PartMeasurement
 from cvmeasure.part.measure import measure_part as _measure_part
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.sim import SimParams, params_from_json, params_to_json
 from cvmeasure.warning import StageWarning
 from cvmeasure.wireplan import plan_design
 
 __all__ = [
+    "Cause",
     "CameraCalibration",
     "CorrectedJob",
+    "PartOptions",
+    "WireOptions",
+    "LiftOptions",
     "calibrate_camera",
     "measure_plane",
     "measure_bender_photo",
@@ -377,12 +383,9 @@ def measure_part(
     camera: CameraModel | PathLike | None = None,
     plane: PlaneModel | PathLike | None = None,
     design: Design | DesignPath | PathLike | None = None,
-    wire_diameter_mm: float | None = None,
-    divisions: int | None = None,
     moved_photo: Photo | PathLike | np.ndarray | None = None,
-    shadow_lift: bool = True,
-    method: str = "centreline_fit",
-    allow_mirror: bool = True,
+    options: PartOptions | None = None,
+    **deprecated: Any,
 ) -> PartMeasurement:
     """Measure a finished part lying beside the board (``cvmeasure part``).
 
@@ -393,16 +396,17 @@ def measure_part(
         plane measured before (``measure_plane``), which carries its camera.
     design : the SVG/DXF design (or loaded); then the result carries the best rigid fit,
         the deviation profile and each vertex's bend error.
-    wire_diameter_mm : the wire's diameter; with it the centreline lies between the
-        wire's silhouette edges and the part's lift off the plate is measured (from its
-        cast shadow, ``shadow_lift``) or bounded, and warned about.
-    divisions : the chord count the part was bent in; None finds it in the photo.
     moved_photo : a second photo of the part slid on the plate: the lift is then
-        measured from the two views (needs ``board`` and ``wire_diameter_mm``).
-    method : which method gives the headline values: ``"centreline_fit"``,
-        ``"seed_ellipse"`` or ``"seed_sagitta"`` (the seed paper's two); the older
-        ``"ours"``, ``"ellipse"``, ``"sagitta"`` are read too.
-    allow_mirror : the design may be matched mirrored (the part photographed upside down).
+        measured from the two views (needs ``board`` and the wire's diameter).
+    options : how to measure (:class:`PartOptions`; None: the defaults): the chord count
+        bent (``divisions``; None finds it), the headline ``method``, ``allow_mirror``,
+        the wire (:class:`WireOptions`: with ``diameter_mm`` the centreline lies between
+        the wire's silhouette edges and the lift off the plate is measured or bounded,
+        and warned about) and the lift (:class:`LiftOptions`).
+
+    The keywords ``wire_diameter_mm``, ``divisions``, ``shadow_lift``, ``method`` and
+    ``allow_mirror`` of earlier versions are still read, with a DeprecationWarning:
+    they set the same fields of ``options``.
 
     Returns
     -------
@@ -410,6 +414,7 @@ def measure_part(
         ``result.radius_mm``, ``vertex_bend_deg`` and their sigmas, ``comparison``
         against the design, ``warnings``.
     """
+    opts = _part_options(options, deprecated)
     if board is None and plane is None:
         raise InputError("measure_part", "give the board and camera, or a plane")
     if board is not None and plane is None and camera is None:
@@ -422,17 +427,46 @@ def measure_part(
         p.bgr,
         _board(board),
         cam,
-        divisions=divisions,
+        options=opts,
+        plane=_plane(plane, cam),
         design=wire,
         design_source=str(design) if isinstance(design, str | os.PathLike) else "design",
-        method=method,
-        source=p.path,
-        allow_mirror=allow_mirror,
-        wire_diameter_mm=wire_diameter_mm,
-        plane=_plane(plane, cam),
         moved_image=moved,
-        shadow_lift=shadow_lift,
+        source=p.path,
     )
+
+
+#: measure_part's keywords of earlier versions -> the PartOptions field each sets.
+_OLD_PART_KEYWORDS = {
+    "wire_diameter_mm": "wire=WireOptions(diameter_mm=...)",
+    "divisions": "divisions=...",
+    "shadow_lift": "lift=LiftOptions(shadow=...)",
+    "method": "method=...",
+    "allow_mirror": "allow_mirror=...",
+}
+
+
+def _part_options(options: PartOptions | None, old: dict[str, Any]) -> PartOptions:
+    """``options`` with the earlier keywords folded in (one warning naming them all)."""
+    opts = PartOptions() if options is None else options
+    unknown = sorted(set(old) - set(_OLD_PART_KEYWORDS))
+    if unknown:
+        raise TypeError(f"measure_part() got an unexpected keyword argument {unknown[0]!r}")
+    if old:
+        warnings.warn(
+            f"measure_part({', '.join(f'{n}=...' for n in old)}) is deprecated: pass "
+            f"options=PartOptions({', '.join(_OLD_PART_KEYWORDS[n] for n in old)})",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+    for name, value in old.items():
+        if name == "wire_diameter_mm":
+            opts = replace(opts, wire=replace(opts.wire, diameter_mm=value))
+        elif name == "shadow_lift":
+            opts = replace(opts, lift=replace(opts.lift, shadow=value))
+        else:
+            opts = replace(opts, **{name: value})
+    return opts
 
 
 def fit_material(
@@ -471,7 +505,9 @@ def diagnose_trials(
 
     ``params``: the nominal simulation parameters (or a params JSON, whose effects are
     kept as part of the model). The result names the cause(s) with a 95 % interval, or
-    says none explains the data, with terms discovered beyond the catalogue.
+    says none explains the data, with terms discovered beyond the catalogue. Its
+    ``cause`` is a :class:`Cause`: compare it with ``Cause.of(("backlash",))``, read its
+    ``effects``, or print its ``label``.
     (Named ``diagnose_trials`` because ``cvmeasure.diagnose`` is the subpackage.)
     """
     table = _trials(trials)

@@ -44,7 +44,7 @@ if TYPE_CHECKING:  # numpy, the photo reader and the process pool load when used
     from concurrent.futures import Future
 
     from cvmeasure.board import BoardSpec
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.imageio import Photo
     from cvmeasure.kit import MarkerKit
@@ -130,7 +130,7 @@ class MeasureContext:
 
 @lru_cache(maxsize=8)
 def _load_camera(path: str) -> CameraModel:
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
 
     return load_camera(path)
 
@@ -397,13 +397,13 @@ def measure_machine(photo: Photo, context: MeasureContext) -> dict[str, Any]:
 def measure_part(photo: Photo, context: MeasureContext) -> dict[str, Any]:
     """A part photo through :func:`cvmeasure.part.measure.measure_part` (needs board and camera)."""
     from cvmeasure.part.measure import measure_part as measure_part_photo
+    from cvmeasure.part.options import PartOptions
 
     board, camera = context.board(), context.camera()
     if board is None or camera is None:
         raise InputError(photo.path, "a part photo needs the board (--board) and camera (--camera)")
-    result = measure_part_photo(
-        photo.bgr, board, camera, divisions=context.option("divisions"), source=photo.path
-    )
+    options = PartOptions(divisions=context.option("divisions"))
+    result = measure_part_photo(photo.bgr, board, camera, options=options, source=photo.path)
     return _as_record(result.to_dict())
 
 

@@ -18,6 +18,7 @@ __all__ = [
     "DeviceError",
     "DeviceTimeoutError",
     "CvmeasureWarning",
+    "CompensationRangeWarning",
 ]
 
 
@@ -52,3 +53,12 @@ class DeviceTimeoutError(DeviceError):
 
 class CvmeasureWarning(UserWarning):
     """Base class of the warnings cvmeasure emits."""
+
+
+class CompensationRangeWarning(CvmeasureWarning):
+    """A springback curve was evaluated outside its calibrated range (extrapolated or clamped).
+
+    Defined here, below both :mod:`cvmeasure.material.compensation` (which warns it) and
+    :mod:`cvmeasure.gcode` (which turns it into a job's typed warning), so neither
+    imports the other.
+    """

@@ -21,12 +21,12 @@ Three pure steps:
    (relative, ``G91`` on the line itself), Z pin duck (``Z180`` ducked, ``Z0``
    up), the pin sent home to release each bend, a duck to change sides when
    the bend direction changes, and a bare ``N`` end marker. Every line is
-   checked by :func:`~cvmeasure.driver.protocol.encode_line`: never a realtime
+   checked by :func:`~cvmeasure.gcode_line.encode_line`: never a realtime
    character, ``$``, ``?`` or a control character.
 
 :func:`design_job` chains the three. Jobs are made here, on the design and material
 side; :mod:`cvmeasure.driver` only streams them (it checks lines with the same
-:func:`~cvmeasure.driver.protocol.encode_line`). :mod:`cvmeasure.sim` is imported only
+:func:`~cvmeasure.gcode_line.encode_line`). :mod:`cvmeasure.sim` is imported only
 where the default compensator needs it: a job compensated from a calibration never does,
 and it adds a tenth of a second to start-up.
 """
@@ -43,9 +43,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from cvmeasure.design import bend_angles_deg, chord_lengths_mm
-from cvmeasure.driver.protocol import encode_line
-from cvmeasure.errors import InputError
-from cvmeasure.material.compensation import CompensationRangeWarning
+from cvmeasure.errors import CompensationRangeWarning, InputError
+from cvmeasure.gcode_line import encode_line
 from cvmeasure.warning import StageWarning
 
 __all__ = [

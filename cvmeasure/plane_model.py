@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, read_json, to_jsonable
 

@@ -1,7 +1,7 @@
 """The synthetic photo lab: photos with exact ground truth, deterministic by seed.
 
 Every photo is rendered by tracing each pixel back to the scene plane (exact
-undistortion through the Brown-Conrady lens of a :class:`cvmeasure.camera.CameraModel`,
+undistortion through the Brown-Conrady lens of a :class:`cvmeasure.camera_model.CameraModel`,
 then an analytic ray/plane intersection) and evaluating anti-aliased shapes
 there, so the truth (marker centres, board corners, wire centrelines) is exact
 to far below a pixel. Light, white balance, vignetting, blur, shot/read noise

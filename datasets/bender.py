@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.geometry import direction_deg
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure_datasets.clutter import stray_layers, stray_objects, textured, tool_shadow_layer

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec, CharucoBoardSpec, ChessboardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure_datasets.lighting import Lighting, srgb8_to_linear
 from cvmeasure_datasets.optics import Pose, project_frame_points
 from cvmeasure_datasets.photo import RenderedPhoto, render_scene, resolve_camera

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.colorimetry import srgb_decode, srgb_encode
 from cvmeasure.geometry import direction_deg
 from cvmeasure.kit import ROLES, MarkerKit, default_kit

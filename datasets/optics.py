@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 
 __all__ = [
     "Frame",

@@ -13,7 +13,7 @@ from typing import Any, Literal
 import numpy as np
 
 from cvmeasure.board import BoardSpec, CharucoBoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import default_kit
 from cvmeasure_datasets.boards import board_layers, board_truth, table_layer

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
 from cvmeasure_datasets.blur import defocus_diameter_px, depth_of_field, motion_blur
 from cvmeasure_datasets.effects import SceneEffects

@@ -25,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure_datasets.optics import RayMap, project_frame_points
 
 __all__ = [

@@ -248,8 +248,8 @@ def measure_finished_part(
             board=BOARD,
             camera=camera,
             design=design,
-            divisions=divisions,
-            allow_mirror=False,  # the part lies as it left the machine
+            # the part lies as it left the machine: never matched mirrored
+            options=cvmeasure.PartOptions(divisions=divisions, allow_mirror=False),
         )
     except InputError:
         raise

@@ -21,7 +21,13 @@ import sys
 from collections.abc import Iterator, Sequence
 
 from cvmeasure import __version__
-from cvmeasure.cli.errors import classify_exit, quiet_c_stderr, quiet_warnings
+from cvmeasure.cli.errors import (
+    OUTPUT_FILE_DESTS,
+    OUTPUT_FOLDER_DESTS,
+    classify_exit,
+    quiet_c_stderr,
+    quiet_warnings,
+)
 
 __all__ = ["main", "console_main", "build_parser", "COMMAND_MODULES"]
 
@@ -64,18 +70,6 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for name in (only,) if only in COMMAND_MODULES else COMMAND_MODULES:
         importlib.import_module(f"cvmeasure.cli.{name}").register(sub)
     return parser
-
-
-#: Argument names (argparse ``dest``) that name files a command writes.
-OUTPUT_FILE_DESTS: frozenset[str] = frozenset(
-    {"out", "output", "plot", "overlay", "rectified", "save_params", "report", "gcode"}
-)
-#: Per command, output arguments that are folders, not files.
-OUTPUT_FOLDER_DESTS: dict[str, frozenset[str]] = {
-    "render": frozenset({"out"}),
-    "demo": frozenset({"out"}),
-    "session": frozenset({"dir"}),
-}
 
 
 def _check_paths(args: argparse.Namespace) -> None:

@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.camera import implausible_distortion, save_camera
+    from cvmeasure.camera_model import implausible_distortion, save_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import to_jsonable
     from cvmeasure.lens.pipeline import (

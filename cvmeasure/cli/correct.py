@@ -56,13 +56,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_text, to_jsonable
     from cvmeasure.imageio import read_photo
     from cvmeasure.material.bender_calibration import load_calibration, save_calibration
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
     from cvmeasure.warning import StageWarning
 
     if args.gain > 1:
@@ -77,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         design=design,
         design_source=str(args.design),
         source=str(args.photo),
-        allow_mirror=args.flipped,
+        options=PartOptions(allow_mirror=args.flipped),
         reference_mm=plan.vertices_mm,
     )
     found = None if m.chords_found is None else m.chords_found.divisions

@@ -27,7 +27,14 @@ from pathlib import Path
 
 from cvmeasure.errors import CvmeasureError, InputError
 
-__all__ = ["classify_exit", "quiet_warnings", "quiet_c_stderr", "input_names"]
+__all__ = [
+    "OUTPUT_FILE_DESTS",
+    "OUTPUT_FOLDER_DESTS",
+    "classify_exit",
+    "quiet_warnings",
+    "quiet_c_stderr",
+    "input_names",
+]
 
 #: Longest message printed for an exception the libraries raised (one line).
 _MAX_MESSAGE = 240
@@ -35,6 +42,17 @@ _MAX_MESSAGE = 240
 _ATOMIC_TMP = re.compile(r"^\..+\.[^.]+\.tmp$")
 #: Warnings from these packages are numerical or decoder chatter, never news for the user.
 _QUIET_MODULES = r"(numpy|scipy|skimage|sklearn|PIL|cv2|colour|matplotlib|pandas|rawpy)(\..*)?"
+
+#: Argument names (argparse ``dest``) that name files a command writes.
+OUTPUT_FILE_DESTS: frozenset[str] = frozenset(
+    {"out", "output", "plot", "overlay", "rectified", "save_params", "report", "gcode"}
+)
+#: Per command, output arguments that are folders, not files.
+OUTPUT_FOLDER_DESTS: dict[str, frozenset[str]] = {
+    "render": frozenset({"out"}),
+    "demo": frozenset({"out"}),
+    "session": frozenset({"dir"}),
+}
 
 
 def _one_line(text: object) -> str:
@@ -56,8 +74,6 @@ def _paths_in(args: argparse.Namespace) -> list[tuple[str, Path]]:
 
 def input_names(args: argparse.Namespace, *, limit: int = 3) -> str:
     """The command's input files, for a message about an error none of them is named in."""
-    from cvmeasure.cli import OUTPUT_FILE_DESTS, OUTPUT_FOLDER_DESTS
-
     outputs = OUTPUT_FILE_DESTS | OUTPUT_FOLDER_DESTS.get(getattr(args, "command", ""), frozenset())
     names = [str(p) for dest, p in _paths_in(args) if dest not in outputs]
     names += [
@@ -76,8 +92,6 @@ def input_names(args: argparse.Namespace, *, limit: int = 3) -> str:
 
 
 def _is_output(path: Path, args: argparse.Namespace) -> bool:
-    from cvmeasure.cli import OUTPUT_FILE_DESTS, OUTPUT_FOLDER_DESTS
-
     outputs = OUTPUT_FILE_DESTS | OUTPUT_FOLDER_DESTS.get(getattr(args, "command", ""), frozenset())
     for dest, p in _paths_in(args):
         if dest in outputs or dest in ("journal", "dir"):

@@ -121,7 +121,7 @@ def _trials_manifest(path: Path) -> list[tuple[str, Path, Path, dict[str, str]]]
 def _measure_setup(args: argparse.Namespace) -> tuple[Any, Any, Any, Any]:
     """The kit, camera, plane and board the options name, refusing options wrong together."""
     from cvmeasure.board import load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.errors import InputError
     from cvmeasure.kit import default_kit, load_kit

@@ -135,12 +135,13 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from cvmeasure.board import load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
     from cvmeasure.imageio import read_photo
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
     from cvmeasure.provenance import provenance
 
     if args.plot and not args.design:
@@ -176,22 +177,25 @@ def run(args: argparse.Namespace) -> int:
     if args.moved and args.plane:
         raise InputError("--moved", "the moved photo's plane comes from its board: use --board")
     moved = read_photo(args.moved).bgr if args.moved else None
+    options = PartOptions(
+        divisions=args.divisions if plan is None else None,
+        method=args.method,
+        wire=WireOptions(
+            diameter_mm=diameter, end_shape=args.ends, axis_height_mm=args.axis_height_mm
+        ),
+        lift=LiftOptions(shadow=args.shadow_lift is not False),
+    )
     m = measure_part(
         photo.bgr,
         board,
         camera,
-        divisions=args.divisions if plan is None else None,
+        options=options,
+        plane=plane,
         design=design,
         design_source=str(args.design) if args.design else "design",
         reference_mm=None if plan is None else plan.vertices_mm,
-        method=args.method,
-        axis_height_mm=args.axis_height_mm,
-        end_shape=args.ends,
-        source=str(args.photo),
-        wire_diameter_mm=diameter,
         moved_image=moved,
-        plane=plane,
-        shadow_lift=args.shadow_lift is not False,
+        source=str(args.photo),
     )
     result = {"provenance": provenance(), **m.to_dict()}
     if args.overlay:
@@ -216,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _print_summary(m, out) -> None:
-    from cvmeasure.part.result import DivisionsSource
+    from cvmeasure.part.result import DivisionsSource, LiftSource, LiftUse
 
     r = m.result
     chords = {
@@ -264,19 +268,20 @@ def _print_summary(m, out) -> None:
                 f"{b.seed_absolute_error_deg:.3f} deg, relative {b.seed_relative_error_pct:.2f} %",
                 file=out,
             )
-    if m.lift is not None and m.lift["used"] == "correction":
-        seen = {"shadow": "the cast shadow"}.get(m.lift.get("source"), "the moved photo")
-        read = m.lift.get("read_lift_mm", m.lift["lift_mm"])
-        at = "" if read == m.lift["lift_mm"] else f" at the lift bound, {m.lift['lift_mm']:.2f} mm"
+    lift = m.lift
+    if lift is not None and lift.used is LiftUse.CORRECTION:
+        seen = "the cast shadow" if lift.source is LiftSource.SHADOW else "the moved photo"
+        read = lift.lift_mm if lift.read_lift_mm is None else lift.read_lift_mm
+        at = "" if read == lift.lift_mm else f" at the lift bound, {lift.lift_mm:.2f} mm"
         print(
             f"  lift off the plate (from {seen}): {read:.2f} +- "
-            f"{m.lift['lift_sigma_mm']:.2f} mm, corrected{at}",
+            f"{lift.lift_sigma_mm:.2f} mm, corrected{at}",
             file=out,
         )
-    elif m.lift is not None and m.lift.get("lift_mm") is not None:
+    elif lift is not None and lift.lift_mm is not None:
         print(
-            f"  lift off the plate (from the wire's width): {m.lift['lift_mm']:.2f} +- "
-            f"{m.lift['lift_sigma_mm']:.2f} mm, used as a {m.lift['used']}",
+            f"  lift off the plate (from the wire's width): {lift.lift_mm:.2f} +- "
+            f"{lift.lift_sigma_mm:.2f} mm, used as a {lift.used.value}",
             file=out,
         )
     for w in m.warnings:

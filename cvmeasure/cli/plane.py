@@ -50,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from cvmeasure.board import load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.errors import InputError
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
     from cvmeasure.imageio import read_photo

@@ -271,7 +271,7 @@ def _print_written(written: list[dict[str, Any]], as_json: bool) -> None:
 def run(args: argparse.Namespace) -> int:
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec, load_board
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.errors import InputError
 
     if args.count < 1 or args.scale <= 0:

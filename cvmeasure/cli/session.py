@@ -148,7 +148,7 @@ def _check_options(args: argparse.Namespace) -> None:
 
 def _measure_inputs(args: argparse.Namespace) -> tuple[object, dict[str, object]]:
     """The kit (or None for the built-in one) and the measurement options (camera, plane)."""
-    from cvmeasure.camera import load_camera
+    from cvmeasure.camera_model import load_camera
     from cvmeasure.contracts import PlaneModel
     from cvmeasure.kit import default_kit, load_kit
 

@@ -58,7 +58,7 @@ def _records(args: argparse.Namespace, plan) -> list[dict]:
         if args.board is None or args.camera is None:
             raise InputError(photos[0], "measuring part photos needs --board and --camera")
         from cvmeasure.board import load_board
-        from cvmeasure.camera import load_camera
+        from cvmeasure.camera_model import load_camera
         from cvmeasure.imageio import read_photo
         from cvmeasure.part.measure import measure_part
 

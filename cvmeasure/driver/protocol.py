@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 from typing import Any, Literal
 
+from cvmeasure.gcode_line import MAX_LINE_CHARS, encode_line
+
 __all__ = [
     "XON",
     "XOFF",
@@ -94,14 +96,11 @@ PLANNER_HEADROOM = 4
 #: XON/XOFF watermarks of the RX buffer (80 % and 10 % of 254).
 XOFF_HIGH_WATER = 203
 XON_LOW_WATER = 25
-#: Longest line this host sends (the firmware's own limit is INPUT_LINE_MAX).
-MAX_LINE_CHARS = 80
+#: The firmware's longest input line (this host sends at most MAX_LINE_CHARS).
 INPUT_LINE_MAX = 255
 
 #: Machine axes tracked by the driver (X pin deg, Y feed mm, Z pin duck, A rotation).
 AXES = ("x", "y", "z", "a")
-
-_FORBIDDEN = set("!~%$?") | {chr(c) for c in range(32)} | {chr(127)}
 
 
 class MachineStat(IntEnum):
@@ -162,27 +161,6 @@ FooterStyle = Literal["g2", "440", "446"]
 
 # ---------------------------------------------------------------------------
 # Host -> board
-
-
-def encode_line(text: str) -> bytes:
-    """One G-code line as the bytes to send: the text plus ``\\n``.
-
-    Raises
-    ------
-    ValueError
-        Empty, longer than :data:`MAX_LINE_CHARS`, not ASCII, or containing a
-        realtime character (``! ~ %``), ``$``, ``?`` or a control character:
-        any of these would be acted on by the board's interrupt or switch it to
-        text mode, so it is never sent as part of a line.
-    """
-    if not text:
-        raise ValueError("empty G-code line")
-    if len(text) > MAX_LINE_CHARS:
-        raise ValueError(f"G-code line longer than {MAX_LINE_CHARS} characters: {text[:40]!r}...")
-    bad = sorted({c for c in text if c in _FORBIDDEN or ord(c) > 126})
-    if bad:
-        raise ValueError(f"G-code line {text!r} contains forbidden character(s) {bad!r}")
-    return text.encode("ascii") + b"\n"
 
 
 def encode_json(command: Mapping[str, Any]) -> bytes:

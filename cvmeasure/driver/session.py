@@ -46,9 +46,14 @@ from typing import Any, Protocol
 from cvmeasure.contracts import MachinePhotoResult, Trial
 from cvmeasure.driver.capture import CaptureDevice
 from cvmeasure.driver.plan import diagnosis_plan, swept_plan
+from cvmeasure.driver.stream import stream_job
 from cvmeasure.errors import CvmeasureError, InputError
 from cvmeasure.fileio import append_jsonl, read_jsonl
+from cvmeasure.kit import default_kit
+from cvmeasure.markers.measure import measure_photo_file
 from cvmeasure.material.bender_calibration import MODES, BenderCalibration, fit_calibration
+from cvmeasure.sim import SimParams
+from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, pin_angle_for_loaded_deg
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -224,9 +229,6 @@ def nominal_pin_for_loaded_deg(loaded_deg: float, direction: str, params: Any = 
     given (default) parameters; ``loaded_deg`` is a magnitude, ``direction``
     ``"ccw"`` or ``"cw"``.
     """
-    from cvmeasure.sim import SimParams
-    from cvmeasure.sim.kinematics import contact_angle_deg, head_geometry, pin_angle_for_loaded_deg
-
     params = params or SimParams()
     sign = -1.0 if direction == "cw" else 1.0
     geom = head_geometry(params, sign)
@@ -292,8 +294,6 @@ class StreamedBender:
         self._number = 0
 
     def run(self, lines: Sequence[str]) -> None:
-        from cvmeasure.driver.stream import stream_job
-
         numbered = []
         for line in lines:
             self._number += 1
@@ -367,8 +367,6 @@ def run_session(
         A photo could not be measured (names the photo and the marker), or the
         log belongs to another plan.
     """
-    from cvmeasure.kit import default_kit
-
     kit = kit or default_kit()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -517,8 +515,6 @@ def _bend_and_measure(
     previous attempt was cut after its bend was sent: that wire may be bent) and
     ``bend`` before the bend is sent, so a resume knows which wire a bend was on.
     """
-    from cvmeasure.markers.measure import measure_photo_file
-
     machine.run(session_gcode("feed", config))
     append_jsonl(
         log_path,

@@ -14,7 +14,9 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
+from cvmeasure.errors import InputError
+from cvmeasure.imageio import read_photo
 from cvmeasure.lens.coverage import Coverage, image_coverage
 from cvmeasure.lens.detect import BoardDetection, detect_board
 from cvmeasure.lens.solve import (
@@ -176,8 +178,6 @@ def _held_out(
     """
     import cv2
 
-    from cvmeasure.errors import InputError
-
     halves = (list(detections[0::2]), list(detections[1::2]))
     if min(len(h) for h in halves) < 3:
         return None
@@ -259,8 +259,6 @@ def _full_fit(
     """Fit ``model`` on every corner (no rejection, so all models see the same corners):
     residual sum of squares (px^2), residual and parameter counts, coefficients and their
     standard deviations; None when the solve fails."""
-    from cvmeasure.errors import InputError
-
     try:
         res = calibrate_views(
             detections,
@@ -351,7 +349,6 @@ def choose_model(
             "rule": "too few views to choose a model (need 6 or more); model 5 is used",
             "candidates": [],
         }
-    from cvmeasure.errors import InputError
 
     # every candidate is judged on the same corners: those model 5's rejection keeps
     # (an outlier corner would inflate every model's residuals alike and hide the gain)
@@ -699,8 +696,6 @@ def detect_photos(
     progress: Callable[[str], None] | None = None,
 ) -> list[BoardDetection]:
     """Read every photo (JPEG/PNG/TIFF/RAW) and detect the board; unreadable files raise InputError."""
-    from cvmeasure.imageio import read_photo
-
     out = []
     for path in paths:
         photo = read_photo(path)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.lens.detect import BoardDetection, detect_board
 from cvmeasure.plane_model import PlaneModel, apply_homography

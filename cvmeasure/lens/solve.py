@@ -24,9 +24,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.lens.detect import MIN_CORNERS, BoardDetection
+from cvmeasure.lens.warp import refine_board_warp
 
 __all__ = [
     "DistortionModel",
@@ -399,8 +400,6 @@ def calibrate_views(
         rounds,
     )
     if board_warp:
-        from cvmeasure.lens.warp import refine_board_warp
-
         out = refine_board_warp(out, extent_mm=board_extent_mm)
     return out
 

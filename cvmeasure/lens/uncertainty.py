@@ -33,10 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
+from cvmeasure.errors import InputError
 from cvmeasure.lens.detect import BoardDetection
 from cvmeasure.lens.solve import CalibrationResult, calibrate_views
-from cvmeasure.lens.warp import gauss_markov_covariance
+from cvmeasure.lens.warp import gauss_markov_covariance, warp_jacobian
 
 __all__ = [
     "ParameterCovariance",
@@ -109,8 +110,6 @@ def _residuals_and_jacobian(result: CalibrationResult) -> tuple[np.ndarray, Any,
     n_i = len(result.std_devs)
     n_v = len(result.views)
     if result.board_warp is not None:
-        from cvmeasure.lens.warp import warp_jacobian
-
         w = result.board_warp
         r, jac_w = warp_jacobian(
             cam,
@@ -536,8 +535,6 @@ def cross_validate(
     the central-60 % RMS diff over the combined central projection uncertainty
     of the halves; ~1-2 is what noise explains, far above means model error.
     """
-    from cvmeasure.errors import InputError
-
     usable = [d for d in detections if d.ok]
     halves = (usable[0::2], usable[1::2])
     if min(len(h) for h in halves) < 3:

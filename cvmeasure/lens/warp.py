@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import BoardDetection
 
 __all__ = [
@@ -269,8 +270,6 @@ def refine_board_warp(
 def _unpack_warp_params(x: np.ndarray, base, n_i: int, n_v: int):
     """(camera, rvecs, tvecs, warp) from the parameter vector [free intrinsics, 6 per view,
     warp x, warp y]; distortion coefficients beyond the free ones stay ``base``'s."""
-    from cvmeasure.camera import CameraModel
-
     k = np.array([[x[0], 0.0, x[2]], [0.0, x[1], x[3]], [0.0, 0.0, 1.0]])
     dist = base.dist_coeffs.copy()
     dist[: n_i - 4] = x[4:n_i]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 
 __all__ = ["MeasureFrame", "measure_frame"]

@@ -34,6 +34,7 @@ import numpy as np
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import pin_bend_deg
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "HeightParallax",
@@ -43,11 +44,20 @@ __all__ = [
     "height_angle_jacobian",
     "height_angle_variance_deg2",
     "move_to_heights",
+    "HEIGHT_WARN_DEG",
+    "NOMINAL_HEIGHT_TOLERANCE",
+    "plane_heights_sigma",
+    "nominal_heights_bound",
 ]
 
 #: The camera tilt (deg, optical axis from the plate's normal) the no-pose bounds allow:
 #: the camera's foot point anywhere within ``f tan(BOUND_TILT_DEG)`` of the principal point.
 BOUND_TILT_DEG = 3.0
+#: Height bounds (deg) below this are not warned about (the heights barely matter).
+HEIGHT_WARN_DEG = 1e-3
+#: How far printed caps may stand off a kit's nominal heights (a share of each height):
+#: the bound stated beside the sigma while the heights are not measured.
+NOMINAL_HEIGHT_TOLERANCE = 0.10
 #: Foot-point directions sampled for the worst case (the change is near linear in it).
 _DIRECTIONS = 24
 
@@ -201,3 +211,51 @@ def height_angle_variance_deg2(
     jac = height_angle_jacobian(centres_mm, kit, camera_centre_mm, y_down=y_down)
     var = np.diag(jac @ cov @ jac.T)
     return {"pin_angle_deg": float(var[0]), "bend_angle_deg": float(var[1])}
+
+
+def plane_heights_sigma(
+    centres: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    sigma: dict[str, float],
+    warnings: list[StageWarning],
+) -> tuple[dict[str, float], dict[str, float] | None]:
+    """On a plane pose: the kit's height uncertainties (measured or stated) carried into
+    the angles' sigma; nominal heights bounded beside it instead (and warned about)."""
+    var = height_angle_variance_deg2(centres, kit, camera_centre_mm, y_down=y_down)
+    sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
+    if np.any(kit.height_cov_mm2()):
+        return sigma, None
+    return sigma, nominal_heights_bound(centres, kit, camera_centre_mm, y_down, warnings)
+
+
+def nominal_heights_bound(
+    centres: Mapping[str, np.ndarray],
+    kit: MarkerKit,
+    camera_centre_mm: np.ndarray,
+    y_down: bool,
+    warnings: list[StageWarning],
+) -> dict[str, float] | None:
+    """What caps standing up to :data:`NOMINAL_HEIGHT_TOLERANCE` off a kit's nominal
+    (unmeasured) heights can do to the angles, deg; warned about beside the sigma."""
+    jac = height_angle_jacobian(centres, kit, camera_centre_mm, y_down=y_down)
+    tol = np.array([NOMINAL_HEIGHT_TOLERANCE * kit.height_mm(r) for r in ROLES])
+    bound = {
+        "pin_angle_deg": float(np.abs(jac[0]) @ tol),
+        "bend_angle_deg": float(np.abs(jac[1]) @ tol),
+    }
+    if max(bound.values()) < HEIGHT_WARN_DEG:
+        return None
+    warnings.append(
+        StageWarning(
+            "heights_nominal",
+            f"the +- leaves out the kit's heights, which are nominal, not measured: caps "
+            f"standing up to {100 * NOMINAL_HEIGHT_TOLERANCE:.0f} % off them can add up to "
+            f"{bound['pin_angle_deg']:.3f} deg (pin) and {bound['bend_angle_deg']:.3f} deg "
+            "(bend) of error (height_bound_deg): measure them once with `cvmeasure markers "
+            "heights` (or give each height_sigma_mm) to remove this bound",
+            "kit",
+        )
+    )
+    return bound

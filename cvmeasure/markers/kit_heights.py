@@ -19,7 +19,7 @@ measures them on the user's machine, from photos taken from the plane's pose:
 
 The heights are the least-squares solution of those conditions, each residual
 weighted by its centres' covariance, with the kit's nominal heights as a prior:
-each cap within :data:`~cvmeasure.markers.measure.NOMINAL_HEIGHT_TOLERANCE` of its
+each cap within :data:`~cvmeasure.markers.heights.NOMINAL_HEIGHT_TOLERANCE` of its
 nominal height, as a rectangular distribution (standard uncertainty
 ``tolerance * height / sqrt(3)``). What the photos cannot see, every marker's
 distance to the camera scaled by one factor (a near-common shift of the heights),
@@ -46,8 +46,7 @@ from scipy.optimize import least_squares
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
 from cvmeasure.markers.angles import machine_angles, pin_bend_deg
-from cvmeasure.markers.heights import move_to_heights
-from cvmeasure.markers.measure import NOMINAL_HEIGHT_TOLERANCE
+from cvmeasure.markers.heights import NOMINAL_HEIGHT_TOLERANCE, move_to_heights
 from cvmeasure.warning import StageWarning
 
 __all__ = ["SweepPhoto", "MeasuredHeights", "measure_heights", "prior_sigmas_mm", "PRIOR_SIGMA_MM"]

@@ -52,17 +52,29 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure import jpegplanes
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import MachinePhotoResult, MarkerMeasurement, PlaneModel, Trial
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, fit_circle_robust, fit_circles_robust
-from cvmeasure.imageio import Photo, to_bgr8
+from cvmeasure.imageio import (
+    MAX_PHOTO_PIXELS,
+    Photo,
+    is_jpeg_data,
+    is_linear_name,
+    is_raw,
+    read_photo,
+    to_bgr8,
+)
+from cvmeasure.jpegplanes import LazyBGR
 from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.markers.angles import machine_angles
 from cvmeasure.markers.checks import (
     HIDDEN_COVERAGE,
@@ -84,10 +96,10 @@ from cvmeasure.markers.detect import find_markers
 from cvmeasure.markers.frame import MeasureFrame, measure_frame
 from cvmeasure.markers.heights import (
     BOUND_TILT_DEG,
+    HEIGHT_WARN_DEG,
     fallback_focal_px,
-    height_angle_jacobian,
-    height_angle_variance_deg2,
     height_parallax,
+    plane_heights_sigma,
 )
 from cvmeasure.markers.refine import (
     CENTRE_FLOOR_PX,
@@ -128,11 +140,6 @@ METHODS: tuple[str, ...] = MARKER_METHODS
 #: about) or "parallel" (corrected assuming a camera square to the plate; needs a camera).
 HeightMode = Literal["none", "parallel"]
 HEIGHT_MODES: tuple[str, ...] = ("none", "parallel")
-#: Height bounds (deg) below this are not warned about (the heights barely matter).
-HEIGHT_WARN_DEG = 1e-3
-#: How far printed caps may stand off a kit's nominal heights (a share of each height):
-#: the bound stated beside the sigma while the heights are not measured.
-NOMINAL_HEIGHT_TOLERANCE = 0.10
 
 #: Centre standard uncertainty (px per axis) stated for the seed method's Hough centres.
 SEED_CENTRE_SIGMA_PX = 0.5
@@ -407,6 +414,25 @@ def _measure_seed(bgr8: np.ndarray, kit: MarkerKit, space: str, source: str) -> 
     return markers, centres, covs, warnings
 
 
+def _checked_options(method, space, edge, heights, camera, plane) -> Method:
+    """The method's current name; ValueError naming any option out of its choices."""
+    method = marker_method(method)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
+    if space not in ("lab", "rgb"):
+        raise ValueError(f"unknown colour space {space!r}; valid: ('lab', 'rgb')")
+    if edge is not None and edge not in EDGE_MODES:
+        raise ValueError(f"unknown edge mode {edge!r}; valid: {EDGE_MODES}")
+    if heights not in HEIGHT_MODES:
+        raise ValueError(f"unknown heights mode {heights!r}; valid: {HEIGHT_MODES}")
+    if heights == "parallel" and (camera is None or plane is not None):
+        raise ValueError(
+            "heights='parallel' corrects a camera-only measurement: it needs a camera and "
+            "no plane (a plane pose applies the heights exactly)"
+        )
+    return method
+
+
 def measure_machine_photo(
     bgr: np.ndarray,
     kit: MarkerKit,
@@ -461,30 +487,11 @@ def measure_machine_photo(
     MarkerNotFoundError (an InputError)
         A marker is missing or ambiguous: names the role(s) and why.
     """
-    method = marker_method(method)
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; valid: {METHODS}")
-    if space not in ("lab", "rgb"):
-        raise ValueError(f"unknown colour space {space!r}; valid: ('lab', 'rgb')")
-    if edge is not None and edge not in EDGE_MODES:
-        raise ValueError(f"unknown edge mode {edge!r}; valid: {EDGE_MODES}")
-    if heights not in HEIGHT_MODES:
-        raise ValueError(f"unknown heights mode {heights!r}; valid: {HEIGHT_MODES}")
-    if heights == "parallel" and (camera is None or plane is not None):
-        raise ValueError(
-            "heights='parallel' corrects a camera-only measurement: it needs a camera and "
-            "no plane (a plane pose applies the heights exactly)"
-        )
+    method = _checked_options(method, space, edge, heights, camera, plane)
     got = _centres(
         bgr, kit, camera, plane, method, space, colour_model, linear, edge, heights, source
     )
-    transform, markers, centres, covs, warnings = (
-        got.frame,
-        got.markers,
-        got.centres,
-        got.covariances,
-        got.warnings,
-    )
+    transform, centres, covs, warnings = got.frame, got.centres, got.covariances, got.warnings
     height_state, height_bound = got.height_state, got.height_bound
     try:
         angles = machine_angles(centres, covs, y_down=transform.y_down)
@@ -492,13 +499,13 @@ def measure_machine_photo(
         raise InputError(source, str(exc)) from None
     sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
     if height_state == "plane" and transform.plane is not None:
-        sigma, height_bound = _plane_heights(
+        sigma, height_bound = plane_heights_sigma(
             centres, kit, transform.plane.camera_centre_mm, transform.y_down, sigma, warnings
         )
     return MachinePhotoResult(
         angles.pin_angle_deg,
         angles.bend_angle_deg,
-        markers,
+        got.markers,
         sigma,
         tuple(warnings),
         photo,
@@ -544,8 +551,6 @@ def _centres(
 ) -> FrameCentres:
     """The markers found, refined and mapped into the angles' frame (options checked by
     :func:`measure_machine_photo`)."""
-    from cvmeasure.jpegplanes import LazyBGR
-
     # a LazyBGR (pixels made where read: measure_photo_file's JPEG path) stays one where
     # only regions and the search's copy are read; else its whole image is made here
     lazy = isinstance(bgr, LazyBGR) and not linear and method == "edge_fit"
@@ -609,54 +614,6 @@ def frame_centres(
     mm, each disc at its kit height), what :func:`measure_machine_photo` turns into angles;
     for steps that fit the geometry across photos (``cvmeasure markers heights``)."""
     return _centres(bgr, kit, camera, plane, "edge_fit", "lab", None, linear, edge, "none", source)
-
-
-def _plane_heights(
-    centres: Mapping[str, np.ndarray],
-    kit: MarkerKit,
-    camera_centre_mm: np.ndarray,
-    y_down: bool,
-    sigma: dict[str, float],
-    warnings: list[StageWarning],
-) -> tuple[dict[str, float], dict[str, float] | None]:
-    """On a plane pose: the kit's height uncertainties (measured or stated) carried into
-    the angles' sigma; nominal heights bounded beside it instead (and warned about)."""
-    var = height_angle_variance_deg2(centres, kit, camera_centre_mm, y_down=y_down)
-    sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
-    if np.any(kit.height_cov_mm2()):
-        return sigma, None
-    return sigma, _nominal_heights_bound(centres, kit, camera_centre_mm, y_down, warnings)
-
-
-def _nominal_heights_bound(
-    centres: Mapping[str, np.ndarray],
-    kit: MarkerKit,
-    camera_centre_mm: np.ndarray,
-    y_down: bool,
-    warnings: list[StageWarning],
-) -> dict[str, float] | None:
-    """What caps standing up to :data:`NOMINAL_HEIGHT_TOLERANCE` off a kit's nominal
-    (unmeasured) heights can do to the angles, deg; warned about beside the sigma."""
-    jac = height_angle_jacobian(centres, kit, camera_centre_mm, y_down=y_down)
-    tol = np.array([NOMINAL_HEIGHT_TOLERANCE * kit.height_mm(r) for r in ROLES])
-    bound = {
-        "pin_angle_deg": float(np.abs(jac[0]) @ tol),
-        "bend_angle_deg": float(np.abs(jac[1]) @ tol),
-    }
-    if max(bound.values()) < HEIGHT_WARN_DEG:
-        return None
-    warnings.append(
-        StageWarning(
-            "heights_nominal",
-            f"the +- leaves out the kit's heights, which are nominal, not measured: caps "
-            f"standing up to {100 * NOMINAL_HEIGHT_TOLERANCE:.0f} % off them can add up to "
-            f"{bound['pin_angle_deg']:.3f} deg (pin) and {bound['bend_angle_deg']:.3f} deg "
-            "(bend) of error (height_bound_deg): measure them once with `cvmeasure markers "
-            "heights` (or give each height_sigma_mm) to remove this bound",
-            "kit",
-        )
-    )
-    return bound
 
 
 def _heights_without_pose(
@@ -736,8 +693,6 @@ def measure_photo_file(
     ``camera``). Other options go to :func:`measure_machine_photo`. InputError
     names the file for an unreadable photo, a missing board or marker.
     """
-    from cvmeasure.imageio import read_photo
-
     if not isinstance(photo, Photo):
         lazy = _jpeg_planes_bgr(photo, options) if board is None else None
         if lazy is not None:
@@ -759,7 +714,6 @@ def measure_photo_file(
             raise ValueError("give a plane or a board to find one in the photo, not both")
         if camera is None:
             raise InputError(source, "rectifying to a board's plane needs the camera")
-        from cvmeasure.lens.plane import estimate_plane
 
         plane = estimate_plane(photo.gray8(), board, camera, source=source)
     options.setdefault("photo", source)
@@ -779,11 +733,6 @@ def _jpeg_planes_bgr(path: str | os.PathLike[str], options: Mapping[str, Any]) -
     a damaged file, more than :data:`cvmeasure.imageio.MAX_PHOTO_PIXELS`, no
     libturbojpeg, a linear file or options this path does not take (method "seed_hough").
     """
-    from pathlib import Path
-
-    from cvmeasure import jpegplanes
-    from cvmeasure.imageio import MAX_PHOTO_PIXELS, is_jpeg_data, is_linear_name, is_raw
-
     p = Path(path)
     if (
         marker_method(options.get("method", "edge_fit")) != "edge_fit"

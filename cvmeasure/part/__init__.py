@@ -8,6 +8,7 @@ Stages, each a module with pure functions and frozen result types:
 * :mod:`~cvmeasure.part.seed_methods` -- the seed paper's ellipse and sagitta methods
   and its Source code 1;
 * :mod:`~cvmeasure.part.compare` -- registration to the design, deviation profile;
+* :mod:`~cvmeasure.part.options` -- how a part is measured (:class:`PartOptions`);
 * :mod:`~cvmeasure.part.measure` -- all of it for one photo;
 * :mod:`~cvmeasure.part.overlay` -- the pictures.
 """
@@ -17,6 +18,7 @@ from __future__ import annotations
 from cvmeasure.part.compare import deviation_profile, register_to_design
 from cvmeasure.part.fit import fit_polyline
 from cvmeasure.part.measure import ArcResult, PartMeasurement, measure_part
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.result import DivisionsSource, PartWire, PlaneSummary
 from cvmeasure.part.seed_methods import (
     circle_ellipse_intersections,
@@ -32,6 +34,9 @@ __all__ = [
     "PartWire",
     "DivisionsSource",
     "measure_part",
+    "PartOptions",
+    "WireOptions",
+    "LiftOptions",
     "fit_polyline",
     "register_to_design",
     "deviation_profile",

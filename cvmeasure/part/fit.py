@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.design import divide_into_chords
-from cvmeasure.geometry import CircleFit, wrap_deg
+from cvmeasure.geometry import CircleFit, fit_circle_robust, wrap_deg
 from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
@@ -424,8 +424,6 @@ def count_chords(
     is kept only when the N-chord polyline fits the centreline far better than a
     circle does (a smooth arc turns evenly and has no peaks).
     """
-    from cvmeasure.geometry import fit_circle_robust
-
     pts = _check_points(ordered_points_mm, 8)
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))

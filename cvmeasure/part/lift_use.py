@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.part.arc import arc_from_points
 from cvmeasure.part.ends import EndShape
@@ -31,7 +31,7 @@ from cvmeasure.part.lift import (
     unroll_mm,
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm
-from cvmeasure.part.result import ArcResult
+from cvmeasure.part.result import ArcResult, LiftSource, LiftUse, PartLift
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -75,8 +75,9 @@ def lift_effects(
     max_lift_mm: float = MAX_LIFT_MM,
     standard: bool = False,
     fractions: np.ndarray | None = None,
-) -> tuple[dict[str, Any], np.ndarray | None, StageWarning | None]:
-    """The lift's bound, the bends' extra sigma (deg) and a warning (None when none).
+) -> tuple[PartLift, np.ndarray | None, StageWarning | None]:
+    """The lift's bound (:class:`PartLift`, used as a bound from the width's estimate), the
+    bends' extra sigma (deg) and a warning (None when none).
 
     The lift is bounded by :func:`cvmeasure.part.lift.lift_bound_mm` (the width's
     estimate + 2 sigma, at most ``max_lift_mm``); its effect is the largest change of
@@ -114,15 +115,18 @@ def lift_effects(
                 changes.append(d_b)
     worst_b = np.max(changes, axis=0) if changes else None
     worst_vertex = float(np.max(worst_b)) if worst_b is not None and len(worst_b) else 0.0
-    info = {
-        **(lift.to_dict() if lift is not None else {"lift_mm": None, "lift_sigma_mm": None}),
-        "used": "bound",
-        "source": "width",
-        "bound_mm": bound,
-        "effect_radius_pct": worst_r,
-        "effect_segment_bend_deg": worst_s,
-        "effect_bend_deg": worst_vertex,
-    }
+    estimate = lift.to_dict() if lift is not None else {}
+    info = PartLift(
+        used=LiftUse.BOUND,
+        source=LiftSource.WIDTH,
+        lift_mm=estimate.pop("lift_mm", None),
+        lift_sigma_mm=estimate.pop("lift_sigma_mm", None),
+        bound_mm=bound,
+        effect_radius_pct=worst_r,
+        effect_segment_bend_deg=worst_s,
+        effect_bend_deg=worst_vertex,
+        details=estimate,
+    )
     warning = None
     if worst_r > LIFT_RADIUS_PCT or worst_s > LIFT_BEND_DEG or worst_vertex > LIFT_BEND_DEG:
         seen = (

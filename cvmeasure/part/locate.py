@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline

@@ -30,12 +30,11 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.board import BoardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit
-from cvmeasure.method_names import part_method
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -55,9 +54,8 @@ from cvmeasure.part.compare import (
     deviation_profile,
     register_to_design,
 )
-from cvmeasure.part.ends import EndShape
 from cvmeasure.part.fit import ChordCount, PolylineFit, count_chords, fit_polyline
-from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, estimate_lift, lift_bound_mm
+from cvmeasure.part.lift import LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
     LIFT_BEND_DEG,
     LIFT_RADIUS_PCT,
@@ -70,12 +68,16 @@ from cvmeasure.part.lift_use import (
     shadow_unusable,
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.result import (
     METHODS,
     ArcResult,
     DesignComparison,
     DivisionsSource,
+    LiftSource,
+    LiftUse,
     Method,
+    PartLift,
     PartMeasurement,
     PartWire,
     PlaneSummary,
@@ -93,13 +95,16 @@ __all__ = [
     "ArcResult",
     "DesignComparison",
     "PartMeasurement",
+    "PartOptions",
+    "WireOptions",
+    "LiftOptions",
     "measure_part",
     "measure_centreline_mm",
     "compare_with_design",
     "arc_from_points",
     "chord_and_height_mm",
 ]
-# (the result types, arc_from_points, chord_and_height_mm and measure_centreline_mm are
+# (the result and option types, arc_from_points, chord_and_height_mm and measure_centreline_mm are
 # re-exported: this module is where a part measurement is asked for)
 
 #: A seed method's arc angle this far (deg) from the centreline's is warned about.
@@ -163,33 +168,19 @@ def compare_with_design(
     return DesignComparison(design_source, reg, dev, design_arc, bends)
 
 
-def _check_arguments(method: str, divisions: int | None) -> None:
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    if divisions is not None and divisions < 1:
-        raise ValueError(f"divisions must be >= 1, got {divisions}")
-
-
 def measure_part(
     image: np.ndarray,
     board: BoardSpec | None,
     camera: CameraModel | None,
     *,
-    divisions: int | None = None,
+    options: PartOptions | None = None,
+    plane: PlaneModel | None = None,
     design: DesignPath | None = None,
     design_source: str = "design",
-    method: Method = "centreline_fit",
-    axis_height_mm: float | None = None,
-    end_shape: EndShape = "round",
-    source: str = "photo",
-    allow_mirror: bool = True,
-    wire_diameter_mm: float | None = None,
-    plane: PlaneModel | None = None,
-    max_lift_mm: float = MAX_LIFT_MM,
+    reference_mm: np.ndarray | None = None,
     moved_image: np.ndarray | None = None,
     moved_plane: PlaneModel | None = None,
-    shadow_lift: bool = True,
-    reference_mm: np.ndarray | None = None,
+    source: str = "photo",
 ) -> PartMeasurement:
     """Measure a finished part in a photo (see the module notes).
 
@@ -199,45 +190,34 @@ def measure_part(
     board, camera : the board lying in the part's plane and the calibrated camera; or
         ``plane``, measured elsewhere (``cvmeasure plane``: ``board`` is then only left
         out of the wire search and may be None, ``camera`` is unused).
-    divisions : the chord count N bent; None finds the vertices (:func:`count_chords`);
-        given, a warning says when the photo shows another count.
-    design, design_source, allow_mirror : the design wire, its name, and whether the
-        comparison may try the mirror image. ``method``: the headline (:data:`METHODS`).
-    axis_height_mm : the wire axis' height above the board's plane (mm, towards the
-        camera); None: the wire's radius with ``wire_diameter_mm``, else 0.
-    wire_diameter_mm : the wire's diameter: the centreline between its silhouette edges,
-        and the lift off the plate read (:mod:`cvmeasure.part.lift_use`) from
-        ``moved_image`` (the part slid; its plane ``moved_plane``) or the cast shadow
-        (``shadow_lift``), corrected when consistent with the bound, else bounded (at most
-        ``max_lift_mm``); reported in ``lift``, the sigmas and ``part_lifted``.
-    end_shape : ``"round"`` or ``"flat"`` wire ends. ``source``: the photo's name.
+    options : how to measure (:class:`~cvmeasure.part.options.PartOptions`: the chord
+        count, the headline method, the wire stock, the lift); None: the defaults.
+        With the wire's diameter, the lift off the plate is read
+        (:mod:`cvmeasure.part.lift_use`) from ``moved_image`` or the cast shadow,
+        corrected when consistent with the bound, else bounded; reported in ``lift``,
+        the sigmas and ``part_lifted``.
+    design, design_source : the design wire and its name (compared with, see
+        :func:`compare_with_design`).
     reference_mm : (N+1, 2) the polygon bent (design frame, mm; ``WirePlan.vertices_mm``):
         the part is fitted with its N chords, vertices starting where it has them, and
         compared with it. Default: the planner's polygon of ``design`` in N chords.
+    moved_image, moved_plane : a second photo of the part slid on the plate, and its
+        plane (default: found from ``board``, or ``plane`` when that was given).
+    source : the photo's name (in messages and the result).
 
-    Raises InputError (no board, no wire, a part the divisions cannot describe) or
-    ValueError (an unknown ``method``, ``divisions < 1``).
+    Raises InputError (no board, no wire, a part the divisions cannot describe).
     """
-    method = part_method(method)
-    _check_arguments(method, divisions)
+    opts = PartOptions() if options is None else options
+    wire_opts, lift_opts = opts.wire, opts.lift
+    method, divisions, wire_diameter_mm = opts.method, opts.divisions, wire_opts.diameter_mm
+    axis_height_mm, end_shape = wire_opts.axis_height_mm, wire_opts.end_shape
     moved_given = plane is not None
     plane, wire, centre, centreline_mm = measure_centreline_mm(
         image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
         source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
-    warnings: list[StageWarning] = []
-    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
-        warnings.append(_EDGES_LOST)
-    if wire.passed_over:
-        warnings.append(
-            StageWarning(
-                "part_wire_not_longest",
-                f"the longest thin line beside the board was not taken for the wire "
-                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
-                "are a round wire's: check on the overlay that it is the part",
-            )
-        )
+    warnings = _wire_found_warnings(wire, centre, wire_diameter_mm)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None
@@ -255,11 +235,12 @@ def measure_part(
             centre.centre_from,
         )  # fmt: skip
         warnings += [moved_warning] if moved_warning else []
-    elif shadow_lift and wire_diameter_mm is not None and centre.centre_from == "silhouette":
-        bound_mm = lift_bound_mm(lift, max_lift_mm)
+    elif lift_opts.shadow and wire_diameter_mm is not None and centre.centre_from == "silhouette":
+        bound_mm = lift_bound_mm(lift, lift_opts.max_lift_mm)
         reading = _shadow_reading(image, plane, centre, wire_diameter_mm, base_mm, bound_mm)
     fit = _with_lift(image, plane, centre, flat, reading, divisions, base_mm, source, warnings)
     if wire_diameter_mm is not None and fit.lift_info is None:
+        max_lift_mm = lift_opts.max_lift_mm
         _bound_lift(fit, plane, centre, lift, reading, divisions, base_mm, max_lift_mm, warnings)
     ours, poly, vpoly = fit.ours, fit.poly, fit.vpoly
     bend_sigma = _checked_sigma(fit, centre, plane, divisions, warnings)
@@ -272,7 +253,7 @@ def measure_part(
     if design is not None:
         comparison = compare_with_design(
             fit.centreline_mm, None if vpoly is None else vpoly.bend_deg, methods[method],
-            design, design_source=design_source, allow_mirror=allow_mirror,
+            design, design_source=design_source, allow_mirror=opts.allow_mirror,
             reference_mm=reference_mm,
         )  # fmt: skip
     return _assemble(
@@ -364,6 +345,25 @@ def _assemble(
     )
 
 
+def _wire_found_warnings(
+    wire: WireMask, centre: Centreline, wire_diameter_mm: float | None
+) -> list[StageWarning]:
+    """What the wire search warns about: a round wire's edges lost, a longer line passed over."""
+    warnings: list[StageWarning] = []
+    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+        warnings.append(_EDGES_LOST)
+    if wire.passed_over:
+        warnings.append(
+            StageWarning(
+                "part_wire_not_longest",
+                f"the longest thin line beside the board was not taken for the wire "
+                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
+                "are a round wire's: check on the overlay that it is the part",
+            )
+        )
+    return warnings
+
+
 @dataclass
 class _Fit:
     """The part's fit at one stage: its centreline (mm), arc, chords and vertex bends."""
@@ -374,7 +374,7 @@ class _Fit:
     poly: PolylineFit | None
     vpoly: PolylineFit | None = None
     sigma: np.ndarray | None = None  # the vertex bends' sigmas, deg
-    lift_info: dict[str, Any] | None = None
+    lift_info: PartLift | None = None
     warning: StageWarning | None = None
     # where the polygon bent has its vertices (shares of its length), None: equal chords
     fractions: np.ndarray | None = None
@@ -585,20 +585,24 @@ def _corrected_fit(
         fractions=fractions,
     )  # fmt: skip
     by_shadow = reading.shadow_info is not None
+    details = dict(reading.shadow_info if by_shadow else reading.moved_info)
+    details.pop("lift_mm", None)
     # lift_mm: the lift corrected with (the reading, or the bound it was read above);
     # read_lift_mm: the shadow's or the two photos' own reading
-    lift_info = {**lift_info, **(reading.shadow_info if by_shadow else reading.moved_info),
-                 "used": "correction", "source": "shadow" if by_shadow else "moved_photo",
-                 "bound_mm": 2.0 * corrected.lift.lift_sigma_mm,
-                 "lift_mm": scale * corrected.lift.lift_mm,
-                 "read_lift_mm": corrected.lift.lift_mm}  # fmt: skip
+    lift_info = replace(
+        lift_info, used=LiftUse.CORRECTION,
+        source=LiftSource.SHADOW if by_shadow else LiftSource.MOVED_PHOTO,
+        bound_mm=2.0 * corrected.lift.lift_sigma_mm, lift_mm=scale * corrected.lift.lift_mm,
+        lift_sigma_mm=details.pop("lift_sigma_mm", None), read_lift_mm=corrected.lift.lift_mm,
+        details=details,
+    )  # fmt: skip
     if bend_sigma is not None and extra_sigma is not None:
         bend_sigma = np.hypot(bend_sigma, extra_sigma)
     fit = _Fit(centreline_mm, ours, circle, poly, vpoly, bend_sigma, lift_info, None, fractions)
     if (
-        lift_info["effect_radius_pct"] > LIFT_RADIUS_PCT
-        or lift_info["effect_segment_bend_deg"] > LIFT_BEND_DEG
-        or lift_info["effect_bend_deg"] > LIFT_BEND_DEG
+        lift_info.effect_radius_pct > LIFT_RADIUS_PCT
+        or lift_info.effect_segment_bend_deg > LIFT_BEND_DEG
+        or lift_info.effect_bend_deg > LIFT_BEND_DEG
     ):
         corrected_as = "corrected"
         if scale < 1.0:  # read above the bound: corrected at the bound
@@ -610,9 +614,9 @@ def _corrected_fit(
             f"the {'shadow' if by_shadow else 'two photos'} put the lift "
             f"at {corrected.lift.lift_mm:.2f} +- "
             f"{corrected.lift.lift_sigma_mm:.2f} mm ({corrected_as}); its uncertainty (2 "
-            f"sigma) would move the radius by up to {lift_info['effect_radius_pct']:.2f} %"
-            f", the bend per chord by up to {lift_info['effect_segment_bend_deg']:.3f} deg "
-            f"and a vertex bend by up to {lift_info['effect_bend_deg']:.3f} deg",
+            f"sigma) would move the radius by up to {lift_info.effect_radius_pct:.2f} %"
+            f", the bend per chord by up to {lift_info.effect_segment_bend_deg:.3f} deg "
+            f"and a vertex bend by up to {lift_info.effect_bend_deg:.3f} deg",
         )
     return fit
 
@@ -663,11 +667,7 @@ def _bound_lift(
         )
     if lift_warning:
         warnings.append(lift_warning)
-    if reading.moved_info is not None:
-        lift_info = {**lift_info, "moved": reading.moved_info}
-    if reading.shadow_info is not None:
-        lift_info = {**lift_info, "shadow": reading.shadow_info}
-    fit.lift_info = lift_info
+    fit.lift_info = replace(lift_info, moved=reading.moved_info, shadow=reading.shadow_info)
 
 
 def _seed_methods(

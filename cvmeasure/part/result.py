@@ -34,6 +34,9 @@ __all__ = [
     "DivisionsSource",
     "PlaneSummary",
     "PartWire",
+    "LiftUse",
+    "LiftSource",
+    "PartLift",
     "PartMeasurement",
 ]
 
@@ -186,6 +189,79 @@ class PartWire:
         return asdict(self)
 
 
+class LiftUse(StrEnum):
+    """How a part's lift off the plate was used: ``BOUND`` (its effect in the sigmas and
+    the ``part_lifted`` warning) or ``CORRECTION`` (the part refitted at the lift read)."""
+
+    BOUND = "bound"
+    CORRECTION = "correction"
+
+
+class LiftSource(StrEnum):
+    """Where the lift used came from: the wire's apparent ``WIDTH`` (the bound), its cast
+    ``SHADOW`` or a ``MOVED_PHOTO`` of the part slid on the plate (corrections)."""
+
+    WIDTH = "width"
+    SHADOW = "shadow"
+    MOVED_PHOTO = "moved_photo"
+
+
+@dataclass(frozen=True)
+class PartLift:
+    """A part's lift off the plate and what it may change (:mod:`cvmeasure.part.lift_use`).
+
+    Attributes
+    ----------
+    used : bounded or corrected (:class:`LiftUse`).
+    source : where the lift came from (:class:`LiftSource`).
+    lift_mm : bounded: the width's estimate (None without one); corrected: the lift
+        corrected with (the reading, or the bound it was read above), mm.
+    lift_sigma_mm : the estimate's or the reading's standard uncertainty, mm; else None.
+    bound_mm : the lift whose worst effect is reported below, mm.
+    effect_radius_pct : the bound's worst change of the radius, percent.
+    effect_segment_bend_deg : the bound's worst change of the bend per chord, degrees.
+    effect_bend_deg : the bound's worst change of a vertex bend, degrees.
+    read_lift_mm : corrected: the shadow's or the two photos' own reading, mm; else None.
+    details : the reading's own diagnostics as written to JSON (slopes, samples, lamp
+        direction, registration residuals; see ``docs/part-measurement.md``).
+    moved, shadow : bounded: a second photo's or the shadow's reading that was not used
+        (JSON diagnostics, with ``message`` saying why); else None.
+    """
+
+    used: LiftUse
+    source: LiftSource
+    lift_mm: float | None
+    lift_sigma_mm: float | None
+    bound_mm: float
+    effect_radius_pct: float
+    effect_segment_bend_deg: float
+    effect_bend_deg: float
+    read_lift_mm: float | None = None
+    details: dict[str, Any] = field(default_factory=dict)
+    moved: dict[str, Any] | None = None
+    shadow: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            **self.details,
+            "lift_mm": self.lift_mm,
+            "lift_sigma_mm": self.lift_sigma_mm,
+            "used": self.used.value,
+            "source": self.source.value,
+            "bound_mm": self.bound_mm,
+            "effect_radius_pct": self.effect_radius_pct,
+            "effect_segment_bend_deg": self.effect_segment_bend_deg,
+            "effect_bend_deg": self.effect_bend_deg,
+        }
+        if self.read_lift_mm is not None:
+            out["read_lift_mm"] = self.read_lift_mm
+        if self.moved is not None:
+            out["moved"] = self.moved
+        if self.shadow is not None:
+            out["shadow"] = self.shadow
+        return out
+
+
 @dataclass(frozen=True)
 class PartMeasurement:
     """Everything measured on one part photo.
@@ -213,16 +289,8 @@ class PartMeasurement:
     divisions_from : where the chord count came from (:class:`DivisionsSource`), or None
         (none: a smooth curve).
     chords_found : what the vertex search on the centreline found.
-    lift : with a wire diameter, the part's lift off the plate
-        (:mod:`cvmeasure.part.lift`): ``lift_mm`` (bounded: the width's estimate; corrected:
-        the lift corrected with, the reading or the bound it was read above, the reading
-        itself in ``read_lift_mm``), ``lift_sigma_mm`` (the estimate's or the reading's; None
-        without one), ``used`` (``"bound"``, or ``"correction"``
-        when a lift was measured and corrected), ``source`` (where the lift came from:
-        ``"width"`` for the bound, ``"moved_photo"`` or ``"shadow"`` for a correction),
-        ``bound_mm`` and the bound's worst effect on the radius (``effect_radius_pct``),
-        the bend per chord and a vertex bend (``effect_segment_bend_deg``,
-        ``effect_bend_deg``); else None.
+    lift : with a wire diameter, the part's lift off the plate and its effect
+        (:class:`PartLift`); else None.
     """
 
     source: str
@@ -244,7 +312,7 @@ class PartMeasurement:
     shape: str = "arc"
     divisions_from: DivisionsSource | None = None
     chords_found: ChordCount | None = None
-    lift: dict[str, Any] | None = None
+    lift: PartLift | None = None
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
@@ -275,6 +343,6 @@ class PartMeasurement:
             None if self.vertices_px is None else np.round(self.vertices_px, 2).tolist()
         )
         out["comparison"] = None if self.comparison is None else self.comparison.to_dict()
-        out["lift"] = self.lift
+        out["lift"] = None if self.lift is None else self.lift.to_dict()
         out["warnings"] = [w.to_json() for w in self.warnings]
         return out

@@ -95,7 +95,7 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     """Calibrate from 8 rendered views (922 x 614), then check a plane tilted 3 degrees."""
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.lens.detect import detect_board
     from cvmeasure.lens.pipeline import calibrate_detections

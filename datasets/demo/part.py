@@ -27,6 +27,7 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     from cvmeasure.design import load_design
     from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, atomic_write_text
     from cvmeasure.part.measure import measure_part
+    from cvmeasure.part.options import PartOptions
     from cvmeasure.part.overlay import deviation_plot_png, draw_overlay
 
     out = Path(out_dir) / "part"
@@ -44,7 +45,7 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
         photo.bgr,
         board,
         photo.camera,
-        divisions=20,
+        options=PartOptions(divisions=20),
         design=design,
         design_source=str(design_path),
         source="half-circle (rendered)",

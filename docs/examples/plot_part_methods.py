@@ -22,6 +22,7 @@ import numpy as np
 import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_part
+from cvmeasure.part.options import PartOptions
 
 board = CharucoBoardSpec(14, 10, 20.0, 15.0)
 photo = cvmeasure_datasets.render_part_photo(
@@ -31,7 +32,7 @@ photo = cvmeasure_datasets.render_part_photo(
     seed=7,
     scale=0.5,
 )
-m = measure_part(photo.bgr, board, photo.camera, divisions=20)
+m = measure_part(photo.bgr, board, photo.camera, options=PartOptions(divisions=20))
 print(f"{'method':<8} {'radius_mm':>10} {'bend/chord_deg':>15}   (truth 100 mm, 9 deg)")
 for name, res in m.methods.items():
     print(f"{name:<8} {res.radius_mm:10.3f} {res.segment_bend_deg:15.4f}")

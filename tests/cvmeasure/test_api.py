@@ -84,3 +84,28 @@ def test_bad_input_names_the_problem(tmp_path):
         )
     with pytest.raises(InputError, match="missing.jpg"):
         cvmeasure.measure_bender_photo(tmp_path / "missing.jpg")
+
+
+def test_measure_part_takes_its_options_and_reads_the_old_keywords(monkeypatch):
+    """The option keywords of earlier versions set the same PartOptions, with a warning."""
+    import cvmeasure.api as api
+    from cvmeasure.camera_model import CameraModel
+
+    seen: list = []
+    monkeypatch.setattr(api, "_measure_part", lambda *a, **k: seen.append(k["options"]))
+    cam = CameraModel((10, 10), np.eye(3), np.zeros(5))
+    args = (np.zeros((10, 10, 3), np.uint8),)
+    kw = {"board": CharucoBoardSpec(5, 4, 20.0, 15.0), "camera": cam}
+    opts = cvmeasure.PartOptions(
+        divisions=8, method="seed_sagitta", allow_mirror=False,
+        wire=cvmeasure.WireOptions(diameter_mm=2.0), lift=cvmeasure.LiftOptions(shadow=False),
+    )  # fmt: skip
+    cvmeasure.measure_part(*args, **kw, options=opts)
+    cvmeasure.measure_part(*args, **kw)
+    assert seen == [opts, cvmeasure.PartOptions()]
+    old = {"divisions": 8, "method": "sagitta", "allow_mirror": False}
+    with pytest.warns(DeprecationWarning, match=r"wire=WireOptions\(diameter_mm=\.\.\.\)"):
+        cvmeasure.measure_part(*args, **kw, **old, wire_diameter_mm=2.0, shadow_lift=False)
+    assert seen[-1] == opts  # the older method name read as the current one
+    with pytest.raises(TypeError, match="max_lift"):
+        cvmeasure.measure_part(*args, **kw, max_lift=2.0)

@@ -370,7 +370,7 @@ def test_spawned_workers_run_one_thread_each(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_part_photo_detected_and_measured_with_board_and_camera(tmp_path):
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure_datasets.parts import arc_part, render_part_photo
 
@@ -396,7 +396,7 @@ def test_part_photo_detected_and_measured_with_board_and_camera(tmp_path):
 def test_machine_photos_measured_on_a_plane(tmp_path, capsys):
     # a photo of a plate tilted 12 deg: with --plane the batch gives the true bend angle,
     # without it the tilt foreshortens it (as `cvmeasure measure --plane` does)
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure_datasets.bender import render_bender_photo
     from cvmeasure_datasets.lighting import Lighting

@@ -285,7 +285,7 @@ def test_alarm_mid_session_stops_safely_and_resumes(tmp_path):
 
 
 def test_session_reads_kit_and_camera_files(tmp_path, capsys):
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.fileio import atomic_write_json
     from cvmeasure.kit import default_kit
     from cvmeasure_datasets.simcapture import PhotoState, SimulatedCapture

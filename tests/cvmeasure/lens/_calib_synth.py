@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from cvmeasure.board import CharucoBoardSpec, ChessboardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 
 __all__ = ["board_texture", "render_view", "look_at_pose", "random_poses", "synthetic_detections"]
 

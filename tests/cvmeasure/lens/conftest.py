@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _calib_synth import random_poses, render_view  # noqa: E402
 
 from cvmeasure.board import board_from_dict  # noqa: E402
-from cvmeasure.camera import CameraModel  # noqa: E402
+from cvmeasure.camera_model import CameraModel  # noqa: E402
 
 #: The lens every synthetic test tries to recover (960x640, mild barrel distortion).
 TRUE_CAMERA = CameraModel.ideal(

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from _calib_synth import look_at_pose, render_view
 
-from cvmeasure.camera import load_camera, save_camera
+from cvmeasure.camera_model import load_camera, save_camera
 from cvmeasure.cli import main
 
 

@@ -49,7 +49,7 @@ def test_a_board_described_transposed_prints_the_same_numbers(true_camera):
 
 
 def _lens(true_camera, dist):
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
 
     return CameraModel.ideal(
         true_camera.image_size_px, 900.0, dist, principal_point_px=(486.0, 316.0)
@@ -145,7 +145,7 @@ def test_a_model_simpler_than_the_lens_is_warned_about_though_the_halves_agree()
     false-negative check). The richer model's F-test on the same corners catches it; on a
     lens that is exactly model 1 it stays quiet."""
     from cvmeasure.board import ChessboardSpec
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.lens.uncertainty import projection_diff
 
     board = ChessboardSpec(inner_x=9, inner_y=6, square_mm=25.0)

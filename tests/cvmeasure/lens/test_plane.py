@@ -59,7 +59,7 @@ def test_image_to_plane_maps_corners_to_board_mm(charuco_board, true_camera):
     d = plane.to_dict()
     assert d["affine_ok"] is False and len(d["H_board_image"]) == 3
     assert d["lens_uncertainty_mm"] == {"sigma_mm": None, "cross_validation_mm": None}
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
 
     cal = {
         "projection_uncertainty": {"median_px": 0.1},
@@ -153,7 +153,7 @@ def test_real_near_frontal_frames(shared_real):
 
 
 def test_plane_model_saves_and_loads_whole(tmp_path, charuco_board, true_camera):
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.contracts import PlaneModel
 
     rvec, tvec = look_at_pose(charuco_board, 380.0, 12.0, -7.0, (10.0, -5.0), 30.0)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.board import board_from_dict
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import detect_board
 from cvmeasure.lens.pipeline import calibrate_detections
 from cvmeasure.lens.uncertainty import projection_diff

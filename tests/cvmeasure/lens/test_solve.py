@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from _calib_synth import random_poses, synthetic_detections
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
 from cvmeasure.lens.detect import detect_board
 from cvmeasure.lens.solve import DISTORTION_MODELS, calibrate_views, model_flags

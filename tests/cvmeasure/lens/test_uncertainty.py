@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from _calib_synth import random_poses, synthetic_detections
 
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.coverage import image_coverage
 from cvmeasure.lens.detect import BoardDetection
 from cvmeasure.lens.solve import calibrate_views

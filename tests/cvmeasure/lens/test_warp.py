@@ -12,7 +12,7 @@ import pytest
 from _calib_synth import random_poses
 
 from cvmeasure.board import ChessboardSpec
-from cvmeasure.camera import CameraModel
+from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import BoardDetection
 from cvmeasure.lens.pipeline import calibrate_detections
 from cvmeasure.lens.solve import calibrate_views

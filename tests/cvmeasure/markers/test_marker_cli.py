@@ -7,7 +7,7 @@ import json
 import cv2
 import pytest
 
-from cvmeasure.camera import save_camera
+from cvmeasure.camera_model import save_camera
 from cvmeasure.cli import main
 from cvmeasure.fileio import atomic_write_json, read_csv_rows, read_jsonl
 from cvmeasure.kit import default_kit, load_kit

@@ -178,7 +178,7 @@ def test_height_parallax_is_the_homothety_about_the_foot_point():
 
 
 def test_cli_heights_parallel_and_the_record(tmp_path, capsys):
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
     from cvmeasure.contracts import MachinePhotoResult
 

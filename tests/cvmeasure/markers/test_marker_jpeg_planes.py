@@ -38,15 +38,15 @@ def test_measure_photo_file_reads_jpegs_through_the_planes(render, flat_kit, tmp
 def test_a_marker_missed_on_the_planes_path_is_measured_from_the_full_decode(
     render, flat_kit, tmp_path, monkeypatch
 ):
-    import cvmeasure.imageio
+    import cvmeasure.markers.measure as measure
     from cvmeasure.markers import MarkerNotFoundError, measure_photo_file
 
     photo = render(seed=32, occlude=(("pin", 1.0),))
     path, _ = photo.save(tmp_path / "hidden")
     full_reads = []
-    real = cvmeasure.imageio.read_photo
+    real = measure.read_photo
     monkeypatch.setattr(
-        cvmeasure.imageio, "read_photo", lambda *a, **k: full_reads.append(1) or real(*a, **k)
+        measure, "read_photo", lambda *a, **k: full_reads.append(1) or real(*a, **k)
     )
     with pytest.raises(MarkerNotFoundError, match="'pin'"):
         measure_photo_file(path, flat_kit, camera=photo.camera)

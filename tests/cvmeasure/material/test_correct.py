@@ -216,7 +216,7 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
 
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
     from cvmeasure.design import load_design
     from cvmeasure.fileio import atomic_write_json

@@ -9,6 +9,7 @@ import cvmeasure_datasets
 from cvmeasure.part.lift import MAX_LIFT_MM, LiftEstimate, lift_bound_mm, rocked_lift
 from cvmeasure.part.lift_use import lifted_points_mm
 from cvmeasure.part.measure import arc_from_points, measure_part
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.parts import lifted_centreline
@@ -89,13 +90,18 @@ def test_a_lifted_lab_part_is_warned_about_and_within_its_stated_bound():
         effects=SceneEffects(wire_3d=True, part_lift_mm=3.0),
     )
     m = measure_part(
-        photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM, shadow_lift=False
+        photo.bgr,
+        board,
+        photo.camera,
+        options=PartOptions(
+            divisions=8, wire=WireOptions(diameter_mm=WIRE_MM), lift=LiftOptions(shadow=False)
+        ),
     )
     radius_err_pct = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
     assert abs(radius_err_pct) > 0.3  # the lift matters here
-    assert m.lift is not None and m.lift["bound_mm"] == pytest.approx(MAX_LIFT_MM)
-    assert abs(radius_err_pct) <= m.lift["effect_radius_pct"] + 0.1
-    assert m.lift["effect_radius_pct"] < 2.0  # a bound, not a shrug
+    assert m.lift is not None and m.lift.bound_mm == pytest.approx(MAX_LIFT_MM)
+    assert abs(radius_err_pct) <= m.lift.effect_radius_pct + 0.1
+    assert m.lift.effect_radius_pct < 2.0  # a bound, not a shrug
     assert has_code(m.warnings, "part_lifted")
     vertex_err = np.abs(np.asarray(m.vertex_bend_deg)) - 15.0
     assert np.all(np.abs(vertex_err) < 2.0 * np.asarray(m.vertex_bend_sigma_deg))

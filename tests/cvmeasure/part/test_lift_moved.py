@@ -12,6 +12,7 @@ import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.lift import estimate_lift_moved
 from cvmeasure.part.measure import measure_part
+from cvmeasure.part.options import PartOptions, WireOptions
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.effects import SceneEffects
 from cvmeasure_datasets.optics import Pose
@@ -106,12 +107,15 @@ def test_the_photo_labs_part_slid_is_measured_on_its_own_plane(lift_mm, seed, sh
     -0.03 % and 0.006 deg. Lying flat it reads 0.29 +- 0.42 mm and stays within 0.06 %."""
     first, second = _lab(lift_mm, seed, sheet, shift_mm)
     m = measure_part(
-        first.bgr, BOARD, first.camera, divisions=8, wire_diameter_mm=WIRE_MM,
+        first.bgr,
+        BOARD,
+        first.camera,
+        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
         moved_image=second.bgr,
-    )  # fmt: skip
-    assert m.lift is not None and m.lift["used"] == "correction"
-    assert m.lift["lift_sigma_mm"] < 0.5
-    assert abs(m.lift["lift_mm"] - lift_mm) < 2.0 * m.lift["lift_sigma_mm"]
+    )
+    assert m.lift is not None and m.lift.used == "correction"
+    assert m.lift.lift_sigma_mm < 0.5
+    assert abs(m.lift.lift_mm - lift_mm) < 2.0 * m.lift.lift_sigma_mm
     assert abs(100.0 * (m.result.radius_mm / 62.0 - 1.0)) < 0.3
     assert abs(m.result.segment_bend_deg - 15.0) < 0.03
     assert not has_code(m.warnings, "moved_photo_unused")
@@ -120,12 +124,15 @@ def test_the_photo_labs_part_slid_is_measured_on_its_own_plane(lift_mm, seed, sh
 def test_the_same_photo_twice_is_not_a_moved_photo():
     first, _ = _lab(3.0, 1700, "dark", (0.0, 0.0))
     m = measure_part(
-        first.bgr, BOARD, first.camera, divisions=8, wire_diameter_mm=WIRE_MM,
+        first.bgr,
+        BOARD,
+        first.camera,
+        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
         moved_image=first.bgr,
-    )  # fmt: skip
+    )
     unused = [w.message for w in m.warnings if w.code == "moved_photo_unused"]
     assert unused and "not moved" in unused[0]
-    assert m.lift["used"] == "bound" and m.lift["moved"]["lift_mm"] is None
+    assert m.lift.used == "bound" and m.lift.moved["lift_mm"] is None
     assert has_code(m.warnings, "part_lifted")
 
 
@@ -134,7 +141,7 @@ def test_cli_part_moved(tmp_path, capsys):
     wire diameter the option is refused (exit 2) naming it."""
     import cv2
 
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
     from cvmeasure.fileio import atomic_write_json
 

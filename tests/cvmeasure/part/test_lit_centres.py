@@ -9,6 +9,7 @@ import numpy as np
 
 import cvmeasure_datasets
 from cvmeasure.part.measure import measure_centreline_mm
+from cvmeasure.part.options import PartOptions, WireOptions
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
@@ -76,9 +77,13 @@ def test_lifted_parts_vertex_bends_hold_their_sigma():
 
     photo = _photo()
     m = measure_part(
-        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=3.0, divisions=DIVISIONS
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(divisions=DIVISIONS, wire=WireOptions(diameter_mm=3.0)),
     )
-    assert m.lift["used"] == "correction" and m.lift["lift_mm"] >= 2.0  # measured 2.78 +- 0.21
+    assert m.lift.used == "correction" and m.lift.lift_mm >= 2.0  # measured 2.78 +- 0.21
     err = np.asarray(m.vertex_bend_deg) - 120.0 / DIVISIONS
     sigma = np.asarray(m.vertex_bend_sigma_deg)
     # measured: -0.009 0.002 0.003 0.002 0.046 -0.028 deg at sigmas 0.012-0.018 (part14s; the

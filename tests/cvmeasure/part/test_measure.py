@@ -12,6 +12,7 @@ from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.design import arc_points_mm, load_design
 from cvmeasure.part.compare import point_to_polyline
 from cvmeasure.part.measure import measure_part
+from cvmeasure.part.options import PartOptions
 from cvmeasure.warning import codes, has_code
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
@@ -50,7 +51,9 @@ def test_arcs_on_both_sheets(kind, sheet):
     photo = _photo(kind, sheet)
     truth = photo.truth
     n = truth["divisions"]
-    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=n, source=f"{kind}-{sheet}")
+    m = measure_part(
+        photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=n), source=f"{kind}-{sheet}"
+    )
     assert m.result.method == "centreline_fit"
     assert m.result.radius_mm == pytest.approx(truth["radius_mm"], rel=RADIUS_REL)
     assert m.result.segment_bend_deg == pytest.approx(
@@ -76,19 +79,22 @@ def test_arcs_on_both_sheets(kind, sheet):
 def test_headline_method_can_be_the_seeds():
     photo = _photo("half", "dark")
     m = measure_part(
-        photo.bgr, BOARD, photo.camera, divisions=10, method="sagitta"
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        options=PartOptions(divisions=10, method="sagitta"),
     )  # the older name is read
     assert m.result.method == "seed_sagitta"
     assert m.result.radius_mm == m.methods["seed_sagitta"].radius_mm
     with pytest.raises(ValueError, match="method must be one of"):
-        measure_part(photo.bgr, BOARD, photo.camera, method="hough")  # type: ignore[arg-type]
+        PartOptions(method="hough")  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("sheet", ["dark", "light"])
 def test_saddle_bends_change_sign(sheet):
     photo = _photo("saddle", sheet)
     truth = photo.truth
-    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=13)
+    m = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=13))
     true_bends = np.asarray(truth["segment_bend_deg"])
     assert np.sign(true_bends).min() < 0 < np.sign(true_bends).max()
     assert _aligned_bend_error(m.vertex_bend_deg, true_bends) < VERTEX_BEND_DEG
@@ -103,13 +109,13 @@ def test_without_divisions_the_vertices_are_found_in_the_photo():
     photo = _photo("short", "dark")
     m = measure_part(photo.bgr, BOARD, photo.camera)
     assert m.divisions_from == "photo" and m.result.divisions == 6  # 5 vertices found
-    given = measure_part(photo.bgr, BOARD, photo.camera, divisions=6)
+    given = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=6))
     assert m.result.radius_mm == pytest.approx(given.result.radius_mm, abs=1e-9)
     assert m.result.radius_mm == pytest.approx(80.0, rel=3e-3)  # the vertices' circle
     assert len(m.chords_found.vertex_arclength_mm) == 5
     assert not codes(m.warnings) & {"divisions_mismatch", "divisions_not_found"}
     # a wrong --divisions is used as given, and said
-    wrong = measure_part(photo.bgr, BOARD, photo.camera, divisions=5)
+    wrong = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=5))
     assert any(
         w.code == "divisions_mismatch"
         and "--divisions 5, but the photo shows 6 chords" in w.message
@@ -120,7 +126,7 @@ def test_without_divisions_the_vertices_are_found_in_the_photo():
 @pytest.mark.parametrize("kind", ["half", "short"])
 def test_a_seed_method_far_from_the_centreline_is_warned_about(kind):
     photo = _photo(kind, "light")
-    m = measure_part(photo.bgr, BOARD, photo.camera, method="seed_ellipse")
+    m = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(method="seed_ellipse"))
     ours = m.methods["centreline_fit"].arc_angle_deg
     for name in ("seed_ellipse", "seed_sagitta"):
         if name not in m.methods:
@@ -163,7 +169,9 @@ def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
     doc.saveas(dxf)
     for path in (svg, dxf):
         design = load_design(path).wire()
-        m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, design=design)
+        m = measure_part(
+            photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=10), design=design
+        )
         cmp = m.comparison
         assert cmp is not None and cmp.bends is not None
         assert cmp.design_arc.radius_mm == pytest.approx(60.0, abs=1e-6)
@@ -179,7 +187,13 @@ def test_comparison_with_the_design_from_svg_and_dxf(tmp_path):
     doc2 = ezdxf.new()
     doc2.modelspace().add_lwpolyline(arc_points_mm((0, 0), 70.0, 0.0, 180.0, chords=10))
     doc2.saveas(other)
-    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=10, design=load_design(other).wire())
+    m = measure_part(
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        options=PartOptions(divisions=10),
+        design=load_design(other).wire(),
+    )
     assert m.comparison.deviation.max_mm > 3.0
     # the 70 mm polyline's chords turn by 18 deg as well: only the size differs
     assert abs(m.comparison.bends.seed_absolute_error_deg) < SEGMENT_BEND_DEG
@@ -209,7 +223,7 @@ def test_raised_plane_mapping_inverts_the_projection():
 
 def test_real_board_photos_without_a_wire_are_refused(shared_real):
     """Real photos of a ChArUco board on a cluttered desk: thin lines, but no wire."""
-    from cvmeasure.camera import CameraModel
+    from cvmeasure.camera_model import CameraModel
     from cvmeasure.errors import InputError
     from cvmeasure.imageio import read_photo
 

@@ -16,6 +16,7 @@ import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.design import DesignPath
 from cvmeasure.part.measure import measure_part
+from cvmeasure.part.options import PartOptions
 from cvmeasure.wireplan import polygon_from_chords
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
@@ -52,7 +53,7 @@ def test_unequal_chords_measured_against_the_polygon_bent(name):
         BOARD,
         photo.camera,
         design=design,
-        allow_mirror=False,
+        options=PartOptions(allow_mirror=False),
         reference_mm=verts,
         source=name,
     )
@@ -67,12 +68,22 @@ def test_without_a_plan_the_corners_are_kept_and_equal_chords_misread():
     the old reference (the design in equal chords) errs by degrees: the test can fail."""
     verts, photo = _photo("zigzag")
     design = DesignPath(verts, False, "polyline", "zigzag")
-    m = measure_part(photo.bgr, BOARD, photo.camera, divisions=4, design=design, allow_mirror=False)
+    m = measure_part(
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        options=PartOptions(divisions=4, allow_mirror=False),
+        design=design,
+    )
     assert m.comparison.bends.max_abs_error_deg < VERTEX_BEND_DEG
     old = measure_part(
-        photo.bgr, BOARD, photo.camera, design=design, allow_mirror=False,
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        design=design,
+        options=PartOptions(allow_mirror=False),
         reference_mm=design.chords(4),
-    )  # fmt: skip
+    )
     assert old.comparison.bends.max_abs_error_deg > 1.0
 
 
@@ -84,12 +95,19 @@ def test_the_polygon_bent_sets_the_chord_count_even_when_the_photo_shows_another
     bent = np.vstack((verts[:2], mid, verts[2:]))  # 5 chords, one vertex of 0 deg
     design = DesignPath(bent, False, "polyline", "zigzag")
     m = measure_part(
-        photo.bgr, BOARD, photo.camera, design=design, allow_mirror=False, reference_mm=bent,
-    )  # fmt: skip
+        photo.bgr,
+        BOARD,
+        photo.camera,
+        design=design,
+        options=PartOptions(allow_mirror=False),
+        reference_mm=bent,
+    )
     assert m.result.divisions == 5
     assert "divisions_mismatch" in [w.code for w in m.warnings]
     bends = m.comparison.bends
     np.testing.assert_allclose(bends.design_bend_deg, [45.0, 0.0, -45.0, 45.0], atol=1e-9)
     assert bends.max_abs_error_deg < VERTEX_BEND_DEG
     with pytest.raises(ValueError, match="polygon bent has 5 chords"):
-        measure_part(photo.bgr, BOARD, photo.camera, divisions=4, reference_mm=bent)
+        measure_part(
+            photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=4), reference_mm=bent
+        )

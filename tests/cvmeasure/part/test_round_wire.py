@@ -13,6 +13,7 @@ from cvmeasure.errors import InputError
 from cvmeasure.part.centreline import measure_centreline
 from cvmeasure.part.lift import expected_width_px, points_at_heights_mm
 from cvmeasure.part.measure import measure_part
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.segment import gray_float, segment_wire
 from cvmeasure.warning import codes, has_code
 from cvmeasure_datasets.optics import Pose
@@ -92,15 +93,20 @@ def test_a_lifted_part_is_refused_warned_about_or_right(sheet, lift_mm):
     photo = _photo(sheet, lift_mm)
     try:
         m = measure_part(
-            photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=8,
-            shadow_lift=False,
-        )  # fmt: skip
+            photo.bgr,
+            None,
+            None,
+            plane=photo.plane,
+            options=PartOptions(
+                divisions=8, wire=WireOptions(diameter_mm=WIRE_MM), lift=LiftOptions(shadow=False)
+            ),
+        )
     except InputError:
         return  # a clear refusal
     radius_err_pct = abs(100.0 * (m.result.radius_mm / 50.0 - 1.0))
     bend_err = float(np.max(np.abs(np.abs(m.vertex_bend_deg) - 15.0)))
     warned = has_code(m.warnings, "part_lifted")
-    assert m.lift is not None and m.lift["used"] == "bound"
+    assert m.lift is not None and m.lift.used == "bound"
     assert warned or (radius_err_pct <= 0.3 and bend_err <= 0.03), (m.warnings, radius_err_pct)
 
 
@@ -145,7 +151,12 @@ def test_the_photo_labs_round_wire_is_never_silently_wrong(lift_mm):
         effects=SceneEffects(wire_3d=True, part_lift_mm=lift_mm),
     )
     try:
-        m = measure_part(photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM)
+        m = measure_part(
+            photo.bgr,
+            board,
+            photo.camera,
+            options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
+        )
     except InputError:
         return
     radius_err_pct = abs(100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0))
@@ -174,7 +185,12 @@ def test_the_photo_labs_round_wire_is_followed_between_its_silhouette_edges():
         ),
         effects=SceneEffects(wire_3d=True),
     )
-    m = measure_part(photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM)
+    m = measure_part(
+        photo.bgr,
+        board,
+        photo.camera,
+        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
+    )
     assert not has_code(m.warnings, "round_wire_edges_lost"), m.warnings
     # 0.51 mm/px: measured radius 0.20 %, bend 0.021 deg (the symmetric centre: 0.52 deg)
     assert abs(m.result.radius_mm / photo.truth["radius_mm"] - 1.0) < 0.003
@@ -207,7 +223,12 @@ def test_a_side_lit_lab_wire_on_the_light_sheet_is_measured_to_its_caps():
         ),
         effects=SceneEffects(wire_3d=True),
     )
-    m = measure_part(photo.bgr, board, photo.camera, divisions=8, wire_diameter_mm=WIRE_MM)
+    m = measure_part(
+        photo.bgr,
+        board,
+        photo.camera,
+        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
+    )
     assert m.wire.centre_from == "silhouette"
     # the targets of issue 14: radius within 0.3 %, bend per chord within 0.03 deg
     assert abs(m.result.radius_mm / photo.truth["radius_mm"] - 1.0) < 0.003
@@ -231,7 +252,11 @@ def test_an_end_facing_its_shadow_on_a_light_plate_is_found_at_its_cap():
         lift_direction_deg=20.0, sheet="light", light_azimuth_deg=0.0, light_elev_deg=50.0,
     )  # fmt: skip
     m = measure_part(
-        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=8
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
     rot, t_mm = POSE.extrinsics("board")
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
@@ -259,7 +284,11 @@ def test_a_chord_whose_shadow_joins_its_silhouette_keeps_its_centres():
         light_elev_deg=54.97370483416649, seed=9103,
     )  # fmt: skip
     m = measure_part(
-        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=10
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(divisions=10, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
     err = np.asarray(m.vertex_bend_deg) - 12.0
     assert np.max(np.abs(err)) < 0.12, err
@@ -286,7 +315,11 @@ def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
         light_elev_deg=61.40, seed=9101,
     )  # fmt: skip
     m = measure_part(
-        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=6
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(divisions=6, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
     rot, t_mm = pose.extrinsics("board")
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
@@ -319,9 +352,14 @@ def test_a_dark_sheets_vertex_bends_are_off_by_the_noise_not_by_the_shading(nois
         noise=noise,
     )  # fmt: skip
     m = measure_part(
-        photo.bgr, None, None, plane=photo.plane, wire_diameter_mm=WIRE_MM, divisions=6,
-        max_lift_mm=0.0,
-    )  # fmt: skip
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(
+            divisions=6, wire=WireOptions(diameter_mm=WIRE_MM), lift=LiftOptions(max_lift_mm=0.0)
+        ),
+    )
     err = np.asarray(m.vertex_bend_deg) - 15.0
     if noise == 0.0:
         assert np.max(np.abs(err)) < 0.03, err

@@ -15,7 +15,7 @@ import pytest
 
 import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
-from cvmeasure.camera import save_camera
+from cvmeasure.camera_model import save_camera
 from cvmeasure.cli import main
 from cvmeasure.design import DesignPath, load_design
 from cvmeasure.fileio import atomic_write_json

@@ -12,6 +12,7 @@ import pytest
 import cvmeasure_datasets
 from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.part.measure import measure_centreline_mm
+from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.part.shadow import estimate_lift_shadow
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
@@ -96,7 +97,7 @@ def test_cli_part_shadow_lift(tmp_path, capsys):
 
     import cv2
 
-    from cvmeasure.camera import save_camera
+    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
 
     photo, _ = _photo("dark", 3.0, 55.0, 300.0, 9104)
@@ -192,11 +193,17 @@ def test_the_photo_labs_lifted_part_is_corrected_from_its_shadow():
 
     photo, _, _ = _lab_photo(2101, 1, 2.0)
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera,
-        divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
-    )  # fmt: skip
-    assert m.lift is not None and m.lift["used"] == "correction", m.lift
-    assert abs(m.lift["lift_mm"] - 2.0) < 2.0 * m.lift["lift_sigma_mm"] + 0.1
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(
+            divisions=photo.truth["divisions"],
+            wire=WireOptions(diameter_mm=WIRE_MM),
+            lift=LiftOptions(shadow=True),
+        ),
+    )
+    assert m.lift is not None and m.lift.used == "correction", m.lift
+    assert abs(m.lift.lift_mm - 2.0) < 2.0 * m.lift.lift_sigma_mm + 0.1
     assert abs(100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)) < 0.3
 
 
@@ -242,14 +249,20 @@ def test_a_textured_lab_sheet_is_not_corrected_silently_wrong():
 
     photo = _lab_render(2000, 1, replace(SceneEffects.all_on(), part_lift_mm=0.0))  # light
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera,
-        divisions=photo.truth["divisions"], wire_diameter_mm=WIRE_MM, shadow_lift=True,
-    )  # fmt: skip
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(
+            divisions=photo.truth["divisions"],
+            wire=WireOptions(diameter_mm=WIRE_MM),
+            lift=LiftOptions(shadow=True),
+        ),
+    )
     assert m.lift is not None
-    if m.lift["used"] == "correction":
-        assert abs(m.lift["lift_mm"]) < 2.0 * m.lift["lift_sigma_mm"]
+    if m.lift.used == "correction":
+        assert abs(m.lift.lift_mm) < 2.0 * m.lift.lift_sigma_mm
     else:
-        assert m.lift["shadow"]["lift_mm"] is None or m.lift["shadow"]["lift_sigma_mm"] > 0.5
+        assert m.lift.shadow["lift_mm"] is None or m.lift.shadow["lift_sigma_mm"] > 0.5
 
 
 def test_a_dark_textured_lab_sheet_widens_the_shadow_lift():
@@ -398,17 +411,20 @@ def test_an_uncertain_shadow_lift_is_corrected_with_its_sigma_carried():
     photo = _lab_render(2002, 0, replace(SceneEffects.all_on(), part_lift_mm=3.0))  # dark
     n = photo.truth["divisions"]
     m = measure_part(
-        photo.bgr, LAB_BOARD, photo.camera, divisions=n, wire_diameter_mm=WIRE_MM,
-    )  # fmt: skip
-    assert m.lift is not None and m.lift["used"] == "correction", m.lift
-    assert m.lift["source"] == "shadow"
-    assert 2.0 * m.lift["lift_sigma_mm"] > SHADOW_MAX_2SIGMA_MM  # the case this is about
-    assert abs(m.lift["lift_mm"] - 3.0) < 2.0 * m.lift["lift_sigma_mm"]
+        photo.bgr,
+        LAB_BOARD,
+        photo.camera,
+        options=PartOptions(divisions=n, wire=WireOptions(diameter_mm=WIRE_MM)),
+    )
+    assert m.lift is not None and m.lift.used == "correction", m.lift
+    assert m.lift.source == "shadow"
+    assert 2.0 * m.lift.lift_sigma_mm > SHADOW_MAX_2SIGMA_MM  # the case this is about
+    assert abs(m.lift.lift_mm - 3.0) < 2.0 * m.lift.lift_sigma_mm
     assert has_code(m.warnings, "part_lifted")
     radius_err = 100.0 * (m.result.radius_mm / photo.truth["radius_mm"] - 1.0)
-    assert abs(radius_err) < min(0.3, m.lift["effect_radius_pct"])
+    assert abs(radius_err) < min(0.3, m.lift.effect_radius_pct)
     bend_err = m.result.segment_bend_deg - photo.truth["arc_angle_deg"] / n
-    assert abs(bend_err) < m.lift["effect_segment_bend_deg"]
+    assert abs(bend_err) < m.lift.effect_segment_bend_deg
 
 
 @pytest.mark.parametrize(
@@ -506,21 +522,25 @@ def test_a_confident_shadow_lift_inconsistent_with_the_bound_is_not_used(
             lambda *a, **k: _faked_shadow(real(*a, **k), lift_mm, sigma_mm),
         )  # fmt: skip
     m = measure.measure_part(
-        photo.bgr, None, None, plane=plane, wire_diameter_mm=WIRE_MM, divisions=7
+        photo.bgr,
+        None,
+        None,
+        plane=plane,
+        options=PartOptions(divisions=7, wire=WireOptions(diameter_mm=WIRE_MM)),
     )
-    assert m.lift is not None and m.lift["used"] == used, m.lift
+    assert m.lift is not None and m.lift.used == used, m.lift
     lifted = [str(w) for w in m.warnings if w.code == "part_lifted"]
     if used == "bound":
-        assert m.lift["source"] == "width" and m.lift["bound_mm"] == pytest.approx(3.0)
-        assert m.lift["shadow"]["lift_mm"] == pytest.approx(7.42)
+        assert m.lift.source == "width" and m.lift.bound_mm == pytest.approx(3.0)
+        assert m.lift.shadow["lift_mm"] == pytest.approx(7.42)
         assert len(lifted) == 1 and "shadow was not used" in lifted[0]
         assert "inconsistent" in lifted[0]
     else:
-        assert m.lift["source"] == "shadow"
-        assert m.lift["lift_mm"] == pytest.approx(3.0, abs=0.3)
+        assert m.lift.source == "shadow"
+        assert m.lift.lift_mm == pytest.approx(3.0, abs=0.3)
         if lift_mm is not None:  # read above the bound: the lift used is the bound
-            assert m.lift["lift_mm"] == pytest.approx(3.0)
-            assert m.lift["read_lift_mm"] == pytest.approx(lift_mm)
+            assert m.lift.lift_mm == pytest.approx(3.0)
+            assert m.lift.read_lift_mm == pytest.approx(lift_mm)
         else:
-            assert m.lift["read_lift_mm"] == m.lift["lift_mm"]
+            assert m.lift.read_lift_mm == m.lift.lift_mm
         assert abs(100.0 * (m.result.radius_mm / 60.0 - 1.0)) < 0.3

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from cvmeasure.camera import load_camera
+from cvmeasure.camera_model import load_camera
 from cvmeasure_datasets.demo.calibration import demo_step
 
 

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from cvmeasure.camera import CameraModel, load_camera, save_camera
+from cvmeasure.camera_model import CameraModel, load_camera, save_camera
 from cvmeasure.errors import InputError
 
 
