@@ -151,26 +151,21 @@ def _library(case: dict[str, Any], moved: bool) -> tuple[float, Any]:
     from cvmeasure.camera_model import load_camera
     from cvmeasure.imageio import read_photo
     from cvmeasure.part.measure import measure_part
-    from cvmeasure.part.options import PartOptions
+    from cvmeasure.part.options import PartOptions, WireOptions
 
     image = read_photo(case["photo"]).bgr
     second = read_photo(case["moved"]).bgr if moved else None
-    if "plane" in case:
-        kw = {"plane": case["plane"], "wire_diameter_mm": 3.0}
+    if "plane" in case:  # the round wire on a plane (--plane --wire-diameter-mm 3)
+        kw = {"plane": case["plane"]}
+        options = PartOptions(divisions=case["divisions"], wire=WireOptions(diameter_mm=3.0))
         board = camera = None
     else:
         board = CharucoBoardSpec(*BOARD_DIMS)
         camera = load_camera(case["args"][3])
         kw = {}
+        options = PartOptions(divisions=case["divisions"])
     c0 = time.process_time()
-    m = measure_part(
-        image,
-        board,
-        camera,
-        options=PartOptions(divisions=case["divisions"]),
-        moved_image=second,
-        **kw,
-    )
+    m = measure_part(image, board, camera, options=options, moved_image=second, **kw)
     return time.process_time() - c0, m
 
 
