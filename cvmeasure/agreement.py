@@ -22,6 +22,9 @@ methods of clinical measurement. Lancet 327:307-310. doi:10.1016/S0140-6736(86)9
 Bland JM, Altman DG (2007) Agreement between methods of measurement with multiple
 observations per individual. J Biopharm Stat 17:571-582. doi:10.1080/10543400701329422
 AIAG (2010) Measurement Systems Analysis, 4th ed. (ANOVA gauge R&R).
+
+``scipy.stats`` is imported in the functions that use it (half a second or more on
+import), so the modules that only write agreement tables start fast.
 """
 
 from __future__ import annotations

@@ -135,8 +135,6 @@ def board_from_dict(data: Any, *, source: str = "board JSON") -> BoardSpec:
                 dictionary=str(data.get("dictionary", "DICT_5X5_100")),
                 legacy_pattern=bool(data.get("legacy_pattern", False)),
             )
-            import cv2
-
             if not hasattr(cv2.aruco, spec.dictionary):
                 raise InputError(source, f"unknown ArUco dictionary {spec.dictionary!r}")
             if spec.squares_x < 2 or spec.squares_y < 2:

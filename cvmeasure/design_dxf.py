@@ -2,6 +2,8 @@
 
 Coordinates are used as they are (the design frame: x right, y up). Arcs and bulges are
 kept on their true circles; ellipses and splines are flattened within the tolerance.
+
+ezdxf is imported only when a DXF file is read.
 """
 
 from __future__ import annotations

@@ -3,6 +3,8 @@
 SVG's y-down user space (96 px per inch, as CSS and svgelements define it) is mirrored to
 the design frame's y up (:mod:`cvmeasure.design`). A document without physical units is
 read only where the program that wrote it declares its px, or the operator says.
+
+svgelements and the XML parser are imported only when an SVG file is read.
 """
 
 from __future__ import annotations

@@ -190,8 +190,6 @@ def read_text_file(path: str | os.PathLike[str], *, what: str, encoding: str = "
     """
     path = Path(path)
     if os.fspath(path) == STDIO:
-        import sys
-
         try:
             return sys.stdin.buffer.read().decode(encoding)
         except UnicodeDecodeError as exc:

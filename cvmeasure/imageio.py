@@ -14,6 +14,9 @@ fancy chroma upsampling: the same pixels as ``cv2.imdecode``, bit for bit, in
 (CMYK, 12-bit, damaged files) goes to OpenCV as before. A marker measurement from a
 JPEG file (``measure_photo_file``) decodes only its Y, Cb, Cr planes where Debian's
 libturbojpeg is installed, and makes BGR only where it reads (:mod:`cvmeasure.jpegplanes`).
+
+Pillow and simplejpeg are imported in the functions that read a photo, so the commands
+that import this module without reading one start without them.
 """
 
 from __future__ import annotations

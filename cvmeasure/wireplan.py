@@ -26,6 +26,9 @@ and kept in the job's header.
 Frames: the design frame (x right, y up, mm); turns counter-clockwise positive walking
 from the first (fed-first) point; machine bends are minus the turns
 (:func:`cvmeasure.gcode.bend_list`).
+
+``scipy.spatial`` is imported only where two polylines' Hausdorff distance is taken
+(half a second or more on import), not when this module is imported.
 """
 
 from __future__ import annotations

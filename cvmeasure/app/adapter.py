@@ -6,6 +6,9 @@ its module, and only here: the automatic session and the streamer (:mod:`cvmeasu
 the coverage advice and the per-view board detection of the lens calibration, the fast
 marker search of the live view, the photo overlays, and the nominal simulation the app starts
 from before any material session. Functions return typed values, never dicts.
+
+The driver's session log and serial transport are imported when the operator first
+reads a session or opens a link, so the app's pages come up without them.
 """
 
 from __future__ import annotations

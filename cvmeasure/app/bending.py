@@ -76,8 +76,6 @@ class Bending:
             self._last_part = (str(last["item"]), str(last["design"]), int(last["part"]))
         parts = self.op.folder / "parts.jsonl"
         if parts.is_file():
-            from cvmeasure.fileio import read_jsonl
-
             st.inspect.history = read_jsonl(parts, skip_partial_last=True)[-200:]
 
     def _restore_job(self) -> None:

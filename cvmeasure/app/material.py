@@ -20,7 +20,7 @@ import cv2
 from cvmeasure.app import adapter
 from cvmeasure.app.state import Busy, MaterialState, MaterialStep
 from cvmeasure.errors import CvmeasureError, DeviceError, InputError
-from cvmeasure.fileio import atomic_write_bytes, atomic_write_json
+from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, read_json, write_csv_rows
 
 if TYPE_CHECKING:
     from cvmeasure.app.operator import Operator
@@ -100,8 +100,6 @@ class Material:
         self.state.loo_score_deg = _loo(cal)
         saved = self.folder / "result.json"
         if saved.is_file():
-            from cvmeasure.fileio import read_json
-
             d = read_json(saved)
             self.state.diagnosis = str(d.get("diagnosis", ""))
             self.state.follow_up = bool(d.get("follow_up", False))
@@ -286,8 +284,6 @@ class Material:
         d = adapter.diagnose_session([st.sample() for st in result.steps])
         s.diagnosis, s.follow_up = d.sentence, bool(d.follow_up_rows)
         if d.follow_up_rows:
-            from cvmeasure.fileio import write_csv_rows
-
             write_csv_rows(
                 self.folder / "follow_up.csv", d.follow_up_rows, ("trial", "commanded_pin_deg")
             )

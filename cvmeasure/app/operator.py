@@ -204,8 +204,6 @@ class Operator:
         def work() -> None:
             self.publish("lens")
             try:
-                import cv2
-
                 path = rig.capture("board_view", f"view{index:02d}", self.folder / "lens", index)
                 det = adapter.detect_board_view(cv2.imread(str(path)), path.name)
                 usable = bool(getattr(det, "ok", True)) and len(det.corners_px) > 0

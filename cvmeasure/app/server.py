@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
+import numpy as np
 from fastapi import FastAPI, File, Request, UploadFile
 from fastapi.responses import (
     FileResponse,
@@ -441,8 +442,6 @@ async def _mjpeg(op: Operator, width: int):
         rig = op.rig
         frame = None if rig is None else await asyncio.to_thread(rig.live_frame, width)
         if frame is None:
-            import numpy as np
-
             frame = np.full((int(width * 2 / 3), width, 3), 40, np.uint8)
             cv2.putText(frame, "no camera connected", (30, 60), cv2.FONT_HERSHEY_SIMPLEX, 1.2,
                         (220, 220, 220), 2)  # fmt: skip

@@ -57,6 +57,7 @@ from cvmeasure.diagnose.fitting import (
     grouped_kfold_cv,
     learned_form,
 )
+from cvmeasure.diagnose.follow_up import Rival, propose_follow_up
 from cvmeasure.diagnose.misfit import (
     curve_rms_deg,
     springback_rms_deg,
@@ -298,8 +299,6 @@ def _with_follow_up(
     Only computed when there is a tie of two such rivals."""
     if not enabled or not result.tie or len(trials) != result.n_trials:
         return result
-    from cvmeasure.diagnose.follow_up import Rival, propose_follow_up
-
     rivals: list[Rival] = []
     for label in result.tie:
         cause = Cause.parse(label)

@@ -1,4 +1,7 @@
-"""Residual plots before and after the diagnosis (PNG bytes, matplotlib without pyplot)."""
+"""Residual plots before and after the diagnosis (PNG bytes, matplotlib without pyplot).
+
+matplotlib is imported only when a plot is drawn (half a second or more on import).
+"""
 
 from __future__ import annotations
 

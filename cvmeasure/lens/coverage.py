@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.lens.detect import BoardDetection
@@ -81,8 +82,6 @@ class Coverage:
 
 
 def _tilt_components(rvec: np.ndarray) -> tuple[float, float, float]:
-    import cv2
-
     rot, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     n = rot[:, 2] * np.sign(rot[2, 2] or 1.0)
     tilt = float(np.degrees(np.arccos(np.clip(n[2], -1.0, 1.0))))

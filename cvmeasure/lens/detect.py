@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.board import BoardSpec, CharucoBoardSpec, ChessboardSpec
@@ -129,8 +130,6 @@ def _empty(source: str, size: tuple[int, int], reason: str, **kw: Any) -> BoardD
 
 
 def _as_gray(image: np.ndarray) -> np.ndarray:
-    import cv2
-
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
@@ -167,8 +166,6 @@ _MAX_GRID_BEND = 0.35
 def _grid_bend(grid: np.ndarray) -> float:
     """Worst corner offset from the homography of its 4x4 window of a (rows, cols, 2) grid,
     over that window's smallest corner spacing."""
-    import cv2
-
     ny, nx = grid.shape[:2]
     wy, wx = min(4, ny), min(4, nx)
     if wy * wx < 5:
@@ -260,8 +257,6 @@ def detect_chessboard(
     source : str
         Name used in the result and its reasons.
     """
-    import cv2
-
     gray = _as_gray(image)
     h, w = gray.shape
     size = (w, h)
@@ -304,8 +299,6 @@ def detect_chessboard(
 
 
 def _charuco_once(gray: np.ndarray, board: CharucoBoardSpec, legacy: bool):
-    import cv2
-
     cv_board = board.cv_board()
     cv_board.setLegacyPattern(legacy)
     detector = cv2.aruco.CharucoDetector(cv_board)

@@ -11,7 +11,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+import cv2
 import numpy as np
+from scipy.stats import f as f_dist
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.camera_model import CameraModel
@@ -176,8 +178,6 @@ def _held_out(
     of squared residuals (px^2) and corner counts in the centre and at the edge (arrays,
     parallel), or None when a half has fewer than 3 views or a fit fails.
     """
-    import cv2
-
     halves = (list(detections[0::2]), list(detections[1::2]))
     if min(len(h) for h in halves) < 3:
         return None
@@ -294,8 +294,6 @@ def _richer_supported(simple: dict[str, Any], rich: dict[str, Any]) -> dict[str,
     than the simpler one's by more than :data:`HELD_OUT_WORSE_Z` standard errors
     (:func:`_paired_z`) is never supported.
     """
-    from scipy.stats import f as f_dist
-
     sf, rf = simple["fit"], rich["fit"]
     extra = [k for k in rf["coeffs"] if k not in sf["coeffs"]]
     t = {

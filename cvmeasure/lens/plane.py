@@ -18,6 +18,7 @@ Frames
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from cvmeasure.board import BoardSpec
@@ -103,8 +104,6 @@ def fit_plane(
     Raises :class:`InputError` (naming the detection's source) when the
     detection is unusable or the photo size does not match the camera.
     """
-    import cv2
-
     if not detection.ok:
         raise InputError(detection.source, detection.reason)
     # a photo resized by one factor (a reduced JPEG, a half-size RAW) gets the camera rescaled
@@ -217,8 +216,6 @@ def rectify_image(
     region_mm : (x0, y0, x1, y1), optional
         Board-frame rectangle to render; default the whole image footprint.
     """
-    import cv2
-
     if region_mm is None:
         w, h = plane.camera.image_size_px
         frame = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], dtype=np.float64)

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 
 from cvmeasure.camera_model import CameraModel
@@ -79,8 +80,6 @@ def model_flags(model: str) -> int:
     ``CALIB_DISABLE_SCHUR_COMPLEMENT`` is never used: in OpenCV 5.0.0 it has the
     same value as ``CALIB_TILTED_MODEL`` (0x40000) and silently frees tau_x, tau_y.
     """
-    import cv2
-
     if model not in DISTORTION_MODELS:
         raise ValueError(
             f"unknown distortion model {model!r}; choose one of {list(DISTORTION_MODELS)}"
@@ -98,8 +97,6 @@ def model_flags(model: str) -> int:
 
 def tilt_deg_from_rvec(rvec: np.ndarray) -> float:
     """Angle between the board normal and the optical axis, degrees (0 = fronto-parallel)."""
-    import cv2
-
     rot, _ = cv2.Rodrigues(np.asarray(rvec, dtype=np.float64).reshape(3, 1))
     return float(np.degrees(np.arccos(np.clip(abs(rot[2, 2]), 0.0, 1.0))))
 
@@ -209,8 +206,6 @@ def view_residuals_px(
     camera: CameraModel, detection: BoardDetection, rvec: np.ndarray, tvec: np.ndarray
 ) -> np.ndarray:
     """Reprojection residuals (N, 2), observed minus projected, px."""
-    import cv2
-
     proj, _ = cv2.projectPoints(
         detection.object_mm.reshape(-1, 1, 3),
         np.asarray(rvec, dtype=np.float64),
@@ -230,8 +225,6 @@ def _robust_residuals(
     make good corners look bad; refitting the pose to the corners within 3x the
     median residual isolates them.
     """
-    import cv2
-
     obj = det.object_mm.reshape(-1, 1, 3)
     img = det.corners_px.reshape(-1, 1, 2)
     k, d = camera.camera_matrix, camera.dist_coeffs
@@ -275,8 +268,6 @@ def _neighbour_relative(det: BoardDetection, res: np.ndarray) -> np.ndarray:
 def _solve(
     dets: Sequence[BoardDetection], image_size: tuple[int, int], flags: int
 ) -> tuple[float, CameraModel, list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
-    import cv2
-
     objs = [d.object_mm.astype(np.float32).reshape(-1, 1, 3) for d in dets]
     imgs = [d.corners_px.astype(np.float32).reshape(-1, 1, 2) for d in dets]
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
@@ -354,8 +345,6 @@ def calibrate_views(
     -------
     CalibrationResult
     """
-    import cv2
-
     flags = model_flags(model)
     size = (int(image_size_px[0]), int(image_size_px[1]))
     active, rejected = _usable_views(detections, size)

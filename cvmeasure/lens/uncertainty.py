@@ -31,7 +31,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
+from scipy.optimize import least_squares
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
@@ -94,8 +96,6 @@ class ParameterCovariance:
 
 
 def _view_jacobian(camera: CameraModel, det: BoardDetection, rvec, tvec):
-    import cv2
-
     proj, jac = cv2.projectPoints(
         det.object_mm.reshape(-1, 1, 3), rvec, tvec, camera.camera_matrix, camera.dist_coeffs
     )
@@ -229,8 +229,6 @@ def _mean_pcam_projection(
 ) -> np.ndarray:
     """Project points given in every view's board frame, averaged in the camera frame
     (``at_infinity``: directions, rotated only)."""
-    import cv2
-
     k, dist = _unpack(params, base, n_i)
     cam_pts = np.zeros(board_pts.shape[1:])
     for v in range(n_v):
@@ -335,8 +333,6 @@ def projection_uncertainty(
     ``at_infinity``) leaves out what a rotation fitted over the central 60 % absorbs,
     as :func:`projection_diff` does: the frame's orientation is not a property of the lens.
     """
-    import cv2
-
     cov = covariance or parameter_covariance(result)
     cam = result.camera
     n_i = cov.n_intrinsics
@@ -455,8 +451,6 @@ class ProjectionDiff:
 
 
 def _project_rays(camera: CameraModel, rays: np.ndarray, rvec: np.ndarray) -> np.ndarray:
-    import cv2
-
     img, _ = cv2.projectPoints(
         rays.reshape(-1, 1, 3), rvec, np.zeros(3), camera.camera_matrix, camera.dist_coeffs
     )
@@ -477,8 +471,6 @@ def projection_diff(
     the central 60 % of the image is removed first (the frame of a camera is
     only known up to what its poses absorb; mrcal's "implied transform").
     """
-    from scipy.optimize import least_squares
-
     if tuple(camera_a.image_size_px) != tuple(camera_b.image_size_px):
         raise ValueError("the two camera models have different image sizes")
     pts = image_grid_px(camera_a.image_size_px, grid)

@@ -26,7 +26,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+import cv2
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.sparse import csr_matrix
+from scipy.stats import chi2 as chi2_dist
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import BoardDetection
@@ -176,8 +180,6 @@ def gauss_markov_covariance(residuals: np.ndarray, jacobian: Any) -> tuple[np.nd
 
 
 def _project(obj, rvec, tvec, k, dist):
-    import cv2
-
     proj, jac = cv2.projectPoints(obj.reshape(-1, 1, 3), rvec, tvec, k, dist)
     return proj.reshape(-1, 2), jac  # jac columns: r(3) t(3) fx fy cx cy dist(14)
 
@@ -187,9 +189,6 @@ def warp_jacobian(
 ) -> tuple[np.ndarray, Any]:
     """Residuals (observed - projected, px, flattened) and the projection's sparse (CSR)
     Jacobian over [free intrinsics, 6 per view (rvec, tvec mm), warp x, warp y]."""
-    import cv2
-    from scipy.sparse import csr_matrix
-
     n_v = len(detections)
     n_dist = camera.dist_coeffs.size
     n_cols = n_intrinsics + 6 * n_v + 2
@@ -237,8 +236,6 @@ def refine_board_warp(
     standard deviations (sigma^2 (J^T J)^-1 over all parameters, warp included) and
     ``board_warp`` set.
     """
-    import cv2
-
     dets = result.detections
     extent = extent_mm or board_extent_mm(dets)
     n_i = len(result.std_devs)
@@ -282,8 +279,6 @@ def _unpack_warp_params(x: np.ndarray, base, n_i: int, n_v: int):
 def _solve_warp(evaluate, x0: np.ndarray) -> np.ndarray:
     """Least squares from ``x0`` (trust region, then up to 5 Gauss-Newton steps);
     ``evaluate(x)`` gives (observed - projected residuals, their sparse Jacobian)."""
-    from scipy.optimize import least_squares
-
     # x_scale: columns are scaled by the Jacobian's norms, so the step is well posed
     # for focal lengths (1e3 px), distortion (1e-1) and warps (1e-2 mm) alike
     sol = least_squares(
@@ -355,9 +350,6 @@ def warp_test(warp: BoardWarp, result=None) -> WarpTest:
     """Chi-square of the warp against its covariance (2 dof): does the data show one?
     With the solved ``result`` the text says which way the board bows (towards the camera
     or away, the same for a board described transposed)."""
-    import cv2
-    from scipy.stats import chi2 as chi2_dist
-
     w = np.asarray(warp.warp_mm)
     c2 = float(w @ np.linalg.pinv(warp.covariance_mm2) @ w)
     towards = True

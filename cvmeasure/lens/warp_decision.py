@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from scipy.stats import f as f_dist
 
 from cvmeasure.errors import InputError
 from cvmeasure.lens.solve import CalibrationResult, calibrate_views
@@ -109,8 +110,6 @@ def _jackknife_p(result: CalibrationResult, extent_mm, warp_mm: np.ndarray) -> t
     Each group's solve starts from ``result`` (the flat solve on every view) with the
     group's views left out, so it needs a few Gauss-Newton steps, not a new calibration.
     """
-    from scipy.stats import f as f_dist
-
     dets = result.detections
     groups = min(len(dets), _JACKKNIFE_GROUPS)
     warps = []

@@ -19,6 +19,9 @@ Spaces
 Speed: pixels are classified through a lookup table over 15-bit quantised
 colours (32 levels per channel) computed only for the colours that occur, so
 the colour science runs on a few thousand colours, not on every pixel.
+
+colour-science is imported only for the CAT02 adaptation (one to two seconds on
+import); the default adaptation never loads it.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 
 from cvmeasure.colorimetry import (
@@ -132,8 +136,6 @@ def estimate_white(
     gray : ndarray (H, W), uint8, optional
         ``cv2.cvtColor(bgr8, cv2.COLOR_BGR2GRAY)`` where the caller has it (made here if None).
     """
-    import cv2
-
     img = np.ascontiguousarray(bgr8)
     b, g, r = cv2.split(img)
     maxc = cv2.max(cv2.max(b, g), r)
@@ -398,8 +400,6 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
         raise ValueError("classify_bgr8 needs an (H, W, 3) uint8 BGR image")
     # the 15-bit R, G, B index of each pixel, built in place in uint16 (few temporaries)
     # from the contiguous planes cv2.split makes (casts of strided channels cost ~1.6x)
-    import cv2
-
     b, g, r = cv2.split(img >> _QUANT_SHIFT)
     idx = r.astype(np.uint16)
     idx <<= 5

@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.geometry import fit_circle_robust
@@ -120,8 +121,6 @@ def _partial_circle(
     majority, the occluder's edge the outliers. Hough circles on the region's
     mask are the fallback when that fit fails.
     """
-    import cv2
-
     crop = np.ascontiguousarray(mask[y : y + h, x : x + w])
     contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if contours:
@@ -188,8 +187,6 @@ def _candidates(
 ) -> tuple[list[MarkerCandidate], str]:
     """Round, ring-surrounded regions of one role's pixels (``labels == k``, inside
     ``box``: :func:`_role_boxes`); the reason when there are none."""
-    import cv2
-
     bx, by, bw, bh, n_pixels = box
     found: list[MarkerCandidate] = []
     largest = 0
@@ -272,8 +269,6 @@ def find_markers(
         ``found[role]`` in full-resolution pixels, or ``failures[role]`` saying why.
         A role with two similar discs is ambiguous (a failure naming both).
     """
-    import cv2
-
     step = search_step(bgr8.shape, max_pixels)
     small = np.ascontiguousarray(bgr8[::step, ::step])
     luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)  # the white's and the rings' grey

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from cvmeasure.imageio import to_bgr8
@@ -36,8 +37,6 @@ def draw_overlay(
     -------
     ndarray (h, w, 3), uint8 BGR.
     """
-    import cv2
-
     img = to_bgr8(np.asarray(bgr))
     f = min(1.0, max_width_px / img.shape[1])
     out = cv2.resize(img, None, fx=f, fy=f, interpolation=cv2.INTER_AREA) if f < 1 else img.copy()

@@ -24,6 +24,7 @@ import functools
 import math
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from cvmeasure.colorimetry import SRGB8_TO_LINEAR, srgb_decode, srgb_encode_floats
@@ -113,8 +114,6 @@ LEVEL_RATIO_TOLERANCE = 0.15
 
 def _linear_roi(raw: np.ndarray) -> np.ndarray:
     """A region in linear light (float32, 0..1): a blurred edge crosses half-way at the edge."""
-    import cv2
-
     if raw.dtype == np.uint8:
         return cv2.LUT(raw, SRGB8_TO_LINEAR)
     top = float(np.iinfo(raw.dtype).max)
@@ -205,8 +204,6 @@ def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -
     From each channel's histogram (the lookup table is increasing): the same value as
     ``np.median(lut[raw][mask], axis=0)``, float32, without sorting the pixels.
     """
-    import cv2
-
     lo, hi = (n - 1) // 2, n // 2
     out = np.empty(3, dtype=np.float32)
     for c in range(3):
@@ -238,8 +235,6 @@ def _disc_and_ring_levels(
     ring's median linear colours and the share of ring pixels clipped at full scale;
     None when the region or its masks are too small.
     """
-    import cv2
-
     h, w = bgr.shape[:2]
     cx, cy = centre_px
     half = int(math.ceil(radius_px * max(ring_ratio, 1.0 + band) * 1.05 + 4))
@@ -381,8 +376,6 @@ def _ray_values(
     the ring (``axis`` = disc - ring), blurred and sampled along the rays (-1 off the
     region), and its offset ``ring . weights / step``: ``v + offset`` is proportional to
     the light."""
-    import cv2
-
     step_level = float(axis.astype(np.float64) @ weights)
     offset = float(ring_c.astype(np.float64) @ weights) / step_level
     m = np.append(weights / step_level, -offset)[None, :]
@@ -546,8 +539,6 @@ def channel_shifts_px(
         whose disc-to-ring step is under :data:`MIN_STEP_SHARE` of the colour
         difference (or green's is) is left out.
     """
-    import cv2
-
     disc = srgb_decode(np.asarray(disc_bgr, dtype=np.float64) / 255.0)
     ring = srgb_decode(np.asarray(ring_bgr, dtype=np.float64) / 255.0)
     axis = disc - ring

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from cvmeasure.kit import ROLES, MarkerKit
@@ -81,8 +82,6 @@ def seed_find_circles(
 
     Radii and minimum distance are the paper's, scaled by image width / 4608.
     """
-    import cv2
-
     img = np.asarray(bgr8)
     scale = img.shape[1] / 4608.0
     conv = cv2.cvtColor(img, cv2.COLOR_BGR2LAB) if space == "lab" else img

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from cvmeasure.board import BoardSpec
@@ -41,8 +42,6 @@ def ends_at_a_boundary(
     width_px: float,
 ) -> str:
     """'the board' / 'the photo's edge' when an end point lies within 3 wire widths of it."""
-    import cv2
-
     h, w = shape
     reach = 3.0 * max(width_px, 1.0)
     # the wire search leaves out a frame about two widest wires wide

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from cvmeasure.design import bend_angles_deg
 
@@ -90,8 +91,6 @@ class PolylineIndex:
     """
 
     def __init__(self, vertices_mm: np.ndarray, k: int = 4) -> None:
-        from scipy.spatial import cKDTree
-
         self.v = np.asarray(vertices_mm, dtype=np.float64).reshape(-1, 2)
         self.tree = cKDTree(self.v)
         self.k = min(k, len(self.v))

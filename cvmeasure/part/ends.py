@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Literal
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from cvmeasure.part.fit import fit_line
 from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
@@ -146,8 +147,6 @@ def _cap_edge(
     quarter as strong lies (within two half-widths), else 0. Taking the innermost strong
     peak instead was measured wrong as often (a lab render's cap: 0.10 deg per chord).
     """
-    from scipy.ndimage import gaussian_filter1d
-
     mid = block.shape[1] // 2
     k_in = max(1, int(round(0.8 * half_width / PROFILE_STEP_PX)))
     wire = float(np.median(block[:, mid - k_in : mid + k_in + 1]))

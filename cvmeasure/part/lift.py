@@ -45,6 +45,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
 
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.part.compare import PolylineIndex, kabsch, resample_by_length
@@ -340,8 +342,6 @@ def _register_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray
 
 def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
     """Signed distance (N,) of points from a dense curve (M, 2), left of travel positive."""
-    from scipy.spatial import cKDTree
-
     feet = PolylineIndex(curve).feet(points)
     tangent = np.gradient(curve, axis=0)
     _, k = cKDTree(curve).query(points)
@@ -353,8 +353,6 @@ def _signed_distance(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
 def _fit_without_outliers(residual: Any, x: np.ndarray, n: int) -> tuple[Any, np.ndarray]:
     """Least squares of ``residual(x, used)`` over ``n`` points, refitted without the points
     a centreline defect puts off (beyond 4 robust sigmas); the final fit and the points used."""
-    from scipy.optimize import least_squares
-
     scale = np.array([1e-4, 0.05, 0.05, 0.1, 0.1])
     used = np.ones(n, dtype=bool)
     for _ in range(3):

@@ -10,12 +10,14 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
+from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
 from cvmeasure.part.ends import EndShape
 from cvmeasure.part.segment import WireMask, gray_float, wire_candidates
@@ -52,8 +54,6 @@ BOARD_MARGIN_MM = 4.0
 
 
 def board_exclusion(board: BoardSpec, plane: PlaneModel, shape: tuple[int, int]) -> np.ndarray:
-    import cv2
-
     w_mm, h_mm = board.size_mm
     m = BOARD_MARGIN_MM
     s = np.linspace(0.0, 1.0, 25)
@@ -96,8 +96,6 @@ def measure_centreline_mm(
     InputError
         No board (named by the calibration stage), or no wire beside it.
     """
-    from cvmeasure.lens.plane import estimate_plane
-
     if plane is None:
         if board is None or camera is None:
             raise ValueError("need a plane, or a board and a camera")
@@ -191,8 +189,6 @@ def outline_mm(image: np.ndarray, wire: WireMask, plane: PlaneModel) -> np.ndarr
     wire's contrast (a seed-style binary threshold, so a dark shadow joins in
     as it did in the paper); the largest such region's outer contour.
     """
-    import cv2
-
     near = max(3, int(round(0.5 * wire.width_px)) | 1)
     # all of it within the wire's box grown by the dilation and the closing (the same
     # pixels as on the whole photo: nothing outside it can join)

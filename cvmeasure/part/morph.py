@@ -9,6 +9,7 @@ the image not counted) gives there.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 __all__ = ["dilate_local", "dilated_at"]
@@ -26,8 +27,6 @@ def dilate_local(mask: np.ndarray, kernel: np.ndarray) -> np.ndarray:
     -------
     ndarray (H, W), ``mask``'s dtype (bool in, bool out).
     """
-    import cv2
-
     m8 = mask.astype(np.uint8, copy=False)
     out = np.zeros(m8.shape, dtype=np.uint8)
     ys, xs = np.nonzero(m8.any(axis=1))[0], np.nonzero(m8.any(axis=0))[0]

@@ -1,10 +1,15 @@
 """Pictures of a part measurement: the photo with the found centreline, and the deviation plot.
 
 Pure functions returning images (ndarray) or PNG bytes; the CLI writes them.
+
+matplotlib is imported only when an overlay is drawn (half a second or more on import).
 """
 
 from __future__ import annotations
 
+import io
+
+import cv2
 import numpy as np
 
 from cvmeasure.part.measure import PartMeasurement
@@ -20,8 +25,6 @@ def draw_overlay(image_bgr8: np.ndarray, measurement: PartMeasurement) -> np.nda
     image_bgr8 : ndarray (H, W, 3) uint8, the photo.
     measurement : what :func:`~cvmeasure.part.measure.measure_part` returned.
     """
-    import cv2
-
     img = np.ascontiguousarray(image_bgr8.copy())
     h, w = img.shape[:2]
     thick = max(1, round(max(h, w) / 1500))
@@ -69,8 +72,6 @@ def draw_overlay(image_bgr8: np.ndarray, measurement: PartMeasurement) -> np.nda
 
 def deviation_plot_png(measurement: PartMeasurement, *, title: str | None = None) -> bytes:
     """PNG of the deviation from the design along the part (needs a comparison)."""
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg")

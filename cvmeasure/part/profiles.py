@@ -9,7 +9,14 @@ wire's half-width, and the least-cost continuous path through a table of costs.
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy.ndimage import (
+    gaussian_filter1d,
+    map_coordinates,
+    median_filter,
+    minimum_filter1d,
+    uniform_filter1d,
+)
 
 __all__ = [
     "PROFILE_STEP_PX",
@@ -54,8 +61,6 @@ def resample_path(path: np.ndarray, step: float) -> np.ndarray:
 
 
 def smooth_path(path: np.ndarray, sigma: float) -> np.ndarray:
-    from scipy.ndimage import gaussian_filter1d
-
     if sigma <= 0 or len(path) < 3:
         return path
     return np.column_stack(
@@ -81,8 +86,6 @@ def sample_across(
     written straight into the (2, P, S) array the interpolation reads (no (P, S, 2)
     points array and its copies).
     """
-    from scipy.ndimage import map_coordinates
-
     c = np.asarray(centres, dtype=np.float64)
     nrm = np.asarray(normals, dtype=np.float64)
     off = np.asarray(offsets, dtype=np.float64)
@@ -95,8 +98,6 @@ def sample_across(
 
 def sample_image(gray: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Bilinear samples of ``gray`` at points (..., 2) x, y."""
-    from scipy.ndimage import map_coordinates
-
     shape = points.shape[:-1]
     flat = points.reshape(-1, 2)
     vals = map_coordinates(gray, [flat[:, 1], flat[:, 0]], order=1, mode="nearest")
@@ -231,8 +232,6 @@ def silhouette_edges(
     And one edge of the pair steps up, the other down: the limbs are darker than what
     lies beside them (a light sheet, a shadow) or brighter (a dark sheet).
     """
-    from scipy.ndimage import gaussian_filter1d
-
     p = np.asarray(profiles, dtype=np.float64)
     step = float(offsets_px[1] - offsets_px[0])
     signed = gaussian_filter1d(p, 0.5 / step, axis=1, order=1)
@@ -298,8 +297,6 @@ def outer_edges(
     Returns left, right offsets (P,) px, NaN where no stretch of the wire's width
     was found.
     """
-    from scipy.ndimage import gaussian_filter1d
-
     p = np.asarray(profiles, dtype=np.float64)
     step = float(offsets_px[1] - offsets_px[0])
     g = np.abs(gaussian_filter1d(p, 0.5 / step, axis=1, order=1)) / step  # grey per px
@@ -318,8 +315,6 @@ def outer_edges(
     back = int(round(2.5 / step))
     left = np.full(len(p), np.nan)
     right = np.full(len(p), np.nan)
-    from numpy.lib.stride_tricks import sliding_window_view
-
     # covered[i, j]: sample j lies in a flat stretch at least ``run`` samples long
     all_flat = sliding_window_view(flat, run, axis=1).all(axis=2)
     covered = np.zeros_like(flat)
@@ -358,8 +353,6 @@ def edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -
     kernel: the weights times the differences of the samples either side), so the same
     values as filtering every sample and reading one.
     """
-    from scipy.ndimage import gaussian_filter1d
-
     p = np.asarray(profiles, float)
     step = float(offsets[1] - offsets[0])
     sigma = 0.5 / step
@@ -383,8 +376,6 @@ def edge_gradient(profiles: np.ndarray, offsets: np.ndarray, edge: np.ndarray) -
 
 def majority_filter(labels: np.ndarray, window: int) -> np.ndarray:
     """The most frequent non-negative label (0, 1, 2) in a window along the wire; -1 where none."""
-    from scipy.ndimage import uniform_filter1d
-
     counts = np.stack(
         [uniform_filter1d((labels == k).astype(float), window, mode="nearest") for k in range(3)]
     )
@@ -467,8 +458,6 @@ def despike(shift: np.ndarray, window: int) -> np.ndarray:
     point in a flank, a crossing shadow) is dropped: more than 3 robust sigmas
     (and 0.5 px) from the running median over ``window`` profiles.
     """
-    from scipy.ndimage import median_filter
-
     out = shift.copy()
     ok = np.isfinite(shift)
     if ok.sum() < 5:

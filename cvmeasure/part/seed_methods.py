@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from cvmeasure.part.fit import arc_angle_from_chord_deg, sagitta_radius_mm
@@ -293,8 +294,6 @@ class SeedArc:
 
 
 def _hull(points: np.ndarray) -> np.ndarray:
-    import cv2
-
     pts = np.asarray(points, dtype=np.float32).reshape(-1, 1, 2)
     return cv2.convexHull(pts, clockwise=False).reshape(-1, 2).astype(np.float64)
 
@@ -314,8 +313,6 @@ def ellipse_method(outline_mm: np.ndarray) -> SeedArc:
     along the whole arc, so the end points are ill-defined: a weakness of the
     method (the benchmark shows it), not of the root finder.
     """
-    import cv2
-
     pts = np.asarray(outline_mm, dtype=np.float64).reshape(-1, 2)
     if len(pts) < 5:
         raise ValueError("the ellipse method needs at least 5 outline points")
@@ -391,8 +388,6 @@ def sagitta_method(outline_mm: np.ndarray) -> SeedArc:
     ``cv2.minAreaRect`` of the outline; the longer side is the arc width d,
     the shorter its height h; r = d^2 / 8h + h / 2 (the seed's Eq. 8).
     """
-    import cv2
-
     pts = np.asarray(outline_mm, dtype=np.float64).reshape(-1, 2)
     if len(pts) < 3:
         raise ValueError("the sagitta method needs at least 3 outline points")

@@ -23,7 +23,11 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import cv2
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+from skimage.morphology import skeletonize
 
 from cvmeasure.part.morph import dilate_local
 
@@ -81,8 +85,6 @@ class WireMask:
 
 def gray_float(image: np.ndarray) -> np.ndarray:
     """A float32 grey image on a 0-255 scale from BGR/grey, uint8/uint16/float input."""
-    import cv2
-
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.dtype != np.float64 else img.mean(axis=2)
@@ -98,8 +100,6 @@ def _gray8(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A uint8 photo's grey levels are whole already: both are the one uint8 image (no
     full-size float copy).
     """
-    import cv2
-
     img = np.asarray(image)
     if img.dtype == np.uint8:
         g8 = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
@@ -119,9 +119,6 @@ def longest_skeleton_path(skeleton: np.ndarray) -> np.ndarray:
     Two breadth-first sweeps (farthest pixel from any pixel, then farthest from
     that) give the diameter of the skeleton graph, which drops spurs.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import dijkstra
-
     ys, xs = np.nonzero(skeleton)
     n = len(xs)
     if n < 2:
@@ -158,8 +155,6 @@ def _wire_like(
     count: int, labels: np.ndarray, stats: np.ndarray, min_extent: float, wide: float
 ) -> list[tuple[float, int]]:
     """(skeleton length, label) of the components long enough and no wider than a wire."""
-    from skimage.morphology import skeletonize
-
     found: list[tuple[float, int]] = []
     for lab in range(1, count):
         x, y, w, h, area = stats[lab]
@@ -183,9 +178,6 @@ def _filled_paths(
     test, as its speckle has a long skeleton, but filled it is a band tens of wires wide,
     more than ``wide`` as filled area over path length): (path length, its filled mask,
     the path), in the reduced image's pixels."""
-    import cv2
-    from skimage.morphology import skeletonize
-
     kept: list[tuple[float, np.ndarray, np.ndarray]] = []
     for _, lab in sorted(found, reverse=True):
         if len(kept) == CANDIDATES:
@@ -244,8 +236,6 @@ def wire_candidates(
     wire-like structure is found. Which one is a wire is for its profiles to tell
     (:func:`cvmeasure.part.locate.measure_centreline_mm`).
     """
-    import cv2
-
     g8, levels = _gray8(image)
     # Work at a reduced size when the wire is wide: the mask is only a guide.
     factor = min(1.0, 10.0 / max(max_wire_width_px, 1e-9))
@@ -302,8 +292,6 @@ def _wire_mask(
     max_wire_width_px: float,
 ) -> WireMask:
     """One candidate at full size: its mask, path, sheet, levels and rough width."""
-    import cv2
-
     if factor < 1.0:
         mask = cv2.resize(filled, (g8.shape[1], g8.shape[0]), interpolation=cv2.INTER_NEAREST)
         path = (path_small + 0.5) / factor - 0.5

@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.part.lift import (
@@ -152,8 +153,6 @@ def _fit_shadow(
     plane: PlaneModel, pts_px: np.ndarray, edges: ShadowEdges, wire_diameter_mm: float, base: float
 ) -> ShadowLift:
     """The shadow model fitted to measured edges (:func:`estimate_lift_shadow`'s fit)."""
-    from scipy.optimize import least_squares
-
     radius = 0.5 * wire_diameter_mm
     flat_mm = points_at_heights_mm(plane, pts_px, base)
     centred = flat_mm - flat_mm.mean(axis=0)

@@ -12,13 +12,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
+from cvmeasure.colorimetry import srgb_decode
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.part.lift import (
     points_at_heights_mm,
     silhouette_sides,
 )
+from cvmeasure.part.segment import gray_float
 
 __all__ = [
     "PROFILE_REACH_MM",
@@ -197,11 +200,6 @@ def measure_shadow_edges(
     median of the profile's far end, the shadow's the darkest beyond the silhouette; the
     edge is the outermost crossing of their mean, linearly interpolated.
     """
-    import cv2
-
-    from cvmeasure.colorimetry import srgb_decode
-    from cvmeasure.part.segment import gray_float
-
     pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     axis_all = points_at_heights_mm(plane, pts_px, axis_height_mm)
     s_along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(axis_all, axis=0).T))))

@@ -21,10 +21,13 @@ vertex a series of bends, one per part in bending order. For each vertex:
   the first part and the rule.
 
 With fewer than 3 parts nothing can be charted (ValueError).
+
+matplotlib is imported only when a track plot is drawn (half a second or more on import).
 """
 
 from __future__ import annotations
 
+import io
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -300,8 +303,6 @@ def tracking_png(result: TrackResult, *, max_vertices: int = 6) -> bytes:
         row[1].set_title("moving range (deg)", fontsize=8)
         for a in row:
             a.tick_params(labelsize=7)
-    import io
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", metadata={"Software": None})
     return buf.getvalue()

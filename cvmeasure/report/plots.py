@@ -3,6 +3,8 @@
 Each function takes results (records or analysis dataclasses) and returns the
 PNG file's bytes, or None when the records hold nothing to plot; the caller
 writes them (``--plot out.png``) or embeds them in the HTML report.
+
+matplotlib is imported only when a plot is drawn (half a second or more on import).
 """
 
 from __future__ import annotations

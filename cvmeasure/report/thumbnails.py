@@ -1,4 +1,7 @@
-"""Per-photo overlay thumbnails: the photo, small, with what was measured drawn on it."""
+"""Per-photo overlay thumbnails: the photo, small, with what was measured drawn on it.
+
+Pillow is imported only when a thumbnail is made.
+"""
 
 from __future__ import annotations
 

@@ -37,6 +37,9 @@ the realtime characters and the machine's simulation.
 Simplifications, stated: the RX "wire" has no baud-rate delay (bytes arrive as
 fast as the host writes them); a feedhold stops instantly (no deceleration);
 a reset keeps the positions.
+
+:mod:`cvmeasure.sim` is imported only when the double bends with its physical model
+(a tenth of a second of start-up that a protocol test does not need).
 """
 
 from __future__ import annotations
