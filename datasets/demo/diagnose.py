@@ -51,7 +51,11 @@ def demo_step(out_dir: Path, *, seed: int) -> DemoSection:
     lo, hi = result.intervals.get("backlash_deg", (float("nan"), float("nan")))
     rows = [
         DemoRow(
-            "cause named is backlash (1 = yes)", float(result.cause.primary == "backlash"), 1.0, "", 0.0
+            "cause named is backlash (1 = yes)",
+            float(result.cause.primary == "backlash"),
+            1.0,
+            "",
+            0.0,
         ),
         DemoRow("backlash recovered", fitted, _HIDDEN_BACKLASH_DEG, "deg", 0.05),
         DemoRow("baseline held-out RMSE", result.baseline_rmse_deg, None, "deg"),
