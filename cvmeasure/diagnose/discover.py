@@ -125,14 +125,26 @@ class Discovery:
         return 1.0 - self.rmse_after_deg / self.rmse_before_deg
 
 
+#: Periods (deg of head rotation) of the drive's runout terms searched in the residuals.
+RUNOUT_PERIODS: tuple[int, ...] = (60, 90, 120, 180)
+#: The head's once-per-revolution runout (the pin's orbit off the head's axis): over the
+#: 15-120 deg a session bends it is a slow curve that forward selection would take for the
+#: model-form error, so it is not searched for; it is a rival a named cause is tested
+#: against (:func:`cvmeasure.diagnose.terms.library_confounded`).
+RIVAL_PERIODS: tuple[int, ...] = (*RUNOUT_PERIODS, 360)
+
+
 def library(
-    trials: TrialTable, head_gain: NDArray[np.float64] | None = None
+    trials: TrialTable,
+    head_gain: NDArray[np.float64] | None = None,
+    periods: Sequence[int] = RUNOUT_PERIODS,
 ) -> dict[str, NDArray[np.float64]]:
     """Regressor groups (name -> columns (3 N, c)) over stacked observations.
 
     ``head_gain`` (3 N, deg of bend per deg of head rotation, e.g.
     :meth:`ModelFit.head_sensitivity`) carries the drive's terms (runout, warm-up,
-    trend along the run: errors of the head rotation) to the bend; None = 1."""
+    trend along the run: errors of the head rotation) to the bend; None = 1.
+    ``periods``: the runout terms' periods (deg of head rotation)."""
     n = len(trials)
     gain = np.ones(3 * n) if head_gain is None else np.asarray(head_gain, dtype=np.float64)
     s = trials.direction_sign
@@ -153,7 +165,7 @@ def library(
     # error does not
     head = (0, 1, 2)
     cols: dict[str, NDArray[np.float64]] = {}
-    for p in (60, 90, 120, 180):
+    for p in periods:
         w = 2 * np.pi * mag / p
         cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(
             [stack(s * np.sin(w), head), stack(s * np.cos(w), head)]

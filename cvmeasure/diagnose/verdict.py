@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cvmeasure.diagnose.discover import DiscoveredTerm, Discovery, discover
+from cvmeasure.diagnose.discover import DiscoveredTerm, Discovery, discover, term_words
 from cvmeasure.diagnose.evidence import (
     DISCOVERED,
     TIE_RATIO,
@@ -34,6 +34,7 @@ from cvmeasure.diagnose.terms import (
     ORDER_EXPERIMENT,
     beside_confounded,
     kept_against_terms,
+    library_confounded,
     order_confounded,
     terms_beside,
 )
@@ -321,6 +322,7 @@ def tie_report(
     # change of the predictions on this plan ties them: the name is not a pick
     order_ties: list[tuple[str, str]] = []
     beside_ties: list[str] = []
+    rivals: list[tuple[str, float]] = []
     if v.fit.causes:
         change = base.residual_deg - v.residual_deg
         order_ties = order_confounded(ctx, base.fit, change, base.head_gain)
@@ -333,6 +335,17 @@ def tie_report(
             dof = max(v.fit.n_obs - v.fit.n_params, 1)
             sigma = math.sqrt(v.fit.rss_discrepancy_deg2 / dof)
             beside_ties = beside_confounded(ctx, base.fit, change, base.head_gain, terms, sigma)
+            # each term is fitted with the discrepancy's columns, as the name was
+            disc = np.asarray(v.fit.discrepancy) if v.fit.discrepancy else 0.0
+            rivals = library_confounded(
+                ctx,
+                base.fit,
+                base.residual_deg,
+                v.residual_deg - base.basis @ disc,
+                len(v.fit.causes),
+                base.head_gain,
+                base.basis,
+            )
     if tie:
         v.notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
@@ -342,6 +355,17 @@ def tie_report(
     if order_ties:
         tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
         tie = (*tie, *(name for _, name in order_ties))
+    rival_ties = [(t, d) for t, d in rivals if t not in tie and t not in beside_ties]
+    if rival_ties:
+        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
+        tie = (*tie, *(t for t, _ in rival_ties))
+        v.notes.append(
+            f"tie: terms outside the catalogue fit the data, within the noise, as well as "
+            f"{', '.join(v.fit.causes)} ("
+            + "; ".join(f"{term_words(t)}, {t}, delta BIC {d:.1f}" for t, d in rival_ties)
+            + f", below the {ctx.min_delta_bic:g} a cause needs; negative: the term fits better): "
+            "the name is not a pick"
+        )
     beside_ties = [t for t in beside_ties if t not in tie]
     if beside_ties:
         tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *beside_ties)
