@@ -434,12 +434,15 @@ def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
     else:
         misfit = lack_of_fit(ctx.trials, v.fit if v.fit.causes else base.fit)
     if misfit is not None and misfit.refused:
-        # the least bad of wrong models is no name: the machine is not what the params say
-        # (terms outside the catalogue found stay reported, as what is left unexplained)
+        # the least bad of wrong models is no name: the machine is not what the params say.
+        # Terms outside the catalogue found stay reported (what the library finds in the
+        # misfit), but not as the explanation: with them the data are missed beyond the
+        # noise too, so "unexplained" (terms that explain the data) would over-claim
         v.notes.append(misfit.note())
         if v.cause.kind is not CauseKind.UNEXPLAINED:
-            v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
-            v.cv_rmse_deg, v.discovered = base.cv_rmse_deg, ()
+            v.discovered = ()
+        v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
+        v.cv_rmse_deg = base.cv_rmse_deg
         v.tie = ()
         v.experiment = (
             "describe the machine with --params (its geometry and wire) and diagnose again"
