@@ -10,9 +10,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import optimize
 
 from cvmeasure.diagnose.discover import RIVAL_PERIODS, Discovery, discover, library, term_words
-from cvmeasure.diagnose.fitting import ModelFit, discrepancy_basis, fit_model, grouped_kfold_cv
+from cvmeasure.diagnose.fitting import (
+    ModelFit,
+    current_form,
+    discrepancy_basis,
+    fit_model,
+    grouped_kfold_cv,
+)
 from cvmeasure.diagnose.identify import CONFOUNDED_SIMILARITY
 from cvmeasure.diagnose.rules import Context, bic_gain, typical_size
 
@@ -170,9 +177,9 @@ def library_confounded(
     observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
     name to the term. The best member of each family, as (library name, that delta BIC).
     Every observed angle counts, the pin's too (the drive's terms move the pin).
-    ``basis``: the model-form discrepancy's columns, fitted with each term as with the
-    name (unbounded: the comparison leans to the term, so a tie is the safer error);
-    ``base_residual_deg`` is the baseline's without its discrepancy."""
+    ``basis``: the model-form discrepancy's columns, fitted with each term within their
+    bound as with the name; ``base_residual_deg`` is the baseline's without its
+    discrepancy."""
     nuisance = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)
     rows = np.isfinite(base_residual_deg) & np.isfinite(named_residual_deg)
     rows &= np.all(np.isfinite(nuisance), axis=1)
@@ -185,10 +192,16 @@ def library_confounded(
     variance = rss_named / dof
     y = base_residual_deg[rows]
     best: dict[str, tuple[float, str]] = {}  # family -> (delta BIC, member)
-    free = [nuisance, basis]
+    bound = current_form().bound_deg
+    used = np.any(basis[rows] != 0.0, axis=0)
     for name, cols in library(ctx.trials, head_gain, RIVAL_PERIODS).items():
-        x = np.column_stack([*free, cols])[rows]
-        left = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+        x = np.column_stack([basis[:, used], nuisance, cols])[rows]
+        coef = np.linalg.lstsq(x, y, rcond=None)[0]
+        k = int(used.sum())
+        if np.any(np.abs(coef[:k]) > bound):  # the discrepancy within its bound, as the name's
+            lower = np.r_[np.full(k, -bound), np.full(x.shape[1] - k, -np.inf)]
+            coef = optimize.lsq_linear(x, y, bounds=(lower, -lower), method="bvls").x
+        left = y - x @ coef
         excess = (float(left @ left) - rss_named) / variance
         dbic = excess + (cols.shape[1] - n_named) * math.log(max(n_obs, 2))
         family = name.rpartition("_")[0] if name[-1].isdigit() else name
