@@ -75,6 +75,7 @@ from cvmeasure.diagnose.rules import (
     cv_groups,
     subset_by_group,
 )
+from cvmeasure.diagnose.terms import ORDER_TERMS
 from cvmeasure.diagnose.verdict import (
     baseline,
     check_interval,
@@ -304,6 +305,10 @@ def _with_follow_up(
     for label in result.tie:
         cause = Cause.parse(label)
         if cause is None:
+            if label.startswith(ORDER_TERMS):
+                # an order term is separated by the order of the bends (ORDER_EXPERIMENT),
+                # which the planner's magnitudes and directions do not vary
+                continue
             # a library term: the baseline with the term's coefficients fitted
             term = term_rival(trials, label, result.baseline_fit, result.nominal_params, base)
             if term is not None:
