@@ -149,7 +149,7 @@ def _scallops(
 
     Returns the rows and each one's chord angle ``D`` at the centre (rad).
     """
-    d = (phi[-1] - phi[0]) / (n - a + b)
+    d = (phi[-1] - phi[0]) / (n + a - b)
     u = np.mod(phi[None, :] - (phi[0] + a * d)[:, None], d[:, None]) - 0.5 * d[:, None]
     return radius * (np.cos(0.5 * d)[:, None] / np.cos(u) - 1.0), d
 
@@ -204,7 +204,7 @@ def _angle_sigma(hess: np.ndarray, var: float, angle: float, span: float) -> flo
     """One sigma of the chord angle (rad) from the gain's curvature in the end offsets.
 
     In units of the noise the gain is a log-likelihood (times 2): the offsets' covariance
-    is ``2 var (-H)^-1``, and ``D = span / (n - a + b)`` moves by ``D^2 / span`` per unit
+    is ``2 var (-H)^-1``, and ``D = span / (n + a - b)`` moves by ``D^2 / span`` per unit
     of ``a`` and of ``-b``.
     """
     try:

@@ -7,7 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from cvmeasure.part.chord_period import centreline_noise_mm, periodic_chords
+from cvmeasure.part.arc import arc_from_points
+from cvmeasure.part.chord_period import (
+    centreline_noise_mm,
+    chord_spacing_warning,
+    periodic_chords,
+)
 from cvmeasure.part.fit import count_chords
 
 
@@ -71,3 +76,21 @@ def test_the_noise_at_scales_below_a_chord_ignores_the_vertices():
     pts = _chords(50, 120, 6, 0.0, 4)  # sagitta 1.3 mm: the vertices' kinks are strong
     pts = pts + rng.normal(0.0, 0.03, pts.shape)
     assert centreline_noise_mm(pts) == pytest.approx(0.03, rel=0.2)
+
+
+@pytest.mark.parametrize("cut_mm", [0.0, 3.0])
+def test_an_end_cut_short_is_told_by_the_vertices_spacing(cut_mm):
+    pts = _chords(80, 90, 12, 0.04, 5)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(pts, axis=0).T))]
+    pts = pts[s >= cut_mm]  # the first end hidden (a shadow, the board's edge)
+    found = count_chords(pts)
+    assert found.divisions == 12 and found.periodic is not None
+    # the vertices' spacing gives the bend per chord whatever the ends: 7.5 deg
+    assert found.periodic.chord_angle_deg == pytest.approx(
+        7.5, abs=3 * found.periodic.chord_angle_sigma_deg
+    )
+    arc_over_n = arc_from_points(pts, 12)[0].segment_bend_deg
+    warning = chord_spacing_warning(arc_over_n, 12, found.periodic)
+    assert abs(arc_over_n - 7.5) > 0.1 if cut_mm else abs(arc_over_n - 7.5) < 0.03
+    assert (warning is not None) == bool(cut_mm)
+    assert warning is None or warning.code == "part_chord_spacing"
