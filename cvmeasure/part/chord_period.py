@@ -50,6 +50,11 @@ AMPLITUDE_RANGE = (0.5, 2.0)
 #: How far the bend per chord from the wire's ends may lie from the vertices' spacing, in
 #: the spacing's sigmas, before it is called into doubt (as stated sigmas are read: 2).
 SPACING_SIGMAS = 2.0
+#: The most the arc model may leave of the centreline's scatter, over its scatter at
+#: scales below a chord, for its verdict to stand: beyond it the wire has structure at a
+#: chord's scale the model does not describe (an S-curve, unequal chords, steps in the
+#: centreline), and its vertices are searched one by one.
+MAX_MISFIT = 3.0
 #: Each wire end may lie this share of a chord from a vertex (searched in END_STEPS steps).
 END_SLACK = 0.25
 END_STEPS = 5
@@ -79,9 +84,10 @@ class PeriodicChords:
     noise_mm : the centreline noise used (1 sigma, mm); ``correlation``: centres per
         independent sample.
     reason : the decision in words.
-    applies : the best scallop's amplitude is one equal chords with vertices on the
-        circle can have (``AMPLITUDE_RANGE``): the wire looks like such an arc, and a
-        count this test cannot find is not to be found vertex by vertex either.
+    applies : the wire looks like an arc of equal chords: the best scallop's amplitude is
+        one such chords can have (``AMPLITUDE_RANGE``) and the model leaves at most
+        ``MAX_MISFIT`` times the centreline's noise below a chord. A count this test then
+        cannot find is not to be found vertex by vertex either.
     """
 
     divisions: int | None
@@ -268,7 +274,8 @@ def periodic_chords(
     ab, amplitude, angle, hess = _refine(phi, radius, q, r0, n_best, np.r_[a[best], b[best]])
     g, _ = _scallops(phi, radius, np.array([n_best]), ab[:1], ab[1:])
     resid = r0 - amplitude * (g[0] - q @ (q.T @ g[0]))
-    noise = max(math.sqrt(float(resid @ resid) / max(len(pts) - q.shape[1] - 3, 1)), noise_local)
+    misfit = math.sqrt(float(resid @ resid) / max(len(pts) - q.shape[1] - 3, 1))
+    noise = max(misfit, noise_local)
     corr = _correlation(resid)
     var = noise * noise * corr
     others = gain[n != n_best]
@@ -277,7 +284,7 @@ def periodic_chords(
     angle_sigma = _angle_sigma(hess, var, angle, span)
     return _decide(
         n_best, radius, (angle, angle_sigma), amplitude, float(gain[best]) / var, float(chi2.isf(FALSE_ALARM / len(gain), 1)),
-        margin, noise, corr,
+        margin, noise, corr, misfit <= MAX_MISFIT * noise_local,
     )  # fmt: skip
 
 
@@ -291,6 +298,7 @@ def _decide(
     margin: float,
     noise: float,
     corr: float,
+    described: bool,
 ) -> PeriodicChords:
     """The count kept or withheld, and why in words; ``angle``: D and its sigma (rad)."""
     chord = 2.0 * radius * math.sin(0.5 * angle[0])
@@ -320,7 +328,7 @@ def _decide(
         )
     return PeriodicChords(
         found, n_best, chord, math.degrees(angle[0]), math.degrees(angle[1]), amplitude, sig, threshold, margin, noise,
-        corr, why, consistent,
+        corr, why, consistent and described,
     )  # fmt: skip
 
 
