@@ -21,6 +21,7 @@ and end offset tried, and clearly better than every other count.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -187,23 +188,19 @@ def _refine(
     x = np.clip(x, -2 * END_SLACK, 2 * END_SLACK)
     g, d = _scallops(phi, radius, np.array([n]), x[:1], x[1:])
     amp, _ = _fit(g, q, r0)
-    h, e = 0.02, np.eye(2)
-    f0 = gain(x)
-    hess = np.empty((2, 2))
+    return x, float(amp[0]), float(d[0]), _hessian(gain, x, 0.02)
+
+
+def _hessian(f: Callable[[np.ndarray], float], x: np.ndarray, h: float) -> np.ndarray:
+    """Central-difference Hessian of ``f`` at ``x`` (2 variables), step ``h``."""
+    e = h * np.eye(2)
+    out = np.empty((2, 2))
     for i in range(2):
-        for j in range(2):
-            hess[i, j] = (
-                (
-                    gain(x + h * e[i] + h * e[j])
-                    - gain(x + h * e[i] - h * e[j])
-                    - gain(x - h * e[i] + h * e[j])
-                    + gain(x - h * e[i] - h * e[j])
-                )
-                / (4 * h * h)
-                if i != j
-                else (gain(x + h * e[i]) - 2 * f0 + gain(x - h * e[i])) / (h * h)
-            )
-    return x, float(amp[0]), float(d[0]), hess
+        out[i, i] = (f(x + e[i]) - 2.0 * f(x) + f(x - e[i])) / (h * h)
+    out[0, 1] = out[1, 0] = (
+        f(x + e[0] + e[1]) - f(x + e[0] - e[1]) - f(x - e[0] + e[1]) + f(x - e[0] - e[1])
+    ) / (4.0 * h * h)
+    return out
 
 
 def _angle_sigma(hess: np.ndarray, var: float, angle: float, span: float) -> float:
@@ -282,8 +279,9 @@ def periodic_chords(
     # decided on the grid's values (every count searched alike); refined: the angle
     margin = (float(gain[best] - others.max())) / var if others.size else math.inf
     angle_sigma = _angle_sigma(hess, var, angle, span)
+    threshold = float(chi2.isf(FALSE_ALARM / len(gain), 1))
     return _decide(
-        n_best, radius, (angle, angle_sigma), amplitude, float(gain[best]) / var, float(chi2.isf(FALSE_ALARM / len(gain), 1)),
+        n_best, radius, (angle, angle_sigma), amplitude, float(gain[best]) / var, threshold,
         margin, noise, corr, misfit <= MAX_MISFIT * noise_local,
     )  # fmt: skip
 
