@@ -402,6 +402,7 @@ class ChordCount:
     periodic: PeriodicChords | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        p = self.periodic
         return {
             "divisions": self.divisions,
             "vertex_arclength_mm": [round(v, 3) for v in self.vertex_arclength_mm],
@@ -409,7 +410,12 @@ class ChordCount:
             "polyline_rms_mm": self.polyline_rms_mm,
             "circle_rms_mm": self.circle_rms_mm,
             "reason": self.reason,
-            "noise_mm": None if self.periodic is None else round(self.periodic.noise_mm, 4),
+            "noise_mm": None if p is None else round(p.noise_mm, 4),
+            # the bend per chord from the vertices' spacing (ends left out), with its sigma
+            "chord_angle_deg": None if p is None or p.divisions is None else p.chord_angle_deg,
+            "chord_angle_sigma_deg": (
+                None if p is None or p.divisions is None else p.chord_angle_sigma_deg
+            ),
         }
 
 
