@@ -60,7 +60,7 @@ MAX_MISFIT = 3.0
 END_SLACK = 0.25
 END_STEPS = 5
 #: Centres the test uses at most (every k-th of a longer centreline: neighbouring centres
-#: are correlated, and the scallop needs a few per chord).
+#: are correlated, and the scallop needs a few per chord: 8 per shortest chord are kept).
 MAX_POINTS = 400
 
 
@@ -249,7 +249,9 @@ def periodic_chords(
     """
     pts = np.asarray(ordered_points_mm, dtype=np.float64)
     noise_local = centreline_noise_mm(pts)
-    every = -(-len(pts) // MAX_POINTS)
+    length_mm = float(np.hypot(*np.diff(pts, axis=0).T).sum())
+    keep = max(MAX_POINTS, int(8 * length_mm / min_chord_mm) + 2)  # 8 per shortest chord
+    every = max(1, len(pts) // keep)
     pts = np.vstack((pts[:-1:every], pts[-1:])) if every > 1 else pts
     arc = _arc(pts, min_chord_mm)
     if arc is None:

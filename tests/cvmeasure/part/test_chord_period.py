@@ -44,7 +44,8 @@ def _smooth(radius_mm: float, arc_deg: float, noise_mm: float, seed: int) -> np.
 # sagittas 0.15-0.9 mm: chords of 10-11 mm at R 80-85 leave 0.16-0.18 mm, 3-8 times the noise
 @pytest.mark.parametrize("noise_mm", [0.02, 0.04, 0.06])
 @pytest.mark.parametrize(
-    ("radius_mm", "arc_deg", "n"), [(80, 90, 12), (85, 120, 16), (45, 70, 6), (70, 100, 3)]
+    ("radius_mm", "arc_deg", "n"),
+    [(80, 90, 12), (85, 120, 16), (45, 70, 6), (70, 100, 3), (85, 180, 24)],
 )
 def test_the_chord_count_below_the_vertices_noise_is_the_true_one(radius_mm, arc_deg, n, noise_mm):
     for seed in (1, 2):
