@@ -392,7 +392,7 @@ class _LiftReading:
     # direction), not as the standard tilt error of a well-measured lift
     uncertain: bool = False
     scale: float = 1.0
-    refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
+    refusal: ShadowRefusal | None = None  # why a shadow's lift was not used (or not read)
 
 
 def _width_lift(
@@ -537,6 +537,8 @@ def _shadow_reading(
     )  # fmt: skip
     reading = _LiftReading(shadow_info=shadow.to_dict())
     if shadow.lift is None:
+        # not measured: why is named in the bound's warning, if the bound needs one
+        reading.refusal = ShadowRefusal(shadow.message, False) if shadow.message else None
         return reading
     # every reading is checked against the lift bound (what the photo says without the
     # shadow); one read above it, within 2 sigma, is corrected at the bound
@@ -706,7 +708,8 @@ def _result_warnings(
     divisions: int | None,
 ) -> list[StageWarning]:
     """What the result's reader must know: seed methods that disagree, an S-curve, uncertain
-    or cut ends, a short arc, a tilted plane."""
+    or cut ends, a short arc. A tilted board plane is no doubt here: the part is mapped
+    through the board's full pose (its tilt in ``plane.tilt_deg``)."""
     ours = methods["centreline_fit"]
     warnings: list[StageWarning] = []
     for name, arc in methods.items():
@@ -762,13 +765,6 @@ def _result_warnings(
             StageWarning(
                 "arc_too_short",
                 f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined",
-            )
-        )
-    if not plane.affine_ok:
-        warnings.append(
-            StageWarning(
-                "plane_tilted",
-                f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)",
             )
         )
     return warnings

@@ -65,6 +65,14 @@ OUTLIER_MM = 0.15
 #: silhouette of the axis at the fitted heights.
 REMEASURE_LIFT_MM = 0.25
 
+#: The shadow model is refused where its edges' residuals, averaged over two wire diameters
+#: (the edges' noise averaged out), keep more than this rms (mm): twice the edges' known
+#: bias. On the project's own renders (light, dark, noisy sheets; flat and lifted 1.5-3 mm)
+#: the averaged residuals were 0.010-0.049 mm; under a desk lamp 0.3-0.5 m from the part
+#: (Mitsuba 3 renders: the shadow vector changes by half across the part, or a low lamp's
+#: penumbra as long as the shadow) 0.11-0.39 mm, where a flat part read 0.9-2.0 mm lifted.
+MISFIT_MM = 2.0 * EDGE_BIAS_MM
+
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
 DIFF_STEP = 1e-5
 
@@ -244,7 +252,36 @@ def _fit_shadow(
     if n_used < 20:
         return _with(empty, "too few shadow edges clear of the wire")
     cov, length = _fit_covariance(residual, x, use, res, edges, wire_diameter_mm)
-    return _shadow_lift(x, cov, full_centred, res, n_used, length)
+    shadow = _shadow_lift(x, cov, full_centred, res, n_used, length)
+    return _refused_if_misfit(shadow, res, edges.axis_mm[use], wire_diameter_mm)
+
+
+def _refused_if_misfit(
+    shadow: ShadowLift, res: np.ndarray, axis_mm: np.ndarray, wire_diameter_mm: float
+) -> ShadowLift:
+    """``shadow``, its lift dropped with the reason where the edges' residuals ``res`` (K,)
+    (at the axis points ``axis_mm`` (K, 2), in order along the wire), averaged over two wire
+    diameters, keep more than :data:`MISFIT_MM` rms: the model does not describe this
+    shadow, and its lift would absorb the difference."""
+    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(axis_mm, axis=0).T))))
+    window = 2.0 * wire_diameter_mm
+    misfit = float(np.sqrt(np.mean(_smooth_along(res, along, window) ** 2)))
+    if misfit <= MISFIT_MM:
+        return shadow
+    return _with(
+        replace(shadow, lift=None),
+        f"the shadow's edge departs from one distant lamp's shadow of a rigid part by "
+        f"{misfit:.2f} mm (rms over {window:g} mm of wire) > {MISFIT_MM:.2f} mm: a lamp near "
+        "the part, a soft or doubled shadow or a pattern on the sheet, which its lift "
+        "would absorb",
+    )
+
+
+def _smooth_along(res: np.ndarray, pos_mm: np.ndarray, window_mm: float) -> np.ndarray:
+    """``res`` (K,) averaged over ``window_mm`` of wire around each sample (``pos_mm`` (K,)
+    its position along the wire): the residuals' systematic part, the edges' noise averaged out."""
+    near = np.abs(pos_mm[:, None] - pos_mm[None, :]) <= 0.5 * window_mm
+    return (near @ res) / near.sum(axis=1)
 
 
 def _model_samples(flat_mm: np.ndarray) -> np.ndarray:
