@@ -472,7 +472,7 @@ def _shadow_lift(
         residual_rms_mm=float(np.sqrt(np.mean(res**2))),
         samples=n_used,
         length_mm=length,
-        lamp_height_mm=1.0 / (x[4] * LAMP_K_UNIT) if x[4] > 0 else float("inf"),
+        lamp_height_mm=float(1.0 / (x[4] * LAMP_K_UNIT)) if x[4] > 0 else float("inf"),
     )
 
 
