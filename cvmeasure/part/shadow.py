@@ -178,7 +178,6 @@ def _fit_shadow(
     """The shadow model fitted to measured edges (:func:`estimate_lift_shadow`'s fit)."""
     radius = 0.5 * wire_diameter_mm
     flat_mm = points_at_heights_mm(plane, pts_px, base)
-    centred = flat_mm - flat_mm.mean(axis=0)
     nan2 = (float("nan"), float("nan"))
     empty = ShadowLift(None, nan2, nan2, float("nan"), float("nan"), float("nan"), 0, 0.0)
     have = np.isfinite(edges.offset_mm)
@@ -190,9 +189,7 @@ def _fit_shadow(
     pts_px = pts_px[keep]
     centred = full_centred[keep]
 
-    # each sample's shadow side is where its edge was found (the darker band when both);
-    # used where the edge is clear of the wire's silhouette: a fixed set, so the fit cannot
-    # drop an awkward edge by moving its prediction behind the wire
+    # each sample's edge, its side, and whether it is clear of the silhouette (_edge_sides)
     meas, clear, side = _edge_sides(edges)
 
     model = edge_model(plane, pts_px, edges, radius)
