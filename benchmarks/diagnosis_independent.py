@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
+from benchmarks.diagnosis_session import coverage_interval
 from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.sim import EFFECTS
 from cvmeasure_datasets import physical_bender as pb
@@ -364,6 +365,16 @@ def main(argv: list[str] | None = None) -> dict:
             "%",
             "90-98",
             bool(0.90 <= coverage <= 0.98),
+        ),
+        Metric(
+            "the same, binomial 95 % interval (Clopper-Pearson), low",
+            coverage_interval(int(sum(covered)), len(covered))[0],
+            "%",
+        ),
+        Metric(
+            "the same, binomial 95 % interval (Clopper-Pearson), high",
+            coverage_interval(int(sum(covered)), len(covered))[1],
+            "%",
         ),
         Metric(
             f"cvmeasure diagnose, 100 trials, whole process on one core (named: {cli_cause})",

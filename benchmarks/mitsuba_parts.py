@@ -62,6 +62,8 @@ COVERS = {
         "part_centreline_gap",
         "divisions_mismatch",
         "divisions_not_found",
+        "part_chords_not_found",
+        "part_chord_spacing",
     },
 }
 #: Matte sheets: name -> linear RGB reflectance (or None: the printed cork texture).

@@ -49,6 +49,7 @@ from cvmeasure.part.checks import (
     ends_at_a_boundary,
     widen_for_centreline_gaps,
 )
+from cvmeasure.part.chord_period import chord_spacing_warning
 from cvmeasure.part.compare import (
     compare_bends,
     deviation_profile,
@@ -257,6 +258,8 @@ def measure_part(
         raise InputError(source, f"the {method} method failed on this part")
     shape = part_shape(poly)
     warnings += _result_warnings(methods, shape, centre, wire, board, plane, image, divisions)
+    spacing = chord_spacing_warning(methods[method].segment_bend_deg, divisions, chords.periodic)
+    warnings += [spacing] if spacing else []
     comparison = None
     if design is not None:
         comparison = compare_with_design(
@@ -494,6 +497,15 @@ def _chord_count(
     what = "the polygon bent has" if planned else "--divisions"
     if divisions is None and chords.divisions is not None:
         divisions, divisions_from = chords.divisions, DivisionsSource.PHOTO
+    elif divisions is None:
+        warnings.append(
+            StageWarning(
+                "part_chords_not_found",
+                f"no chord count was found in the photo ({chords.reason}): the bend per chord "
+                "and the bends at the vertices are not measured; give --divisions (or --job) "
+                "if the part was bent in chords",
+            )
+        )
     elif divisions is not None and chords.divisions not in (None, divisions):
         warnings.append(
             StageWarning(
