@@ -298,6 +298,11 @@ def widen(
             v.fit = averaged(ctx, v.fit, naming, results, groups)
 
 
+def _extended_tie(tie: tuple[str, ...], v: _Verdict, names: Sequence[str]) -> tuple[str, ...]:
+    """``tie`` with ``names`` appended; an empty tie starts at the named causes' label."""
+    return (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *names)
+
+
 def tie_report(
     ctx: Context,
     base: _Baseline,
@@ -353,12 +358,10 @@ def tie_report(
             "groups): the data do not tell them apart"
         )
     if order_ties:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
-        tie = (*tie, *(name for _, name in order_ties))
+        tie = _extended_tie(tie, v, [name for _, name in order_ties])
     rival_ties = [(t, d) for t, d in rivals if t not in tie and t not in beside_ties]
     if rival_ties:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
-        tie = (*tie, *(t for t, _ in rival_ties))
+        tie = _extended_tie(tie, v, [t for t, _ in rival_ties])
         v.notes.append(
             f"tie: terms outside the catalogue fit the data, within the noise, as well as "
             f"{', '.join(v.fit.causes)} ("
@@ -368,7 +371,7 @@ def tie_report(
         )
     beside_ties = [t for t in beside_ties if t not in tie]
     if beside_ties:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *beside_ties)
+        tie = _extended_tie(tie, v, beside_ties)
         v.notes.append(
             f"tie: terms outside the catalogue found beside {', '.join(v.fit.causes)} "
             f"({', '.join(beside_ties)}) reproduce what it explains on this plan (the part "
@@ -380,7 +383,7 @@ def tie_report(
     found = base.found
     term_ties = [t.term for t in base.mean_terms if t.term not in tie]
     if named and term_ties and found.rmse_after_deg < v.named_cv_deg:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *term_ties)
+        tie = _extended_tie(tie, v, term_ties)
         v.notes.append(
             f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
             f"data at least as well as {', '.join(v.fit.causes)} ({found.rmse_after_deg:.3f} "
