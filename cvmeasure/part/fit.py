@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.design import divide_into_chords
-from cvmeasure.geometry import CircleFit, fit_circle_robust, wrap_deg
+from cvmeasure.geometry import CircleFit, arclength_mm, fit_circle_robust, wrap_deg
 from cvmeasure.part.chord_period import MIN_DIVISIONS, PeriodicChords, periodic_chords
 from cvmeasure.part.peaks import find_peaks
 
@@ -442,7 +442,7 @@ def count_chords(
     if periodic is not None and periodic.divisions is not None:
         poly = fit_polyline(pts, periodic.divisions)
         circle_rms = float(fit_circle_robust(pts).rms_residual)
-        s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+        s = arclength_mm(pts)
         positions = tuple(
             float(s[int(np.argmin(np.hypot(*(pts - v).T)))]) for v in poly.vertices_mm[1:-1]
         )

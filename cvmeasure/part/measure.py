@@ -34,7 +34,7 @@ from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import CircleFit
+from cvmeasure.geometry import CircleFit, arclength_mm
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -447,7 +447,7 @@ def _reference_fractions(centreline_mm: np.ndarray, reference_mm: np.ndarray) ->
     smaller residual is the part's (a polygon symmetric end to end gives the same).
     """
     ref = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
-    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))))
+    cum = arclength_mm(ref)
     f = cum / cum[-1]
     if len(ref) < 3:
         return f

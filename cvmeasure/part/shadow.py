@@ -38,6 +38,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.lift import (
     MAX_LIFT_MM,
     LiftEstimate,
@@ -312,7 +313,7 @@ def _refused_if_misfit(
     (at the axis points ``axis_mm`` (K, 2), in order along the wire), averaged over two wire
     diameters, keep more than :data:`MISFIT_MM` rms: the model does not describe this
     shadow, and its lift would absorb the difference."""
-    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(axis_mm, axis=0).T))))
+    along = arclength_mm(axis_mm)
     window = 2.0 * wire_diameter_mm
     misfit = float(np.sqrt(np.mean(_smooth_along(res, along, window) ** 2)))
     if misfit <= MISFIT_MM:
@@ -335,7 +336,7 @@ def _smooth_along(res: np.ndarray, pos_mm: np.ndarray, window_mm: float) -> np.n
 def _model_samples(flat_mm: np.ndarray) -> np.ndarray:
     """The centreline points the model runs on: one every MODEL_STEP_MM along the axis (the
     photo's centres are ~1 px apart), and the last."""
-    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(flat_mm, axis=0).T))))
+    along = arclength_mm(flat_mm)
     keep = np.unique(np.searchsorted(along, np.arange(0.0, along[-1], MODEL_STEP_MM)))
     return np.unique(np.concatenate((keep[keep < len(flat_mm)], [len(flat_mm) - 1])))
 
@@ -414,7 +415,7 @@ def _fit_covariance(
     cov_stat = pinv @ pinv.T * sigma2 * n_used / n_eff
     # the edges' errors are correlated along the wire where a texture (a stain, the grain)
     # moves neighbouring edges alike: their covariance from the residuals' own correlation
-    pos = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(along, axis=0).T))))
+    pos = arclength_mm(along)
     cov_corr = _correlated_cov(pinv, res, pos)
     cov_stat = np.maximum(cov_stat, cov_corr) if np.all(np.diag(cov_corr) > 0) else cov_stat
     # the edges' bias: blur, penumbra and tone curve move every edge alike, and the plate's
