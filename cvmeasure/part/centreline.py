@@ -222,8 +222,9 @@ def measure_centreline(
 
     window = int(round(6.0 * hw0 / step_px))
     centres, normals, prof, rough, rho, search = _symmetric_passes(
-        profiles_at, path, offsets, hw0, reach, step_px, window
-    )
+        profiles_at, path, offsets, hw0, reach, step_px, window,
+        known_hw=None if wire_width_px is None else 0.5 * float(wire_width_px),
+    )  # fmt: skip
     half_width = rough
     centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
         prof, centres, normals, rho, search, step_px, window
@@ -372,11 +373,13 @@ def _symmetric_passes(
     reach: float,
     step_px: float,
     window: int,
+    known_hw: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, float]:
     """The three passes of symmetric centres from the mask's ``path`` (the module notes).
 
     Returns the last pass's centres, normals and profiles, the half-width measured
-    about them, and the symmetry window and search (px) for the final pass.
+    about them (``known_hw`` when given), and the symmetry window and search (px) for the
+    final pass.
     """
     normals = path_normals(path)
     prof = profiles_at(path, normals)
@@ -385,6 +388,16 @@ def _symmetric_passes(
     # inflates half-widths measured from it: centre with a small window first
     hws = half_width_px(prof, offsets, hw0)
     rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    if known_hw is not None and _dark_on_sheet(prof, offsets, known_hw):
+        # a dark wire on a light sheet: its polished limbs mirror the sheet beside them, the
+        # flanks near 45 deg the dark room's horizon, so the mask holds one flank's dark
+        # valley, itself symmetric, whose centre lies a third of the width off the axis on
+        # the lamp's far side (a radius 1-3 % off on path-traced parts); the half-width
+        # measured about it is the valley's. The window spans the whole wire, both flanks,
+        # and stays so
+        rough = known_hw
+    else:
+        known_hw = None
     # a window of most of the wire: a small one finds false centres in each
     # dark flank (a local valley is symmetric too)
     rho = max(0.85 * rough, _MIN_RHO_PX)
@@ -400,12 +413,23 @@ def _symmetric_passes(
         smooth = smooth_path(centres, max(2.0, 2.0 * rough) / step_px)
         normals = path_normals(smooth)
         prof = profiles_at(centres, normals)
-        if not final:
+        if not final and known_hw is None:
             hws = half_width_px(prof, offsets, rough)
             rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
+        if not final:
             rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     return centres, normals, prof, rough, rho, search
+
+
+def _dark_on_sheet(profiles: np.ndarray, offsets: np.ndarray, half_width: float) -> bool:
+    """True when the band of the wire's width is darker on average than the sheet beyond
+    it, on most of the profiles (``half_width`` in px)."""
+    n = profiles.shape[1]
+    outer = max(2, n // 10)
+    bg = 0.5 * (np.median(profiles[:, :outer], axis=1) + np.median(profiles[:, -outer:], axis=1))
+    band = profiles[:, np.abs(offsets) <= max(half_width, 1.0)].mean(axis=1)
+    return bool(np.mean(band < bg) > 0.5)
 
 
 def _shadow_side(
