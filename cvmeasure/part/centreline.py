@@ -13,6 +13,10 @@ with a window of most of the wire's rough width (a small window finds false
 centres in each dark flank: a local valley is symmetric too), then normals from
 the centres found with the window set from the half-width measured about
 them; centres that jump from the running median along the wire are dropped.
+With the wire's expected width known and the wire's band not clearly brighter than the
+sheet (white, printed cork), the window is set from that width instead: a polished tube's
+limbs mirror the light sheet, so the mask and the half-width measured about it hold only one
+flank's dark valley, whose own centre lies off the axis.
 
 Each end of the wire is found the same way along the axis: the wire's end is
 taken as a hemispherical cap (as a cut end rounded by handling, and as the
