@@ -54,3 +54,25 @@ def test_a_glint_inside_the_wire_is_not_its_cap(glint_in_px):
     assert abs(float((end - axis[0]) @ d)) < 0.1  # along the axis
     assert abs(float((end - axis[0]) @ np.array([-d[1], d[0]]))) < 0.1
     assert spread == 0.0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_flank_at_the_plates_level_does_not_match_the_bare_plate(seed):
+    """A wire whose flank (0.35-0.9 half-widths) is at the plate's level -- a narrow bright
+    crest, a thin dark limb -- matches the bare plate beyond its cap as well as its cap;
+    the axis' level on the wire before the cap tells them apart (before: 5-7 px beyond)."""
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    half_width = 5.0
+    rng = np.random.default_rng(seed)
+    t = _distance_to_axis(axis) / half_width
+    wire = 70.0 * np.exp(-((t / 0.15) ** 2)) - 20.0 * np.exp(-(((t - 1.0) / 0.06) ** 2))
+    img = (150.0 + np.where(t < 1.2, wire, 0.0) + rng.normal(0.0, 2.0, SIZE)).astype(np.float32)
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    centres = axis[0] + np.arange(12.0, 60.0, 1.0)[:, None] * d  # stopping 12 px short
+    normals = np.tile([-d[1], d[0]], (len(centres), 1))
+    reach = round(12.0 / PROFILE_STEP_PX)
+    offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
+    profiles = sample_across(img, centres, normals, offsets)
+    end, _ = end_point(img, centres, profiles, offsets, 2.0, half_width, head=True)
+    # the synthetic cap's narrow crest and limb do not repeat the flank exactly: 0.4 px
+    assert abs(float((end - axis[0]) @ d)) < 0.6
