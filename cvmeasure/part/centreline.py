@@ -247,12 +247,14 @@ def measure_centreline(
     # a polished wire's profiles may have a half-contrast flank about its narrow crest only:
     # its cap is searched at the wire's own half-width where that is known
     cap_half_width = half_width
-    if not at_edges and wire_width_px is not None:
+    known_width = not at_edges and wire_width_px is not None
+    if known_width:
         cap_half_width = max(half_width, 0.5 * float(wire_width_px))
     found_ends = [
         end_point(
             g, centres, prof_ok, offsets, rho, cap_half_width,
             head=head, shape=end_shape, silhouette=at_edges, shadow=shadow,
+            axis_level=known_width,
         )
         for head in (True, False)
     ]  # fmt: skip

@@ -48,6 +48,7 @@ def end_point(
     shape: EndShape = "round",
     silhouette: bool = False,
     shadow: np.ndarray | None = None,
+    axis_level: bool = False,
 ) -> tuple[np.ndarray, float]:
     """The end point of the wire's axis at one end, pixels, and its uncertainty (px).
 
@@ -67,6 +68,10 @@ def end_point(
     whose axis points into it (within 60 deg) faces away from the light and the shadow of
     a lifted end can reach beyond its cap: the returned uncertainty says how far inside
     the cap's silhouette could lie (:func:`_cap_edge`; 0 elsewhere).
+
+    ``axis_level``: a round end away from silhouette edges is matched on the axis' level
+    on the wire before the cap as well as on the flank beyond it (for a polished wire
+    measured at its own half-width, whose flank can lie at the plate's level).
 
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
@@ -111,14 +116,14 @@ def end_point(
         round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1,
     )
     search = search * PROFILE_STEP_PX
-    # the flank beyond the cap's centre, and the axis' own level on the wire before it: a
-    # flank near the plate's level matches the bare plate too (a dim wire's cap was read
-    # 23 px out on a light plate), the plate never matches the wire behind the cap
-    u = np.arange(-k1, k1 + 1) * PROFILE_STEP_PX
-    inside = np.full(k1 - k0 + 1, float(np.median(block[:, mid])))
-    template = np.concatenate((inside, np.full(2 * k0 - 1, np.nan), template))
-    use = np.isfinite(template)
-    u, template = u[use], template[use]
+    # with axis_level also the axis' own level on the wire before the cap's centre: a flank
+    # near the plate's level matches the bare plate too (a dim wire's cap was read 23 px out
+    # on a light plate), the plate never matches the wire behind the cap
+    u = np.arange(k0, k1 + 1) * PROFILE_STEP_PX
+    if axis_level:
+        u = np.concatenate((-u[::-1], u))
+        inside = np.full(k1 - k0 + 1, float(np.median(block[:, mid])))
+        template = np.concatenate((inside, template))
     samples = sample_image(
         gray, start[None, None, :] + (search[:, None, None] + u[None, :, None]) * d
     )

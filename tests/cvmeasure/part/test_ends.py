@@ -73,6 +73,6 @@ def test_a_flank_at_the_plates_level_does_not_match_the_bare_plate(seed):
     reach = round(12.0 / PROFILE_STEP_PX)
     offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
     profiles = sample_across(img, centres, normals, offsets)
-    end, _ = end_point(img, centres, profiles, offsets, 2.0, half_width, head=True)
+    end, _ = end_point(img, centres, profiles, offsets, 2.0, half_width, head=True, axis_level=True)
     # the synthetic cap's narrow crest and limb do not repeat the flank exactly: 0.4 px
     assert abs(float((end - axis[0]) @ d)) < 0.6
