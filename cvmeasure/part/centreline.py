@@ -254,10 +254,17 @@ def measure_centreline(
             centre_from = f"symmetry ({found})"
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
+    # a polished wire's profiles may have a half-contrast flank about its narrow crest only:
+    # its cap is searched at the wire's own half-width where that is known
+    cap_half_width = half_width
+    known_width = not at_edges and wire_width_px is not None
+    if known_width:
+        cap_half_width = max(half_width, 0.5 * float(wire_width_px))
     found_ends = [
         end_point(
-            g, centres, prof_ok, offsets, rho, half_width,
+            g, centres, prof_ok, offsets, rho, cap_half_width,
             head=head, shape=end_shape, silhouette=at_edges, shadow=shadow,
+            axis_level=known_width,
         )
         for head in (True, False)
     ]  # fmt: skip

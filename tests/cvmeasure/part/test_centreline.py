@@ -190,3 +190,24 @@ def test_mirror_tube_on_a_light_sheet_is_centred_across_both_flanks():
     # the valley's own centre is 3.3 px off the axis
     assert abs(float(np.mean(dist[sel]))) < 0.3
     assert float(np.sqrt(np.mean(dist[sel] ** 2))) < 0.5
+
+
+def test_polished_wire_end_found_from_a_short_guide():
+    """A polished wire's profiles have a half-contrast flank about its narrow middle only; its
+    caps are searched at the wire's own half-width, so a guide path that stops three
+    half-widths short of each cap (a skeleton of the bright middle) still reaches them."""
+    axis = np.array([[50.0, 70.0], [160.0, 130.0], [265.0, 115.0]])
+    rng = np.random.default_rng(5)
+    radius_px = 5.0
+    t = _distance_to_axis(axis, flat=False) / radius_px
+    img = 35.0 + 150.0 * np.exp(-((t / 0.45) ** 2)) + rng.normal(0.0, 1.0, SIZE)
+    path = _rough_path(axis, 1.0)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+    path = path[(s >= 15.0) & (s <= s[-1] - 15.0)]
+    cl = measure_centreline(img, path, width_guess_px=1.2 * radius_px, wire_width_px=2 * radius_px)
+    assert cl.centre_from.startswith("symmetry")
+    ends = cl.ends_px
+    if np.hypot(*(ends[0] - axis[0])) > np.hypot(*(ends[0] - axis[-1])):
+        ends = ends[::-1]
+    # before the caps were searched at the wire's half-width: 18-27 px short
+    np.testing.assert_allclose(ends, axis[[0, -1]], atol=0.25)
