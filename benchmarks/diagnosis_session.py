@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy import stats
 
 from benchmarks import Metric, Table, finish
 from cvmeasure.contracts import TrialTable
@@ -66,7 +67,8 @@ DETECTION_NOTE = (
     "below the detection limit: a hidden catalogue cause whose whole noise-free signal on "
     f"the session (sum over every reading of (change / noise)^2) is below {DETECTION_CHI2} "
     "is scored named right when no effect is named (the honest reading of a session that "
-    "does not show it), as well as when it is named; it is still counted as a case"
+    "does not show it), as well as when it is named; it is still counted as a case (a "
+    "mechanism outside the catalogue below it is scored flagged when nothing is named)"
 )
 
 
@@ -231,6 +233,12 @@ HELDOUT_OUTSIDE: dict[str, tuple[str, float, float]] = {
     "orbit_eccentricity": ("orbit_eccentricity_mm", 0.1, 0.3),
     "gear_runout": ("gear_runout_deg", 0.6, 1.5),
 }
+#: Held-out mechanisms that are a catalogue cause's general form, scored as that cause
+#: (its truth None: the form changes the parameter's meaning): whole head steps lost under
+#: load, shifting home, are the catalogue's drift in its general form (steps lost whole,
+#: growing with the pin torque, shifting home: :mod:`cvmeasure.sim.effects`), as the
+#: independent model's drift is that mechanism and is scored so.
+GENERAL_FORMS: dict[str, str] = {"step_loss": "drift"}
 #: The held-out model's field of each catalogue cause (contract meaning and units).
 _HELDOUT_FIELD = {
     "backlash": "backlash_deg",
@@ -388,11 +396,16 @@ def run_case(case: Case) -> dict:
     return row
 
 
+def expected_name(row: dict) -> str:
+    """The catalogue name right for the row's hidden mechanism (:data:`GENERAL_FORMS`)."""
+    return GENERAL_FORMS.get(row["hidden"], row["hidden"])
+
+
 def named_right(row: dict) -> bool:
     """The hidden cause named alone without a tie, or after the follow-up round; a cause
     below the session's detection limit (:data:`DETECTION_CHI2`) also when no effect is
     named (the honest reading of a session that does not show it)."""
-    h = row["hidden"]
+    h = expected_name(row)
     if row["cause"] == h and not row["tie"]:
         return True
     if row.get("below_detection") and row["cause"] == "none" and not row["tie"]:
@@ -426,6 +439,18 @@ def outside_flagged(row: dict) -> bool:
         or row["unnamed_flag"]
         or any(Cause.parse(t) is None for t in row["tie"])
     )
+
+
+def _outside_right(row: dict) -> bool:
+    """A mechanism outside the catalogue flagged and given no catalogue name alone; below
+    the session's detection limit also when nothing is named."""
+    return _undetected(row) or (outside_flagged(row) and not outside_misnamed(row))
+
+
+def _undetected(row: dict) -> bool:
+    """Below the session's detection limit (:data:`DETECTION_CHI2`) and nothing named: the
+    honest reading of a session that does not show the mechanism."""
+    return bool(row.get("below_detection")) and row["cause"] == "none" and not row["tie"]
 
 
 def outside_misnamed(row: dict) -> bool:
@@ -527,6 +552,14 @@ def _cases(generators: tuple[str, ...], reps: int) -> list[tuple[str, int, str, 
     return out
 
 
+def coverage_interval(k: int, n: int) -> tuple[float, float]:
+    """Clopper-Pearson 95 % interval (%) of a coverage of ``k`` of ``n`` intervals: with 40-50
+    intervals a 95 % method reads anywhere from about 88 to 100 %."""
+    lo = float(stats.beta.ppf(0.025, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(stats.beta.ppf(0.975, k + 1, n - k)) if k < n else 1.0
+    return _pct(lo), _pct(hi)
+
+
 def per_cause_table(per_cause: list[list]) -> Table:
     """The per-hidden-cause table of :func:`_generator_metrics`'s rows (one generator or more)."""
     return Table(
@@ -537,11 +570,11 @@ def per_cause_table(per_cause: list[list]) -> Table:
 
 
 def _generator_metrics(gen: str, rows: list[dict]) -> tuple[list[Metric], list[list]]:
-    cat = [r for r in rows if r["hidden"] in CATALOGUE]
+    cat = [r for r in rows if expected_name(r) in CATALOGUE]
     null = [r for r in rows if r["hidden"] == "none"]
-    out = [r for r in rows if r["hidden"] in (*OUTSIDE, *HELDOUT_OUTSIDE)]
+    out = [r for r in rows if expected_name(r) in (*OUTSIDE, *HELDOUT_OUTSIDE)]
     right = float(np.mean([named_right(r) for r in cat]))
-    first = float(np.mean([r["cause"] == r["hidden"] and not r["tie"] for r in cat]))
+    first = float(np.mean([r["cause"] == expected_name(r) and not r["tie"] for r in cat]))
     false = float(np.mean([false_discovery(r) for r in null]))
     covered = [r["covered"] for r in cat if r["covered"] is not None]
     metrics = [
@@ -572,32 +605,41 @@ def _generator_metrics(gen: str, rows: list[dict]) -> tuple[list[Metric], list[l
                 0.90 <= cov <= 0.98,
             )
         )
+        lo, hi = coverage_interval(int(sum(covered)), len(covered))
+        metrics += [
+            Metric(f"{gen}: the same, binomial 95 % interval (Clopper-Pearson), low", lo, "%"),
+            Metric(f"{gen}: the same, binomial 95 % interval (Clopper-Pearson), high", hi, "%"),
+        ]
     if out:
         mis = float(np.mean([outside_misnamed(r) for r in out]))
-        flag = float(np.mean([outside_flagged(r) for r in out]))
+        flag = float(np.mean([outside_flagged(r) or _undetected(r) for r in out]))
         metrics += [
             Metric(f"{gen}: outside the catalogue, misnamed", _pct(mis), "%", "<= 10", mis <= 0.1),
-            Metric(f"{gen}: outside the catalogue, flagged", _pct(flag), "%", ">= 80", flag >= 0.8),
+            Metric(
+                f"{gen}: outside the catalogue, flagged (or nothing named below the "
+                "detection limit)",
+                _pct(flag),
+                "%",
+                ">= 80",
+                flag >= 0.8,
+            ),
         ]
     table = []
-    for name in (*CATALOGUE, "none", *OUTSIDE, *HELDOUT_OUTSIDE):
+    for name in dict.fromkeys((*CATALOGUE, "none", *OUTSIDE, *HELDOUT_OUTSIDE)):
         rs = [r for r in rows if r["hidden"] == name]
         if not rs:
             continue
+        catalogue = GENERAL_FORMS.get(name, name) in CATALOGUE or name == "none"
+        ok = [named_right(r) if catalogue else _outside_right(r) for r in rs]
         got = Counter(
             r["cause"] + (f" (tie {'/'.join(r['tie'])})" if r["tie"] else "")
-            for r in rs
-            if not (named_right(r) if name in CATALOGUE else r["cause"] == "none")
-        )
-        ok = (
-            [named_right(r) for r in rs]
-            if name in CATALOGUE
-            else [r["cause"] == "none" for r in rs]
+            for r, right_ in zip(rs, ok, strict=True)
+            if not right_
         )
         table.append(
             [
                 gen,
-                name,
+                name + (f" (as {GENERAL_FORMS[name]})" if name in GENERAL_FORMS else ""),
                 len(rs),
                 _pct(np.mean(ok)),
                 sum(r["after"] is not None for r in rs),

@@ -46,7 +46,13 @@ MIN_CHORD_MM = 10.0
 LENS_DIST = (-0.08, 0.03, 0.0, 0.0, 0.0)
 #: Which warning codes cover which quantity (docs/conventions.md's warning-code table).
 COVERS = {
-    "radius": {"part_lifted", "part_arc_inconsistent", "part_s_curve", "part_cut_off"},
+    "radius": {
+        "part_lifted",
+        "part_arc_inconsistent",
+        "part_s_curve",
+        "part_cut_off",
+        "round_wire_edges_lost",
+    },
     "bend": {
         "part_lifted",
         "part_arc_inconsistent",
@@ -56,6 +62,8 @@ COVERS = {
         "part_centreline_gap",
         "divisions_mismatch",
         "divisions_not_found",
+        "part_chords_not_found",
+        "part_chord_spacing",
     },
 }
 #: Matte sheets: name -> linear RGB reflectance (or None: the printed cork texture).

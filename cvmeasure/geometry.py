@@ -32,6 +32,13 @@ def mod_positive(x: NDArray[np.float64], period: float) -> NDArray[np.float64]:
     return np.where(m < 0.0, m + period, m)
 
 
+def arclength_mm(points: ArrayLike) -> np.ndarray:
+    """Cumulative length along a polyline ((N, 2) points, mm): 0 at the first point,
+    (N,)."""
+    pts = np.asarray(points, dtype=np.float64)
+    return np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+
+
 def wrap_deg(angle_deg: ArrayLike) -> np.ndarray | float:
     """Wrap angles in degrees to (-180, 180] (spec: signed angles).
 

@@ -394,7 +394,7 @@ def diagnose_session(trials: Any) -> SessionDiagnosis:
         )
     rows: tuple[tuple[str, float], ...] = ()
     if d.follow_up is not None:
-        rows = tuple((str(r[0]), float(r[1])) for r in d.follow_up.rows())
+        rows = tuple((str(r["trial"]), float(r["commanded_pin_deg"])) for r in d.follow_up.rows())
         sentence += "; a follow-up plan separates the tied explanations"
     return SessionDiagnosis(sentence, rows)
 

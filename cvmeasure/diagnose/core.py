@@ -57,7 +57,7 @@ from cvmeasure.diagnose.fitting import (
     grouped_kfold_cv,
     learned_form,
 )
-from cvmeasure.diagnose.follow_up import Rival, propose_follow_up
+from cvmeasure.diagnose.follow_up import Rival, propose_follow_up, term_rival
 from cvmeasure.diagnose.misfit import (
     curve_rms_deg,
     springback_rms_deg,
@@ -75,6 +75,7 @@ from cvmeasure.diagnose.rules import (
     cv_groups,
     subset_by_group,
 )
+from cvmeasure.diagnose.terms import ORDER_TERMS
 from cvmeasure.diagnose.verdict import (
     baseline,
     check_interval,
@@ -300,10 +301,19 @@ def _with_follow_up(
     if not enabled or not result.tie or len(trials) != result.n_trials:
         return result
     rivals: list[Rival] = []
+    base = tuple(base_effects)
     for label in result.tie:
         cause = Cause.parse(label)
         if cause is None:
-            continue  # a term outside the catalogue: no forward model to plan with
+            if label.startswith(ORDER_TERMS):
+                # an order term is separated by the order of the bends (ORDER_EXPERIMENT),
+                # which the planner's magnitudes and directions do not vary
+                continue
+            # a library term: the baseline with the term's coefficients fitted
+            term = term_rival(trials, label, result.baseline_fit, result.nominal_params, base)
+            if term is not None:
+                rivals.append(term)
+            continue
         fit, fitted_on = (overrides or {}).get(label, (None, result.nominal_params))
         fit = fit or _single_fit(result, cause)
         if fit is not None:

@@ -282,32 +282,41 @@ def _with_intervals(problem: Problem, point: ModelFit, fitted: Fitted, learned: 
         jac = np.array(jac, dtype=np.float64, copy=True)
         jac[:, lay.strength] = 0.0
     held = 1 if learned else 0  # the strength held: no column of its own
-    se, shift, model_form_p = standard_errors(
-        jac[:, held:],
-        fitted.rss_deg2 / max(dof, 1),
-        basis_ok,
-        cols,
-        sol.fun,
-        noise_disc,
-        clusters=np.tile(cluster, 3)[fitted.ok],
-    )
+    args = (jac[:, held:], fitted.rss_deg2 / max(dof, 1), basis_ok, cols, sol.fun, noise_disc)
+    clusters = np.tile(cluster, 3)[fitted.ok]
+    se, shift, model_form_p = standard_errors(*args, clusters=clusters)
+    measured = se
+    if model_form_p < DISCREPANCY_P and not learned:
+        # the model-form wave counted once: by the discrepancy's variance (tau^2), not
+        # also as noise (rss / dof holds it) and as an error shared by repeated commands
+        r_ok = fitted.raw_deg[fitted.ok]
+        profiled = r_ok - basis_ok @ profile_discrepancy(r_ok, basis_ok)
+        measured = standard_errors(
+            jac[:, held:], noise_disc, *args[2:], clusters=clusters, shared_deg=profiled
+        )[0]
     if held:
         se, shift = np.concatenate([[math.inf], se]), np.concatenate([[0.0], shift])
+        measured = np.concatenate([[math.inf], measured])
     center = sol.x + shift
     s = lay.strength
-    return dataclasses.replace(
-        point,
-        intervals=tuple(
+
+    def cause_intervals(errors: NDArray[np.float64]) -> tuple[tuple[float, float], ...]:
+        return tuple(
             profile_interval(
                 float(center[i]),
-                float(se[i]),
+                float(errors[i]),
                 dof,
                 spec.lower,
                 spec.upper,
                 keep=float(sol.x[i]),
             )
             for i, spec in ((lay.cause(k), spec) for k, spec in enumerate(problem.specs))
-        ),
+        )
+
+    return dataclasses.replace(
+        point,
+        intervals=cause_intervals(se),
+        intervals_measured=cause_intervals(measured),
         strength_interval=profile_interval(
             float(center[s]), float(se[s]), dof, *STRENGTH_BOUNDS, keep=float(sol.x[s])
         ),

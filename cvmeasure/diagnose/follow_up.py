@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
+from cvmeasure.diagnose.discover import RIVAL_PERIODS, library
 from cvmeasure.diagnose.fitting import ModelFit, current_form, discrepancy_basis, predict
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.params import SimParams
@@ -47,6 +48,7 @@ __all__ = [
     "FollowUp",
     "Rival",
     "propose_follow_up",
+    "term_rival",
 ]
 
 #: Sizes (bends) of the plans tried, smallest first.
@@ -65,9 +67,12 @@ TARGET_STANDARD_ERRORS = 4.0
 class Rival:
     """One explanation of a tie, as fitted to the data so far."""
 
-    label: str  # a cause, or a pair written ``a + b``
+    label: str  # a cause, or a pair written ``a + b``, or a library term
     fit: ModelFit
     params: SimParams  # the nominal params it was fitted against (span bow share)
+    #: a library term's coefficients (deg) on top of ``fit`` (the baseline) when the
+    #: rival is a term outside the catalogue (``label`` its library name); empty else
+    term_coefficients_deg: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -143,6 +148,13 @@ def _prediction_and_columns(
     if len(fit.discrepancy) == basis.shape[1]:
         pred = pred + basis @ np.asarray(fit.discrepancy, dtype=np.float64)
     cols = [fit.nuisance_jacobian(table, rival.params, base_effects)]
+    if rival.term_coefficients_deg:
+        # a term outside the catalogue: the baseline with the term's columns, which a
+        # refit moves freely as it does the machine's
+        gain = fit.head_sensitivity(table, rival.params, base_effects)
+        term = library(table, gain, RIVAL_PERIODS)[rival.label]
+        pred = pred + term @ np.asarray(rival.term_coefficients_deg, dtype=np.float64)
+        cols.append(term)
     for j, cause in enumerate(fit.causes):
         step = 0.05 * max(abs(x) for x in EFFECTS[cause].typical)
         up, down = list(fit.values), list(fit.values)
@@ -303,3 +315,31 @@ def propose_follow_up(
         separation_by_pair=tuple((a, b, float(s)) for a, b, s in pairs),
         first_trial=n0 + 1,
     )
+
+
+def term_rival(
+    trials: TrialTable,
+    term: str,
+    base_fit: ModelFit,
+    params: SimParams,
+    base_effects: Sequence[Effect] = (),
+) -> Rival | None:
+    """A library term (:func:`~cvmeasure.diagnose.discover.library`, the once-per-revolution
+    runout included) as a rival: the baseline ``base_fit`` with the term's coefficients
+    fitted by least squares to its residuals (the machine's nuisance directions refitted
+    with them, the discrepancy as fitted); None for a name outside the library."""
+    gain = base_fit.head_sensitivity(trials, params, base_effects)
+    cols = library(trials, gain, RIVAL_PERIODS).get(term)
+    if cols is None:
+        return None
+    res = base_fit.residuals(trials, params, base_effects)
+    basis = discrepancy_basis(trials)
+    if len(base_fit.discrepancy) == basis.shape[1]:
+        res = res - basis @ np.asarray(base_fit.discrepancy, dtype=np.float64)
+    nuisance = base_fit.nuisance_jacobian(trials, params, base_effects)
+    x = np.column_stack([cols, nuisance])
+    rows = np.isfinite(res) & np.all(np.isfinite(x), axis=1)
+    if rows.sum() <= x.shape[1]:
+        return None
+    coef = np.linalg.lstsq(x[rows], res[rows], rcond=None)[0][: cols.shape[1]]
+    return Rival(term, base_fit, params, tuple(float(c) for c in coef))

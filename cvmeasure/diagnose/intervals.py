@@ -27,7 +27,11 @@ def widened(ctx: Context, fit: ModelFit) -> ModelFit:
     the parameter whether the model-form error stays in the residuals or is taken by
     the discrepancy (a move of the estimate and the lost precision both count). Only
     when the data show a model-form error (the discrepancy improves the BIC of the fit,
-    its coefficients counted as parameters); otherwise the intervals are kept."""
+    its coefficients counted as parameters); otherwise the intervals are kept.
+
+    The fit's side is its interval with the model-form error counted once
+    (``intervals_measured``: by the discrepancy's variance, not also as noise and as an
+    error shared by repeated commands), not the one its causes were named with."""
     if not fit.model_form_p < DISCREPANCY_P:
         return fit
     alt = fit_model(
@@ -38,8 +42,9 @@ def widened(ctx: Context, fit: ModelFit) -> ModelFit:
         start=fit,
         discrepancy=True,
     )
+    own = fit.intervals_measured or fit.intervals
     out = []
-    for c, (lo, hi), (alo, ahi) in zip(fit.causes, fit.intervals, alt.intervals, strict=True):
+    for c, (lo, hi), (alo, ahi) in zip(fit.causes, own, alt.intervals, strict=True):
         out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
     return dataclasses.replace(fit, intervals=tuple(out))
 

@@ -65,6 +65,12 @@ class ModelFit:
     #: p-value of the discrepancy's share of the residuals under "the model is the machine"
     #: (chi-square; below DISCREPANCY_P the data show a model-form error)
     model_form_p: float = math.nan
+    #: the 95 % intervals with the model-form error counted once, where the data show one
+    #: (empty: the same as ``intervals``): the noise is what the discrepancy leaves and the
+    #: cluster sandwich is taken over the residuals with it profiled out, the discrepancy
+    #: itself carried by its own variance; ``intervals`` (used to name the causes) also
+    #: count the model-form wave as noise and as an error shared by repeated commands
+    intervals_measured: tuple[tuple[float, float], ...] = ()
     #: where the solver ended (a fit on every trial without the discrepancy), for the folds
     solution: Solution | None = field(default=None, repr=False, compare=False)
     #: measured minus predicted over every trial at the fitted point (3 N,), as
@@ -186,6 +192,9 @@ class ModelFit:
             values=tuple(self.values[i] for i in order),
             shapes=tuple(self.shapes[i] for i in order) if self.shapes else (),
             intervals=tuple(self.intervals[i] for i in order),
+            intervals_measured=tuple(self.intervals_measured[i] for i in order)
+            if self.intervals_measured
+            else (),
             solution=None,
             residual_deg=None,
         )

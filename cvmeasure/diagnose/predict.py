@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import numpy as np
@@ -17,7 +18,17 @@ from cvmeasure.sim.params import SimParams
 
 
 def scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
-    extra = {n.key: float(v) for n, v in zip(NUISANCE, nuisance, strict=False)}
+    """``base`` with its strength scaled and the nuisance geometry set (validated)."""
+    return _scaled(base, float(scale), tuple(float(v) for v in nuisance))
+
+
+@functools.lru_cache(maxsize=64)
+def _scaled(base: SimParams, scale: float, nuisance: tuple[float, ...]) -> SimParams:
+    # a fit asks again and again for the same point's params (a forward difference
+    # steps one cause while the strength and geometry stay), and building and
+    # validating a SimParams costs more than the simulation's kinematics: the frozen,
+    # hashable params are made once per point
+    extra = {n.key: v for n, v in zip(NUISANCE, nuisance, strict=False)}
     return base.replace(yield_mpa=base.yield_mpa * scale, uts_mpa=base.uts_mpa * scale, **extra)
 
 

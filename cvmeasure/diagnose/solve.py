@@ -231,6 +231,7 @@ def standard_errors(
     noise_disc_deg2: float,
     *,
     clusters: NDArray[np.int_] | None = None,
+    shared_deg: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
     """Standard errors of the fitted parameters and the move of their centre, with what
     is not fitted carried (Kennedy-O'Hagan).
@@ -261,6 +262,10 @@ def standard_errors(
     the errors' correlation within a cluster), so a shared photo error or the model-form
     error common to the repeats of an angle is carried.
 
+    ``shared_deg`` (observation rows; default the residuals): the residuals the sandwich
+    is taken over (with the discrepancy profiled out of them, it sees only the errors
+    shared beyond the model-form wave, which is counted by ``tau^2`` already).
+
     Returns (standard errors, centre moves), both of shape (n_par,), and the p-value of
     the discrepancy's energy under "no model-form error" (1 without a discrepancy).
     """
@@ -288,7 +293,8 @@ def standard_errors(
         labels, where = np.unique(clusters, return_inverse=True)
         if labels.size > 1:
             per = np.zeros((n_par, labels.size))
-            np.add.at(per.T, where, (a * r[:n_obs]).T)
+            e = r[:n_obs] if shared_deg is None else shared_deg
+            np.add.at(per.T, where, (a * e).T)
             robust = labels.size / (labels.size - 1.0) * np.sum(per**2, axis=1)
             var = var + np.maximum(robust - model, 0.0)
     used = np.any(basis != 0, axis=0)

@@ -10,9 +10,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import optimize
 
-from cvmeasure.diagnose.discover import Discovery, discover, library, term_words
-from cvmeasure.diagnose.fitting import ModelFit, discrepancy_basis, fit_model, grouped_kfold_cv
+from cvmeasure.diagnose.discover import RIVAL_PERIODS, Discovery, discover, library, term_words
+from cvmeasure.diagnose.fitting import (
+    ModelFit,
+    current_form,
+    discrepancy_basis,
+    fit_model,
+    grouped_kfold_cv,
+)
 from cvmeasure.diagnose.identify import CONFOUNDED_SIMILARITY
 from cvmeasure.diagnose.rules import Context, bic_gain, typical_size
 
@@ -149,3 +156,55 @@ def beside_confounded(
     unique = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
     evidence = float(unique @ unique) / sigma_deg**2 - math.log(max(int(rows.sum()), 2))
     return list(beside) if evidence < ctx.min_delta_bic else []
+
+
+def library_confounded(
+    ctx: Context,
+    base_fit: ModelFit,
+    base_residual_deg: NDArray[np.float64],
+    named_residual_deg: NDArray[np.float64],
+    n_named: int,
+    head_gain: NDArray[np.float64],
+    basis: NDArray[np.float64],
+) -> list[tuple[str, float]]:
+    """Library terms (the runouts :data:`~cvmeasure.diagnose.discover.RIVAL_PERIODS`
+    included) that explain the data within the noise as well as the named causes: each
+    term, with the machine's nuisance directions refitted, fitted to the baseline's
+    residuals (``base_residual_deg``, (3 N,), its model-form discrepancy out) leaves a
+    residual sum of squares whose excess over the named fit's (``named_residual_deg``,
+    its discrepancy out; ``n_named`` parameters) carries less evidence than a cause needs
+    (in the named fit's residual variance, each extra coefficient charged the log of the
+    observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
+    name to the term. The best member of each family, as (library name, that delta BIC).
+    Every observed angle counts, the pin's too (the drive's terms move the pin).
+    ``basis``: the model-form discrepancy's columns, fitted with each term within their
+    bound as with the name; ``base_residual_deg`` is the baseline's without its
+    discrepancy."""
+    nuisance = base_fit.nuisance_jacobian(ctx.trials, ctx.params, ctx.base_effects)
+    rows = np.isfinite(base_residual_deg) & np.isfinite(named_residual_deg)
+    rows &= np.all(np.isfinite(nuisance), axis=1)
+    n_obs = int(rows.sum())
+    rss_named = float(np.sum(named_residual_deg[rows] ** 2))
+    dof = n_obs - nuisance.shape[1] - n_named
+    dof -= basis.shape[1]
+    if dof <= 0 or not rss_named > 0:
+        return []
+    variance = rss_named / dof
+    y = base_residual_deg[rows]
+    best: dict[str, tuple[float, str]] = {}  # family -> (delta BIC, member)
+    bound = current_form().bound_deg
+    used = np.any(basis[rows] != 0.0, axis=0)
+    for name, cols in library(ctx.trials, head_gain, RIVAL_PERIODS).items():
+        x = np.column_stack([basis[:, used], nuisance, cols])[rows]
+        coef = np.linalg.lstsq(x, y, rcond=None)[0]
+        k = int(used.sum())
+        if np.any(np.abs(coef[:k]) > bound):  # the discrepancy within its bound, as the name's
+            lower = np.r_[np.full(k, -bound), np.full(x.shape[1] - k, -np.inf)]
+            coef = optimize.lsq_linear(x, y, bounds=(lower, -lower), method="bvls").x
+        left = y - x @ coef
+        excess = (float(left @ left) - rss_named) / variance
+        dbic = excess + (cols.shape[1] - n_named) * math.log(max(n_obs, 2))
+        family = name.rpartition("_")[0] if name[-1].isdigit() else name
+        if dbic < min(ctx.min_delta_bic, best.get(family, (math.inf, ""))[0]):
+            best[family] = (dbic, name)
+    return [(name, dbic) for dbic, name in best.values()]

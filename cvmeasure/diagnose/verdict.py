@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cvmeasure.diagnose.discover import DiscoveredTerm, Discovery, discover
+from cvmeasure.diagnose.discover import DiscoveredTerm, Discovery, discover, term_words
 from cvmeasure.diagnose.evidence import (
     DISCOVERED,
     TIE_RATIO,
@@ -34,6 +34,7 @@ from cvmeasure.diagnose.terms import (
     ORDER_EXPERIMENT,
     beside_confounded,
     kept_against_terms,
+    library_confounded,
     order_confounded,
     terms_beside,
 )
@@ -297,6 +298,11 @@ def widen(
             v.fit = averaged(ctx, v.fit, naming, results, groups)
 
 
+def _extended_tie(tie: tuple[str, ...], v: _Verdict, names: Sequence[str]) -> tuple[str, ...]:
+    """``tie`` with ``names`` appended; an empty tie starts at the named causes' label."""
+    return (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *names)
+
+
 def tie_report(
     ctx: Context,
     base: _Baseline,
@@ -321,6 +327,7 @@ def tie_report(
     # change of the predictions on this plan ties them: the name is not a pick
     order_ties: list[tuple[str, str]] = []
     beside_ties: list[str] = []
+    rivals: list[tuple[str, float]] = []
     if v.fit.causes:
         change = base.residual_deg - v.residual_deg
         order_ties = order_confounded(ctx, base.fit, change, base.head_gain)
@@ -333,6 +340,17 @@ def tie_report(
             dof = max(v.fit.n_obs - v.fit.n_params, 1)
             sigma = math.sqrt(v.fit.rss_discrepancy_deg2 / dof)
             beside_ties = beside_confounded(ctx, base.fit, change, base.head_gain, terms, sigma)
+            # each term is fitted with the discrepancy's columns, as the name was
+            disc = np.asarray(v.fit.discrepancy) if v.fit.discrepancy else 0.0
+            rivals = library_confounded(
+                ctx,
+                base.fit,
+                base.residual_deg,
+                v.residual_deg - base.basis @ disc,
+                len(v.fit.causes),
+                base.head_gain,
+                base.basis,
+            )
     if tie:
         v.notes.append(
             f"tie: {', '.join(tie[1:])} explain(s) the held-out data as well as {tie[0]} (held-out "
@@ -340,11 +358,20 @@ def tie_report(
             "groups): the data do not tell them apart"
         )
     if order_ties:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:])
-        tie = (*tie, *(name for _, name in order_ties))
+        tie = _extended_tie(tie, v, [name for _, name in order_ties])
+    rival_ties = [(t, d) for t, d in rivals if t not in tie and t not in beside_ties]
+    if rival_ties:
+        tie = _extended_tie(tie, v, [t for t, _ in rival_ties])
+        v.notes.append(
+            f"tie: terms outside the catalogue fit the data, within the noise, as well as "
+            f"{', '.join(v.fit.causes)} ("
+            + "; ".join(f"{term_words(t)}, {t}, delta BIC {d:.1f}" for t, d in rival_ties)
+            + f", below the {ctx.min_delta_bic:g} a cause needs; negative: the term fits better): "
+            "the name is not a pick"
+        )
     beside_ties = [t for t in beside_ties if t not in tie]
     if beside_ties:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *beside_ties)
+        tie = _extended_tie(tie, v, beside_ties)
         v.notes.append(
             f"tie: terms outside the catalogue found beside {', '.join(v.fit.causes)} "
             f"({', '.join(beside_ties)}) reproduce what it explains on this plan (the part "
@@ -356,7 +383,7 @@ def tie_report(
     found = base.found
     term_ties = [t.term for t in base.mean_terms if t.term not in tie]
     if named and term_ties and found.rmse_after_deg < v.named_cv_deg:
-        tie = (tie[0] if tie else Cause.of(v.fit.causes).label, *tie[1:], *term_ties)
+        tie = _extended_tie(tie, v, term_ties)
         v.notes.append(
             f"tie: terms outside the catalogue ({', '.join(term_ties)}) explain the held-out "
             f"data at least as well as {', '.join(v.fit.causes)} ({found.rmse_after_deg:.3f} "
@@ -410,12 +437,15 @@ def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
     else:
         misfit = lack_of_fit(ctx.trials, v.fit if v.fit.causes else base.fit)
     if misfit is not None and misfit.refused:
-        # the least bad of wrong models is no name: the machine is not what the params say
-        # (terms outside the catalogue found stay reported, as what is left unexplained)
+        # the least bad of wrong models is no name: the machine is not what the params say.
+        # Terms outside the catalogue found stay reported (what the library finds in the
+        # misfit), but not as the explanation: with them the data are missed beyond the
+        # noise too, so "unexplained" (terms that explain the data) would over-claim
         v.notes.append(misfit.note())
         if v.cause.kind is not CauseKind.UNEXPLAINED:
-            v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
-            v.cv_rmse_deg, v.discovered = base.cv_rmse_deg, ()
+            v.discovered = ()
+        v.cause, v.fit, v.residual_deg = Cause.none(), base.fit, base.residual_deg
+        v.cv_rmse_deg = base.cv_rmse_deg
         v.tie = ()
         v.experiment = (
             "describe the machine with --params (its geometry and wire) and diagnose again"

@@ -12,6 +12,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.fit import PolylineFit, fit_polyline
 from cvmeasure.part.profiles import sample_image
 
@@ -128,7 +129,7 @@ def profile_polyline(
     """
     divisions = chords_from.divisions
     pts_mm = to_mm(points_px)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts_mm, axis=0).T))))
+    s = arclength_mm(pts_mm)
     vs = np.array([s[int(np.argmin(np.hypot(*(pts_mm - v).T)))] for v in chords_from.vertices_mm])
     vs[0], vs[-1] = 0.0, s[-1]
     chords = []

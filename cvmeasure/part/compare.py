@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from cvmeasure.design import bend_angles_deg
+from cvmeasure.geometry import arclength_mm
 
 __all__ = [
     "Registration",
@@ -43,7 +44,7 @@ __all__ = [
 def resample_by_length(points_mm: np.ndarray, count: int) -> np.ndarray:
     """``count`` points equally spaced by arc length along a polyline (N, 2)."""
     pts = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    s = arclength_mm(pts)
     t = np.linspace(0.0, s[-1], count)
     return np.column_stack((np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])))
 
@@ -232,7 +233,7 @@ def deviation_profile(
 ) -> Deviation:
     """The deviation of each measured point (registered) from the design polyline."""
     meas = np.asarray(measured_mm, dtype=np.float64).reshape(-1, 2)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(meas, axis=0).T))))
+    s = arclength_mm(meas)
     _, dist, _ = point_to_polyline(registration.apply(meas), design_mm)
     if registration.reversed:
         dist = -dist  # measured in the part's own direction of travel

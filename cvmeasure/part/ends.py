@@ -14,6 +14,7 @@ from typing import Literal
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.fit import fit_line
 from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
 
@@ -73,7 +74,7 @@ def end_point(
     """
     pts = centres if head else centres[::-1]
     prof = profiles if head else profiles[::-1]
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    s = arclength_mm(pts)
     sel = (s >= 1.5 * half_width) & (s <= 4.5 * half_width + 1.0)
     if sel.sum() < 5:
         sel = np.zeros(len(pts), dtype=bool)

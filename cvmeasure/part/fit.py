@@ -21,6 +21,7 @@ Squares*, CRC Press (2010), doi:10.1201/EBK1439835906.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -28,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.design import divide_into_chords
-from cvmeasure.geometry import CircleFit, fit_circle_robust, wrap_deg
+from cvmeasure.geometry import CircleFit, arclength_mm, fit_circle_robust, wrap_deg
+from cvmeasure.part.chord_period import MIN_DIVISIONS, PeriodicChords, periodic_chords
 from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
@@ -387,6 +389,8 @@ class ChordCount:
     polyline_rms_mm, circle_rms_mm : RMS residual of the N-chord polyline fit and of a
         circle fit to the same centreline (mm): the chords must fit far better.
     reason : why this count, in words.
+    periodic : the equal-chord test of an arc (:mod:`cvmeasure.part.chord_period`: its
+        count, significance and the centreline noise), None when the wire is no arc.
     """
 
     divisions: int | None
@@ -395,8 +399,10 @@ class ChordCount:
     polyline_rms_mm: float | None
     circle_rms_mm: float
     reason: str
+    periodic: PeriodicChords | None = None
 
     def to_dict(self) -> dict[str, Any]:
+        p = self.periodic
         return {
             "divisions": self.divisions,
             "vertex_arclength_mm": [round(v, 3) for v in self.vertex_arclength_mm],
@@ -404,6 +410,12 @@ class ChordCount:
             "polyline_rms_mm": self.polyline_rms_mm,
             "circle_rms_mm": self.circle_rms_mm,
             "reason": self.reason,
+            "noise_mm": None if p is None else round(p.noise_mm, 4),
+            # the bend per chord from the vertices' spacing (ends left out), with its sigma
+            "chord_angle_deg": None if p is None or p.divisions is None else p.chord_angle_deg,
+            "chord_angle_sigma_deg": (
+                None if p is None or p.divisions is None else p.chord_angle_sigma_deg
+            ),
         }
 
 
@@ -415,7 +427,52 @@ def count_chords(
     min_turn_deg: float = 0.5,
     min_chord_mm: float = 6.0,
 ) -> ChordCount:
-    """Find the vertices of a wire bent in straight chords from its centreline.
+    """Find how many straight chords a wire was bent in, from its centreline.
+
+    An arc is tested for equal chords as a whole (:func:`~cvmeasure.part.chord_period.
+    periodic_chords`: the scallop its vertices leave, against the centreline's own noise,
+    every count tried), which finds vertices far below the noise of one; a count is
+    reported only when significant and clearly better than the others. Other shapes (an
+    S-curve, a saddle, unequal chords: a scallop unlike equal chords') and counts below
+    ``MIN_DIVISIONS`` are searched vertex by vertex (:func:`_vertex_search`); on an arc
+    of equal chords whose count the test cannot establish, none is reported.
+    """
+    pts = _check_points(ordered_points_mm, 8)
+    periodic = periodic_chords(pts, min_chord_mm=min_chord_mm)
+    if periodic is not None and periodic.divisions is not None:
+        poly = fit_polyline(pts, periodic.divisions)
+        circle_rms = float(fit_circle_robust(pts).rms_residual)
+        s = arclength_mm(pts)
+        positions = tuple(
+            float(s[int(np.argmin(np.hypot(*(pts - v).T)))]) for v in poly.vertices_mm[1:-1]
+        )
+        turns = tuple(float(b) for b in poly.bend_deg)
+        return ChordCount(
+            periodic.divisions, positions, turns, poly.rms_residual_mm, circle_rms,
+            periodic.reason, periodic,
+        )  # fmt: skip
+    found = _vertex_search(
+        pts, step_mm=step_mm, window_mm=window_mm, min_turn_deg=min_turn_deg,
+        min_chord_mm=min_chord_mm,
+    )  # fmt: skip
+    if periodic is None:
+        return found
+    if not periodic.applies or (found.divisions is not None and found.divisions < MIN_DIVISIONS):
+        return dataclasses.replace(found, periodic=periodic)  # no arc of equal chords
+    # an arc of equal chords whose count is not significant (or is ambiguous): vertices
+    # found one by one there would stand on less evidence still
+    return dataclasses.replace(found, divisions=None, reason=periodic.reason, periodic=periodic)
+
+
+def _vertex_search(
+    pts: np.ndarray,
+    *,
+    step_mm: float,
+    window_mm: float,
+    min_turn_deg: float,
+    min_chord_mm: float,
+) -> ChordCount:
+    """Find the vertices of a wire bent in straight chords from its centreline, one by one.
 
     The direction of the centreline (resampled every ``step_mm``) is compared
     across a ``window_mm`` window: on a straight chord it does not change, at a
@@ -424,7 +481,6 @@ def count_chords(
     is kept only when the N-chord polyline fits the centreline far better than a
     circle does (a smooth arc turns evenly and has no peaks).
     """
-    pts = _check_points(ordered_points_mm, 8)
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))
     circle_rms = float(fit_circle_robust(pts).rms_residual)

@@ -49,6 +49,7 @@ from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.compare import PolylineIndex, kabsch, resample_by_length
 
 __all__ = [
@@ -333,7 +334,7 @@ def _register_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray
         r, t = kabsch(src, index.feet(moved), mirror=False)
     theta = float(np.arctan2(r[1, 0], r[0, 0]))
     feet = index.feet(src @ r.T + t)
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(dst, axis=0).T))))
+    s = arclength_mm(dst)
     d_start = np.hypot(*(feet - dst[0]).T)
     d_end = np.hypot(*(feet - dst[-1]).T)
     inside = (d_start > 2.0) & (d_end > 2.0) & (s[-1] > 4.0)

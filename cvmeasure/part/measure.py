@@ -34,7 +34,7 @@ from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
-from cvmeasure.geometry import CircleFit
+from cvmeasure.geometry import CircleFit, arclength_mm
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -49,6 +49,7 @@ from cvmeasure.part.checks import (
     ends_at_a_boundary,
     widen_for_centreline_gaps,
 )
+from cvmeasure.part.chord_period import chord_spacing_warning
 from cvmeasure.part.compare import (
     compare_bends,
     deviation_profile,
@@ -110,13 +111,19 @@ __all__ = [
 #: A seed method's arc angle this far (deg) from the centreline's is warned about.
 ARC_DISAGREE_DEG = 10.0
 
-_EDGES_LOST = StageWarning(
-    "round_wire_edges_lost",
-    "the wire's silhouette edges were not used (not found along the whole wire, or not its "
-    "width apart: a polished wire's limbs mirror the sheet), so the centreline is "
-    "the profiles' centre of symmetry, which a side-lit highlight or a shadow can pull off "
-    "the axis; the lift was not bounded",
-)
+
+def _edges_lost(wire_diameter_mm: float, radius_mm: float) -> StageWarning:
+    """The round wire's silhouette edges were not used: the radius is in doubt by r / R."""
+    r = 0.5 * wire_diameter_mm
+    pct = 100.0 * r / radius_mm if radius_mm > 0 else float("inf")
+    return StageWarning(
+        "round_wire_edges_lost",
+        "the wire's silhouette edges were not used (not found along the whole wire, or not "
+        "its width apart: a polished wire's limbs mirror the sheet), so the centreline is the "
+        "profiles' centre of symmetry, which a side-lit highlight or a shadow can pull off the "
+        f"axis by up to the wire's radius ({r:g} mm): the radius may be off by {pct:.1f} % "
+        "(more where the pull changes along the wire) and the lift is not read",
+    )
 
 
 def compare_with_design(
@@ -217,7 +224,7 @@ def measure_part(
         source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
-    warnings = _wire_found_warnings(wire, centre, wire_diameter_mm)
+    warnings = _wire_found_warnings(wire)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None
@@ -243,12 +250,16 @@ def measure_part(
         max_lift_mm = lift_opts.max_lift_mm
         _bound_lift(fit, plane, centre, lift, reading, divisions, base_mm, max_lift_mm, warnings)
     ours, poly, vpoly = fit.ours, fit.poly, fit.vpoly
+    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+        warnings.insert(0, _edges_lost(wire_diameter_mm, ours.radius_mm))
     bend_sigma = _checked_sigma(fit, centre, plane, divisions, warnings)
     methods, seed_arcs = _seed_methods(image, wire, plane, ours, divisions, warnings)
     if method not in methods:
         raise InputError(source, f"the {method} method failed on this part")
     shape = part_shape(poly)
     warnings += _result_warnings(methods, shape, centre, wire, board, plane, image, divisions)
+    spacing = chord_spacing_warning(methods[method].segment_bend_deg, divisions, chords.periodic)
+    warnings += [spacing] if spacing else []
     comparison = None
     if design is not None:
         comparison = compare_with_design(
@@ -345,20 +356,16 @@ def _assemble(
     )
 
 
-def _wire_found_warnings(
-    wire: WireMask, centre: Centreline, wire_diameter_mm: float | None
-) -> list[StageWarning]:
-    """What the wire search warns about: a round wire's edges lost, a longer line passed over."""
+def _wire_found_warnings(wire: WireMask) -> list[StageWarning]:
+    """What the wire search warns about: a longer line passed over."""
     warnings: list[StageWarning] = []
-    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
-        warnings.append(_EDGES_LOST)
     if wire.passed_over:
         warnings.append(
             StageWarning(
                 "part_wire_not_longest",
                 f"the longest thin line beside the board was not taken for the wire "
-                f"({wire.passed_over[0]}); the wire measured is the longest one whose profiles "
-                "are a round wire's: check on the overlay that it is the part",
+                f"({wire.passed_over[0]}); the wire measured is the line whose profiles are a "
+                "round wire's along the longest stretch: check on the overlay that it is the part",
             )
         )
     return warnings
@@ -392,7 +399,7 @@ class _LiftReading:
     # direction), not as the standard tilt error of a well-measured lift
     uncertain: bool = False
     scale: float = 1.0
-    refusal: ShadowRefusal | None = None  # why a shadow's lift was read but not used
+    refusal: ShadowRefusal | None = None  # why a shadow's lift was not used (or not read)
 
 
 def _width_lift(
@@ -440,7 +447,7 @@ def _reference_fractions(centreline_mm: np.ndarray, reference_mm: np.ndarray) ->
     smaller residual is the part's (a polygon symmetric end to end gives the same).
     """
     ref = np.asarray(reference_mm, dtype=np.float64).reshape(-1, 2)
-    cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(ref, axis=0).T))))
+    cum = arclength_mm(ref)
     f = cum / cum[-1]
     if len(ref) < 3:
         return f
@@ -490,6 +497,15 @@ def _chord_count(
     what = "the polygon bent has" if planned else "--divisions"
     if divisions is None and chords.divisions is not None:
         divisions, divisions_from = chords.divisions, DivisionsSource.PHOTO
+    elif divisions is None:
+        warnings.append(
+            StageWarning(
+                "part_chords_not_found",
+                f"no chord count was found in the photo ({chords.reason}): the bend per chord "
+                "and the bends at the vertices are not measured; give --divisions (or --job) "
+                "if the part was bent in chords",
+            )
+        )
     elif divisions is not None and chords.divisions not in (None, divisions):
         warnings.append(
             StageWarning(
@@ -537,6 +553,8 @@ def _shadow_reading(
     )  # fmt: skip
     reading = _LiftReading(shadow_info=shadow.to_dict())
     if shadow.lift is None:
+        # not measured: why is named in the bound's warning, if the bound needs one
+        reading.refusal = ShadowRefusal(shadow.message, False) if shadow.message else None
         return reading
     # every reading is checked against the lift bound (what the photo says without the
     # shadow); one read above it, within 2 sigma, is corrected at the bound
@@ -706,7 +724,8 @@ def _result_warnings(
     divisions: int | None,
 ) -> list[StageWarning]:
     """What the result's reader must know: seed methods that disagree, an S-curve, uncertain
-    or cut ends, a short arc, a tilted plane."""
+    or cut ends, a short arc. A tilted board plane is no doubt here: the part is mapped
+    through the board's full pose (its tilt in ``plane.tilt_deg``)."""
     ours = methods["centreline_fit"]
     warnings: list[StageWarning] = []
     for name, arc in methods.items():
@@ -762,13 +781,6 @@ def _result_warnings(
             StageWarning(
                 "arc_too_short",
                 f"the arc spans only {ours.arc_angle_deg:.1f} deg: its radius is poorly determined",
-            )
-        )
-    if not plane.affine_ok:
-        warnings.append(
-            StageWarning(
-                "plane_tilted",
-                f"the board plane is tilted {plane.tilt_deg:.2f} deg (corrected by the homography)",
             )
         )
     return warnings

@@ -18,6 +18,8 @@ from scipy.ndimage import (
     uniform_filter1d,
 )
 
+from cvmeasure.geometry import arclength_mm
+
 __all__ = [
     "PROFILE_STEP_PX",
     "CLIPPED_LEVEL",
@@ -54,7 +56,7 @@ def path_length(path: np.ndarray) -> float:
 
 
 def resample_path(path: np.ndarray, step: float) -> np.ndarray:
-    s = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))))
+    s = arclength_mm(path)
     n = max(2, int(s[-1] / step) + 1)
     t = np.linspace(0.0, s[-1], n)
     return np.column_stack((np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])))

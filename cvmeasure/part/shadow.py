@@ -8,8 +8,10 @@ along a horizontal direction with plate normal ``n`` casts a band whose edges li
 axis); the outer edge, on the side ``n.s > 0``, lies beyond the wire and is seen on
 the plate. A rigid part rests on the plate: ``H = r + h(p)``, ``h = a.p + c >= 0`` with
 ``h = 0`` at its lowest point (``c = -min a.p``). Fitted together over the whole
-centreline: ``s`` (2) and ``a`` (2), by least squares on the shadow's outer edge
-measured across the wire (on the plate, the photo linearised from sRGB, the edge at
+centreline: ``s`` (2), ``a`` (2) and the lamp's inverse height (a desk lamp near the part
+shadows along a vector that changes across it, which a distant lamp's ``s`` would take for
+a tilt; :meth:`~cvmeasure.part.shadow_model.EdgeModel.shadow_vectors`), by least squares
+on the shadow's outer edge measured across the wire (on the plate, the photo linearised from sRGB, the edge at
 half the shadow's own step: one depth and penumbra fitted over all profiles beyond the
 wire's blurred silhouette, so a wire darker or brighter than the shadow does not set
 the level). The resting stretch's offset
@@ -36,6 +38,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.lift import (
     MAX_LIFT_MM,
     LiftEstimate,
@@ -65,6 +68,24 @@ OUTLIER_MM = 0.15
 #: silhouette of the axis at the fitted heights.
 REMEASURE_LIFT_MM = 0.25
 
+#: The shadow model is refused where its edges' residuals, averaged over two wire diameters
+#: (the edges' noise averaged out), keep more than this rms (mm): twice the edges' known
+#: bias. On the project's own renders (light, dark, noisy sheets; flat and lifted 1.5-3 mm)
+#: the averaged residuals were 0.010-0.049 mm; on Mitsuba 3 renders under a 60 mm sphere
+#: lamp 150 mm up or 55 mm up and 500 mm away (a penumbra as long as the shadow), beside a
+#: large ceiling light, 0.11-0.29 mm with the lamp's height fitted, where flat parts had
+#: read 0.9-2.0 mm lifted.
+MISFIT_MM = 2.0 * EDGE_BIAS_MM
+
+#: The fit's parameters: the shadow vector at the part's middle (2), the tilt (2, in
+#: 1e-2 mm/mm) and the lamp's inverse height (in LAMP_K_UNIT per mm: 1 is a lamp 1 m up,
+#: 0 a distant one); their typical scales.
+LAMP_K_UNIT = 1e-3
+X_SCALE = np.array([0.05, 0.05, 0.1, 0.1, 1.0])
+
+#: The lamp is taken no lower than this (mm) above the plate.
+MIN_LAMP_HEIGHT_MM = 20.0
+
 #: The fit's forward differences: relative step of the parameters (shadow vector, slope).
 DIFF_STEP = 1e-5
 
@@ -83,6 +104,7 @@ class ShadowLift:
         the direction towards the lamp, board frame).
     residual_rms_mm : rms of the edges' residuals, mm.
     samples : edges used; ``length_mm`` the wire length they span.
+    lamp_height_mm : the lamp's height above the plate (inf: a distant lamp).
     message : '' when measured, else why not.
     """
 
@@ -95,6 +117,7 @@ class ShadowLift:
     samples: int
     length_mm: float
     message: str = ""
+    lamp_height_mm: float = float("inf")
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -104,6 +127,7 @@ class ShadowLift:
             "lamp_azimuth_deg": self.lamp_azimuth_deg,
             "residual_rms_mm": self.residual_rms_mm,
             "samples": self.samples,
+            "lamp_height_mm": self.lamp_height_mm if np.isfinite(self.lamp_height_mm) else None,
             "message": self.message,
         }
 
@@ -155,7 +179,6 @@ def _fit_shadow(
     """The shadow model fitted to measured edges (:func:`estimate_lift_shadow`'s fit)."""
     radius = 0.5 * wire_diameter_mm
     flat_mm = points_at_heights_mm(plane, pts_px, base)
-    centred = flat_mm - flat_mm.mean(axis=0)
     nan2 = (float("nan"), float("nan"))
     empty = ShadowLift(None, nan2, nan2, float("nan"), float("nan"), float("nan"), 0, 0.0)
     have = np.isfinite(edges.offset_mm)
@@ -167,9 +190,7 @@ def _fit_shadow(
     pts_px = pts_px[keep]
     centred = full_centred[keep]
 
-    # each sample's shadow side is where its edge was found (the darker band when both);
-    # used where the edge is clear of the wire's silhouette: a fixed set, so the fit cannot
-    # drop an awkward edge by moving its prediction behind the wire
+    # each sample's edge, its side, and whether it is clear of the silhouette (_edge_sides)
     meas, clear, side = _edge_sides(edges)
 
     model = edge_model(plane, pts_px, edges, radius)
@@ -177,8 +198,8 @@ def _fit_shadow(
     last: dict[str, np.ndarray] = {}
 
     def residual(x: np.ndarray, use: np.ndarray) -> np.ndarray:
-        h = base + rigid_heights(centred, x[2:] * 1e-2)
-        pred, _, seg = predict_edges(model, h, x[:2], side)
+        h = base + rigid_heights(centred, x[2:4] * 1e-2)
+        pred, _, seg = predict_edges(model, h, x[:2], side, x[4] * LAMP_K_UNIT)
         last.update(x=x.copy(), pred=pred, seg=seg)
         res = np.where(np.isfinite(pred), meas - pred, SCORE_CLIP_MM)
         return np.where(use, res, 0.0)
@@ -191,11 +212,18 @@ def _fit_shadow(
         pred0, seg = last["pred"], last["seg"]
         xs = x + np.diag(forward_steps(x, DIFF_STEP))
         dx = np.diag(xs) - x
-        rel = (xs[:, 2:] * 1e-2) @ centred.T
-        _, edge = model.curve(base + (rel - rel.min(axis=1, keepdims=True)), xs[:, :2])
+        rel = (xs[:, 2:4] * 1e-2) @ centred.T
+        heights = base + (rel - rel.min(axis=1, keepdims=True))
+        _, edge = model.curve(heights, xs[:, :2], xs[:, 4] * LAMP_K_UNIT)
         pred = model.along_segments(edge, seg, line)
         jac = ((meas - pred) - (meas - pred0)) / dx[:, None]
         return np.where(use & np.isfinite(pred0) & np.isfinite(pred), jac, 0.0).T
+
+    def distant(x4: np.ndarray, use: np.ndarray) -> np.ndarray:
+        return residual(np.append(x4, 0.0), use)
+
+    def distant_jac(x4: np.ndarray, use: np.ndarray) -> np.ndarray:
+        return jacobian(np.append(x4, 0.0), use)[:, :4]
 
     # start (flat part, no perspective): the side with the shadow is the sign of n.s and
     # the outer edge u = r (x + sqrt(1 + x^2)), x = |n.s|, so n.s is linear in s
@@ -210,9 +238,9 @@ def _fit_shadow(
         for _ in range(3):  # refit: the used edges follow the shadow's side; drop outliers
             if use.sum() < 20:
                 break
-            fit = least_squares(residual, x, jacobian, args=(use,), loss="soft_l1",
-                                f_scale=0.1, x_scale=np.array([0.05, 0.05, 0.1, 0.1]))  # fmt: skip
-            x, fitted = fit.x, use
+            fit = least_squares(distant, x[:4], distant_jac, args=(use,), loss="soft_l1",
+                                f_scale=0.1, x_scale=X_SCALE[:4])  # fmt: skip
+            x, fitted = np.append(fit.x, 0.0), use
             use = clear.copy()  # the edges clear of the silhouette: a fixed set
             res = residual(x, use)
             med = float(np.median(res[use])) if use.any() else 0.0
@@ -236,21 +264,79 @@ def _fit_shadow(
         if best is None or sc < best[0]:
             best = (sc, x_fit, use_fit)
     _, x, use = best
-    fit = least_squares(residual, x, jacobian, args=(use,),
-                        x_scale=np.array([0.05, 0.05, 0.1, 0.1]))  # fmt: skip
-    x = fit.x
-    res = fit.fun[use]
     n_used = int(use.sum())
     if n_used < 20:
         return _with(empty, "too few shadow edges clear of the wire")
-    cov, length = _fit_covariance(residual, x, use, res, edges, wire_diameter_mm)
-    return _shadow_lift(x, cov, full_centred, res, n_used, length)
+    x, res, cov, length = _final_fit(
+        (distant, distant_jac), (residual, jacobian), x, use, edges, wire_diameter_mm
+    )
+    shadow = _shadow_lift(x, cov, full_centred, res, n_used, length)
+    return _refused_if_misfit(shadow, res, edges.axis_mm[use], wire_diameter_mm)
+
+
+def _final_fit(
+    distant: tuple[Any, Any],
+    lamp: tuple[Any, Any],
+    x: np.ndarray,
+    use: np.ndarray,
+    edges: ShadowEdges,
+    wire_diameter_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The last fit on the edges ``use``: a distant lamp's (``distant``: residual and
+    Jacobian of the 4 parameters), or, where the edges pin its height, a lamp's at that
+    height (``lamp``: of all 5). Returns the parameters (5), the used edges' residuals, the
+    covariance and the wire length the edges span (mm).
+
+    A lamp near the part shadows along a vector that changes across it, which a distant
+    lamp's model takes for a tilt; the lamp's height is kept where it is over 2 sigma above
+    0 and fits better, else the distant lamp's fewer parameters leave the tilt better known.
+    """
+    fit = least_squares(distant[0], x[:4], distant[1], args=(use,), x_scale=X_SCALE[:4])
+    x, res = np.append(fit.x, 0.0), fit.fun[use]
+    residual, jacobian = lamp
+    cov, length = _fit_covariance(residual, x, use, res, edges, wire_diameter_mm, 4)
+    k_max = 1.0 / (LAMP_K_UNIT * MIN_LAMP_HEIGHT_MM)
+    bounds = ([-np.inf] * 4 + [0.0], [np.inf] * 4 + [k_max])
+    near = least_squares(residual, x + np.eye(5)[4], jacobian, args=(use,), x_scale=X_SCALE,
+                         bounds=bounds)  # fmt: skip
+    near_res = near.fun[use]
+    near_cov, _ = _fit_covariance(residual, near.x, use, near_res, edges, wire_diameter_mm)
+    if near.x[4] > 2.0 * np.sqrt(near_cov[4, 4]) and near.cost < fit.cost:
+        return near.x, near_res, near_cov, length
+    return x, res, cov, length
+
+
+def _refused_if_misfit(
+    shadow: ShadowLift, res: np.ndarray, axis_mm: np.ndarray, wire_diameter_mm: float
+) -> ShadowLift:
+    """``shadow``, its lift dropped with the reason where the edges' residuals ``res`` (K,)
+    (at the axis points ``axis_mm`` (K, 2), in order along the wire), averaged over two wire
+    diameters, keep more than :data:`MISFIT_MM` rms: the model does not describe this
+    shadow, and its lift would absorb the difference."""
+    along = arclength_mm(axis_mm)
+    window = 2.0 * wire_diameter_mm
+    misfit = float(np.sqrt(np.mean(_smooth_along(res, along, window) ** 2)))
+    if misfit <= MISFIT_MM:
+        return shadow
+    return _with(
+        replace(shadow, lift=None),
+        f"the shadow's edge departs from one small lamp's shadow of a rigid part by "
+        f"{misfit:.2f} mm (rms over {window:g} mm of wire) > {MISFIT_MM:.2f} mm: a large or "
+        "doubled lamp's soft shadow, or a pattern on the sheet, which its lift would absorb",
+    )
+
+
+def _smooth_along(res: np.ndarray, pos_mm: np.ndarray, window_mm: float) -> np.ndarray:
+    """``res`` (K,) averaged over ``window_mm`` of wire around each sample (``pos_mm`` (K,)
+    its position along the wire): the residuals' systematic part, the edges' noise averaged out."""
+    near = np.abs(pos_mm[:, None] - pos_mm[None, :]) <= 0.5 * window_mm
+    return (near @ res) / near.sum(axis=1)
 
 
 def _model_samples(flat_mm: np.ndarray) -> np.ndarray:
     """The centreline points the model runs on: one every MODEL_STEP_MM along the axis (the
     photo's centres are ~1 px apart), and the last."""
-    along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(flat_mm, axis=0).T))))
+    along = arclength_mm(flat_mm)
     keep = np.unique(np.searchsorted(along, np.arange(0.0, along[-1], MODEL_STEP_MM)))
     return np.unique(np.concatenate((keep[keep < len(flat_mm)], [len(flat_mm) - 1])))
 
@@ -259,10 +345,10 @@ def _starts(s0: np.ndarray, centred: np.ndarray) -> list[np.ndarray]:
     """The fit's starts: flat, and lifted by MAX_LIFT_MM towards eight directions (the
     tilt's fit has local minima where the lamp's length trades against the lift)."""
     extent = float(np.max(np.ptp(centred, axis=0))) + 1e-9
-    starts = [np.array([s0[0], s0[1], 0.0, 0.0])]
+    starts = [np.array([s0[0], s0[1], 0.0, 0.0, 0.0])]
     for ang in np.radians(np.arange(0.0, 360.0, 45.0)):
         g = 100.0 * MAX_LIFT_MM / extent
-        starts.append(np.array([s0[0], s0[1], g * np.cos(ang), g * np.sin(ang)]))
+        starts.append(np.array([s0[0], s0[1], g * np.cos(ang), g * np.sin(ang), 0.0]))
     return starts
 
 
@@ -307,19 +393,21 @@ def _fit_covariance(
     res: np.ndarray,
     edges: ShadowEdges,
     wire_diameter_mm: float,
+    n_par: int = 5,
 ) -> tuple[np.ndarray, float]:
-    """The fitted parameters' covariance, and the length of wire the used edges span (mm)."""
+    """The covariance of the first ``n_par`` fitted parameters (the rest held), and the
+    length of wire the used edges span (mm)."""
     n_used = int(use.sum())
     # the covariance's Jacobian by central differences over physical steps (a lamp's shadow
     # vector by 0.01 mm/mm, the tilt by 0.5 mm/m): the optimiser's own forward differences
     # at 1e-5 can land on a kink of the crossing (a column of zeros, or a jump) and state a
     # sigma of nothing
-    steps = np.array([0.01, 0.01, 0.05, 0.05])
+    steps = np.array([0.01, 0.01, 0.05, 0.05, 0.1])[:n_par]
     jac = np.column_stack([
         (residual(x + h * e, use) - residual(x - h * e, use))[use] / (2.0 * h)
-        for h, e in zip(steps, np.eye(4), strict=True)
+        for h, e in zip(steps, np.eye(5)[:n_par], strict=True)
     ])  # fmt: skip
-    sigma2 = float(np.sum(res**2) / max(n_used - 4, 1))
+    sigma2 = float(np.sum(res**2) / max(n_used - n_par, 1))
     along = edges.axis_mm[use]
     length = float(np.sum(np.hypot(*np.diff(along, axis=0).T)))
     n_eff = max(4.0, min(n_used, length / wire_diameter_mm))
@@ -327,7 +415,7 @@ def _fit_covariance(
     cov_stat = pinv @ pinv.T * sigma2 * n_used / n_eff
     # the edges' errors are correlated along the wire where a texture (a stain, the grain)
     # moves neighbouring edges alike: their covariance from the residuals' own correlation
-    pos = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(along, axis=0).T))))
+    pos = arclength_mm(along)
     cov_corr = _correlated_cov(pinv, res, pos)
     cov_stat = np.maximum(cov_stat, cov_corr) if np.all(np.diag(cov_corr) > 0) else cov_stat
     # the edges' bias: blur, penumbra and tone curve move every edge alike, and the plate's
@@ -358,8 +446,8 @@ def _shadow_lift(
     length: float,
 ) -> ShadowLift:
     """The :class:`ShadowLift` of the fitted shadow vector and tilt ``x``."""
-    slope = x[2:] * 1e-2
-    slope_cov = cov[2:, 2:] * 1e-4
+    slope = x[2:4] * 1e-2
+    slope_cov = cov[2:4, 2:4] * 1e-4
     height = rigid_heights(full_centred, slope)
     rel = full_centred @ slope
     span = full_centred[int(np.argmax(rel))] - full_centred[int(np.argmin(rel))]
@@ -382,6 +470,7 @@ def _shadow_lift(
         residual_rms_mm=float(np.sqrt(np.mean(res**2))),
         samples=n_used,
         length_mm=length,
+        lamp_height_mm=float(1.0 / (x[4] * LAMP_K_UNIT)) if x[4] > 0 else float("inf"),
     )
 
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from cvmeasure.colorimetry import srgb_decode
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.lift import (
     points_at_heights_mm,
     silhouette_sides,
@@ -202,7 +203,7 @@ def measure_shadow_edges(
     """
     pts_px = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
     axis_all = points_at_heights_mm(plane, pts_px, axis_height_mm)
-    s_along = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(axis_all, axis=0).T))))
+    s_along = arclength_mm(axis_all)
     total = float(s_along[-1])
     marks = np.arange(END_MARGIN_MM, total - END_MARGIN_MM + 1e-9, step_mm)
     if len(marks) == 0:

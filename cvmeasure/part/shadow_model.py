@@ -1,6 +1,7 @@
 """The model of a lifted wire's cast shadow: where its outer edges fall for a lamp and a tilt.
 
-Under a distant lamp the axis at height ``H`` shadows at ``p + H s``; a cylinder of radius
+Under a distant lamp the axis at height ``H`` shadows at ``p + H s`` (a lamp at a finite
+height: ``s`` changes along the part, :meth:`EdgeModel.shadow_vectors`); a cylinder of radius
 ``r`` casts a band whose outer edge lies ``H (n.s) + r sqrt(1 + (n.s)^2)`` across the
 wire. :func:`predict_shadow_edges_mm` gives the edges for a shadow vector and heights,
 each crossing followed on the polyline segment it lies on.
@@ -9,6 +10,7 @@ each crossing followed on the polyline segment it lies on.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,18 +45,39 @@ class EdgeModel:
     edges: ShadowEdges
     radius_mm: float
 
-    def curve(self, height_mm: np.ndarray, shadow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def curve(
+        self, height_mm: np.ndarray, shadow: np.ndarray, lamp_k: Any = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The axis (..., M, 2) at its heights (..., M) and the band's outer edge (..., M, 2).
 
-        Leading dimensions run over parameter sets (``shadow`` (..., 2)).
+        Leading dimensions run over parameter sets (``shadow`` (..., 2), ``lamp_k`` (...)):
+        see :meth:`shadow_vectors`.
         """
         h = height_mm[..., None]
         axis3 = self.at0_mm + h * self.per_mm
-        sc = axis3 + h * shadow[..., None, :]
+        s = self.shadow_vectors(axis3, h, shadow, lamp_k)
+        sc = axis3 + h * s
         m = unit_normals(sc)  # the shadow curve's
-        ms = m[..., 1] * shadow[..., 1:] + m[..., 0] * shadow[..., :1]
+        ms = np.sum(m * s, axis=-1)
         scale = np.where(ms >= 0, 1.0, -1.0) * self.radius_mm * np.sqrt(1.0 + ms * ms)
         return axis3, sc + scale[..., None] * m
+
+    def shadow_vectors(
+        self, axis3: np.ndarray, h: np.ndarray, shadow: np.ndarray, lamp_k: Any = None
+    ) -> np.ndarray:
+        """Each axis point's shadow vector per mm of height (..., M or 1, 2).
+
+        A distant lamp (``lamp_k`` None or 0): ``shadow`` everywhere. A lamp at height
+        ``1 / lamp_k`` (mm) whose shadow vector at the part's middle (``at0_mm``'s mean, on
+        the plate) is ``shadow``: a point ``a`` at height ``H`` shadows along
+        ``(a - L) / (Lz - H) = (k (a - middle) + shadow) / (1 - k H)``; a desk lamp 150 mm
+        up changes it by half across a 100 mm part.
+        """
+        s = np.asarray(shadow, dtype=np.float64)[..., None, :]
+        if lamp_k is None:
+            return s
+        k = np.asarray(lamp_k, dtype=np.float64)[..., None, None]
+        return (k * (axis3 - self.at0_mm.mean(axis=0)) + s) / (1.0 - k * h)
 
     def crossings(
         self, axis3: np.ndarray, edge: np.ndarray, shadow: np.ndarray, d: np.ndarray
@@ -67,7 +90,8 @@ class EdgeModel:
         first point (K,) (-1 where none).
         """
         q = self.edges.axis_mm
-        win = 3.0 + (self.radius_mm + 2.0 * MAX_LIFT_MM) * float(np.hypot(*shadow))
+        reach = float(np.max(np.hypot(shadow[..., 0], shadow[..., 1])))
+        win = 3.0 + (self.radius_mm + 2.0 * MAX_LIFT_MM) * reach
         step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
         kw = int(np.ceil(win / step))
         p = np.clip(self.edges.index[:, None] + np.arange(-kw, kw + 1)[None, :], 0, len(edge) - 1)
@@ -146,15 +170,21 @@ def predict_shadow_edges_mm(
 
 
 def predict_edges(
-    model: EdgeModel, height_mm: np.ndarray, shadow: np.ndarray, side: np.ndarray | None
+    model: EdgeModel,
+    height_mm: np.ndarray,
+    shadow: np.ndarray,
+    side: np.ndarray | None,
+    lamp_k: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`predict_shadow_edges_mm` on a prepared model; also the crossed segments."""
+    """:func:`predict_shadow_edges_mm` on a prepared model (a lamp at height ``1 / lamp_k``
+    mm, see :meth:`EdgeModel.shadow_vectors`); also the crossed segments."""
     shadow = np.asarray(shadow, dtype=np.float64)
     n = model.edges.normal
     if side is None:
         side = np.where(n @ shadow >= 0, 1.0, -1.0)
-    axis3, edge = model.curve(height_mm, shadow)
-    along, seg = model.crossings(axis3, edge, shadow, n * side[:, None])
+    axis3, edge = model.curve(height_mm, shadow, lamp_k)
+    every = model.shadow_vectors(axis3, height_mm[..., None], shadow, lamp_k)
+    along, seg = model.crossings(axis3, edge, every, n * side[:, None])
     return along, side, seg
 
 

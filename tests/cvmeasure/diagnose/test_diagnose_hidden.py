@@ -243,6 +243,11 @@ def test_a_compliance_on_the_independent_model_is_named_compliance(seed, plan, h
     assert result.params["compliance_deg_per_nm"] == pytest.approx(truth, rel=0.35)
 
 
+def _catalogue(tie: tuple[str, ...]) -> tuple[str, ...]:
+    """The catalogue explanations of a tie (library terms left out)."""
+    return tuple(t for t in tie if Cause.parse(t) is not None)
+
+
 def test_a_compliance_and_a_scale_within_one_standard_error_are_reported_as_a_tie():
     # development seed 1560000 of the independent generator (a compliance of 0.36 alone,
     # random plan; the benchmark's seeds start at 700,000): with the span's bow in the
@@ -252,7 +257,8 @@ def test_a_compliance_and_a_scale_within_one_standard_error_are_reported_as_a_ti
     case = pb.physical_case(1560000, "compliance", plan="random", n_trials=60)
     result = diagnose(case.trials)
     assert result.cause.primary == "compliance" and result.causes == ("compliance",)
-    assert result.tie == ("compliance", "scale"), result.tie
+    # (the head's once-per-revolution runout, a library rival, may tie them as well)
+    assert _catalogue(result.tie) == ("compliance", "scale"), result.tie
     assert any("elastic bow" in n and "is in the model" in n for n in result.notes)
     groups, _ = core.cv_groups(case.trials)
     single = {c.cause: c for c in result.candidates if len(c.fit.causes) == 1 and c.accepted}
@@ -276,7 +282,7 @@ def test_a_scale_on_the_models_own_data_keeps_the_straight_leg(seed, tied):
     result = diagnose(case.trials)
     assert result.cause.primary == "scale" and result.causes == ("scale",)
     assert any("elastic bow" in n and "is not in the model" in n for n in result.notes)
-    assert (result.tie == ("scale", "compliance")) is tied, result.tie
+    assert (_catalogue(result.tie) == ("scale", "compliance")) is tied, result.tie
     lo, hi = result.intervals["scale"]
     assert lo <= case.effect.value <= hi
 

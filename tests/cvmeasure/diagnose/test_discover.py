@@ -11,7 +11,12 @@ import pytest
 
 from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.core import cv_groups
-from cvmeasure.diagnose.discover import discover, library
+from cvmeasure.diagnose.discover import (
+    _heteroscedastic_loglik,
+    _profile_loglik,
+    discover,
+    library,
+)
 from cvmeasure.diagnose.fitting import group_folds
 from cvmeasure.sim import EFFECTS
 from cvmeasure_datasets import physical_bender as pb
@@ -250,3 +255,17 @@ def test_a_name_that_explains_the_held_out_data_worse_than_the_terms_is_a_tie():
     assert result.causes and result.tie, (result.causes, result.tie)
     assert "previous_bend" in result.tie
     assert any("the name is not a pick" in n for n in result.notes)
+
+
+@pytest.mark.parametrize("growth", [0.0, 1.0, 4.0])
+def test_scatter_profile_matches_the_scalar_likelihood(growth):
+    """The scatter's profile over its slope grid (all slopes at once) is the scalar
+    likelihood maximised slope by slope, to 1e-8 in log-likelihood, and never below it."""
+    rng = np.random.default_rng(11)
+    x = rng.uniform(0.1, 1.5, 80)
+    e = rng.normal(0.0, 0.05, 80) * (1.0 + growth * x)
+    grid = np.linspace(0.0, 3.0 * np.sqrt(np.mean(e * e)) / np.mean(x), 41)
+    scalar = np.array([_heteroscedastic_loglik(e, x, float(c))[0] for c in grid])
+    profile = _profile_loglik(e, x, grid)
+    assert np.max(np.abs(profile - scalar)) < 1e-8
+    assert np.all(profile >= scalar - 1e-9)

@@ -33,9 +33,13 @@ def _feasible(case: pb.PhysicalCase, commands: tuple[float, ...]) -> None:
 def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidden, rival):
     case = pb.physical_case(seed, hidden, plan="sweep", n_trials=60)
     result = diagnose(case.trials)
-    assert set(result.tie) == {hidden, rival}  # the data leave it open
+    # the data leave it open (library terms that fit as well within the noise tie too:
+    # drift with a curved trend, a compliance or scale with the head's runout; an order
+    # term is left to a random order, not planned for)
+    assert {hidden, rival} <= set(result.tie)
     plan = result.follow_up
-    assert plan is not None and set(plan.rivals) == {hidden, rival}
+    assert plan is not None and {hidden, rival} <= set(plan.rivals)
+    assert not any(r.startswith(("warm_up", "order_squared", "previous_bend")) for r in plan.rivals)
     _feasible(case, plan.commanded_pin_deg)
     assert plan.first_trial == len(case.trials) + 1
     assert plan.expected_separation_se >= 1.0

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose import diagnose
+from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.misfit import pure_error
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import SimParams, parse_effect, simulate
@@ -39,6 +39,8 @@ def test_a_machine_described_wrong_names_nothing(described):
     # at 0.77 deg rms against a noise of 0.05 deg
     result = diagnose(_session(), SimParams().replace(**described))
     assert not result.cause.named and result.causes == ()
+    # nor "unexplained": terms outside the catalogue miss the data beyond the noise too
+    assert result.cause == Cause.none()
     assert result.misfit is not None and result.misfit.refused
     assert result.misfit.rms_deg > 10 * result.misfit.pure.sigma_deg
     assert any("does not describe this machine" in n for n in result.notes)
