@@ -257,6 +257,7 @@ def _on_frame(
     kit: MarkerKit,
     frame: MeasureFrame,
     other: Mapping[str, np.ndarray],
+    edge: str | None = None,
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], list[PlaneDisc]]:
     """Each disc's circle fitted in ``frame`` (its edge mapped at its own height above the
     plate on a plane pose): centres, their covariances, and the discs on the plane.
@@ -266,7 +267,9 @@ def _on_frame(
     there reads that shape as edge noise: sigmas several times the errors), the floor
     mapped from the image, what the edge read another way (``other``, image px)
     disagrees on, and for the ``uneven`` roles (partly hidden or in a shadow) what the
-    halves of the edge disagree on beyond their sampling, both fitted in the frame too."""
+    halves of the edge disagree on beyond their sampling, both fitted in the frame too.
+    With ``edge`` "shade" on a plane pose, the other reading's walls (towards the camera's
+    foot point) are left out of that disagreement (:func:`edge_mode_cov`)."""
     heights = {r: kit.height_mm(r) for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     other_f: dict[str, np.ndarray] = {}
@@ -291,6 +294,9 @@ def _on_frame(
         correlation_factors=[ray_correlation_factor(fits[r][0].radius) for r in roles],
         stop=FIT_STOP_PX,
     )
+    foot = None
+    if edge == SHADE_EDGES and frame.plane is not None:
+        foot = np.asarray(frame.plane.camera_centre_mm, dtype=np.float64)[:2]
     centres, covs, discs = {}, {}, []
     for role, init, fit_f in zip(roles, inits, fits_f, strict=True):
         fit = fits[role][0]
@@ -308,7 +314,9 @@ def _on_frame(
         if role in uneven:
             cov = cov + split_half_cov(pts_f, fit_f, correlation_factor=cf)
         if role in other_f:
-            cov = cov + edge_mode_cov(other_f[role], fit_f, correlation_factor=cf)
+            cov = cov + edge_mode_cov(
+                other_f[role], fit_f, correlation_factor=cf, wall_towards=foot
+            )
         covs[role] = cov
         if frame.name == "plane":
             seen = fit.coverage >= HIDDEN_COVERAGE
@@ -378,7 +386,7 @@ def _measure_ours(
         centres = {r: np.array(f.centre) for r, (f, _) in fits.items()}
         covs = dict(cov_imgs)
     else:
-        centres, covs, discs = _on_frame(fits, uneven, kit, frame, other)
+        centres, covs, discs = _on_frame(fits, uneven, kit, frame, other, edge)
         if frame.plane is not None:
             height = abs(float(frame.plane.camera_centre_mm[2]))
             warnings.extend(plane_warnings(discs, kit, height))
