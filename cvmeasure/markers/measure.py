@@ -25,10 +25,10 @@ warning.
 
 The reported ``markers`` are always centres in the photo's own pixels.
 Stated uncertainties are sampling errors of the edge fits, taken where the disc is
-a circle (on the plate on a plane pose), with a floor per centre, what the disc's edge
-read in another channel weighting (green for luminance edges) disagrees on (the
-shift demosaicing, blur, JPEG or shading gives an edge, which the residuals cannot
-see; not taken where lateral colour switched the edges to green) and, for a disc
+a circle (on the plate on a plane pose), plus what the disc's edge read in another
+channel weighting (green for luminance edges) disagrees on, never less than a floor per
+centre (the shift demosaicing, blur, JPEG or shading gives an edge, which the residuals
+cannot see; the floor alone where lateral colour switched the edges to green) and, for a disc
 partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
 sampling; on a plane pose the kit's height uncertainties are added. They do not
 include camera or plane calibration errors (the plane pose's own uncertainty, from the
