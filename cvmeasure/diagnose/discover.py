@@ -9,8 +9,8 @@ term                   regressor (``s`` = bend direction, ``k`` = trial order)
 =====================  =============================================================
 ``gear_runout_P``      ``s sin(2 pi |cmd| / P)``, ``s cos(...)``: a periodic error of the
                        drive along the head rotation (P = 60, 90, 120, 180 deg); the head's
-                       once-per-revolution runout (P = 360, a rival only) at its absolute
-                       angle ``cmd``: ``sin(2 pi cmd / P)``, ``cos(...) - 1``
+                       once-per-revolution runout (P = 360, a rival only) zero at home:
+                       ``s sin(2 pi |cmd| / P)``, ``s (cos(...) - 1)``
 ``warm_up_T``          ``s (1 - exp(-k / T))``: a loss that builds up over the first bends
                        of a run and levels off (T = 5, 15, 45 bends)
 ``previous_bend``      ``s_prev |theta_prev| / 90`` (the bend's size changes by
@@ -171,11 +171,10 @@ def library(
     for p in periods:
         w = 2 * np.pi * mag / p
         if p == HEAD_PERIOD:
-            # the head's own runout is an error at its absolute angle, the signed command
-            # (both sides bend from one home): e(X) = a sin X + b (cos X - 1), zero at home
-            # where the head is referenced; a cw bend samples it at -|cmd|, so only its odd
-            # part is the same in both directions (as a scale or a backlash is)
-            pair = [stack(s * np.sin(w), head), stack(np.cos(w) - 1.0, head)]
+            # the head's own runout is zero at home, where the head is referenced: a
+            # sin + b (cos - 1) of its rotation. A constant part would be a loss of the
+            # same size on every bend, a backlash's signature, which no runout has
+            pair = [stack(s * np.sin(w), head), stack(s * (np.cos(w) - 1.0), head)]
         else:
             pair = [stack(s * np.sin(w), head), stack(s * np.cos(w), head)]
         cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(pair)

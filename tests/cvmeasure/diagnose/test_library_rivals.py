@@ -16,18 +16,18 @@ from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import Effect, SimParams, simulate
 
 NOISE_DEG = 0.03
-#: The runout's phase (rad) at home: its odd part, the same in both directions, then rises
-#: like a scale over 15-120 deg of head rotation.
-PHASE = 0.5
+#: The runout's phase (rad): over 15-120 deg of head rotation it then rises like a scale.
+PHASE = 1.8
 
 
 def _bend(
     cmd: np.ndarray, rng: np.random.Generator, runout_deg: float, effects: tuple[Effect, ...]
 ) -> list[np.ndarray]:
     """Loaded, released and pin angles (deg, noisy) of ``cmd`` bent on the simulation; the
-    head turns by the command plus a once-per-revolution runout of ``runout_deg`` at its
-    absolute angle (the signed command: both sides bend from one home), zero at home."""
-    head = cmd + runout_deg * (np.sin(np.radians(cmd) - PHASE) + np.sin(PHASE))
+    head turns by the command plus a once-per-revolution runout of ``runout_deg``, zero at
+    home (where the head is referenced)."""
+    turn = np.radians(np.abs(cmd))
+    head = cmd + np.sign(cmd) * runout_deg * (np.sin(turn - PHASE) + np.sin(PHASE))
     res = simulate(head, SimParams(), effects)
     return [
         c + rng.normal(0.0, NOISE_DEG, cmd.size)
