@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +45,12 @@ class DiscrepancyForm:
     bound_deg: float = DISCREPANCY_BOUND_DEG
     span_deg: tuple[float, float] = (0.0, 180.0)
     fit_with_causes: bool = False
+    #: Legendre coefficients (deg, this form's degree and span) of the springback the
+    #: learned baseline predicts beyond the simulation's (its loaded less its released
+    #: curve, in bend magnitude): a springback asymmetry splits the wire's springback,
+    #: which is the simulation's plus this (empty: the simulation's own;
+    #: :func:`with_learned_springback`)
+    springback_excess: tuple[float, ...] = ()
 
 
 _DEFAULT_FORM = DiscrepancyForm()
@@ -95,14 +101,43 @@ def learned_form(trials: TrialTable) -> DiscrepancyForm:
     )
 
 
+def with_learned_springback(
+    form: DiscrepancyForm, coefficients: Sequence[float]
+) -> DiscrepancyForm:
+    """``form`` with the springback excess of a baseline fitted in it (``coefficients``:
+    that fit's discrepancy, loaded then released, deg): the loaded curve less the
+    released one is the springback it predicts beyond the simulation's."""
+    beta = np.asarray(coefficients, dtype=np.float64)
+    m = form.degree + 1
+    if beta.size != 2 * m:
+        return form
+    excess = beta[:m] - beta[m:]
+    return replace(form, springback_excess=tuple(float(v) for v in excess))
+
+
+def springback_excess_deg(commanded_pin_deg: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The learned baseline's springback beyond the simulation's (deg, >= 0 for more) at
+    each command, in the form in use; None when it has none."""
+    form = FORM.get()
+    if not form.springback_excess:
+        return None
+    return _legendre(commanded_pin_deg, form) @ np.asarray(form.springback_excess)
+
+
+def _legendre(commanded_pin_deg: NDArray[np.float64], form: DiscrepancyForm) -> NDArray[np.float64]:
+    """(n, degree + 1) Legendre polynomials of the bend magnitudes mapped from the form's
+    span onto [-1, 1]."""
+    lo, hi = form.span_deg
+    u = np.clip((np.abs(commanded_pin_deg) - lo) / ((hi - lo) / 2.0) - 1.0, -1.0, 1.0)
+    return np.polynomial.legendre.legvander(u, form.degree)
+
+
 def discrepancy_basis(trials: TrialTable) -> NDArray[np.float64]:
     """Design matrix (3 N, 2 (degree + 1)) of the discrepancy over stacked observations
     (the form in use: :func:`current_form`)."""
     form = FORM.get()
     n = len(trials)
-    lo, hi = form.span_deg
-    u = np.clip((np.abs(trials.commanded_pin_deg) - lo) / ((hi - lo) / 2.0) - 1.0, -1.0, 1.0)
-    legendre = np.polynomial.legendre.legvander(u, form.degree)  # (n, d + 1)
+    legendre = _legendre(trials.commanded_pin_deg, form)  # (n, d + 1)
     signed = trials.direction_sign[:, None] * legendre
     m = form.degree + 1
     out = np.zeros((3 * n, 2 * m))

@@ -30,6 +30,7 @@ from cvmeasure.diagnose.discrepancy import current_form as current_form
 from cvmeasure.diagnose.discrepancy import discrepancy_basis as discrepancy_basis
 from cvmeasure.diagnose.discrepancy import discrepancy_form as discrepancy_form
 from cvmeasure.diagnose.discrepancy import learned_form as learned_form
+from cvmeasure.diagnose.discrepancy import with_learned_springback as with_learned_springback
 from cvmeasure.diagnose.forms import (
     ALONE_FORMS,
     FORM_PRIOR_SD,

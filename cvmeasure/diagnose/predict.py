@@ -9,12 +9,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discrepancy import discrepancy_basis
+from cvmeasure.diagnose.discrepancy import discrepancy_basis, springback_excess_deg
 from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, as_causes
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
 from cvmeasure.sim.params import SimParams
+
+#: The cause whose split follows the learned springback (:func:`learned_split`).
+ASYMMETRY = "springback_asymmetry"
 
 
 def scaled(base: SimParams, scale: float, nuisance: Sequence[float] = ()) -> SimParams:
@@ -62,13 +65,37 @@ def predict(
     """Predicted observations of the trials under a model, stacked like
     :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg);
     ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
+    cmd = trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg
+    effects = effects_with(base_effects, as_causes(causes), values, shapes)
     res = simulate(
-        trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg,
-        scaled(params, strength_scale, nuisance),
-        effects_with(base_effects, as_causes(causes), values, shapes),
-        bend_index=trials.bend_index,
+        cmd, scaled(params, strength_scale, nuisance), effects, bend_index=trials.bend_index
     )
-    return np.concatenate([res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg])
+    unloaded = learned_split(cmd, effects, res.unloaded_bend_deg, res.springback_deg)
+    return np.concatenate([res.loaded_bend_deg, unloaded, res.pin_angle_deg])
+
+
+def learned_split(
+    commanded_pin_deg: NDArray[np.float64],
+    effects: Sequence[Effect],
+    unloaded_deg: NDArray[np.float64],
+    springback_deg: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """The released angles (deg, signed; leading axes allowed) with a springback
+    asymmetry splitting the springback the learned baseline predicts, not only the
+    simulation's: the learned curve takes up the wire's mean springback (the same in
+    both directions), and a wire stronger one way splits the springback it has, whatever
+    its mean (:func:`~cvmeasure.diagnose.discrepancy.springback_excess_deg`). Unchanged
+    without a learned springback or an asymmetry."""
+    alpha = next((float(e.value) for e in effects if e.name == ASYMMETRY), 0.0)
+    excess = springback_excess_deg(commanded_pin_deg) if alpha else None
+    if excess is None:
+        return unloaded_deg
+    direction = np.where(np.asarray(commanded_pin_deg) < 0, -1.0, 1.0)
+    # the simulation's springback before its split; the wire's is never below nil
+    own = springback_deg / (1.0 + direction * alpha)
+    excess = np.maximum(excess, -own)
+    # released magnitude less dir * alpha * excess: signed, less alpha * excess
+    return unloaded_deg - alpha * excess
 
 
 def residuals(
@@ -161,9 +188,10 @@ def drift_rate_residuals(
         clipped,
         bend_index=trials.bend_index,
     )
-    predicted = np.concatenate(
-        [res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg], axis=-1
+    unloaded = learned_split(
+        trials.commanded_pin_deg, effects, res.unloaded_bend_deg, res.springback_deg
     )
+    predicted = np.concatenate([res.loaded_bend_deg, unloaded, res.pin_angle_deg], axis=-1)
     return observed_minus(trials, predicted)
 
 
