@@ -50,14 +50,12 @@ from cvmeasure.diagnose.bow import BOW_RIVALS, bow_decides
 from cvmeasure.diagnose.evidence import TIE_STANDARD_ERRORS as TIE_STANDARD_ERRORS
 from cvmeasure.diagnose.evidence import held_out_excess as held_out_excess
 from cvmeasure.diagnose.fitting import (
-    DiscrepancyForm,
     ModelFit,
     discrepancy_form,
     fit_model,
     group_folds,
     grouped_kfold_cv,
-    learned_form,
-    with_learned_springback,
+    learned_baseline_form,
 )
 from cvmeasure.diagnose.follow_up import Rival, propose_follow_up, term_rival
 from cvmeasure.diagnose.misfit import (
@@ -192,7 +190,7 @@ def diagnose(
     # the simulation's form does not describe this machine: its no-effect relation is
     # learned from the session (a smooth curve in the bend, fitted with every cause) and
     # the causes are tested on what such a curve cannot absorb
-    form = _learned_baseline_form(trials, params, base_effects)
+    form = learned_baseline_form(trials, params, base_effects)
     with discrepancy_form(form):
         learned = _diagnose_form(trials, params, kwargs, follow_up)
         fit = learned.extended_fit if learned.causes else learned.baseline_fit
@@ -231,19 +229,6 @@ def diagnose(
 #: predicted springback (rms over the session) is a machine described wrong (its wire,
 #: pin or dead zone), which the user is told to fix.
 LEARNED_CURVE_SPRINGBACKS = 2.0
-
-
-def _learned_baseline_form(
-    trials: TrialTable, params: SimParams, base_effects: Sequence[Effect]
-) -> DiscrepancyForm:
-    """The learned no-effect curve's form (:func:`learned_form`) with the springback its
-    baseline predicts beyond the simulation's: a springback asymmetry then splits the
-    wire's springback as learned, whatever its mean (an asymmetric wire whose mean
-    springback is off the description's is still an asymmetry)."""
-    form = learned_form(trials)
-    with discrepancy_form(form):
-        base = fit_model(trials, params, "none", base_effects=base_effects, intervals=False)
-    return with_learned_springback(form, base.discrepancy)
 
 
 def _refused(result: Diagnosis) -> bool:

@@ -213,6 +213,20 @@ def fit_model(
     return _with_intervals(problem, point, fitted, learned)
 
 
+def learned_baseline_form(
+    trials: TrialTable, params: SimParams, base_effects: Sequence[Effect] = ()
+) -> DiscrepancyForm:
+    """The learned no-effect curve's form (:func:`learned_form`) with the springback its
+    baseline (no cause, fitted in that form) predicts beyond the simulation's: a
+    springback asymmetry then splits the wire's springback as learned, whatever its mean
+    (a wire stronger one way whose mean springback is off the description's is still an
+    asymmetry; see :func:`~cvmeasure.diagnose.predict.learned_split`)."""
+    form = learned_form(trials)
+    with discrepancy_form(form):
+        base = fit_model(trials, params, "none", base_effects=base_effects, intervals=False)
+    return with_learned_springback(form, base.discrepancy)
+
+
 def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     """(observation rows, one column per prior): the change of the residuals per prior
     standard deviation of each machine parameter held at its value
