@@ -51,6 +51,9 @@ class DiscrepancyForm:
     #: which is the simulation's plus this (empty: the simulation's own;
     #: :func:`with_learned_springback`)
     springback_excess: tuple[float, ...] = ()
+    #: ... and of its loaded curve: how far the loaded leg departs from the simulation's
+    #: (empty: none learned)
+    loaded_excess: tuple[float, ...] = ()
 
 
 _DEFAULT_FORM = DiscrepancyForm()
@@ -112,16 +115,29 @@ def with_learned_springback(
     if beta.size != 2 * m:
         return form
     excess = beta[:m] - beta[m:]
-    return replace(form, springback_excess=tuple(float(v) for v in excess))
+    return replace(
+        form,
+        springback_excess=tuple(float(v) for v in excess),
+        loaded_excess=tuple(float(v) for v in beta[:m]),
+    )
 
 
 def springback_excess_deg(commanded_pin_deg: NDArray[np.float64]) -> NDArray[np.float64] | None:
-    """The learned baseline's springback beyond the simulation's (deg, >= 0 for more) at
+    """The learned baseline's springback beyond the simulation's (deg, > 0 for more) at
     each command, in the form in use; None when it has none."""
     form = FORM.get()
     if not form.springback_excess:
         return None
     return _legendre(commanded_pin_deg, form) @ np.asarray(form.springback_excess)
+
+
+def loaded_excess_deg(commanded_pin_deg: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The learned baseline's loaded bend beyond the simulation's (deg, bend magnitude, > 0
+    for more) at each command, in the form in use; None when it has none."""
+    form = FORM.get()
+    if not form.loaded_excess:
+        return None
+    return _legendre(commanded_pin_deg, form) @ np.asarray(form.loaded_excess)
 
 
 def _legendre(commanded_pin_deg: NDArray[np.float64], form: DiscrepancyForm) -> NDArray[np.float64]:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cvmeasure.diagnose.discrepancy import current_form
 from cvmeasure.sim.effects import EFFECTS
 from cvmeasure.sim.params import SimParams
 
@@ -78,6 +79,31 @@ FORMS: dict[str, tuple[Shape, ...]] = {
     "springback_asymmetry": ((), (("loaded_deg", -1.0),), (("loaded_deg", 1.0),)),
     "camera_tilt": tuple((("tilt_axis_deg", float(a)),) if a else () for a in range(-75, 91, 15)),
 }
+
+
+#: Forms tried only beside the learned no-effect curve (they move the angles by that
+#: curve's own learned departure from the simulation). ``learned_loaded_share``: a wire
+#: stronger one way departs from the simulation's loaded leg by direction too, the learned
+#: loaded departure scaled by ``1 + dir * share * alpha`` (the released angle with it); the
+#: sign of the share (which way a stronger wire moves the leg) is tried both ways.
+LEARNED_FORMS: dict[str, tuple[Shape, ...]] = {
+    "springback_asymmetry": (
+        (("learned_loaded_share", -1.0),),
+        (("learned_loaded_share", 1.0),),
+    ),
+}
+#: Shape keys the diagnosis applies itself on the learned curve: never given to the
+#: simulation's effect (:func:`~cvmeasure.diagnose.predict.effects_with`).
+LEARNED_SHAPE_KEYS: frozenset[str] = frozenset({"learned_loaded_share"})
+
+
+def forms_of(cause: str) -> tuple[Shape, ...]:
+    """The forms of ``cause`` tried on the grid (:data:`FORMS`), with those of
+    :data:`LEARNED_FORMS` beside a learned curve that has a loaded departure."""
+    forms = FORMS.get(cause, ((),))
+    if current_form().loaded_excess:
+        forms = (*forms, *LEARNED_FORMS.get(cause, ()))
+    return forms
 
 
 #: Causes whose general form is tried only alone: the loaded leg an asymmetric wire moves

@@ -9,8 +9,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.diagnose.discrepancy import discrepancy_basis, springback_excess_deg
-from cvmeasure.diagnose.forms import NUISANCE, Causes, Shape, as_causes
+from cvmeasure.diagnose.discrepancy import (
+    discrepancy_basis,
+    loaded_excess_deg,
+    springback_excess_deg,
+)
+from cvmeasure.diagnose.forms import LEARNED_SHAPE_KEYS, NUISANCE, Causes, Shape, as_causes
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
 from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
@@ -44,10 +48,22 @@ def effects_with(
     kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
     forms = list(shapes) + [()] * (len(causes) - len(shapes))
     added = tuple(
-        Effect(c, min(max(float(v), EFFECTS[c].lower), EFFECTS[c].upper), f)
+        Effect(
+            c,
+            min(max(float(v), EFFECTS[c].lower), EFFECTS[c].upper),
+            tuple((k, x) for k, x in f if k not in LEARNED_SHAPE_KEYS),
+        )
         for c, v, f in zip(causes, values, forms, strict=True)
     )
     return (*kept, *added)
+
+
+def _loaded_share(causes: Causes, shapes: Sequence[Shape]) -> float:
+    """The asymmetry's ``learned_loaded_share`` (0: not in its form)."""
+    for c, f in zip(causes, shapes, strict=False):
+        if c == ASYMMETRY:
+            return float(dict(f).get("learned_loaded_share", 0.0))
+    return 0.0
 
 
 def predict(
@@ -66,36 +82,56 @@ def predict(
     :meth:`TrialTable.observations` (loaded, unloaded bend and pin angle, deg);
     ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
     cmd = trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg
-    effects = effects_with(base_effects, as_causes(causes), values, shapes)
+    names = as_causes(causes)
+    effects = effects_with(base_effects, names, values, shapes)
     res = simulate(
         cmd, scaled(params, strength_scale, nuisance), effects, bend_index=trials.bend_index
     )
-    unloaded = learned_split(cmd, effects, res.unloaded_bend_deg, res.springback_deg)
-    return np.concatenate([res.loaded_bend_deg, unloaded, res.pin_angle_deg])
+    loaded, unloaded = learned_split(
+        cmd,
+        effects,
+        _loaded_share(names, shapes),
+        res.loaded_bend_deg,
+        res.unloaded_bend_deg,
+        res.springback_deg,
+    )
+    return np.concatenate([loaded, unloaded, res.pin_angle_deg])
 
 
 def learned_split(
     commanded_pin_deg: NDArray[np.float64],
     effects: Sequence[Effect],
+    loaded_share: float,
+    loaded_deg: NDArray[np.float64],
     unloaded_deg: NDArray[np.float64],
     springback_deg: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """The released angles (deg, signed; leading axes allowed) with a springback
-    asymmetry splitting the springback the learned baseline predicts, not only the
-    simulation's: the learned curve takes up the wire's mean springback (the same in
-    both directions), and a wire stronger one way splits the springback it has, whatever
-    its mean (:func:`~cvmeasure.diagnose.discrepancy.springback_excess_deg`). Unchanged
-    without a learned springback or an asymmetry."""
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The loaded and released angles (deg, signed; leading axes allowed) with a
+    springback asymmetry splitting the wire's response as the learned baseline predicts
+    it, not only as the simulation does: the learned curve takes up the wire's mean
+    springback (the same in both directions), and a wire stronger one way splits the
+    springback it has, whatever its mean
+    (:func:`~cvmeasure.diagnose.discrepancy.springback_excess_deg`); with a
+    ``loaded_share`` its learned loaded departure from the simulation is split too,
+    scaled by ``1 + dir * share * alpha`` (the released leg moves with it). Unchanged
+    without a learned curve or an asymmetry."""
     alpha = next((float(e.value) for e in effects if e.name == ASYMMETRY), 0.0)
-    excess = springback_excess_deg(commanded_pin_deg) if alpha else None
-    if excess is None:
-        return unloaded_deg
-    direction = np.where(np.asarray(commanded_pin_deg) < 0, -1.0, 1.0)
-    # the simulation's springback before its split; the wire's is never below nil
-    own = springback_deg / (1.0 + direction * alpha)
-    excess = np.maximum(excess, -own)
-    # released magnitude less dir * alpha * excess: signed, less alpha * excess
-    return unloaded_deg - alpha * excess
+    if not alpha:
+        return loaded_deg, unloaded_deg
+    excess = springback_excess_deg(commanded_pin_deg)
+    if excess is not None:
+        direction = np.where(np.asarray(commanded_pin_deg) < 0, -1.0, 1.0)
+        # the simulation's springback before its split; the wire's is never below nil
+        own = springback_deg / (1.0 + direction * alpha)
+        excess = np.maximum(excess, -own)
+        # released magnitude less dir * alpha * excess: signed, less alpha * excess
+        unloaded_deg = unloaded_deg - alpha * excess
+    departure = loaded_excess_deg(commanded_pin_deg) if loaded_share else None
+    if departure is not None:
+        # magnitude plus dir * share * alpha * departure: signed, plus share * alpha * it
+        shift = loaded_share * alpha * departure
+        loaded_deg, unloaded_deg = loaded_deg + shift, unloaded_deg + shift
+    return loaded_deg, unloaded_deg
 
 
 def residuals(
@@ -188,10 +224,15 @@ def drift_rate_residuals(
         clipped,
         bend_index=trials.bend_index,
     )
-    unloaded = learned_split(
-        trials.commanded_pin_deg, effects, res.unloaded_bend_deg, res.springback_deg
+    loaded, unloaded = learned_split(
+        trials.commanded_pin_deg,
+        effects,
+        _loaded_share(causes, shapes),
+        res.loaded_bend_deg,
+        res.unloaded_bend_deg,
+        res.springback_deg,
     )
-    predicted = np.concatenate([res.loaded_bend_deg, unloaded, res.pin_angle_deg], axis=-1)
+    predicted = np.concatenate([loaded, unloaded, res.pin_angle_deg], axis=-1)
     return observed_minus(trials, predicted)
 
 

@@ -23,14 +23,15 @@ from cvmeasure.diagnose.discrepancy import (
 )
 from cvmeasure.diagnose.forms import (
     ALONE_FORMS,
-    FORMS,
     GRID_POINTS,
+    LEARNED_SHAPE_KEYS,
     PRIOR_NOISE_DEG,
     STRENGTH_BOUNDS,
     Causes,
     Nuisance,
     ParamLayout,
     Shape,
+    forms_of,
 )
 from cvmeasure.diagnose.model_fit import ModelFit, Solution
 from cvmeasure.diagnose.predict import (
@@ -219,16 +220,15 @@ def start_vector(
         for k, c in enumerate(names):
             if c in known:
                 continue
-            alternative = _grid_start(problem, x0, k)
-            if alternative is not None:
-                alternatives.append(alternative)
+            alternatives.extend(_grid_start(problem, x0, k))
     return x0, alternatives
 
 
-def _grid_start(problem: Problem, x0: NDArray[np.float64], k: int) -> Alternative | None:
+def _grid_start(problem: Problem, x0: NDArray[np.float64], k: int) -> list[Alternative]:
     """Cause ``k``'s value in ``x0`` and its form in ``problem.forms`` set to the best
-    point of a grid over its bounds, each form of :data:`FORMS` tried; the runner-up
-    form's best point, None with one form."""
+    point of a grid over its bounds, each form of :func:`~cvmeasure.diagnose.forms.forms_of`
+    tried; the other forms' best points to refine too: the runner-up's (none with one
+    form), or every one beside the learned curve's forms."""
     lay, names, forms = problem.layout, problem.names, problem.forms
     c, spec, i = names[k], problem.specs[k], lay.cause(k)
     grid = np.linspace(spec.lower, spec.upper, GRID_POINTS)
@@ -246,7 +246,7 @@ def _grid_start(problem: Problem, x0: NDArray[np.float64], k: int) -> Alternativ
             nuisance=x0[lay.nuisance],
             shapes=[forms[j] for j in rest],
         )
-    tried = ((),) if c in ALONE_FORMS and len(names) > 1 else FORMS.get(c, ((),))
+    tried = ((),) if c in ALONE_FORMS and len(names) > 1 else forms_of(c)
     for form in tried:
         forms[k] = form
         costs = []
@@ -263,9 +263,14 @@ def _grid_start(problem: Problem, x0: NDArray[np.float64], k: int) -> Alternativ
         per_form.append((costs[best], float(grid[best]), form))
     per_form.sort(key=lambda t: t[0])
     x0[i], forms[k] = per_form[0][1], per_form[0][2]
-    if len(per_form) > 1:  # the grid is coarse: the runner-up form is refined too
-        return (k, per_form[1][1], per_form[1][2])
-    return None
+    if any(set(dict(f)) & LEARNED_SHAPE_KEYS for f in tried):
+        # beside the learned curve's forms every form is refined: on the coarse grid a
+        # form with the learned departure can rank before the simulation's own at a value
+        # between grid points, and the refined costs decide
+        return [(k, v, form) for _, v, form in per_form[1:]]
+    # the grid is coarse: the runner-up form is refined too
+    out = [(k, v, form) for _, v, form in per_form[1:2]]
+    return out
 
 
 def solve_problem(
