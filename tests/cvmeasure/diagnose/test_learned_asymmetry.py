@@ -52,3 +52,35 @@ def test_asymmetry_measured_on_the_learned_springback(asymmetry):
     lo, hi = fit.intervals[0]
     assert lo <= asymmetry <= hi
     assert fit.rmse_deg < 0.08  # the noise is 0.05 deg
+
+
+def test_asymmetric_loaded_departure_beside_the_learned_curve():
+    # the machine's loaded leg departs from the description's (the bow it has and the
+    # description lacks) and a wire stronger one way splits that departure by direction:
+    # magnitude times (1 - dir * alpha), the released leg moving with it
+    asymmetry = 0.4
+    trials = _session(asymmetry)
+    cmd = trials.commanded_pin_deg
+    own = simulate(cmd, SimParams().replace(**OTHER_FORM)).loaded_bend_deg
+    departure = np.abs(own) - np.abs(simulate(cmd, SimParams()).loaded_bend_deg)
+    assert np.all(departure > 0.3)  # the bow leads the description's leg
+    shift = -asymmetry * departure  # signed: the same both ways
+    moved = TrialTable.from_arrays(
+        cmd,
+        trials.loaded_bend_deg + shift,
+        trials.unloaded_bend_deg + shift,
+        measured_pin_deg=trials.measured_pin_deg,
+    )
+    form = learned_baseline_form(moved, SimParams())
+    with discrepancy_form(form):
+        fit = fit_model(moved, SimParams(), "springback_asymmetry")
+        narrow = fit_model(
+            moved,
+            SimParams(),
+            "springback_asymmetry",
+            known={"springback_asymmetry": 0.3},
+            known_shapes={"springback_asymmetry": ()},
+        )
+    assert dict(fit.shapes[0]) == {"learned_loaded_share": -1.0}
+    assert fit.values[0] == pytest.approx(asymmetry, abs=0.05)
+    assert fit.rmse_deg < 0.08 < narrow.rmse_deg  # the noise is 0.05 deg
