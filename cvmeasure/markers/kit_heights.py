@@ -160,7 +160,13 @@ def _photo_whitening(photo: SweepPhoto, y_down: bool, step_mm: float = 1e-3) -> 
         covs.append(np.asarray(photo.covariances_mm2[role], dtype=np.float64))
     jac = np.column_stack(cols)
     cov = jac @ _block_diag(covs) @ jac.T
-    return np.linalg.inv(np.linalg.cholesky(cov))
+    try:
+        return np.linalg.inv(np.linalg.cholesky(cov))
+    except np.linalg.LinAlgError:
+        raise ValueError(
+            f"{photo.source or 'a photo'}: its centres' covariances give its residuals no "
+            "positive variance"
+        ) from None
 
 
 def _block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
@@ -228,7 +234,8 @@ def measure_heights(
     Raises
     ------
     ValueError
-        Fewer than :data:`MIN_PHOTOS` photos, or a photo without every role.
+        Fewer than :data:`MIN_PHOTOS` photos, a photo without every role, or one whose
+        centres' covariances leave its residuals no variance.
     """
     if len(photos) < MIN_PHOTOS:
         raise ValueError(f"need at least {MIN_PHOTOS} photos of a bend sweep, got {len(photos)}")

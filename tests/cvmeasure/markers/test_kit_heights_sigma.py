@@ -12,8 +12,10 @@ origin marker's centre, which the fit must count once.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from cvmeasure.kit import ROLES, default_kit
 from cvmeasure.markers.heights import height_angle_jacobian, move_to_heights
@@ -94,3 +96,14 @@ def test_kit_heights_move_towards_the_truth():
     nom = np.abs(jac @ (np.array([nominal_mm[r] for r in ROLES]) - true_h))
     meas = np.abs(jac @ (np.array([got.heights_mm[r] for r in ROLES]) - true_h))
     assert np.all(meas < 0.2 * nom), (meas, nom)
+
+
+def test_photo_without_centre_variance_is_refused():
+    """Zero covariances leave a photo's residuals no weight: refused, naming the photo."""
+    nominal = default_kit()
+    nominal_mm = {r: nominal.height_mm(r) for r in ROLES}
+    photos = _sweep(np.random.default_rng(5), nominal_mm, nominal_mm)
+    zero = {r: np.zeros((2, 2)) for r in ROLES}
+    photos[2] = replace(photos[2], covariances_mm2=zero, source="bend_03.jpg")
+    with pytest.raises(ValueError, match="bend_03.jpg"):
+        measure_heights(photos, nominal, CAMERA_MM, y_down=False)
