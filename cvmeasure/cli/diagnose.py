@@ -142,4 +142,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2))
     else:
         print(_summary(out))
+        if args.follow_up_csv and out["follow_up_csv"] is None:  # asked for, nothing to write
+            print(
+                f"no follow-up plan written to {args.follow_up_csv}: "
+                "no tie between catalogue causes to separate"
+            )
     return 0

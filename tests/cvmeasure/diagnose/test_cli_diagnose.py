@@ -73,6 +73,16 @@ def test_diagnose_text_summary(offset_trials, capsys):
     assert text.startswith("cause: offset") and "held-out RMSE" in text
 
 
+def test_a_follow_up_asked_for_without_a_tie_is_said_not_written(offset_trials, tmp_path, capsys):
+    plan = tmp_path / "follow-up.csv"
+    assert main(["diagnose", str(offset_trials), "--follow-up-csv", str(plan)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("cause: offset") and not plan.exists()
+    assert text.rstrip().endswith(
+        f"no follow-up plan written to {plan}: no tie between catalogue causes to separate"
+    )
+
+
 def test_unloaded_only_trials_are_accepted(tmp_path, capsys):
     rng = np.random.default_rng(43)
     trials = measure_trials(
