@@ -351,9 +351,10 @@ _JSON_KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("a plane JSON (`cvmeasure plane`)", ("H_board_image",)),
     ("a board JSON (`cvmeasure targets charuco`)", ("squares_x",)),
     ("a marker kit JSON", ("markers", "wire_diameter_mm")),
-    ("a diagnosis JSON (`cvmeasure diagnose`)", ("diagnosis",)),
+    ("a diagnosis JSON (`cvmeasure diagnose`)", ("cause", "candidates")),
     ("a part result JSON (`cvmeasure part`)", ("radius_mm", "arc_angle_deg")),
-    ("a simulation params JSON", ("wire", "head")),
+    # SimParams' own keys: `diagnose --save-params` writes them with a "diagnosis" record
+    ("a simulation params JSON", ("yield_mpa", "die_radius_mm")),
 )
 #: ``read_json``'s ``what`` -> the kind in ``_JSON_KINDS`` it expects.
 _KIND_OF_WHAT: dict[str, str] = {
