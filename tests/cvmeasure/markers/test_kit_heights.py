@@ -196,3 +196,22 @@ def test_too_few_photos_are_refused(tmp_path, capsys):
     assert main([*args, "-o", str(tmp_path / "k.json")]) == 2
     assert "at least 3 photos" in capsys.readouterr().err
     assert not (tmp_path / "k.json").exists()
+
+
+def test_a_plane_from_another_pose_is_warned_beside_the_heights(tmp_path, capsys, sweep_paths):
+    """The sweep through a plane measured 180 mm farther away: the fit alone looks fine
+    (the heights absorb the pose), but each photo's plane check does not; `markers heights`
+    says so on stderr instead of writing wrong heights silently."""
+    far = replace(TILTED, distance_mm=TILTED.distance_mm + 180.0)
+    plane = replace(
+        true_plane(_camera(), far), tilt_deg=8.0, tilt_direction_deg=0.0, mm_per_px=0.3,
+        worst_angle_error_deg=0.0, tolerance_deg=0.05, rms_px=0.1, corner_count=100,
+    )  # fmt: skip
+    plane_json = plane.save(tmp_path / "plane.json")
+    args = ["markers", "heights", *[str(sweep_paths[s]) for s in SWEEP]]
+    assert main([*args, "--plane", str(plane_json), "-o", str(tmp_path / "k.json")]) == 0
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
+    assert lines, err
+    assert all(f"of {len(SWEEP)} photos" in ln and "not to be trusted" in ln for ln in lines)
+    assert {ln.split()[1] for ln in lines} <= {"plane_scale", "plane_tilt", "kit_heights_mismatch"}
