@@ -104,9 +104,34 @@ DRIFT_RATE_GRID = np.geomspace(0.01, 0.5, 35)
 #: standard deviation of the grid's rounding (uniform within half a step: step / sqrt(12)):
 #: marginalised in every interval like the unfitted machine parameters.
 FORM_PRIOR_SD: dict[str, tuple[tuple[str, float], ...]] = {
-    "camera_tilt": (("tilt_axis_deg", 15.0 / math.sqrt(12.0)),),
     "drift": (("load_exponent", 1.0 / math.sqrt(12.0)),),
 }
+
+#: Continuous shapes fitted off the grid (:mod:`cvmeasure.diagnose.shapes`), each with its
+#: grid's step: the shape is profiled within one step of the grid's choice. In the
+#: intervals such a shape counts as a fitted parameter: it is marginalised with a prior sd
+#: of one step (weak: the data decide it), so the cause's interval carries the shape's
+#: own uncertainty (the two are correlated: an asymmetric wire's loaded leg moves by the
+#: product of the shape and the asymmetry).
+REFINED_SHAPES: dict[str, tuple[str, float]] = {
+    "camera_tilt": ("tilt_axis_deg", 15.0),
+    "springback_asymmetry": ("loaded_deg", 1.0),
+}
+#: Finite-difference step of a refined shape's column, as a share of its prior sd.
+SHAPE_DIFF_SHARE = 0.1
+
+
+def shape_priors(cause: str, n_causes: int) -> tuple[tuple[str, float, float], ...]:
+    """(shape key, prior sd, finite-difference step) of each of ``cause``'s continuous
+    shapes carried in the intervals, in a fit of ``n_causes`` causes: the grid's rounding
+    (:data:`FORM_PRIOR_SD`, differenced over one sd) or a refined shape
+    (:data:`REFINED_SHAPES`); none for a form held narrow in a pair (:data:`ALONE_FORMS`)."""
+    if cause in REFINED_SHAPES:
+        if cause in ALONE_FORMS and n_causes > 1:
+            return ()
+        key, step = REFINED_SHAPES[cause]
+        return ((key, step, SHAPE_DIFF_SHARE * step),)
+    return tuple((key, sd, sd) for key, sd in FORM_PRIOR_SD.get(cause, ()))
 
 
 def shape_bounds(cause: str, key: str) -> tuple[float, float]:
