@@ -8,7 +8,8 @@ Every stage takes and returns these, never dicts or ``Any``:
   back from the JSON Lines results.
 - **The measurement plane** (:class:`PlaneModel`): camera + homography + pose; saved
   and loaded without loss, rescaled with the photo like the camera. It lives in
-  :mod:`cvmeasure.plane_model` and is re-exported here.
+  :mod:`cvmeasure.plane_model` and is re-exported here on first use (PEP 562,
+  ``docs/design/imports.md``): the plane loads OpenCV, which trials never need.
 
 Frames and units follow docs/conventions.md: angles in degrees, lengths in mm,
 pixels in the image frame (x right, y down, centre of the top-left pixel at (0, 0)).
@@ -31,8 +32,10 @@ from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_csv_rows, write_csv_rows
 from cvmeasure.kit import ROLES
 from cvmeasure.method_names import marker_method
-from cvmeasure.plane_model import PLANE_FORMAT, PlaneModel, apply_homography
 from cvmeasure.warning import StageWarning
+
+#: The names re-exported from :mod:`cvmeasure.plane_model`, loaded on first use.
+_PLANE_NAMES = ("PLANE_FORMAT", "PlaneModel", "apply_homography")
 
 __all__ = [
     "BLOCKS",
@@ -42,10 +45,23 @@ __all__ = [
     "TrialTable",
     "MarkerMeasurement",
     "MachinePhotoResult",
-    "PLANE_FORMAT",
-    "PlaneModel",
-    "apply_homography",
+    *_PLANE_NAMES,
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PLANE_NAMES:
+        from cvmeasure import plane_model
+
+        value = getattr(plane_model, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'cvmeasure.contracts' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_PLANE_NAMES})
+
 
 #: Required columns of a trials CSV (spec), in this order.
 TRIALS_COLUMNS: tuple[str, ...] = (

@@ -7,7 +7,6 @@ import platform
 import sys
 from typing import Any
 
-import cv2
 import numpy as np
 
 from cvmeasure import __version__
@@ -17,6 +16,7 @@ __all__ = ["provenance"]
 
 def provenance(argv: list[str] | None = None) -> dict[str, Any]:
     """A small dict recording how an output was made (command line, versions, time)."""
+    import cv2  # here, not at the top: trials-only commands need no OpenCV (docs/design/imports.md)
 
     return {
         "generated_by": f"cvmeasure {__version__}",

@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.fileio import atomic_write_json, to_jsonable
     from cvmeasure.provenance import provenance
     from cvmeasure_datasets.demo import format_sections, run_demo
 
@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     result = {"provenance": provenance(), "sections": [s.to_dict() for s in sections]}
     path = atomic_write_json(args.out / "demo.json", result)
     if args.json:
-        print(json.dumps(result["sections"], indent=2))
+        print(json.dumps(to_jsonable(result["sections"]), indent=2, allow_nan=False))
     else:
         print(format_sections(sections))
         print(f"results: {path}")

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 from pathlib import Path
 
 from cvmeasure.cli.options import int_in
+from cvmeasure.cli.startup import libraries_loading
 
 __all__ = ["register", "run"]
 
@@ -88,21 +88,13 @@ def _summary(result: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    # numpy and scipy.optimize are most of the start-up: importing them creates ~10^5
-    # objects and no garbage to speak of, so the cyclic collector (~130 passes, ~0.04 s)
-    # waits until they are in
-    collecting = gc.isenabled()
-    gc.disable()
-    try:
+    with libraries_loading():  # numpy and scipy.optimize: most of the start-up
         from cvmeasure.contracts import TrialTable
         from cvmeasure.diagnose import diagnose
         from cvmeasure.errors import InputError
         from cvmeasure.fileio import atomic_write_bytes, to_jsonable
         from cvmeasure.provenance import provenance
         from cvmeasure.sim import SimParams, params_from_json, params_to_json
-    finally:
-        if collecting:
-            gc.enable()
 
     trials = TrialTable.read_csv(args.trials)
     params, effects = params_from_json(args.params) if args.params else (SimParams(), ())

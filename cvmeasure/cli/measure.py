@@ -190,9 +190,9 @@ def _measure_photos(
     args: argparse.Namespace, photos: list[Path], setup: tuple[Any, Any, Any, Any]
 ) -> tuple[dict[Path, Any], list[dict[str, Any]], int]:
     """Measure each photo (a bad one is reported and skipped): results, records, failures."""
-    from cvmeasure.api import measure_bender_photo
     from cvmeasure.errors import InputError
     from cvmeasure.imageio import read_photo
+    from cvmeasure.markers.measure import measure_photo_file
 
     kit, camera, plane, board = setup
     results: dict[Path, Any] = {}
@@ -201,7 +201,7 @@ def _measure_photos(
     for path in photos:
         try:
             photo = read_photo(path)
-            res = measure_bender_photo(
+            res = measure_photo_file(  # what cvmeasure.api's verb calls, without its imports
                 photo,
                 kit,
                 camera=camera,
@@ -231,8 +231,8 @@ def _measure_trials(
     records: list[dict[str, Any]],
 ) -> list[Any]:
     """Springback of each pair whose two photos were measured (records appended)."""
-    from cvmeasure.api import measure_springback
     from cvmeasure.errors import InputError
+    from cvmeasure.markers.measure import measure_trial
 
     measured = []
     for trial, loaded, unloaded, row in trials:
@@ -249,8 +249,8 @@ def _measure_trials(
             raise InputError(
                 args.trials, f"trial {trial}: commanded_pin_deg {commanded!r}"
             ) from None
-        t = measure_springback(
-            results[loaded], results[unloaded], trial=trial, commanded_pin_deg=commanded_deg
+        t = measure_trial(
+            results[loaded], results[unloaded], trial, commanded_pin_deg=commanded_deg
         )
         records.append(t.to_dict())
         _emit(records[-1], args.json)

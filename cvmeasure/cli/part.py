@@ -9,6 +9,7 @@ from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
 from cvmeasure.cli.options import int_in, non_negative_float, positive_float
+from cvmeasure.cli.startup import libraries_loading
 from cvmeasure.method_names import PART_METHOD_ALIASES, PART_METHODS
 
 __all__ = ["register", "run"]
@@ -132,17 +133,18 @@ def _add_wire_and_lift_options(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import cv2
+    with libraries_loading():  # numpy, OpenCV and SciPy: most of the start-up
+        import cv2
 
-    from cvmeasure.board import load_board
-    from cvmeasure.camera_model import load_camera
-    from cvmeasure.contracts import PlaneModel
-    from cvmeasure.errors import InputError
-    from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
-    from cvmeasure.imageio import read_photo
-    from cvmeasure.part.measure import measure_part
-    from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
-    from cvmeasure.provenance import provenance
+        from cvmeasure.board import load_board
+        from cvmeasure.camera_model import load_camera
+        from cvmeasure.contracts import PlaneModel
+        from cvmeasure.errors import InputError
+        from cvmeasure.fileio import atomic_write_bytes, atomic_write_json, to_jsonable
+        from cvmeasure.imageio import read_photo
+        from cvmeasure.part.measure import measure_part
+        from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+        from cvmeasure.provenance import provenance
 
     if args.plot and not args.design:
         raise InputError("--plot", "the deviation plot needs --design")

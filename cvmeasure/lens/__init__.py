@@ -13,21 +13,39 @@ Stages (each a module of pure functions returning frozen result dataclasses):
   and the rectifying homography to board millimetres;
 * :mod:`~cvmeasure.lens.pipeline` -- all of the above for a set of photos,
   and the camera JSON record.
+
+The names load on first use (PEP 562, ``docs/design/imports.md``): a bender photo's
+measurement uses only :mod:`~cvmeasure.lens.plane` and must not pay for the calibration
+solver's SciPy.
 """
 
-from cvmeasure.lens.coverage import Coverage, image_coverage
-from cvmeasure.lens.detect import BoardDetection, detect_board
-from cvmeasure.lens.pipeline import CalibrationReport, calibrate_detections, detect_photos
-from cvmeasure.lens.plane import PlaneModel, estimate_plane, fit_plane, rectify_image
-from cvmeasure.lens.solve import CalibrationResult, calibrate_views
-from cvmeasure.lens.uncertainty import (
-    CrossValidation,
-    ProjectionDiff,
-    ProjectionUncertainty,
-    cross_validate,
-    projection_diff,
-    projection_uncertainty,
-)
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it.
+_NAMES = {
+    "Coverage": "cvmeasure.lens.coverage",
+    "image_coverage": "cvmeasure.lens.coverage",
+    "BoardDetection": "cvmeasure.lens.detect",
+    "detect_board": "cvmeasure.lens.detect",
+    "CalibrationReport": "cvmeasure.lens.pipeline",
+    "calibrate_detections": "cvmeasure.lens.pipeline",
+    "detect_photos": "cvmeasure.lens.pipeline",
+    "PlaneModel": "cvmeasure.lens.plane",
+    "estimate_plane": "cvmeasure.lens.plane",
+    "fit_plane": "cvmeasure.lens.plane",
+    "rectify_image": "cvmeasure.lens.plane",
+    "CalibrationResult": "cvmeasure.lens.solve",
+    "calibrate_views": "cvmeasure.lens.solve",
+    "CrossValidation": "cvmeasure.lens.uncertainty",
+    "ProjectionDiff": "cvmeasure.lens.uncertainty",
+    "ProjectionUncertainty": "cvmeasure.lens.uncertainty",
+    "cross_validate": "cvmeasure.lens.uncertainty",
+    "projection_diff": "cvmeasure.lens.uncertainty",
+    "projection_uncertainty": "cvmeasure.lens.uncertainty",
+}
 
 __all__ = [
     "BoardDetection",
@@ -50,3 +68,15 @@ __all__ = [
     "fit_plane",
     "rectify_image",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _NAMES:
+        value = getattr(importlib.import_module(_NAMES[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'cvmeasure.lens' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_NAMES})

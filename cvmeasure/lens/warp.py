@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
-from scipy.stats import chi2 as chi2_dist
+from scipy.special import chdtrc
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.lens.detect import BoardDetection
@@ -358,4 +358,5 @@ def warp_test(warp: BoardWarp, result=None) -> WarpTest:
         rot, _ = cv2.Rodrigues(np.asarray(view.rvec, dtype=np.float64))
         centre = rot @ np.asarray(det.object_mm, dtype=np.float64).mean(axis=0) + view.tvec_mm
         towards = bool(rot[:, 2] @ centre < 0)  # +z points back at the camera at the origin
-    return WarpTest(warp, c2, float(chi2_dist.sf(c2, 2)), towards)
+    # chi-square sf (scipy.stats's own ufunc); a rounding-negative c2 is 0, as stats had it
+    return WarpTest(warp, c2, float(chdtrc(2, max(c2, 0.0))), towards)

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy.stats import f as f_dist
+from scipy.special import fdtrc
 
 from cvmeasure.errors import InputError
 from cvmeasure.lens.solve import CalibrationResult, calibrate_views
@@ -126,7 +126,8 @@ def _jackknife_p(result: CalibrationResult, extent_mm, warp_mm: np.ndarray) -> t
     cov = (groups - 1) / groups * dev.T @ dev
     t2 = float(warp_mm @ np.linalg.pinv(cov) @ warp_mm)
     f_stat = (groups - 2) / (2.0 * (groups - 1)) * t2
-    return float(f_dist.sf(f_stat, 2, groups - 2)), groups
+    # the F distribution's sf (scipy.stats's own ufunc); a rounding-negative t2 is 0
+    return float(fdtrc(2, groups - 2, max(f_stat, 0.0))), groups
 
 
 def _lens_shift_sigma(flat: CalibrationResult, warped: CalibrationResult) -> float:

@@ -13,6 +13,10 @@ with a window of most of the wire's rough width (a small window finds false
 centres in each dark flank: a local valley is symmetric too), then normals from
 the centres found with the window set from the half-width measured about
 them; centres that jump from the running median along the wire are dropped.
+With the wire's expected width known and the wire's band not clearly brighter than the
+sheet (white, printed cork), the window is set from that width instead: a polished tube's
+limbs mirror the light sheet, so the mask and the half-width measured about it hold only one
+flank's dark valley, whose own centre lies off the axis.
 
 Each end of the wire is found the same way along the axis: the wire's end is
 taken as a hemispherical cap (as a cut end rounded by handling, and as the
@@ -97,6 +101,11 @@ SILHOUETTE_MIN_SHARE_OF_PATH = 0.85
 #: Least share of the profiles with a centre between silhouette edges (or from one edge)
 #: for those to be used; below it the symmetric centres are, where they are a wire's.
 SILHOUETTE_MIN_COVERAGE = 0.5
+
+#: Largest ratio of the wire band's mean level to the sheet's at which the sheet counts as
+#: light (:func:`_dark_on_sheet`): path-traced steel gives 0.6-0.95 on white and printed cork,
+#: 1.8-3.3 on dark grey and black card.
+LIGHT_SHEET_BAND_MAX = 1.25
 
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
@@ -222,8 +231,9 @@ def measure_centreline(
 
     window = int(round(6.0 * hw0 / step_px))
     centres, normals, prof, rough, rho, search = _symmetric_passes(
-        profiles_at, path, offsets, hw0, reach, step_px, window
-    )
+        profiles_at, path, offsets, hw0, reach, step_px, window,
+        known_hw=None if wire_width_px is None else 0.5 * float(wire_width_px),
+    )  # fmt: skip
     half_width = rough
     centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
         prof, centres, normals, rho, search, step_px, window
@@ -244,10 +254,17 @@ def measure_centreline(
             centre_from = f"symmetry ({found})"
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
+    # a polished wire's profiles may have a half-contrast flank about its narrow crest only:
+    # its cap is searched at the wire's own half-width where that is known
+    cap_half_width = half_width
+    known_width = not at_edges and wire_width_px is not None
+    if known_width:
+        cap_half_width = max(half_width, 0.5 * float(wire_width_px))
     found_ends = [
         end_point(
-            g, centres, prof_ok, offsets, rho, half_width,
+            g, centres, prof_ok, offsets, rho, cap_half_width,
             head=head, shape=end_shape, silhouette=at_edges, shadow=shadow,
+            axis_level=known_width,
         )
         for head in (True, False)
     ]  # fmt: skip
@@ -372,11 +389,13 @@ def _symmetric_passes(
     reach: float,
     step_px: float,
     window: int,
+    known_hw: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, float]:
     """The three passes of symmetric centres from the mask's ``path`` (the module notes).
 
     Returns the last pass's centres, normals and profiles, the half-width measured
-    about them, and the symmetry window and search (px) for the final pass.
+    about them (``known_hw`` when given), and the symmetry window and search (px) for the
+    final pass.
     """
     normals = path_normals(path)
     prof = profiles_at(path, normals)
@@ -385,6 +404,16 @@ def _symmetric_passes(
     # inflates half-widths measured from it: centre with a small window first
     hws = half_width_px(prof, offsets, hw0)
     rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    if known_hw is not None and _dark_on_sheet(prof, offsets, known_hw):
+        # a dark wire on a light sheet: its polished limbs mirror the sheet beside them, the
+        # flanks near 45 deg the dark room's horizon, so the mask holds one flank's dark
+        # valley, itself symmetric, whose centre lies a third of the width off the axis on
+        # the lamp's far side (a radius 1-3 % off on path-traced parts); the half-width
+        # measured about it is the valley's. The window spans the whole wire, both flanks,
+        # and stays so
+        rough = known_hw
+    else:
+        known_hw = None
     # a window of most of the wire: a small one finds false centres in each
     # dark flank (a local valley is symmetric too)
     rho = max(0.85 * rough, _MIN_RHO_PX)
@@ -400,12 +429,29 @@ def _symmetric_passes(
         smooth = smooth_path(centres, max(2.0, 2.0 * rough) / step_px)
         normals = path_normals(smooth)
         prof = profiles_at(centres, normals)
-        if not final:
+        if not final and known_hw is None:
             hws = half_width_px(prof, offsets, rough)
             rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
+        if not final:
             rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     return centres, normals, prof, rough, rho, search
+
+
+def _dark_on_sheet(profiles: np.ndarray, offsets: np.ndarray, half_width: float) -> bool:
+    """True when the band of the wire's width does not stand out brighter than the sheet
+    beyond it on most of the profiles (``half_width`` in px).
+
+    A polished wire mirrors the sheet in its limbs and the room in its flanks: on a dark
+    sheet its band is far brighter than the sheet (about twice on dark card); on a light or
+    mid-tone sheet (white, printed cork) it is darker or within a few tens of percent of it
+    (``LIGHT_SHEET_BAND_MAX``).
+    """
+    n = profiles.shape[1]
+    outer = max(2, n // 10)
+    bg = 0.5 * (np.median(profiles[:, :outer], axis=1) + np.median(profiles[:, -outer:], axis=1))
+    band = profiles[:, np.abs(offsets) <= max(half_width, 1.0)].mean(axis=1)
+    return bool(np.mean(band <= LIGHT_SHEET_BAND_MAX * bg) > 0.5)
 
 
 def _shadow_side(

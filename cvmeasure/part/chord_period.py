@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 from cvmeasure.geometry import fit_circle_robust
 from cvmeasure.warning import StageWarning
@@ -281,7 +281,7 @@ def periodic_chords(
     # decided on the grid's values (every count searched alike); refined: the angle
     margin = (float(gain[best] - others.max())) / var if others.size else math.inf
     angle_sigma = _angle_sigma(hess, var, angle, span)
-    threshold = float(chi2.isf(FALSE_ALARM / len(gain), 1))
+    threshold = float(chdtri(1, FALSE_ALARM / len(gain)))  # chi-square isf, no scipy.stats
     return _decide(
         n_best, radius, (angle, angle_sigma), amplitude, float(gain[best]) / var, threshold,
         margin, noise, corr, misfit <= MAX_MISFIT * noise_local,

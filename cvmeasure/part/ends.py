@@ -48,6 +48,7 @@ def end_point(
     shape: EndShape = "round",
     silhouette: bool = False,
     shadow: np.ndarray | None = None,
+    axis_level: bool = False,
 ) -> tuple[np.ndarray, float]:
     """The end point of the wire's axis at one end, pixels, and its uncertainty (px).
 
@@ -67,6 +68,10 @@ def end_point(
     whose axis points into it (within 60 deg) faces away from the light and the shadow of
     a lifted end can reach beyond its cap: the returned uncertainty says how far inside
     the cap's silhouette could lie (:func:`_cap_edge`; 0 elsewhere).
+
+    ``axis_level``: a round end away from silhouette edges is matched on the axis' level
+    on the wire before the cap as well as on the flank beyond it (for a polished wire
+    measured at its own half-width, whose flank can lie at the plate's level).
 
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
@@ -98,7 +103,11 @@ def end_point(
         return _flat_end(gray, start, d, block, half_width), 0.0
     if silhouette:
         into_shadow = shadow is not None and float(d @ shadow) >= INTO_SHADOW_COS
-        found = _cap_edge(gray, start, d, block, half_width, facing_shadow=into_shadow)
+        # the centres between the silhouette edges reach the last one: the cap lies beyond
+        reached = float((pts[0] - start) @ d)
+        found = _cap_edge(
+            gray, start, d, block, half_width, facing_shadow=into_shadow, reached_px=reached
+        )
         if found is not None:
             edge, spread = found
             return start + (edge - half_width) * d, spread
@@ -107,7 +116,14 @@ def end_point(
         round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1,
     )
     search = search * PROFILE_STEP_PX
+    # with axis_level also the axis' own level on the wire before the cap's centre: a flank
+    # near the plate's level matches the bare plate too (a dim wire's cap was read 23 px out
+    # on a light plate), the plate never matches the wire behind the cap
     u = np.arange(k0, k1 + 1) * PROFILE_STEP_PX
+    if axis_level:
+        u = np.concatenate((-u[::-1], u))
+        inside = np.full(k1 - k0 + 1, float(np.median(block[:, mid])))
+        template = np.concatenate((inside, template))
     samples = sample_image(
         gray, start[None, None, :] + (search[:, None, None] + u[None, :, None]) * d
     )
@@ -131,6 +147,7 @@ def _cap_edge(
     half_width: float,
     *,
     facing_shadow: bool = False,
+    reached_px: float = -np.inf,
 ) -> tuple[float, float] | None:
     """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none,
     and how far inside it a weaker step could be the silhouette instead (px, else 0).
@@ -147,6 +164,11 @@ def _cap_edge(
     there the uncertainty is how far inside the taken peak the innermost one at least a
     quarter as strong lies (within two half-widths), else 0. Taking the innermost strong
     peak instead was measured wrong as often (a lab render's cap: 0.10 deg per chord).
+
+    ``reached_px``: how far along ``d`` the wire is known to reach (its last centre between
+    silhouette edges). Steps inside it are the wire's own shading -- a low lamp's highlight
+    rising out of a dark flank on a light plate steps as strongly as the cap's outline
+    (a 2 mm wire's end read 5 mm short) -- and are not taken while a step lies beyond it.
     """
     mid = block.shape[1] // 2
     k_in = max(1, int(round(0.8 * half_width / PROFILE_STEP_PX)))
@@ -161,6 +183,9 @@ def _cap_edge(
     peaks = np.nonzero((inner >= grad[:-2]) & (inner > grad[2:]) & (inner > 0))[0] + 1
     if len(peaks) == 0:
         return None
+    every = peaks  # the walk over a cast shadow below may go back inside
+    if np.any(t[peaks] > reached_px):
+        peaks = peaks[t[peaks] > reached_px]
     strong = peaks[grad[peaks] >= 0.5 * grad[peaks].max()]
     first = strong[np.argmax(grad[strong])]
     k = int(strong[t[strong] <= t[first] + 2.0 * half_width].max())
@@ -168,7 +193,7 @@ def _cap_edge(
     # the shadow's far edge steps like the silhouette, and as strongly, only where the plate
     # is brighter than the wire (a light sheet); on a dark one it is faint beside the wire's
     if facing_shadow and sign < 0:
-        weak = peaks[grad[peaks] >= SHADOW_STEP_SHARE * grad[peaks].max()]
+        weak = every[grad[every] >= SHADOW_STEP_SHARE * grad[peaks].max()]
         # walk in over cast shadow: a stretch inside the taken step darker than the wire's
         # body is plate lit by the ambient light only, not the lamp-lit wire or its cap
         while True:

@@ -4,12 +4,36 @@
 external resources; :mod:`cvmeasure.report.plots` draws the PNG plots (also
 used by ``cvmeasure agreement --plot``); :mod:`cvmeasure.report.thumbnails`
 draws what was measured on a small copy of each photo.
+
+The names load on first use (PEP 562, ``docs/design/imports.md``): the commands that
+only print a warning summary (:mod:`cvmeasure.report.console`) must not pay for the
+report's part tracking, OpenCV and SciPy.
 """
 
 from __future__ import annotations
 
-from cvmeasure.report.html import build_report, data_uri
-from cvmeasure.report.plots import bland_altman_png
-from cvmeasure.report.thumbnails import find_photo, overlay_thumbnail
+import importlib
+from typing import Any
+
+#: Each public name and the module that defines it.
+_NAMES = {
+    "build_report": "cvmeasure.report.html",
+    "data_uri": "cvmeasure.report.html",
+    "bland_altman_png": "cvmeasure.report.plots",
+    "find_photo": "cvmeasure.report.thumbnails",
+    "overlay_thumbnail": "cvmeasure.report.thumbnails",
+}
 
 __all__ = ["build_report", "data_uri", "bland_altman_png", "find_photo", "overlay_thumbnail"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _NAMES:
+        value = getattr(importlib.import_module(_NAMES[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'cvmeasure.report' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_NAMES})

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.ndimage import gaussian_filter
 
 from cvmeasure.design import arc_points_mm
 from cvmeasure.part.centreline import measure_centreline
@@ -146,3 +147,67 @@ def test_polished_wire_whose_limbs_mirror_the_sheet_is_centred_by_symmetry():
     assert cl.coverage > 0.9
     _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
     assert np.sqrt(np.mean(dist**2)) < 0.05
+
+
+def _mirror_tube_on_light_sheet(axis: np.ndarray, radius_px: float, seed: int) -> np.ndarray:
+    """A polished tube on a light sheet, lit from one side: each point across it mirrors
+    the direction its normal reflects the view to. The limbs mirror the sheet (light), the
+    flanks near 40 deg the dark room's horizon (darker on the side away from the lamp), the
+    top the light above, so the darkest band, which a mask holds, is one flank's valley."""
+    rng = np.random.default_rng(seed)
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]].astype(np.float64)
+    pts = np.column_stack((xs.ravel(), ys.ravel()))
+    _, signed, _ = point_to_polyline(pts, axis)
+    u = signed.reshape(SIZE) / radius_px  # -1 .. 1 across the tube
+    theta = np.degrees(np.arcsin(np.clip(u, -1.0, 1.0)))
+    elevation = 90.0 - 2.0 * np.abs(theta)  # of the mirrored ray
+    room = np.where(u > 0, 65.0, 75.0)  # the room near the horizon, darker away from the lamp
+    sky = 160.0 - 6.0 * u  # the light above, brighter towards the lamp
+    tube = np.where(elevation < 0.0, 185.0, np.where(elevation < 30.0, room, sky))
+    alpha = np.clip(radius_px + 0.5 - np.abs(u) * radius_px, 0.0, 1.0)
+    img = alpha * tube + (1.0 - alpha) * 185.0
+    return gaussian_filter(img, 0.8) + rng.normal(0.0, 1.5, SIZE)
+
+
+def test_mirror_tube_on_a_light_sheet_is_centred_across_both_flanks():
+    """The mask of a polished tube on a light sheet holds one dark flank (a valley, itself
+    symmetric); with the wire's width known the symmetry window spans both flanks."""
+    axis = arc_points_mm((160.0, 330.0), 200.0, 240.0, 60.0, chords=6)
+    radius_px = 5.4
+    img = _mirror_tube_on_light_sheet(axis, radius_px, seed=3)
+    # the mask's path along the darker valley, 0.6 of the half-width off the axis
+    path = _rough_path(axis, 0.0)
+    normals = np.gradient(path, axis=0)[:, ::-1] * np.array([-1.0, 1.0])
+    normals /= np.hypot(*normals.T)[:, None]
+    _, side, _ = point_to_polyline(path + normals, axis)
+    normals *= np.sign(side)[:, None]
+    path = path + 0.6 * radius_px * normals
+    cl = measure_centreline(img, path, width_guess_px=4.0, wire_width_px=2.0 * radius_px)
+    _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
+    verts = axis[1:-1]
+    far = np.min(np.hypot(*(cl.points_px[1:-1, None, :] - verts[None]).transpose(2, 0, 1)), axis=1)
+    sel = far > 3 * radius_px
+    # the valley's own centre is 3.3 px off the axis
+    assert abs(float(np.mean(dist[sel]))) < 0.3
+    assert float(np.sqrt(np.mean(dist[sel] ** 2))) < 0.5
+
+
+def test_polished_wire_end_found_from_a_short_guide():
+    """A polished wire's profiles have a half-contrast flank about its narrow middle only; its
+    caps are searched at the wire's own half-width, so a guide path that stops three
+    half-widths short of each cap (a skeleton of the bright middle) still reaches them."""
+    axis = np.array([[50.0, 70.0], [160.0, 130.0], [265.0, 115.0]])
+    rng = np.random.default_rng(5)
+    radius_px = 5.0
+    t = _distance_to_axis(axis, flat=False) / radius_px
+    img = 35.0 + 150.0 * np.exp(-((t / 0.45) ** 2)) + rng.normal(0.0, 1.0, SIZE)
+    path = _rough_path(axis, 1.0)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+    path = path[(s >= 15.0) & (s <= s[-1] - 15.0)]
+    cl = measure_centreline(img, path, width_guess_px=1.2 * radius_px, wire_width_px=2 * radius_px)
+    assert cl.centre_from.startswith("symmetry")
+    ends = cl.ends_px
+    if np.hypot(*(ends[0] - axis[0])) > np.hypot(*(ends[0] - axis[-1])):
+        ends = ends[::-1]
+    # before the caps were searched at the wire's half-width: 18-27 px short
+    np.testing.assert_allclose(ends, axis[[0, -1]], atol=0.25)

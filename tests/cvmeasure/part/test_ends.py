@@ -1,0 +1,78 @@
+"""A round wire's end point from its cap's silhouette (pixels, exact synthetic axis)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cvmeasure.part.compare import point_to_polyline
+from cvmeasure.part.ends import end_point
+from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_across
+
+SIZE = (260, 320)  # rows, cols
+RADIUS_PX = 4.0  # wire half-width
+
+
+def _distance_to_axis(axis: np.ndarray) -> np.ndarray:
+    """Per pixel: distance to the axis polyline (round caps at its ends)."""
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]].astype(np.float64)
+    _, dist, _ = point_to_polyline(np.column_stack((xs.ravel(), ys.ravel())), axis)
+    return np.abs(dist).reshape(SIZE)
+
+
+def _dim_wire_on_a_light_plate(axis: np.ndarray, glint_px: np.ndarray) -> np.ndarray:
+    """A wire darker than its plate (dark limbs, a dim crest), round caps, anti-aliased
+    edges, a sharp specular glint on its axis at ``glint_px``, sensor noise."""
+    rng = np.random.default_rng(3)
+    d = _distance_to_axis(axis)
+    t = np.clip(d / RADIUS_PX, 0.0, 1.0)
+    wire = 0.5 * (60.0 + 120.0 * np.sqrt(1.0 - t**2) + 80.0 * np.exp(-((t / 0.25) ** 2)))
+    alpha = np.clip(RADIUS_PX + 0.5 - d, 0.0, 1.0)
+    img = alpha * wire + (1.0 - alpha) * 150.0 + rng.normal(0.0, 1.0, SIZE)
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]]
+    r2 = (xs - glint_px[0]) ** 2 + (ys - glint_px[1]) ** 2
+    return np.minimum(img + 600.0 * np.exp(-r2 / (2 * 0.6**2)), 255.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("glint_in_px", [5.0, 8.0])
+def test_a_glint_inside_the_wire_is_not_its_cap(glint_in_px):
+    """A specular glint rising out of the dim crest steps as strongly as the cap's outline
+    against the plate; inside the centres between silhouette edges it is the wire's own
+    shading, and the end is its cap's (before: read 10-13 px inside)."""
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    img = _dim_wire_on_a_light_plate(axis, axis[0] + glint_in_px * d)
+    # centres between the silhouette edges reaching 3 px short of the cap's centre
+    centres = axis[0] + np.arange(3.0, 60.0, 1.0)[:, None] * d
+    normals = np.tile([-d[1], d[0]], (len(centres), 1))
+    reach = round(9.0 / PROFILE_STEP_PX)
+    offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
+    profiles = sample_across(img, centres, normals, offsets)
+    end, spread = end_point(
+        img, centres, profiles, offsets, 2.0, RADIUS_PX, head=True, silhouette=True
+    )
+    assert abs(float((end - axis[0]) @ d)) < 0.1  # along the axis
+    assert abs(float((end - axis[0]) @ np.array([-d[1], d[0]]))) < 0.1
+    assert spread == 0.0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_flank_at_the_plates_level_does_not_match_the_bare_plate(seed):
+    """A wire whose flank (0.35-0.9 half-widths) is at the plate's level -- a narrow bright
+    crest, a thin dark limb -- matches the bare plate beyond its cap as well as its cap;
+    the axis' level on the wire before the cap tells them apart (before: 5-7 px beyond)."""
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    half_width = 5.0
+    rng = np.random.default_rng(seed)
+    t = _distance_to_axis(axis) / half_width
+    wire = 70.0 * np.exp(-((t / 0.15) ** 2)) - 20.0 * np.exp(-(((t - 1.0) / 0.06) ** 2))
+    img = (150.0 + np.where(t < 1.2, wire, 0.0) + rng.normal(0.0, 2.0, SIZE)).astype(np.float32)
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    centres = axis[0] + np.arange(12.0, 60.0, 1.0)[:, None] * d  # stopping 12 px short
+    normals = np.tile([-d[1], d[0]], (len(centres), 1))
+    reach = round(12.0 / PROFILE_STEP_PX)
+    offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
+    profiles = sample_across(img, centres, normals, offsets)
+    end, _ = end_point(img, centres, profiles, offsets, 2.0, half_width, head=True, axis_level=True)
+    # the synthetic cap's narrow crest and limb do not repeat the flank exactly: 0.4 px
+    assert abs(float((end - axis[0]) @ d)) < 0.6
