@@ -9,6 +9,7 @@ import numpy as np
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.fitting import fit_model
+from cvmeasure.diagnose.rules import MIN_DELTA_BIC, bic_gain
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import Effect, SimParams, simulate
 
@@ -54,3 +55,36 @@ def test_the_loaded_leg_of_an_asymmetric_wire_is_fitted_between_grid_points():
     # the noise is all that is left
     rms = float(np.sqrt(fit.rss_deg2 / (3 * len(trials))))
     assert rms < 1.5 * NOISE_DEG
+
+
+def test_a_refined_shape_counts_as_a_parameter_of_its_cause():
+    # the tilt's axis, fitted off the grid, is charged in the BIC like the tilt's size
+    trials = _session(Effect("camera_tilt", 24.8, (("tilt_axis_deg", 9.7),)), 3)
+    base = fit_model(trials, SimParams(), "none", intervals=False)
+    tilt = fit_model(trials, SimParams(), "camera_tilt", intervals=False)
+    assert "tilt_axis_deg" in dict(tilt.shapes_by_cause()["camera_tilt"])
+    assert tilt.n_cause_params == 2  # the tilt and its axis
+    assert tilt.n_params - base.n_params == 2
+
+
+def test_an_offset_alone_is_not_given_a_refined_tilt_beside_it():
+    # the tilt tried beside the offset as the naming tries a second cause (the offset held
+    # at its own fit): its axis refined off the grid is charged as a parameter, and the
+    # pair does not pass the evidence a second cause needs
+    trials = _session(Effect("offset", 2.0), 11)
+    offset = fit_model(trials, SimParams(), "offset")
+    pair = fit_model(
+        trials,
+        SimParams(),
+        ("offset", "camera_tilt"),
+        known={**offset.param_values_by_cause(), **offset.nuisance_values()},
+        known_shapes=offset.shapes_by_cause(),
+    )
+    assert "tilt_axis_deg" in dict(pair.shapes_by_cause()["camera_tilt"])
+    assert pair.n_params - offset.n_params == 2  # the tilt and its axis
+    assert bic_gain(offset, pair) < MIN_DELTA_BIC
+    assert pair.param_values()["tilt_deg"] < 1.0  # deg: no tilt made up
+    result = diagnose(trials, follow_up=False)
+    assert result.causes == ("offset",)
+    lo, hi = result.intervals["offset_deg"]
+    assert lo <= 2.0 <= hi
