@@ -41,8 +41,9 @@ class MarkerSpec:
     JSON did not say: the markers are flat stickers on the plate (the spec's rule).
     ``height_sigma_mm`` is the height's standard uncertainty, mm (a nominal height's
     tolerance, or what ``cvmeasure markers heights`` measured); a measurement on a
-    plane pose carries it into the angles' stated uncertainty. ``None``: no stated
-    uncertainty (taken as exact).
+    plane pose carries it into the angles' stated uncertainty; 0 for a height known
+    exactly. ``None``: no stated uncertainty, the height is nominal (on a plane pose the
+    result bounds what caps off it can do, beside the sigma, and warns).
 
     ``step_mm`` is how far the disc's printed face stands above its white ring, mm (a
     coloured top printed or glued on the cap): the step's wall is then seen beside the
@@ -120,6 +121,15 @@ class MarkerKit:
     def has_heights(self) -> bool:
         """True when every marker's height above the plate is known."""
         return all(m.height_mm is not None for m in self.markers)
+
+    @property
+    def heights_stated(self) -> bool:
+        """True when the kit states how well its heights are known (a ``height_sigma_mm``
+        on a marker, 0 for a height known exactly, or ``height_covariance_mm2``); False:
+        the heights are nominal, caps perhaps off them by their build tolerance."""
+        return self.height_covariance_mm2 is not None or any(
+            m.height_sigma_mm is not None for m in self.markers if m.height_mm is not None
+        )
 
     @property
     def has_steps(self) -> bool:

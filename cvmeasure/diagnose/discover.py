@@ -8,7 +8,9 @@ physically meaningful regressors the catalogue does not name:
 term                   regressor (``s`` = bend direction, ``k`` = trial order)
 =====================  =============================================================
 ``gear_runout_P``      ``s sin(2 pi |cmd| / P)``, ``s cos(...)``: a periodic error of the
-                       drive along the head rotation (P = 60, 90, 120, 180 deg)
+                       drive along the head rotation (P = 60, 90, 120, 180 deg); the head's
+                       once-per-revolution runout (P = 360, a rival only) zero at home:
+                       ``s sin(2 pi |cmd| / P)``, ``s (cos(...) - 1)``
 ``warm_up_T``          ``s (1 - exp(-k / T))``: a loss that builds up over the first bends
                        of a run and levels off (T = 5, 15, 45 bends)
 ``previous_bend``      ``s_prev |theta_prev| / 90`` (the bend's size changes by
@@ -131,7 +133,8 @@ RUNOUT_PERIODS: tuple[int, ...] = (60, 90, 120, 180)
 #: 15-120 deg a session bends it is a slow curve that forward selection would take for the
 #: model-form error, so it is not searched for; it is a rival a named cause is tested
 #: against (:func:`cvmeasure.diagnose.terms.library_confounded`).
-RIVAL_PERIODS: tuple[int, ...] = (*RUNOUT_PERIODS, 360)
+HEAD_PERIOD = 360
+RIVAL_PERIODS: tuple[int, ...] = (*RUNOUT_PERIODS, HEAD_PERIOD)
 
 
 def library(
@@ -167,9 +170,14 @@ def library(
     cols: dict[str, NDArray[np.float64]] = {}
     for p in periods:
         w = 2 * np.pi * mag / p
-        cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(
-            [stack(s * np.sin(w), head), stack(s * np.cos(w), head)]
-        )
+        if p == HEAD_PERIOD:
+            # the head's own runout is zero at home, where the head is referenced: a
+            # sin + b (cos - 1) of its rotation. A constant part would be a loss of the
+            # same size on every bend, a backlash's signature, which no runout has
+            pair = [stack(s * np.sin(w), head), stack(s * (np.cos(w) - 1.0), head)]
+        else:
+            pair = [stack(s * np.sin(w), head), stack(s * np.cos(w), head)]
+        cols[f"gear_runout_{p}"] = gain[:, None] * np.column_stack(pair)
     for t in (5, 15, 45):
         cols[f"warm_up_{t}"] = (gain * stack(s * (1.0 - np.exp(-k / t)), head))[:, None]
     cols["previous_bend"] = stack(prev_s * prev_theta / 90.0)[:, None]

@@ -20,8 +20,10 @@ deviation, a bend's loaded and released errors correlated as in its residuals),
 ``lambda`` = the generalised least-squares misfit of ``d``: the expected excess of
 the fitted rival's -2 log likelihood over the truth's. That excess has standard
 deviation ``2 sqrt(lambda)``, so the expected separation is ``sqrt(lambda) / 2``
-standard errors. A plan's separation is the smallest over the ordered pairs (which
-rival is the truth is unknown); the smallest plan reaching
+standard errors. A plan's separation is the smallest over the ordered pairs that hold
+the named rival (the first), as truth or as fitted (which rival is the truth is
+unknown; the plan tests the pick, and two unnamed rivals left alike do not decide it:
+planning for them took bends from the pick's own test); the smallest plan reaching
 :data:`TARGET_STANDARD_ERRORS` is proposed, else the best of the largest size.
 """
 
@@ -81,7 +83,8 @@ class FollowUp:
 
     ``commanded_pin_deg`` are signed head rotations from home (deg), like the trials
     CSV's; ``expected_separation_se`` the smallest expected separation over the ordered
-    pairs of rivals, in standard errors, once the plan is run and every rival refitted.
+    pairs of rivals that hold the named one (the first), in standard errors, once the
+    plan is run and every rival refitted; ``separation_by_pair`` has every pair.
     """
 
     rivals: tuple[str, ...]
@@ -298,7 +301,9 @@ def propose_follow_up(
                     if i != j:
                         s = _separation(pc[i][0], pc[j][0], pc[j][1], basis, rows, sigma, rho)
                         pairs.append((a.label, b.label, s))
-            worst = min(s for _, _, s in pairs)
+            # the plan tests the pick: the named rival against each other one, either the
+            # truth; two unnamed rivals left alike do not make the named one right or wrong
+            worst = min(s for a, b, s in pairs if rivals[0].label in (a, b))
             if best is None or worst > best[0] + 1e-9:
                 best = (worst, words, cmd, pairs)
         if best is not None and best[0] >= target_se:

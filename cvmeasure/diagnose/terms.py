@@ -173,8 +173,8 @@ def library_confounded(
     residuals (``base_residual_deg``, (3 N,), its model-form discrepancy out) leaves a
     residual sum of squares whose excess over the named fit's (``named_residual_deg``,
     its discrepancy out; ``n_named`` parameters: the causes' values and their forms'
-    shapes) carries less evidence than a cause needs (in the named fit's residual variance, each extra coefficient charged the log of the
-    observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
+    shapes) carries less evidence than a cause needs (in the named fit's residual
+    variance, each extra coefficient charged the log of the observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
     name to the term. The best member of each family, as (library name, that delta BIC).
     Every observed angle counts, the pin's too (the drive's terms move the pin).
     ``basis``: the model-form discrepancy's columns, fitted with each term within their
@@ -185,15 +185,16 @@ def library_confounded(
     rows &= np.all(np.isfinite(nuisance), axis=1)
     n_obs = int(rows.sum())
     rss_named = float(np.sum(named_residual_deg[rows] ** 2))
-    dof = n_obs - nuisance.shape[1] - n_named
-    dof -= basis.shape[1]
+    # the named fit's discrepancy has only the columns the observed rows use (no loaded
+    # block without loaded angles): those are its degrees of freedom
+    used = np.any(basis[rows] != 0.0, axis=0)
+    dof = n_obs - nuisance.shape[1] - n_named - int(used.sum())
     if dof <= 0 or not rss_named > 0:
         return []
     variance = rss_named / dof
     y = base_residual_deg[rows]
     best: dict[str, tuple[float, str]] = {}  # family -> (delta BIC, member)
     bound = current_form().bound_deg
-    used = np.any(basis[rows] != 0.0, axis=0)
     for name, cols in library(ctx.trials, head_gain, RIVAL_PERIODS).items():
         x = np.column_stack([basis[:, used], nuisance, cols])[rows]
         coef = np.linalg.lstsq(x, y, rcond=None)[0]

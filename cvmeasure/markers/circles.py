@@ -167,7 +167,11 @@ def split_half_cov(
 
 
 def edge_mode_cov(
-    points: np.ndarray, fit: CircleFit, *, correlation_factor: float = 1.0
+    points: np.ndarray,
+    fit: CircleFit,
+    *,
+    correlation_factor: float = 1.0,
+    wall_towards: np.ndarray | None = None,
 ) -> np.ndarray:
     """Centre covariance from how the circle of the same disc's edge read another way
     (``points``: another channel weighting of the same photo) disagrees with ``fit``,
@@ -181,6 +185,16 @@ def edge_mode_cov(
     of ``d d^T`` less the other circle's sampling covariance (the two readings'
     noise is shared in part; the other, a single channel, is the noisier), negative
     eigenvalues clipped; zeros when the points form no circle.
+
+    ``wall_towards`` (a point in the units of ``points``: the camera's foot point on the
+    plate) is for "shade" edges of faces raised on their rings, read against luminance:
+    luminance counts the step's wall, seen on the side of the foot point, by each disc's
+    own share, shade edges by one share for every disc (a common scale that leaves the
+    angles alone; :data:`cvmeasure.markers.refine.SHADE_EDGES`). The component of ``d``
+    towards that point is then the other reading's wall, not this reading's bias (on the
+    Mitsuba renders it was 2-5 times the rest, the same sign on every disc, and taking it
+    stated the angles' sigma about twice their errors); only the perpendicular component
+    samples the bias, taken alike in both directions.
     """
     pts = np.asarray(points, dtype=np.float64)
     if pts.shape[0] < MIN_EDGE_POINTS:
@@ -195,6 +209,13 @@ def edge_mode_cov(
     except (ValueError, np.linalg.LinAlgError):
         return np.zeros((2, 2))
     d = np.asarray(other.centre) - np.asarray(fit.centre)
+    if wall_towards is not None:
+        radial = np.asarray(wall_towards, dtype=np.float64)[:2] - np.asarray(fit.centre)
+        norm = float(np.hypot(*radial))
+        if norm > 0.0:
+            across = np.array([-radial[1], radial[0]]) / norm
+            var = 0.5 * (float(d @ across) ** 2 - float(across @ other.covariance @ across))
+            return np.eye(2) * max(var, 0.0)
     acc = 0.5 * (np.outer(d, d) - np.asarray(other.covariance))
     vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T))
     return (vecs * np.clip(vals, 0.0, None)) @ vecs.T

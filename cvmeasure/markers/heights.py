@@ -222,10 +222,11 @@ def plane_heights_sigma(
     warnings: list[StageWarning],
 ) -> tuple[dict[str, float], dict[str, float] | None]:
     """On a plane pose: the kit's height uncertainties (measured or stated) carried into
-    the angles' sigma; nominal heights bounded beside it instead (and warned about)."""
+    the angles' sigma (a stated sigma of 0: heights known exactly, nothing added); nominal
+    heights bounded beside it instead (and warned about)."""
     var = height_angle_variance_deg2(centres, kit, camera_centre_mm, y_down=y_down)
     sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
-    if np.any(kit.height_cov_mm2()):
+    if kit.heights_stated:
         return sigma, None
     return sigma, nominal_heights_bound(centres, kit, camera_centre_mm, y_down, warnings)
 

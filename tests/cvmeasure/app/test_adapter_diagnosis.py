@@ -1,6 +1,7 @@
 """The app's one-sentence diagnosis (``adapter.diagnose_session``) reads the typed cause.
 
-Truth: a backlash of typical size hidden in simulated trials (``hidden_case``, fixed seed).
+Truth: a backlash or a scale of typical size hidden in simulated trials (``hidden_case``, fixed
+seed).
 """
 
 from __future__ import annotations
@@ -16,9 +17,9 @@ def test_the_sentence_names_the_hidden_cause():
 
 
 def test_a_follow_up_plan_reaches_the_page_as_numbered_bends():
-    """A tie's follow-up plan (the library's runout ties backlash on this plan) becomes
+    """A tie's follow-up plan (the head's runout ties a scale on this plan) becomes
     (trial, commanded pin angle) rows the page can list; trials continue the session's."""
-    case = hidden_case(11, effect="backlash")
+    case = hidden_case(11, effect="scale")
     result = diagnose_session(case.trials)
     assert "a follow-up plan separates" in result.sentence
     trials = [int(t) for t, _ in result.follow_up_rows]

@@ -22,6 +22,7 @@ from cvmeasure.errors import InputError
 from cvmeasure.geometry import fit_circle_robust
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.markers import measure_machine_photo
+from cvmeasure.markers.circles import edge_mode_cov
 from cvmeasure.markers.refine import disc_edge_points
 
 CENTRE = (60.3, 59.6)
@@ -81,6 +82,33 @@ def test_luminance_edges_count_a_light_discs_wall_more():
     assert orange < green - 0.2, (green, orange)
     shade = [_centre_x(_cap_image(d, 0.0), "shade") for d in (GREEN, ORANGE)]
     assert abs(shade[0] - shade[1]) < 0.04, shade
+
+
+def _fit(bgr, edge):
+    centre, r = CENTRE, R_PX
+    for _ in range(3):
+        pts = disc_edge_points(bgr, centre, r, RING_RATIO, edge=edge).points_px
+        fit = fit_circle_robust(pts)
+        centre, r = fit.centre, fit.radius
+    return fit, pts
+
+
+def test_the_luminance_walls_are_not_stated_as_the_shade_edges_bias():
+    # the orange disc's shade circle sits where the wall counts once (0.03 px, above);
+    # luminance counts its wall 1.7 times, 0.3 px towards the foot point (-x here). That
+    # is luminance's own wall, not a bias of the shade centre: with the foot point given,
+    # the edge-mode term leaves it out and states what remains across it (under 0.02 px),
+    # where the two readings' half difference would state about 0.2 px
+    bgr = _cap_image(ORANGE, 0.0)
+    shade, _ = _fit(bgr, "shade")
+    _, luma_pts = _fit(bgr, "luma")
+    plain = edge_mode_cov(luma_pts, shade)
+    walls = edge_mode_cov(luma_pts, shade, wall_towards=np.array([CENTRE[0] - 400.0, CENTRE[1]]))
+    assert np.sqrt(plain[0, 0]) > 0.15, plain
+    assert np.sqrt(np.trace(walls)) < 0.02, walls
+    # a foot point along y: the wall lies across that direction and is taken in full
+    across = edge_mode_cov(luma_pts, shade, wall_towards=np.array([CENTRE[0], CENTRE[1] + 400]))
+    assert np.sqrt(across[0, 0]) > 0.15, across
 
 
 def test_a_wall_lit_as_the_top_reads_alike_in_shade_and_luminance():

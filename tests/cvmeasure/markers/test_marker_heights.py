@@ -79,6 +79,15 @@ def test_heights_applied_through_the_plane_pose(pose):
     known = measure_machine_photo(bgr, stated, plane=plane)
     assert known.height_bound_deg is None and not has_code(known.warnings, "heights_nominal")
     assert known.uncertainty_deg["pin_angle_deg"] > res.uncertainty_deg["pin_angle_deg"]
+    # heights stated exact (height_sigma_mm 0): neither a bound nor a heights share
+    exact = replace(
+        default_kit(),
+        markers=tuple(replace(m, height_sigma_mm=0.0) for m in default_kit().markers),
+    )
+    assert exact.heights_stated and not default_kit().heights_stated
+    got = measure_machine_photo(bgr, exact, plane=plane)
+    assert got.height_bound_deg is None and not has_code(got.warnings, "heights_nominal")
+    assert got.uncertainty_deg == res.uncertainty_deg
     pin_err, bend_err = _err(res, truth)
     assert abs(pin_err) < TOL_DEG and abs(bend_err) < TOL_DEG, (pin_err, bend_err)
     # each disc measured at its own height has the kit's size and is round on the plate
