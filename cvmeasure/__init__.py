@@ -45,8 +45,7 @@ The names load on first use (PEP 562): the command line imports this package for
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from cvmeasure._lazy import lazy_names
 
 __version__ = "0.1.0"
 
@@ -82,13 +81,4 @@ _API = (
 __all__ = ["__version__", *_API]
 
 
-def __getattr__(name: str) -> Any:
-    if name in _API:
-        value = getattr(importlib.import_module("cvmeasure.api"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cvmeasure' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_API})
+__getattr__, __dir__ = lazy_names(__name__, globals(), dict.fromkeys(_API, "cvmeasure.api"))

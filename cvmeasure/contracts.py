@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from cvmeasure._lazy import lazy_names
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_csv_rows, write_csv_rows
 from cvmeasure.kit import ROLES
@@ -49,18 +50,9 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    if name in _PLANE_NAMES:
-        from cvmeasure import plane_model
-
-        value = getattr(plane_model, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cvmeasure.contracts' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_PLANE_NAMES})
+__getattr__, __dir__ = lazy_names(
+    __name__, globals(), dict.fromkeys(_PLANE_NAMES, "cvmeasure.plane_model")
+)
 
 
 #: Required columns of a trials CSV (spec), in this order.

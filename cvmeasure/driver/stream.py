@@ -79,7 +79,7 @@ from cvmeasure.driver.stream_types import (
     StreamResult,
 )
 from cvmeasure.driver.transport import Link
-from cvmeasure.errors import DeviceError, DeviceTimeoutError
+from cvmeasure.errors import DeviceError, DeviceTimeoutError, InputError
 from cvmeasure.fileio import append_jsonl
 
 __all__ = [
@@ -331,10 +331,13 @@ def stream_job(
     JobStopped
         A fault stopped the job (after a safe stop; the journal has the line).
     InputError
-        ``resume`` without a journal for this job.
+        ``resume`` without a journal for this job, or ``from_line`` without ``resume``.
     DeviceError
         The board is alarmed before a new job, or does not answer.
     """
+    if from_line is not None and not resume:
+        # without resume the job would start again from its first line: bends made twice
+        raise InputError("from_line", "only applies with resume")
     config = config or StreamConfig()
     job = (
         list(lines)

@@ -21,8 +21,7 @@ solver's SciPy.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from cvmeasure._lazy import lazy_names
 
 #: Each public name and the module that defines it.
 _NAMES = {
@@ -70,13 +69,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
-    if name in _NAMES:
-        value = getattr(importlib.import_module(_NAMES[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cvmeasure.lens' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_NAMES})
+__getattr__, __dir__ = lazy_names(__name__, globals(), _NAMES)

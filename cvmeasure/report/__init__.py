@@ -12,8 +12,7 @@ report's part tracking, OpenCV and SciPy.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from cvmeasure._lazy import lazy_names
 
 #: Each public name and the module that defines it.
 _NAMES = {
@@ -27,13 +26,4 @@ _NAMES = {
 __all__ = ["build_report", "data_uri", "bland_altman_png", "find_photo", "overlay_thumbnail"]
 
 
-def __getattr__(name: str) -> Any:
-    if name in _NAMES:
-        value = getattr(importlib.import_module(_NAMES[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'cvmeasure.report' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_NAMES})
+__getattr__, __dir__ = lazy_names(__name__, globals(), _NAMES)

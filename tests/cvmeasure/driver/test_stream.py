@@ -373,7 +373,9 @@ def test_a_board_frozen_past_the_flush_timeout_is_reported_unresponsive(job, tmp
             ran, _ = board.executed_lines()
             first_unrun = min(set(range(1, len(job.lines) + 1)) - set(ran))
             assert first_unrun in choices
-            stream_job(link, job.lines, journal=journal, config=FAST, from_line=first_unrun)
+            stream_job(
+                link, job.lines, journal=journal, config=FAST, resume=True, from_line=first_unrun
+            )
         link.close()
         completed, _ = board.executed_lines()
     assert completed == list(range(0, len(job.lines) + 1))
@@ -426,3 +428,17 @@ def test_an_alarm_that_tripped_while_the_host_was_away_is_said_at_resume(job, tm
         assert any(r["event"] == "alarm_cleared" for r in read_jsonl(journal))
     finally:
         board.close()
+
+
+def test_from_line_without_resume_is_refused_before_anything_is_sent(job):
+    """``from_line`` continues a stopped job; without ``resume`` the job would start again
+    from its first line (every bend made twice), so it is refused and the board gets nothing."""
+    with FakeTinyG(speedup=300.0) as board:
+        link = open_link(board.port)
+        try:
+            with pytest.raises(InputError, match="only applies with resume"):
+                stream_job(link, job.lines, config=FAST, from_line=9)
+        finally:
+            link.close()
+        completed, _ = board.executed_lines()
+    assert completed == []
