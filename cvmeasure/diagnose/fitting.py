@@ -36,6 +36,7 @@ from cvmeasure.diagnose.forms import (
     Shape,
     as_causes,
     nuisance_for,
+    on_grid,
     shape_bounds,
     shape_priors,
 )
@@ -188,8 +189,12 @@ def fit_model(
     forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
     if isinstance(start, ModelFit) and len(start.shapes) == len(names):
         forms = list(start.shapes)
-    if len(names) > 1:  # in a pair these keep their narrow form (see ALONE_FORMS)
-        forms = [() if c in ALONE_FORMS else f for c, f in zip(names, forms, strict=True)]
+    if len(names) > 1:
+        # in a pair these keep their narrow form (see ALONE_FORMS), and a shape refined
+        # alone goes back on the grid (see cvmeasure.diagnose.shapes.refine_shapes)
+        forms = [
+            () if c in ALONE_FORMS else on_grid(c, f) for c, f in zip(names, forms, strict=True)
+        ]
     problem = Problem(
         trials,
         params,

@@ -108,7 +108,8 @@ FORM_PRIOR_SD: dict[str, tuple[tuple[str, float], ...]] = {
 }
 
 #: Continuous shapes fitted off the grid (:mod:`cvmeasure.diagnose.shapes`), each with its
-#: grid's step: the shape is profiled within one step of the grid's choice. In the
+#: grid's step: in a cause fitted alone the shape is profiled within one step of the
+#: grid's choice (in a pair it stays on the grid, see :func:`refine_shapes`). In the
 #: intervals such a shape counts as a fitted parameter: it is marginalised with a prior sd
 #: of one step (weak: the data decide it), so the cause's interval carries the shape's
 #: own uncertainty (the two are correlated: an asymmetric wire's loaded leg moves by the
@@ -123,15 +124,30 @@ SHAPE_DIFF_SHARE = 0.1
 
 def shape_priors(cause: str, n_causes: int) -> tuple[tuple[str, float, float], ...]:
     """(shape key, prior sd, finite-difference step) of each of ``cause``'s continuous
-    shapes carried in the intervals, in a fit of ``n_causes`` causes: the grid's rounding
-    (:data:`FORM_PRIOR_SD`, differenced over one sd) or a refined shape
-    (:data:`REFINED_SHAPES`); none for a form held narrow in a pair (:data:`ALONE_FORMS`)."""
+    shapes carried in the intervals, in a fit of ``n_causes`` causes: a shape refined off
+    the grid in a cause fitted alone (:data:`REFINED_SHAPES`), or the grid's rounding
+    (uniform within half a step, differenced over one sd: :data:`FORM_PRIOR_SD`, and a
+    refined shape's grid in a pair, where it is not refined); none for a form held
+    narrow in a pair (:data:`ALONE_FORMS`)."""
     if cause in REFINED_SHAPES:
-        if cause in ALONE_FORMS and n_causes > 1:
-            return ()
         key, step = REFINED_SHAPES[cause]
-        return ((key, step, SHAPE_DIFF_SHARE * step),)
+        if n_causes == 1:
+            return ((key, step, SHAPE_DIFF_SHARE * step),)
+        if cause in ALONE_FORMS:
+            return ()
+        return ((key, step / math.sqrt(12.0), step / math.sqrt(12.0)),)
     return tuple((key, sd, sd) for key, sd in FORM_PRIOR_SD.get(cause, ()))
+
+
+def on_grid(cause: str, shape: Shape) -> Shape:
+    """``shape`` with a shape refined off the grid (:data:`REFINED_SHAPES`) put back on
+    the nearest form of :data:`FORMS` (the form used in a pair, where shapes are not
+    refined); any other shape unchanged."""
+    if cause not in REFINED_SHAPES:
+        return shape
+    key, _ = REFINED_SHAPES[cause]
+    value = dict(shape).get(key, 0.0)
+    return min(FORMS[cause], key=lambda form: abs(dict(form).get(key, 0.0) - value))
 
 
 def shape_bounds(cause: str, key: str) -> tuple[float, float]:
