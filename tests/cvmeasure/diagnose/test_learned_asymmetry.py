@@ -81,6 +81,10 @@ def test_asymmetric_loaded_departure_beside_the_learned_curve():
             known={"springback_asymmetry": 0.3},
             known_shapes={"springback_asymmetry": ()},
         )
-    assert dict(fit.shapes[0]) == {"learned_loaded_share": -1.0}
+    shape = dict(fit.shapes[0])
+    assert shape["learned_loaded_share"] == -1.0
+    # a constant loaded shift (the simulation's own general form, refined off the grid
+    # when fitted alone) is not what moved the leg
+    assert abs(shape.get("loaded_deg", 0.0)) < 0.1
     assert fit.values[0] == pytest.approx(asymmetry, abs=0.05)
     assert fit.rmse_deg < 0.08 < narrow.rmse_deg  # the noise is 0.05 deg
