@@ -346,7 +346,7 @@ def disc_edge_points(
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
     # the ring's samples, for ring_spread (read only on the refinement's settled pass)
     # the samples at radii >= (1 + band / 2) r: the last ones (radii increase), a view
-    k_outer = int(np.searchsorted(radii, (1 + band / 2) * radius_px, side="left"))
+    k_outer = int(radii.searchsorted((1 + band / 2) * radius_px, side="left"))
     n_disc = np.count_nonzero(radii <= (1 - band / 2) * radius_px)
     ring_samples = v[:, k_outer:] if min(len(v) // 4, n_disc, len(radii) - k_outer) >= 2 else None
     if local_levels:
@@ -361,7 +361,9 @@ def disc_edge_points(
         v = _local_levels(v, radii, radius_px, band, offset, check)
     rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
     cos, sin = _unit_rays(n_rays)
-    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
+    points = np.empty((len(rows), 2))  # (x, y) columns, without np.column_stack's checks
+    points[:, 0] = cx + r_best * cos[rows, 0]
+    points[:, 1] = cy + r_best * sin[rows, 0]
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
 
 
