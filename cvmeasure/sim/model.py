@@ -411,7 +411,7 @@ def _bend_index(bend_index: ArrayLike | None, n: int) -> NDArray[np.float64]:
 def _commands(commanded_pin_deg: ArrayLike) -> NDArray[np.float64]:
     """The signed pin commands (deg) as a finite 1-D float array; ValueError otherwise."""
     cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
-    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
+    if cmd.ndim != 1 or not np.isfinite(cmd).all():
         raise ValueError("commanded_pin_deg must be a finite 1-D array")
     return cmd
 
