@@ -49,6 +49,8 @@ __all__ = [
     "CrossValidation",
     "parameter_covariance",
     "view_clustered_covariance",
+    "view_shared_error_p",
+    "SHARED_ERROR_SIGNIFICANT_P",
     "projection_uncertainty",
     "projection_diff",
     "cross_validate",
@@ -215,6 +217,24 @@ def _shared_error_p(
     return float(chi2.sf(t / scale, 2.0 * mean * mean / var))
 
 
+def _scores_and_p(result, r, jac, n_warp, bread, sigma2) -> tuple[np.ndarray, float]:
+    rows = np.cumsum([0] + [2 * d.corner_count for d in result.detections])
+    scores, blocks = _view_scores(r, jac, rows)
+    n_i = len(result.std_devs)
+    n_p = bread.shape[0]
+    shared = np.r_[np.arange(n_i), np.arange(n_p - n_warp, n_p)]
+    return scores, _shared_error_p(scores, blocks, bread, sigma2, shared)
+
+
+def view_shared_error_p(result: CalibrationResult) -> float:
+    """p of the views' scores if every corner's error were independent with one variance:
+    small when the corners of a view share errors that move the lens (the test
+    :func:`view_clustered_covariance` runs)."""
+    r, jac, n_warp = _residuals_and_jacobian(result)
+    formal, sigma2, _ = gauss_markov_covariance(r, jac)
+    return _scores_and_p(result, r, jac, n_warp, formal / sigma2, sigma2)[1]
+
+
 def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
     """The solve's covariance allowing for errors shared by the corners of one view.
 
@@ -229,7 +249,7 @@ def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
         B (sum_v J_v^T r_v r_v^T J_v) B,   B = (J^T J)^-1
 
     It is noisy with few views. When the views' scores are larger than independent
-    corner errors explain (``_shared_error_p`` below ``SHARED_ERROR_SIGNIFICANT_P``),
+    corner errors explain (:func:`view_shared_error_p` below ``SHARED_ERROR_SIGNIFICANT_P``),
     the covariance returned is, in every direction of parameter space, the larger of the
     formal variance and the sandwich's: with F the formal covariance and S the sandwich,
     ``F^1/2 U max(L, 1) U^T F^1/2`` where ``U L U^T`` is ``F^-1/2 S F^-1/2`` (invariant to
@@ -245,13 +265,10 @@ def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
     r, jac, n_warp = _residuals_and_jacobian(result)
     formal, sigma2, dof = gauss_markov_covariance(r, jac)
     bread = formal / sigma2
-    rows = np.cumsum([0] + [2 * d.corner_count for d in result.detections])
-    groups = len(rows) - 1
-    scores, blocks = _view_scores(r, jac, rows)
-    n_i = len(result.std_devs)
-    shared = np.r_[np.arange(n_i), np.arange(formal.shape[0] - n_warp, formal.shape[0])]
-    if _shared_error_p(scores, blocks, bread, sigma2, shared) >= SHARED_ERROR_SIGNIFICANT_P:
+    scores, p = _scores_and_p(result, r, jac, n_warp, bread, sigma2)
+    if p >= SHARED_ERROR_SIGNIFICANT_P:
         return _marginal(result, formal, n_warp, sigma2, dof)
+    groups = scores.shape[0]
     sandwich = bread @ (scores.T @ scores) @ bread * (groups / max(groups - 1, 1))
     # whiten by the formal covariance (columns scaled to unit variance first, for conditioning)
     scale = np.sqrt(np.clip(np.diag(formal), 1e-300, None))
