@@ -249,9 +249,19 @@ def _loads(text: str, path: Path, where: str) -> Any:
 
 
 def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:
-    """Read a JSON file; raise InputError naming the file when it cannot be read."""
+    """Read a JSON file; raise InputError naming the file when it cannot be read.
+
+    When ``what`` is one of the kinds cvmeasure writes ("board JSON", "camera JSON",
+    ...) and the document is recognisably another (a camera JSON given as
+    ``--board``), the error says which kind it is rather than which key it lacks.
+    """
     path = Path(path)
-    return _loads(read_text_file(path, what=what), path, what)
+    data = _loads(read_text_file(path, what=what), path, what)
+    expected = _KIND_OF_WHAT.get(what)
+    found = _json_kind(data) if expected is not None else None
+    if found is not None and found != expected:
+        raise InputError(path, f"is {found}, not a {what}")
+    return data
 
 
 def read_jsonl(
@@ -341,10 +351,20 @@ _JSON_KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("a plane JSON (`cvmeasure plane`)", ("H_board_image",)),
     ("a board JSON (`cvmeasure targets charuco`)", ("squares_x",)),
     ("a marker kit JSON", ("markers", "wire_diameter_mm")),
-    ("a diagnosis JSON (`cvmeasure diagnose`)", ("diagnosis",)),
+    ("a diagnosis JSON (`cvmeasure diagnose`)", ("cause", "candidates")),
     ("a part result JSON (`cvmeasure part`)", ("radius_mm", "arc_angle_deg")),
-    ("a simulation params JSON", ("wire", "head")),
+    # SimParams' own keys: `diagnose --save-params` writes them with a "diagnosis" record
+    ("a simulation params JSON", ("yield_mpa", "die_radius_mm")),
 )
+#: ``read_json``'s ``what`` -> the kind in ``_JSON_KINDS`` it expects.
+_KIND_OF_WHAT: dict[str, str] = {
+    "calibration JSON": _JSON_KINDS[0][0],
+    "camera JSON": _JSON_KINDS[1][0],
+    "plane JSON": _JSON_KINDS[2][0],
+    "board JSON": _JSON_KINDS[3][0],
+    "kit JSON": _JSON_KINDS[4][0],
+    "params JSON": _JSON_KINDS[7][0],
+}
 _MAGIC: tuple[tuple[bytes, str], ...] = (
     (b"\xff\xd8\xff", "a JPEG image"),
     (b"\x89PNG\r\n\x1a\n", "a PNG image"),
@@ -402,11 +422,17 @@ def _sniff_json(path: Path) -> str | None:
     if isinstance(obj, dict):
         if len([ln for ln in text.splitlines() if ln.strip()]) == 1:
             return "JSON Lines (one record per line)"
+        return _json_kind(obj) or "a JSON document"
+    return "a JSON list" if isinstance(obj, list) else "a JSON value"
+
+
+def _json_kind(obj: Any) -> str | None:
+    """The kind of cvmeasure document ``obj`` is (``_JSON_KINDS``), or None."""
+    if isinstance(obj, dict):
         for kind, keys in _JSON_KINDS:
             if all(k in obj for k in keys):
                 return kind
-        return "a JSON document"
-    return "a JSON list" if isinstance(obj, list) else "a JSON value"
+    return None
 
 
 def write_csv_rows(

@@ -12,13 +12,23 @@ from cvmeasure.cli.options import positive_float, positive_int
 __all__ = ["register", "run"]
 
 
+def line_number(text: str) -> int:
+    """A G-code line number as the refusal names it (``N1837``) or bare (``1837``)."""
+    try:
+        return positive_int(text[1:] if text[:1] in ("N", "n") else text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be a line number such as N1837 (or 1837), got {text!r}"
+        ) from None
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bend",
         help="stream a G-code job to the bender (TinyG) over serial",
         description="Stream JOB to the board at --port (a device such as /dev/ttyUSB0, a "
         "pyserial URL such as socket://host:port, or sim:// for the built-in double) in JSON "
-        "mode, at most 4 lines and 200 bytes in flight, every ack checked against its line. "
+        "mode, one line (at most 200 bytes) in flight, every ack checked against its line. "
         "A fault (lost byte, malformed reply, alarm, stall, port gone) stops the job safely "
         "(feedhold + flush) and the journal records the line; --resume continues from what "
         "the board has done. Exit 0 done, 1 stopped on a fault, 2 bad job or missing port.",
@@ -33,9 +43,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--from-line",
-        type=positive_int,
+        type=line_number,
         metavar="N",
-        help="with --resume: continue at line N, on your word after checking the part, when "
+        help="with --resume: continue at line N (N1837 or 1837), on your word after checking the part, when "
         "the board cannot prove which lines ran (the refusal names the choices)",
     )
     p.add_argument("--journal", type=Path, help="journal file (default: JOB.journal.jsonl)")

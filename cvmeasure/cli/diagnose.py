@@ -61,9 +61,9 @@ def _summary(result: dict) -> str:
         lines.append(f"causes: {', '.join(result['causes'])}")
     for key, value in result["params"].items():
         if key not in result["intervals"]:
-            # a shape chosen from a form's grid (e.g. the camera tilt's axis): it has no
-            # interval of its own; its rounding is carried in the other parameters' ones
-            lines.append(f"  {key} = {value:.4g}  (a form chosen on a grid; no interval)")
+            # a cause's shape (e.g. the camera tilt's axis): it has no interval of its own;
+            # its uncertainty is carried in the other parameters' ones
+            lines.append(f"  {key} = {value:.4g}  (the cause's shape; no interval of its own)")
             continue
         lo, hi = result["intervals"][key]
         lines.append(f"  {key} = {value:.4g}  (95 % interval {lo:.4g} .. {hi:.4g})")
@@ -142,4 +142,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(out, indent=2))
     else:
         print(_summary(out))
+        if args.follow_up_csv and out["follow_up_csv"] is None:  # asked for, nothing to write
+            print(
+                f"no follow-up plan written to {args.follow_up_csv}: "
+                "no tie between catalogue causes to separate"
+            )
     return 0

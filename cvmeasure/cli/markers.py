@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from cvmeasure.warning import StageWarning
 
 __all__ = ["register", "run_learn", "run_heights"]
 
@@ -133,6 +137,7 @@ def run_heights(args: argparse.Namespace) -> int:
     kit = load_kit(args.kit) if args.kit else default_kit()
     plane = PlaneModel.load(args.plane)
     sweep, failed, y_down = [], 0, True
+    pose_checks: list[tuple[str, StageWarning]] = []
     bends = list(args.photos) + (_session_loaded_photos(args.session) if args.session else [])
     if not bends:
         raise InputError("markers heights", "no bend photos (PHOTO... or --session)")
@@ -147,6 +152,7 @@ def run_heights(args: argparse.Namespace) -> int:
             continue
         y_down = got.frame.y_down
         sweep.append(SweepPhoto(got.centres, got.covariances, straight, str(path)))
+        pose_checks += [(str(path), w) for w in got.warnings if w.code in POSE_CHECK_CODES]
     try:
         result = measure_heights(
             sweep,
@@ -170,7 +176,29 @@ def run_heights(args: argparse.Namespace) -> int:
         for w in result.warnings:
             print(f"! {w}")
         print(f"wrote {args.out}")
+    _print_pose_checks(pose_checks, len(sweep))
     return 2 if failed else 0
+
+
+#: Each photo's plane checks that say the plane or the kit is not this pose's: heights
+#: fitted through such a plane come out wrong however well the sweep fits.
+POSE_CHECK_CODES = frozenset({"plane_scale", "plane_tilt", "kit_heights_mismatch"})
+
+
+def _print_pose_checks(checks: list[tuple[str, StageWarning]], n_photos: int) -> None:
+    """One stderr line per plane check the photos failed: code, how many, the first."""
+    import sys
+
+    by_code: dict[str, list[tuple[str, StageWarning]]] = {}
+    for photo, warning in checks:
+        by_code.setdefault(warning.code, []).append((photo, warning))
+    for code, hits in by_code.items():
+        photo, first = hits[0]
+        print(
+            f"warning: {code} on {len(hits)} of {n_photos} photos (first {photo}): "
+            f"{first.message}; the heights above are not to be trusted",
+            file=sys.stderr,
+        )
 
 
 def _session_loaded_photos(path: Path) -> list[Path]:

@@ -201,9 +201,13 @@ def diagnose(
         result.cause.kind is CauseKind.UNEXPLAINED
         and not _refused(result)
         and learned.cause.kind is not CauseKind.NONE
+        and not learned.extended_rmse_deg < result.extended_rmse_deg
     ):
-        # terms outside the catalogue explained the data within the noise: a catalogue
-        # name through the learned curve would stand in for them (a warm-up as a drift)
+        # terms outside the catalogue explained the data as well: a catalogue name
+        # through the learned curve would stand in for them (a warm-up as a drift). When
+        # the name predicts the held-out bends better than the terms do, it is the
+        # explanation (a camera tilt about the feed axis, which a session's no-effect
+        # curve and a periodic term of the head both half take up, the pin the rest)
         return result
     allowed_deg = LEARNED_CURVE_SPRINGBACKS * springback_rms_deg(trials, params)
     if not curve_deg <= allowed_deg:

@@ -32,12 +32,13 @@ from cvmeasure.diagnose.discrepancy import discrepancy_form as discrepancy_form
 from cvmeasure.diagnose.discrepancy import learned_form as learned_form
 from cvmeasure.diagnose.forms import (
     ALONE_FORMS,
-    FORM_PRIOR_SD,
     STRENGTH_BOUNDS,
     Shape,
     as_causes,
     nuisance_for,
+    on_grid,
     shape_bounds,
+    shape_priors,
 )
 from cvmeasure.diagnose.forms import DRIFT_RATE_GRID as DRIFT_RATE_GRID
 from cvmeasure.diagnose.forms import FORMS as FORMS
@@ -57,6 +58,7 @@ from cvmeasure.diagnose.problem import (
     start_vector,
     whole_step_secants,
 )
+from cvmeasure.diagnose.shapes import refine_shapes
 from cvmeasure.diagnose.solve import profile_interval as profile_interval
 from cvmeasure.diagnose.solve import standard_errors as standard_errors
 from cvmeasure.sim.effects import EFFECTS, Effect
@@ -187,8 +189,12 @@ def fit_model(
     forms: list[Shape] = [dict(known_shapes or {}).get(c, ()) for c in names]
     if isinstance(start, ModelFit) and len(start.shapes) == len(names):
         forms = list(start.shapes)
-    if len(names) > 1:  # in a pair these keep their narrow form (see ALONE_FORMS)
-        forms = [() if c in ALONE_FORMS else f for c, f in zip(names, forms, strict=True)]
+    if len(names) > 1:
+        # in a pair these keep their narrow form (see ALONE_FORMS), and a shape refined
+        # alone goes back on the grid (see cvmeasure.diagnose.shapes.refine_shapes)
+        forms = [
+            () if c in ALONE_FORMS else on_grid(c, f) for c, f in zip(names, forms, strict=True)
+        ]
     problem = Problem(
         trials,
         params,
@@ -206,6 +212,7 @@ def fit_model(
     sol = solve_problem(problem, x0, alternatives, learned)
     searched = {c for c in names if start is None and c not in (known or {})}
     sol = profile_drifts(problem, sol, searched)
+    sol = refine_shapes(problem, sol, searched, learned)
     point, fitted = fitted_point(problem, sol, learned)
     if not intervals:
         return dataclasses.replace(point, residual_deg=problem.full(sol.x))
@@ -216,7 +223,7 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     """(observation rows, one column per prior): the change of the residuals per prior
     standard deviation of each machine parameter held at its value
     (:func:`unfitted_priors`) and of each form's continuous shape chosen from a grid
-    (:data:`FORM_PRIOR_SD`)."""
+    (:func:`~cvmeasure.diagnose.forms.shape_priors`)."""
     trials, params, names, forms = problem.trials, problem.params, problem.names, problem.forms
     lay, x, keep, ok, r0 = problem.layout, fitted.sol.x, problem.keep, fitted.ok, fitted.raw_deg
     unfitted = []
@@ -233,14 +240,14 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
             shapes=forms,
         )[keep]
         unfitted.append((r0 - shifted)[ok])
-    for i, c in enumerate(names):  # a form's continuous shape, chosen from a grid
-        for key, sd in FORM_PRIOR_SD.get(c, ()):
+    for i, c in enumerate(names):  # a form's continuous shape (grid or refined)
+        for key, sd, diff in shape_priors(c, len(names)):
             shape = dict(forms[i])
             if c == "drift" and not shape.get("home_shift"):
                 continue  # the load exponent is only tried with the home shift
             value = shape.get(key, 0.0)
             lo, hi = shape_bounds(c, key)
-            step = sd if value + sd <= hi or value - sd < lo else -sd  # inside the bounds
+            step = diff if value + diff <= hi or value - diff < lo else -diff  # inside bounds
             shape[key] = value + step
             moved_forms = [*forms[:i], tuple(shape.items()), *forms[i + 1 :]]
             shifted = residuals(

@@ -104,9 +104,50 @@ DRIFT_RATE_GRID = np.geomspace(0.01, 0.5, 35)
 #: standard deviation of the grid's rounding (uniform within half a step: step / sqrt(12)):
 #: marginalised in every interval like the unfitted machine parameters.
 FORM_PRIOR_SD: dict[str, tuple[tuple[str, float], ...]] = {
-    "camera_tilt": (("tilt_axis_deg", 15.0 / math.sqrt(12.0)),),
     "drift": (("load_exponent", 1.0 / math.sqrt(12.0)),),
 }
+
+#: Continuous shapes fitted off the grid (:mod:`cvmeasure.diagnose.shapes`), each with its
+#: grid's step: in a cause fitted alone the shape is profiled within one step of the
+#: grid's choice (in a pair it stays on the grid, see :func:`refine_shapes`). In the
+#: intervals such a shape counts as a fitted parameter: it is marginalised with a prior sd
+#: of one step (weak: the data decide it), so the cause's interval carries the shape's
+#: own uncertainty (the two are correlated: an asymmetric wire's loaded leg moves by the
+#: product of the shape and the asymmetry).
+REFINED_SHAPES: dict[str, tuple[str, float]] = {
+    "camera_tilt": ("tilt_axis_deg", 15.0),
+    "springback_asymmetry": ("loaded_deg", 1.0),
+}
+#: Finite-difference step of a refined shape's column, as a share of its prior sd.
+SHAPE_DIFF_SHARE = 0.1
+
+
+def shape_priors(cause: str, n_causes: int) -> tuple[tuple[str, float, float], ...]:
+    """(shape key, prior sd, finite-difference step) of each of ``cause``'s continuous
+    shapes carried in the intervals, in a fit of ``n_causes`` causes: a shape refined off
+    the grid in a cause fitted alone (:data:`REFINED_SHAPES`), or the grid's rounding
+    (uniform within half a step, differenced over one sd: :data:`FORM_PRIOR_SD`, and a
+    refined shape's grid in a pair, where it is not refined); none for a form held
+    narrow in a pair (:data:`ALONE_FORMS`)."""
+    if cause in REFINED_SHAPES:
+        key, step = REFINED_SHAPES[cause]
+        if n_causes == 1:
+            return ((key, step, SHAPE_DIFF_SHARE * step),)
+        if cause in ALONE_FORMS:
+            return ()
+        return ((key, step / math.sqrt(12.0), step / math.sqrt(12.0)),)
+    return tuple((key, sd, sd) for key, sd in FORM_PRIOR_SD.get(cause, ()))
+
+
+def on_grid(cause: str, shape: Shape) -> Shape:
+    """``shape`` with a shape refined off the grid (:data:`REFINED_SHAPES`) put back on
+    the nearest form of :data:`FORMS` (the form used in a pair, where shapes are not
+    refined); any other shape unchanged."""
+    if cause not in REFINED_SHAPES:
+        return shape
+    key, _ = REFINED_SHAPES[cause]
+    value = dict(shape).get(key, 0.0)
+    return min(FORMS[cause], key=lambda form: abs(dict(form).get(key, 0.0) - value))
 
 
 def shape_bounds(cause: str, key: str) -> tuple[float, float]:

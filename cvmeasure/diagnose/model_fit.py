@@ -95,6 +95,13 @@ class ModelFit:
         return math.sqrt(self.rss_deg2 / max(self.n_obs, 1))
 
     @property
+    def n_cause_params(self) -> int:
+        """Parameters the causes add to the baseline: each cause's value and each shape
+        parameter of its form (a grid's choice or a shape refined off it is fitted to the
+        data as well), as :attr:`n_params` counts them."""
+        return len(self.causes) + sum(len(f) for f in self.shapes)
+
+    @property
     def sigma_deg(self) -> float:
         """Residual standard deviation (degrees of freedom corrected)."""
         return math.sqrt(self.rss_deg2 / max(self.n_obs - self.n_params, 1))

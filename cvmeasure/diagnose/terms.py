@@ -172,9 +172,9 @@ def library_confounded(
     term, with the machine's nuisance directions refitted, fitted to the baseline's
     residuals (``base_residual_deg``, (3 N,), its model-form discrepancy out) leaves a
     residual sum of squares whose excess over the named fit's (``named_residual_deg``,
-    its discrepancy out; ``n_named`` parameters) carries less evidence than a cause needs
-    (in the named fit's residual variance, each extra coefficient charged the log of the
-    observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
+    its discrepancy out; ``n_named`` parameters: the causes' values and their forms'
+    shapes) carries less evidence than a cause needs (in the named fit's residual
+    variance, each extra coefficient charged the log of the observations: a delta BIC below ``ctx.min_delta_bic``): the data cannot prefer the
     name to the term. The best member of each family, as (library name, that delta BIC).
     Every observed angle counts, the pin's too (the drive's terms move the pin).
     ``basis``: the model-form discrepancy's columns, fitted with each term within their

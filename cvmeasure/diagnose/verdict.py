@@ -347,7 +347,7 @@ def tie_report(
                 base.fit,
                 base.residual_deg,
                 v.residual_deg - base.basis @ disc,
-                len(v.fit.causes),
+                v.fit.n_cause_params,
                 base.head_gain,
                 base.basis,
             )

@@ -236,9 +236,14 @@ def plane_warnings(
     other = _spread_mm(implied, _other_story_mm(kit))
     ratio = float(np.median([d.radius_mm / (0.5 * kit.by_role(d.role).diameter_mm) for d in sized]))
     wrong_story = spread > HEIGHT_SPREAD_TOLERANCE_MM and other < spread - STORY_MARGIN_MM
-    if len(sized) >= 3 and (wrong_story or spread > HEIGHT_OFF_TOLERANCE_MM):
+    # discs tens of mm off the plate (beyond three times any story's tallest cap) are no
+    # kit's story, whatever their spread: the plane is from another pose
+    tallest = max([kit.height_mm(r) for r in implied] + list(_other_story_mm(kit).values()))
+    no_kit_story = abs(common) > HEIGHT_OFF_TOLERANCE_MM + 3.0 * tallest
+    kit_off = wrong_story or spread > HEIGHT_OFF_TOLERANCE_MM
+    if len(sized) >= 3 and kit_off and not no_kit_story:
         out.append(_kit_heights_warning(implied, kit, other_story=wrong_story))
-    elif abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
+    elif no_kit_story or abs(ratio - 1.0) > PLANE_SCALE_TOLERANCE:
         out.append(
             StageWarning(
                 "plane_scale",

@@ -17,8 +17,9 @@ measures them on the user's machine, from photos taken from the plane's pose:
   ``wire_a -> wire_b`` is parallel to ``axis -> origin`` (bend angle 0): it fixes
   the heights of the wire markers against the axis marker.
 
-The heights are the least-squares solution of those conditions, each residual
-weighted by its centres' covariance, with the kit's nominal heights as a prior:
+The heights are the least-squares solution of those conditions, each photo's
+residuals whitened by their joint covariance from the centres' (they share the
+origin marker's centre), with the kit's nominal heights as a prior:
 each cap within :data:`~cvmeasure.markers.heights.NOMINAL_HEIGHT_TOLERANCE` of its
 nominal height, as a rectangular distribution (standard uncertainty
 ``tolerance * height / sqrt(3)``). What the photos cannot see, every marker's
@@ -45,7 +46,7 @@ from scipy.optimize import least_squares
 
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.kit import ROLES, MarkerKit
-from cvmeasure.markers.angles import machine_angles, pin_bend_deg
+from cvmeasure.markers.angles import pin_bend_deg
 from cvmeasure.markers.heights import NOMINAL_HEIGHT_TOLERANCE, move_to_heights
 from cvmeasure.warning import StageWarning
 
@@ -123,6 +124,61 @@ class MeasuredHeights:
         }
 
 
+def _photo_residuals(
+    c: dict[str, np.ndarray], radii: dict[str, float], straight: bool, y_down: bool
+) -> np.ndarray:
+    """One photo's raw residuals: each turning marker's distance from the origin marker
+    less its radius (mm), and on a straight-wire photo the bend angle (deg)."""
+    out = [float(np.hypot(*(c[role] - c["origin"]))) - radii[role] for role in TURNING]
+    if straight:
+        out.append(float(wrap_deg(pin_bend_deg(c, y_down=y_down)[1])))
+    return np.asarray(out)
+
+
+def _photo_whitening(photo: SweepPhoto, y_down: bool, step_mm: float = 1e-3) -> np.ndarray:
+    """The matrix that whitens one photo's residuals (:func:`_photo_residuals`) by their
+    joint covariance, from the centres' covariances.
+
+    The residuals share centres: the origin marker's error enters every distance, and the
+    wire markers' the bend too. Weighted one by one, each residual counted the shared
+    centres' error afresh (the origin marker's three times in every photo), so the photos
+    claimed more about the heights than they hold.
+    """
+    c = {r: np.asarray(v, dtype=np.float64) for r, v in photo.centres_mm.items()}
+    zero = dict.fromkeys(TURNING, 0.0)
+    cols, covs = [], []
+    for role in ROLES:
+        for axis in range(2):
+            d = np.zeros(2)
+            d[axis] = step_mm
+            up = _photo_residuals({**c, role: c[role] + d}, zero, photo.straight, y_down)
+            down = _photo_residuals({**c, role: c[role] - d}, zero, photo.straight, y_down)
+            step = up - down
+            if photo.straight:
+                step[-1] = float(wrap_deg(step[-1]))
+            cols.append(step / (2 * step_mm))
+        covs.append(np.asarray(photo.covariances_mm2[role], dtype=np.float64))
+    jac = np.column_stack(cols)
+    cov = jac @ _block_diag(covs) @ jac.T
+    try:
+        return np.linalg.inv(np.linalg.cholesky(cov))
+    except np.linalg.LinAlgError:
+        raise ValueError(
+            f"{photo.source or 'a photo'}: its centres' covariances give its residuals no "
+            "positive variance"
+        ) from None
+
+
+def _block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
+    n = sum(b.shape[0] for b in blocks)
+    out = np.zeros((n, n))
+    i = 0
+    for b in blocks:
+        out[i : i + b.shape[0], i : i + b.shape[0]] = b
+        i += b.shape[0]
+    return out
+
+
 def _residuals(
     x: np.ndarray,
     photos: Sequence[SweepPhoto],
@@ -131,24 +187,16 @@ def _residuals(
     prior_sigma_mm: np.ndarray,
     camera_centre_mm: np.ndarray,
     y_down: bool,
-    bend_sigma_deg: Sequence[float],
+    whitening: Sequence[np.ndarray],
 ) -> np.ndarray:
     heights = dict(zip(ROLES, x[: len(ROLES)], strict=True))
     radii = dict(zip(TURNING, x[len(ROLES) :], strict=True))
-    out: list[float] = []
-    for k, photo in enumerate(photos):
+    out: list[np.ndarray] = []
+    for photo, white in zip(photos, whitening, strict=True):
         c = move_to_heights(photo.centres_mm, kit_mm, heights, camera_centre_mm)
-        for role in TURNING:
-            d = c[role] - c["origin"]
-            dist = float(np.hypot(*d))
-            u = d / dist
-            cov = photo.covariances_mm2[role] + photo.covariances_mm2["origin"]
-            out.append((dist - radii[role]) / math.sqrt(float(u @ cov @ u)))
-        if photo.straight:
-            bend = float(wrap_deg(pin_bend_deg(c, y_down=y_down)[1]))
-            out.append(bend / bend_sigma_deg[k])
-    out.extend((x[: len(ROLES)] - prior_mm) / prior_sigma_mm)
-    return np.asarray(out)
+        out.append(white @ _photo_residuals(c, radii, photo.straight, y_down))
+    out.append((x[: len(ROLES)] - prior_mm) / prior_sigma_mm)
+    return np.concatenate(out)
 
 
 def prior_sigmas_mm(kit: MarkerKit) -> np.ndarray:
@@ -186,7 +234,8 @@ def measure_heights(
     Raises
     ------
     ValueError
-        Fewer than :data:`MIN_PHOTOS` photos, or a photo without every role.
+        Fewer than :data:`MIN_PHOTOS` photos, a photo without every role, or one whose
+        centres' covariances leave its residuals no variance.
     """
     if len(photos) < MIN_PHOTOS:
         raise ValueError(f"need at least {MIN_PHOTOS} photos of a bend sweep, got {len(photos)}")
@@ -202,15 +251,12 @@ def measure_heights(
     prior_sigma = (
         prior_sigmas_mm(kit) if prior_sigma_mm is None else np.full(len(ROLES), prior_sigma_mm)
     )
-    bend_sigma = [
-        machine_angles(p.centres_mm, p.covariances_mm2, y_down=y_down).bend_sigma_deg
-        for p in photos
-    ]
+    whitening = [_photo_whitening(p, y_down) for p in photos]
     radii0 = [
         float(np.median([np.hypot(*(p.centres_mm[r] - p.centres_mm["origin"])) for p in photos]))
         for r in TURNING
     ]
-    args = (photos, kit_mm, prior, prior_sigma, centre, y_down, bend_sigma)
+    args = (photos, kit_mm, prior, prior_sigma, centre, y_down, whitening)
     fit = least_squares(_residuals, np.concatenate((prior, radii0)), args=args, x_scale=1.0)
     n = len(ROLES)
     jac = np.asarray(fit.jac)

@@ -208,3 +208,45 @@ def test_fit_plots_a_calibration_whose_extreme_sample_is_outside_the_fitted_rang
     out, png = tmp_path / "cal.json", tmp_path / "cal.png"
     assert main(["fit", str(trials), "-o", str(out), "--plot", str(png)]) == 0
     assert out.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_json_of_another_kind_is_named_by_its_kind(tmp_path):
+    """The operator's likeliest slip between steps: the camera JSON given as the board,
+    the calibration as the camera. The line says what the file is, not a key it lacks."""
+    camera = tmp_path / "camera.json"
+    camera.write_text(
+        json.dumps(
+            {
+                "image_size": [320, 240],
+                "camera_matrix": [[300, 0, 160], [0, 300, 120], [0, 0, 1]],
+                "dist_coeffs": [],
+            }
+        )
+    )
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"format": "diwire-material/1", "samples": {}, "angles_deg": [10]}))
+    board = tmp_path / "board.json"
+    board.write_text(
+        json.dumps({"type": "charuco", "squares_x": 5, "squares_y": 4, "square_mm": 20.0,
+                    "marker_mm": 15.0})
+    )  # fmt: skip
+    photo = tmp_path / "plate.jpg"
+    cv2.imwrite(str(photo), np.full((240, 320, 3), 128, np.uint8))
+    design = tmp_path / "d.svg"
+    design.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="50mm" '
+        'viewBox="0 0 100 50"><path d="M 10 40 L 50 40 L 90 10" fill="none"/></svg>'
+    )
+    cases = [
+        (("plane", "plate.jpg", "--board", "camera.json", "--camera", "camera.json"),
+         "camera.json: is a camera JSON (`cvmeasure calibrate`), not a board JSON"),
+        (("plane", "plate.jpg", "--board", "board.json", "--camera", "cal.json"),
+         "cal.json: is a calibration JSON (`cvmeasure fit` / `session`), not a camera JSON"),
+        (("gcode", "d.svg", "--material", "camera.json", "-o", "job.gcode"),
+         "camera.json: is a camera JSON (`cvmeasure calibrate`), not a calibration JSON"),
+    ]  # fmt: skip
+    for argv, line in cases:
+        proc = _run(*argv, cwd=tmp_path)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.strip() == f"cvmeasure {argv[0]}: {line}"
+    assert not (tmp_path / "job.gcode").exists()

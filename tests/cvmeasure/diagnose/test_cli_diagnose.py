@@ -73,6 +73,16 @@ def test_diagnose_text_summary(offset_trials, capsys):
     assert text.startswith("cause: offset") and "held-out RMSE" in text
 
 
+def test_a_follow_up_asked_for_without_a_tie_is_said_not_written(offset_trials, tmp_path, capsys):
+    plan = tmp_path / "follow-up.csv"
+    assert main(["diagnose", str(offset_trials), "--follow-up-csv", str(plan)]) == 0
+    text = capsys.readouterr().out
+    assert text.startswith("cause: offset") and not plan.exists()
+    assert text.rstrip().endswith(
+        f"no follow-up plan written to {plan}: no tie between catalogue causes to separate"
+    )
+
+
 def test_unloaded_only_trials_are_accepted(tmp_path, capsys):
     rng = np.random.default_rng(43)
     trials = measure_trials(
@@ -188,6 +198,9 @@ def test_text_summary_of_a_tilt_about_another_axis(tmp_path, capsys):
     assert text.splitlines()[0] == "cause: camera_tilt", text
     axis = [ln for ln in text.splitlines() if ln.strip().startswith("tilt_axis_deg =")]
     assert len(axis) == 1 and "no interval" in axis[0], text
-    scale = [ln for ln in text.splitlines() if ln.strip().startswith("scale =")]
-    assert len(scale) == 1 and "95 % interval" in scale[0], text
+    tilt = [ln for ln in text.splitlines() if ln.strip().startswith("tilt_deg =")]
+    assert len(tilt) == 1 and "95 % interval" in tilt[0], text
+    # the hidden scale (-2.3 %) is not asked for: on this plan the tilt's axis, fitted
+    # off the grid, takes it up (a tilt about -40..-60 deg with a scale of 0..-1.7 % fit
+    # alike, 0.080-0.083 deg rms at 0.076 deg of noise)
     assert saved.exists()

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import ezdxf
 import numpy as np
@@ -170,3 +173,22 @@ def test_gcode_bad_designs_are_exit_2_and_write_nothing(tmp_path, capsys):
     assert main(["gcode", str(half), "-o", str(out), "--material", str(cal)]) == 2
     assert "cal.json" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_from_line_takes_the_line_as_the_refusal_names_it(half_gcode):
+    """A refused resume says `--from-line N4`; typed as shown, the word reaches the check."""
+    out, _ = half_gcode
+    exe = str(Path(sys.executable).with_name("cvmeasure"))
+
+    def bend(*extra: str) -> subprocess.CompletedProcess:
+        argv = [exe, "bend", str(out), "--port", "sim://?speedup=300", "--quiet", *extra]
+        return subprocess.run(argv, capture_output=True, text=True, timeout=120)
+
+    assert bend().returncode == 0
+    # the journal says done and sim:// is a fresh machine at home: N20 is checked and refused
+    proc = bend("--resume", "--from-line", "N20")
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("cvmeasure bend: --from-line: N20 is not where the job can")
+    proc = bend("--resume", "--from-line", "X20")
+    assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1
+    assert "--from-line: must be a line number such as N1837 (or 1837), got 'X20'" in proc.stderr

@@ -196,3 +196,41 @@ def test_too_few_photos_are_refused(tmp_path, capsys):
     assert main([*args, "-o", str(tmp_path / "k.json")]) == 2
     assert "at least 3 photos" in capsys.readouterr().err
     assert not (tmp_path / "k.json").exists()
+
+
+def test_a_plane_from_another_pose_is_warned_beside_the_heights(tmp_path, capsys, sweep_paths):
+    """The sweep through a plane measured 180 mm farther away: the fit alone looks fine
+    (the heights absorb the pose), but each photo's plane check does not; `markers heights`
+    says so on stderr instead of writing wrong heights silently."""
+    far = replace(TILTED, distance_mm=TILTED.distance_mm + 180.0)
+    plane = replace(
+        true_plane(_camera(), far), tilt_deg=8.0, tilt_direction_deg=0.0, mm_per_px=0.3,
+        worst_angle_error_deg=0.0, tolerance_deg=0.05, rms_px=0.1, corner_count=100,
+    )  # fmt: skip
+    plane_json = plane.save(tmp_path / "plane.json")
+    args = ["markers", "heights", *[str(sweep_paths[s]) for s in SWEEP]]
+    assert main([*args, "--plane", str(plane_json), "-o", str(tmp_path / "k.json")]) == 0
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
+    assert lines, err
+    assert all(f"of {len(SWEEP)} photos" in ln and "not to be trusted" in ln for ln in lines)
+    assert {ln.split()[1] for ln in lines} <= {"plane_scale", "plane_tilt", "kit_heights_mismatch"}
+
+
+def test_a_plane_far_from_this_pose_is_named_as_the_plane_not_the_kit(tmp_path, sweep_paths):
+    """Caps at their heights seen through a plane from another pose (25 % farther, moved
+    and turned): the discs' implied heights are about 140 mm off the plate with a spread
+    of several mm, no kit's story; the warning is the plane's (`plane_scale`: measure it
+    again), not `kit_heights_mismatch` (which told the operator to switch to a flat kit)."""
+    far = replace(
+        TILTED, distance_mm=1.25 * TILTED.distance_mm, offset_mm=(150.0, 100.0), yaw_deg=0.0
+    )
+    plane = true_plane(_camera(), far)
+    res = measure_machine_photo(cv2.imread(str(sweep_paths[SWEEP[2]])), default_kit(), plane=plane)
+    codes = {w.code for w in res.warnings}
+    assert "plane_scale" in codes and "kit_heights_mismatch" not in codes, res.warnings
+    # through this pose's own plane neither is said (the caps are within 10 % of nominal)
+    res = measure_machine_photo(
+        cv2.imread(str(sweep_paths[SWEEP[2]])), default_kit(), plane=true_plane(_camera(), TILTED)
+    )
+    assert not {w.code for w in res.warnings} & {"plane_scale", "kit_heights_mismatch"}

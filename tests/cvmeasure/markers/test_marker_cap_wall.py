@@ -55,13 +55,18 @@ def _cap_image(disc_rgb, wall_shade, size=121, ring=0.8):
     return np.clip(np.round(255 * enc[..., ::-1]), 0, 255).astype(np.uint8)
 
 
-def _centre_x(bgr, edge):
+def _fit(bgr, edge):
+    """The disc's circle refitted three times on its ``edge`` points, and those points."""
     centre, r = CENTRE, R_PX
     for _ in range(3):
         pts = disc_edge_points(bgr, centre, r, RING_RATIO, edge=edge).points_px
         fit = fit_circle_robust(pts)
         centre, r = fit.centre, fit.radius
-    return centre[0]
+    return fit, pts
+
+
+def _centre_x(bgr, edge):
+    return _fit(bgr, edge)[0].centre[0]
 
 
 @pytest.mark.parametrize("wall_shade", [0.0, 0.3])
@@ -82,15 +87,6 @@ def test_luminance_edges_count_a_light_discs_wall_more():
     assert orange < green - 0.2, (green, orange)
     shade = [_centre_x(_cap_image(d, 0.0), "shade") for d in (GREEN, ORANGE)]
     assert abs(shade[0] - shade[1]) < 0.04, shade
-
-
-def _fit(bgr, edge):
-    centre, r = CENTRE, R_PX
-    for _ in range(3):
-        pts = disc_edge_points(bgr, centre, r, RING_RATIO, edge=edge).points_px
-        fit = fit_circle_robust(pts)
-        centre, r = fit.centre, fit.radius
-    return fit, pts
 
 
 def test_the_luminance_walls_are_not_stated_as_the_shade_edges_bias():
