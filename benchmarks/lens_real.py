@@ -1572,8 +1572,9 @@ def main(argv: list[str] | None = None) -> dict:
     notes += [
         "published values: each set calibrated with the model its reference used (OpenCV's "
         "5-coefficient model, mrcal's LENSMODEL_OPENCV8 = our model 8), sigma = our stated "
-        "1-sigma (view-clustered: the larger, direction by direction, of the formal "
-        "covariance and the sandwich clustered by view); the provenance of every value is in "
+        "1-sigma (where the views show errors shared within a view, p < 0.0027, the larger, "
+        "direction by direction, of the formal covariance and the sandwich clustered by view; "
+        "otherwise the formal one); the provenance of every value is in "
         "the set's README under ../shared/data/real",
         "why the LifeCam set's published values were 4.1 sigma off with the defaults (issue "
         "39): the formal sigma assumes every corner's error independent, but the corners of a "

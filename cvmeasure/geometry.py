@@ -156,8 +156,10 @@ class CircleFit:
         }
 
 
-def _coverage(points: np.ndarray, centre: np.ndarray) -> float:
-    ang = np.arctan2(points[:, 1] - centre[1], points[:, 0] - centre[0])
+def _coverage(dx: np.ndarray, dy: np.ndarray) -> float:
+    """Share of the 36 10-degree sectors holding a point, from the points' offsets
+    ``dx``, ``dy`` from the centre."""
+    ang = np.arctan2(dy, dx)
     bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
     return float(np.count_nonzero(np.bincount(bins, minlength=36)) / 36.0)
 
@@ -234,7 +236,7 @@ def fit_circle_robust(
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if p.shape[0] < 3:
         raise ValueError(f"a circle fit needs at least 3 points, got {p.shape[0]}")
-    if not np.all(np.isfinite(p)):
+    if not np.isfinite(p).all():
         raise ValueError("points must be finite")
     if init is not None:
         cx, cy, r = init
@@ -320,7 +322,7 @@ def _circle_fit_result(
         float(math.sqrt(s2)),
         int(p.shape[0]),
         n_in,
-        _coverage(p[inl], theta[:2]) if n_in else 0.0,
+        _coverage(d[0, inl], d[1, inl]) if n_in else 0.0,  # d: the points less the centre
         float(math.sqrt(max(cov[2, 2], 0.0))),
     )
 
@@ -547,7 +549,7 @@ def _circle_summaries(
     dist = np.maximum(np.sqrt(np.square(dx) + np.square(dy)), 1e-12)
     res = dist - theta[:, 2:3]
     inl = w > 0
-    n_in = np.count_nonzero(inl, axis=1)
+    n_in = inl.sum(axis=1).tolist()  # (np.count_nonzero with an axis is this, slower)
     jac = np.stack((dx / dist, dy / dist, np.ones_like(dist)), axis=1)  # (B, 3, N)
     jtwj = (jac * w[:, None, :]) @ jac.transpose(0, 2, 1)
     dof = np.maximum(1.0, w.sum(axis=1) - 3.0)
@@ -558,17 +560,19 @@ def _circle_summaries(
     bins = np.floor((ang + np.pi) / (2 * np.pi) * 36).astype(np.intp) % 36
     bins += 36 * np.arange(m)[:, None]
     sectors = np.bincount(bins[inl], minlength=36 * m).reshape(m, 36)
-    coverage = (sectors > 0).sum(axis=1) / 36.0
+    coverage = ((sectors > 0).sum(axis=1) / 36.0).tolist()
+    # Python floats and ints of each set's numbers in one conversion per array
+    th, s2_k, counts_k, r_var = theta.tolist(), s2.tolist(), counts.tolist(), cov[:, 2, 2].tolist()
     return [
         CircleFit(
-            (float(theta[k, 0]), float(theta[k, 1])),
-            float(theta[k, 2]),
+            (th[k][0], th[k][1]),
+            th[k][2],
             cov[k, :2, :2].copy(),
-            float(math.sqrt(s2[k])),
-            int(counts[k]),
-            int(n_in[k]),
-            float(coverage[k]) if n_in[k] else 0.0,
-            float(math.sqrt(max(cov[k, 2, 2], 0.0))),
+            math.sqrt(s2_k[k]),
+            int(counts_k[k]),
+            n_in[k],
+            coverage[k] if n_in[k] else 0.0,
+            math.sqrt(max(r_var[k], 0.0)),
         )
         for k in range(m)
     ]

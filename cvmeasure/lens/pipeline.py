@@ -563,8 +563,9 @@ def calibrate_detections(
         result, decision = decide_board_warp(result, mode=board_warp, extent_mm=extent)
         warp_info = decision.to_dict()
     use_warp = result.board_warp is not None
-    # the stated sigmas allow for errors shared by a view's corners (the formal ones alone
-    # put a real set's published cy 4.1 sigma away; the view-clustered ones, 1.4)
+    # the stated sigmas allow for errors shared by a view's corners when the views show them
+    # (the formal ones alone put a real set's published cy 4.1 sigma away; the
+    # view-clustered ones, 1.4)
     param_cov = view_clustered_covariance(result)
     result = replace(result, std_devs=param_cov.std_devs())
     unc = projection_uncertainty(result, covariance=param_cov)

@@ -34,6 +34,7 @@ from typing import Any
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.stats import chi2
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
@@ -48,6 +49,8 @@ __all__ = [
     "CrossValidation",
     "parameter_covariance",
     "view_clustered_covariance",
+    "view_shared_error_p",
+    "SHARED_ERROR_SIGNIFICANT_P",
     "projection_uncertainty",
     "projection_diff",
     "cross_validate",
@@ -169,6 +172,69 @@ def parameter_covariance(result: CalibrationResult) -> ParameterCovariance:
     return _marginal(result, cov, n_warp, sigma2, dof)
 
 
+#: The view-clustered sandwich replaces the formal covariance when the corners' errors
+#: shared within views are significant at this false-alarm probability (3 sigma, the
+#: model choice's and the board warp's threshold).
+SHARED_ERROR_SIGNIFICANT_P = 0.0027
+
+
+def _view_scores(r: np.ndarray, jac: Any, rows: np.ndarray) -> tuple[np.ndarray, list]:
+    """Each view's score J_v^T r_v (G, P) and its dense Jacobian rows."""
+    blocks = [jac[a:b] for a, b in zip(rows[:-1], rows[1:], strict=True)]
+    blocks = [b.toarray() if hasattr(b, "toarray") else np.asarray(b) for b in blocks]
+    scores = np.stack([b.T @ r[a:e] for b, a, e in zip(blocks, rows[:-1], rows[1:], strict=True)])
+    return scores, blocks
+
+
+def _shared_error_p(
+    scores: np.ndarray, blocks: list, bread: np.ndarray, sigma2: float, shared: np.ndarray
+) -> float:
+    """p of the view-clustered scores' size if every corner's error were independent.
+
+    The statistic is the trace of the sandwich whitened by the formal covariance,
+    ``T = sum_v s_v^T B s_v / sigma^2`` (s_v = J_v^T r_v; only the columns every view
+    shares, ``shared``, carry a score: a view's own pose columns are zero at the optimum).
+    Under independent noise the scores are Gaussian with
+    ``cov(s_v, s_w) = sigma^2 (delta_vw C_v - C_v B C_w)``, C_v = J_v^T J_v, so T is a
+    weighted sum of chi-squares; its p is Satterthwaite's (a scaled chi-square with T's
+    mean and variance).
+    """
+    b_ss = bread[np.ix_(shared, shared)]
+    c_rows = np.concatenate([(blk[:, shared].T @ blk) for blk in blocks])  # (G q, P)
+    q = shared.size
+    g = len(blocks)
+    x = -(c_rows @ bread @ c_rows.T)
+    for v in range(g):
+        sl = slice(v * q, (v + 1) * q)
+        x[sl, sl] += c_rows[sl][:, shared]
+    kx = np.concatenate([b_ss @ x[v * q : (v + 1) * q] for v in range(g)])
+    mean = float(np.trace(kx))
+    var = 2.0 * float(np.sum(kx * kx.T))
+    if mean <= 0 or var <= 0:
+        return 1.0
+    t = float(sum(s[shared] @ b_ss @ s[shared] for s in scores)) / sigma2
+    scale = var / (2.0 * mean)
+    return float(chi2.sf(t / scale, 2.0 * mean * mean / var))
+
+
+def _scores_and_p(result, r, jac, n_warp, bread, sigma2) -> tuple[np.ndarray, float]:
+    rows = np.cumsum([0] + [2 * d.corner_count for d in result.detections])
+    scores, blocks = _view_scores(r, jac, rows)
+    n_i = len(result.std_devs)
+    n_p = bread.shape[0]
+    shared = np.r_[np.arange(n_i), np.arange(n_p - n_warp, n_p)]
+    return scores, _shared_error_p(scores, blocks, bread, sigma2, shared)
+
+
+def view_shared_error_p(result: CalibrationResult) -> float:
+    """p of the views' scores if every corner's error were independent with one variance:
+    small when the corners of a view share errors that move the lens (the test
+    :func:`view_clustered_covariance` runs)."""
+    r, jac, n_warp = _residuals_and_jacobian(result)
+    formal, sigma2, _ = gauss_markov_covariance(r, jac)
+    return _scores_and_p(result, r, jac, n_warp, formal / sigma2, sigma2)[1]
+
+
 def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
     """The solve's covariance allowing for errors shared by the corners of one view.
 
@@ -182,11 +248,14 @@ def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
 
         B (sum_v J_v^T r_v r_v^T J_v) B,   B = (J^T J)^-1
 
-    It is noisy with few views, so the covariance returned is, in every direction of
-    parameter space, the larger of the formal variance and the sandwich's: with F the
-    formal covariance and S the sandwich, ``F^1/2 U max(L, 1) U^T F^1/2`` where
-    ``U L U^T`` is ``F^-1/2 S F^-1/2`` (invariant to the parameters' units). On corners
-    with independent noise it is the formal covariance up to the sandwich's noise.
+    It is noisy with few views. When the views' scores are larger than independent
+    corner errors explain (:func:`view_shared_error_p` below ``SHARED_ERROR_SIGNIFICANT_P``),
+    the covariance returned is, in every direction of parameter space, the larger of the
+    formal variance and the sandwich's: with F the formal covariance and S the sandwich,
+    ``F^1/2 U max(L, 1) U^T F^1/2`` where ``U L U^T`` is ``F^-1/2 S F^-1/2`` (invariant to
+    the parameters' units). Otherwise it is the formal covariance: the larger of an exact
+    variance and a noisy estimate of the same variance overstates it (the sandwich's
+    noise, kept in every direction where it came out high).
 
     References
     ----------
@@ -196,11 +265,10 @@ def view_clustered_covariance(result: CalibrationResult) -> ParameterCovariance:
     r, jac, n_warp = _residuals_and_jacobian(result)
     formal, sigma2, dof = gauss_markov_covariance(r, jac)
     bread = formal / sigma2
-    rows = np.cumsum([0] + [2 * d.corner_count for d in result.detections])
-    groups = len(rows) - 1
-    scores = np.stack(
-        [np.asarray(jac[a:b].T @ r[a:b]).ravel() for a, b in zip(rows[:-1], rows[1:], strict=True)]
-    )
+    scores, p = _scores_and_p(result, r, jac, n_warp, bread, sigma2)
+    if p >= SHARED_ERROR_SIGNIFICANT_P:
+        return _marginal(result, formal, n_warp, sigma2, dof)
+    groups = scores.shape[0]
     sandwich = bread @ (scores.T @ scores) @ bread * (groups / max(groups - 1, 1))
     # whiten by the formal covariance (columns scaled to unit variance first, for conditioning)
     scale = np.sqrt(np.clip(np.diag(formal), 1e-300, None))

@@ -163,7 +163,7 @@ def split_half_cov(
     if not n:
         return np.zeros((2, 2))
     vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T) / n)
-    return (vecs * np.clip(vals, 0.0, None)) @ vecs.T
+    return (vecs * np.maximum(vals, 0.0)) @ vecs.T  # np.clip(vals, 0, None) is this call
 
 
 def edge_mode_cov(
@@ -218,4 +218,4 @@ def edge_mode_cov(
             return np.eye(2) * max(var, 0.0)
     acc = 0.5 * (np.outer(d, d) - np.asarray(other.covariance))
     vals, vecs = np.linalg.eigh(0.5 * (acc + acc.T))
-    return (vecs * np.clip(vals, 0.0, None)) @ vecs.T
+    return (vecs * np.maximum(vals, 0.0)) @ vecs.T  # np.clip(vals, 0, None) is this call

@@ -205,18 +205,18 @@ def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -
     ``np.median(lut[raw][mask], axis=0)``, float32, without sorting the pixels.
     """
     lo, hi = (n - 1) // 2, n // 2
-    out = np.empty(3, dtype=np.float32)
+    levels: list[int] = []  # per channel, the levels of its lo-th and hi-th pixel
     for c in range(3):
-        cum = np.cumsum(cv2.calcHist([raw], [c], mask, [256], [0, 256]).ravel())
-        a, b = np.searchsorted(cum, (lo, hi), side="right")
-        out[c] = (lut[a] + lut[b]) * np.float32(0.5)
-    return out
+        cum = cv2.calcHist([raw], [c], mask, [256], [0, 256]).cumsum()
+        levels.extend(cum.searchsorted((lo, hi), side="right").tolist())
+    v = lut[levels]
+    return (v[0::2] + v[1::2]) * np.float32(0.5)
 
 
 def _box(dy2: np.ndarray, dx2: np.ndarray, r2: float) -> tuple[slice, slice]:
     """Rows and columns of a region holding every pixel with ``dy2 + dx2 < r2`` (a disc's box)."""
-    rows = np.flatnonzero(dy2 < r2)
-    cols = np.flatnonzero(dx2 < r2)
+    rows = np.nonzero(dy2 < r2)[0]
+    cols = np.nonzero(dx2 < r2)[0]
     if not len(rows) or not len(cols):
         return slice(0, 0), slice(0, 0)
     return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
@@ -248,27 +248,29 @@ def _disc_and_ring_levels(
     # squared distances from the centre: the masks without a square root per pixel
     dy2 = (np.arange(y0, y1, dtype=np.float64) - cy) ** 2
     dx2 = (np.arange(x0, x1, dtype=np.float64) - cx) ** 2
-    d2 = dy2[:, None] + dx2[None, :]
     outer_r = radius_px * ring_ratio
     gap = outer_r - radius_px
-    inner = d2 < (0.6 * radius_px) ** 2
+    # each mask made on its bounding box only, which holds every pixel of it (the inner
+    # disc's box is ~1/7 of the region)
+    in_box = _box(dy2, dx2, (0.6 * radius_px) ** 2)
+    ring_box = _box(dy2, dx2, (outer_r - 0.15 * gap) ** 2)
+    inner = dy2[in_box[0], None] + dx2[None, in_box[1]] < (0.6 * radius_px) ** 2
+    d2 = dy2[ring_box[0], None] + dx2[None, ring_box[1]]
     ring = (d2 > (radius_px + 0.3 * gap) ** 2) & (d2 < (outer_r - 0.15 * gap) ** 2)
     n_inner, n_ring = np.count_nonzero(inner), np.count_nonzero(ring)
     if n_inner < 3 or n_ring < 3:
         return None
     if raw.dtype == np.uint8:
-        # histograms over each mask's bounding box only (the inner disc's is ~1/7 of the region)
-        box = _box(dy2, dx2, (0.6 * radius_px) ** 2)
-        disc_c = _median_levels(raw[box], SRGB8_TO_LINEAR, inner[box].view(np.uint8), n_inner)
-        box = _box(dy2, dx2, (outer_r - 0.15 * gap) ** 2)
-        ring_c = _median_levels(raw[box], SRGB8_TO_LINEAR, ring[box].view(np.uint8), n_ring)
+        disc_c = _median_levels(raw[in_box], SRGB8_TO_LINEAR, inner.view(np.uint8), n_inner)
+        ring8 = ring.view(np.uint8)
+        ring_c = _median_levels(raw[ring_box], SRGB8_TO_LINEAR, ring8, n_ring)
         # ring pixels with a channel at 254 or 255: those not in range 0..253 on every channel
-        below = cv2.inRange(raw, (0, 0, 0), (253, 253, 253))
-        n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring.view(np.uint8)))
+        below = cv2.inRange(raw[ring_box], (0, 0, 0), (253, 253, 253))
+        n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring8))
     else:
-        disc_c = np.median(roi[inner], axis=0)
-        ring_c = np.median(roi[ring], axis=0)
-        n_clipped = np.count_nonzero((raw.max(axis=2) >= top - 1) & ring)
+        disc_c = np.median(roi[in_box][inner], axis=0)
+        ring_c = np.median(roi[ring_box][ring], axis=0)
+        n_clipped = np.count_nonzero((raw[ring_box].max(axis=2) >= top - 1) & ring)
     clipped_fraction = n_clipped / n_ring
     return (x0, y0), roi, disc_c, ring_c, clipped_fraction
 
@@ -344,7 +346,7 @@ def disc_edge_points(
     inside = v > -0.5  # not off the photo (and not far darker than the disc)
     # the ring's samples, for ring_spread (read only on the refinement's settled pass)
     # the samples at radii >= (1 + band / 2) r: the last ones (radii increase), a view
-    k_outer = int(np.searchsorted(radii, (1 + band / 2) * radius_px, side="left"))
+    k_outer = int(radii.searchsorted((1 + band / 2) * radius_px, side="left"))
     n_disc = np.count_nonzero(radii <= (1 - band / 2) * radius_px)
     ring_samples = v[:, k_outer:] if min(len(v) // 4, n_disc, len(radii) - k_outer) >= 2 else None
     if local_levels:
@@ -359,7 +361,9 @@ def disc_edge_points(
         v = _local_levels(v, radii, radius_px, band, offset, check)
     rows, r_best = _nearest_crossings(v, inside, radii, radius_px, step_px)
     cos, sin = _unit_rays(n_rays)
-    points = np.column_stack((cx + r_best * cos[rows, 0], cy + r_best * sin[rows, 0]))
+    points = np.empty((len(rows), 2))  # (x, y) columns, without np.column_stack's checks
+    points[:, 0] = cx + r_best * cos[rows, 0]
+    points[:, 1] = cy + r_best * sin[rows, 0]
     return EdgePoints(points, disc_t, ring_t, contrast, clipped_fraction, ring_samples)
 
 
@@ -378,7 +382,7 @@ def _ray_values(
     the light."""
     step_level = float(axis.astype(np.float64) @ weights)
     offset = float(ring_c.astype(np.float64) @ weights) / step_level
-    m = np.append(weights / step_level, -offset)[None, :]
+    m = np.concatenate((weights / step_level, [-offset]))[None, :]  # (np.append, fewer steps)
     s = cv2.transform(roi, m)
     if blur_px > 0:
         s = cv2.GaussianBlur(s, (0, 0), blur_px)

@@ -107,6 +107,14 @@ SILHOUETTE_MIN_COVERAGE = 0.5
 #: 1.8-3.3 on dark grey and black card.
 LIGHT_SHEET_BAND_MAX = 1.25
 
+#: On a light sheet with the wire's width known, the first symmetric pass's half-window
+#: in half-widths: both silhouette steps to the sheet inside it (:func:`_symmetric_passes`).
+KNOWN_WIDTH_FIRST_RHO = 1.2
+
+#: The later passes' search either way about the first pass's centres, in half-widths:
+#: within the axis' basin, short of a flank's valley (about 0.75 half-widths off).
+KNOWN_WIDTH_REFINE = 0.3
+
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
 
@@ -417,6 +425,13 @@ def _symmetric_passes(
     # a window of most of the wire: a small one finds false centres in each
     # dark flank (a local valley is symmetric too)
     rho = max(0.85 * rough, _MIN_RHO_PX)
+    if known_hw is not None:
+        # on a light sheet even most of the wire's width holds one flank's valley and the
+        # crest beside it, symmetric about the valley where the lamp fills the other
+        # flank's valley (the centre 3.5 px off a 11 px wire on path-traced parts): the
+        # first pass spans both silhouette steps to the sheet, which only the axis
+        # centres; the later ones refine within that basin (KNOWN_WIDTH_REFINE)
+        rho = KNOWN_WIDTH_FIRST_RHO * known_hw
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
     for final in (False, False, True):
         shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
@@ -432,7 +447,9 @@ def _symmetric_passes(
         if not final and known_hw is None:
             hws = half_width_px(prof, offsets, rough)
             rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else rough
-        if not final:
+        if not final and known_hw is not None:
+            rho, search = 0.85 * known_hw, KNOWN_WIDTH_REFINE * known_hw
+        elif not final:
             rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     return centres, normals, prof, rough, rho, search

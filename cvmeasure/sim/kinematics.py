@@ -132,10 +132,19 @@ def lever_arm_mm(geom: HeadGeometry, pin_angle_deg: ArrayLike) -> NDArray[np.flo
 
 
 def loaded_angle_and_lever(
-    geom: HeadGeometry, pin_angle_deg: ArrayLike
+    geom: HeadGeometry,
+    pin_angle_deg: ArrayLike,
+    *,
+    contact_deg: NDArray[np.float64] | float | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Both :func:`loaded_angle_deg` and :func:`lever_arm_mm` from one tangent construction."""
-    phi = np.maximum(np.asarray(pin_angle_deg, dtype=np.float64), contact_angle_deg(geom))
+    """Both :func:`loaded_angle_deg` and :func:`lever_arm_mm` from one tangent construction.
+
+    ``contact_deg``: ``contact_angle_deg(geom)`` when the caller has it already (a
+    simulation evaluates the same geometry many times).
+    """
+    if contact_deg is None:
+        contact_deg = contact_angle_deg(geom)
+    phi = np.maximum(np.asarray(pin_angle_deg, dtype=np.float64), contact_deg)
     theta, lever = _tangent(geom, phi)
     return np.maximum(np.degrees(theta), 0.0), lever
 

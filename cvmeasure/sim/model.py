@@ -205,6 +205,40 @@ class _History:
 #: The histories of the last plans simulated (keyed by commands and bend indices).
 _HISTORIES: dict[tuple[bytes, bytes], _History] = {}
 
+#: The nominal head geometries of the last plans simulated and their contact angles
+#: (keyed by the machine's circles and the bends' directions).
+_GEOMETRIES: dict[tuple[Any, ...], tuple[HeadGeometry, NDArray[np.float64]]] = {}
+
+
+def _nominal_geometry(
+    params: SimParams, direction: NDArray[np.float64]
+) -> tuple[HeadGeometry, NDArray[np.float64]]:
+    """``head_geometry(params, direction)`` and its contact angle (deg), made once per
+    machine geometry and plan: a fit simulates the same circles at every point (only the
+    material, or the die radius among the nuisance, changes between its points)."""
+    key = (
+        params.die_radius_mm,
+        params.wire_diameter_mm,
+        params.pin_radius_mm,
+        params.pin_orbit_mm,
+        params.head_axis_x_mm,
+        params.head_axis_y_mm,
+        direction.tobytes(),
+    )
+    known = _GEOMETRIES.get(key)
+    if known is not None:
+        return known
+    geom = head_geometry(params, direction)
+    contact = np.asarray(contact_angle_deg(geom), dtype=np.float64)
+    for a in (geom.axis_y_mm, contact):
+        if isinstance(a, np.ndarray):
+            a.setflags(write=False)  # shared by every simulation of the same geometry
+    if len(_GEOMETRIES) >= 16:
+        _GEOMETRIES.clear()  # (single dict operations: safe beside a simulating thread)
+    _GEOMETRIES[key] = (geom, contact)
+    return geom, contact
+
+
 #: Reference pin torque of the drift's load law (N m): d is the loss per bend at this load.
 DRIFT_REFERENCE_TORQUE_NM = 3.0
 
@@ -299,15 +333,15 @@ def _forward(
     history = _History.of(cmd, bend_index)
     direction = history.direction
     r = _rotation(cmd, values, shapes, history, None)
-    nominal = head_geometry(params, direction)
-    geom = (
-        head_geometry(params, direction, axis_offset_mm=values["axis_offset"])
-        if "axis_offset" in values
-        else nominal  # the same circles (an offset of 0 adds nothing)
-    )
-    phi0 = contact_angle_deg(nominal) - params.approach_deg
+    nominal, nominal_contact = _nominal_geometry(params, direction)
+    if "axis_offset" in values:
+        geom = head_geometry(params, direction, axis_offset_mm=values["axis_offset"])
+        contact = contact_angle_deg(geom)
+    else:
+        geom, contact = nominal, nominal_contact  # the same circles (an offset of 0 adds nothing)
+    phi0 = nominal_contact - params.approach_deg
     phi = phi0 + r
-    theta_l, lever = loaded_angle_and_lever(geom, phi)
+    theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
     # a springback that differs by direction is a wire whose strength differs by direction
     # (coil set): the moment it takes, hence the pin's torque, differs in the same ratio
     load = (
@@ -322,14 +356,14 @@ def _forward(
                 cmd, values, shapes, history, load * _torque_nm(law, params, phi, theta_l, lever)
             )
             phi = phi0 + r
-            theta_l, lever = loaded_angle_and_lever(geom, phi)
+            theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
     if values.get("compliance", 0.0) > 0.0:
         # the drive winds up under the pin load: torque = (M / l) * R_p cos(phi - theta); the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
             lag = values["compliance"] * load * _torque_nm(law, params, phi, theta_l, lever)
             phi = phi0 + np.maximum(r - lag, 0.0)
-            theta_l, lever = loaded_angle_and_lever(geom, phi)
+            theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
         r = phi - phi0
     pin_machine = wrap_deg(direction * _pin_seen_deg(geom, nominal, phi))
     affine = law.wrap_slope * theta_l + law.intercept_deg(lever)
@@ -377,7 +411,7 @@ def _bend_index(bend_index: ArrayLike | None, n: int) -> NDArray[np.float64]:
 def _commands(commanded_pin_deg: ArrayLike) -> NDArray[np.float64]:
     """The signed pin commands (deg) as a finite 1-D float array; ValueError otherwise."""
     cmd = np.atleast_1d(np.asarray(commanded_pin_deg, dtype=np.float64))
-    if cmd.ndim != 1 or not np.all(np.isfinite(cmd)):
+    if cmd.ndim != 1 or not np.isfinite(cmd).all():
         raise ValueError("commanded_pin_deg must be a finite 1-D array")
     return cmd
 

@@ -101,10 +101,9 @@ class SimParams:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
-        for f in fields(self):
-            value = getattr(self, f.name)
+        for name, value in vars(self).items():  # the fields, set by __init__ (no fields() call)
             if isinstance(value, float) and not math.isfinite(value):
-                raise ValueError(f"{f.name} must be finite, got {value!r}")
+                raise ValueError(f"{name} must be finite, got {value!r}")
         if self.uts_mpa < self.yield_mpa:
             raise ValueError("uts_mpa must be at least yield_mpa")
         if not 0.0 <= self.hardening_exponent < 1.0:

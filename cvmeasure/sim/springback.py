@@ -44,6 +44,7 @@ __all__ = [
 ]
 
 _GL_T, _GL_W = np.polynomial.legendre.leggauss(48)
+_GL_W2 = np.concatenate((_GL_W, _GL_W))  # the weights of two intervals' nodes side by side
 
 
 def _swift_constants(params: SimParams) -> tuple[float, float]:
@@ -92,11 +93,26 @@ def moment_nmm(params: SimParams, curvature_per_mm: float) -> float:
     def integrand(t: np.ndarray) -> np.ndarray:
         return flow_stress_mpa(params, kappa * a * np.sin(t)) * np.sin(t) * np.cos(t) ** 2
 
-    return (
-        4.0
-        * a**3
-        * (_integrate(integrand, 0.0, t_star) + _integrate(integrand, t_star, math.pi / 2))
+    half_pi = math.pi / 2
+    if not 0.0 < t_star < half_pi:
+        return (
+            4.0
+            * a**3
+            * (_integrate(integrand, 0.0, t_star) + _integrate(integrand, t_star, half_pi))
+        )
+    # both parts' nodes in one evaluation of the integrand (elementwise: the same number at
+    # every node), each part summed over its own nodes as _integrate sums them
+    n = _GL_T.size
+    t = np.concatenate(
+        (
+            0.5 * t_star * _GL_T + 0.5 * t_star,
+            0.5 * (half_pi - t_star) * _GL_T + 0.5 * (t_star + half_pi),
+        )
     )
+    f = _GL_W2 * integrand(t)
+    elastic = float(0.5 * (t_star - 0.0) * np.sum(f[:n]))
+    plastic = float(0.5 * (half_pi - t_star) * np.sum(f[n:]))
+    return 4.0 * a**3 * (elastic + plastic)
 
 
 def epp_moment_nmm(params: SimParams, curvature_per_mm: float) -> float:

@@ -175,19 +175,23 @@ def test_seed_method_and_rgb_space_from_the_cli(files, capsys):
         (["--kit", "{bad_kit}"], "kit"),
         (["--kit", "{kit}", "--board", "{kit}"], "needs --camera"),
         (["--kit", "{kit}", "--camera", "{kit}"], "camera"),
-        (["--kit", "{kit}", "--plane", "{kit}"], "lacks a 3x3 'H_board_image'"),
+        (["--kit", "{kit}", "--plane", "{kit}"], "is a marker kit JSON, not a plane JSON"),
+        (["--kit", "{kit}", "--plane", "{bad_plane}"], "invertible 3x3 matrix"),
         (
             ["--kit", "{kit}", "--method", "seed", "--camera", "{camera}"],
             "seed_hough method measures",
         ),
-        (["--kit", "{kit}", "--plane", "{kit}", "--camera", "{camera}"], "H_board_image"),
+        (["--kit", "{kit}", "--plane", "{bad_plane}", "--camera", "{camera}"], "H_board_image"),
     ],
 )
 def test_bad_inputs_exit_2_with_one_line(files, tmp_path, capsys, args, message):
     bad_kit = tmp_path / "bad_kit.json"
     bad_kit.write_text('{"markers": [{"role": "origin"}]}')
+    bad_plane = tmp_path / "bad_plane.json"
+    bad_plane.write_text('{"H_board_image": [[1, 0], [0, 1]], "tilt_deg": 0}')
     argv = ["measure", str(files["loaded"])] + [
-        a.format(bad_kit=bad_kit, kit=files["kit"], camera=files["camera"]) for a in args
+        a.format(bad_kit=bad_kit, bad_plane=bad_plane, kit=files["kit"], camera=files["camera"])
+        for a in args
     ]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
