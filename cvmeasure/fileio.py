@@ -344,27 +344,25 @@ def read_csv_rows(
     return rows
 
 
-#: JSON documents cvmeasure writes, by the keys that tell them apart (first match wins).
-_JSON_KINDS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("a calibration JSON (`cvmeasure fit` / `session`)", ("samples", "angles_deg")),
-    ("a camera JSON (`cvmeasure calibrate`)", ("camera_matrix", "dist_coeffs")),
-    ("a plane JSON (`cvmeasure plane`)", ("H_board_image",)),
-    ("a board JSON (`cvmeasure targets charuco`)", ("squares_x",)),
-    ("a marker kit JSON", ("markers", "wire_diameter_mm")),
-    ("a diagnosis JSON (`cvmeasure diagnose`)", ("cause", "candidates")),
-    ("a part result JSON (`cvmeasure part`)", ("radius_mm", "arc_angle_deg")),
+#: JSON documents cvmeasure writes: the ``what`` a reader names it by, how an error
+#: describes it, and the keys that tell it apart (first match wins).
+_JSON_KINDS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    (
+        "calibration JSON",
+        "a calibration JSON (`cvmeasure fit` / `session`)",
+        ("samples", "angles_deg"),
+    ),
+    ("camera JSON", "a camera JSON (`cvmeasure calibrate`)", ("camera_matrix", "dist_coeffs")),
+    ("plane JSON", "a plane JSON (`cvmeasure plane`)", ("H_board_image",)),
+    ("board JSON", "a board JSON (`cvmeasure targets charuco`)", ("squares_x",)),
+    ("kit JSON", "a marker kit JSON", ("markers", "wire_diameter_mm")),
+    ("diagnosis JSON", "a diagnosis JSON (`cvmeasure diagnose`)", ("cause", "candidates")),
+    ("part JSON", "a part result JSON (`cvmeasure part`)", ("radius_mm", "arc_angle_deg")),
     # SimParams' own keys: `diagnose --save-params` writes them with a "diagnosis" record
-    ("a simulation params JSON", ("yield_mpa", "die_radius_mm")),
+    ("params JSON", "a simulation params JSON", ("yield_mpa", "die_radius_mm")),
 )
-#: ``read_json``'s ``what`` -> the kind in ``_JSON_KINDS`` it expects.
-_KIND_OF_WHAT: dict[str, str] = {
-    "calibration JSON": _JSON_KINDS[0][0],
-    "camera JSON": _JSON_KINDS[1][0],
-    "plane JSON": _JSON_KINDS[2][0],
-    "board JSON": _JSON_KINDS[3][0],
-    "kit JSON": _JSON_KINDS[4][0],
-    "params JSON": _JSON_KINDS[7][0],
-}
+#: ``read_json``'s ``what`` -> the kind it expects (its description in ``_JSON_KINDS``).
+_KIND_OF_WHAT: dict[str, str] = {what: kind for what, kind, _ in _JSON_KINDS}
 _MAGIC: tuple[tuple[bytes, str], ...] = (
     (b"\xff\xd8\xff", "a JPEG image"),
     (b"\x89PNG\r\n\x1a\n", "a PNG image"),
@@ -429,7 +427,7 @@ def _sniff_json(path: Path) -> str | None:
 def _json_kind(obj: Any) -> str | None:
     """The kind of cvmeasure document ``obj`` is (``_JSON_KINDS``), or None."""
     if isinstance(obj, dict):
-        for kind, keys in _JSON_KINDS:
+        for _, kind, keys in _JSON_KINDS:
             if all(k in obj for k in keys):
                 return kind
     return None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -187,8 +188,6 @@ POSE_CHECK_CODES = frozenset({"plane_scale", "plane_tilt", "kit_heights_mismatch
 
 def _print_pose_checks(checks: list[tuple[str, StageWarning]], n_photos: int) -> None:
     """One stderr line per plane check the photos failed: code, how many, the first."""
-    import sys
-
     by_code: dict[str, list[tuple[str, StageWarning]]] = {}
     for photo, warning in checks:
         by_code.setdefault(warning.code, []).append((photo, warning))
