@@ -42,6 +42,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from scipy.linalg import block_diag
 from scipy.optimize import least_squares
 
 from cvmeasure.geometry import wrap_deg
@@ -159,7 +160,7 @@ def _photo_whitening(photo: SweepPhoto, y_down: bool, step_mm: float = 1e-3) -> 
             cols.append(step / (2 * step_mm))
         covs.append(np.asarray(photo.covariances_mm2[role], dtype=np.float64))
     jac = np.column_stack(cols)
-    cov = jac @ _block_diag(covs) @ jac.T
+    cov = jac @ block_diag(*covs) @ jac.T
     try:
         return np.linalg.inv(np.linalg.cholesky(cov))
     except np.linalg.LinAlgError:
@@ -167,16 +168,6 @@ def _photo_whitening(photo: SweepPhoto, y_down: bool, step_mm: float = 1e-3) -> 
             f"{photo.source or 'a photo'}: its centres' covariances give its residuals no "
             "positive variance"
         ) from None
-
-
-def _block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
-    n = sum(b.shape[0] for b in blocks)
-    out = np.zeros((n, n))
-    i = 0
-    for b in blocks:
-        out[i : i + b.shape[0], i : i + b.shape[0]] = b
-        i += b.shape[0]
-    return out
 
 
 def _residuals(
