@@ -34,7 +34,7 @@ from typing import Any
 import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.stats import chi2
+from scipy.special import chdtrc
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.errors import InputError
@@ -214,7 +214,8 @@ def _shared_error_p(
         return 1.0
     t = float(sum(s[shared] @ b_ss @ s[shared] for s in scores)) / sigma2
     scale = var / (2.0 * mean)
-    return float(chi2.sf(t / scale, 2.0 * mean * mean / var))
+    # the chi-square sf (scipy.stats's own ufunc; importing scipy.stats costs start-up)
+    return float(chdtrc(2.0 * mean * mean / var, t / scale))
 
 
 def _scores_and_p(result, r, jac, n_warp, bread, sigma2) -> tuple[np.ndarray, float]:
