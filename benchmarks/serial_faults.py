@@ -12,6 +12,11 @@ against the job:
 * **run twice**: a line whose executed shares add up to more than one move;
 * **lost**: a line that never ran while the run says it finished (exit 0);
 * **out of order**: a line that started after a later line had started;
+* a move belongs to the job line whose planned path it lies on (the same way round),
+  whatever N word it carried: a dropped digit that made ``N1631`` read ``N161`` ran
+  line 1631's motion, not line 161 again. A move on no job line's path is a
+  **foreign move** (a corrupted line ran a motion the job lacks): counted on its own,
+  it makes a finished run a wrong part unless the operator was asked to check it;
 * **silent wrong part**: exit 0 with a lost, doubled or out-of-order line and no warning;
 * every stop must say its line and reason (one stderr line with ``N<number>``).
 
@@ -73,6 +78,8 @@ class RunResult:
     twice: list[int] = field(default_factory=list)
     lost: list[int] = field(default_factory=list)
     out_of_order: list[int] = field(default_factory=list)
+    #: moves on no job line's path (a corrupted block ran a motion the job lacks)
+    foreign: list[int] = field(default_factory=list)
     stops_unclear: int = 0
     stops: int = 0
     warned: bool = False
@@ -80,8 +87,13 @@ class RunResult:
 
     @property
     def silent_wrong(self) -> bool:
-        wrong = bool(self.twice or self.lost or self.out_of_order)
+        wrong = bool(self.twice or self.lost or self.out_of_order or self.foreign)
         return self.finished and wrong and not (self.warned or self.forced)
+
+    @property
+    def foreign_unchecked(self) -> bool:
+        """A foreign move ran and the run went on without the part being checked."""
+        return bool(self.foreign) and not (self.forced or self.refused)
 
 
 def planned_ends(job: list[str]) -> dict[int, tuple[tuple[float, ...], tuple[float, ...]]]:
@@ -239,16 +251,6 @@ def _on(p: tuple[float, ...], seg: tuple[tuple[float, ...], tuple[float, ...]]) 
     return abs(math.dist(a, p) + math.dist(p, b) - math.dist(a, b)) <= 0.01
 
 
-def _attribute(label: int, start: dict, end: dict, ends: dict) -> int:
-    """The job line a move belongs to: its label when the move lies on that line's path,
-    else a label one digit off by one (a garbled N word) whose path holds it, else the label."""
-    p, q = _xyza(start), _xyza(end)
-    for n in [label] + [label + s * 10**k for k in range(5) for s in (-1, 1)]:
-        if n in ends and _on(p, ends[n]) and _on(q, ends[n]):
-            return n
-    return label
-
-
 def _near(p: dict, q: tuple[float, ...]) -> bool:
     return all(abs(float(p.get(a, 0.0)) - v) <= 0.01 for a, v in zip("xyza", q, strict=True))
 
@@ -272,14 +274,9 @@ def run_heldout(job: list[str], fault: str, work: Path, env: dict[str, str]) -> 
         board.wait_idle(timeout_s=30)
         truth = board.truth()
     run.seconds = time.perf_counter() - t0
-    # a truth entry's end is where the move stopped: its distance is what ran
-    # a move is the job line whose planned path it lies on: a garbled N word (one digit
-    # off by one) mislabels a right move
-    ends = planned_ends(job)
-    executed = [
-        (_attribute(e.line, e.start, e.end, ends), math.dist(_xyza(e.start), _xyza(e.end)))
-        for e in truth.executed
-    ]
+    # a truth entry's end is where the move stopped: its distance is what ran; a move
+    # is the job line whose planned path it lies on, whatever N word it carried
+    executed, run.foreign = attribute_moves(job, [(e.line, e.start, e.end) for e in truth.executed])
     run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
         run.lost = []  # a refused run finished nothing: nothing is claimed done
@@ -336,22 +333,66 @@ def run_double(
             return board.port
 
         def inspect(first: int, last: int) -> bool:
-            completed = set(board.executed_lines()[0])
+            moved: Counter[int] = Counter()
+            for n, d in attribute_moves(job, board.executed_moves())[0]:
+                moved[n] += d
             lengths = planned_lengths(job)
-            return all(n in completed for n in range(first, last) if lengths.get(n, 0.0) > 1e-6)
+            return all(
+                moved[n] >= lengths[n] - 1e-2
+                for n in range(first, last)
+                if lengths.get(n, 0.0) > 1e-6
+            )
 
         _operate(run, job_path, port, env, inspect)
         time.sleep(0.2)
-        completed, partial = board.executed_lines()
+        moves = board.executed_moves()
     run.seconds = time.perf_counter() - t0
-    lengths = planned_lengths(job)
-    done = Counter(n for n in completed if n in lengths)
-    run.twice = sorted(n for n, c in done.items() if c > 1)
-    run.lost = sorted(n for n, length in lengths.items() if length > 1e-6 and done[n] == 0)
-    run.out_of_order = _out_of_order([n for n in completed if n in lengths])
+    executed, run.foreign = attribute_moves(job, moves)
+    run.twice, run.lost, run.out_of_order = score(job, executed)
     if not run.finished:
         run.lost = []
     return run
+
+
+def attribute_moves(
+    job: list[str], moves: list[tuple[int | None, dict, dict]]
+) -> tuple[list[tuple[int, float]], list[int]]:
+    """(job line, distance) for each move the machine made, and the foreign moves' labels.
+
+    A move belongs to the job line whose planned path holds it, the same way round:
+    its own label's line first, else the line nearest the last one attributed (a
+    corrupted N word can name any line). A move on no job line's path is foreign: a
+    corrupted block ran a motion the job does not have. Foreign moves are left out of
+    the (line, distance) list: they are counted on their own, not as a labelled line.
+    """
+    ends = planned_ends(job)
+    order = sorted(ends)
+    out: list[tuple[int, float]] = []
+    foreign: list[int] = []
+    prev = order[0]
+    for label, start, end in moves:
+        p, q = _xyza(start), _xyza(end)
+        distance = math.dist(p, q)
+        n = -1 if label is None else int(label)
+        if distance <= 1e-6:
+            continue
+        found = n if n in ends and _along(p, q, ends[n]) else None
+        if found is None:
+            near = sorted(order, key=lambda m: abs(m - prev))
+            found = next((m for m in near if _along(p, q, ends[m])), None)
+        if found is None:
+            foreign.append(n)
+            continue
+        out.append((found, distance))
+        prev = found
+    return out, foreign
+
+
+def _along(p: tuple[float, ...], q: tuple[float, ...], seg) -> bool:
+    """Both ends on the planned segment and the move the same way round."""
+    a, b = seg
+    same_way = sum((y - x) * (d - c) for x, y, c, d in zip(p, q, a, b, strict=True)) > 0
+    return same_way and _on(p, seg) and _on(q, seg)
 
 
 def fault_plan(n_runs: int, n_lines: int, seed: int, kinds: tuple[str, ...] = KINDS) -> list[str]:
@@ -416,6 +457,8 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
         silent = sum(r.silent_wrong for r in rs)
         unclear = sum(r.stops_unclear for r in rs)
         finished = sum(r.finished for r in rs)
+        foreign = sum(len(r.foreign) for r in rs)
+        unchecked = sum(r.foreign_unchecked for r in rs)
         metrics += [
             Metric(
                 f"{model}: fault runs of {n_lines}-line jobs",
@@ -428,6 +471,20 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
             Metric(f"{model}: lines lost", lost, "", target="= 0", met=lost == 0),
             Metric(f"{model}: lines out of order", order, "", target="= 0", met=order == 0),
             Metric(f"{model}: silent wrong parts", silent, "", target="= 0", met=silent == 0),
+            Metric(
+                f"{model}: corrupted lines run as a motion the job lacks (moves on no line's path)",
+                foreign,
+                "",
+                target=None,
+                met=None,
+            ),
+            Metric(
+                f"{model}: runs going on after such a move without the part checked",
+                unchecked,
+                "",
+                target="= 0",
+                met=unchecked == 0,
+            ),
             Metric(
                 f"{model}: stops without their line and reason",
                 unclear,
@@ -468,6 +525,7 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
                     len(r.twice),
                     len(r.lost),
                     len(r.out_of_order),
+                    len(r.foreign),
                     (r.stderr[-1] if r.stderr else "")[:140],
                 ]
             )
@@ -489,6 +547,7 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
                     "twice",
                     "lost",
                     "out of order",
+                    "foreign moves",
                     "last stderr line",
                 ],
                 rows,

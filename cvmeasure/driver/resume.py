@@ -312,9 +312,13 @@ def journal_evidence(
         )
     since = records[len(records) - 1 - records[::-1].index(starts[-1]) :]
     lower, how = None, "no line was seen running before the stop"
+    # the number a corrupted block was read as names no line that ran there
+    misread = last.get("misread_line") if last.get("event") == "stop" else None
     for r in since:
         for key in ("executed_line", "running_line"):
             value = r.get(key)
+            if value == misread:
+                continue
             if isinstance(value, int) and value > 0 and (lower is None or value > lower):
                 lower, how = value, f"N{value} was seen running before the stop"
         if r.get("event") == "resume" and isinstance(r.get("resumed_line"), int):

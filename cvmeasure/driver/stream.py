@@ -129,6 +129,18 @@ class _Run:
     last_progress_line: int | None = None
     #: the last job line written to the board (acked or in flight)
     last_sent: JobLine | None = None
+    #: index of the highest job line the board has reported running (lines run in
+    #: order: a report below it, or past the last line sent, is a line the board was
+    #: never sent there, a corrupted block's N word)
+    ran_index: int = -1
+
+    def misread(self, number: Any) -> bool:
+        """True when ``number`` cannot be the line the board runs now (see ``ran_index``)."""
+        if not isinstance(number, int) or number == 0:
+            return False
+        index = _index_of(self.job, number)
+        top = self.last_sent.index if self.last_sent is not None else -1
+        return index < 0 or index < self.ran_index or index > top
 
     def log(self, record: dict[str, Any]) -> None:
         if self.journal is not None:
@@ -137,6 +149,8 @@ class _Run:
     def note_progress(self, force: bool = False) -> None:
         line = self.board.state.get("line")
         now = time.monotonic()
+        if line is not None and not self.misread(line):
+            self.ran_index = max(self.ran_index, _index_of(self.job, line))
         if line is None or line == self.last_progress_line:
             return
         if force or now - self.last_progress_t >= self.config.progress_interval_s:
@@ -160,10 +174,22 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         number = running.get("line")
         line = _line_by_number(run.job, number)
     corrupt_ran = False
+    misread = None
     if reason == "desync" and line is not None and running is not None:
         # TinyG 440 has no input checksum: a corrupted line runs like any other
         corrupt_ran = _index_of(run.job, running.get("line")) >= line.index
-        if corrupt_ran:
+        if run.misread(running.get("line")):
+            # the board runs a line it was never sent there: the corrupted block, its
+            # N word read wrong (a lost or garbled digit). It reached the machine.
+            misread = int(running["line"])
+            corrupt_ran = True
+            detail += (
+                f"; the board reports running N{misread}, a line it was not sent there: "
+                f"it read N{line.number}'s corrupted number as N{misread} and ran that "
+                "block: check the part (did it make what the job says?) before resuming "
+                "with --force"
+            )
+        elif corrupt_ran:
             detail += (
                 f"; the machine had reached it (sr.line N{running.get('line')}): "
                 "check the part before resuming with --force"
@@ -189,6 +215,7 @@ def _stop(run: _Run, reason: str, line: JobLine | None, detail: str, *, number: 
         held=held,
         ran_past_rejected_line=ran_past,
         flush_sent=flush_sent,
+        misread_line=misread,
     )
     run.log({"event": "stop", **stop.to_dict(), "running_line": board.running_line})
     raise JobStopped(stop)
@@ -378,6 +405,7 @@ def _stream(
     if resume:
         plan = _resume_plan(run, sha, source, xonxoff, force, from_line, notes)
         start_index, fixup, resumed_from = plan.start_index, plan.fixup, plan.start_index
+        run.ran_index = plan.done_through
     else:
         if not board.flush_board(timeout_s=config.flush_timeout_s):
             raise DeviceTimeoutError(f"{board.link.url}: the board did not answer a queue flush")
@@ -454,7 +482,16 @@ def _resume_plan(
         # held (its line is the runtime's), or it ran out of lines by itself with no
         # flush sent since: it ran every line it parsed, and its line is exact
         held = settled
-    reported = [int(x) for x in (settled.get("line"), state.get("line")) if isinstance(x, int)]
+    misread = last.get("misread_line") if last.get("event") == "stop" else None
+    if isinstance(held, dict) and misread is not None and held.get("line") == misread:
+        # the held report named the corrupted block by the number the board read for
+        # it: the line running at the hold was the corrupted one (its position decides)
+        held = {**held, "line": last.get("line_number")}
+    reported = [
+        int(x)
+        for x in (settled.get("line"), state.get("line"))
+        if isinstance(x, int) and x != misread
+    ]
     upper = max(reported, key=lambda n: _index_of(job, n), default=0)
     if last.get("event") == "stop" and last.get("reason") == "desync":
         # a block that reached the board corrupted may carry a wrong N: the bound is every

@@ -82,7 +82,9 @@ class StopInfo:
     machine before the feedhold, and ``ran_past_rejected_line`` that the board ran
     lines after the one it rejected (an ``error``): the part may be wrong, and a
     resume needs ``force``; ``flush_sent`` that a queue flush was sent (confirmed or
-    not): the board's line after it is then the last line *parsed*, not run.
+    not): the board's line after it is then the last line *parsed*, not run;
+    ``misread_line`` the number the board reported for the corrupted line when it
+    read that line's N word wrong (a line it was never sent there), else None.
     """
 
     reason: str
@@ -94,6 +96,7 @@ class StopInfo:
     held: dict[str, Any] | None = None
     ran_past_rejected_line: bool = False
     flush_sent: bool = False
+    misread_line: int | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)

@@ -304,6 +304,16 @@ class FakeTinyG(FirmwareLayer):
         with self._lock:
             return list(self.stats.completed), list(self.stats.partial)
 
+    def executed_moves(self) -> list[tuple[int | None, dict[str, float], dict[str, float]]]:
+        """Every block that moved, in order: (its N word, start, end), axis units.
+
+        The end is where the block stopped (a block cut short by a flush or an alarm
+        ends on its path). A block whose N word arrived corrupted carries the label
+        the firmware read; its start and end say which motion actually ran.
+        """
+        with self._lock:
+            return [(n, dict(a), dict(b)) for n, a, b in self.stats.moves]
+
     # ------------------------------------------------------------------ thread
 
     def _run(self) -> None:
@@ -494,6 +504,7 @@ class FakeTinyG(FirmwareLayer):
             head = self._planner[0]
             if head.start is not None:
                 self.stats.partial.append(head.line_number)
+                self.stats.moves.append((head.line_number, dict(head.start), dict(self._pos)))
                 self._machine_move_done(head, complete=False)
         self._planner.clear()
         self._model_pos = dict(self._pos)

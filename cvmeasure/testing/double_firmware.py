@@ -198,6 +198,7 @@ class FirmwareLayer:
                 self._pos = dict(head.target)
                 self._planner.popleft()
                 self.stats.completed.append(head.line_number)
+                self.stats.moves.append((head.line_number, dict(head.start), dict(head.target)))
                 self._machine_move_done(head, complete=True)
                 continue
             return

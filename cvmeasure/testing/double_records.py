@@ -170,3 +170,7 @@ class DoubleStats:
     faults_fired: list[str] = field(default_factory=list)
     completed: list[int | None] = field(default_factory=list)
     partial: list[int | None] = field(default_factory=list)
+    #: every block that moved, in order: (its N word, start, end), the end being where
+    #: it stopped (a block cut short ends on its path): what the machine did, whatever
+    #: the label a corrupted block carried
+    moves: list[tuple[int | None, dict[str, float], dict[str, float]]] = field(default_factory=list)
