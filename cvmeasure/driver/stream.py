@@ -37,7 +37,7 @@ import logging
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -508,13 +508,7 @@ def _resume_plan(
         held=int(held["line"]) if isinstance(held, dict) and "line" in held else None,
         sources={"lower": lower_how},
     )
-    plan, k = locate_resume(
-        job,
-        start_pos=start_pos,
-        board_pos=_position(state),
-        evidence=evidence,
-        from_line=from_line,
-    )
+    plan, k = _locate(run, last, start_pos, _position(state), evidence, from_line, force)
     board_line = 0 if k < 0 else job[k].number
     _check_rejected(run, last, board_line, force)
     run.log(
@@ -535,6 +529,58 @@ def _resume_plan(
         }
     )
     return plan
+
+
+def _locate(
+    run: _Run,
+    last: Mapping[str, Any],
+    start_pos: Mapping[str, float],
+    board_pos: Mapping[str, float],
+    evidence: ResumeEvidence,
+    from_line: int | None,
+    force: bool,
+) -> tuple[ResumePlan, int]:
+    """:func:`locate_resume`; after a desync, also the corrupted line as the held one.
+
+    A corrupted N word can read as a line the board was sent shortly before (N45 as
+    N44): the held report then names a line the position does not fit. When the
+    position fits the corrupted line instead, that line ran under the wrong number:
+    a check of the part (``force``) is needed before it goes on from there.
+    """
+    try:
+        return locate_resume(
+            run.job,
+            start_pos=start_pos,
+            board_pos=board_pos,
+            evidence=evidence,
+            from_line=from_line,
+        )
+    except DeviceError as exc:
+        error = exc
+        bad = last.get("line_number")
+        if not (
+            last.get("event") == "stop"
+            and last.get("reason") == "desync"
+            and evidence.held is not None
+            and evidence.held != bad
+            and _line_by_number(run.job, bad) is not None
+        ):
+            raise
+    as_bad = replace(evidence, held=bad)
+    try:
+        found = locate_resume(
+            run.job, start_pos=start_pos, board_pos=board_pos, evidence=as_bad, from_line=from_line
+        )
+    except (DeviceError, InputError):
+        raise error from None
+    if not (force or last.get("corrupt_line_ran")):
+        raise DeviceError(
+            f"the board named N{evidence.held} as running when it stopped, but its position "
+            f"is on the corrupted line N{bad}'s move: N{bad} ran with its number read as "
+            f"N{evidence.held}; check the part (did it make what the job says?), then "
+            "resume with --force"
+        )
+    return found
 
 
 def _clear_alarm(

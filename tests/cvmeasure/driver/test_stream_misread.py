@@ -84,3 +84,31 @@ def test_a_misread_line_number_stops_asking_for_a_check_and_resumes_by_position(
     out = sum(b["x"] - a["x"] for _, a, b in after if a["y"] == b["y"] == y_bad and b["x"] > a["x"])
     assert out == pytest.approx(40.0, abs=1e-3)
     assert board.machine_state().pin_deg == pytest.approx(_planned_x(job, len(job)), abs=1e-3)
+
+
+def test_a_held_line_the_position_does_not_fit_is_the_corrupted_line_if_it_fits(tmp_path):
+    """A corrupted N word can read as a line sent shortly before (no way to tell it by
+    its number): here the stop's journal says the board held at N107 (a return, a feed
+    before N112), whose move the machine's position (on N112's) does not fit. The resume finds the
+    position on the corrupted N112's move: it ran, so a check and --force come first."""
+    job = _job("G1 X40 F2")
+    journal = tmp_path / "j.jsonl"
+    fault = Fault("drop_byte", BEFORE_N1 + BAD, byte_index=2)
+    with FakeTinyG(speedup=1e4, faults=[fault]) as board:
+        link = open_link(board.port)
+        with pytest.raises(JobStopped):
+            stream_job(link, job, journal=journal, config=FAST)
+        records = [json.loads(r) for r in journal.read_text().splitlines()]
+        stop = records[-1]
+        assert stop["event"] == "stop" and stop["misread_line"] == 12
+        stop.update(misread_line=None, corrupt_line_ran=False, running_line=107)
+        stop["held"]["line"] = 107
+        journal.write_text("".join(json.dumps(r) + "\n" for r in records))
+        with pytest.raises(DeviceError, match=r"N112 ran with its number read as N107") as info:
+            stream_job(link, job, journal=journal, config=FAST, resume=True)
+        assert "--force" in str(info.value) and "check the part" in str(info.value)
+        result = stream_job(link, job, journal=journal, config=FAST, resume=True, force=True)
+        link.close()
+    assert result.resumed_from == BAD
+    assert result.fixup is None or result.fixup.startswith(f"N{BAD} ")
+    assert board.machine_state().pin_deg == pytest.approx(_planned_x(job, len(job)), abs=1e-3)
