@@ -129,9 +129,9 @@ class _Run:
     last_progress_line: int | None = None
     #: the last job line written to the board (acked or in flight)
     last_sent: JobLine | None = None
-    #: index of the highest job line the board has reported running (lines run in
-    #: order: a report below it, or past the last line sent, is a line the board was
-    #: never sent there, a corrupted block's N word)
+    #: index of the highest job line the board has reported running, in cycle (lines
+    #: run in order: a report below it, or past the last line sent, is a line the board
+    #: was never sent there, a corrupted block's N word)
     ran_index: int = -1
 
     def misread(self, number: Any) -> bool:
@@ -149,8 +149,11 @@ class _Run:
     def note_progress(self, force: bool = False) -> None:
         line = self.board.state.get("line")
         now = time.monotonic()
-        if line is not None and not self.misread(line):
-            self.ran_index = max(self.ran_index, _index_of(self.job, line))
+        # only a report in cycle names the line running; out of cycle TinyG reports the
+        # last line parsed, which can be ahead of lines still waiting to run
+        running = self.board.running_line
+        if running is not None and not self.misread(running):
+            self.ran_index = max(self.ran_index, _index_of(self.job, running))
         if line is None or line == self.last_progress_line:
             return
         if force or now - self.last_progress_t >= self.config.progress_interval_s:

@@ -10,6 +10,7 @@ the number the board gave it.
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import pytest
 
@@ -19,6 +20,7 @@ from cvmeasure.driver.stream import (
     SETUP_COMMANDS,
     JobStopped,
     StreamConfig,
+    _Run,
     stream_job,
 )
 from cvmeasure.driver.transport import open_link
@@ -112,3 +114,18 @@ def test_a_held_line_the_position_does_not_fit_is_the_corrupted_line_if_it_fits(
     assert result.resumed_from == BAD
     assert result.fixup is None or result.fixup.startswith(f"N{BAD} ")
     assert board.machine_state().pin_deg == pytest.approx(_planned_x(job, len(job)), abs=1e-3)
+
+
+def test_a_parsed_line_reported_out_of_cycle_does_not_make_the_running_one_misread():
+    """Out of cycle TinyG reports the last line parsed, ahead of lines still waiting to
+    run: only the in-cycle (runtime) reports bound the line the machine can be on."""
+    job = _job("G1 X40 F2")
+    board = SimpleNamespace(state={}, running_line=None)
+    run = _Run(job, board, FAST, None, None)
+    run.last_sent = job[99]
+    board.state, board.running_line = {"stat": 5, "line": 80}, 80  # running N80
+    run.note_progress()
+    board.state = {"stat": 3, "line": 95}  # starved: stopped, N81..N95 parsed, not run
+    run.note_progress()
+    assert not run.misread(85)  # the machine then runs N85: a line it was sent
+    assert run.misread(12) and run.misread(150) and run.misread(9999)
