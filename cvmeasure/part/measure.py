@@ -70,6 +70,7 @@ from cvmeasure.part.lift_use import (
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+from cvmeasure.part.resolution import resolution_warnings
 from cvmeasure.part.result import (
     METHODS,
     ArcResult,
@@ -224,7 +225,8 @@ def measure_part(
         source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
-    warnings = _wire_found_warnings(wire)
+    warnings = _wire_found_warnings(wire)  # a wire too fine to measure refused here
+    warnings += resolution_warnings(centre.half_width_px, plane.mm_per_px, wire_diameter_mm, source)
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None
