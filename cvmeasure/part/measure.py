@@ -226,7 +226,9 @@ def measure_part(
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
     warnings = _wire_found_warnings(wire)  # a wire too fine to measure refused here
-    warnings += resolution_warnings(centre.half_width_px, plane.mm_per_px, wire_diameter_mm, source)
+    warnings += resolution_warnings(
+        centre.half_width_px, plane.mm_per_px, wire_diameter_mm, wire.sheet, source
+    )
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None

@@ -1,15 +1,19 @@
 """The wire's resolution in the photo: pixels per wire radius, warned about or refused.
 
-A part photo resolves the wire's cross-section in a few pixels. Below about 2.5 px per
-wire radius (apparent, measured) the centreline can lock onto one flank or onto the cast
-shadow along a stretch of the wire: a systematic shift the fit's scatter does not see, so
-the vertex bends' sigmas no longer cover their errors (on a light sheet, 1.3 deg off at 5
-sigma at 1.9 px per radius). That is warned about (``part_low_resolution``); below
-:data:`MIN_PX_PER_RADIUS` the wire is too narrow for a centreline at all and the photo is
-refused. The figure is the wire's apparent half-width (its flank at half contrast, as the
-centreline measured it) over the plane's scale, so it needs no wire diameter; a stated
-diameter is named beside it. ``docs/design/part-measurement.md`` gives the measurement the
-thresholds come from.
+A part photo resolves the wire's cross-section in a few pixels. Below about 3 px per wire
+radius the centreline can follow one flank, or the cast shadow on a light sheet, along a
+stretch of the wire: a systematic shift the fit's scatter does not see, so the vertex
+bends' sigmas stop covering their errors (rendered arcs on a light sheet at 2.3 px per
+radius: vertex bends 1.3 deg off, 3-5 sigma). That is warned about
+(``part_low_resolution``); below :data:`MIN_PX_PER_RADIUS` the wire is too narrow for a
+centreline and the photo is refused.
+
+The figure is the wire's radius over the plane's scale: the stated radius when the wire's
+diameter is given, else the apparent half-width the centreline measured (its flank at half
+contrast) read as a radius. On a dark sheet that half-width is about 0.8 of the radius (the
+round wire's shading puts half contrast inside its silhouette); on a light sheet the
+shadow joins the wire and it is about the radius or more, so it is taken as it is.
+``docs/design/part-measurement.md`` gives the measurement the thresholds come from.
 """
 
 from __future__ import annotations
@@ -22,18 +26,23 @@ from cvmeasure.warning import StageWarning
 __all__ = [
     "WARN_PX_PER_RADIUS",
     "MIN_PX_PER_RADIUS",
+    "HALF_WIDTH_PER_RADIUS",
     "WireResolution",
     "wire_resolution",
     "resolution_warning",
     "resolution_warnings",
 ]
 
-#: Below this many pixels per wire radius (apparent half-width) the part is warned about
-#: (``part_low_resolution``).
-WARN_PX_PER_RADIUS = 2.5
+#: Below this many pixels per wire radius the part is warned about (``part_low_resolution``).
+WARN_PX_PER_RADIUS = 3.0
 
 #: Below this the photo is refused: the wire is under two pixels wide.
 MIN_PX_PER_RADIUS = 1.0
+
+#: The apparent half-width (half contrast) over the wire's radius, by sheet, where no
+#: diameter is given: 0.78-0.79 measured on dark sheets at 0.26-0.64 mm/px; on a light
+#: sheet the shadow widens it (1.0-1.05 at 0.26-0.37 mm/px), so it is not scaled up there.
+HALF_WIDTH_PER_RADIUS = {"dark": 0.8, "light": 1.0}
 
 
 @dataclass(frozen=True)
@@ -42,42 +51,44 @@ class WireResolution:
 
     Attributes
     ----------
-    px_per_radius : the wire's apparent half-width in the photo, pixels.
+    px_per_radius : the wire's radius in the photo, pixels.
     mm_per_px : the plane's scale at the part, mm per pixel.
-    wire_diameter_mm : the wire's stated diameter (None when not given).
+    stated : True when the radius is the stated wire diameter's half, False when it is
+        the measured half-width's (see the module notes).
     """
 
     px_per_radius: float
     mm_per_px: float
-    wire_diameter_mm: float | None = None
-
-    @property
-    def stated_px_per_radius(self) -> float | None:
-        """The stated wire radius over the plane's scale, pixels (None without a diameter)."""
-        if self.wire_diameter_mm is None or self.mm_per_px <= 0.0:
-            return None
-        return 0.5 * self.wire_diameter_mm / self.mm_per_px
+    stated: bool
 
     def describe(self) -> str:
-        """'1.9 px per wire radius (0.43 mm per px)', with the stated wire's figure if given."""
-        text = f"{self.px_per_radius:.1f} px per wire radius ({self.mm_per_px:.3f} mm per px"
-        stated = self.stated_px_per_radius
-        if stated is not None:
-            text += f"; {stated:.1f} px per radius of the {self.wire_diameter_mm:g} mm wire stated"
-        return text + ")"
+        """'1.9 px per wire radius (0.43 mm per px, from ...)'."""
+        whence = "the wire's stated diameter" if self.stated else "the wire's measured width"
+        return (
+            f"{self.px_per_radius:.1f} px per wire radius "
+            f"({self.mm_per_px:.3f} mm per px, from {whence})"
+        )
 
 
 def wire_resolution(
-    half_width_px: float, mm_per_px: float, wire_diameter_mm: float | None = None
+    half_width_px: float, mm_per_px: float, wire_diameter_mm: float | None, sheet: str
 ) -> WireResolution:
-    """The wire's resolution from its measured half-width (pixels) and the plane's scale."""
-    return WireResolution(float(half_width_px), float(mm_per_px), wire_diameter_mm)
+    """The wire's pixels per radius (see the module notes).
+
+    ``half_width_px``: the centreline's apparent half-width (pixels); ``mm_per_px``: the
+    plane's scale; ``wire_diameter_mm``: the stated diameter or None; ``sheet``:
+    ``"dark"`` or ``"light"``.
+    """
+    if wire_diameter_mm is not None and mm_per_px > 0.0:
+        return WireResolution(0.5 * float(wire_diameter_mm) / mm_per_px, float(mm_per_px), True)
+    per_radius = HALF_WIDTH_PER_RADIUS.get(sheet, 1.0)
+    return WireResolution(float(half_width_px) / per_radius, float(mm_per_px), False)
 
 
 def resolution_warning(resolution: WireResolution, source: str) -> StageWarning | None:
     """The ``part_low_resolution`` warning (or None); raises InputError below the floor.
 
-    ``source`` names the photo in the refusal.
+    ``source`` names the photo (the refusal's file, the warning's subject).
     """
     px = resolution.px_per_radius
     closer = (
@@ -96,16 +107,19 @@ def resolution_warning(resolution: WireResolution, source: str) -> StageWarning 
         "part_low_resolution",
         f"the wire is resolved at only {resolution.describe()}: the centreline can follow "
         "one flank or the shadow along a stretch, so the vertex bends (by up to about 1 deg, "
-        "beyond their sigmas), bend per chord, arc angle and radius may be off; " + closer,
+        "beyond their sigmas), the bend per chord, arc angle and radius may be off; " + closer,
         source,
     )
 
 
 def resolution_warnings(
-    half_width_px: float, mm_per_px: float, wire_diameter_mm: float | None, source: str
+    half_width_px: float,
+    mm_per_px: float,
+    wire_diameter_mm: float | None,
+    sheet: str,
+    source: str,
 ) -> list[StageWarning]:
-    """:func:`resolution_warning` of the measured half-width, as a list (empty or one)."""
-    warning = resolution_warning(
-        wire_resolution(half_width_px, mm_per_px, wire_diameter_mm), source
-    )
+    """:func:`resolution_warning` of :func:`wire_resolution`, as a list (empty or one)."""
+    resolution = wire_resolution(half_width_px, mm_per_px, wire_diameter_mm, sheet)
+    warning = resolution_warning(resolution, source)
     return [warning] if warning else []
