@@ -31,6 +31,7 @@ __all__ = [
     "wire_resolution",
     "resolution_warning",
     "resolution_warnings",
+    "coarse_line_hint",
 ]
 
 #: Below this many pixels per wire radius the part is warned about (``part_low_resolution``).
@@ -123,3 +124,20 @@ def resolution_warnings(
     resolution = wire_resolution(half_width_px, mm_per_px, wire_diameter_mm, sheet)
     warning = resolution_warning(resolution, source)
     return [warning] if warning else []
+
+
+def coarse_line_hint(half_width_px: float, mm_per_px: float, sheet: str) -> str:
+    """A clause for a refused line resolved under the threshold ('' otherwise).
+
+    A coarse photo can lose the wire to its shadow or a flank, so "no wire found" there may
+    mean "too few pixels": the clause says so and what to do.
+    """
+    resolution = wire_resolution(half_width_px, mm_per_px, None, sheet)
+    if not resolution.px_per_radius < WARN_PX_PER_RADIUS:
+        return ""
+    return (
+        f"; the line is {resolution.px_per_radius:.1f} px per radius across at "
+        f"{mm_per_px:.3f} mm per px: if it is the wire, the photo is too coarse for it (move "
+        f"the camera closer or use a higher resolution, {WARN_PX_PER_RADIUS:g} px per wire "
+        "radius or more)"
+    )

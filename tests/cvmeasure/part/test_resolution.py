@@ -19,6 +19,7 @@ from cvmeasure.part.options import PartOptions
 from cvmeasure.part.resolution import (
     MIN_PX_PER_RADIUS,
     WARN_PX_PER_RADIUS,
+    coarse_line_hint,
     resolution_warning,
     wire_resolution,
 )
@@ -132,3 +133,13 @@ def test_wire_too_fine_is_refused(low_files, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert str(refused) in err and "px per wire radius" in err and "closer" in err
+
+
+def test_coarse_photo_that_loses_the_wire_says_so():
+    # light sheet at 0.51 mm/px: the wire and its shadow are one asymmetric line, refused as
+    # no wire; the refusal says the photo is too coarse and what to do
+    assert coarse_line_hint(WARN_PX_PER_RADIUS, 0.3, "light") == ""
+    assert "too coarse" in coarse_line_hint(1.5, 0.5, "light")
+    photo = _photo("light", 0.25)
+    with pytest.raises(InputError, match="no wire found.*too coarse.*move the camera closer"):
+        _measure(photo)
