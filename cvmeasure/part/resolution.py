@@ -66,7 +66,7 @@ class WireResolution:
         """'1.9 px per wire radius (0.43 mm per px, from ...)'."""
         whence = "the wire's stated diameter" if self.stated else "the wire's measured width"
         return (
-            f"{self.px_per_radius:.1f} px per wire radius "
+            f"{self.px_per_radius:.2f} px per wire radius "
             f"({self.mm_per_px:.3f} mm per px, from {whence})"
         )
 

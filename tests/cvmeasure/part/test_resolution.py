@@ -57,7 +57,7 @@ def test_thresholds():
     assert wire_resolution(2.4, 0.3, None, "light").px_per_radius == pytest.approx(2.4)
     low = resolution_warning(stated, "p.jpg")
     assert low is not None and low.code == CODE and low.subject == "p.jpg"
-    assert "2.3 px per wire radius" in low.message and "stated diameter" in low.message
+    assert "2.33 px per wire radius" in low.message and "stated diameter" in low.message
     assert resolution_warning(wire_resolution(3.0, 0.3, None, "light"), "p.jpg") is None
     with pytest.raises(InputError, match="p.jpg: .*move the camera closer"):
         resolution_warning(wire_resolution(0.9 * MIN_PX_PER_RADIUS, 0.5, None, "light"), "p.jpg")
