@@ -92,9 +92,12 @@ def resolution_warning(resolution: WireResolution, source: str) -> StageWarning 
     ``source`` names the photo (the refusal's file, the warning's subject).
     """
     px = resolution.px_per_radius
+    # the scale that would give the threshold for this wire
+    needed_mm_per_px = px * resolution.mm_per_px / WARN_PX_PER_RADIUS
     closer = (
         "move the camera closer to the part or photograph it at a higher resolution "
-        f"(at least {WARN_PX_PER_RADIUS:g} px per wire radius)"
+        f"(at least {WARN_PX_PER_RADIUS:g} px per wire radius: about {needed_mm_per_px:.2f} "
+        "mm per px or finer)"
     )
     if not px >= MIN_PX_PER_RADIUS:  # NaN refused too
         raise InputError(
@@ -107,7 +110,7 @@ def resolution_warning(resolution: WireResolution, source: str) -> StageWarning 
     return StageWarning(
         "part_low_resolution",
         f"the wire is resolved at only {resolution.describe()}: the centreline can follow "
-        "one flank or the shadow along a stretch, so the vertex bends (by up to about 1 deg, "
+        "one flank or the shadow along a stretch, so the vertex bends (by a degree or more, "
         "beyond their sigmas), the bend per chord, arc angle and radius may be off; " + closer,
         source,
     )
