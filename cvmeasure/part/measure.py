@@ -225,8 +225,8 @@ def measure_part(
         source=source, wire_diameter_mm=wire_diameter_mm, plane=plane,
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
-    warnings = _wire_found_warnings(wire)  # a wire too fine to measure refused here
-    warnings += resolution_warnings(
+    warnings = _wire_found_warnings(wire)
+    warnings += resolution_warnings(  # a wire too coarse to measure is refused here
         centre.half_width_px, plane.mm_per_px, wire_diameter_mm, wire.sheet, source
     )
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
