@@ -16,6 +16,7 @@ from typing import Any
 
 from cvmeasure.errors import CvmeasureError
 from cvmeasure.fileio import to_jsonable
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Busy",
@@ -192,6 +193,9 @@ class InspectState:
     tolerance_deg: float = 0.5
     worst_deg: float | None = None
     vertices: list[VertexDeviation] = field(default_factory=list)
+    # what the part measurement doubts (a low resolution, a gap in the centreline, ...):
+    # shown beside the verdict, which a warning does not change but may not hold
+    warnings: list[StageWarning] = field(default_factory=list)
     corrected: bool = False
     message: str = "no part inspected yet"
     busy: bool = False

@@ -171,8 +171,14 @@ function bindBend() {
 // ---------------------------------------------------------------- Inspect
 function drawInspect() {
   const ins = S.inspect || {};
+  const warns = ins.busy ? [] : ins.warnings || [];
   setVerdict($("ins-verdict"), ins.busy ? "measuring…" : ins.verdict, ins.passed);
+  // a pass the measurement doubts is drawn amber, not green
+  if (ins.passed && warns.length) $("ins-verdict").classList.replace("good", "warn");
   $("ins-message").textContent = ins.message || "";
+  $("ins-warnings").hidden = warns.length === 0;
+  $("ins-warnings").innerHTML = warns.map((w) =>
+    `<li data-code="${esc(w.code)}"><b>${esc(w.code)}</b>: ${esc(w.message)}${w.subject ? " (" + esc(w.subject) + ")" : ""}</li>`).join("");
   $("btn-photograph").disabled = !!ins.busy;
   $("btn-correct").hidden = !(ins.verdict && !ins.corrected && !ins.busy);
   $("ins-vertices").tBodies[0].innerHTML = (ins.vertices || []).map((v) =>

@@ -18,6 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import cvmeasure
+from cvmeasure.app.adapter import BOARD
+
 from .conftest import Server
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -146,6 +149,19 @@ def test_operator_day(chromium, browser, server, designs):
     assert verdict.startswith("PASS" if worst_measured <= 0.5 else "FAIL")
     if np.abs(np.abs(true_bends) - 20.0).max() > 0.5 + 0.15:
         assert verdict.startswith("FAIL")  # never a silent wrong part
+    # every warning the part measurement gives reaches the page, beside the verdict: the
+    # same photo measured again through the public API, with the app's options
+    photo = next(p for p in (ws / "inspect").glob("arc-part1.*") if p.suffix != ".json")
+    again = cvmeasure.measure_part(
+        str(photo),
+        board=BOARD,
+        camera=ws / "camera.json",
+        design=ws / "designs" / "arc.svg",
+        options=cvmeasure.PartOptions(divisions=len(measured) + 1, allow_mirror=False),
+    )
+    shown = page.locator("#ins-warnings li").evaluate_all("els => els.map(e => e.dataset.code)")
+    assert shown == [w.code for w in again.warnings]
+    assert ("read below" in verdict) == bool(again.warnings)
     page.click("#btn-correct")
     page.wait_for_selector("#ins-message:has-text('is corrected')")
     shot(page, "inspect")
