@@ -96,6 +96,7 @@ class KitCheck:
     markers: list[MarkerCheck] = field(default_factory=list)
     verdict: str = "kit check: not done yet"
     good: bool = False
+    warnings: list[StageWarning] = field(default_factory=list)  # the measurement's, e.g. heights
 
 
 @dataclass
@@ -128,6 +129,7 @@ class MaterialState:
     message: str = "no session yet"
     last_photo: str = ""
     last_photo_angle_deg: float | None = None
+    last_photo_warnings: list[StageWarning] = field(default_factory=list)
     calibration: str = ""
     loo_score_deg: float | None = None
     diagnosis: str = ""

@@ -99,6 +99,14 @@ def test_operator_day(chromium, browser, server, designs):
     assert tilt == pytest.approx(0.3, abs=0.05)  # the simulated stand leans 0.3 deg
     page.click("#btn-kit")
     page.wait_for_selector("#kit-verdict:has-text('all 5 markers found')")
+    # the kit photo's warnings (a kit whose heights the photo contradicts, ...) are listed
+    # under the verdict: the same photo measured again through the public API
+    kit_photo = next(p for p in (ws / "setup").glob("kit.*") if p.suffix != ".json")
+    again = cvmeasure.measure_bender_photo(
+        kit_photo, cvmeasure.load_kit(), camera=ws / "camera.json"
+    )
+    shown = page.locator("#kit-warnings li").evaluate_all("els => els.map(e => e.dataset.code)")
+    assert shown == [w.code for w in again.warnings]
     page.wait_for_function("document.getElementById('live').naturalWidth === 1280")
     shot(page, "setup")
 
