@@ -256,6 +256,11 @@ def _curve_unnamed(result: Diagnosis, learned: Diagnosis) -> Diagnosis:
 LEARNED_CURVE_SPRINGBACKS = 2.0
 
 
+#: Order terms a follow-up plan varies: the previous bend's coupling follows the plan's
+#: sequence of directions and sizes (one direction, alternating), which the planner chooses.
+PLANNED_ORDER_TERMS = ("previous_bend",)
+
+
 def _refused(result: Diagnosis) -> bool:
     return result.misfit is not None and result.misfit.refused
 
@@ -330,9 +335,10 @@ def _with_follow_up(
     for label in result.tie:
         cause = Cause.parse(label)
         if cause is None:
-            if label.startswith(ORDER_TERMS):
-                # an order term is separated by the order of the bends (ORDER_EXPERIMENT),
-                # which the planner's magnitudes and directions do not vary
+            if label.startswith(ORDER_TERMS) and not label.startswith(PLANNED_ORDER_TERMS):
+                # a trend along the run is separated by the order of the bends
+                # (ORDER_EXPERIMENT), which the planner's magnitudes and directions do not
+                # vary; the previous bend's coupling they do (the plan's own sequence)
                 continue
             # a library term: the baseline with the term's coefficients fitted
             term = term_rival(trials, label, result.baseline_fit, result.nominal_params, base)
