@@ -63,7 +63,7 @@ from cvmeasure.diagnose.misfit import (
     springback_rms_deg,
 )
 from cvmeasure.diagnose.naming import candidate_scores, name_causes, settle_pair, try_causes
-from cvmeasure.diagnose.residuals import residual_trends
+from cvmeasure.diagnose.residuals import LeftoverCheck, residual_trends
 from cvmeasure.diagnose.result import CandidateResult, Cause, CauseKind, Diagnosis
 from cvmeasure.diagnose.rules import (
     GROSS_MISFIT_DEG,
@@ -224,7 +224,28 @@ def diagnose(
         "angles, both directions alike); the causes were tested on the direction, the order "
         "and the pin, which it cannot absorb"
     )
-    return dataclasses.replace(learned, notes=(*learned.notes, note), learned=form)
+    learned = dataclasses.replace(learned, notes=(*learned.notes, note), learned=form)
+    if learned.cause.kind is CauseKind.NONE:
+        return _curve_unnamed(result, learned)
+    return learned
+
+
+def _curve_unnamed(result: Diagnosis, learned: Diagnosis) -> Diagnosis:
+    """``learned`` (nothing named) with the learned curve reported as the unnamed
+    discrepancy: the simulation's form left structure beyond the noise (refused, or
+    explained only by terms outside the catalogue) and the curve took all of it up. A
+    smooth curve in the bend also absorbs a head mechanism that depends on the bend
+    alone (a gear's runout), so "nothing named" is not "nothing there": the leftover
+    flag says so (held-out RMSE of the simulation's baseline, then of the curve)."""
+    leftover = LeftoverCheck(result.baseline_rmse_deg, learned.baseline_rmse_deg, True)
+    note = (
+        f"no catalogue cause is named, but the session departs from the simulation along "
+        f"the bend (held-out RMSE {result.baseline_rmse_deg:.3f} -> "
+        f"{learned.baseline_rmse_deg:.3f} deg with the learned curve): a mechanism outside "
+        "the catalogue that depends on the bend alone, or a machine described wrong; "
+        "check the geometry parameters and fit the material"
+    )
+    return dataclasses.replace(learned, leftover=leftover, notes=(*learned.notes, note))
 
 
 #: The learned curve stands for the description's error in the material's response:
@@ -233,6 +254,11 @@ def diagnose(
 #: predicted springback (rms over the session) is a machine described wrong (its wire,
 #: pin or dead zone), which the user is told to fix.
 LEARNED_CURVE_SPRINGBACKS = 2.0
+
+
+#: Order terms a follow-up plan varies: the previous bend's coupling follows the plan's
+#: sequence of directions and sizes (one direction, alternating), which the planner chooses.
+PLANNED_ORDER_TERMS = ("previous_bend",)
 
 
 def _refused(result: Diagnosis) -> bool:
@@ -309,9 +335,10 @@ def _with_follow_up(
     for label in result.tie:
         cause = Cause.parse(label)
         if cause is None:
-            if label.startswith(ORDER_TERMS):
-                # an order term is separated by the order of the bends (ORDER_EXPERIMENT),
-                # which the planner's magnitudes and directions do not vary
+            if label.startswith(ORDER_TERMS) and not label.startswith(PLANNED_ORDER_TERMS):
+                # a trend along the run is separated by the order of the bends
+                # (ORDER_EXPERIMENT), which the planner's magnitudes and directions do not
+                # vary; the previous bend's coupling they do (the plan's own sequence)
                 continue
             # a library term: the baseline with the term's coefficients fitted
             term = term_rival(trials, label, result.baseline_fit, result.nominal_params, base)

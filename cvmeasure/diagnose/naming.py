@@ -356,8 +356,37 @@ def _best_outcome(
     plausible = [
         o for o, e in zip(outcomes, evidence_of, strict=True) if e >= top - ctx.min_delta_bic
     ]
-    best, ext = min(plausible, key=lambda o: o[1].cv_rmse_deg)
+    # a pair reached from its first cause is a pair only if it also beats its second
+    # cause alone by the acceptance rule: the forward step tests the pair against the
+    # first cause only, and a weak first cause with the strong one added (an offset, then
+    # the drift) is the strong cause alone with a term it does not need
+    nested = [o for o in plausible if _beats_each_alone(ctx, o[1], results)]
+    best, ext = min(nested or plausible, key=lambda o: o[1].cv_rmse_deg)
     return outcomes, best, ext
+
+
+def _beats_each_alone(ctx: Context, ext: _Extension, results: Sequence[CandidateResult]) -> bool:
+    """The extension's pair (a single cause passes) accepted against each of its causes
+    alone: the held-out RMSE with the discrepancy profiled out lowered by
+    ``min_cv_gain`` and the evidence raised by ``min_delta_bic``."""
+    if len(ext.fit.causes) < 2:
+        return True
+    pair_cv = ext.cv_discrepancy_rmse_deg
+    if not math.isfinite(pair_cv):
+        pair_cv = ext.cv_rmse_deg
+    for cause in ext.fit.causes:
+        alone = next((c for c in results if c.cause == cause), None)
+        if alone is None:
+            continue
+        alone_cv = alone.cv_discrepancy_rmse_deg
+        if not math.isfinite(alone_cv):
+            alone_cv = alone.cv_rmse_deg
+        cv_ok = max(pair_cv, RESOLUTION_DEG) <= (1.0 - ctx.min_cv_gain) * max(
+            alone_cv, RESOLUTION_DEG
+        )
+        if not (cv_ok and bic_gain(alone.fit, ext.fit) >= ctx.min_delta_bic):
+            return False
+    return True
 
 
 def _first_cause_first(

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from benchmarks.diagnosis_session import follow_up_trials, make_case
 from cvmeasure.cli import main
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.follow_up import FOLLOW_UP_SIZES, REACH_DEG
@@ -34,12 +35,12 @@ def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidd
     case = pb.physical_case(seed, hidden, plan="sweep", n_trials=60)
     result = diagnose(case.trials)
     # the data leave it open (library terms that fit as well within the noise tie too:
-    # drift with a curved trend, a compliance or scale with the head's runout; an order
-    # term is left to a random order, not planned for)
+    # drift with a curved trend, a compliance or scale with the head's runout; a trend
+    # along the run is left to a random order, not planned for)
     assert {hidden, rival} <= set(result.tie)
     plan = result.follow_up
     assert plan is not None and {hidden, rival} <= set(plan.rivals)
-    assert not any(r.startswith(("warm_up", "order_squared", "previous_bend")) for r in plan.rivals)
+    assert not any(r.startswith(("warm_up", "order_squared")) for r in plan.rivals)
     _feasible(case, plan.commanded_pin_deg)
     assert plan.first_trial == len(case.trials) + 1
     assert plan.expected_separation_se >= 1.0
@@ -81,3 +82,18 @@ def test_cli_writes_the_follow_up_plan(tmp_path, capsys):
     # the plan is what `cvmeasure simulate` reads
     sim_out = tmp_path / "sim.csv"
     assert main(["simulate", str(plan_csv), "-o", str(sim_out)]) == 0
+
+
+def test_a_tie_with_the_previous_bend_is_planned_for_and_separated():
+    # a quick calibration session on the independent model with a drift hidden: the
+    # previous bend's coupling (an order term) ties with it; the follow-up plan varies the
+    # sequence of directions the coupling follows, and run on the same machine it names
+    # the drift alone
+    case = make_case("physical", 103, "drift", "quick")
+    result = diagnose(case.trials)
+    assert result.cause.primary == "drift" and "previous_bend" in result.tie
+    plan = result.follow_up
+    assert plan is not None and {"drift", "previous_bend"} <= set(plan.rivals)
+    assert not any(r.startswith(("warm_up", "order_squared")) for r in plan.rivals)
+    again = diagnose(follow_up_trials(case, np.asarray(plan.commanded_pin_deg)), follow_up=False)
+    assert again.causes == ("drift",) and again.tie == ()

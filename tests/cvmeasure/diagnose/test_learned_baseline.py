@@ -27,6 +27,10 @@ def test_no_effect_on_another_form_names_nothing_and_says_so(bent_session):
     assert result.cause == Cause.none() and result.causes == ()
     assert result.misfit is not None and not result.misfit.refused
     assert result.learned is not None and result.learned.degree == 5
+    # the curve took up what the simulation's form left beyond the noise: reported as
+    # the unnamed discrepancy (held-out RMSE of the simulation's baseline, then the curve's)
+    assert result.leftover.unnamed
+    assert result.leftover.residual_rmse_deg > 2 * result.leftover.smoothed_rmse_deg
     assert result.to_dict()["learned_curve"]["span_deg"] == pytest.approx([18.1, 114.6], abs=0.05)
     # a machine of the simulation's own form keeps the bounded discrepancy
     assert diagnose(bent_session(seed=8)).learned is None
