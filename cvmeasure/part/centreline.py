@@ -116,11 +116,10 @@ KNOWN_WIDTH_FIRST_RHO = 1.2
 KNOWN_WIDTH_REFINE = 0.3
 
 #: Share of the symmetry window's offsets left out of the final centres' cost, those of
-#: largest asymmetry: a lamp to one side of a polished wire puts a second highlight on the
-#: lit flank alone (0.4-1 half-widths off the axis), which pulled the whole window's centre
-#: up to 0.9 px towards the lamp on path-traced 7-11 px wires (radius 0.2-0.5 % too large
-#: where the lamp lies outward of the arc's far chords); the crest and the other flank,
-#: symmetric, fix the centre.
+#: largest asymmetry: a narrow feature on one flank only (a lamp's glint on a polished
+#: wire, a speck) no longer pulls the centre, which the crest and the other flank fix. A
+#: broad highlight on the lit flank still pulls it: on path-traced parts lit from one side
+#: the far chords' centres moved 0.1-0.2 px back towards the axis (of 0.5-0.9 px off).
 HIGHLIGHT_TRIM_SHARE = 0.4
 
 #: Relative range of the silhouette edges' distance about the expected width.

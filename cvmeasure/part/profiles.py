@@ -186,9 +186,9 @@ def asymmetry_costs(
     sums as one shift at a time, but each block's samples are read from cache.
 
     ``trim_share`` > 0: the mean over the offsets ``u`` (every ``_TRIM_STRIDE`` samples)
-    with the smallest terms only, that share of the largest left out: a feature on one
-    side of the axis alone (a lamp's highlight on the lit flank of a polished wire) then
-    does not pull the centre, which the rest of the window, symmetric, fixes.
+    with the smallest terms only, that share of the largest left out: a narrow feature on
+    one side of the axis alone (a lamp's glint on one flank of a polished wire) then does
+    not pull the centre, which the rest of the window, symmetric, fixes.
     """
     p = np.asarray(profiles, dtype=np.float64)
     n = 2 * kc + 1
