@@ -30,6 +30,7 @@ import json
 import math
 import os
 import resource
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -516,10 +517,14 @@ def process_chain(mode: str, tmp: Path) -> list:
 
 
 def _cli_diagnose_seconds(tmp: Path, n: int) -> tuple[float, float]:
-    """Median wall and CPU time of ``cvmeasure diagnose`` on a standard session's trials."""
+    """Median wall and CPU time of ``cvmeasure diagnose`` on a standard session's trials,
+    pinned to one core when ``taskset`` exists (the target is one core's; run alone, the
+    benchmark is not pinned by the runner)."""
     case = make_case("sim", SEED0 - 1, "backlash", "standard")
     csv = case.trials.write_csv(tmp / "standard.csv")
-    cmd = [sys.executable, "-m", "cvmeasure", "diagnose", str(csv), "--json"]
+    core = min(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 0
+    pin = ["taskset", "-c", str(core)] if shutil.which("taskset") else []
+    cmd = [*pin, sys.executable, "-m", "cvmeasure", "diagnose", str(csv), "--json"]
     # warm-up, writing the bytecode cache as an installed package has it (pip compiles
     # it at install); with PYTHONDONTWRITEBYTECODE set the timed runs would otherwise
     # compile every cvmeasure module they import, each time
@@ -529,7 +534,7 @@ def _cli_diagnose_seconds(tmp: Path, n: int) -> tuple[float, float]:
     for _ in range(n):
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        subprocess.run(cmd, capture_output=True, check=False)
+        subprocess.run(cmd, capture_output=True, check=False, env=env)
         wall.append(time.perf_counter() - t0)
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu.append(r1.ru_utime - r0.ru_utime + r1.ru_stime - r0.ru_stime)

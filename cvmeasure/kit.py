@@ -20,7 +20,15 @@ from cvmeasure.colorimetry import srgb8_to_lab_d65
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import read_json
 
-__all__ = ["ROLES", "MarkerSpec", "MarkerKit", "default_kit", "load_kit", "srgb8_to_lab_d65"]
+__all__ = [
+    "ROLES",
+    "HeightsPose",
+    "MarkerSpec",
+    "MarkerKit",
+    "default_kit",
+    "load_kit",
+    "srgb8_to_lab_d65",
+]
 
 #: The five roles of the spec, in the kit's order.
 ROLES: tuple[str, ...] = ("origin", "axis", "pin", "wire_a", "wire_b")
@@ -93,6 +101,59 @@ class MarkerSpec:
         return out
 
 
+#: A plane is the heights' own when its pose is within these of the recorded one: the same
+#: plane measurement (a plane measured again from the same camera differs by far more).
+SAME_POSE_RAD = 1e-6
+SAME_POSE_MM = 1e-3
+
+
+@dataclass(frozen=True)
+class HeightsPose:
+    """The plane pose a kit's heights were measured through (``cvmeasure markers heights``).
+
+    ``rvec`` / ``tvec_mm``: the plane's pose (camera <- board, OpenCV convention, mm), as
+    in the plane JSON. Heights fitted through a plane take up the errors that plane puts
+    on every photo (its pose's, the lens's): through the same plane those errors and the
+    heights' share of them largely cancel, and the heights' stated covariance holds;
+    through another plane they do not cancel, and the angles can be off by more than
+    their stated uncertainty (a measurement warns, ``heights_other_plane``).
+    """
+
+    rvec: tuple[float, float, float]
+    tvec_mm: tuple[float, float, float]
+
+    def matches(self, rvec: Any, tvec_mm: Any) -> bool:
+        """True when the pose (rvec, tvec_mm) is this one: the same plane measurement."""
+        r = np.asarray(rvec, dtype=np.float64).reshape(3)
+        t = np.asarray(tvec_mm, dtype=np.float64).reshape(3)
+        return bool(
+            np.max(np.abs(r - np.asarray(self.rvec))) <= SAME_POSE_RAD
+            and np.max(np.abs(t - np.asarray(self.tvec_mm))) <= SAME_POSE_MM
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "rvec": [round(float(v), 12) for v in self.rvec],
+            "tvec_mm": [round(float(v), 9) for v in self.tvec_mm],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any) -> HeightsPose:
+        """ValueError naming the field when malformed."""
+        if not isinstance(data, dict):
+            raise ValueError("heights_pose must be an object with rvec and tvec_mm")
+        vectors = []
+        for key in ("rvec", "tvec_mm"):
+            try:
+                vec = np.asarray(data.get(key), dtype=np.float64)
+            except (TypeError, ValueError):
+                vec = np.zeros(0)
+            if vec.shape != (3,) or not np.all(np.isfinite(vec)):
+                raise ValueError(f"heights_pose.{key} must be three finite numbers")
+            vectors.append(tuple(float(v) for v in vec))
+        return cls(vectors[0], vectors[1])  # type: ignore[arg-type]
+
+
 @dataclass(frozen=True)
 class MarkerKit:
     """A named set of markers, one per role, and the wire they measure.
@@ -103,7 +164,8 @@ class MarkerKit:
     ``height_covariance_mm2`` is the 5 x 5 covariance of the markers' heights in
     :data:`ROLES` order, mm^2, when they were measured together (``cvmeasure markers
     heights``: their errors are correlated); None: the per-marker
-    ``height_sigma_mm``, independent.
+    ``height_sigma_mm``, independent. ``heights_pose`` (optional): the plane pose the
+    heights were measured through (:class:`HeightsPose`).
     """
 
     name: str
@@ -111,6 +173,7 @@ class MarkerKit:
     wire_diameter_mm: float | None = None
     wire_axis_height_mm: float | None = None
     height_covariance_mm2: tuple[tuple[float, ...], ...] | None = None
+    heights_pose: HeightsPose | None = None
 
     def __post_init__(self) -> None:
         roles = [m.role for m in self.markers]
@@ -162,6 +225,7 @@ class MarkerKit:
             markers=tuple(replace(m, height_mm=None, height_sigma_mm=None) for m in self.markers),
             wire_axis_height_mm=None,
             height_covariance_mm2=None,
+            heights_pose=None,
         )
 
     def by_role(self, role: str) -> MarkerSpec:
@@ -180,6 +244,8 @@ class MarkerKit:
             out["height_covariance_mm2"] = [
                 [round(float(v), 6) for v in row] for row in self.height_covariance_mm2
             ]
+        if self.heights_pose is not None:
+            out["heights_pose"] = self.heights_pose.to_dict()
         return out
 
     @classmethod
@@ -224,7 +290,9 @@ class MarkerKit:
             wire_d = _length(data.get("wire_diameter_mm"), "wire_diameter_mm", minimum=1e-6)
             wire_h = _length(data.get("wire_axis_height_mm"), "wire_axis_height_mm", minimum=0.0)
             cov = _covariance(data.get("height_covariance_mm2"))
-            return cls(str(data.get("name", "kit")), tuple(markers), wire_d, wire_h, cov)
+            raw_pose = data.get("heights_pose")
+            pose = None if raw_pose is None else HeightsPose.from_dict(raw_pose)
+            return cls(str(data.get("name", "kit")), tuple(markers), wire_d, wire_h, cov, pose)
         except ValueError as exc:
             raise InputError(source, str(exc)) from None
 

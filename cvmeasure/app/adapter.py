@@ -46,6 +46,7 @@ from cvmeasure.markers.overlay import draw_overlay as draw_marker_overlay
 from cvmeasure.material.bender_calibration import MODES
 from cvmeasure.part.overlay import draw_overlay as draw_part_overlay
 from cvmeasure.sim import simulate
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "BOARD",
@@ -239,6 +240,7 @@ class PartCheck:
     vertices_px: np.ndarray | None
     vertices_mm: np.ndarray | None
     worst_deg: float
+    warnings: tuple[StageWarning, ...] = ()
 
 
 def measure_finished_part(
@@ -269,6 +271,7 @@ def measure_finished_part(
         vertices_px=None if m.vertices_px is None else np.asarray(m.vertices_px),
         vertices_mm=None if m.vertices_mm is None else np.asarray(m.vertices_mm),
         worst_deg=float(b.max_abs_error_deg),
+        warnings=tuple(m.warnings),
     )
 
 

@@ -355,6 +355,10 @@ class Bending:
         ins.verdict = ("PASS" if passed else "FAIL") + (
             f": worst vertex {check.worst_deg:.2f} deg (tolerance {tol:g} deg)"
         )
+        if check.warnings:  # a verdict the measurement doubts says so where it is read
+            n = len(check.warnings)
+            ins.verdict += f", {n} warning{'s' if n > 1 else ''}: read below before trusting it"
+        ins.warnings = list(check.warnings)
         ins.vertices = [
             VertexDeviation(i + 1, d, m, e, abs(e) <= tol)
             for i, (d, m, e) in enumerate(
@@ -364,7 +368,8 @@ class Bending:
         ins.message = f"{design_name} part {part} measured"
         ins.measure_cpu_s = time.thread_time() - cpu0
         record = {"design": design_name, "part": part, "worst_deg": check.worst_deg,
-                  "passed": passed, "errors_deg": list(check.error_deg)}  # fmt: skip
+                  "passed": passed, "errors_deg": list(check.error_deg),
+                  "warnings": [w.to_json() for w in check.warnings]}  # fmt: skip
         append_jsonl(self.op.folder / "parts.jsonl", record)
         ins.history = (ins.history + [record])[-200:]
 

@@ -209,6 +209,7 @@ class Material:
             return
         s = self.state
         s.last_photo_angle_deg = float(result.bend_angle_deg)
+        s.last_photo_warnings = list(result.warnings)
         # the angles first (what the operator waits for), then the picture with them drawn
         self.op.bus.publish(
             "photo",

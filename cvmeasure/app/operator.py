@@ -293,10 +293,16 @@ class Operator:
                 how = "flat" if heights in ("flat", "none") else f"at its height ({heights})"
                 checks.append(MarkerCheck(role, True, f"found, r {m.r_px:.1f} px, {how}"))
             verdict = f"kit check: all {len(checks)} markers found"
-            good = True
+            warnings = list(result.warnings)
+            if warnings:  # e.g. the kit's heights not those the photo shows
+                n = len(warnings)
+                verdict += f", {n} warning{'s' if n > 1 else ''}: read below"
+            good = not warnings
         except InputError as exc:
-            verdict, good = f"kit check: not good, {exc}", False
-        self.state.kit = KitCheck(done=True, markers=checks, verdict=verdict, good=good)
+            verdict, good, warnings = f"kit check: not good, {exc}", False, []
+        self.state.kit = KitCheck(
+            done=True, markers=checks, verdict=verdict, good=good, warnings=warnings
+        )
         self.publish("kit")
 
     def as_dict(self) -> dict[str, Any]:

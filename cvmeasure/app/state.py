@@ -16,6 +16,7 @@ from typing import Any
 
 from cvmeasure.errors import CvmeasureError
 from cvmeasure.fileio import to_jsonable
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "Busy",
@@ -95,6 +96,7 @@ class KitCheck:
     markers: list[MarkerCheck] = field(default_factory=list)
     verdict: str = "kit check: not done yet"
     good: bool = False
+    warnings: list[StageWarning] = field(default_factory=list)  # the measurement's, e.g. heights
 
 
 @dataclass
@@ -127,6 +129,7 @@ class MaterialState:
     message: str = "no session yet"
     last_photo: str = ""
     last_photo_angle_deg: float | None = None
+    last_photo_warnings: list[StageWarning] = field(default_factory=list)
     calibration: str = ""
     loo_score_deg: float | None = None
     diagnosis: str = ""
@@ -192,6 +195,9 @@ class InspectState:
     tolerance_deg: float = 0.5
     worst_deg: float | None = None
     vertices: list[VertexDeviation] = field(default_factory=list)
+    # what the part measurement doubts (a low resolution, a gap in the centreline, ...):
+    # shown beside the verdict, which a warning does not change but may not hold
+    warnings: list[StageWarning] = field(default_factory=list)
     corrected: bool = False
     message: str = "no part inspected yet"
     busy: bool = False

@@ -161,6 +161,7 @@ def run_heights(args: argparse.Namespace) -> int:
             plane.camera_centre_mm,
             y_down=y_down,
             prior_sigma_mm=args.prior_sigma_mm,
+            plane_pose=(plane.rvec, plane.tvec_mm),
         )
     except ValueError as exc:
         raise InputError("markers heights", f"{exc} ({failed} photo(s) failed)") from None

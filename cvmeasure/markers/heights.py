@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -48,6 +49,7 @@ __all__ = [
     "NOMINAL_HEIGHT_TOLERANCE",
     "plane_heights_sigma",
     "nominal_heights_bound",
+    "other_plane_warning",
 ]
 
 #: The camera tilt (deg, optical axis from the plate's normal) the no-pose bounds allow:
@@ -220,15 +222,42 @@ def plane_heights_sigma(
     y_down: bool,
     sigma: dict[str, float],
     warnings: list[StageWarning],
+    plane_pose: tuple[Any, Any] | None = None,
 ) -> tuple[dict[str, float], dict[str, float] | None]:
     """On a plane pose: the kit's height uncertainties (measured or stated) carried into
     the angles' sigma (a stated sigma of 0: heights known exactly, nothing added); nominal
-    heights bounded beside it instead (and warned about)."""
+    heights bounded beside it instead (and warned about). ``plane_pose``: the plane's
+    ``(rvec, tvec_mm)``; heights measured through another plane are warned about
+    (:func:`other_plane_warning`)."""
     var = height_angle_variance_deg2(centres, kit, camera_centre_mm, y_down=y_down)
+    if plane_pose is not None and (warning := other_plane_warning(kit, *plane_pose)):
+        warnings.append(warning)
     sigma = {k: math.hypot(v, math.sqrt(var[k])) for k, v in sigma.items()}
     if kit.heights_stated:
         return sigma, None
     return sigma, nominal_heights_bound(centres, kit, camera_centre_mm, y_down, warnings)
+
+
+def other_plane_warning(kit: MarkerKit, rvec: Any, tvec_mm: Any) -> StageWarning | None:
+    """``heights_other_plane`` when the kit's heights were measured through a plane other
+    than the one of pose (``rvec``, ``tvec_mm``), else None.
+
+    Heights fitted through a plane take up the errors that plane puts on every photo;
+    through the same plane those cancel, through another they stay in the heights and
+    move the angles by an amount their stated uncertainty does not hold (only the
+    heights' own scatter is in it).
+    """
+    pose = kit.heights_pose
+    if pose is None or pose.matches(rvec, tvec_mm):
+        return None
+    return StageWarning(
+        "heights_other_plane",
+        "the kit's heights were measured through another plane (markers heights --plane): "
+        "they carry that plane's errors, which this plane does not cancel, so the angles "
+        "may be off by more than the +-; measure the heights again through this plane, "
+        "or measure through the plane they were measured with",
+        "kit",
+    )
 
 
 def nominal_heights_bound(

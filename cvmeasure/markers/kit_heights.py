@@ -28,7 +28,12 @@ moves every disc by one homothety about the camera's foot point and so changes n
 angle; it stays at the nominal heights with the prior's uncertainty, which thus
 states the heights honestly without reaching the angles' sigma. The result is the kit with the measured ``height_mm``, their
 ``height_sigma_mm`` and their covariance ``height_covariance_mm2``, which a
-measurement on a plane pose carries into every angle's uncertainty.
+measurement on a plane pose carries into every angle's uncertainty, and the plane's pose
+(``heights_pose``). Fitted through that plane, the heights take up the errors it puts on
+every photo (its pose's, the lens's); a photo measured through the same plane carries
+those errors again and they largely cancel, what is left being about the fit's own
+scatter, which the covariance states (scaled by the residuals' RMS). Through another
+plane they do not cancel: a measurement warns (``heights_other_plane``).
 
 Frames: the plate's frame of the plane pose (board frame), mm; heights along the
 plate's normal towards the camera.
@@ -46,7 +51,7 @@ from scipy.linalg import block_diag
 from scipy.optimize import least_squares
 
 from cvmeasure.geometry import wrap_deg
-from cvmeasure.kit import ROLES, MarkerKit
+from cvmeasure.kit import ROLES, HeightsPose, MarkerKit
 from cvmeasure.markers.angles import pin_bend_deg
 from cvmeasure.markers.heights import NOMINAL_HEIGHT_TOLERANCE, move_to_heights
 from cvmeasure.warning import StageWarning
@@ -208,6 +213,7 @@ def measure_heights(
     *,
     y_down: bool = True,
     prior_sigma_mm: float | None = None,
+    plane_pose: tuple[Any, Any] | None = None,
 ) -> MeasuredHeights:
     """Measure the markers' heights from a sweep of photos from one plane pose.
 
@@ -264,8 +270,7 @@ def measure_heights(
     # MIN_BIRGE of the stated one (a lucky few photos must not claim too much); the
     # prior's rows are not: the photos say nothing about it
     info = data.T @ data / max(rms, MIN_BIRGE) ** 2 + prior_rows.T @ prior_rows
-    cov = np.linalg.pinv(info)
-    h_cov = cov[:n, :n]
+    h_cov = np.linalg.pinv(info)[:n, :n]
     h_sigma = np.sqrt(np.diag(h_cov))
     markers = tuple(
         replace(
@@ -280,7 +285,13 @@ def measure_heights(
         kit,
         name=f"{kit.name.removesuffix('-flat')}-heights",
         markers=tuple(order[m.role] for m in kit.markers),
-        height_covariance_mm2=tuple(tuple(float(v) for v in row) for row in h_cov),
+        height_covariance_mm2=_rows(h_cov),
+        heights_pose=None
+        if plane_pose is None
+        else HeightsPose(
+            tuple(float(v) for v in np.reshape(plane_pose[0], 3)),  # type: ignore[arg-type]
+            tuple(float(v) for v in np.reshape(plane_pose[1], 3)),  # type: ignore[arg-type]
+        ),
     )
     warnings = _sweep_warnings(photos, rms, y_down)
     return MeasuredHeights(
@@ -292,6 +303,12 @@ def measure_heights(
         sum(p.straight for p in photos),
         tuple(warnings),
     )
+
+
+def _rows(cov: np.ndarray) -> tuple[tuple[float, ...], ...]:
+    """A covariance as the kit holds it, made exactly symmetric."""
+    sym = 0.5 * (cov + cov.T)
+    return tuple(tuple(float(v) for v in row) for row in sym)
 
 
 def _sweep_warnings(photos: Sequence[SweepPhoto], rms: float, y_down: bool) -> list[StageWarning]:

@@ -524,8 +524,15 @@ def measure_machine_photo(
         raise InputError(source, str(exc)) from None
     sigma = {"pin_angle_deg": angles.pin_sigma_deg, "bend_angle_deg": angles.bend_sigma_deg}
     if height_state == "plane" and transform.plane is not None:
+        plane = transform.plane
         sigma, height_bound = plane_heights_sigma(
-            centres, kit, transform.plane.camera_centre_mm, transform.y_down, sigma, warnings
+            centres,
+            kit,
+            plane.camera_centre_mm,
+            transform.y_down,
+            sigma,
+            warnings,
+            plane_pose=(plane.rvec, plane.tvec_mm),
         )
     return MachinePhotoResult(
         angles.pin_angle_deg,

@@ -20,6 +20,7 @@ from cvmeasure.errors import InputError
 from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.part.centreline import SYMMETRIC_WIRE_MAX, Centreline, measure_centreline
 from cvmeasure.part.ends import EndShape
+from cvmeasure.part.resolution import coarse_line_hint
 from cvmeasure.part.segment import WireMask, gray_float, wire_candidates
 
 __all__ = [
@@ -184,16 +185,17 @@ def _wire_centreline(
     # wide along most of its length is the test instead
     asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from != "silhouette"
     if centre.coverage < MIN_COVERAGE or asymmetric:
-        raise InputError(
-            source,
+        problem = (
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
             f"has a round wire's symmetric profile along {100 * centre.coverage:.0f} % of it, "
             f"asymmetry {centre.asymmetry:.2f} > {MAX_ASYMMETRY})"
             if asymmetric
             else f"no wire found beside the board (the longest thin line, "
             f"{wire.length_px:.0f} px, looks like a round wire along only "
-            f"{100 * centre.coverage:.0f} % of it)",
+            f"{100 * centre.coverage:.0f} % of it)"
         )
+        hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet)
+        raise InputError(source, problem + hint)
     return centre
 
 

@@ -70,6 +70,7 @@ from cvmeasure.part.lift_use import (
 )
 from cvmeasure.part.locate import axis_height_for, measure_centreline_mm, outline_mm
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+from cvmeasure.part.resolution import resolution_warnings
 from cvmeasure.part.result import (
     METHODS,
     ArcResult,
@@ -225,6 +226,9 @@ def measure_part(
     )  # fmt: skip
     centre, centreline_mm = _counter_clockwise(centre, centreline_mm)
     warnings = _wire_found_warnings(wire)
+    warnings += resolution_warnings(  # a wire too coarse to measure is refused here
+        centre.half_width_px, plane.mm_per_px, wire_diameter_mm, wire.sheet, source
+    )
     base_mm = axis_height_for(axis_height_mm, wire_diameter_mm)
     lift = _width_lift(plane, centre, wire_diameter_mm, base_mm)
     planned = reference_mm is not None

@@ -1,12 +1,13 @@
 import itertools
 import json
+from dataclasses import replace
 
 import colour
 import numpy as np
 import pytest
 
 from cvmeasure.errors import InputError
-from cvmeasure.kit import ROLES, MarkerKit, default_kit, srgb8_to_lab_d65
+from cvmeasure.kit import ROLES, HeightsPose, MarkerKit, default_kit, srgb8_to_lab_d65
 
 
 def test_spec_example_lab_value():
@@ -76,6 +77,37 @@ def test_bad_heights_are_named(where, value, message):
     else:
         data[where] = value
     with pytest.raises(InputError, match=f"kit.json: .*{message}"):
+        MarkerKit.from_dict(data, source="kit.json")
+
+
+def test_the_heights_pose_roundtrips_and_matches_only_its_own_plane():
+    """The plane a kit's heights were measured through: read back the same, the same pose
+    matched (to the JSON's digits), one measured again (0.01 mm, 1e-5 rad off) not; a kit
+    without it (every kit before it) reads as before."""
+    pose = HeightsPose((0.123456789012, -0.2, 3.1), (-70.123456789, 40.0, 556.5))
+    kit = replace(default_kit(), heights_pose=pose)
+    data = json.loads(json.dumps(kit.to_dict()))
+    back = MarkerKit.from_dict(data)
+    assert back == kit
+    assert back.heights_pose.matches(np.array(pose.rvec), np.array(pose.tvec_mm))
+    assert not back.heights_pose.matches(pose.rvec, np.add(pose.tvec_mm, [0.01, 0.0, 0.0]))
+    assert not back.heights_pose.matches(np.add(pose.rvec, [0.0, 1e-5, 0.0]), pose.tvec_mm)
+    assert kit.flat().heights_pose is None
+    assert "heights_pose" not in default_kit().to_dict()
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ([1, 2, 3], "heights_pose must be an object with rvec and tvec_mm"),
+        ({"rvec": [0, 0], "tvec_mm": [0, 0, 500]}, "heights_pose.rvec must be three finite"),
+        ({"rvec": [0, 0, 0], "tvec_mm": [0, "x", 500]}, "heights_pose.tvec_mm must be three"),
+    ],
+)
+def test_a_bad_heights_pose_is_named(value, message):
+    data = default_kit().to_dict()
+    data["heights_pose"] = value
+    with pytest.raises(InputError, match=f"kit.json: {message}"):
         MarkerKit.from_dict(data, source="kit.json")
 
 

@@ -31,6 +31,13 @@ async function api(path, body, method) {
 // a command that succeeds may have made this browser the controller: redraw the badge
 const act = (path, body) => api(path, body).then(refreshControl).catch(() => {});
 
+// typed warnings ({code, message, subject}) as a list under what they doubt
+function drawWarnings(el, warns) {
+  el.hidden = !warns.length;
+  el.innerHTML = warns.map((w) =>
+    `<li data-code="${esc(w.code)}"><b>${esc(w.code)}</b>: ${esc(w.message)}${w.subject ? " (" + esc(w.subject) + ")" : ""}</li>`).join("");
+}
+
 function setVerdict(el, text, good) {
   if (!el) return;
   el.textContent = text || "";
@@ -76,6 +83,7 @@ function drawSetup() {
   setVerdict($("lens-verdict"), lens.verdict, lens.good);
   setVerdict($("plane-verdict"), plane.verdict, plane.good);
   setVerdict($("kit-verdict"), kit.verdict, kit.good);
+  drawWarnings($("kit-warnings"), kit.warnings || []);
   $("kit-markers").innerHTML = (kit.markers || []).map((m) => `<li>${esc(m.role)}: ${esc(m.detail)}</li>`).join("");
 }
 function bindSetup() {
@@ -103,6 +111,7 @@ function drawMaterial() {
     const src = "/api/material/photo/" + encodeURIComponent(m.last_photo);
     if (!$("mat-photo").src.endsWith(src)) $("mat-photo").src = src;
     $("mat-photo-caption").textContent = `${m.last_photo}: bend ${fmt(m.last_photo_angle_deg, 3)} deg`;
+    drawWarnings($("mat-photo-warnings"), m.last_photo_warnings || []);
   }
   $("mat-curve").src = "/api/material/curve.svg?n=" + (m.steps || []).length + "&s=" + encodeURIComponent(m.status);
   setVerdict($("mat-verdict"), m.verdict, m.status === "done");
@@ -171,8 +180,12 @@ function bindBend() {
 // ---------------------------------------------------------------- Inspect
 function drawInspect() {
   const ins = S.inspect || {};
+  const warns = ins.busy ? [] : ins.warnings || [];
   setVerdict($("ins-verdict"), ins.busy ? "measuring…" : ins.verdict, ins.passed);
+  // a pass the measurement doubts is drawn amber, not green
+  if (ins.passed && warns.length) $("ins-verdict").classList.replace("good", "warn");
   $("ins-message").textContent = ins.message || "";
+  drawWarnings($("ins-warnings"), warns);
   $("btn-photograph").disabled = !!ins.busy;
   $("btn-correct").hidden = !(ins.verdict && !ins.corrected && !ins.busy);
   $("ins-vertices").tBodies[0].innerHTML = (ins.vertices || []).map((v) =>

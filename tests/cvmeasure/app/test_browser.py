@@ -18,6 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import cvmeasure
+from cvmeasure.app.adapter import BOARD
+
 from .conftest import Server
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -96,6 +99,14 @@ def test_operator_day(chromium, browser, server, designs):
     assert tilt == pytest.approx(0.3, abs=0.05)  # the simulated stand leans 0.3 deg
     page.click("#btn-kit")
     page.wait_for_selector("#kit-verdict:has-text('all 5 markers found')")
+    # the kit photo's warnings (a kit whose heights the photo contradicts, ...) are listed
+    # under the verdict: the same photo measured again through the public API
+    kit_photo = next(p for p in (ws / "setup").glob("kit.*") if p.suffix != ".json")
+    again = cvmeasure.measure_bender_photo(
+        kit_photo, cvmeasure.load_kit(), camera=ws / "camera.json"
+    )
+    shown = page.locator("#kit-warnings li").evaluate_all("els => els.map(e => e.dataset.code)")
+    assert shown == [w.code for w in again.warnings]
     page.wait_for_function("document.getElementById('live').naturalWidth === 1280")
     shot(page, "setup")
 
@@ -146,6 +157,19 @@ def test_operator_day(chromium, browser, server, designs):
     assert verdict.startswith("PASS" if worst_measured <= 0.5 else "FAIL")
     if np.abs(np.abs(true_bends) - 20.0).max() > 0.5 + 0.15:
         assert verdict.startswith("FAIL")  # never a silent wrong part
+    # every warning the part measurement gives reaches the page, beside the verdict: the
+    # same photo measured again through the public API, with the app's options
+    photo = next(p for p in (ws / "inspect").glob("arc-part1.*") if p.suffix != ".json")
+    again = cvmeasure.measure_part(
+        str(photo),
+        board=BOARD,
+        camera=ws / "camera.json",
+        design=ws / "designs" / "arc.svg",
+        options=cvmeasure.PartOptions(divisions=len(measured) + 1, allow_mirror=False),
+    )
+    shown = page.locator("#ins-warnings li").evaluate_all("els => els.map(e => e.dataset.code)")
+    assert shown == [w.code for w in again.warnings]
+    assert ("read below" in verdict) == bool(again.warnings)
     page.click("#btn-correct")
     page.wait_for_selector("#ins-message:has-text('is corrected')")
     shot(page, "inspect")

@@ -8,7 +8,6 @@ import pytest
 
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.fitting import discrepancy_form, fit_model, learned_baseline_form
-from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import Effect, SimParams, simulate
 
 #: A machine the default description's form does not reach (as in
@@ -16,19 +15,6 @@ from cvmeasure.sim import Effect, SimParams, simulate
 #: leg bowed 2.5 times beam theory's share, the springback's span term tripled and a
 #: steeper hardening.
 OTHER_FORM = {"span_bow_share": 2.5, "span_factor": 1.5, "hardening_exponent": 0.45}
-
-
-def _session(asymmetry: float, noise_deg: float = 0.05, seed: int = 11) -> TrialTable:
-    plan = SessionConfig(mode="standard").plan()
-    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
-    rng = np.random.default_rng(seed)
-    effects = (Effect("springback_asymmetry", asymmetry),)
-    sim = simulate(cmd, SimParams().replace(**OTHER_FORM), effects)
-    noisy = [
-        v + rng.normal(0.0, noise_deg, cmd.size)
-        for v in (sim.loaded_bend_deg, sim.unloaded_bend_deg, sim.pin_angle_deg)
-    ]
-    return TrialTable.from_arrays(cmd, noisy[0], noisy[1], measured_pin_deg=noisy[2])
 
 
 def test_the_machine_springs_back_more_than_described():
@@ -39,11 +25,15 @@ def test_the_machine_springs_back_more_than_described():
 
 
 @pytest.mark.parametrize("asymmetry", [0.3, -0.45])
-def test_asymmetry_measured_on_the_learned_springback(asymmetry):
+def test_asymmetry_measured_on_the_learned_springback(bent_session, asymmetry):
     # the machine's own springback split by (1 + dir * alpha): beside the learned curve the
     # fitted alpha is the truth, not the split measured in the description's (smaller)
     # springback, which would read it about 1.6 times too large
-    trials = _session(asymmetry)
+    trials = bent_session(
+        (Effect("springback_asymmetry", asymmetry),),
+        params=SimParams().replace(**OTHER_FORM),
+        seed=11,
+    )
     form = learned_baseline_form(trials, SimParams())
     assert form.springback_excess  # the learned baseline springs back more
     with discrepancy_form(form):
@@ -54,12 +44,16 @@ def test_asymmetry_measured_on_the_learned_springback(asymmetry):
     assert fit.rmse_deg < 0.08  # the noise is 0.05 deg
 
 
-def test_asymmetric_loaded_departure_beside_the_learned_curve():
+def test_asymmetric_loaded_departure_beside_the_learned_curve(bent_session):
     # the machine's loaded leg departs from the description's (the bow it has and the
     # description lacks) and a wire stronger one way splits that departure by direction:
     # magnitude times (1 - dir * alpha), the released leg moving with it
     asymmetry = 0.4
-    trials = _session(asymmetry)
+    trials = bent_session(
+        (Effect("springback_asymmetry", asymmetry),),
+        params=SimParams().replace(**OTHER_FORM),
+        seed=11,
+    )
     cmd = trials.commanded_pin_deg
     own = simulate(cmd, SimParams().replace(**OTHER_FORM)).loaded_bend_deg
     departure = np.abs(own) - np.abs(simulate(cmd, SimParams()).loaded_bend_deg)

@@ -5,23 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import diagnose
-from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import SimParams, parse_effect, simulate
-
-
-def _session(effects=(), noise_deg=0.05, seed=5):
-    """A standard session's bends on the default machine, measured with noise."""
-    plan = SessionConfig(mode="standard").plan()
-    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
-    rng = np.random.default_rng(seed)
-    sim = simulate(cmd, SimParams(), effects)
-    noisy = [
-        v + rng.normal(0.0, noise_deg, cmd.size)
-        for v in (sim.loaded_bend_deg, sim.unloaded_bend_deg, sim.pin_angle_deg)
-    ]
-    return TrialTable.from_arrays(cmd, noisy[0], noisy[1], measured_pin_deg=noisy[2])
 
 
 def _twice_the_size() -> SimParams:
@@ -32,20 +17,20 @@ def _twice_the_size() -> SimParams:
     )
 
 
-def test_a_similar_machine_predicts_the_same():
-    cmd = _session().commanded_pin_deg
+def test_a_similar_machine_predicts_the_same(bent_session):
+    cmd = bent_session(seed=5).commanded_pin_deg
     a, b = simulate(cmd), simulate(cmd, _twice_the_size())
     for x, y in ((a.loaded_bend_deg, b.loaded_bend_deg), (a.pin_angle_deg, b.pin_angle_deg)):
         np.testing.assert_allclose(x, y, atol=1e-9)
 
 
 @pytest.mark.parametrize("effect", [None, "offset=1.2"])
-def test_same_diagnosis_for_two_descriptions_of_one_machine(effect):
+def test_same_diagnosis_for_two_descriptions_of_one_machine(bent_session, effect):
     # the die radius was fitted within a DIWire's 0.8-2.6 mm whatever the params said:
     # described at twice its size, a machine with no effect misfit by 1.2 deg and was
     # named `scale + camera_tilt` with evidence weight 1.0
     effects = () if effect is None else (parse_effect(effect),)
-    trials = _session(effects)
+    trials = bent_session(effects, seed=5)
     a = diagnose(trials, SimParams())
     b = diagnose(trials, _twice_the_size())
     assert a.causes == b.causes == (() if effect is None else ("offset",))

@@ -2,30 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
-from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import Cause, diagnose
 from cvmeasure.diagnose.misfit import pure_error
-from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
-from cvmeasure.sim import SimParams, parse_effect, simulate
+from cvmeasure.sim import SimParams, parse_effect
 
 
-def _session(effects=(), noise_deg=0.05, seed=8):
-    plan = SessionConfig(mode="standard").plan()
-    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
-    rng = np.random.default_rng(seed)
-    sim = simulate(cmd, SimParams(), effects)
-    noisy = [
-        v + rng.normal(0.0, noise_deg, cmd.size)
-        for v in (sim.loaded_bend_deg, sim.unloaded_bend_deg, sim.pin_angle_deg)
-    ]
-    return TrialTable.from_arrays(cmd, noisy[0], noisy[1], measured_pin_deg=noisy[2])
-
-
-def test_pure_error_from_the_session_repeats():
-    pure = pure_error(_session(noise_deg=0.05))
+def test_pure_error_from_the_session_repeats(bent_session):
+    pure = pure_error(bent_session(seed=8))
     # 22 pairs of identical commands, 3 observations each: 66 degrees of freedom
     assert pure is not None and pure.dof == 66
     assert pure.sigma_deg == pytest.approx(0.05, rel=0.25)
@@ -34,10 +19,10 @@ def test_pure_error_from_the_session_repeats():
 @pytest.mark.parametrize(
     "described", [{"wire_diameter_mm": 2.0}, {"pin_radius_mm": 4.0}, {"approach_deg": 16.0}]
 )
-def test_a_machine_described_wrong_names_nothing(described):
+def test_a_machine_described_wrong_names_nothing(bent_session, described):
     # described with a 2 mm wire (the machine bends 3 mm), `scale + camera_tilt` was named
     # at 0.77 deg rms against a noise of 0.05 deg
-    result = diagnose(_session(), SimParams().replace(**described))
+    result = diagnose(bent_session(seed=8), SimParams().replace(**described))
     assert not result.cause.named and result.causes == ()
     # nor "unexplained": terms outside the catalogue miss the data beyond the noise too
     assert result.cause == Cause.none()
@@ -47,8 +32,8 @@ def test_a_machine_described_wrong_names_nothing(described):
 
 
 @pytest.mark.parametrize("effect", [None, "offset=1.2", "compliance=0.4"])
-def test_a_machine_described_right_is_not_refused(effect):
+def test_a_machine_described_right_is_not_refused(bent_session, effect):
     effects = () if effect is None else (parse_effect(effect),)
-    result = diagnose(_session(effects))
+    result = diagnose(bent_session(effects, seed=8))
     assert result.misfit is not None and not result.misfit.refused
     assert result.causes == (() if effect is None else (effect.split("=")[0],))

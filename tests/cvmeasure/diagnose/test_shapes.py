@@ -6,35 +6,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import diagnose
 from cvmeasure.diagnose.fitting import fit_model
 from cvmeasure.diagnose.rules import MIN_DELTA_BIC, bic_gain
-from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
-from cvmeasure.sim import Effect, SimParams, simulate
+from cvmeasure.sim import Effect, SimParams
 
 NOISE_DEG = 0.035
 
 
-def _session(effect: Effect, seed: int) -> TrialTable:
-    """A standard session bent on the simulation with ``effect``; loaded, released and pin
-    read with ``NOISE_DEG`` of noise."""
-    plan = SessionConfig(mode="standard").plan()
-    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
-    res = simulate(cmd, SimParams(), [effect])
-    rng = np.random.default_rng(seed)
-    loaded, unloaded, pin = (
-        x + rng.normal(0.0, NOISE_DEG, cmd.size)
-        for x in (res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg)
-    )
-    return TrialTable.from_arrays(cmd, loaded, unloaded, measured_pin_deg=pin, source="sim")
-
-
-def test_a_large_tilt_about_an_axis_between_grid_points_is_named_with_its_axis():
+def test_a_large_tilt_about_an_axis_between_grid_points_is_named_with_its_axis(bent_session):
     # the grid tries the axis every 15 deg; 24.8 deg of tilt about 9.7 deg (5 deg from the
     # nearest point) left a 0.4 deg rms misfit on the grid's axis and was refused
     effect = Effect("camera_tilt", 24.8, (("tilt_axis_deg", 9.7),))
-    result = diagnose(_session(effect, 3), follow_up=False)
+    result = diagnose(bent_session((effect,), noise_deg=NOISE_DEG, seed=3), follow_up=False)
     assert result.causes == ("camera_tilt",)
     assert abs(result.params["tilt_deg"] - 24.8) < 1.5  # deg
     fit = result.extended_fit
@@ -43,9 +27,9 @@ def test_a_large_tilt_about_an_axis_between_grid_points_is_named_with_its_axis()
     assert not (result.misfit is not None and result.misfit.refused)
 
 
-def test_the_loaded_leg_of_an_asymmetric_wire_is_fitted_between_grid_points():
+def test_the_loaded_leg_of_an_asymmetric_wire_is_fitted_between_grid_points(bent_session):
     effect = Effect("springback_asymmetry", 0.5, (("loaded_deg", -1.6),))
-    trials = _session(effect, 5)
+    trials = bent_session((effect,), noise_deg=NOISE_DEG, seed=5)
     fit = fit_model(trials, SimParams(), "springback_asymmetry")
     shape = dict(fit.shapes_by_cause()["springback_asymmetry"])
     assert (
@@ -57,9 +41,10 @@ def test_the_loaded_leg_of_an_asymmetric_wire_is_fitted_between_grid_points():
     assert rms < 1.5 * NOISE_DEG
 
 
-def test_a_refined_shape_counts_as_a_parameter_of_its_cause():
+def test_a_refined_shape_counts_as_a_parameter_of_its_cause(bent_session):
     # the tilt's axis, fitted off the grid, is charged in the BIC like the tilt's size
-    trials = _session(Effect("camera_tilt", 24.8, (("tilt_axis_deg", 9.7),)), 3)
+    tilted = Effect("camera_tilt", 24.8, (("tilt_axis_deg", 9.7),))
+    trials = bent_session((tilted,), noise_deg=NOISE_DEG, seed=3)
     base = fit_model(trials, SimParams(), "none", intervals=False)
     tilt = fit_model(trials, SimParams(), "camera_tilt", intervals=False)
     assert "tilt_axis_deg" in dict(tilt.shapes_by_cause()["camera_tilt"])
@@ -67,12 +52,12 @@ def test_a_refined_shape_counts_as_a_parameter_of_its_cause():
     assert tilt.n_params - base.n_params == 2
 
 
-def test_a_tilt_beside_a_second_cause_keeps_the_grid_axis():
+def test_a_tilt_beside_a_second_cause_keeps_the_grid_axis(bent_session):
     # the tilt tried beside the offset as the naming tries a second cause (the offset held
     # at its own fit): its axis stays on the grid (every 15 deg), carried in the intervals
     # as the grid's rounding; refined beside a refitted offset it would take up the
     # offset's own signature and another machine's form error
-    trials = _session(Effect("offset", 2.0), 11)
+    trials = bent_session((Effect("offset", 2.0),), noise_deg=NOISE_DEG, seed=11)
     offset = fit_model(trials, SimParams(), "offset")
     pair = fit_model(
         trials,

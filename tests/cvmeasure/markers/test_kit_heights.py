@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from cvmeasure.cli import main
+from cvmeasure.contracts import PlaneModel
 from cvmeasure.kit import ROLES, default_kit, load_kit
 from cvmeasure.markers import measure_machine_photo
 from cvmeasure.markers.heights import height_angle_jacobian, move_to_heights
@@ -130,6 +131,16 @@ def test_heights_measured_from_a_sweep_through_the_cli(tmp_path, capsys, sweep_p
     errs = _errors(measured, plane, true_kit)
     assert np.abs(errs[:, 0]).max() < 0.02, errs
     assert np.all(np.abs(errs[:, 0]) <= 2.5 * errs[:, 1]), errs
+    # the kit records the plane it was measured through: through that plane (read back
+    # from its JSON) nothing is said; through a plane measured again from this camera (its
+    # pose 0.5 mm off) the heights' share of that plane's errors is named
+    assert measured.heights_pose.matches(plane.rvec, plane.tvec_mm)
+    photo = cv2.imread(str(paths[SWEEP[3]]))
+    own = measure_machine_photo(photo, measured, plane=PlaneModel.load(plane_json))
+    assert "heights_other_plane" not in {w.code for w in own.warnings}
+    remeasured = replace(plane, tvec_mm=plane.tvec_mm + np.array([0.5, 0.0, 0.0]))
+    other = measure_machine_photo(photo, measured, plane=remeasured)
+    assert "heights_other_plane" in {w.code for w in other.warnings}, other.warnings
 
 
 def test_stated_height_sigma_holds_the_truth_over_kits(tmp_path, sweep_paths):
