@@ -258,9 +258,10 @@ def main(argv: list[str] | None = None) -> dict:
     unexplained = sum(1 for r in per_run if not r["explained"])
     faulty = [r for r in per_run if r["fired"]]
     # a stall that froze the board on a setup command while it was idle stops nothing
-    undetected = sum(
-        1 for r in faulty if len(r["stops"]) < len([f for f in r["fired"] if "JSON" not in f])
-    )
+    missed = [
+        r for r in faulty if len(r["stops"]) < len([f for f in r["fired"] if "JSON" not in f])
+    ]
+    undetected = len(missed)
     parsed_runs = sum(1 for r in faulty if r["line_report"] == "parsed")
     lines_per_s = JOB_LINES / float(
         np.median([r["seconds"] for r in per_run if r["scenario"] == "none"])
@@ -385,6 +386,14 @@ def main(argv: list[str] | None = None) -> dict:
             "line parsed, flushed ones included); the streamer reads the line while the machine "
             "is held, before the flush, and a resume lets a still-running board finish first",
         ],
+        # a fault without its stop depends on timing: what fired and what stopped, to look
+        # at without running it again
+        extra={
+            "missed_runs": [
+                {k: r[k] for k in ("seed", "scenario", "line_report", "fired", "stops")}
+                for r in missed
+            ]
+        },
     )
 
 
