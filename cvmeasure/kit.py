@@ -122,6 +122,12 @@ class HeightsPose:
     rvec: tuple[float, float, float]
     tvec_mm: tuple[float, float, float]
 
+    @classmethod
+    def of(cls, rvec: Any, tvec_mm: Any) -> HeightsPose:
+        """The pose of a plane's ``rvec`` and ``tvec_mm`` (any 3-element array-likes)."""
+        r, t = (tuple(float(v) for v in np.reshape(x, 3)) for x in (rvec, tvec_mm))
+        return cls(r, t)  # type: ignore[arg-type]
+
     def matches(self, rvec: Any, tvec_mm: Any) -> bool:
         """True when the pose (rvec, tvec_mm) is this one: the same plane measurement."""
         r = np.asarray(rvec, dtype=np.float64).reshape(3)
@@ -150,8 +156,8 @@ class HeightsPose:
                 vec = np.zeros(0)
             if vec.shape != (3,) or not np.all(np.isfinite(vec)):
                 raise ValueError(f"heights_pose.{key} must be three finite numbers")
-            vectors.append(tuple(float(v) for v in vec))
-        return cls(vectors[0], vectors[1])  # type: ignore[arg-type]
+            vectors.append(vec)
+        return cls.of(*vectors)
 
 
 @dataclass(frozen=True)

@@ -286,12 +286,7 @@ def measure_heights(
         name=f"{kit.name.removesuffix('-flat')}-heights",
         markers=tuple(order[m.role] for m in kit.markers),
         height_covariance_mm2=_rows(h_cov),
-        heights_pose=None
-        if plane_pose is None
-        else HeightsPose(
-            tuple(float(v) for v in np.reshape(plane_pose[0], 3)),  # type: ignore[arg-type]
-            tuple(float(v) for v in np.reshape(plane_pose[1], 3)),  # type: ignore[arg-type]
-        ),
+        heights_pose=None if plane_pose is None else HeightsPose.of(*plane_pose),
     )
     warnings = _sweep_warnings(photos, rms, y_down)
     return MeasuredHeights(
