@@ -115,13 +115,6 @@ KNOWN_WIDTH_FIRST_RHO = 1.2
 #: within the axis' basin, short of a flank's valley (about 0.75 half-widths off).
 KNOWN_WIDTH_REFINE = 0.3
 
-#: Share of the symmetry window's offsets left out of the final centres' cost, those of
-#: largest asymmetry: a narrow feature on one flank only (a lamp's glint on a polished
-#: wire, a speck) no longer pulls the centre, which the crest and the other flank fix. A
-#: broad highlight on the lit flank still pulls it: on path-traced parts lit from one side
-#: the far chords' centres moved 0.1-0.2 px back towards the axis (of 0.5-0.9 px off).
-HIGHLIGHT_TRIM_SHARE = 0.4
-
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
 
@@ -313,18 +306,9 @@ def _final_symmetric(
     window: int,
 ) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The last pass of symmetric centres: the centres and their profiles, the profiles
-    rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`).
-
-    Each centre is the trimmed symmetry's (:data:`HIGHLIGHT_TRIM_SHARE`) where that lies
-    within half the window of the whole window's, else the whole window's.
-    """
-    slope = 0.4 * step_px
-    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=slope)
-    trimmed, _ = symmetric_centres(
-        prof, rho_px=rho, search_px=search, max_slope_px=slope, trim_share=HIGHLIGHT_TRIM_SHARE
-    )
-    near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
-    shift = despike(np.where(near, trimmed, shift), window)
+    rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`)."""
+    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
+    shift = despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())
     coverage = float(ok.mean())
