@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from benchmarks.diagnosis_session import coverage_interval
+from benchmarks.diagnosis_session import _pb_pin, coverage_interval
+from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.sim import EFFECTS
 from cvmeasure_datasets import physical_bender as pb
@@ -92,6 +93,8 @@ def _run(seed: int, hidden: str | tuple[str, ...], plan: str) -> dict:
 
 #: The follow-up's noise is drawn from the case's seed plus this (its own stream).
 FOLLOW_UP_SEED_OFFSET = 5_000_000
+#: ... and the pin readings it asks for from the case's seed plus this.
+PIN_SEED_OFFSET = 6_000_000
 
 
 def _follow_up_outcome(case: pb.PhysicalCase, result: Diagnosis) -> dict:
@@ -101,7 +104,8 @@ def _follow_up_outcome(case: pb.PhysicalCase, result: Diagnosis) -> dict:
     if plan is None:
         return {"proposed": False}
     more = pb.run_follow_up(case, plan.commanded_pin_deg, case.seed + FOLLOW_UP_SEED_OFFSET)
-    again = diagnose(more.trials, follow_up=False).to_dict()
+    trials = with_pin_read(case, more.trials, plan.read_pin)
+    again = diagnose(trials, follow_up=False).to_dict()
     return {
         "proposed": True,
         "n_trials": plan.n_trials,
@@ -111,6 +115,28 @@ def _follow_up_outcome(case: pb.PhysicalCase, result: Diagnosis) -> dict:
         "causes": list(again["causes"]),
         "tie": list(again["tie"]),
     }
+
+
+def with_pin_read(case: pb.PhysicalCase, trials: TrialTable, read_pin: bool) -> TrialTable:
+    """``trials`` (the case's bends, then the follow-up's) with the pin's angle read on
+    the follow-up's loaded photos when its plan asks for it (``FollowUp.read_pin``): the
+    true head rotation's pin (:func:`benchmarks.diagnosis_session._pb_pin`) with the
+    case's noise, from a stream of its own; the case's own bends keep what they had."""
+    n = len(case.trials)
+    if not read_pin or len(trials) == n:
+        return trials
+    head = pb.bend(trials.commanded_pin_deg, case.machine, case.hidden).head_deg
+    rng = np.random.default_rng(case.seed + PIN_SEED_OFFSET)
+    pin = _pb_pin(case.machine, head[n:], case.hidden) + rng.normal(
+        0.0, case.noise_deg, len(trials) - n
+    )
+    return TrialTable.from_arrays(
+        trials.commanded_pin_deg,
+        trials.loaded_bend_deg,
+        trials.unloaded_bend_deg,
+        measured_pin_deg=np.concatenate([case.trials.measured_pin_deg, pin]),
+        source="physical",
+    )
 
 
 def _catalogue_names(row: dict) -> set[str]:

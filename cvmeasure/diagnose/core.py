@@ -358,6 +358,11 @@ def _with_follow_up(
         f"follow-up: {plan.n_trials} bends ({plan.design}) after the data are expected to "
         f"separate {', '.join(plan.rivals)} by {plan.expected_separation_se:.1f} standard "
         "errors (each rival refitted); run them, append and diagnose again"
+        + (
+            ", with the pin's angle read on each loaded photo (measured_pin_deg)"
+            if plan.read_pin and not trials.has_pin
+            else ""
+        )
     )
     return dataclasses.replace(result, follow_up=plan, notes=(*result.notes, note))
 

@@ -10,6 +10,14 @@ direction, one then the other; the data's first commands again, late) are append
 to the data in the order they would be run, so history-dependent causes (a drift's
 home shift, play lost on reversals) see the real sequence.
 
+The plan's bends read the pin's angle on their loaded photos (``measured_pin_deg``)
+whenever the data have loaded photos, even when the data did not read it: the pin
+shows the head's own rotation, which the wire's model-form discrepancy (a smooth curve
+in the bend on the loaded and released angles only) cannot absorb. A head error (a
+scale of the rotation, the head's once-per-revolution runout) and the wire's response
+(compliance) differ there, and a smooth curve on the bend angles alone takes most of
+their difference up: without the pin no plan within the head's reach separates them.
+
 Criterion (linearised T-optimality, Atkinson-Fedorov): for each ordered pair of rivals
 (truth, fitted), ``d`` = truth's predictions less the fitted rival's over the data
 and the plan; the fitted rival refits its free directions (strength, die radius, its
@@ -94,6 +102,9 @@ class FollowUp:
     expected_separation_se: float
     separation_by_pair: tuple[tuple[str, str, float], ...]  # (truth, fitted, standard errors)
     first_trial: int  # number of the first proposed bend (the data's count + 1)
+    #: the pin's angle is to be read on each proposed bend's loaded photo
+    #: (``measured_pin_deg``): the separation counts on it
+    read_pin: bool = False
 
     @property
     def n_trials(self) -> int:
@@ -113,6 +124,7 @@ class FollowUp:
             "design": self.design,
             "n_trials": self.n_trials,
             "first_trial": self.first_trial,
+            "read_pin": self.read_pin,
             "commanded_pin_deg": list(self.commanded_pin_deg),
             "expected_separation_se": self.expected_separation_se,
             "separation_by_pair": [
@@ -280,7 +292,9 @@ def propose_follow_up(
     n0 = len(trials)
     sigma = max(rivals[0].fit.sigma_deg, 1e-3)
     rho = _loaded_released_correlation(rivals[0].fit, n0)
-    measured = (trials.has_loaded, True, trials.has_pin)
+    # the pin is on the loaded photo: read it on the plan's bends (see the module's note)
+    read_pin = trials.has_pin or trials.has_loaded
+    measured = (trials.has_loaded, True, read_pin)
     obs_old = trials.observations()
     best: tuple[float, str, NDArray[np.float64], list[tuple[str, str, float]]] | None = None
     for size in sorted(sizes):
@@ -319,6 +333,7 @@ def propose_follow_up(
         expected_separation_se=float(worst),
         separation_by_pair=tuple((a, b, float(s)) for a, b, s in pairs),
         first_trial=n0 + 1,
+        read_pin=read_pin,
     )
 
 

@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from benchmarks.diagnosis_independent import with_pin_read
 from benchmarks.diagnosis_session import follow_up_trials, make_case
 from cvmeasure.cli import main
 from cvmeasure.diagnose import diagnose
@@ -25,14 +26,17 @@ def _feasible(case: pb.PhysicalCase, commands: tuple[float, ...]) -> None:
 
 
 @pytest.mark.parametrize(
-    ("seed", "hidden", "rival"),
+    ("seed", "hidden", "rival", "order"),
     [
-        (943, "drift", "axis_offset"),  # a home shift on a sweep, tied with an axis offset
-        (946, "compliance", "scale"),  # the bowed compliance and the straight scale
+        (943, "drift", "axis_offset", "sweep"),  # a home shift, tied with an axis offset
+        (946, "compliance", "scale", "sweep"),  # the bowed compliance and the straight scale
+        # the wire's compliance and the head's once-per-revolution runout, on runs of
+        # repeated commands: told apart by the pin the follow-up reads (below)
+        (960, "compliance", "gear_runout_360", "repeats"),
     ],
 )
-def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidden, rival):
-    case = pb.physical_case(seed, hidden, plan="sweep", n_trials=60)
+def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidden, rival, order):
+    case = pb.physical_case(seed, hidden, plan=order, n_trials=60)
     result = diagnose(case.trials)
     # the data leave it open (library terms that fit as well within the noise tie too:
     # drift with a curved trend, a compliance or scale with the head's runout; a trend
@@ -47,11 +51,17 @@ def test_a_tie_on_the_independent_model_is_separated_by_its_follow_up(seed, hidd
     d = result.to_dict()["follow_up"]
     assert d["n_trials"] == plan.n_trials == len(d["commanded_pin_deg"])
     # run on the same machine after the data (its state continued), append, diagnose again
+    # the data have loaded photos but no pin readings: the plan asks for the pin on its own
+    assert not case.trials.has_pin and plan.read_pin and d["read_pin"]
     more = pb.run_follow_up(case, plan.commanded_pin_deg, seed + 1)
     assert np.array_equal(more.trials.unloaded_bend_deg[:60], case.trials.unloaded_bend_deg)
-    again = diagnose(more.trials, follow_up=False)
+    again = diagnose(with_pin_read(case, more.trials, plan.read_pin), follow_up=False)
     assert again.cause.primary == hidden and again.tie == ()
     assert again.follow_up is None
+    if rival == "gear_runout_360":
+        # the same bends without the pin leave the head's runout tied: the bend angles'
+        # smooth model-form curve takes up what tells it from the wire's compliance
+        assert rival in diagnose(more.trials, follow_up=False).tie
 
 
 def test_the_follow_up_continues_the_machines_state():
