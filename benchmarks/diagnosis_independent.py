@@ -510,7 +510,9 @@ def main(argv: list[str] | None = None) -> dict:
             "follow-up rows: each catalogue case whose result reports a tie and proposes a "
             "follow-up (`follow_up`) has it run on the same machine after its own bends "
             "(physical_bender.run_follow_up: trial order, direction history, home shift "
-            "continued; noise from seed + 5,000,000), appended, and diagnosed again; "
+            "continued; noise from seed + 5,000,000; the pin read on its loaded photos when "
+            "the plan asks, `read_pin`, noise from seed + 6,000,000), appended, and "
+            "diagnosed again; "
             "named right after it = the hidden cause named and no tie. The row 'named "
             "right' above is without any follow-up",
         ],
