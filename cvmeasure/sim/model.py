@@ -25,7 +25,8 @@ axis ``e`` off the marker, about ``(e / R_p) cos(phi)`` (rad) more.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable
+import operator
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,6 +48,7 @@ __all__ = [
     "SimResult",
     "simulate",
     "simulate_drift_rates",
+    "simulate_rows",
     "pin_command_for_angle",
     "effect_values",
     "apply_camera_tilt_deg",
@@ -357,7 +359,7 @@ def _forward(
             )
             phi = phi0 + r
             theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
-    if values.get("compliance", 0.0) > 0.0:
+    if np.any(values.get("compliance", 0.0) > 0.0):  # (a batch of rows: all > 0)
         # the drive winds up under the pin load: torque = (M / l) * R_p cos(phi - theta); the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
@@ -485,6 +487,76 @@ def simulate_drift_rates(
             for f in dataclasses.fields(res)
             if f.name != "commanded_pin_deg"
         },
+    )
+
+
+#: The params fields that may differ between the rows of :func:`simulate_rows`: the
+#: material's strength, which changes only the springback law (not the head's circles).
+_ROW_FIELDS = ("yield_mpa", "uts_mpa")
+#: The params fields every row of :func:`simulate_rows` shares.
+_SHARED = operator.attrgetter(
+    *(f.name for f in dataclasses.fields(SimParams) if f.name not in _ROW_FIELDS)
+)
+
+
+def simulate_rows(
+    commanded_pin_deg: ArrayLike,
+    params_rows: Sequence[SimParams],
+    effects_rows: Sequence[Sequence[Effect]],
+    *,
+    bend_index: ArrayLike | None = None,
+) -> SimResult:
+    """:func:`simulate` of K models of the same plan in one vectorised run.
+
+    Row ``k`` of every angle array, of shape (K, N), is what :func:`simulate` gives with
+    ``params_rows[k]`` and ``effects_rows[k]``, the same numbers (every operation is
+    elementwise along the rows). The rows may differ in the effects' values and the
+    material's strength (yield and UTS) only: the same effects with the same forms in
+    the same order, the same machine; ValueError otherwise (and for a compliance on in
+    some rows only). For the forward differences of a fit: one simulation per Jacobian
+    instead of one per column.
+    """
+    cmd = _commands(commanded_pin_deg)
+    rows = [tuple(e) for e in effects_rows]
+    if not rows or len(rows) != len(params_rows):
+        raise ValueError("simulate_rows needs one params and one effects per row")
+    base = params_rows[0]
+    shared = _SHARED(base)
+    if any(p is not base and _SHARED(p) != shared for p in params_rows):
+        raise ValueError("simulate_rows: the rows' params differ beyond the strength")
+    forms = [(e.name, e.shape) for e in rows[0]]
+    if any([(e.name, e.shape) for e in r] != forms for r in rows[1:]):
+        raise ValueError("simulate_rows: the rows' effects differ beyond their values")
+    per_row = [effect_values(r) for r in rows]
+    values: dict[str, Any] = {}
+    for name, first in per_row[0].items():
+        column = [v[name] for v in per_row]
+        same = all(v == first for v in column)
+        values[name] = first if same else np.array(column, dtype=np.float64)[:, None]
+    if isinstance(values.get("compliance"), np.ndarray) and not np.all(values["compliance"] > 0):
+        raise ValueError("simulate_rows: the compliance is on in some rows only")
+    laws = [springback_law(p) for p in params_rows]
+    law = laws[0]
+    if any(other.moment_nmm != law.moment_nmm for other in laws):
+        # only the moment follows the strength (EI and the die's radius do not)
+        moment = np.array([other.moment_nmm for other in laws], dtype=np.float64)[:, None]
+        law = dataclasses.replace(law, moment_nmm=moment)  # type: ignore[arg-type]
+    res = _forward(
+        cmd, base, values, _bend_index(bend_index, cmd.size), law, shapes=_shapes(rows[0])
+    )
+    shape = (len(rows), cmd.size)
+
+    def full(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return a if a.shape == shape else np.broadcast_to(a, shape)
+
+    return SimResult(
+        commanded_pin_deg=cmd,
+        pin_deg=full(res.pin_deg),
+        loaded_bend_deg=full(res.loaded_bend_deg),
+        unloaded_bend_deg=full(res.unloaded_bend_deg),
+        springback_deg=full(res.springback_deg),
+        lever_mm=full(res.lever_mm),
+        pin_angle_deg=full(res.pin_angle_deg),
     )
 
 
