@@ -108,18 +108,17 @@ def residual_rows(
     params: SimParams,
     base_effects: Sequence[Effect],
     causes: Causes,
-    points: Sequence[tuple[float, Sequence[float]]],
+    points: Sequence[tuple[float, Sequence[float], Sequence[float]]],
     *,
-    nuisance: Sequence[float] = (),
     shapes: Sequence[Shape] = (),
 ) -> NDArray[np.float64]:
     """(K, 3 N): :func:`residuals` at each of ``points`` ((strength scale, the causes'
-    values); one nuisance geometry for them all), the same numbers from one vectorised
-    simulation (:func:`simulate_rows`) instead of K. ValueError where the rows cannot
-    share one simulation (see :func:`simulate_rows`)."""
+    values, the nuisance geometry)), the same numbers from one vectorised simulation
+    (:func:`simulate_rows`) instead of K. ValueError where the rows cannot share one
+    simulation (see :func:`simulate_rows`)."""
     cmd = trials.commanded_pin_deg
-    effects_rows = [effects_with(base_effects, causes, v, shapes) for _, v in points]
-    params_rows = [scaled(params, s, nuisance) for s, _ in points]
+    effects_rows = [effects_with(base_effects, causes, v, shapes) for _, v, _ in points]
+    params_rows = [scaled(params, s, nuisance) for s, _, nuisance in points]
     res = simulate_rows(cmd, params_rows, effects_rows, bend_index=trials.bend_index)
     if not any(e.name == ASYMMETRY and e.value for r in effects_rows for e in r):
         # no row's springback is split (learned_split returns the simulation's angles)

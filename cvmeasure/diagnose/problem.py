@@ -196,30 +196,27 @@ class Problem:
 
     def resid_many(self, points: list[NDArray[np.float64]]) -> list[NDArray[np.float64]]:
         """:meth:`resid` at each of ``points``, the same numbers: the points not yet
-        known that share a nuisance geometry (a forward difference's steps in the
-        strength and the causes) from one vectorised simulation (:func:`residual_rows`)."""
+        known (a forward difference's steps) from one vectorised simulation
+        (:func:`residual_rows`)."""
         lay, forms = self.layout, self.forms
-        groups: dict[bytes, list[int]] = {}
-        for i, p in enumerate(points):
-            if self.resid_seen.get(p, forms) is None and self.seen.get(p, forms) is None:
-                groups.setdefault(p[lay.nuisance].tobytes(), []).append(i)
-        for index in groups.values():
-            if len(index) < 2:
-                continue  # one point: the plain simulation
-            group = [points[i] for i in index]
+        new = [
+            p
+            for p in points
+            if self.resid_seen.get(p, forms) is None and self.seen.get(p, forms) is None
+        ]
+        if len(new) > 1:  # (one point: the plain simulation)
             try:
                 rows = residual_rows(
                     self.trials,
                     self.params,
                     self.base_effects,
                     self.names,
-                    [(p[lay.strength], p[lay.causes]) for p in group],
-                    nuisance=group[0][lay.nuisance],
+                    [(p[lay.strength], p[lay.causes], p[lay.nuisance]) for p in new],
                     shapes=self.forms,
                 )
             except ValueError:
-                continue  # rows that cannot share a simulation: one by one
-            for p, row in zip(group, rows, strict=True):
+                rows = None  # rows that cannot share a simulation: one by one
+            for p, row in zip(new, () if rows is None else rows, strict=False):
                 self.seen.put(p, forms, row)
         return [self.resid(p) for p in points]
 

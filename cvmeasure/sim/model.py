@@ -330,14 +330,22 @@ def _forward(
     *,
     measure: bool = True,
     shapes: dict[str, float] | None = None,
+    die_wrap_mm: NDArray[np.float64] | None = None,
 ) -> SimResult:
+    """The simulation (see :func:`simulate`); ``die_wrap_mm``: the die's centreline
+    radius (mm) in place of the params' one, e.g. one per row of :func:`simulate_rows`
+    (the contact angle does not depend on it)."""
     shapes = shapes or {}
     history = _History.of(cmd, bend_index)
     direction = history.direction
     r = _rotation(cmd, values, shapes, history, None)
     nominal, nominal_contact = _nominal_geometry(params, direction)
+    if die_wrap_mm is not None:
+        nominal = dataclasses.replace(nominal, die_wrap_mm=die_wrap_mm)  # type: ignore[arg-type]
     if "axis_offset" in values:
         geom = head_geometry(params, direction, axis_offset_mm=values["axis_offset"])
+        if die_wrap_mm is not None:
+            geom = dataclasses.replace(geom, die_wrap_mm=die_wrap_mm)  # type: ignore[arg-type]
         contact = contact_angle_deg(geom)
     else:
         geom, contact = nominal, nominal_contact  # the same circles (an offset of 0 adds nothing)
@@ -491,12 +499,34 @@ def simulate_drift_rates(
 
 
 #: The params fields that may differ between the rows of :func:`simulate_rows`: the
-#: material's strength, which changes only the springback law (not the head's circles).
-_ROW_FIELDS = ("yield_mpa", "uts_mpa")
+#: material's strength (it changes the springback law only) and the die's radius (the
+#: law and the die's circle: not the contact angle).
+_ROW_FIELDS = ("yield_mpa", "uts_mpa", "die_radius_mm")
 #: The params fields every row of :func:`simulate_rows` shares.
 _SHARED = operator.attrgetter(
     *(f.name for f in dataclasses.fields(SimParams) if f.name not in _ROW_FIELDS)
 )
+
+
+def _column(values: Sequence[float]) -> float | NDArray[np.float64]:
+    """The rows' common value, or a (K, 1) column of them where they differ."""
+    first = values[0]
+    if all(v == first for v in values):
+        return first
+    return np.array(values, dtype=np.float64)[:, None]
+
+
+def _stacked(laws: Sequence[SpringbackLaw], fields: tuple[str, ...]) -> SpringbackLaw:
+    """The rows' springback laws as one law whose ``fields`` are (K, 1) columns where they
+    differ; ValueError when another field differs."""
+    law = laws[0]
+    if any(other != law for other in laws):
+        rest = [f.name for f in dataclasses.fields(law) if f.name not in fields]
+        if any(getattr(o, n) != getattr(law, n) for o in laws for n in rest):
+            raise ValueError("simulate_rows: the rows' wires differ beyond the strength")
+        columns = {n: _column([getattr(o, n) for o in laws]) for n in fields}
+        law = dataclasses.replace(law, **columns)  # type: ignore[arg-type]
+    return law
 
 
 def simulate_rows(
@@ -510,10 +540,10 @@ def simulate_rows(
 
     Row ``k`` of every angle array, of shape (K, N), is what :func:`simulate` gives with
     ``params_rows[k]`` and ``effects_rows[k]``, the same numbers (every operation is
-    elementwise along the rows). The rows may differ in the effects' values and the
-    material's strength (yield and UTS) only: the same effects with the same forms in
-    the same order, the same machine; ValueError otherwise (and for a compliance on in
-    some rows only). For the forward differences of a fit: one simulation per Jacobian
+    elementwise along the rows). The rows may differ in the effects' values, the
+    material's strength (yield and UTS) and the die's radius only: the same effects with
+    the same forms in the same order, the rest of the machine the same; ValueError
+    otherwise (and for a compliance on in some rows only). For the forward differences of a fit: one simulation per Jacobian
     instead of one per column.
     """
     cmd = _commands(commanded_pin_deg)
@@ -528,21 +558,21 @@ def simulate_rows(
     if any([(e.name, e.shape) for e in r] != forms for r in rows[1:]):
         raise ValueError("simulate_rows: the rows' effects differ beyond their values")
     per_row = [effect_values(r) for r in rows]
-    values: dict[str, Any] = {}
-    for name, first in per_row[0].items():
-        column = [v[name] for v in per_row]
-        same = all(v == first for v in column)
-        values[name] = first if same else np.array(column, dtype=np.float64)[:, None]
+    values: dict[str, Any] = {name: _column([v[name] for v in per_row]) for name in per_row[0]}
     if isinstance(values.get("compliance"), np.ndarray) and not np.all(values["compliance"] > 0):
         raise ValueError("simulate_rows: the compliance is on in some rows only")
     laws = [springback_law(p) for p in params_rows]
-    law = laws[0]
-    if any(other.moment_nmm != law.moment_nmm for other in laws):
-        # only the moment follows the strength (EI and the die's radius do not)
-        moment = np.array([other.moment_nmm for other in laws], dtype=np.float64)[:, None]
-        law = dataclasses.replace(law, moment_nmm=moment)  # type: ignore[arg-type]
+    law = _stacked(laws, ("moment_nmm", "bend_radius_mm"))
+    # head_geometry's die circle, row by row
+    wrap = _column([p.die_radius_mm + p.wire_radius_mm for p in params_rows])
     res = _forward(
-        cmd, base, values, _bend_index(bend_index, cmd.size), law, shapes=_shapes(rows[0])
+        cmd,
+        base,
+        values,
+        _bend_index(bend_index, cmd.size),
+        law,
+        shapes=_shapes(rows[0]),
+        die_wrap_mm=wrap if isinstance(wrap, np.ndarray) else None,
     )
     shape = (len(rows), cmd.size)
 

@@ -383,8 +383,9 @@ def test_a_strength_by_direction_moves_the_loaded_leg_in_its_general_form():
     ],
 )
 def test_simulate_rows_is_simulate_at_each_row(effects):
-    # the batched form a fit's forward differences use: each row (the strength or one
-    # effect's value stepped) the very numbers of simulate with that row's model
+    # the batched form a fit's forward differences use: each row (the strength, the
+    # die's radius or one effect's value stepped) the very numbers of simulate with that
+    # row's model
     rng = np.random.default_rng(5)
     cmd = rng.choice([-1.0, 1.0], 30) * rng.uniform(20.0, 140.0, 30)
     index = np.concatenate([np.arange(18), np.arange(12)]).astype(float)
@@ -393,7 +394,8 @@ def test_simulate_rows_is_simulate_at_each_row(effects):
         base,
         base.replace(yield_mpa=base.yield_mpa * 1.001, uts_mpa=base.uts_mpa * 1.001),
     ]
-    effects_rows = [effects, effects]
+    params_rows.append(base.replace(die_radius_mm=1.7))
+    effects_rows = [effects, effects, effects]
     for k, e in enumerate(effects):
         params_rows.append(base)
         stepped = Effect(e.name, e.value * 1.01 + 1e-6, e.shape)
@@ -409,7 +411,7 @@ def test_simulate_rows_refuses_rows_that_cannot_share_a_run():
     cmd = np.array([30.0, -60.0, 90.0])
     base = SimParams()
     with pytest.raises(ValueError, match="params"):
-        simulate_rows(cmd, [base, base.replace(die_radius_mm=2.0)], [(), ()])
+        simulate_rows(cmd, [base, base.replace(pin_radius_mm=4.0)], [(), ()])
     with pytest.raises(ValueError, match="effects"):
         simulate_rows(cmd, [base, base], [(Effect("offset", 0.1),), (Effect("scale", 0.1),)])
     with pytest.raises(ValueError, match="compliance"):
