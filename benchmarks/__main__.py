@@ -48,6 +48,14 @@ TIMING_ALONE = frozenset({"decode_speed", "part_speed"})
 #: core): with ``--cores`` they run one at a time in a lane of their own beside the pinned
 #: queue, so the run's length is not their waiting added to everything else's computing.
 SIDE_LANE = frozenset({"serial_faults", "serial_heldout", "kill_runs"})
+#: Benchmarks of the parallel part that time a whole ``cvmeasure`` process on one core: the
+#: side lane, unpinned, shares their core for a while (its kill runs start processes of their
+#: own), so they start only once the side lane has ended.
+AFTER_SIDE_LANE = frozenset({"diagnosis_session", "diagnosis_independent"})
+_ALONE_OF_SIDE = (
+    "in parallel: up to {} benchmarks at once, each pinned to a core of its own, "
+    "after the side lane had ended"
+)
 
 
 def _command_of(name: str, quick: bool) -> list[str]:
@@ -125,7 +133,8 @@ def _run_pinned(
     """Run ``names`` at most ``len(cores)`` at a time, each pinned to a core of its own.
 
     Longest first (by the last run's seconds), so the queues end together. ``side``
-    (``SIDE_LANE``: benchmarks that mostly wait) run one at a time beside them, unpinned.
+    (``SIDE_LANE``: benchmarks that mostly wait) run one at a time beside them, unpinned;
+    ``AFTER_SIDE_LANE`` ones start only when the side lane has ended.
     A child's stderr goes to a temporary file and is echoed when it ends.
     """
     queues: dict[str, list[str]] = {
@@ -140,11 +149,15 @@ def _run_pinned(
     running: dict[str, tuple[subprocess.Popen[bytes], tuple[str, int | None], float, Any]] = {}
     done: dict[str, tuple[int, float, str]] = {}
     while queues["pinned"] or queues["side"] or running:
+        side_busy = bool(queues["side"]) or any(s[0] == "side" for _, s, _, _ in running.values())
         for slot in list(slots):
-            if queues[slot[0]]:
+            name = _next_of(queues[slot[0]], side_busy and slot[0] == "pinned")
+            if name is not None:
                 slots.remove(slot)
-                name = queues[slot[0]].pop(0)
-                proc, err = _start(name, quick, schedule, slot[1])
+                queues[slot[0]].remove(name)
+                after = name in AFTER_SIDE_LANE and side
+                note = _ALONE_OF_SIDE.format(len(cores)) if after else schedule
+                proc, err = _start(name, quick, note, slot[1])
                 running[name] = (proc, slot, time.perf_counter(), err)
         time.sleep(0.5)
         for name, (proc, slot, t0, err) in list(running.items()):
@@ -166,6 +179,11 @@ def _run_pinned(
             del running[name]
             slots.append(slot)
     return done
+
+
+def _next_of(queue: Sequence[str], side_busy: bool) -> str | None:
+    """The first name of ``queue`` that may start now (``AFTER_SIDE_LANE`` ones wait)."""
+    return next((n for n in queue if not (side_busy and n in AFTER_SIDE_LANE)), None)
 
 
 def _mark_failed(name: str, code: int, last_line: str, command: str) -> None:
@@ -224,7 +242,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         type=int,
         default=1,
         help="run up to N benchmarks at once, each pinned to a core of its own (Linux); "
-        f"{', '.join(sorted(SIDE_LANE))} one at a time beside them (they mostly wait), "
+        f"{', '.join(sorted(SIDE_LANE))} one at a time beside them (they mostly wait; "
+        f"{', '.join(sorted(AFTER_SIDE_LANE))} start after them), "
         f"{', '.join(sorted(TIMING_ALONE))} then run alone after them, "
         f"{', '.join(sorted(ALL_CORES))} alone on every core, last (default 1: one at a time)",
     )

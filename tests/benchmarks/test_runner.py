@@ -230,3 +230,31 @@ def test_finish_records_how_the_run_was_scheduled(bench_dirs, monkeypatch):
     assert result["schedule"].startswith("alone")
     text = (bench_dirs / "RESULTS.md").read_text()
     assert "· run alone: no other benchmark of this run at the same time" in text
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_process_timing_benchmarks_start_after_the_side_lane(tmp_path, monkeypatch):
+    """AFTER_SIDE_LANE benchmarks wait for the side lane; the other pinned ones do not."""
+    import os
+
+    import benchmarks.__main__ as runner
+
+    cores = sorted(os.sched_getaffinity(0))[:1]
+
+    def command(name, quick):
+        script = (
+            "import os, time; t0 = time.time(); time.sleep(0.4); "
+            f"open({str(tmp_path)!r} + '/{name}', 'w').write("
+            "f'{t0} {time.time()} ' + os.environ['BENCHMARKS_SCHEDULE'])"
+        )
+        return [sys.executable, "-c", script]
+
+    monkeypatch.setattr(runner, "_command_of", command)
+    monkeypatch.setattr(runner, "_previous_seconds", lambda name: 1.0)
+    done = runner._run_pinned(["diagnosis_session", "p"], False, 60.0, cores, side=["s1", "s2"])
+    assert {k: v[0] for k, v in done.items()} == {"diagnosis_session": 0, "p": 0, "s1": 0, "s2": 0}
+    runs = {n: (tmp_path / n).read_text().split(maxsplit=2) for n in done}
+    side_end = max(float(runs[n][1]) for n in ("s1", "s2"))
+    assert float(runs["diagnosis_session"][0]) >= side_end
+    assert float(runs["p"][0]) < side_end  # the queue's other benchmark did not wait
+    assert runs["diagnosis_session"][2].endswith("after the side lane had ended")
