@@ -30,9 +30,11 @@ states the heights honestly without reaching the angles' sigma. The result is th
 ``height_sigma_mm`` and their covariance ``height_covariance_mm2``, which a
 measurement on a plane pose carries into every angle's uncertainty, and the plane's pose
 (``heights_pose``). Fitted through that plane, the heights take up the errors it puts on
-every photo (its pose's, the lens's); a photo measured through the same plane carries
-those errors again and they largely cancel, what is left being about the fit's own
-scatter, which the covariance states (scaled by the residuals' RMS). Through another
+every photo (its pose's, the lens's, and each disc edge's pose-constant bias); a photo
+measured through the same plane carries those errors again and they largely cancel, what
+is left being about the fit's own scatter, which the covariance states (scaled by the
+residuals' RMS), and the measurement leaves that bias out of the angles' sigma
+(:func:`cvmeasure.markers.heights.heights_take_up_bias`). Through another
 plane they do not cancel: a measurement warns (``heights_other_plane``).
 
 Frames: the plate's frame of the plane pose (board frame), mm; heights along the

@@ -30,7 +30,9 @@ channel weighting (green for luminance edges) disagrees on, never less than a fl
 centre (the shift demosaicing, blur, JPEG or shading gives an edge, which the residuals
 cannot see; the floor alone where lateral colour switched the edges to green) and, for a disc
 partly hidden or unevenly lit, what the halves of its edge disagree on beyond their
-sampling; on a plane pose the kit's height uncertainties are added. They do not
+sampling; on a plane pose the kit's height uncertainties are added, and with heights
+measured through that same plane the edge's pose-constant bias is left out (the heights
+took it up: :func:`cvmeasure.markers.heights.heights_take_up_bias`). They do not
 include camera or plane calibration errors (the plane pose's own uncertainty, from the
 board photo's corner residuals, moves an angle by a fifth of its sigma or less on
 poses 430-850 mm from the plate, 1-2 % in quadrature, so it is not carried), print or
@@ -53,7 +55,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -101,6 +103,7 @@ from cvmeasure.markers.heights import (
     HEIGHT_WARN_DEG,
     fallback_focal_px,
     height_parallax,
+    heights_take_up_bias,
     plane_heights_sigma,
 )
 from cvmeasure.markers.refine import (
@@ -190,8 +193,13 @@ def measure_trial(
 
 
 _Fits = dict[str, tuple[CircleFit, Any]]
+#: markers, centres, their covariances, the pose-constant part of those covariances, warnings
 _Measured = tuple[
-    dict[str, MarkerMeasurement], dict[str, np.ndarray], dict[str, np.ndarray], list[StageWarning]
+    dict[str, MarkerMeasurement],
+    dict[str, np.ndarray],
+    dict[str, np.ndarray],
+    dict[str, np.ndarray],
+    list[StageWarning],
 ]
 
 
@@ -272,9 +280,10 @@ def _on_frame(
     frame: MeasureFrame,
     other: Mapping[str, np.ndarray],
     edge: str | None = None,
-) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], list[PlaneDisc]]:
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, np.ndarray], list[PlaneDisc]]:
     """Each disc's circle fitted in ``frame`` (its edge mapped at its own height above the
-    plate on a plane pose): centres, their covariances, and the discs on the plane.
+    plate on a plane pose): centres, their covariances, the pose-constant part of those
+    (the unseen bias, :func:`unseen_bias_cov`), and the discs on the plane.
 
     A centre's covariance is the sampling error of the fit in the frame, where the disc
     is a circle (in the image a tilted view makes it an ellipse, and a circle fitted
@@ -284,7 +293,9 @@ def _on_frame(
     halves of the edge disagree on beyond their sampling, both fitted in the frame too.
     With ``edge`` "shade" on a plane pose, the other reading's walls (towards the camera's
     foot point) are left out of that disagreement (:func:`edge_mode_cov`)."""
-    heights = {r: kit.height_mm(r) for r in fits}
+    # the discs grouped by the height they are mapped at: without a plane pose, every
+    # height maps alike (MeasureFrame.at_height), so all the discs go in one call
+    heights = {r: kit.height_mm(r) if frame.plane is not None else 0.0 for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     other_f: dict[str, np.ndarray] = {}
     for height in dict.fromkeys(heights.values()):
@@ -311,7 +322,7 @@ def _on_frame(
     foot = None
     if edge == SHADE_EDGES and frame.plane is not None:
         foot = np.asarray(frame.plane.camera_centre_mm, dtype=np.float64)[:2]
-    centres, covs, discs = {}, {}, []
+    centres, covs, bias, discs = {}, {}, {}, []
     for role, init, fit_f in zip(roles, inits, fits_f, strict=True):
         fit = fits[role][0]
         jac, _, pts_f = mapped[role]
@@ -332,13 +343,14 @@ def _on_frame(
             if role in other_f
             else None
         )
-        covs[role] = cov + unseen_bias_cov(CENTRE_FLOOR_PX**2 * (jac @ jac.T), edge_cov)
+        bias[role] = unseen_bias_cov(CENTRE_FLOOR_PX**2 * (jac @ jac.T), edge_cov)
+        covs[role] = cov + bias[role]
         if frame.name == "plane":
             seen = fit.coverage >= HIDDEN_COVERAGE
             shape = anisotropy(pts_f - np.asarray(fit_f.centre)) if seen else None
             whole = seen and fits[role][1].ring_spread < UNEVEN_RING_SPREAD
             discs.append(PlaneDisc(role, float(fit_f.radius), shape, whole))
-    return centres, covs, discs
+    return centres, covs, bias, discs
 
 
 def _measure_ours(
@@ -374,6 +386,7 @@ def _measure_ours(
         other = _other_edges(bgr, fits, kit, edge)
     delta_e = colour_delta_e(kit, {r: e for r, (_, e) in fits.items()}, search.white)
     cov_imgs: dict[str, np.ndarray] = {}
+    bias: dict[str, np.ndarray] = {}
     uneven: set[str] = set()
     for role, (fit, edges) in fits.items():
         cov_img = np.asarray(fit.covariance)
@@ -383,7 +396,8 @@ def _measure_ours(
             uneven.add(role)
             cov_img = cov_img + split_half_cov(edges.points_px, fit, correlation_factor=cf)
         edge_img = edge_mode_cov(other[role], fit, correlation_factor=cf) if role in other else None
-        cov_img = cov_img + unseen_bias_cov(np.eye(2) * CENTRE_FLOOR_PX**2, edge_img)
+        bias[role] = unseen_bias_cov(np.eye(2) * CENTRE_FLOOR_PX**2, edge_img)
+        cov_img = cov_img + bias[role]
         cov_imgs[role] = cov_img
         markers[role] = MarkerMeasurement(
             role,
@@ -401,7 +415,7 @@ def _measure_ours(
         centres = {r: np.array(f.centre) for r, (f, _) in fits.items()}
         covs = dict(cov_imgs)
     else:
-        centres, covs, discs = _on_frame(fits, uneven, kit, frame, other, edge)
+        centres, covs, bias, discs = _on_frame(fits, uneven, kit, frame, other, edge)
         if frame.plane is not None:
             height = abs(float(frame.plane.camera_centre_mm[2]))
             warnings.extend(plane_warnings(discs, kit, height))
@@ -411,7 +425,7 @@ def _measure_ours(
                 "photo_overexposed", "photo overexposed (the brightest pixels are clipped)"
             )
         )
-    return markers, centres, covs, warnings
+    return markers, centres, covs, bias, warnings
 
 
 def _measure_seed(bgr8: np.ndarray, kit: MarkerKit, space: str, source: str) -> _Measured:
@@ -436,7 +450,7 @@ def _measure_seed(bgr8: np.ndarray, kit: MarkerKit, space: str, source: str) -> 
         for r, c in circles.items()
         if c.n_circles > 1
     ]
-    return markers, centres, covs, warnings
+    return markers, centres, covs, {}, warnings
 
 
 def _checked_options(method, space, edge, heights, camera, plane) -> Method:
@@ -518,6 +532,9 @@ def measure_machine_photo(
     )
     transform, centres, covs, warnings = got.frame, got.centres, got.covariances, got.warnings
     height_state, height_bound = got.height_state, got.height_bound
+    if height_state == "plane" and transform.plane is not None:
+        plane = transform.plane
+        covs = heights_take_up_bias(covs, got.bias_covariances, kit, (plane.rvec, plane.tvec_mm))
     try:
         angles = machine_angles(centres, covs, y_down=transform.y_down)
     except ValueError as exc:
@@ -556,7 +573,10 @@ class FrameCentres:
     ``frame`` the frame (``frame.name``: "image", "undistorted" or "plane", mm);
     ``centres`` and ``covariances`` each role's centre (2,) and covariance (2, 2) in it
     (on a plane pose: each disc's centre on the plane at its kit height);
-    ``markers`` the centres in the photo's own pixels; ``warnings`` as the result's.
+    ``markers`` the centres in the photo's own pixels; ``warnings`` as the result's;
+    ``bias_covariances`` the pose-constant part of each covariance (the edge's unseen
+    bias, the same on every photo from one pose), which measured heights take up
+    (:func:`cvmeasure.markers.heights.heights_take_up_bias`).
     """
 
     frame: MeasureFrame
@@ -566,6 +586,7 @@ class FrameCentres:
     warnings: list[StageWarning]
     height_state: str | None = None
     height_bound: dict[str, float] | None = None
+    bias_covariances: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _centres(
@@ -603,7 +624,7 @@ def _centres(
                 "the seed_hough method measures in image pixels: it takes no camera or plane"
             )
         transform = MeasureFrame("image")
-        markers, centres, covs, warnings = _measure_seed(bgr8, kit, space, source)
+        markers, centres, covs, bias, warnings = _measure_seed(bgr8, kit, space, source)
     else:
         transform = measure_frame(camera, plane, img.shape, source)
         model = colour_model or kit_colour_model(kit, space)
@@ -618,7 +639,7 @@ def _centres(
             # (SHADE_EDGES); flush faces keep luminance, which JPEG and demosaicing keep
             # sharpest (shade edges cost 2-3x the angle error on the photo lab's renders)
             edge = SHADE_EDGES
-        markers, centres, covs, warnings = _measure_ours(
+        markers, centres, covs, bias, warnings = _measure_ours(
             work, bgr8, kit, model, transform, source, edge, probe and edge != "green"
         )
         if not kit.has_heights:
@@ -629,7 +650,9 @@ def _centres(
             height_state, height_bound = _heights_without_pose(
                 centres, covs, markers, kit, camera, img.shape, transform, heights, warnings
             )
-    return FrameCentres(transform, markers, centres, covs, warnings, height_state, height_bound)
+    return FrameCentres(
+        transform, markers, centres, covs, warnings, height_state, height_bound, bias
+    )
 
 
 def frame_centres(
