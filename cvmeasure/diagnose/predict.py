@@ -17,7 +17,12 @@ from cvmeasure.diagnose.discrepancy import (
 from cvmeasure.diagnose.forms import LEARNED_SHAPE_KEYS, NUISANCE, Causes, Shape, as_causes
 from cvmeasure.geometry import wrap_deg
 from cvmeasure.sim.effects import EFFECTS, Effect
-from cvmeasure.sim.model import apply_camera_tilt_deg, simulate, simulate_drift_rates
+from cvmeasure.sim.model import (
+    apply_camera_tilt_deg,
+    simulate,
+    simulate_drift_rates,
+    simulate_rows,
+)
 from cvmeasure.sim.params import SimParams
 
 #: The cause whose split follows the learned springback (:func:`learned_split`).
@@ -96,6 +101,42 @@ def predict(
         res.springback_deg,
     )
     return np.concatenate([loaded, unloaded, res.pin_angle_deg])
+
+
+def residual_rows(
+    trials: TrialTable,
+    params: SimParams,
+    base_effects: Sequence[Effect],
+    causes: Causes,
+    points: Sequence[tuple[float, Sequence[float], Sequence[float]]],
+    *,
+    shapes: Sequence[Shape] = (),
+) -> NDArray[np.float64]:
+    """(K, 3 N): :func:`residuals` at each of ``points`` ((strength scale, the causes'
+    values, the nuisance geometry)), the same numbers from one vectorised simulation
+    (:func:`simulate_rows`) instead of K. ValueError where the rows cannot share one
+    simulation (see :func:`simulate_rows`)."""
+    cmd = trials.commanded_pin_deg
+    effects_rows = [effects_with(base_effects, causes, v, shapes) for _, v, _ in points]
+    params_rows = [scaled(params, s, nuisance) for s, _, nuisance in points]
+    res = simulate_rows(cmd, params_rows, effects_rows, bend_index=trials.bend_index)
+    if not any(e.name == ASYMMETRY and e.value for r in effects_rows for e in r):
+        # no row's springback is split (learned_split returns the simulation's angles)
+        blocks = [res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg]
+        return observed_minus(trials, np.concatenate(blocks, axis=-1))
+    share = _loaded_share(causes, shapes)
+    predicted = np.empty((len(points), 3 * cmd.size))
+    for k, effects in enumerate(effects_rows):
+        loaded, unloaded = learned_split(
+            cmd,
+            effects,
+            share,
+            res.loaded_bend_deg[k],
+            res.unloaded_bend_deg[k],
+            res.springback_deg[k],
+        )
+        predicted[k] = np.concatenate([loaded, unloaded, res.pin_angle_deg[k]])
+    return observed_minus(trials, predicted)
 
 
 def learned_split(

@@ -39,6 +39,7 @@ from cvmeasure.diagnose.predict import (
     PointMemo,
     observed_minus,
     predict,
+    residual_rows,
     residuals,
     tilted_curve,
 )
@@ -189,7 +190,35 @@ class Problem:
             known_rows = seed[2][self.keep][np.isfinite(self.raw(x))]
             if known_rows.shape[0] == self.resid(x).size and np.all(np.isfinite(known_rows)):
                 return np.ascontiguousarray(known_rows.T).T  # the layout of the differences
-        return forward_difference_jacobian(self.resid, x, self.lower, self.upper)
+        return forward_difference_jacobian(
+            self.resid, x, self.lower, self.upper, many=self.resid_many
+        )
+
+    def resid_many(self, points: list[NDArray[np.float64]]) -> list[NDArray[np.float64]]:
+        """:meth:`resid` at each of ``points``, the same numbers: the points not yet
+        known (a forward difference's steps) from one vectorised simulation
+        (:func:`residual_rows`)."""
+        lay, forms = self.layout, self.forms
+        new = [
+            p
+            for p in points
+            if self.resid_seen.get(p, forms) is None and self.seen.get(p, forms) is None
+        ]
+        if len(new) > 1:  # (one point: the plain simulation)
+            try:
+                rows = residual_rows(
+                    self.trials,
+                    self.params,
+                    self.base_effects,
+                    self.names,
+                    [(p[lay.strength], p[lay.causes], p[lay.nuisance]) for p in new],
+                    shapes=self.forms,
+                )
+            except ValueError:
+                rows = None  # rows that cannot share a simulation: one by one
+            for p, row in zip(new, () if rows is None else rows, strict=False):
+                self.seen.put(p, forms, row)
+        return [self.resid(p) for p in points]
 
 
 #: An alternative start: (cause index, its value, its form).

@@ -52,11 +52,14 @@ def forward_difference_jacobian(
     x: NDArray[np.float64],
     lower: NDArray[np.float64],
     upper: NDArray[np.float64],
+    *,
+    many: Callable[[list[NDArray[np.float64]]], list[NDArray[np.float64]]] | None = None,
 ) -> NDArray[np.float64]:
     """Forward-difference Jacobian of ``fun`` at ``x`` within ``[lower, upper]``: the
     steps and arithmetic of scipy's ``least_squares(jac="2-point")`` (so the same
     numbers), without its per-call overhead, and ``fun(x)`` taken from the caller's
-    cache of the point just evaluated."""
+    cache of the point just evaluated. ``many(points)``: ``[fun(p) for p in points]``,
+    the same numbers (e.g. from one vectorised simulation of every stepped point)."""
     x = np.asarray(x, dtype=np.float64)
     f0 = fun(x)
     sign = (x >= 0).astype(float) * 2 - 1
@@ -71,11 +74,15 @@ def forward_difference_jacobian(
     h[forward] = upper_dist[forward]
     backward = (upper_dist < lower_dist) & ~fits
     h[backward] = -lower_dist[backward]
-    jac_t = np.empty((x.size, f0.size))
+    points = []
     for i in range(x.size):
         x1 = np.copy(x)
         x1[i] = x[i] + h[i]
-        jac_t[i] = (fun(x1) - f0) / ((x[i] + h[i]) - x[i])
+        points.append(x1)
+    values = [fun(p) for p in points] if many is None else many(points)
+    jac_t = np.empty((x.size, f0.size))
+    for i in range(x.size):
+        jac_t[i] = (values[i] - f0) / ((x[i] + h[i]) - x[i])
     return jac_t.T  # the layout scipy's own differences have
 
 

@@ -110,6 +110,7 @@ def estimate_white(
     top_fraction: float = 0.002,
     recover_clipped: bool = False,
     gray: np.ndarray | None = None,
+    channels: tuple[np.ndarray, ...] | None = None,
 ) -> WhiteEstimate:
     """Estimate the light's white from the brightest unclipped pixels (the white rings).
 
@@ -135,9 +136,11 @@ def estimate_white(
         Recover the colour of a clipped white (see above).
     gray : ndarray (H, W), uint8, optional
         ``cv2.cvtColor(bgr8, cv2.COLOR_BGR2GRAY)`` where the caller has it (made here if None).
+    channels : (b, g, r) ndarrays (H, W), uint8, optional
+        ``cv2.split(bgr8)`` where the caller has it (made here if None).
     """
     img = np.ascontiguousarray(bgr8)
-    b, g, r = cv2.split(img)
+    b, g, r = cv2.split(img) if channels is None else channels
     maxc = cv2.max(cv2.max(b, g), r)
     unclipped = cv2.compare(maxc, 250, cv2.CMP_LT)  # 255 where every channel is below 250
     if gray is None:
@@ -382,7 +385,12 @@ def learnt_colour_model(
     return ColourModel(space, roles, np.array(means), np.array(covs), max_distance, adaptation)
 
 
-def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | None) -> np.ndarray:
+def classify_bgr8(
+    bgr8: np.ndarray,
+    model: ColourModel,
+    white: WhiteEstimate | None,
+    channels: tuple[np.ndarray, ...] | None = None,
+) -> np.ndarray:
     """Label each pixel with the index of its role in ``model.roles``, or -1 for none.
 
     Parameters
@@ -390,6 +398,8 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
     bgr8 : ndarray of shape (H, W, 3), uint8
     model : the colour model (means under D65).
     white : the photo's white (see :func:`estimate_white`); ``None`` = already balanced.
+    channels : ``cv2.split(bgr8)`` where the caller has it (the search shares it with
+        :func:`estimate_white`); made here if None.
 
     Returns
     -------
@@ -400,7 +410,10 @@ def classify_bgr8(bgr8: np.ndarray, model: ColourModel, white: WhiteEstimate | N
         raise ValueError("classify_bgr8 needs an (H, W, 3) uint8 BGR image")
     # the 15-bit R, G, B index of each pixel, built in place in uint16 (few temporaries)
     # from the contiguous planes cv2.split makes (casts of strided channels cost ~1.6x)
-    b, g, r = cv2.split(img >> _QUANT_SHIFT)
+    if channels is None:
+        b, g, r = cv2.split(img >> _QUANT_SHIFT)
+    else:
+        b, g, r = (c >> _QUANT_SHIFT for c in channels)
     idx = r.astype(np.uint16)
     idx <<= 5
     idx |= g

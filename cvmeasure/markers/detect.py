@@ -272,12 +272,15 @@ def find_markers(
     step = search_step(bgr8.shape, max_pixels)
     small = np.ascontiguousarray(bgr8[::step, ::step])
     luma = cv2.cvtColor(small, cv2.COLOR_BGR2GRAY)  # the white's and the rings' grey
+    # its b, g, r planes, split once for the white and the colour classes
+    channels = tuple(cv2.split(small))
     if white is not None:
-        return _search(small, luma, kit, model, white, step)
-    search = _search(small, luma, kit, model, estimate_white(small, gray=luma), step)
+        return _search(small, luma, channels, kit, model, white, step)
+    white = estimate_white(small, gray=luma, channels=channels)
+    search = _search(small, luma, channels, kit, model, white, step)
     if search.failures and search.white.clipped_fraction > CLIPPED_WHITE_FRACTION:
-        white = estimate_white(small, recover_clipped=True, gray=luma)
-        retry = _search(small, luma, kit, model, white, step)
+        white = estimate_white(small, recover_clipped=True, gray=luma, channels=channels)
+        retry = _search(small, luma, channels, kit, model, white, step)
         if len(retry.failures) < len(search.failures):
             return retry
     return search
@@ -286,13 +289,15 @@ def find_markers(
 def _search(
     small: np.ndarray,
     luma: np.ndarray,
+    channels: tuple[np.ndarray, ...],
     kit: MarkerKit,
     model: ColourModel,
     white: WhiteEstimate,
     step: int,
 ) -> MarkerSearch:
-    """:func:`find_markers` on the reduced copy ``small`` (its grey ``luma``) with a given white."""
-    labels = classify_bgr8(small, model, white)
+    """:func:`find_markers` on the reduced copy ``small`` (its grey ``luma``, its b, g, r
+    ``channels``) with a given white."""
+    labels = classify_bgr8(small, model, white, channels)
     white_luma = 0.114 * white.srgb8[2] + 0.587 * white.srgb8[1] + 0.299 * white.srgb8[0]
     # luma >= 0.72 white_luma for 8-bit luma, as an integer comparison (not a float64
     # copy of the image): the smallest whole level at or above the threshold

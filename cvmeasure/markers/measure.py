@@ -293,7 +293,9 @@ def _on_frame(
     halves of the edge disagree on beyond their sampling, both fitted in the frame too.
     With ``edge`` "shade" on a plane pose, the other reading's walls (towards the camera's
     foot point) are left out of that disagreement (:func:`edge_mode_cov`)."""
-    heights = {r: kit.height_mm(r) for r in fits}
+    # the discs grouped by the height they are mapped at: without a plane pose, every
+    # height maps alike (MeasureFrame.at_height), so all the discs go in one call
+    heights = {r: kit.height_mm(r) if frame.plane is not None else 0.0 for r in fits}
     mapped: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     other_f: dict[str, np.ndarray] = {}
     for height in dict.fromkeys(heights.values()):

@@ -198,19 +198,24 @@ def _ray_maps(
     return radii, map_x.astype(np.float32), map_y.astype(np.float32)
 
 
-def _median_levels(raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int) -> np.ndarray:
-    """Per channel, the median of ``lut[raw]`` over ``mask`` (uint8 data; ``n`` pixels in it).
+def _median_levels(
+    raw: np.ndarray, lut: np.ndarray, mask: np.ndarray, n: int
+) -> tuple[np.ndarray, int]:
+    """Per channel, the median of ``lut[raw]`` over ``mask`` (uint8 data; ``n`` pixels in it),
+    and how many channel values there are at 254 or 255 (summed over the channels).
 
     From each channel's histogram (the lookup table is increasing): the same value as
     ``np.median(lut[raw][mask], axis=0)``, float32, without sorting the pixels.
     """
     lo, hi = (n - 1) // 2, n // 2
     levels: list[int] = []  # per channel, the levels of its lo-th and hi-th pixel
+    n_top = 0
     for c in range(3):
         cum = cv2.calcHist([raw], [c], mask, [256], [0, 256]).cumsum()
         levels.extend(cum.searchsorted((lo, hi), side="right").tolist())
+        n_top += n - int(cum[253])  # the pixels above level 253
     v = lut[levels]
-    return (v[0::2] + v[1::2]) * np.float32(0.5)
+    return (v[0::2] + v[1::2]) * np.float32(0.5), n_top
 
 
 def _box(dy2: np.ndarray, dx2: np.ndarray, r2: float) -> tuple[slice, slice]:
@@ -261,12 +266,14 @@ def _disc_and_ring_levels(
     if n_inner < 3 or n_ring < 3:
         return None
     if raw.dtype == np.uint8:
-        disc_c = _median_levels(raw[in_box], SRGB8_TO_LINEAR, inner.view(np.uint8), n_inner)
+        disc_c, _ = _median_levels(raw[in_box], SRGB8_TO_LINEAR, inner.view(np.uint8), n_inner)
         ring8 = ring.view(np.uint8)
-        ring_c = _median_levels(raw[ring_box], SRGB8_TO_LINEAR, ring8, n_ring)
-        # ring pixels with a channel at 254 or 255: those not in range 0..253 on every channel
-        below = cv2.inRange(raw[ring_box], (0, 0, 0), (253, 253, 253))
-        n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring8))
+        ring_c, ring_top = _median_levels(raw[ring_box], SRGB8_TO_LINEAR, ring8, n_ring)
+        n_clipped = 0  # the ring's histograms hold no value at 254 or 255: none clipped
+        if ring_top:
+            # ring pixels with a channel at 254 or 255: not in range 0..253 on every channel
+            below = cv2.inRange(raw[ring_box], (0, 0, 0), (253, 253, 253))
+            n_clipped = n_ring - cv2.countNonZero(cv2.bitwise_and(below, ring8))
     else:
         disc_c = np.median(roi[in_box][inner], axis=0)
         ring_c = np.median(roi[ring_box][ring], axis=0)

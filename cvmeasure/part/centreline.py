@@ -115,6 +115,14 @@ KNOWN_WIDTH_FIRST_RHO = 1.2
 #: within the axis' basin, short of a flank's valley (about 0.75 half-widths off).
 KNOWN_WIDTH_REFINE = 0.3
 
+#: Share of the symmetry window's offsets left out of the final centres' cost, those of
+#: largest asymmetry, where a round wire's silhouette edges were not found (a polished
+#: wire whose limbs mirror the sheet): a narrow feature on one flank only (a lamp's second
+#: glint on its lit flank) then no longer pulls the centre, which the crest and the other
+#: flank fix. Only there: where the edges are found they place the centres, and without
+#: the wire's width the symmetric centres stay the whole window's.
+HIGHLIGHT_TRIM_SHARE = 0.4
+
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
 
@@ -243,8 +251,9 @@ def measure_centreline(
         known_hw=None if wire_width_px is None else 0.5 * float(wire_width_px),
     )  # fmt: skip
     half_width = rough
+    centres0 = centres
     centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
-        prof, centres, normals, rho, search, step_px, window
+        prof, centres0, normals, rho, search, step_px, window
     )
     centre_from = "symmetry"
     widths = shadow = lit = None
@@ -260,6 +269,10 @@ def measure_centreline(
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
             centre_from = f"symmetry ({found})"
+            centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
+                prof, centres0, normals, rho, search, step_px, window,
+                trim_share=HIGHLIGHT_TRIM_SHARE,
+            )  # fmt: skip
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
     # a polished wire's profiles may have a half-contrast flank about its narrow crest only:
@@ -304,10 +317,23 @@ def _final_symmetric(
     search: float,
     step_px: float,
     window: int,
+    trim_share: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The last pass of symmetric centres: the centres and their profiles, the profiles
-    rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`)."""
-    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
+    rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`).
+
+    ``trim_share`` > 0: each centre is the trimmed symmetry's (that share of the most
+    asymmetric offsets left out) where that lies within half the window of the whole
+    window's, else the whole window's.
+    """
+    slope = 0.4 * step_px
+    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=slope)
+    if trim_share > 0.0:
+        trimmed, _ = symmetric_centres(
+            prof, rho_px=rho, search_px=search, max_slope_px=slope, trim_share=trim_share
+        )
+        near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
+        shift = np.where(near, trimmed, shift)
     shift = despike(shift, window)
     ok = np.isfinite(shift)
     rejected = int((~ok).sum())

@@ -113,6 +113,7 @@ def symmetric_centres(
     search_px: float,
     step_px: float = PROFILE_STEP_PX,
     max_slope_px: float | None = None,
+    trim_share: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift (P,) about which each profile is most symmetric, and the cost there.
 
@@ -127,6 +128,8 @@ def symmetric_centres(
         through the cost table (dynamic programming), so that isolated false
         minima cannot pull single centres away. Without it, each profile's own
         minimum.
+    trim_share : the share of the window's offsets whose asymmetry is largest left out
+        of each shift's cost (:func:`asymmetry_costs`); 0 counts them all.
 
     Returns
     -------
@@ -140,7 +143,7 @@ def symmetric_centres(
     if mid - kc - ku < 0 or mid + kc + ku >= p.shape[1]:
         raise ValueError("profiles too short for rho_px + search_px")
     shifts = np.arange(-kc, kc + 1)
-    cost = asymmetry_costs(p, mid, kc, ku)
+    cost = asymmetry_costs(p, mid, kc, ku, trim_share=trim_share)
     rows = np.arange(len(p))
     if max_slope_px is None:
         k = np.argmin(cost, axis=1)
@@ -173,15 +176,24 @@ def symmetric_centres(
 _COST_BLOCK_ROWS = 64
 
 
-def asymmetry_costs(profiles: np.ndarray, mid: int, kc: int, ku: int) -> np.ndarray:
+def asymmetry_costs(
+    profiles: np.ndarray, mid: int, kc: int, ku: int, *, trim_share: float = 0.0
+) -> np.ndarray:
     """Mean squared asymmetry (P, 2 kc + 1) of each profile about samples ``mid - kc .. mid + kc``.
 
     ``cost[i, j] = mean over u = 1 .. ku of (p[i, c + u] - p[i, c - u]) ** 2``, c = mid - kc + j.
     Summed over ``u`` for every shift at once, a block of profiles at a time: the same
     sums as one shift at a time, but each block's samples are read from cache.
+
+    ``trim_share`` > 0: the mean over the offsets ``u`` (every ``_TRIM_STRIDE`` samples)
+    with the smallest terms only, that share of the largest left out: a narrow feature on
+    one side of the axis alone (a lamp's glint on one flank of a polished wire) then does
+    not pull the centre, which the rest of the window, symmetric, fixes.
     """
     p = np.asarray(profiles, dtype=np.float64)
     n = 2 * kc + 1
+    if trim_share > 0.0:
+        return _trimmed_costs(p, mid, kc, ku, trim_share)
     cost = np.zeros((len(p), n))
     for r0 in range(0, len(p), _COST_BLOCK_ROWS):
         block = p[r0 : r0 + _COST_BLOCK_ROWS]
@@ -196,6 +208,31 @@ def asymmetry_costs(profiles: np.ndarray, mid: int, kc: int, ku: int) -> np.ndar
             np.square(diff, diff)
             out += diff
     cost /= ku
+    return cost
+
+
+#: Offsets of the trimmed asymmetry cost, every this many samples (0.2 px): the terms are
+#: sorted per shift, and neighbouring samples of a smooth profile repeat each other.
+_TRIM_STRIDE = 4
+
+
+def _trimmed_costs(p: np.ndarray, mid: int, kc: int, ku: int, trim_share: float) -> np.ndarray:
+    """:func:`asymmetry_costs` with the ``trim_share`` largest terms of each shift left out."""
+    n = 2 * kc + 1
+    us = np.arange(ku, 0, -_TRIM_STRIDE)[::-1]
+    keep = max(1, int(round((1.0 - trim_share) * len(us))))
+    cost = np.zeros((len(p), n))
+    for r0 in range(0, len(p), _COST_BLOCK_ROWS):
+        block = p[r0 : r0 + _COST_BLOCK_ROWS]
+        terms = np.empty((len(us), len(block), n))
+        for j, u in enumerate(us):
+            np.subtract(
+                block[:, mid - kc + u : mid + kc + u + 1],
+                block[:, mid - kc - u : mid + kc - u + 1],
+                terms[j],
+            )
+        np.square(terms, terms)
+        cost[r0 : r0 + _COST_BLOCK_ROWS] = np.partition(terms, keep - 1, axis=0)[:keep].mean(axis=0)
     return cost
 
 

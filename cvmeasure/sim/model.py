@@ -25,7 +25,8 @@ axis ``e`` off the marker, about ``(e / R_p) cos(phi)`` (rad) more.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable
+import operator
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -47,6 +48,7 @@ __all__ = [
     "SimResult",
     "simulate",
     "simulate_drift_rates",
+    "simulate_rows",
     "pin_command_for_angle",
     "effect_values",
     "apply_camera_tilt_deg",
@@ -328,14 +330,22 @@ def _forward(
     *,
     measure: bool = True,
     shapes: dict[str, float] | None = None,
+    die_wrap_mm: NDArray[np.float64] | None = None,
 ) -> SimResult:
+    """The simulation (see :func:`simulate`); ``die_wrap_mm``: the die's centreline
+    radius (mm) in place of the params' one, e.g. one per row of :func:`simulate_rows`
+    (the contact angle does not depend on it)."""
     shapes = shapes or {}
     history = _History.of(cmd, bend_index)
     direction = history.direction
     r = _rotation(cmd, values, shapes, history, None)
     nominal, nominal_contact = _nominal_geometry(params, direction)
+    if die_wrap_mm is not None:
+        nominal = dataclasses.replace(nominal, die_wrap_mm=die_wrap_mm)  # type: ignore[arg-type]
     if "axis_offset" in values:
         geom = head_geometry(params, direction, axis_offset_mm=values["axis_offset"])
+        if die_wrap_mm is not None:
+            geom = dataclasses.replace(geom, die_wrap_mm=die_wrap_mm)  # type: ignore[arg-type]
         contact = contact_angle_deg(geom)
     else:
         geom, contact = nominal, nominal_contact  # the same circles (an offset of 0 adds nothing)
@@ -357,7 +367,7 @@ def _forward(
             )
             phi = phi0 + r
             theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
-    if values.get("compliance", 0.0) > 0.0:
+    if np.any(values.get("compliance", 0.0) > 0.0):  # (a batch of rows: all > 0)
         # the drive winds up under the pin load: torque = (M / l) * R_p cos(phi - theta); the lag
         # shortens the lever it depends on, so iterate to the fixed point
         for _ in range(_COMPLIANCE_ITERATIONS):
@@ -485,6 +495,98 @@ def simulate_drift_rates(
             for f in dataclasses.fields(res)
             if f.name != "commanded_pin_deg"
         },
+    )
+
+
+#: The params fields that may differ between the rows of :func:`simulate_rows`: the
+#: material's strength (it changes the springback law only) and the die's radius (the
+#: law and the die's circle: not the contact angle).
+_ROW_FIELDS = ("yield_mpa", "uts_mpa", "die_radius_mm")
+#: The params fields every row of :func:`simulate_rows` shares.
+_SHARED = operator.attrgetter(
+    *(f.name for f in dataclasses.fields(SimParams) if f.name not in _ROW_FIELDS)
+)
+
+
+def _column(values: Sequence[float]) -> float | NDArray[np.float64]:
+    """The rows' common value, or a (K, 1) column of them where they differ."""
+    first = values[0]
+    if all(v == first for v in values):
+        return first
+    return np.array(values, dtype=np.float64)[:, None]
+
+
+def _stacked(laws: Sequence[SpringbackLaw], fields: tuple[str, ...]) -> SpringbackLaw:
+    """The rows' springback laws as one law whose ``fields`` are (K, 1) columns where they
+    differ; ValueError when another field differs."""
+    law = laws[0]
+    if any(other != law for other in laws):
+        rest = [f.name for f in dataclasses.fields(law) if f.name not in fields]
+        if any(getattr(o, n) != getattr(law, n) for o in laws for n in rest):
+            raise ValueError("simulate_rows: the rows' wires differ beyond the strength")
+        columns = {n: _column([getattr(o, n) for o in laws]) for n in fields}
+        law = dataclasses.replace(law, **columns)  # type: ignore[arg-type]
+    return law
+
+
+def simulate_rows(
+    commanded_pin_deg: ArrayLike,
+    params_rows: Sequence[SimParams],
+    effects_rows: Sequence[Sequence[Effect]],
+    *,
+    bend_index: ArrayLike | None = None,
+) -> SimResult:
+    """:func:`simulate` of K models of the same plan in one vectorised run.
+
+    Row ``k`` of every angle array, of shape (K, N), is what :func:`simulate` gives with
+    ``params_rows[k]`` and ``effects_rows[k]``, the same numbers (every operation is
+    elementwise along the rows). The rows may differ in the effects' values, the
+    material's strength (yield and UTS) and the die's radius only: the same effects with
+    the same forms in the same order, the rest of the machine the same; ValueError
+    otherwise (and for a compliance on in some rows only). For the forward differences of a fit: one simulation per Jacobian
+    instead of one per column.
+    """
+    cmd = _commands(commanded_pin_deg)
+    rows = [tuple(e) for e in effects_rows]
+    if not rows or len(rows) != len(params_rows):
+        raise ValueError("simulate_rows needs one params and one effects per row")
+    base = params_rows[0]
+    shared = _SHARED(base)
+    if any(p is not base and _SHARED(p) != shared for p in params_rows):
+        raise ValueError("simulate_rows: the rows' params differ beyond the strength")
+    forms = [(e.name, e.shape) for e in rows[0]]
+    if any([(e.name, e.shape) for e in r] != forms for r in rows[1:]):
+        raise ValueError("simulate_rows: the rows' effects differ beyond their values")
+    per_row = [effect_values(r) for r in rows]
+    values: dict[str, Any] = {name: _column([v[name] for v in per_row]) for name in per_row[0]}
+    if isinstance(values.get("compliance"), np.ndarray) and not np.all(values["compliance"] > 0):
+        raise ValueError("simulate_rows: the compliance is on in some rows only")
+    laws = [springback_law(p) for p in params_rows]
+    law = _stacked(laws, ("moment_nmm", "bend_radius_mm"))
+    # head_geometry's die circle, row by row
+    wrap = _column([p.die_radius_mm + p.wire_radius_mm for p in params_rows])
+    res = _forward(
+        cmd,
+        base,
+        values,
+        _bend_index(bend_index, cmd.size),
+        law,
+        shapes=_shapes(rows[0]),
+        die_wrap_mm=wrap if isinstance(wrap, np.ndarray) else None,
+    )
+    shape = (len(rows), cmd.size)
+
+    def full(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return a if a.shape == shape else np.broadcast_to(a, shape)
+
+    return SimResult(
+        commanded_pin_deg=cmd,
+        pin_deg=full(res.pin_deg),
+        loaded_bend_deg=full(res.loaded_bend_deg),
+        unloaded_bend_deg=full(res.unloaded_bend_deg),
+        springback_deg=full(res.springback_deg),
+        lever_mm=full(res.lever_mm),
+        pin_angle_deg=full(res.pin_angle_deg),
     )
 
 

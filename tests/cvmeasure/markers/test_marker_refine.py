@@ -89,6 +89,12 @@ def test_clipped_ring_is_reported():
     img[img > 225] = 255
     edges = disc_edge_points(img, (40.0, 40.0), 15.0, 1.4)
     assert edges.clipped_fraction > 0.9
+    # one channel of a few ring pixels at 254: the share counts exactly those pixels
+    img = _disc_image((40.0, 40.0), 15.0, size=80)
+    img[40, 57:59, 1] = 254
+    assert disc_edge_points(img, (40.0, 40.0), 15.0, 1.4).clipped_fraction > 0.0
+    assert disc_edge_points(_disc_image((40.0, 40.0), 15.0, size=80), (40.0, 40.0), 15.0,
+                            1.4).clipped_fraction == 0.0  # fmt: skip
     fit = fit_circle_robust(edges.points_px, correlation_factor=CORRELATION_FACTOR)
     assert math.hypot(fit.centre[0] - 40, fit.centre[1] - 40) < 0.03
 
@@ -112,7 +118,8 @@ def test_green_edges_ignore_lateral_chromatic_aberration():
 
 
 def test_levels_from_histograms_are_numpys_medians():
-    """The disc and ring levels from uint8 histograms equal np.median of the linear pixels."""
+    """The disc and ring levels from uint8 histograms equal np.median of the linear pixels,
+    and the count of channel values at 254 or 255 is the masked pixels' own."""
     from cvmeasure.colorimetry import SRGB8_TO_LINEAR
     from cvmeasure.markers.refine import _median_levels
 
@@ -122,8 +129,11 @@ def test_levels_from_histograms_are_numpys_medians():
     for n_wanted in (1, 2, 7, 300, 1516):  # odd and even counts
         mask = np.zeros(raw.shape[:2], bool)
         mask.flat[rng.choice(mask.size, n_wanted, replace=False)] = True
-        got = _median_levels(raw, SRGB8_TO_LINEAR, mask.view(np.uint8), n_wanted)
+        got, n_top = _median_levels(raw, SRGB8_TO_LINEAR, mask.view(np.uint8), n_wanted)
         np.testing.assert_array_equal(got, np.median(lin[mask], axis=0))
+        assert n_top == np.count_nonzero(raw[mask] >= 254)
+    dark = raw // 2  # no value above 127: none at 254 or 255
+    assert _median_levels(dark, SRGB8_TO_LINEAR, mask.view(np.uint8), n_wanted)[1] == 0
 
 
 def test_ring_spread_is_the_percentile_range_of_the_rays_ring_medians():

@@ -38,6 +38,53 @@ def test_symmetric_centres_find_a_known_axis() -> None:
     np.testing.assert_allclose(shift, truth, atol=0.01)
 
 
+@pytest.mark.parametrize("trim_share", [0.25, 0.4])
+def test_trimmed_asymmetry_costs_equal_the_definition(trim_share: float) -> None:
+    """Per shift, the mean of the smallest (1 - trim_share) squared differences over the
+    offsets taken every 4 samples (ku, ku - 4, ...)."""
+    rng = np.random.default_rng(15)
+    p = rng.normal(100.0, 30.0, (90, 301))  # more profiles than one block
+    mid, kc, ku = 150, 30, 41
+    u = np.arange(ku, 0, -4)[::-1]
+    keep = round((1.0 - trim_share) * len(u))
+    want = np.stack(
+        [
+            np.mean(np.sort((p[:, mid + c + u] - p[:, mid + c - u]) ** 2, axis=1)[:, :keep], axis=1)
+            for c in range(-kc, kc + 1)
+        ],
+        axis=1,
+    )
+    got = asymmetry_costs(p, mid, kc, ku, trim_share=trim_share)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def _glinting_profiles(truth: np.ndarray, half_width: float, at: float, wide: float) -> np.ndarray:
+    """A polished round wire on a dark card (0.05 px samples): a crest on the axis, dark
+    valleys at the limbs, and a lamp's narrow glint on one flank only (``at`` half-widths
+    out on the + side, ``wide`` half-widths wide)."""
+    x = (np.arange(801) - 400) * 0.05
+    u = (x[None, :] - truth[:, None]) / half_width
+    crest = 170.0 * np.exp(-((u / 0.33) ** 2))
+    limbs = -20.0 * (np.exp(-(((u - 0.85) / 0.15) ** 2)) + np.exp(-(((u + 0.85) / 0.15) ** 2)))
+    glint = 150.0 * np.exp(-(((u - at) / wide) ** 2))
+    return 50.0 + crest + limbs + glint
+
+
+@pytest.mark.parametrize(("at", "wide"), [(0.7, 0.1), (0.8, 0.08)])
+def test_trimmed_symmetry_is_not_pulled_by_a_glint_on_one_flank(at: float, wide: float) -> None:
+    """The whole window's centre moves by more than 0.05 px for a narrow glint on one flank
+    (a 3.6 px half-width); the trimmed one stays on the axis within 0.02 px."""
+    rng = np.random.default_rng(16)
+    half_width = 3.6
+    truth = np.linspace(-1.0, 1.0, 40)  # profiles in order along a wire, 1 px apart
+    p = _glinting_profiles(truth, half_width, at, wide) + rng.normal(0.0, 1.0, (40, 801))
+    kw = {"rho_px": 0.85 * half_width, "search_px": 2.5, "max_slope_px": 0.4}
+    whole, _ = symmetric_centres(p, **kw)
+    trimmed, _ = symmetric_centres(p, **kw, trim_share=0.4)
+    assert abs(float(np.median(whole - truth))) > 0.05
+    np.testing.assert_allclose(trimmed, truth, atol=0.02)
+
+
 def test_least_cost_path_is_the_least_total_within_reach() -> None:
     """Against an exhaustive search over every path of a small table."""
     import itertools

@@ -15,7 +15,7 @@ from cvmeasure.sim import (
     simulate,
 )
 from cvmeasure.sim.kinematics import head_geometry, pin_angle_for_loaded_deg
-from cvmeasure.sim.model import simulate_drift_rates
+from cvmeasure.sim.model import simulate_drift_rates, simulate_rows
 
 CMDS = np.array([-120.0, -60.0, -25.0, 25.0, 60.0, 120.0])
 
@@ -370,3 +370,51 @@ def test_a_strength_by_direction_moves_the_loaded_leg_in_its_general_form():
     np.testing.assert_allclose(shift, [-0.4, 0.4, -0.4, 0.4], atol=1e-9)
     # the springback is the narrow form's (the leg moves, the release from it does not)
     np.testing.assert_allclose(general.springback_deg, narrow.springback_deg, atol=0.02)
+
+
+@pytest.mark.parametrize(
+    "effects",
+    [
+        (Effect("backlash", 0.8), Effect("scale", 0.01)),
+        (Effect("camera_tilt", 2.0, (("tilt_axis_deg", 30.0),)), Effect("offset", 0.3)),
+        (Effect("axis_offset", 0.4), Effect("compliance", 0.002)),
+        (Effect("springback_asymmetry", 0.05, (("loaded_deg", 1.5),)),),
+        (Effect("drift", 0.05, (("home_shift", 0.5), ("load_exponent", 2.0))),),
+    ],
+)
+def test_simulate_rows_is_simulate_at_each_row(effects):
+    # the batched form a fit's forward differences use: each row (the strength, the
+    # die's radius or one effect's value stepped) the very numbers of simulate with that
+    # row's model
+    rng = np.random.default_rng(5)
+    cmd = rng.choice([-1.0, 1.0], 30) * rng.uniform(20.0, 140.0, 30)
+    index = np.concatenate([np.arange(18), np.arange(12)]).astype(float)
+    base = SimParams().replace(span_bow_share=1.0)
+    params_rows = [
+        base,
+        base.replace(yield_mpa=base.yield_mpa * 1.001, uts_mpa=base.uts_mpa * 1.001),
+    ]
+    params_rows.append(base.replace(die_radius_mm=1.7))
+    effects_rows = [effects, effects, effects]
+    for k, e in enumerate(effects):
+        params_rows.append(base)
+        stepped = Effect(e.name, e.value * 1.01 + 1e-6, e.shape)
+        effects_rows.append((*effects[:k], stepped, *effects[k + 1 :]))
+    batch = simulate_rows(cmd, params_rows, effects_rows, bend_index=index)
+    for k, (p, e) in enumerate(zip(params_rows, effects_rows, strict=True)):
+        one = simulate(cmd, p, e, bend_index=index)
+        for name in ("pin_deg", "loaded_bend_deg", "unloaded_bend_deg", "pin_angle_deg"):
+            np.testing.assert_array_equal(getattr(batch, name)[k], getattr(one, name))
+
+
+def test_simulate_rows_refuses_rows_that_cannot_share_a_run():
+    cmd = np.array([30.0, -60.0, 90.0])
+    base = SimParams()
+    with pytest.raises(ValueError, match="params"):
+        simulate_rows(cmd, [base, base.replace(pin_radius_mm=4.0)], [(), ()])
+    with pytest.raises(ValueError, match="effects"):
+        simulate_rows(cmd, [base, base], [(Effect("offset", 0.1),), (Effect("scale", 0.1),)])
+    with pytest.raises(ValueError, match="compliance"):
+        simulate_rows(
+            cmd, [base, base], [(Effect("compliance", 0.0),), (Effect("compliance", 0.001),)]
+        )
