@@ -558,6 +558,15 @@ def _report(results: list[RunResult], argv: list[str] | None, quick: bool, n_lin
             f"(at most {MAX_RESUMES}); `--force` only where a stop asks for the part to be checked",
             "lost lines are counted on finished runs only: a refused resume claims nothing done",
         ],
+        # a stop message's form can depend on timing (what the board ran before the stop):
+        # every stderr of such a run, to read without running it again
+        extra={
+            "unclear_stop_runs": [
+                {"model": r.model, "fault": r.fault, "exits": r.exits, "stderr": r.stderr}
+                for r in results
+                if r.stops_unclear
+            ]
+        },
     )
 
 
