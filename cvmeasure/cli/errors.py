@@ -36,7 +36,8 @@ __all__ = [
     "input_names",
 ]
 
-#: Longest message printed for an exception the libraries raised (one line).
+#: Longest message printed for an exception the libraries raised (one line); the
+#: project's own errors are printed whole.
 _MAX_MESSAGE = 240
 #: The temporary file of an atomic write (``.<name>.<random>.tmp``).
 _ATOMIC_TMP = re.compile(r"^\..+\.[^.]+\.tmp$")
@@ -58,6 +59,12 @@ OUTPUT_FOLDER_DESTS: dict[str, frozenset[str]] = {
 def _one_line(text: object) -> str:
     line = " ".join(str(text).split())
     return line if len(line) <= _MAX_MESSAGE else line[: _MAX_MESSAGE - 3] + "..."
+
+
+def _own_line(exc: BaseException) -> str:
+    """Our own error's message on one line, whole: it is written for the operator, and its
+    end often says what to do (a stopped job's "check the part ... --force")."""
+    return " ".join(str(exc).split())
 
 
 def _paths_in(args: argparse.Namespace) -> list[tuple[str, Path]]:
@@ -141,9 +148,9 @@ def classify_exit(exc: BaseException, args: argparse.Namespace) -> tuple[int | N
     if isinstance(exc, BrokenPipeError):
         return 141, None
     if isinstance(exc, InputError):
-        return 2, _one_line(exc)
+        return 2, _own_line(exc)
     if isinstance(exc, CvmeasureError):
-        return 1, f"error: {_one_line(exc)}"
+        return 1, f"error: {_own_line(exc)}"
     if isinstance(exc, OSError):
         return 2, _one_line(_os_message(exc, args))
     if isinstance(exc, UnicodeError):

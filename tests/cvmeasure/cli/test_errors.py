@@ -250,3 +250,18 @@ def test_a_json_of_another_kind_is_named_by_its_kind(tmp_path):
         assert proc.returncode == 2, proc.stderr
         assert proc.stderr.strip() == f"cvmeasure {argv[0]}: {line}"
     assert not (tmp_path / "job.gcode").exists()
+
+
+def test_our_own_long_messages_are_printed_whole_and_foreign_ones_capped():
+    """A stopped job's message ends with what to do: it must reach the operator whole."""
+    from cvmeasure.errors import DeviceError
+
+    args = argparse.Namespace()
+    advice = "check the part (did it make what the job says?) before resuming with --force"
+    stop = DeviceError("job stopped (desync) at line N1276 " + "x" * 300 + "; " + advice)
+    code, line = classify_exit(stop, args)
+    assert code == 1 and line.endswith(advice) and "\n" not in line
+    code, line = classify_exit(InputError("job.nc", "y" * 400 + " end"), args)
+    assert code == 2 and line.endswith(" end")
+    code, line = classify_exit(ValueError("z" * 400), args)
+    assert code == 2 and len(line) <= 240 and line.endswith("...")
