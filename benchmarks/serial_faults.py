@@ -197,7 +197,9 @@ def _operate(run: RunResult, job_path: Path, port_of, env: dict[str, str], inspe
             return
         lines = [ln for ln in err.splitlines() if ln.strip()]
         force = ["--force"] if run.forced else []
-        if "job stopped" in err:
+        # a stop reads "job stopped (<reason>) at line N..."; a refused resume that names
+        # the stopped job ("the job stopped after ...; check the part") is no new stop
+        if "job stopped (" in err:
             run.stops += 1
             if len(lines) != 1 or (" at line N" not in err and "unknown line" not in err):
                 run.stops_unclear += 1
