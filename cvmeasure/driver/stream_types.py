@@ -124,9 +124,11 @@ class JobStopped(DeviceError):
     def __init__(self, stop: StopInfo) -> None:
         self.stop = stop
         where = f"line N{stop.line_number}" if stop.line_number is not None else "unknown line"
+        # a part the stop may have spoiled needs a look before the job goes on
+        check = stop.corrupt_line_ran or stop.ran_past_rejected_line
+        then = "resume with --resume" + (" --force once the part is checked" if check else "")
         super().__init__(
-            f"job stopped ({stop.reason}) at {where} {stop.line!r}: {stop.detail}; "
-            "resume with --resume"
+            f"job stopped ({stop.reason}) at {where} {stop.line!r}: {stop.detail}; {then}"
         )
 
 

@@ -69,6 +69,8 @@ def test_a_misread_line_number_stops_asking_for_a_check_and_resumes_by_position(
         # the board ran line 112's block as N12: said, and the part must be checked
         assert stop.misread_line == 12 and stop.corrupt_line_ran
         assert "N12, a line it was not sent there" in message and "--force" in message
+        # its last words, what to do, agree with the advice before them
+        assert message.endswith("resume with --resume --force once the part is checked")
         with pytest.raises(DeviceError, match="check the part, then resume with --force"):
             stream_job(link, job, journal=journal, config=FAST, resume=True)
         result = stream_job(link, job, journal=journal, config=FAST, resume=True, force=True)
