@@ -19,6 +19,22 @@ def bench_dirs(tmp_path, monkeypatch):
     return tmp_path
 
 
+def _stand_in(folder, sleep_s):
+    """A benchmark command stand-in: the child sleeps, then writes ``folder/<name>``:
+    its core count, start and end times and the schedule it was told."""
+
+    def command(name, quick):
+        script = (
+            f"import os, time; t0 = time.time(); time.sleep({sleep_s}); "
+            f"open({str(folder)!r} + '/{name}', 'w').write("
+            "f'{len(os.sched_getaffinity(0))} {t0} {time.time()} ' "
+            "+ os.environ.get('BENCHMARKS_SCHEDULE', '-'))"
+        )
+        return [sys.executable, "-c", script]
+
+    return command
+
+
 def test_finish_writes_json_and_only_its_section(bench_dirs, capsys):
     md = bench_dirs / "RESULTS.md"
     md.write_text("# Benchmark results\n\n## Hand-written lens notes\n\nrms 0.12 px, by hand.\n")
@@ -169,15 +185,7 @@ def test_side_lane_runs_unpinned_beside_the_pinned_queue(tmp_path, monkeypatch):
     cores = sorted(os.sched_getaffinity(0))[:1]
     everywhere = len(os.sched_getaffinity(0))
 
-    def command(name, quick):
-        script = (
-            "import os, time; t0 = time.time(); time.sleep(0.6); "
-            f"open({str(tmp_path)!r} + '/{name}', 'w').write("
-            "f'{len(os.sched_getaffinity(0))} {t0} {time.time()}')"
-        )
-        return [sys.executable, "-c", script]
-
-    monkeypatch.setattr(runner, "_command_of", command)
+    monkeypatch.setattr(runner, "_command_of", _stand_in(tmp_path, 0.6))
     done = runner._run_pinned(["p"], False, 60.0, cores, side=["s1", "s2"])
     assert {k: v[0] for k, v in done.items()} == {"p": 0, "s1": 0, "s2": 0}
     runs = {n: (tmp_path / n).read_text().split() for n in ("p", "s1", "s2")}
@@ -241,20 +249,12 @@ def test_process_timing_benchmarks_start_after_the_side_lane(tmp_path, monkeypat
 
     cores = sorted(os.sched_getaffinity(0))[:1]
 
-    def command(name, quick):
-        script = (
-            "import os, time; t0 = time.time(); time.sleep(0.4); "
-            f"open({str(tmp_path)!r} + '/{name}', 'w').write("
-            "f'{t0} {time.time()} ' + os.environ['BENCHMARKS_SCHEDULE'])"
-        )
-        return [sys.executable, "-c", script]
-
-    monkeypatch.setattr(runner, "_command_of", command)
+    monkeypatch.setattr(runner, "_command_of", _stand_in(tmp_path, 0.4))
     monkeypatch.setattr(runner, "_previous_seconds", lambda name: 1.0)
     done = runner._run_pinned(["diagnosis_session", "p"], False, 60.0, cores, side=["s1", "s2"])
     assert {k: v[0] for k, v in done.items()} == {"diagnosis_session": 0, "p": 0, "s1": 0, "s2": 0}
-    runs = {n: (tmp_path / n).read_text().split(maxsplit=2) for n in done}
-    side_end = max(float(runs[n][1]) for n in ("s1", "s2"))
-    assert float(runs["diagnosis_session"][0]) >= side_end
-    assert float(runs["p"][0]) < side_end  # the queue's other benchmark did not wait
-    assert runs["diagnosis_session"][2].endswith("after the side lane had ended")
+    runs = {n: (tmp_path / n).read_text().split(maxsplit=3) for n in done}
+    side_end = max(float(runs[n][2]) for n in ("s1", "s2"))
+    assert float(runs["diagnosis_session"][1]) >= side_end
+    assert float(runs["p"][1]) < side_end  # the queue's other benchmark did not wait
+    assert runs["diagnosis_session"][3].endswith("after the side lane had ended")
