@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks import Metric, Table, finish
-from benchmarks.diagnosis_session import _pb_pin, coverage_interval
+from benchmarks.diagnosis_session import coverage_interval
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.sim import EFFECTS
@@ -120,14 +120,14 @@ def _follow_up_outcome(case: pb.PhysicalCase, result: Diagnosis) -> dict:
 def with_pin_read(case: pb.PhysicalCase, trials: TrialTable, read_pin: bool) -> TrialTable:
     """``trials`` (the case's bends, then the follow-up's) with the pin's angle read on
     the follow-up's loaded photos when its plan asks for it (``FollowUp.read_pin``): the
-    true head rotation's pin (:func:`benchmarks.diagnosis_session._pb_pin`) with the
+    true head rotation's pin (:func:`cvmeasure_datasets.physical_bender.loaded_pin_deg`) with the
     case's noise, from a stream of its own; the case's own bends keep what they had."""
     n = len(case.trials)
     if not read_pin or len(trials) == n:
         return trials
     head = pb.bend(trials.commanded_pin_deg, case.machine, case.hidden).head_deg
     rng = np.random.default_rng(case.seed + PIN_SEED_OFFSET)
-    pin = _pb_pin(case.machine, head[n:], case.hidden) + rng.normal(
+    pin = pb.loaded_pin_deg(case.machine, head[n:], case.hidden) + rng.normal(
         0.0, case.noise_deg, len(trials) - n
     )
     return TrialTable.from_arrays(

@@ -179,26 +179,6 @@ def _pb_truth(hidden: pb.Hidden) -> float | None:
     return hidden.params[EFFECTS[hidden.name].param]
 
 
-def _pb_pin(
-    machine: pb.Machine, head_deg: np.ndarray, hidden: tuple[pb.Hidden, ...] = ()
-) -> np.ndarray:
-    """The pin's angle on the loaded photo (machine frame) for the true head rotation, seen
-    through the camera's tilt like the bends. The photo reads it from the origin marker,
-    which sits on the die at the nominal head axis: a hidden axis offset moves the pin's
-    orbit, not the marker."""
-    s = np.where(head_deg < 0, -1.0, 1.0)
-    phi = np.radians(machine.home_pin_deg + np.abs(head_deg))  # about the true axis
-    e = sum(h.params["axis_offset_mm"] for h in hidden if h.name == "axis_offset")
-    seen = np.arctan2(
-        e * s + machine.pin_orbit_mm * np.sin(phi), machine.pin_orbit_mm * np.cos(phi)
-    )
-    pin = s * np.degrees(phi + np.angle(np.exp(1j * (seen - phi))))
-    for h in hidden:
-        if h.name == "camera_tilt":
-            pin = pb._tilted(pin, h.params["tilt_deg"], h.params.get("tilt_axis_deg", 0.0))
-    return pin
-
-
 def _pb_case(seed: int, name: str, mode: str, swept: bool) -> Case:
     rng = np.random.default_rng(seed)
     machine = pb.draw_machine(rng)
@@ -207,7 +187,11 @@ def _pb_case(seed: int, name: str, mode: str, swept: bool) -> Case:
     cmd = session_commands(mode, swept=swept)
     true = pb.bend(cmd, machine, hidden, rng)
     loaded, unloaded, pin = _noisy(
-        rng, noise, true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg, hidden)
+        rng,
+        noise,
+        true.loaded_deg,
+        true.unloaded_deg,
+        pb.loaded_pin_deg(machine, true.head_deg, hidden),
     )
     trials = TrialTable.from_arrays(cmd, loaded, unloaded, measured_pin_deg=pin, source="physical")
     truth = _pb_truth(hidden[0]) if hidden else None
@@ -217,7 +201,8 @@ def _pb_case(seed: int, name: str, mode: str, swept: bool) -> Case:
         change = [
             on.loaded_deg - off.loaded_deg,
             on.unloaded_deg - off.unloaded_deg,
-            _pb_pin(machine, on.head_deg, hidden) - _pb_pin(machine, off.head_deg),
+            pb.loaded_pin_deg(machine, on.head_deg, hidden)
+            - pb.loaded_pin_deg(machine, off.head_deg),
         ]
         chi2 = _signal_chi2(change, noise)
     return Case("physical", mode, seed, name, truth, noise, trials, (machine, hidden), chi2)
@@ -341,7 +326,11 @@ def follow_up_trials(case: Case, commands_deg: np.ndarray) -> TrialTable:
     else:
         machine, hidden = case.machine
         true = pb.bend(cmd, machine, hidden, rng)
-        cols = (true.loaded_deg, true.unloaded_deg, _pb_pin(machine, true.head_deg, hidden))
+        cols = (
+            true.loaded_deg,
+            true.unloaded_deg,
+            pb.loaded_pin_deg(machine, true.head_deg, hidden),
+        )
     loaded, unloaded, pin = _noisy(rng, case.noise_deg, *(c[n:] for c in cols))
     return TrialTable.from_arrays(
         cmd,

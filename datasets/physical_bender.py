@@ -48,6 +48,7 @@ __all__ = [
     "bend",
     "draw_hidden",
     "draw_machine",
+    "loaded_pin_deg",
     "plan_commands",
     "physical_case",
     "run_follow_up",
@@ -320,6 +321,26 @@ def _tilted(angle_deg: NDArray[np.float64], tilt_deg: float, axis_deg: float) ->
     feed = proj @ np.array([1.0, 0.0])
     ang = np.arctan2(leg[1], leg[0]) - math.atan2(feed[1], feed[0])
     return np.degrees((ang + np.pi) % (2 * np.pi) - np.pi)
+
+
+def loaded_pin_deg(
+    machine: Machine, head_deg: NDArray[np.float64], hidden: tuple[Hidden, ...] = ()
+) -> NDArray[np.float64]:
+    """The pin's angle on the loaded photo (machine frame, deg) for the true head rotation
+    ``head_deg`` (:attr:`Bends.head_deg`), seen through the camera's tilt like the bends.
+    The photo reads it from the origin marker, which sits on the die at the nominal head
+    axis: a hidden axis offset moves the pin's orbit, not the marker."""
+    s = np.where(head_deg < 0, -1.0, 1.0)
+    phi = np.radians(machine.home_pin_deg + np.abs(head_deg))  # about the true axis
+    e = sum(h.params["axis_offset_mm"] for h in hidden if h.name == "axis_offset")
+    seen = np.arctan2(
+        e * s + machine.pin_orbit_mm * np.sin(phi), machine.pin_orbit_mm * np.cos(phi)
+    )
+    pin = s * np.degrees(phi + np.angle(np.exp(1j * (seen - phi))))
+    for h in hidden:
+        if h.name == "camera_tilt":
+            pin = _tilted(pin, h.params["tilt_deg"], h.params.get("tilt_axis_deg", 0.0))
+    return pin
 
 
 # ----------------------------------------------------------------------------- draws
