@@ -56,15 +56,15 @@ OUTPUT_FOLDER_DESTS: dict[str, frozenset[str]] = {
 }
 
 
-def _one_line(text: object) -> str:
-    line = " ".join(str(text).split())
-    return line if len(line) <= _MAX_MESSAGE else line[: _MAX_MESSAGE - 3] + "..."
-
-
-def _own_line(exc: BaseException) -> str:
+def _own_line(text: object) -> str:
     """Our own error's message on one line, whole: it is written for the operator, and its
     end often says what to do (a stopped job's "check the part ... --force")."""
-    return " ".join(str(exc).split())
+    return " ".join(str(text).split())
+
+
+def _one_line(text: object) -> str:
+    line = _own_line(text)
+    return line if len(line) <= _MAX_MESSAGE else line[: _MAX_MESSAGE - 3] + "..."
 
 
 def _paths_in(args: argparse.Namespace) -> list[tuple[str, Path]]:
