@@ -9,7 +9,8 @@ physically general form (defaults in brackets give the narrow form):
   the same direction as the one before (a pure play operator with return to
   home loses it only on direction reversals: 0);
 - ``drift``: ``load_exponent`` [0]: the steps lost per bend grow with the pin
-  torque as ``d_j = d (T_j / 3 N m)^p``; ``home_shift`` [0]: the share of the
+  torque as ``d_j = d (T_j / T_ref)^p`` (``T_ref`` 3 N m for a 3 mm wire, in
+  proportion to the wire's diameter cubed); ``home_shift`` [0]: the share of the
   accumulated loss that shifts home instead of shortening every later bend. The
   narrow form (0, the spec's helix) shortens bend k by ``d k`` whatever its
   direction; a home shift (1) under-bends a later bend in the same direction and
@@ -191,7 +192,8 @@ EFFECTS: dict[str, EffectSpec] = {
                     0.0,
                     3.0,
                     0.0,
-                    "steps lost per bend grow with the pin torque as (T / 3 N m)^p",
+                    "steps lost per bend grow with the pin torque as (T / T_ref)^p, T_ref 3 N m "
+                    "for a 3 mm wire, as its diameter cubed",
                 ),
                 ShapeSpec(
                     "home_shift",

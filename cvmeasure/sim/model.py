@@ -241,8 +241,26 @@ def _nominal_geometry(
     return geom, contact
 
 
-#: Reference pin torque of the drift's load law (N m): d is the loss per bend at this load.
+#: Reference pin torque of the drift's load law (N m) for a wire of
+#: :data:`DRIFT_REFERENCE_WIRE_MM`: d is the loss per bend at this load.
 DRIFT_REFERENCE_TORQUE_NM = 3.0
+#: Wire diameter (mm) the reference torque is given for (a DIWire's).
+DRIFT_REFERENCE_WIRE_MM = 3.0
+
+
+def drift_reference_torque_nm(params: SimParams) -> float:
+    """The drift load law's reference torque (N m) on the machine ``params`` describes.
+
+    In proportion to the wire's diameter cubed (the pin torque of a machine bending the
+    same wire material at the same strains grows as ``d^3``: the moment as ``d^3``, the
+    lever and the arm alike), so that a similar machine described at another size has the
+    same load ratio ``T / T_ref``, hence the same drift at the same ``d`` and ``p``: with a
+    fixed DIWire torque, the load exponent's change carried ``p ln(k^3)`` of a machine
+    described ``k`` times larger, which the drift's rate alone could not tell from it (a
+    drift named on a session was not named when its machine was described at twice or
+    half its size).
+    """
+    return DRIFT_REFERENCE_TORQUE_NM * (params.wire_diameter_mm / DRIFT_REFERENCE_WIRE_MM) ** 3
 
 
 def _rotation(
@@ -250,9 +268,10 @@ def _rotation(
     values: dict[str, float],
     shapes: dict[str, float],
     history: _History,
-    torque_nm: NDArray[np.float64] | None,
+    load_ratio: NDArray[np.float64] | None,
 ) -> NDArray[np.float64]:
-    """Head rotation magnitude (>= 0) after the command effects."""
+    """Head rotation magnitude (>= 0) after the command effects; ``load_ratio``: the pin
+    torque over the drift's reference torque (:func:`drift_reference_torque_nm`)."""
     direction = history.direction
     r = np.abs(cmd)
     if "scale" in values:
@@ -269,11 +288,10 @@ def _rotation(
             # the spec's helix: bend k loses d k whatever the order (bend_index as given)
             r = r - values["drift"] * history.bend_index
         else:
-            if p == 0.0 or torque_nm is None:
+            if p == 0.0 or load_ratio is None:
                 loss = values["drift"] + np.zeros(r.shape)  # (a batch of rates: (K, N))
             else:
-                t = np.maximum(torque_nm, 0.0) / DRIFT_REFERENCE_TORQUE_NM
-                loss = values["drift"] * t**p
+                loss = values["drift"] * np.maximum(load_ratio, 0.0) ** p
             step = shapes.get("step_deg", 0.0)
             if step > 0.0:  # steps lost whole: the run's accumulated loss, rounded
                 before = history.accumulated(loss)
@@ -361,10 +379,10 @@ def _forward(
     )
     if "drift" in values and shapes.get("load_exponent", 0.0) > 0.0:
         # the steps a bend loses depend on its own load: iterate to the fixed point
+        reference = drift_reference_torque_nm(params)
         for _ in range(_DRIFT_ITERATIONS):
-            r = _rotation(
-                cmd, values, shapes, history, load * _torque_nm(law, params, phi, theta_l, lever)
-            )
+            torque = load * _torque_nm(law, params, phi, theta_l, lever)
+            r = _rotation(cmd, values, shapes, history, torque / reference)
             phi = phi0 + r
             theta_l, lever = loaded_angle_and_lever(geom, phi, contact_deg=contact)
     if np.any(values.get("compliance", 0.0) > 0.0):  # (a batch of rows: all > 0)
