@@ -48,7 +48,7 @@ from cvmeasure.diagnose import Cause, Diagnosis, diagnose
 from cvmeasure.driver.plan import swept_plan
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.material.bender_calibration import MODES
-from cvmeasure.sim import EFFECTS, Effect, SimParams, simulate
+from cvmeasure.sim import EFFECTS, Effect, SimParams, params_from_json, params_to_json, simulate
 from cvmeasure_datasets import physical_bender as pb
 
 SECTION = "Diagnosis on the calibration session (issue 37)"
@@ -59,6 +59,22 @@ OUTSIDE: tuple[str, ...] = pb.OUTSIDE
 NOISE_RANGE_DEG = (0.02, 0.1)
 #: The follow-up's noise has its own stream: the case's seed plus this.
 FOLLOW_UP_SEED_OFFSET = 5_000_000
+#: The coverage sample's extra machines (beyond the main sample's ``--reps``) start here.
+SEED_COVERAGE = 3_800_000
+#: Causes whose generator form can mean the same as the fitted parameter (an interval
+#: scored against the truth: :func:`_sim_effect`); the coverage sample draws more of them.
+COVERAGE_CAUSES: tuple[str, ...] = (
+    "backlash",
+    "offset",
+    "scale",
+    "springback_asymmetry",
+    "axis_offset",
+    "compliance",
+)
+#: The machines diagnosed under two params descriptions start here.
+SEED_DESCRIPTIONS = 3_900_000
+#: The no-effect session a description is fitted from has its own noise stream.
+NO_EFFECT_SEED_OFFSET = 6_000_000
 #: A hidden cause whose whole noise-free signal on the session is below this (sum over
 #: every reading of (change / noise)^2, the chi-square 1-dof 95 % point) is below the
 #: session's detection limit: even a test that knew its exact shape would find it less
@@ -368,12 +384,15 @@ def run_case(case: Case) -> dict:
         "signal_chi2": case.signal_chi2,
         "below_detection": bool(case.signal_chi2 is not None and case.signal_chi2 < DETECTION_CHI2),
         "covered": None,
+        "truth": case.truth,
+        "interval": None,
         "after": None,
     }
     key = EFFECTS[case.name].param if case.name in EFFECTS else None
     if case.truth is not None and key in d["params"] and d["cause"] == case.name:
         lo, hi = d["intervals"][key]
         row["covered"] = bool(lo <= case.truth <= hi)
+        row["interval"] = [lo, hi]
     if d["tie"] and result.follow_up is not None:
         more = follow_up_trials(case, result.follow_up.commanded_pin_deg)
         again = diagnose(more, follow_up=False).to_dict()
@@ -530,6 +549,285 @@ def _cli_diagnose_seconds(tmp: Path, n: int) -> tuple[float, float]:
     return float(np.median(wall)), float(np.median(cpu))
 
 
+# ------------------------------------------------------- two descriptions of one machine
+
+#: SimParams' lengths (mm): a similar machine has every one of them k times larger, and then
+#: the same strains, hence the same angles, at the same wire material.
+LENGTH_FIELDS: tuple[str, ...] = (
+    "wire_diameter_mm",
+    "die_radius_mm",
+    "pin_orbit_mm",
+    "pin_radius_mm",
+    "head_axis_x_mm",
+    "head_axis_y_mm",
+)
+#: How a cause's parameter reads on a similar machine described k times larger: its value
+#: times k**exponent for the same predictions (a length: 1; a compliance in deg per N m:
+#: -3, the pin torque growing as k^3; every angle and ratio: 0).
+SIMILARITY_EXPONENT: dict[str, float] = {"axis_offset_mm": 1.0, "compliance_deg_per_nm": -3.0}
+#: The similar machine's sizes tried for every session (the machine described k times larger).
+SIMILAR_SIZES: tuple[float, ...] = (2.0, 0.5)
+
+
+def similar_params(params: SimParams, k: float) -> SimParams:
+    """``params`` with every length ``k`` times larger: the similar machine, whose
+    predictions of every angle are the same."""
+    return params.replace(**{f: getattr(params, f) * k for f in LENGTH_FIELDS})
+
+
+def description_agreement(a: dict, b: dict, k: float = 1.0) -> tuple[bool, float | None]:
+    """Whether two diagnoses (``cvmeasure diagnose --json``) of one session, under two
+    descriptions of the machine, say the same, and how far their intervals are apart.
+
+    Parameters
+    ----------
+    a, b : dict
+        The diagnosis under the first description and under the second.
+    k : float
+        The second description's size relative to the first (a similar machine; 1 when
+        they are of one size): a parameter with a unit of length reads k times larger on
+        it (:data:`SIMILARITY_EXPONENT`), and is compared so.
+
+    Returns
+    -------
+    same : bool
+        The same cause, named causes and tie.
+    worst_sigma : float or None
+        The largest |difference of an interval endpoint| over every parameter with an
+        interval under both, in standard errors of the first's (its 95 % interval's
+        width / 3.92); None when they have no interval in common.
+    """
+    same = (a["cause"], list(a["causes"]), sorted(a["tie"])) == (
+        b["cause"],
+        list(b["causes"]),
+        sorted(b["tie"]),
+    )
+    worst = None
+    for key, (lo, hi) in a["intervals"].items():
+        if key not in b["intervals"]:
+            continue
+        f = k ** SIMILARITY_EXPONENT.get(key, 0.0)
+        lo_b, hi_b = (v / f for v in b["intervals"][key])
+        sigma = (hi - lo) / (2 * 1.96)
+        if not sigma > 0:
+            continue
+        d = max(abs(lo_b - lo), abs(hi_b - hi)) / sigma
+        worst = d if worst is None else max(worst, d)
+    return same, worst
+
+
+def _prediction_rms_deg(cmd: np.ndarray, a: Path, b: Path) -> float:
+    """RMS difference (deg) of two params files' predictions of every angle (loaded,
+    released, pin) on the commands: what the two descriptions disagree on."""
+    (pa, ea), (pb_, eb) = params_from_json(a), params_from_json(b)
+    ra, rb = simulate(cmd, pa, ea), simulate(cmd, pb_, eb)
+    diff = np.concatenate(
+        [
+            ra.loaded_bend_deg - rb.loaded_bend_deg,
+            ra.unloaded_bend_deg - rb.unloaded_bend_deg,
+            ra.pin_angle_deg - rb.pin_angle_deg,
+        ]
+    )
+    return float(np.sqrt(np.mean(diff**2)))
+
+
+def _no_effect_session(case: Case) -> TrialTable:
+    """The case's machine (its params) bent on the same session without the hidden cause,
+    measured with the case's noise from its own stream: the session a user fits the
+    machine's description from."""
+    params, _ = case.machine
+    rng = np.random.default_rng(case.seed + NO_EFFECT_SEED_OFFSET)
+    cmd = case.trials.commanded_pin_deg
+    res = simulate(cmd, params, ())
+    loaded, unloaded, pin = _noisy(
+        rng, case.noise_deg, res.loaded_bend_deg, res.unloaded_bend_deg, res.pin_angle_deg
+    )
+    return TrialTable.from_arrays(cmd, loaded, unloaded, measured_pin_deg=pin, source="sim")
+
+
+def description_session(case: Case, tmp: Path) -> list[dict]:
+    """One sim session diagnosed as processes (``cvmeasure diagnose --json --params``)
+    under the machine's own description and under each second one: the similar machine
+    at each of :data:`SIMILAR_SIZES`, and the params ``cvmeasure diagnose --save-params``
+    writes from the machine's no-effect session (the built-in description's strength and
+    die radius fitted, as a user without a params file gets one). One row per second
+    description."""
+    params, _ = case.machine
+    where = tmp / f"desc_{case.seed}"
+    where.mkdir(parents=True, exist_ok=True)
+    trials = case.trials.write_csv(where / "trials.csv")
+    no_effect = _no_effect_session(case).write_csv(where / "no_effect.csv")
+    own = params_to_json(where / "own.json", params)
+    seconds = [
+        (
+            f"similar x{k:g}",
+            k,
+            params_to_json(where / f"similar_{k:g}.json", similar_params(params, k)),
+        )
+        for k in SIMILAR_SIZES
+    ]
+    fitted = where / "fitted.json"
+    fit, _ = _cli("diagnose", str(no_effect), "--json", "--save-params", str(fitted), cwd=where)
+    if fit.returncode == 0:
+        seconds.append(("fitted (no-effect session)", 1.0, fitted))
+    out = {}
+    for label, path in (("own", own), *((lab, p) for lab, _, p in seconds)):
+        proc, _ = _cli("diagnose", str(trials), "--json", "--params", str(path), cwd=where)
+        out[label] = json.loads(proc.stdout) if proc.returncode == 0 else None
+    rows = []
+    a = out["own"]
+    for label, k, path in seconds:
+        b = out[label]
+        row = {
+            "seed": case.seed,
+            "mode": case.mode,
+            "hidden": case.name,
+            "noise_deg": case.noise_deg,
+            "description": label,
+            "prediction_rms_deg": _prediction_rms_deg(case.trials.commanded_pin_deg, own, path),
+            "own": None if a is None else [a["cause"], a["causes"], a["tie"]],
+            "second": None if b is None else [b["cause"], b["causes"], b["tie"]],
+            "same": False,
+            "worst_sigma": None,
+        }
+        if a is not None and b is not None:
+            row["same"], row["worst_sigma"] = description_agreement(a, b, k)
+        rows.append(row)
+    if fit.returncode != 0:
+        rows.append(
+            {
+                "seed": case.seed,
+                "mode": case.mode,
+                "hidden": case.name,
+                "noise_deg": case.noise_deg,
+                "description": "fitted (no-effect session)",
+                "prediction_rms_deg": None,
+                "own": None,
+                "second": f"diagnose --save-params failed: {fit.stderr.strip()[-120:]}",
+                "same": False,
+                "worst_sigma": None,
+            }
+        )
+    return rows
+
+
+def description_cases(reps: int) -> list[tuple[int, str, str]]:
+    """(seed, cause, mode) of the sessions diagnosed under two descriptions: ``reps`` per
+    catalogue cause and none, the modes taken in turn (each cause in ``reps`` modes)."""
+    out, seed = [], SEED_DESCRIPTIONS
+    for i, name in enumerate((*CATALOGUE, "none")):
+        for j in range(reps):
+            out.append((seed, name, MODES_RUN[(i + j) % len(MODES_RUN)]))
+            seed += 1
+    return out
+
+
+def description_metrics(rows: list[dict]) -> tuple[list[Metric], list[list]]:
+    """The target's two rows (same names; the worst interval difference) and a row per
+    (second description, hidden cause)."""
+    same = float(np.mean([r["same"] for r in rows]))
+    sig = [r["worst_sigma"] for r in rows if r["worst_sigma"] is not None]
+    worst = max(sig) if sig else None
+    n_sessions = len({r["seed"] for r in rows})
+    pred = [r["prediction_rms_deg"] for r in rows if r["prediction_rms_deg"] is not None]
+    metrics = [
+        Metric(
+            f"two descriptions of one machine: same named causes ({n_sessions} sessions, "
+            f"{len(rows)} pairs)",
+            _pct(same),
+            "%",
+            "100",
+            same == 1.0,
+        ),
+        Metric.at_most(
+            "two descriptions of one machine: worst interval endpoint difference",
+            None if worst is None else round(worst, 3),
+            "sigma",
+            0.1,
+        ),
+        Metric(
+            "two descriptions: their predictions' rms difference, largest / the session's noise",
+            round(
+                max(
+                    r["prediction_rms_deg"] / r["noise_deg"]
+                    for r in rows
+                    if r["prediction_rms_deg"] is not None
+                ),
+                3,
+            )
+            if pred
+            else None,
+            "x",
+        ),
+    ]
+    table = []
+    kinds = dict.fromkeys(r["description"] for r in rows)
+    for kind in kinds:
+        for name in (*CATALOGUE, "none"):
+            rs = [r for r in rows if r["description"] == kind and r["hidden"] == name]
+            if not rs:
+                continue
+            s = [r["worst_sigma"] for r in rs if r["worst_sigma"] is not None]
+            p_ = [
+                r["prediction_rms_deg"] / r["noise_deg"]
+                for r in rs
+                if r["prediction_rms_deg"] is not None
+            ]
+            differ = Counter(
+                f"{_said(r['own'])} -> {_said(r['second'])}" for r in rs if not r["same"]
+            )
+            table.append(
+                [
+                    kind,
+                    name,
+                    len(rs),
+                    _pct(np.mean([r["same"] for r in rs])),
+                    round(max(s), 3) if s else "-",
+                    round(max(p_), 3) if p_ else "-",
+                    ", ".join(f"{k} x{v}" for k, v in differ.most_common()) or "-",
+                ]
+            )
+    return metrics, table
+
+
+def _said(d: object) -> str:
+    """A diagnosis's names in a few words (cause, or cause with its tie)."""
+    if not isinstance(d, list):
+        return str(d)
+    cause, causes, tie = d
+    label = "+".join(causes) if causes else cause
+    return label + (f" (tie {'/'.join(tie)})" if tie else "")
+
+
+def coverage_table(rows: list[dict]) -> list[list]:
+    """Per generator and cause, the intervals scored against the truth: how many, how many
+    hold it, and the misses' truth and interval (which parameters miss, and by how much)."""
+    out = []
+    for gen in dict.fromkeys(r["generator"] for r in rows):
+        for name in CATALOGUE:
+            rs = [r for r in rows if r["generator"] == gen and r["hidden"] == name]
+            scored = [r for r in rs if r["covered"] is not None]
+            if not scored:
+                continue
+            misses = [r for r in scored if not r["covered"]]
+            out.append(
+                [
+                    gen,
+                    name,
+                    EFFECTS[name].param,
+                    len(scored),
+                    _pct(np.mean([r["covered"] for r in scored])),
+                    "; ".join(
+                        f"{r['mode']} truth {r['truth']:.4g} in "
+                        f"[{r['interval'][0]:.4g}, {r['interval'][1]:.4g}]"
+                        for r in misses
+                    )
+                    or "-",
+                ]
+            )
+    return out
+
+
 # ----------------------------------------------------------------------------- the run
 
 
@@ -543,6 +841,18 @@ def _cases(generators: tuple[str, ...], reps: int) -> list[tuple[str, int, str, 
                 for _ in range(reps):
                     out.append((gen, seed, name, mode))
                     seed += 1
+    return out
+
+
+def _coverage_cases(extra_reps: int) -> list[tuple[int, str, str]]:
+    """(seed, cause, mode) of the coverage sample's extra sim machines: ``extra_reps`` per
+    (cause in :data:`COVERAGE_CAUSES`, mode), seeds from :data:`SEED_COVERAGE`."""
+    out, seed = [], SEED_COVERAGE
+    for mode in MODES_RUN:
+        for name in COVERAGE_CAUSES:
+            for _ in range(extra_reps):
+                out.append((seed, name, mode))
+                seed += 1
     return out
 
 
@@ -563,14 +873,18 @@ def per_cause_table(per_cause: list[list]) -> Table:
     )
 
 
-def _generator_metrics(gen: str, rows: list[dict]) -> tuple[list[Metric], list[list]]:
+def _generator_metrics(
+    gen: str, rows: list[dict], coverage_rows: list[dict] = ()
+) -> tuple[list[Metric], list[list]]:
+    """The generator's metrics and per-cause rows; ``coverage_rows``: more cases whose
+    intervals are scored beside the rows' own (the coverage sample), nothing else."""
     cat = [r for r in rows if expected_name(r) in CATALOGUE]
     null = [r for r in rows if r["hidden"] == "none"]
     out = [r for r in rows if expected_name(r) in (*OUTSIDE, *HELDOUT_OUTSIDE)]
     right = float(np.mean([named_right(r) for r in cat]))
     first = float(np.mean([r["cause"] == expected_name(r) and not r["tie"] for r in cat]))
     false = float(np.mean([false_discovery(r) for r in null]))
-    covered = [r["covered"] for r in cat if r["covered"] is not None]
+    covered = [r["covered"] for r in (*cat, *coverage_rows) if r["covered"] is not None]
     metrics = [
         Metric(
             f"{gen}: catalogue causes named right (after the follow-up round)",
@@ -651,21 +965,53 @@ def main(argv: list[str] | None = None) -> dict:
         "--generators", default="sim,physical", help="comma-separated: sim, physical, heldout"
     )
     p.add_argument("--no-chain", action="store_true", help="skip the end-to-end process chains")
+    p.add_argument(
+        "--coverage-reps",
+        type=int,
+        default=10,
+        help="sim machines per (cause, mode) whose intervals are scored, for the coverage "
+        "row: the main sample's and more of the causes in COVERAGE_CAUSES (default 10)",
+    )
+    p.add_argument(
+        "--description-reps",
+        type=int,
+        default=2,
+        help="sim sessions per cause (and none) diagnosed under two params descriptions, "
+        "the modes in turn (default 2)",
+    )
     args = p.parse_args(argv)
     reps = 1 if args.quick else args.reps
     generators = tuple(args.generators.split(","))
     rows = [run_case(make_case(g, s, n, m)) for g, s, n, m in _cases(generators, reps)]
+    extra_reps = 0 if args.quick else max(args.coverage_reps - reps, 0)
+    coverage_rows = (
+        [
+            run_case(make_case("sim", seed, name, mode))
+            for seed, name, mode in _coverage_cases(extra_reps)
+        ]
+        if "sim" in generators
+        else []
+    )
     metrics: list[Metric] = []
     per_cause: list[list] = []
     for gen in generators:
-        m, t = _generator_metrics(gen, [r for r in rows if r["generator"] == gen])
+        m, t = _generator_metrics(
+            gen,
+            [r for r in rows if r["generator"] == gen],
+            coverage_rows if gen == "sim" else (),
+        )
         metrics += m
         per_cause += t
     chains: list[list] = []
+    desc_rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         wall, cpu = _cli_diagnose_seconds(Path(tmp), 3 if args.quick else 7)
         if not args.no_chain:
             chains = [process_chain(mode, Path(tmp)) for mode in MODES_RUN]
+        for seed, name, mode in description_cases(1 if args.quick else args.description_reps):
+            desc_rows += description_session(make_case("sim", seed, name, mode), Path(tmp))
+    desc_metrics, desc_table = description_metrics(desc_rows)
+    metrics += desc_metrics
     metrics += [
         Metric.at_most("cvmeasure diagnose on a standard session (44 bends), wall", wall, "s", 1.0),
         Metric("cvmeasure diagnose on a standard session, CPU", round(cpu, 3), "s"),
@@ -694,6 +1040,26 @@ def main(argv: list[str] | None = None) -> dict:
                 ["mode", "effect", "diagnosis", "fit", "follow-up plan", "session s", "diagnose s"],
                 chains,
             ),
+            Table(
+                "95 % intervals scored against the truth, per cause (main and coverage samples)",
+                ["generator", "hidden", "parameter", "scored", "holding %", "misses"],
+                coverage_table([*rows, *coverage_rows]),
+            ),
+            Table(
+                "two descriptions of one machine (sim; cvmeasure diagnose --params own.json vs "
+                "the second): same names, worst interval endpoint difference, predictions' "
+                "rms difference over the noise",
+                [
+                    "second description",
+                    "hidden",
+                    "sessions",
+                    "same names %",
+                    "worst |d| / sigma",
+                    "pred. rms / noise",
+                    "differing (own -> second)",
+                ],
+                desc_table,
+            ),
         ],
         notes=[
             f"seeds from {SEED0}, {reps} per (generator, cause, mode); noise 0.02-0.1 deg per "
@@ -703,8 +1069,22 @@ def main(argv: list[str] | None = None) -> dict:
             "named right after its follow-up bends were run on the same machine",
             DETECTION_NOTE,
             "intervals: only causes whose generator form means the same as the fitted parameter",
+            f"the sim coverage row: the main sample's intervals and those of {extra_reps} more "
+            f"machines per (cause, mode) of {', '.join(COVERAGE_CAUSES)} (seeds from "
+            f"{SEED_COVERAGE}; the causes whose interval is scored), {reps + extra_reps} in "
+            "all; every other row is scored on the main sample alone",
+            "two descriptions of one machine: sim sessions, "
+            f"{1 if args.quick else args.description_reps} per cause and none (the modes in "
+            f"turn), seeds from {SEED_DESCRIPTIONS}, diagnosed as processes (cvmeasure diagnose --json "
+            "--params) under the machine's own params and under each second description: the "
+            f"similar machine (every length x{' and x'.join(f'{k:g}' for k in SIMILAR_SIZES)}; "
+            "a parameter in mm, or in deg per N m, compared after its similarity scaling), "
+            "and the params cvmeasure diagnose --save-params writes from the machine's "
+            "no-effect session (another noise draw) with the built-in description; same "
+            "names: cause, named causes and tie all equal; sigma: the own interval's width / "
+            "3.92",
         ],
-        extra={"rows": rows},
+        extra={"rows": rows, "coverage_rows": coverage_rows, "description_rows": desc_rows},
     )
 
 
