@@ -393,6 +393,7 @@ def run_case(case: Case) -> dict:
         lo, hi = d["intervals"][key]
         row["covered"] = bool(lo <= case.truth <= hi)
         row["interval"] = [lo, hi]
+        row["estimate"] = d["params"][key]
     if d["tie"] and result.follow_up is not None:
         more = follow_up_trials(case, result.follow_up.commanded_pin_deg)
         again = diagnose(more, follow_up=False).to_dict()
@@ -799,9 +800,22 @@ def _said(d: object) -> str:
     return label + (f" (tie {'/'.join(tie)})" if tie else "")
 
 
+def _error_rms_sigma(rows: list[dict]) -> float:
+    """RMS over the rows of (estimate - truth) / sigma, sigma the 95 % interval's width /
+    3.92 (the interval's mid where a row has no estimate)."""
+    z = [
+        (r.get("estimate", 0.5 * sum(r["interval"])) - r["truth"])
+        / ((r["interval"][1] - r["interval"][0]) / 3.92)
+        for r in rows
+    ]
+    return float(np.sqrt(np.mean(np.square(z))))
+
+
 def coverage_table(rows: list[dict]) -> list[list]:
     """Per generator and cause, the intervals scored against the truth: how many, how many
-    hold it, and the misses' truth and interval (which parameters miss, and by how much)."""
+    hold it, the rms of (estimate - truth) / sigma (sigma: the interval's width / 3.92; 1
+    for an interval as wide as the errors, below 1 wider than they need) and the misses'
+    truth and interval (which parameters miss, and by how much)."""
     out = []
     for gen in dict.fromkeys(r["generator"] for r in rows):
         for name in CATALOGUE:
@@ -817,6 +831,7 @@ def coverage_table(rows: list[dict]) -> list[list]:
                     EFFECTS[name].param,
                     len(scored),
                     _pct(np.mean([r["covered"] for r in scored])),
+                    round(_error_rms_sigma(scored), 2),
                     "; ".join(
                         f"{r['mode']} truth {r['truth']:.4g} in "
                         f"[{r['interval'][0]:.4g}, {r['interval'][1]:.4g}]"
@@ -1042,7 +1057,15 @@ def main(argv: list[str] | None = None) -> dict:
             ),
             Table(
                 "95 % intervals scored against the truth, per cause (main and coverage samples)",
-                ["generator", "hidden", "parameter", "scored", "holding %", "misses"],
+                [
+                    "generator",
+                    "hidden",
+                    "parameter",
+                    "scored",
+                    "holding %",
+                    "rms error / sigma",
+                    "misses",
+                ],
                 coverage_table([*rows, *coverage_rows]),
             ),
             Table(

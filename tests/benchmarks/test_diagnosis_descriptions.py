@@ -79,10 +79,11 @@ def test_description_sessions_take_the_modes_in_turn():
 
 def test_the_coverage_table_names_each_miss_with_its_truth_and_interval():
     rows = [
-        {"generator": "sim", "hidden": "offset", "mode": "quick", "covered": True, "truth": 1.0, "interval": [0.9, 1.1]},
-        {"generator": "sim", "hidden": "offset", "mode": "high", "covered": False, "truth": 1.5, "interval": [1.1, 1.3]},
+        {"generator": "sim", "hidden": "offset", "mode": "quick", "covered": True, "truth": 1.0, "interval": [0.9, 1.1], "estimate": 1.0},
+        {"generator": "sim", "hidden": "offset", "mode": "high", "covered": False, "truth": 1.5, "interval": [1.1, 1.3], "estimate": 1.2},
         {"generator": "sim", "hidden": "drift", "mode": "high", "covered": None, "truth": None, "interval": None},
     ]  # fmt: skip
+    # errors 0 and 0.3 of sigmas 0.2 / 3.92: rms sqrt((0 + 5.88^2) / 2) = 4.16
     assert coverage_table(rows) == [
-        ["sim", "offset", "offset_deg", 2, 50.0, "high truth 1.5 in [1.1, 1.3]"]
+        ["sim", "offset", "offset_deg", 2, 50.0, 4.16, "high truth 1.5 in [1.1, 1.3]"]
     ]
