@@ -123,12 +123,6 @@ KNOWN_WIDTH_REFINE = 0.3
 #: the wire's width the symmetric centres stay the whole window's.
 HIGHLIGHT_TRIM_SHARE = 0.4
 
-#: Least share of the profiles with a clean edge pair (both silhouette edges the wire's width
-#: apart) for the silhouette centres to be used on a bright wire on a dark sheet, where the
-#: symmetric centres are a round wire's (:func:`_silhouette_if_whole`): below it most
-#: centres are one edge moved by half the width.
-SILHOUETTE_MIN_PAIRS_DARK = 0.5
-
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
 
@@ -264,10 +258,9 @@ def measure_centreline(
     centre_from = "symmetry"
     widths = shadow = lit = None
     if wire_width_px is not None:
-        bright_wire = not _dark_on_sheet(prof, offsets, 0.5 * float(wire_width_px))
         found = _silhouette_if_whole(
             profiles_at, path, centres, offsets, float(wire_width_px), step_px, rough, window,
-            symmetry, bright_wire,
+            symmetry,
         )  # fmt: skip
         if not isinstance(found, str):
             centres, prof_ok, widths, coverage, shadow, lit = found
@@ -362,13 +355,11 @@ def _silhouette_if_whole(
     rough: float,
     window: int,
     symmetry: float,
-    bright_wire: bool = False,
 ) -> tuple | str:
     """:func:`_silhouette_centres` when they follow the wire far enough and stand for its
     silhouette, else why not (the symmetric centres are then used).
 
-    ``centres`` are the symmetric ones, ``symmetry`` their remaining asymmetry;
-    ``bright_wire``: the wire's band stands out brighter than the sheet (a dark sheet).
+    ``centres`` are the symmetric ones, ``symmetry`` their remaining asymmetry.
     """
     # from the mask's path, not the symmetric centres: those may have lost a
     # stretch of the wire (a clipped highlight), which could not come back
@@ -401,17 +392,6 @@ def _silhouette_if_whole(
     # flanks), while its profiles are a round wire's symmetric ones along it: those say it
     if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
         return f"silhouette edges along only {100 * found[3]:.0f} % of it"
-    # a bright wire on a dark sheet with clean pairs along under half of it: its polished
-    # limbs mirror the dark sheet, so the steps a width apart are found only here and there
-    # and most centres are one edge moved by the pairs' median width, an edge whose place the
-    # limb's reflection and the lamp's glint move (1-2 px off the axis, wandering, along a
-    # chord of a Mitsuba part on black card: the radius 0.5 % off). Where the profiles are a
-    # round wire's symmetric ones, their centre is the measured one. Only there: on a light
-    # sheet the symmetric centres have the flanks' valleys to mislead them, and where pairs
-    # cover most of the wire they place the centres
-    pairs = found[7]
-    if bright_wire and pairs < SILHOUETTE_MIN_PAIRS_DARK and symmetry <= SYMMETRIC_WIRE_MAX:
-        return f"edge pairs of the wire's width along only {100 * pairs:.0f} % of it"
     return found[:6]
 
 
@@ -564,9 +544,7 @@ def _silhouette_centres(
     step_px: float,
     smooth_px: float,
     window: int,
-) -> tuple[
-    np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None, float, float
-]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None, float]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
     The edges are the strongest gradient pair a width apart (within 8 %, or 0.5 px;
@@ -594,12 +572,10 @@ def _silhouette_centres(
     Returns the centres, their profiles, the edge widths (px, NaN where only one
     edge was used), the share of profiles with a centre, the image direction in
     which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen),
-    the lit centres (None when the shadow's side is not seen), how far all edges'
-    distances (paired or not) are off the width, relative, by their median, and the share
-    of the profiles with a clean pair (both last pass).
+    the lit centres (None when the shadow's side is not seen) and how far all edges'
+    distances (paired or not) are off the width, relative, by their median (last pass).
     """
     coverage = 1.0
-    pair_share = 0.0
     typical_misfit = np.inf
     widths = np.zeros(0)
     lit = None
@@ -635,14 +611,12 @@ def _silhouette_centres(
         widths = np.where(pair, width, np.nan)[ok]
         seen = width[np.isfinite(width)] / width_px - 1.0
         typical_misfit = abs(float(np.median(seen))) if seen.size else np.inf
-        pair_share = float(pair.mean())
         if not final:
             centres = resample_path(centres, step_px)
     centres, widths, lit = _trim_stray_runs(centres, widths, lit, step_px, width_px)
     # the last profiles, re-centred on the edges' midpoints (for the end points)
     normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
-    prof = profiles_at(centres, normals)
-    return centres, prof, widths, coverage, shadow, lit, typical_misfit, pair_share
+    return centres, profiles_at(centres, normals), widths, coverage, shadow, lit, typical_misfit
 
 
 def _edges_of_pass(
