@@ -459,8 +459,17 @@ def _symmetric_passes(
         # centres; the later ones refine within that basin (KNOWN_WIDTH_REFINE)
         rho = KNOWN_WIDTH_FIRST_RHO * known_hw
     search = min(1.0 * rough + 1.0, reach - rho - 0.5)
-    for final in (False, False, True):
-        shift, _ = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px)
+    for n_pass, final in enumerate((False, False, True)):
+        # the first pass across both silhouette steps (light sheet, known width) picks its
+        # basin by the asymmetry itself, not relative to the window's variance: a window about
+        # one flank's dark valley holds the sheet on one side only, more variance, and won by
+        # the ratio along a whole end chord of a Mitsuba part on white card (3.5 px off the
+        # axis: the radius 7 % off); elsewhere (no width, or a bright wire on a dark sheet)
+        # the ratio keeps a flat soft shadow band, symmetric but featureless, from winning
+        shift, _ = symmetric_centres(
+            prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px,
+            by_variance=not (n_pass == 0 and known_hw is not None),
+        )  # fmt: skip
         shift = despike(shift, window)
         ok = np.isfinite(shift)
         if ok.sum() < 5:

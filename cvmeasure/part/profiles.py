@@ -114,6 +114,7 @@ def symmetric_centres(
     step_px: float = PROFILE_STEP_PX,
     max_slope_px: float | None = None,
     trim_share: float = 0.0,
+    by_variance: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift (P,) about which each profile is most symmetric, and the cost there.
 
@@ -130,6 +131,11 @@ def symmetric_centres(
         minimum.
     trim_share : the share of the window's offsets whose asymmetry is largest left out
         of each shift's cost (:func:`asymmetry_costs`); 0 counts them all.
+    by_variance : with ``max_slope_px``, the basin is chosen by the asymmetry relative to
+        the window's variance (True), else by the asymmetry itself: for a window that spans
+        both of the wire's silhouette steps to the sheet, where a window about one flank's
+        dark valley holds more variance (the sheet on one side only) and so wins by the
+        ratio though less symmetric.
 
     Returns
     -------
@@ -157,6 +163,8 @@ def symmetric_centres(
         mean = (cs[:, hi] - cs[:, lo]) / n
         var = np.maximum((cs2[:, hi] - cs2[:, lo]) / n - mean**2, 0.0)
         ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
+        if not by_variance:  # the same path search on the asymmetry (scaled to order 1)
+            ratio = cost / (1e-6 + float(np.median(cost)))
         k = least_cost_path(ratio, max(1, int(np.ceil(max_slope_px / step_px))))
         # then the raw asymmetry's own minimum within a few samples of it
         near = 4

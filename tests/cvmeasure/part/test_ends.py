@@ -76,3 +76,31 @@ def test_a_flank_at_the_plates_level_does_not_match_the_bare_plate(seed):
     end, _ = end_point(img, centres, profiles, offsets, 2.0, half_width, head=True, axis_level=True)
     # the synthetic cap's narrow crest and limb do not repeat the flank exactly: 0.4 px
     assert abs(float((end - axis[0]) @ d)) < 0.6
+
+
+@pytest.mark.parametrize("lit_px", [12.0, 16.0])
+def test_a_lit_last_stretch_is_wire_not_plate(lit_px):
+    """A low lamp facing an end on a light plate lights the wire's last millimetres to a
+    crest brighter than the plate, while the profiles before hold its dark flanks: the
+    strongest step along the axis is where that crest begins, inside the wire. Beyond it
+    the axis is brighter than the plate (no cast shadow is), so the cap lies farther out
+    (before: read ``lit_px`` inside)."""
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    img = _dim_wire_on_a_light_plate(axis, np.array([-50.0, -50.0]))
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]].astype(np.float64)
+    rel = np.stack((xs - axis[0][0], ys - axis[0][1]), axis=-1)
+    along, across = rel @ d, rel @ np.array([-d[1], d[0]])
+    # the crest (the middle 60 % across) lit to above the plate's 150 over the last
+    # ``lit_px`` and on the cap, its dark limbs kept
+    inside = np.hypot(np.minimum(along, 0.0), across) < 0.6 * RADIUS_PX
+    crest = inside & (along < lit_px)
+    img = np.where(crest, 250.0, img).astype(np.float32)
+    # centres between the silhouette edges only before the lit stretch
+    centres = axis[0] + np.arange(lit_px + 2.0, 80.0, 1.0)[:, None] * d
+    normals = np.tile([-d[1], d[0]], (len(centres), 1))
+    reach = round(9.0 / PROFILE_STEP_PX)
+    offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
+    profiles = sample_across(img, centres, normals, offsets)
+    end, _ = end_point(img, centres, profiles, offsets, 2.0, RADIUS_PX, head=True, silhouette=True)
+    assert abs(float((end - axis[0]) @ d)) < 0.5  # along the axis
