@@ -34,7 +34,12 @@ ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
 the profile's gradient; per profile, the pair of peaks whose distance is within
 8 % of the expected width, that step one up and one down, with no highlight
 beyond either, and whose summed strength is largest is the wire (the highlight's
-own edges are closer together, the shadow's outer edge farther out). But a polished tube's limbs mirror the sheet just beside them (a
+own edges are closer together, the shadow's outer edge farther out). The stated width is a
+prior the photo must agree with: where the profiles are a round wire's symmetric ones, the
+first pass looks for each pair within a quarter width of the symmetric centre, about the
+width the edges show there (a narrow highlight's far edge and a hard cast shadow's outer
+edge are a width apart too, step opposite ways and can outscore the wire's own edges on a
+light sheet). But a polished tube's limbs mirror the sheet just beside them (a
 ray grazing the limb goes on to the sheet), so on a dark sheet only the lit flank and the
 highlight stand out and edges the wire's width apart are found along a minority of it
 (the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
@@ -90,6 +95,12 @@ FIRST_PASS_REACH = 1.0
 #: light moves the symmetric centre 0.07-0.15 widths off the axis; a pair of the
 #: highlight's far edge and the cast shadow's outer edge lies about 0.65 widths off.
 SYMMETRIC_REACH = 0.25
+
+#: Least share of the first pass's profiles with a pair about the symmetric centre within
+#: twice the tolerance of the stated width for their median width to be the one the pairs
+#: are taken about (:func:`_silhouette_centres`): 0.99-1.0 on the photo lab's light sheet
+#: (6-11 % wide), 0.68 on a polished tube on a dark sheet (10 % narrow).
+WIDTH_SEEN_SHARE = 0.9
 
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
 #: valley is symmetric enough to pass for a centre.
@@ -628,8 +639,10 @@ def _silhouette_centres(
             # symmetric centres within twice the tolerance give the width the edges show
             # (a shadow joined to one flank moves its gradient peak out: 6-11 % wide on
             # the photo lab's light sheet), about which the pairs are then taken
+            # only where such pairs run along nearly all of it: a polished tube's lit flank
+            # and highlight on a dark sheet give a narrower pair along a part of it only
             _, _, seen_w, seen_pair = _edges_of_pass(prof, offsets, stated_px, 2.0 * tol, near)
-            if seen_pair.sum() >= 10:
+            if seen_pair.mean() >= WIDTH_SEEN_SHARE and seen_pair.sum() >= 10:
                 width_px = float(np.median(seen_w[seen_pair]))
         left, right, width, pair = _edges_of_pass(prof, offsets, width_px, tol, near)
         shift, from_left, from_right, shadow, towards = _one_rule_shift(
