@@ -1,8 +1,8 @@
 """The wire's stated diameter on the photo lab's sheets: never a worse answer than without it.
 
 On the light sheet a hard cast shadow lies beside the wire: the highlight's far edge and the
-shadow's outer edge are a wire's width apart and once passed for its silhouette along whole
-chords (vertex bends off by up to 16 deg).
+shadow's outer edge are a wire's width apart, step opposite ways and can outscore the wire's
+own edges: taken for its silhouette along whole chords, the vertex bends are off by degrees.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ def test_the_same_photo_without_the_diameter_measures_the_arc():
 @pytest.mark.parametrize(
     ("radius_mm", "arc_deg", "chords", "sheet", "seed"),
     [
-        # another arc on the light sheet, placed otherwise to the lamp: 0.27 deg off with
-        # the shadow's edge taken for the wire's along a stretch
+        # another arc on the light sheet, placed otherwise to the lamp (the shadow's edge
+        # taken for the wire's along a stretch puts a vertex bend 0.27 deg off)
         (80.0, 150.0, 12, "light", 4),
         # the dark sheet: the shadow is faint beside the lit wire
         (60.0, 120.0, 10, "dark", 1),
