@@ -34,7 +34,12 @@ ray-traced 19 px wire lit from 50 deg elevation). A silhouette edge is a peak of
 the profile's gradient; per profile, the pair of peaks whose distance is within
 8 % of the expected width, that step one up and one down, with no highlight
 beyond either, and whose summed strength is largest is the wire (the highlight's
-own edges are closer together, the shadow's outer edge farther out). But a polished tube's limbs mirror the sheet just beside them (a
+own edges are closer together, the shadow's outer edge farther out). The stated width is a
+prior the photo must agree with: where the profiles are a round wire's symmetric ones, the
+first pass looks for each pair within a quarter width of the symmetric centre, about the
+width the edges show there (a narrow highlight's far edge and a hard cast shadow's outer
+edge are a width apart too, step opposite ways and can outscore the wire's own edges on a
+light sheet). But a polished tube's limbs mirror the sheet just beside them (a
 ray grazing the limb goes on to the sheet), so on a dark sheet only the lit flank and the
 highlight stand out and edges the wire's width apart are found along a minority of it
 (the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
@@ -57,6 +62,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from cvmeasure.part.ends import EndShape, end_point
 from cvmeasure.part.profiles import (
@@ -82,6 +88,19 @@ __all__ = ["Centreline", "measure_centreline"]
 #: How far the first pass of the pair search looks from the mask's path for the pair's
 #: midpoint, in wire widths (:func:`_silhouette_centres`).
 FIRST_PASS_REACH = 1.0
+
+#: How far the first pass looks for the pair's midpoint from the symmetric centre, in wire
+#: widths, where the profiles are a round wire's symmetric ones (:func:`_symmetric_prior`):
+#: the photo's own say where the wire lies, which a stated width must agree with. A side
+#: light moves the symmetric centre 0.07-0.15 widths off the axis; a pair of the
+#: highlight's far edge and the cast shadow's outer edge lies about 0.65 widths off.
+SYMMETRIC_REACH = 0.25
+
+#: Least share of the first pass's profiles with a pair about the symmetric centre within
+#: twice the tolerance of the stated width for their median width to be the one the pairs
+#: are taken about (:func:`_silhouette_centres`): 0.99-1.0 on the photo lab's light sheet
+#: (6-11 % wide), 0.68 on a polished tube on a dark sheet (10 % narrow).
+WIDTH_SEEN_SHARE = 0.9
 
 #: Smallest half-window of the symmetry test (px): below it a dark flank's own
 #: valley is symmetric enough to pass for a centre.
@@ -363,8 +382,16 @@ def _silhouette_if_whole(
     """
     # from the mask's path, not the symmetric centres: those may have lost a
     # stretch of the wire (a clipped highlight), which could not come back
+    # where the profiles are a round wire's symmetric ones, the pairs are looked for about
+    # their centres: on a light sheet the highlight's far edge and a hard cast shadow's
+    # outer edge can be a width apart, step opposite ways and outscore the wire's own edges
+    # (the limb beside the shadow steps little), a pair within reach of a mask's path that
+    # holds the shadow too
+    prior = centres if symmetry <= SYMMETRIC_WIRE_MAX else None
     try:
-        found = _silhouette_centres(profiles_at, path, offsets, width_px, step_px, rough, window)
+        found = _silhouette_centres(
+            profiles_at, path, offsets, width_px, step_px, rough, window, prior
+        )
     except ValueError:
         found = None
     # the silhouette edges must follow the wire as far as its symmetric centres do;
@@ -553,6 +580,7 @@ def _silhouette_centres(
     step_px: float,
     smooth_px: float,
     window: int,
+    prior: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None, float]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
@@ -578,6 +606,11 @@ def _silhouette_centres(
     midpoint replaced by the lit side's edge moved by half the median width (the same
     rule along two widths of wire); noisier by up to sqrt(2), free of the shadow.
 
+    ``prior``: the symmetric centres (M', 2), where those are a round wire's, else None;
+    the first pass then looks for each pair about the symmetric centre beside its rough
+    centre (within ``SYMMETRIC_REACH`` widths; :func:`_symmetric_prior`), and within
+    ``FIRST_PASS_REACH`` of the rough centre only where none lies beside it.
+
     Returns the centres, their profiles, the edge widths (px, NaN where only one
     edge was used), the share of profiles with a centre, the image direction in
     which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen),
@@ -591,8 +624,16 @@ def _silhouette_centres(
     # the edges' distance is the width within 5 %, or half a pixel on a thin wire (a
     # blurred 6 px wire's limbs read 4-5 % wide)
     tol = max(PAIR_TOLERANCE, 0.5 / width_px)
+    stated_px = width_px
     for n_pass, final in enumerate((False, False, True)):
         normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
+        near: float | np.ndarray = 0.2
+        if n_pass == 0:
+            near = FIRST_PASS_REACH
+            if prior is not None:
+                moved = _symmetric_prior(centres, normals, prior, FIRST_PASS_REACH * width_px)
+                centres = centres + np.nan_to_num(moved)[:, None] * normals
+                near = np.where(np.isfinite(moved), SYMMETRIC_REACH, FIRST_PASS_REACH)
         prof = profiles_at(centres, normals)
         # the mask's path can lie half a width off the axis or more (a shadow joined to the
         # mask, wider where a lifted end's shadow parts from the wire): the first pass looks
@@ -602,7 +643,16 @@ def _silhouette_centres(
         # summed gradient is the larger (the plate's edge to the lit wire against the
         # shadow's soft outer edge), was not searched: the last centimetre of a lifted end
         # then lay on the shadow, or had no pairs
-        near = FIRST_PASS_REACH if n_pass == 0 else 0.2
+        if n_pass == 0 and prior is not None:
+            # the stated width is a prior the photo must agree with: the pairs about the
+            # symmetric centres within twice the tolerance give the width the edges show
+            # (a shadow joined to one flank moves its gradient peak out: 6-11 % wide on
+            # the photo lab's light sheet), about which the pairs are then taken
+            # only where such pairs run along nearly all of it: a polished tube's lit flank
+            # and highlight on a dark sheet give a narrower pair along a part of it only
+            _, _, seen_w, seen_pair = _edges_of_pass(prof, offsets, stated_px, 2.0 * tol, near)
+            if seen_pair.mean() >= WIDTH_SEEN_SHARE and seen_pair.sum() >= 10:
+                width_px = float(np.median(seen_w[seen_pair]))
         left, right, width, pair = _edges_of_pass(prof, offsets, width_px, tol, near)
         shift, from_left, from_right, shadow, towards = _one_rule_shift(
             prof, normals, offsets, left, right, width, pair, width_px, step_px
@@ -618,7 +668,7 @@ def _silhouette_centres(
             )
         centres = (centres + shift[:, None] * normals)[ok]
         widths = np.where(pair, width, np.nan)[ok]
-        seen = width[np.isfinite(width)] / width_px - 1.0
+        seen = width[np.isfinite(width)] / stated_px - 1.0
         typical_misfit = abs(float(np.median(seen))) if seen.size else np.inf
         if not final:
             centres = resample_path(centres, step_px)
@@ -628,18 +678,44 @@ def _silhouette_centres(
     return centres, profiles_at(centres, normals), widths, coverage, shadow, lit, typical_misfit
 
 
+def _symmetric_prior(
+    path: np.ndarray, normals: np.ndarray, symmetric: np.ndarray, reach_px: float
+) -> np.ndarray:
+    """Offset (M,) px along each normal of ``path`` to the symmetric centre beside it.
+
+    NaN where no symmetric centre lies within a pixel along the path of the normal's foot
+    and within ``reach_px`` across (a stretch the symmetric centres lost).
+    """
+    dist, k = cKDTree(symmetric).query(path)
+    d = symmetric[k] - path
+    across = np.einsum("ij,ij->i", d, normals)
+    along = np.sqrt(np.maximum(dist**2 - across**2, 0.0))
+    return np.where((along <= 1.0) & (np.abs(across) <= reach_px), across, np.nan)
+
+
 def _edges_of_pass(
-    prof: np.ndarray, offsets: np.ndarray, width_px: float, tol: float, near: float
+    prof: np.ndarray,
+    offsets: np.ndarray,
+    width_px: float,
+    tol: float,
+    near: float | np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Left and right silhouette edges of every profile (px), their width and the clean pairs.
 
-    The strongest pair of gradient peaks a width apart about the centre; where there is
-    none, the edges found from inside (:func:`outer_edges`).
+    The strongest pair of gradient peaks a width apart about the centre (the midpoint
+    within ``near`` widths of it, scalar or per profile); where there is none, the edges
+    found from inside (:func:`outer_edges`).
     """
     # Not the other way round (a penumbra joined to one side blurs its edge): on a light
     # sheet a dark wire's gently shaded body is flat to that test and a soft shadow ramp
     # joins one side, so a shadow's outer edge and the highlight's can pass for the wire
-    left, right = silhouette_edges(prof, offsets, width_px, tolerance=tol, centre_tolerance=near)
+    reach = np.broadcast_to(np.asarray(near, dtype=np.float64), (len(prof),))
+    left, right = np.full(len(prof), np.nan), np.full(len(prof), np.nan)
+    for value in np.unique(reach):
+        rows = reach == value
+        left[rows], right[rows] = silhouette_edges(
+            prof[rows], offsets, width_px, tolerance=tol, centre_tolerance=float(value)
+        )
     width = right - left
     pair = np.abs(width / width_px - 1.0) <= tol
     left2, right2 = outer_edges(prof[~pair], offsets, width_px)
