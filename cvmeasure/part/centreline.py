@@ -92,9 +92,11 @@ FIRST_PASS_REACH = 1.0
 #: How far the first pass looks for the pair's midpoint from the symmetric centre, in wire
 #: widths, where the profiles are a round wire's symmetric ones (:func:`_symmetric_prior`):
 #: the photo's own say where the wire lies, which a stated width must agree with. A side
-#: light moves the symmetric centre 0.07-0.15 widths off the axis; a pair of the
-#: highlight's far edge and the cast shadow's outer edge lies about 0.65 widths off.
-SYMMETRIC_REACH = 0.25
+#: light moves the symmetric centre off the axis (0.07-0.15 widths on the photo lab's
+#: sheets, more under a lamp a few degrees above the plate, which lights one flank only);
+#: a pair of the highlight's far edge and the cast shadow's outer edge lies about 0.65
+#: widths off. The reach lies between the two.
+SYMMETRIC_REACH = 0.4
 
 #: Least share of the first pass's profiles with a pair about the symmetric centre within
 #: twice the tolerance of the stated width for their median width to be the one the pairs
