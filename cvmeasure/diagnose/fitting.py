@@ -62,7 +62,7 @@ from cvmeasure.diagnose.problem import (
 from cvmeasure.diagnose.shapes import refine_shapes
 from cvmeasure.diagnose.solve import profile_interval as profile_interval
 from cvmeasure.diagnose.solve import standard_errors as standard_errors
-from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.effects import Effect, effect_spec_for
 from cvmeasure.sim.params import SimParams
 
 __all__ = [
@@ -201,7 +201,7 @@ def fit_model(
         params,
         base_effects,
         names,
-        [EFFECTS[c] for c in names],
+        [effect_spec_for(c, params) for c in names],
         nuisance_for(params) if nuisance else (),
         forms,
         rows=rows,

@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.discover import RIVAL_PERIODS, library
 from cvmeasure.diagnose.fitting import ModelFit, current_form, discrepancy_basis, predict
-from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.effects import Effect, effect_spec_for
 from cvmeasure.sim.params import SimParams
 
 __all__ = [
@@ -171,7 +171,7 @@ def _prediction_and_columns(
         pred = pred + term @ np.asarray(rival.term_coefficients_deg, dtype=np.float64)
         cols.append(term)
     for j, cause in enumerate(fit.causes):
-        step = 0.05 * max(abs(x) for x in EFFECTS[cause].typical)
+        step = 0.05 * max(abs(x) for x in effect_spec_for(cause, rival.params).typical)
         up, down = list(fit.values), list(fit.values)
         up[j] += step
         down[j] -= step

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cvmeasure.contracts import TrialTable
-from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.effects import Effect, effect_spec_for
 from cvmeasure.sim.model import simulate
 from cvmeasure.sim.params import SimParams
 
@@ -41,8 +41,8 @@ __all__ = [
 CONFOUNDED_SIMILARITY = 0.995
 
 
-def _mid_value(name: str) -> float:
-    lo, hi = EFFECTS[name].typical
+def _mid_value(name: str, params: SimParams) -> float:
+    lo, hi = effect_spec_for(name, params).typical
     return 0.5 * (lo + hi)
 
 
@@ -65,7 +65,7 @@ def signature(
     """Change of the measured angles (deg) when effect ``name`` is on at a typical size."""
     base = tuple(e for e in base_effects if e.name not in (name, "none"))
     ref = _predict(design, params, base)
-    on = _predict(design, params, (*base, Effect(name, _mid_value(name))))
+    on = _predict(design, params, (*base, Effect(name, _mid_value(name, params))))
     return on - ref
 
 

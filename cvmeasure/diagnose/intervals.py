@@ -14,7 +14,7 @@ from cvmeasure.diagnose.fitting import DISCREPANCY_P, ModelFit, fit_model
 from cvmeasure.diagnose.naming import Naming
 from cvmeasure.diagnose.result import CandidateResult, Cause
 from cvmeasure.diagnose.rules import Context
-from cvmeasure.sim.effects import EFFECTS
+from cvmeasure.sim.effects import effect_spec_for
 
 if TYPE_CHECKING:
     pass
@@ -45,7 +45,8 @@ def widened(ctx: Context, fit: ModelFit) -> ModelFit:
     own = fit.intervals_measured or fit.intervals
     out = []
     for c, (lo, hi), (alo, ahi) in zip(fit.causes, own, alt.intervals, strict=True):
-        out.append((max(min(lo, alo), EFFECTS[c].lower), min(max(hi, ahi), EFFECTS[c].upper)))
+        spec = effect_spec_for(c, ctx.params)
+        out.append((max(min(lo, alo), spec.lower), min(max(hi, ahi), spec.upper)))
     return dataclasses.replace(fit, intervals=tuple(out))
 
 

@@ -106,9 +106,10 @@ class ModelFit:
         """Residual standard deviation (degrees of freedom corrected)."""
         return math.sqrt(self.rss_deg2 / max(self.n_obs - self.n_params, 1))
 
-    def effects(self) -> tuple[Effect, ...]:
-        """The fitted effects (clipped to their physical bounds)."""
-        return effects_with((), self.causes, self.values, self.shapes)
+    def effects(self, params: SimParams | None = None) -> tuple[Effect, ...]:
+        """The fitted effects (clipped to their physical bounds on the machine ``params``
+        describes; None: a DIWire's)."""
+        return effects_with((), self.causes, self.values, self.shapes, params=params)
 
     def params(self, base: SimParams) -> SimParams:
         """``base`` with the fitted material strength and nuisance geometry."""

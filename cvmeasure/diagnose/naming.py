@@ -25,7 +25,8 @@ from cvmeasure.diagnose.rules import (
     is_plausible,
     structure_left,
 )
-from cvmeasure.sim.effects import EFFECTS
+from cvmeasure.sim.effects import effect_spec_for
+from cvmeasure.sim.params import SimParams
 
 if TYPE_CHECKING:
     pass
@@ -188,7 +189,7 @@ def _extend(
                 f"{', '.join(stuck)} alone (delta BIC): the pair is not named"
             )
         more = [c for c in more if c.cause not in stuck]
-        unsized = [c for c in more if not is_plausible(c.fit)]
+        unsized = [c for c in more if not is_plausible(c.fit, ctx.params)]
         # a pair with a cause far beyond its typical size takes the place of a mechanism
         # the catalogue lacks: the next accepted pair is tried, at most BEAM_WIDTH of them.
         # (Structure left beyond the discrepancy no longer refuses a pair: on the
@@ -199,7 +200,7 @@ def _extend(
         # evidence test of step 3b.)
         refused = []
         for c in more[:BEAM_WIDTH]:
-            if is_plausible(c.fit):
+            if is_plausible(c.fit, ctx.params):
                 break
             refused.append(c.cause)
         if refused:
@@ -209,7 +210,7 @@ def _extend(
                 "catalogue does not name; not named"
             )
         more = [c for c in more[:BEAM_WIDTH] if c.cause not in refused]
-        pairs = [c for c in more if is_plausible(c.fit)]
+        pairs = [c for c in more if is_plausible(c.fit, ctx.params)]
         if more:
             fit, cv = more[0].fit, more[0].cv_rmse_deg
             cv_disc = more[0].cv_discrepancy_rmse_deg
@@ -311,7 +312,7 @@ def name_causes(
         )
     experiment = _confounded_notes(ext, notes)
     notes.extend(ext.notes)
-    notes.extend(_at_bound_notes(ext_fit))
+    notes.extend(_at_bound_notes(ext_fit, ctx.params))
     if ext_fit.sigma_deg > GROSS_MISFIT_DEG:
         notes.append(
             f"the extended model still misses by {ext_fit.sigma_deg:.1f} deg (rms): the "
@@ -421,12 +422,13 @@ def _confounded_notes(ext: _Extension, notes: list[str]) -> str | None:
     return next((i.experiment for i in confounded if i.experiment), None)
 
 
-def _at_bound_notes(fit: ModelFit) -> list[str]:
-    """A note when a cause sits at its physical bound."""
+def _at_bound_notes(fit: ModelFit, params: SimParams) -> list[str]:
+    """A note when a cause sits at its physical bound (on the machine ``params`` describes)."""
     at_bound = [
-        f"{c} ({EFFECTS[c].param} = {v:.4g} {EFFECTS[c].unit})"
+        f"{c} ({spec.param} = {v:.4g} {spec.unit})"
         for c, v in zip(fit.causes, fit.values, strict=True)
-        if np.isclose(v, EFFECTS[c].lower) or np.isclose(v, EFFECTS[c].upper)
+        for spec in (effect_spec_for(c, params),)
+        if np.isclose(v, spec.lower) or np.isclose(v, spec.upper)
     ]
     if not at_bound:
         return []

@@ -16,7 +16,7 @@ from cvmeasure.diagnose.discrepancy import (
 )
 from cvmeasure.diagnose.forms import LEARNED_SHAPE_KEYS, NUISANCE, Causes, Shape, as_causes
 from cvmeasure.geometry import wrap_deg
-from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.effects import EFFECTS, Effect, effect_spec_for
 from cvmeasure.sim.model import (
     apply_camera_tilt_deg,
     simulate,
@@ -49,16 +49,21 @@ def effects_with(
     causes: Causes,
     values: Sequence[float],
     shapes: Sequence[Shape] = (),
+    *,
+    params: SimParams | None = None,
 ) -> tuple[Effect, ...]:
+    """``base_effects`` with ``causes`` at ``values`` (clipped to their bounds on the
+    machine ``params`` describes, :func:`~cvmeasure.sim.effects.effect_spec_for`)."""
     kept = tuple(e for e in base_effects if e.name not in (*causes, "none"))
     forms = list(shapes) + [()] * (len(causes) - len(shapes))
+    specs = [effect_spec_for(c, params) for c in causes]
     added = tuple(
         Effect(
             c,
-            min(max(float(v), EFFECTS[c].lower), EFFECTS[c].upper),
+            min(max(float(v), spec.lower), spec.upper),
             tuple((k, x) for k, x in f if k not in LEARNED_SHAPE_KEYS),
         )
-        for c, v, f in zip(causes, values, forms, strict=True)
+        for c, v, f, spec in zip(causes, values, forms, specs, strict=True)
     )
     return (*kept, *added)
 
@@ -88,7 +93,7 @@ def predict(
     ``commanded_pin_deg`` replaces the trials' commands (same order and history)."""
     cmd = trials.commanded_pin_deg if commanded_pin_deg is None else commanded_pin_deg
     names = as_causes(causes)
-    effects = effects_with(base_effects, names, values, shapes)
+    effects = effects_with(base_effects, names, values, shapes, params=params)
     res = simulate(
         cmd, scaled(params, strength_scale, nuisance), effects, bend_index=trials.bend_index
     )
@@ -117,7 +122,9 @@ def residual_rows(
     (:func:`simulate_rows`) instead of K. ValueError where the rows cannot share one
     simulation (see :func:`simulate_rows`)."""
     cmd = trials.commanded_pin_deg
-    effects_rows = [effects_with(base_effects, causes, v, shapes) for _, v, _ in points]
+    effects_rows = [
+        effects_with(base_effects, causes, v, shapes, params=params) for _, v, _ in points
+    ]
     params_rows = [scaled(params, s, nuisance) for s, _, nuisance in points]
     res = simulate_rows(cmd, params_rows, effects_rows, bend_index=trials.bend_index)
     if not any(e.name == ASYMMETRY and e.value for r in effects_rows for e in r):
@@ -256,7 +263,7 @@ def drift_rate_residuals(
     ``rates`` (clipped to the drift's bounds as :func:`_effects` clips it): the same
     numbers from one vectorised simulation (:func:`simulate_drift_rates`) instead of K."""
     spec = EFFECTS["drift"]
-    effects = effects_with(base_effects, causes, x[1 + m :], shapes)
+    effects = effects_with(base_effects, causes, x[1 + m :], shapes, params=params)
     clipped = [min(max(float(v), spec.lower), spec.upper) for v in rates]
     res = simulate_drift_rates(
         trials.commanded_pin_deg,

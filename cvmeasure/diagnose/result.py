@@ -226,7 +226,7 @@ class Diagnosis:
 
     def extended_effects(self, base_effects: Sequence[Effect] = ()) -> tuple[Effect, ...]:
         """``base_effects`` with the named causes added (or refitted)."""
-        fitted = self.extended_fit.effects()
+        fitted = self.extended_fit.effects(self.nominal_params)
         names = {e.name for e in fitted}
         kept = tuple(e for e in base_effects if e.name not in names and e.name != "none")
         return (*kept, *fitted)

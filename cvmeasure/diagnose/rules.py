@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose.fitting import ModelFit
 from cvmeasure.diagnose.residuals import leftover_structure, residual_trends
-from cvmeasure.sim.effects import EFFECTS, Effect
+from cvmeasure.sim.effects import Effect, effect_spec_for
 from cvmeasure.sim.params import SimParams
 
 if TYPE_CHECKING:
@@ -52,10 +52,11 @@ MIN_TRIALS = 8
 PAIR_PLAUSIBLE_RATIO = 1.5
 
 
-def is_plausible(fit: ModelFit) -> bool:
-    """Every cause of ``fit`` within PAIR_PLAUSIBLE_RATIO of its typical size."""
+def is_plausible(fit: ModelFit, params: SimParams) -> bool:
+    """Every cause of ``fit`` within PAIR_PLAUSIBLE_RATIO of its typical size (on the
+    machine ``params`` describes)."""
     return all(
-        abs(v) <= PAIR_PLAUSIBLE_RATIO * max(abs(x) for x in EFFECTS[c].typical)
+        abs(v) <= PAIR_PLAUSIBLE_RATIO * max(abs(x) for x in effect_spec_for(c, params).typical)
         for c, v in zip(fit.causes, fit.values, strict=True)
     )
 
@@ -68,10 +69,11 @@ def is_plausible(fit: ModelFit) -> bool:
 JOINT_MIN_TYPICAL_SHARE = 0.5
 
 
-def typical_size(fit: ModelFit) -> bool:
-    """Every cause of ``fit`` at least JOINT_MIN_TYPICAL_SHARE of its typical size."""
+def typical_size(fit: ModelFit, params: SimParams) -> bool:
+    """Every cause of ``fit`` at least JOINT_MIN_TYPICAL_SHARE of its typical size (on
+    the machine ``params`` describes)."""
     return all(
-        abs(v) >= JOINT_MIN_TYPICAL_SHARE * min(abs(x) for x in EFFECTS[c].typical)
+        abs(v) >= JOINT_MIN_TYPICAL_SHARE * min(abs(x) for x in effect_spec_for(c, params).typical)
         for c, v in zip(fit.causes, fit.values, strict=True)
     )
 

@@ -34,7 +34,7 @@ def kept_against_terms(
     discrepancy, or None when so fitted a cause is below its typical size
     (:func:`_typical_size`) or the library still finds a term in their residuals."""
     joint, joint_cv, joint_bic = _joint_with_discrepancy(ctx, fit, base_fit)
-    if not typical_size(joint):
+    if not typical_size(joint, ctx.params):
         return None
     left = terms_beside(
         ctx, joint, joint.residuals(ctx.trials, ctx.params, ctx.base_effects), groups

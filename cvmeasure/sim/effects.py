@@ -54,9 +54,15 @@ bend direction (+1 counter-clockwise, -1 clockwise).
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from cvmeasure.sim.params import SimParams
 
 __all__ = [
     "EffectStage",
@@ -67,6 +73,11 @@ __all__ = [
     "EFFECT_NAMES",
     "parse_effect",
     "effects_from_dicts",
+    "SIZE_SCALED",
+    "size_factor",
+    "effect_spec_for",
+    "effect_bounds_for",
+    "check_effect_bounds",
 ]
 
 EffectStage = Literal["none", "command", "geometry", "springback", "measurement"]
@@ -287,6 +298,70 @@ EFFECTS: dict[str, EffectSpec] = {
 #: Every effect name, ``none`` first.
 EFFECT_NAMES: tuple[str, ...] = tuple(EFFECTS)
 
+#: Effects whose parameter has a size: the catalogue's bounds and typical values are a
+#: DIWire's, and a machine the params describe at another size has them scaled by
+#: ``(params.key / reference) ** exponent``. The compliance (deg per N m) against the pin
+#: torque, which grows as the wire diameter cubed (the same law as the drift's reference
+#: torque, :func:`cvmeasure.sim.model.drift_reference_torque_nm`): the same wind-up in
+#: degrees is a compliance 8 times larger on a machine bending wire half as thick. The
+#: axis offset (mm) against the head's lever, the pin orbit: the same ``e / l``.
+SIZE_SCALED: dict[str, tuple[str, float, float]] = {
+    "compliance": ("wire_diameter_mm", 3.0, -3.0),
+    "axis_offset": ("pin_orbit_mm", 12.0, 1.0),
+}
+
+
+def size_factor(name: str, params: SimParams | None) -> float:
+    """The factor on effect ``name``'s bounds and typical values on the machine ``params``
+    describes (1 for an effect without a size, or for ``params`` None: a DIWire's)."""
+    if params is None or name not in SIZE_SCALED:
+        return 1.0
+    key, reference, exponent = SIZE_SCALED[name]
+    return float((float(getattr(params, key)) / reference) ** exponent)
+
+
+@functools.lru_cache(maxsize=256)
+def _scaled_spec(name: str, factor: float) -> EffectSpec:
+    spec = EFFECTS[name]
+    if factor == 1.0:
+        return spec
+    return dataclasses.replace(
+        spec,
+        lower=spec.lower * factor,
+        upper=spec.upper * factor,
+        typical=(spec.typical[0] * factor, spec.typical[1] * factor),
+    )
+
+
+def effect_spec_for(name: str, params: SimParams | None) -> EffectSpec:
+    """``EFFECTS[name]`` on the machine ``params`` describes: bounds and typical values of
+    an effect with a size (:data:`SIZE_SCALED`) in proportion to the machine, the rest as
+    catalogued (``params`` None: the catalogue's, a DIWire's).
+
+    The one source of the bounds the diagnosis fits, clips, widens and names with, so
+    that two descriptions of one machine at different sizes get the same diagnosis.
+    """
+    if name not in EFFECTS:
+        raise ValueError(f"unknown effect {name!r}; known: {', '.join(EFFECT_NAMES)}")
+    return _scaled_spec(name, size_factor(name, params))
+
+
+def effect_bounds_for(params: SimParams | None) -> dict[str, tuple[float, float]]:
+    """Each effect's ``(lower, upper)`` on the machine ``params`` describes."""
+    return {n: (s.lower, s.upper) for n in EFFECTS for s in (effect_spec_for(n, params),)}
+
+
+def check_effect_bounds(effects: Iterable[Effect], params: SimParams | None) -> None:
+    """Raise ValueError when an effect lies outside its bounds on the machine ``params``
+    describes (:class:`Effect` itself checks only what holds at every size)."""
+    for e in effects:
+        spec = effect_spec_for(e.name, params)
+        if e.name != "none" and not spec.lower <= e.value <= spec.upper:
+            raise ValueError(
+                f"{e.name}: {spec.param} = {e.value} is outside its physical bounds "
+                f"[{spec.lower:.4g}, {spec.upper:.4g}] {spec.unit} on this machine"
+            )
+
 
 @dataclass(frozen=True)
 class Effect:
@@ -300,7 +375,11 @@ class Effect:
         if self.name not in EFFECTS:
             raise ValueError(f"unknown effect {self.name!r}; known: {', '.join(EFFECT_NAMES)}")
         spec = EFFECTS[self.name]
-        if self.name != "none" and not spec.lower <= self.value <= spec.upper:
+        # an effect with a size has its bounds on the machine (check_effect_bounds); here
+        # only its sign, which holds at every size
+        lower = spec.lower if spec.lower == 0.0 or self.name not in SIZE_SCALED else -math.inf
+        upper = spec.upper if self.name not in SIZE_SCALED else math.inf
+        if self.name != "none" and not lower <= self.value <= upper:
             raise ValueError(
                 f"{self.name}: {spec.param} = {self.value} is outside its physical bounds "
                 f"[{spec.lower}, {spec.upper}] {spec.unit}"

@@ -26,7 +26,7 @@ from typing import Any, Literal
 
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, read_json
-from cvmeasure.sim.effects import effects_from_dicts
+from cvmeasure.sim.effects import check_effect_bounds, effects_from_dicts
 
 __all__ = ["HardeningLaw", "HARDENING_LAWS", "SimParams", "params_from_json", "params_to_json"]
 
@@ -171,6 +171,7 @@ def params_from_json(path: str | PathLike[str]) -> tuple[SimParams, tuple[Any, .
     try:
         params = SimParams.from_dict(data)
         effects = effects_from_dicts(data.get("effects", []))
+        check_effect_bounds(effects, params)
     except (TypeError, ValueError) as exc:
         raise InputError(path, f"invalid params JSON: {exc}") from None
     return params, effects
