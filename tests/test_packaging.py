@@ -9,7 +9,9 @@ never shadow another distribution's top-level package (Hugging Face's
 from __future__ import annotations
 
 import os
+import site
 import subprocess
+import sys
 import tomllib
 import venv
 from pathlib import Path
@@ -71,6 +73,7 @@ def test_installed_beside_hugging_face_datasets(tmp_path):
     env_dir = tmp_path / "venv"
     venv.EnvBuilder(system_site_packages=True, with_pip=True).create(env_dir)
     py = env_dir / "bin" / "python"
+    _see_this_venvs_packages(py)
     pip = [str(py), "-m", "pip", "install", "-q", "--disable-pip-version-check"]
     hf = subprocess.run([*pip, "datasets"], capture_output=True, text=True, timeout=900)
     if hf.returncode != 0:
@@ -105,6 +108,22 @@ def test_installed_beside_hugging_face_datasets(tmp_path):
     hf_file, lab_file, _ = run.stdout.split(" ", 2)
     assert "cvmeasure_datasets" in lab_file and "/datasets/" in hf_file
     assert str(REPO) not in lab_file  # the built copy, not this checkout
+
+
+def _see_this_venvs_packages(py: Path) -> None:
+    """Let the venv at ``py`` import the packages of the environment running the tests.
+
+    ``system_site_packages`` reaches the base interpreter's packages only; run from a
+    virtual environment (as the README sets up) the dependencies live in it. A ``.pth``
+    line adds its site-packages after the new venv's own; the ``.pth`` files in them are
+    not run, so the checkout's editable cvmeasure stays out of sight.
+    """
+    if sys.prefix == sys.base_prefix:
+        return
+    ask = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
+    own = subprocess.run([str(py), "-c", ask], capture_output=True, text=True, check=True)
+    lines = "\n".join(site.getsitepackages()) + "\n"
+    (Path(own.stdout.strip()) / "outer_environment.pth").write_text(lines)
 
 
 def _has_build_backend(py: Path) -> bool:
