@@ -167,12 +167,14 @@ def _machine_description(args: argparse.Namespace) -> tuple[object, tuple[object
     """The simulated machine's params and hidden effects (None, () when not given)."""
     from cvmeasure.errors import InputError
     from cvmeasure.sim import SimParams, params_from_json, parse_effect
+    from cvmeasure.sim.effects import check_effect_bounds
 
     if not (args.params or args.effect):
         return None, ()
     params, effects = params_from_json(args.params) if args.params else (SimParams(), ())
     try:
         effects = tuple(effects) + tuple(parse_effect(t) for t in args.effect)
+        check_effect_bounds(effects, params)  # a sized effect's bounds are the machine's
     except ValueError as exc:
         raise InputError("--effect", str(exc)) from None
     return params, effects

@@ -68,10 +68,12 @@ def run(args: argparse.Namespace) -> int:
     simulated = None
     if args.simulate:
         from cvmeasure.sim import parse_effect
+        from cvmeasure.sim.effects import check_effect_bounds
         from cvmeasure_datasets.simrig import SimRig
 
         try:
             effects = tuple(parse_effect(t) for t in args.effect)
+            check_effect_bounds(effects, None)  # the rig simulates the built-in machine
         except ValueError as exc:
             raise InputError("--effect", str(exc)) from None
 

@@ -418,3 +418,24 @@ def test_simulate_rows_refuses_rows_that_cannot_share_a_run():
         simulate_rows(
             cmd, [base, base], [(Effect("compliance", 0.0),), (Effect("compliance", 0.001),)]
         )
+
+
+@pytest.mark.parametrize(
+    ("effect", "refused"),
+    [("compliance=50", True), ("axis_offset=9", True), ("compliance=1.5", False)],
+)
+def test_the_cli_checks_a_sized_effect_on_the_built_in_machine(tmp_path, capsys, effect, refused):
+    """``Effect`` checks only the sign of an effect with a size; the command line checks its
+    bounds on the machine simulated (a DIWire's: compliance 0-2 deg/(N m), axis offset
+    +-1 mm), with one line and exit 2."""
+    from cvmeasure.cli import main
+
+    plan = tmp_path / "plan.csv"
+    plan.write_text("trial,commanded_pin_deg\n0,30\n1,60\n")
+    out = tmp_path / "out.csv"
+    code = main(["simulate", str(plan), "--effect", effect, "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == (2 if refused else 0)
+    assert out.exists() != refused
+    if refused:
+        assert "outside its physical bounds" in err and len(err.strip().splitlines()) == 1
