@@ -36,7 +36,7 @@ the profile's gradient; per profile, the pair of peaks whose distance is within
 beyond either, and whose summed strength is largest is the wire (the highlight's
 own edges are closer together, the shadow's outer edge farther out). The stated width is a
 prior the photo must agree with: where the profiles are a round wire's symmetric ones, the
-first pass looks for each pair within a quarter width of the symmetric centre, about the
+first pass looks for each pair near the symmetric centre (``SYMMETRIC_REACH``), about the
 width the edges show there (a narrow highlight's far edge and a hard cast shadow's outer
 edge are a width apart too, step opposite ways and can outscore the wire's own edges on a
 light sheet). But a polished tube's limbs mirror the sheet just beside them (a
@@ -629,6 +629,15 @@ def _silhouette_centres(
     stated_px = width_px
     for n_pass, final in enumerate((False, False, True)):
         normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
+        # the mask's path can lie half a width off the axis or more (a shadow joined to the
+        # mask, wider where a lifted end's shadow parts from the wire): the first pass looks
+        # for the pair's midpoint within a width of it (FIRST_PASS_REACH). Within half a
+        # width, the shadow's own band (as wide as the wire, the wire's edge on one side) was
+        # the only pair in reach beside a dark sheet's shadow, and the wire's pair, whose
+        # summed gradient is the larger (the plate's edge to the lit wire against the
+        # shadow's soft outer edge), was not searched: the last centimetre of a lifted end
+        # then lay on the shadow, or had no pairs. Where a symmetric centre lies beside the
+        # path, the pass starts from it and looks within SYMMETRIC_REACH
         near: float | np.ndarray = 0.2
         if n_pass == 0:
             near = FIRST_PASS_REACH
@@ -637,14 +646,6 @@ def _silhouette_centres(
                 centres = centres + np.nan_to_num(moved)[:, None] * normals
                 near = np.where(np.isfinite(moved), SYMMETRIC_REACH, FIRST_PASS_REACH)
         prof = profiles_at(centres, normals)
-        # the mask's path can lie half a width off the axis or more (a shadow joined to the
-        # mask, wider where a lifted end's shadow parts from the wire): the first pass looks
-        # for the pair's midpoint within a width of it (FIRST_PASS_REACH). Within half a
-        # width, the shadow's own band (as wide as the wire, the wire's edge on one side) was
-        # the only pair in reach beside a dark sheet's shadow, and the wire's pair, whose
-        # summed gradient is the larger (the plate's edge to the lit wire against the
-        # shadow's soft outer edge), was not searched: the last centimetre of a lifted end
-        # then lay on the shadow, or had no pairs
         if n_pass == 0 and prior is not None:
             # the stated width is a prior the photo must agree with: the pairs about the
             # symmetric centres within twice the tolerance give the width the edges show
@@ -711,13 +712,7 @@ def _edges_of_pass(
     # Not the other way round (a penumbra joined to one side blurs its edge): on a light
     # sheet a dark wire's gently shaded body is flat to that test and a soft shadow ramp
     # joins one side, so a shadow's outer edge and the highlight's can pass for the wire
-    reach = np.broadcast_to(np.asarray(near, dtype=np.float64), (len(prof),))
-    left, right = np.full(len(prof), np.nan), np.full(len(prof), np.nan)
-    for value in np.unique(reach):
-        rows = reach == value
-        left[rows], right[rows] = silhouette_edges(
-            prof[rows], offsets, width_px, tolerance=tol, centre_tolerance=float(value)
-        )
+    left, right = silhouette_edges(prof, offsets, width_px, tolerance=tol, centre_tolerance=near)
     width = right - left
     pair = np.abs(width / width_px - 1.0) <= tol
     left2, right2 = outer_edges(prof[~pair], offsets, width_px)

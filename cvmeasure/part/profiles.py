@@ -154,16 +154,17 @@ def symmetric_centres(
     if max_slope_px is None:
         k = np.argmin(cost, axis=1)
     else:
-        # choose the basin by asymmetry relative to the window's variance, so a
-        # flat, soft shadow band (symmetric but featureless) loses to the wire
-        cs = np.cumsum(np.pad(p, ((0, 0), (1, 0))), axis=1)
-        cs2 = np.cumsum(np.pad(p * p, ((0, 0), (1, 0))), axis=1)
-        lo, hi = mid + shifts - ku, mid + shifts + ku + 1
-        n = 2 * ku + 1
-        mean = (cs[:, hi] - cs[:, lo]) / n
-        var = np.maximum((cs2[:, hi] - cs2[:, lo]) / n - mean**2, 0.0)
-        ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
-        if not by_variance:  # the same path search on the asymmetry (scaled to order 1)
+        if by_variance:
+            # choose the basin by asymmetry relative to the window's variance, so a
+            # flat, soft shadow band (symmetric but featureless) loses to the wire
+            cs = np.cumsum(np.pad(p, ((0, 0), (1, 0))), axis=1)
+            cs2 = np.cumsum(np.pad(p * p, ((0, 0), (1, 0))), axis=1)
+            lo, hi = mid + shifts - ku, mid + shifts + ku + 1
+            n = 2 * ku + 1
+            mean = (cs[:, hi] - cs[:, lo]) / n
+            var = np.maximum((cs2[:, hi] - cs2[:, lo]) / n - mean**2, 0.0)
+            ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
+        else:  # the same path search on the asymmetry (scaled to order 1)
             ratio = cost / (1e-6 + float(np.median(cost)))
         k = least_cost_path(ratio, max(1, int(np.ceil(max_slope_px / step_px))))
         # then the raw asymmetry's own minimum within a few samples of it
@@ -250,7 +251,7 @@ def silhouette_edges(
     width_px: np.ndarray | float,
     *,
     tolerance: float = 0.05,
-    centre_tolerance: float = 0.2,
+    centre_tolerance: np.ndarray | float = 0.2,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The wire's two silhouette edges on each profile across it, pixels along the normal.
 
@@ -260,7 +261,7 @@ def silhouette_edges(
     width_px : the expected apparent width (scalar or (P,)), pixels.
     tolerance : relative range of widths accepted about ``width_px``.
     centre_tolerance : largest distance of the pair's midpoint from offset 0 (the
-        current centre), relative to ``width_px``.
+        current centre), relative to ``width_px`` (scalar or (P,)).
 
     Returns
     -------
@@ -285,6 +286,7 @@ def silhouette_edges(
     grad = np.abs(signed)
     n_p = len(p)
     width = np.broadcast_to(np.asarray(width_px, dtype=np.float64), (n_p,))
+    reach = np.broadcast_to(np.asarray(centre_tolerance, dtype=np.float64), (n_p,))
     left = np.full(n_p, np.nan)
     right = np.full(n_p, np.nan)
     inner = grad[:, 1:-1]
@@ -315,7 +317,7 @@ def silhouette_edges(
         # step the same way
         sense = np.sign(signed[i, k])
         ok &= (sense[:, None] * sense[None, :]) < 0
-        ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * centre_tolerance * width[i]
+        ok &= np.abs(pos[None, :] + pos[:, None]) <= 2.0 * reach[i] * width[i]
         if not ok.any():
             continue
         a, b = np.unravel_index(np.argmax(np.where(ok, score, -np.inf)), gap.shape)
