@@ -10,17 +10,21 @@ from cvmeasure.sim import Effect, SimParams, parse_effect, simulate
 from cvmeasure.sim.effects import EFFECTS, effect_spec_for
 
 
-def _twice_the_size() -> SimParams:
-    # every length doubled: the strains, hence every angle, are the same (a similar
-    # machine); the die radius, 3 mm, is outside a DIWire's 0.8-2.6 mm
-    return SimParams().replace(
-        wire_diameter_mm=6.0, die_radius_mm=3.0, pin_orbit_mm=24.0, pin_radius_mm=5.0
+def _similar(k: float) -> SimParams:
+    # every length k times larger: the strains, hence every angle, are the same (a similar
+    # machine); at k = 2 the die radius, 3 mm, is outside a DIWire's 0.8-2.6 mm
+    p = SimParams()
+    return p.replace(
+        wire_diameter_mm=p.wire_diameter_mm * k,
+        die_radius_mm=p.die_radius_mm * k,
+        pin_orbit_mm=p.pin_orbit_mm * k,
+        pin_radius_mm=p.pin_radius_mm * k,
     )
 
 
 def test_a_similar_machine_predicts_the_same(bent_session):
     cmd = bent_session(seed=5).commanded_pin_deg
-    a, b = simulate(cmd), simulate(cmd, _twice_the_size())
+    a, b = simulate(cmd), simulate(cmd, _similar(2.0))
     for x, y in ((a.loaded_bend_deg, b.loaded_bend_deg), (a.pin_angle_deg, b.pin_angle_deg)):
         np.testing.assert_allclose(x, y, atol=1e-9)
 
@@ -33,7 +37,7 @@ def test_same_diagnosis_for_two_descriptions_of_one_machine(bent_session, effect
     effects = () if effect is None else (parse_effect(effect),)
     trials = bent_session(effects, seed=5)
     a = diagnose(trials, SimParams())
-    b = diagnose(trials, _twice_the_size())
+    b = diagnose(trials, _similar(2.0))
     assert a.causes == b.causes == (() if effect is None else ("offset",))
     assert b.baseline_fit.nuisance[0] == pytest.approx(2 * a.baseline_fit.nuisance[0], rel=1e-3)
     assert b.baseline_rmse_deg == pytest.approx(a.baseline_rmse_deg, rel=0.01)
@@ -42,16 +46,6 @@ def test_same_diagnosis_for_two_descriptions_of_one_machine(bent_session, effect
         sigma = (hi_a - lo_a) / (2 * 1.96)
         assert abs(lo_a - lo_b) < 0.1 * sigma and abs(hi_a - hi_b) < 0.1 * sigma
         assert a.params["offset_deg"] == pytest.approx(1.2, abs=0.05)
-
-
-def _similar(k: float) -> SimParams:
-    p = SimParams()
-    return p.replace(
-        wire_diameter_mm=p.wire_diameter_mm * k,
-        die_radius_mm=p.die_radius_mm * k,
-        pin_orbit_mm=p.pin_orbit_mm * k,
-        pin_radius_mm=p.pin_radius_mm * k,
-    )
 
 
 @pytest.mark.parametrize("k", [0.5, 2.0])
