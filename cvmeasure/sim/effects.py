@@ -375,10 +375,11 @@ class Effect:
         if self.name not in EFFECTS:
             raise ValueError(f"unknown effect {self.name!r}; known: {', '.join(EFFECT_NAMES)}")
         spec = EFFECTS[self.name]
-        # an effect with a size has its bounds on the machine (check_effect_bounds); here
-        # only its sign, which holds at every size
-        lower = spec.lower if spec.lower == 0.0 or self.name not in SIZE_SCALED else -math.inf
-        upper = spec.upper if self.name not in SIZE_SCALED else math.inf
+        lower, upper = spec.lower, spec.upper
+        if self.name in SIZE_SCALED:
+            # its bounds are the machine's (check_effect_bounds); here only its sign, which
+            # holds at every size
+            lower, upper = (0.0 if spec.lower == 0.0 else -math.inf), math.inf
         if self.name != "none" and not lower <= self.value <= upper:
             raise ValueError(
                 f"{self.name}: {spec.param} = {self.value} is outside its physical bounds "
