@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cvmeasure.geometry import mod_positive, wrap_deg
-from cvmeasure.sim.effects import Effect
+from cvmeasure.sim.effects import Effect, check_effect_bounds
 from cvmeasure.sim.kinematics import (
     HeadGeometry,
     contact_angle_deg,
@@ -470,10 +470,18 @@ def simulate(
     SimResult
         Angles in degrees, signed like the command, as a camera would measure
         them (measurement effects included).
+
+    Raises
+    ------
+    ValueError
+        An effect outside its physical bounds on this machine (a sized effect's bounds
+        scale with the machine: :func:`cvmeasure.sim.effects.effect_spec_for`), or
+        commands that are not a finite 1-D array.
     """
     params = params or SimParams()
     cmd = _commands(commanded_pin_deg)
     effects = tuple(effects)
+    check_effect_bounds(effects, params)
     values = effect_values(effects)
     k = _bend_index(bend_index, cmd.size)
     return _forward(cmd, params, values, k, springback_law(params), shapes=_shapes(effects))

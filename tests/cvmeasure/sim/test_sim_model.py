@@ -439,3 +439,20 @@ def test_the_cli_checks_a_sized_effect_on_the_built_in_machine(tmp_path, capsys,
     assert out.exists() != refused
     if refused:
         assert "outside its physical bounds" in err and len(err.strip().splitlines()) == 1
+
+
+def test_simulate_checks_a_sized_effect_on_the_machine_it_simulates():
+    """A sized effect's bounds are the machine's: compliance 50 deg/(N m) is refused on a
+    DIWire (0-2), while a 1.5 mm wire's bound is (1.5 / 3)^-3 = 8x larger, so 10 is within
+    it there."""
+    from cvmeasure.sim.effects import effect_spec_for
+
+    with pytest.raises(ValueError, match="outside its physical bounds"):
+        simulate([30.0], SimParams(), [Effect("compliance", 50.0)])
+    thin = SimParams().replace(wire_diameter_mm=1.5)
+    upper = effect_spec_for("compliance", thin).upper
+    assert upper == pytest.approx(8 * effect_spec_for("compliance", None).upper, rel=1e-12)
+    res = simulate([30.0, 60.0], thin, [Effect("compliance", 10.0)])
+    assert np.all(np.isfinite(res.unloaded_bend_deg))
+    with pytest.raises(ValueError, match="outside its physical bounds"):
+        simulate([30.0], thin, [Effect("compliance", 1.01 * upper)])
