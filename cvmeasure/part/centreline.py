@@ -12,7 +12,9 @@ parabola through the cost minimum. Four passes: normals from the skeleton
 with a window of most of the wire's rough width (a small window finds false
 centres in each dark flank: a local valley is symmetric too), then normals from
 the centres found with the window set from the half-width measured about
-them; centres that jump from the running median along the wire are dropped.
+them; centres that jump from the running median along the wire are dropped, and so are
+those darker than the sheet beside a wire brighter than its sheet (a lifted end's shadow
+parts from the wire as a dark valley, symmetric too: :func:`_darker_than_sheet`).
 With the wire's expected width known and the wire's band not clearly brighter than the
 sheet (white, printed cork), the window is set from that width instead: a polished tube's
 limbs mirror the light sheet, so the mask and the half-width measured about it hold only one
@@ -356,7 +358,7 @@ def _final_symmetric(
         near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
         shift = np.where(near, trimmed, shift)
     shift = despike(shift, window)
-    ok = np.isfinite(shift)
+    ok = np.isfinite(shift) & ~_darker_than_sheet(prof, shift, rho)
     rejected = int((~ok).sum())
     coverage = float(ok.mean())
     symmetry = asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
@@ -364,6 +366,33 @@ def _final_symmetric(
     if len(centres) < 5:
         raise ValueError("no symmetric wire profile along the path")
     return centres, prof[ok], rejected, coverage, symmetry
+
+
+def _darker_than_sheet(prof: np.ndarray, shift: np.ndarray, rho: float) -> np.ndarray:
+    """True (P,) at the symmetric centres that lie darker than the sheet beside them, on a
+    wire that stands out brighter than its sheet (dark card: :func:`_dark_on_sheet` false).
+
+    A bright wire's centre of symmetry is on its crest or a lit flank, brighter than the
+    sheet (path-traced steel on dark and black card: 2-7 times the sheet's level at every
+    centre); a lifted end's cast shadow parts from the wire as a dark valley a width beside
+    it, symmetric too, which the centres can follow for a chord's length (at a part's
+    lifted end on dark card: 5-6 px off an 11 px wire, a sixth of the wire, and no chord
+    count found). Such a centre lies on no wire. ``prof`` are sampled every
+    ``PROFILE_STEP_PX`` about the guesses, ``shift`` (P,) the centres' offsets (NaN: none);
+    the sheet's level is the brighter side's outer tenth (the other may be in the shadow).
+    On a light sheet (the wire darker than it) nothing is flagged.
+    """
+    n = prof.shape[1]
+    offsets = (np.arange(n) - n // 2) * PROFILE_STEP_PX
+    out = np.zeros(len(prof), dtype=bool)
+    if len(prof) == 0 or _dark_on_sheet(prof, offsets, max(rho, 1.0)):
+        return out
+    outer = max(2, n // 10)
+    sheet = np.maximum(np.median(prof[:, :outer], axis=1), np.median(prof[:, -outer:], axis=1))
+    ok = np.isfinite(shift)
+    at = np.clip(np.rint(shift[ok] / PROFILE_STEP_PX).astype(int) + n // 2, 0, n - 1)
+    out[ok] = prof[np.nonzero(ok)[0], at] < sheet[ok]
+    return out
 
 
 def _silhouette_if_whole(
