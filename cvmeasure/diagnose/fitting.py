@@ -76,9 +76,16 @@ __all__ = [
 ]
 
 #: Machine parameters kept at their nominal values but not known exactly, with their
-#: prior standard deviations: they are not fitted (a constant under-bend from the dead
-#: zone and one from play lost on every bend are the same data unless the pin angle is
-#: measured), but every interval widens by its parameter's correlation with them. The
+#: prior standard deviations. The estimate holds them at nominal; the intervals fit them
+#: with this prior (a Gaussian prior row in the Gauss-Newton system:
+#: :func:`~cvmeasure.diagnose.solve.standard_errors`), so each interval widens by what
+#: the data leave of them, its posterior: on a calibration session (pin readings, noise
+#: 0.02-0.1 deg) the dead zone is left 0.02-0.05 of its prior sd beside a scale, 0.2-0.35
+#: beside a compliance, and those intervals are still 2 and 3-4 times the ones with it
+#: known (their signatures are in part a constant under-bend's).
+#: Beside play lost on every bend it keeps its whole prior: a dead zone longer by ``b``
+#: and that play are the same data, the pin readings too (the photo reads the head's
+#: angle, which both move alike: the session's readings agree to 1e-14 deg). The
 #: dead zone (head rotation from home to first contact) is known to about 0.25 deg, the
 #: root sum of squares of: the home switch's repeatability (0.1 deg); where it trips on
 #: the user's machine (the firmware's 13.2 deg approach is a design constant, not a
