@@ -60,6 +60,7 @@ from cvmeasure.diagnose.problem import (
     whole_step_secants,
 )
 from cvmeasure.diagnose.shapes import refine_shapes
+from cvmeasure.diagnose.solve import FD_REL_STEP
 from cvmeasure.diagnose.solve import profile_interval as profile_interval
 from cvmeasure.diagnose.solve import standard_errors as standard_errors
 from cvmeasure.sim.effects import Effect, effect_spec_for
@@ -249,8 +250,16 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     trials, params, names, forms = problem.trials, problem.params, problem.names, problem.forms
     lay, x, keep, ok, r0 = problem.layout, fitted.sol.x, problem.keep, fitted.ok, fitted.raw_deg
     unfitted = []
-    for key, sd in unfitted_priors(params):  # prediction change per prior sd
-        moved = params.replace(**{key: float(getattr(params, key)) + sd})
+    for key, sd in unfitted_priors(params):
+        # the predictions' derivative per prior sd, by the forward step the fit's own
+        # Jacobian takes: a parameter that moves the predictions as a fitted one does
+        # (the dead zone and play lost on every bend) then has that one's column, and its
+        # prior is carried whole. A secant over a whole sd is another column where the
+        # model bends within it (a contact starting, a yield): play of 1.4 deg then read
+        # the dead zone as pinned by the data and gave an interval 10 times too narrow.
+        value = float(getattr(params, key))
+        h = FD_REL_STEP * max(1.0, abs(value))
+        moved = params.replace(**{key: value + h})
         shifted = residuals(
             trials,
             moved,
@@ -261,7 +270,7 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
             nuisance=x[lay.nuisance],
             shapes=forms,
         )[keep]
-        unfitted.append((r0 - shifted)[ok])
+        unfitted.append((r0 - shifted)[ok] * (sd / h))
     for i, c in enumerate(names):  # a form's continuous shape (grid or refined)
         for key, sd, diff in shape_priors(c, len(names)):
             shape = dict(forms[i])
