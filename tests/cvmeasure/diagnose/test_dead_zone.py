@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cvmeasure.contracts import TrialTable
 from cvmeasure.diagnose import diagnose, fitting
 from cvmeasure.driver.session import SessionConfig, nominal_pin_for_loaded_deg
 from cvmeasure.sim import EFFECTS, Effect, SimParams, simulate
@@ -61,3 +62,26 @@ def test_the_dead_zones_prior_holds_a_cause_on_a_machine_whose_dead_zone_is_off(
             # still informative: within the cause's typical size
             assert hi - lo < EFFECTS[name].typical[1], (lo, hi)
     assert held == {"prior": True, "known": False}, held
+
+
+@pytest.mark.parametrize("play_deg", [1.2, 1.4, 1.5, 2.0])
+def test_play_lost_on_every_bend_carries_the_dead_zones_whole_prior_at_every_size(play_deg):
+    # the two are the same readings, so the play's 95 % interval is the dead zone's prior
+    # (1.96 x 0.25 deg either side) whatever its size; where the model bends within a
+    # prior sd, a secant column for the dead zone read it as pinned by the data (on this
+    # machine's high-mode session 1.35-1.5 deg of play had +-0.05-0.16 deg)
+    p = SimParams().replace(yield_mpa=281.6, uts_mpa=402.3, die_radius_mm=1.45)
+    plan = SessionConfig(mode="high").plan()
+    cmd = np.array([round(nominal_pin_for_loaded_deg(a, d), 3) for d, a in plan])
+    sim = simulate(cmd, p, (Effect("backlash", play_deg, (("same_direction_share", 1.0),)),))
+    rng = np.random.default_rng(0)
+    loaded, released, pin = (
+        v + rng.normal(0.0, 0.035, cmd.size)
+        for v in (sim.loaded_bend_deg, sim.unloaded_bend_deg, sim.pin_angle_deg)
+    )
+    result = diagnose(TrialTable.from_arrays(cmd, loaded, released, measured_pin_deg=pin))
+    assert result.causes == ("backlash",)
+    lo, hi = result.intervals["backlash_deg"]
+    prior_sd = dict(fitting.UNFITTED_PRIOR_SD)["approach_deg"]
+    assert 0.5 * (hi - lo) == pytest.approx(1.96 * prior_sd, rel=0.1), (lo, hi)
+    assert lo <= play_deg <= hi
