@@ -60,6 +60,7 @@ from cvmeasure.diagnose.problem import (
     whole_step_secants,
 )
 from cvmeasure.diagnose.shapes import refine_shapes
+from cvmeasure.diagnose.solve import FD_REL_STEP
 from cvmeasure.diagnose.solve import profile_interval as profile_interval
 from cvmeasure.diagnose.solve import standard_errors as standard_errors
 from cvmeasure.sim.effects import Effect, effect_spec_for
@@ -76,9 +77,16 @@ __all__ = [
 ]
 
 #: Machine parameters kept at their nominal values but not known exactly, with their
-#: prior standard deviations: they are not fitted (a constant under-bend from the dead
-#: zone and one from play lost on every bend are the same data unless the pin angle is
-#: measured), but every interval widens by its parameter's correlation with them. The
+#: prior standard deviations. The estimate holds them at nominal; the intervals fit them
+#: with this prior (a Gaussian prior row in the Gauss-Newton system:
+#: :func:`~cvmeasure.diagnose.solve.standard_errors`), so each interval widens by what
+#: the data leave of them, its posterior: on a calibration session (pin readings, noise
+#: 0.02-0.1 deg) the dead zone is left 0.02-0.05 of its prior sd beside a scale, 0.2-0.35
+#: beside a compliance, and those intervals are still 2 and 3-4 times the ones with it
+#: known (their signatures are in part a constant under-bend's).
+#: Beside play lost on every bend it keeps its whole prior: a dead zone longer by ``b``
+#: and that play are the same data, the pin readings too (the photo reads the head's
+#: angle, which both move alike: the session's readings agree to 1e-14 deg). The
 #: dead zone (head rotation from home to first contact) is known to about 0.25 deg, the
 #: root sum of squares of: the home switch's repeatability (0.1 deg); where it trips on
 #: the user's machine (the firmware's 13.2 deg approach is a design constant, not a
@@ -242,8 +250,16 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
     trials, params, names, forms = problem.trials, problem.params, problem.names, problem.forms
     lay, x, keep, ok, r0 = problem.layout, fitted.sol.x, problem.keep, fitted.ok, fitted.raw_deg
     unfitted = []
-    for key, sd in unfitted_priors(params):  # prediction change per prior sd
-        moved = params.replace(**{key: float(getattr(params, key)) + sd})
+    for key, sd in unfitted_priors(params):
+        # the predictions' derivative per prior sd, by the forward step the fit's own
+        # Jacobian takes: a parameter that moves the predictions as a fitted one does
+        # (the dead zone and play lost on every bend) then has that one's column, and its
+        # prior is carried whole. A secant over a whole sd is another column where the
+        # model bends within it (a contact starting, a yield): play of 1.4 deg then read
+        # the dead zone as pinned by the data and gave an interval 10 times too narrow.
+        value = float(getattr(params, key))
+        h = FD_REL_STEP * max(1.0, abs(value))
+        moved = params.replace(**{key: value + h})
         shifted = residuals(
             trials,
             moved,
@@ -254,7 +270,7 @@ def _unfitted_columns(problem: Problem, fitted: Fitted) -> NDArray[np.float64]:
             nuisance=x[lay.nuisance],
             shapes=forms,
         )[keep]
-        unfitted.append((r0 - shifted)[ok])
+        unfitted.append((r0 - shifted)[ok] * (sd / h))
     for i, c in enumerate(names):  # a form's continuous shape (grid or refined)
         for key, sd, diff in shape_priors(c, len(names)):
             shape = dict(forms[i])

@@ -44,7 +44,7 @@ def profile_interval(
 
 
 #: Relative step of the forward differences (the square root of the float64 epsilon).
-_FD_REL_STEP = float(np.finfo(np.float64).eps ** 0.5)
+FD_REL_STEP = float(np.finfo(np.float64).eps ** 0.5)
 
 
 def forward_difference_jacobian(
@@ -63,7 +63,7 @@ def forward_difference_jacobian(
     x = np.asarray(x, dtype=np.float64)
     f0 = fun(x)
     sign = (x >= 0).astype(float) * 2 - 1
-    h = _FD_REL_STEP * sign * np.maximum(1.0, np.abs(x))
+    h = FD_REL_STEP * sign * np.maximum(1.0, np.abs(x))
     # a step that would leave the bounds goes the other way (or to the far bound)
     lower_dist, upper_dist = x - lower, upper - x
     stepped = x + h
