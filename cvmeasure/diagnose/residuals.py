@@ -36,6 +36,8 @@ __all__ = [
 UNNAMED_P = 0.01
 #: Noise draws of the test's reference distribution (fixed: the diagnosis is repeatable).
 NULL_DRAWS = 999
+#: ... at most this many values in all (rows x draws)
+NULL_ELEMENTS = 5_000_000
 
 #: covariate name -> causes whose signature it carries.
 COVARIATES: dict[str, tuple[str, ...]] = {
@@ -179,24 +181,33 @@ def _cells(trials: TrialTable) -> tuple[NDArray[np.float64], NDArray[np.int_]]:
     return x, cell
 
 
-def _held_out_operator(
-    x: NDArray[np.float64], cell: NDArray[np.int_], held: NDArray[np.int_], degree: int
+def _held_out_smoothed(
+    x: NDArray[np.float64],
+    cell: NDArray[np.int_],
+    held: NDArray[np.int_],
+    values: NDArray[np.float64],
+    degree: int,
 ) -> NDArray[np.float64]:
-    """The smoother's held-out prediction as a matrix over the given rows: each row
-    predicted by the cubic of its cell fitted on the other folds (0 where too few
-    distinct angles remain to fit it: nothing is smoothed there)."""
-    out = np.zeros((x.size, x.size))
-    for f in np.unique(held[held >= 0]):
-        for c in np.unique(cell):
-            tr = (held != f) & (cell == c)
-            te = (held == f) & (cell == c)
-            if not te.any():
-                continue
+    """``values`` (rows, columns) less the smoother's held-out prediction: each row
+    predicted by the cubic of its cell fitted on the other folds (nothing where too few
+    distinct angles remain to fit it). The training fit is the cell's normal equations
+    less the held fold's, so the cost grows with the rows, not their square."""
+    out = values.copy()
+    for c in np.unique(cell):
+        in_cell = cell == c
+        v = np.vander(x[in_cell], degree + 1)
+        y, fold, xs = values[in_cell], held[in_cell], x[in_cell]
+        gram, moment = v.T @ v, v.T @ y
+        for f in np.unique(fold):
+            te = fold == f
+            tr = ~te
             # a polynomial of this degree needs more distinct angles than coefficients
             # (a plan of a few repeated commands has not): otherwise nothing is smoothed
-            if tr.sum() > degree + 2 and len(np.unique(x[tr])) > degree + 1:
-                design = np.vander(x[tr], degree + 1)
-                out[np.ix_(te, tr)] = np.vander(x[te], degree + 1) @ np.linalg.pinv(design)
+            if tr.sum() <= degree + 2 or len(np.unique(xs[tr])) <= degree + 1:
+                continue
+            coef = np.linalg.lstsq(gram - v[te].T @ v[te], moment - v[te].T @ y[te], rcond=None)[0]
+            rows = np.flatnonzero(in_cell)[te]
+            out[rows] -= v[te] @ coef
     return out
 
 
@@ -233,28 +244,31 @@ def leftover_structure(
     if not ok.any():
         return LeftoverCheck(math.nan, math.nan, False)
     y = r[ok]
-    resid = np.eye(y.size) - _held_out_operator(x[ok], cell[ok], held[ok], degree)
+    xs, cells, folds_ok = x[ok], cell[ok], held[ok]
+    smoothed = _held_out_smoothed(xs, cells, folds_ok, y[:, None], degree)[:, 0]
     base = float(np.sqrt(np.mean(y**2)))
-    after = float(np.sqrt(np.mean((resid @ y) ** 2)))
+    after = float(np.sqrt(np.mean(smoothed**2)))
     if base <= 0 or null_draws <= 0:
         return LeftoverCheck(base, after, False)
     # the reference: the same smoother on Gaussian noise, with the discrepancy's curve
     # taken out as it was from the residuals (least squares; its bound rarely binds on noise)
+    # (fewer on a very large session, whose draws would fill the memory; 199 still resolve
+    # p = 0.01)
+    null_draws = int(min(null_draws, max(199, NULL_ELEMENTS // y.size)))
     z = np.random.default_rng(0).standard_normal((y.size, null_draws))
     if nuisance is not None:
         design = np.asarray(nuisance, dtype=np.float64)[ok]
         design = design[:, np.any(design != 0, axis=0)]
         if design.size:
             z -= design @ np.linalg.lstsq(design, z, rcond=None)[0]
-    noise_gain = float(1.0 - np.sqrt(np.median(_ratio(resid @ z, z))))
+    null_smoothed = _held_out_smoothed(xs, cells, folds_ok, z, degree)
+    noise_gain = float(1.0 - np.sqrt(np.median(_ratio(null_smoothed, z))))
     # each cell's held-out ratio (scale-free: a block read with other noise is its own
     # reference) against its noise draws; the smallest of the cells' p-values, calibrated
     # by the smallest in each draw (a structure in one block is not diluted by the rest)
-    smoothed = resid @ y
-    null_smoothed = resid @ z
     p_obs, p_null = [], []
-    for c in np.unique(cell[ok]):
-        m = cell[ok] == c
+    for c in np.unique(cells):
+        m = cells == c
         null_c = np.sort(_ratio(null_smoothed[m], z[m]))
         p_obs.append(
             (1 + np.searchsorted(null_c, _ratio(smoothed[m], y[m]), "right")) / (1 + null_draws)
