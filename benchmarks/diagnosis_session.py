@@ -963,6 +963,12 @@ def _generator_metrics(
             "<= 5",
             false <= 0.05,
         ),
+        # the flagged rows below count this flag: read them against its false-alarm rate
+        Metric(
+            f"{gen}: no-effect sessions, unnamed-discrepancy flag raised",
+            _pct(np.mean([r["unnamed_flag"] for r in null])),
+            "%",
+        ),
     ]
     label = f"{gen}: 95 % intervals holding the truth"
     if gen == "sim":

@@ -63,7 +63,7 @@ from cvmeasure.diagnose.misfit import (
     springback_rms_deg,
 )
 from cvmeasure.diagnose.naming import candidate_scores, name_causes, settle_pair, try_causes
-from cvmeasure.diagnose.residuals import LeftoverCheck, residual_trends
+from cvmeasure.diagnose.residuals import residual_trends
 from cvmeasure.diagnose.result import CandidateResult, Cause, CauseKind, Diagnosis
 from cvmeasure.diagnose.rules import (
     GROSS_MISFIT_DEG,
@@ -226,26 +226,25 @@ def diagnose(
     )
     learned = dataclasses.replace(learned, notes=(*learned.notes, note), learned=form)
     if learned.cause.kind is CauseKind.NONE:
-        return _curve_unnamed(result, learned)
+        return _curve_note(result, learned)
     return learned
 
 
-def _curve_unnamed(result: Diagnosis, learned: Diagnosis) -> Diagnosis:
-    """``learned`` (nothing named) with the learned curve reported as the unnamed
-    discrepancy: the simulation's form left structure beyond the noise (refused, or
-    explained only by terms outside the catalogue) and the curve took all of it up. A
-    smooth curve in the bend also absorbs a head mechanism that depends on the bend
-    alone (a gear's runout), so "nothing named" is not "nothing there": the leftover
-    flag says so (held-out RMSE of the simulation's baseline, then of the curve)."""
-    leftover = LeftoverCheck(result.baseline_rmse_deg, learned.baseline_rmse_deg, True)
+def _curve_note(result: Diagnosis, learned: Diagnosis) -> Diagnosis:
+    """``learned`` (nothing named) with a note on what the learned curve took up. The
+    curve is the machine's no-effect relation, so the unnamed-discrepancy flag stays the
+    leftover check's beyond it (a flag raised whenever the curve was needed would be
+    raised on every healthy machine the simulation's form misses). A smooth curve in
+    the bend also absorbs a head mechanism that depends on the bend alone (a gear's
+    runout) wherever the pin does not show it: the note says so, with the held-out RMSE
+    of the simulation's baseline, then of the curve."""
     note = (
-        f"no catalogue cause is named, but the session departs from the simulation along "
-        f"the bend (held-out RMSE {result.baseline_rmse_deg:.3f} -> "
-        f"{learned.baseline_rmse_deg:.3f} deg with the learned curve): a mechanism outside "
-        "the catalogue that depends on the bend alone, or a machine described wrong; "
-        "check the geometry parameters and fit the material"
+        f"nothing named: the learned curve takes up the session's departure from the "
+        f"simulation along the bend (held-out RMSE {result.baseline_rmse_deg:.3f} -> "
+        f"{learned.baseline_rmse_deg:.3f} deg); a mechanism that depends on the bend alone "
+        "would be taken up with it (check the geometry parameters and fit the material)"
     )
-    return dataclasses.replace(learned, leftover=leftover, notes=(*learned.notes, note))
+    return dataclasses.replace(learned, notes=(*learned.notes, note))
 
 
 #: The learned curve stands for the description's error in the material's response:

@@ -98,7 +98,7 @@ def structure_left(
 ) -> bool:
     """Screen for a second cause: structure left along the angle, or a residual trend."""
     res = fit.residuals(trials, params, base_effects)
-    if leftover_structure(trials, res, list(folds)).gain > SECOND_SCREEN_GAIN:
+    if leftover_structure(trials, res, list(folds), null_draws=0).gain > SECOND_SCREEN_GAIN:
         return True
     p_values = [t.p_value for t in residual_trends(trials, res) if math.isfinite(t.p_value)]
     return bool(p_values) and min(p_values) < SECOND_SCREEN_P

@@ -23,7 +23,7 @@ from cvmeasure.diagnose.evidence import (
     held_out_tie,
     holds_no_effect,
 )
-from cvmeasure.diagnose.fitting import ModelFit, current_form, discrepancy_basis
+from cvmeasure.diagnose.fitting import ModelFit, discrepancy_basis
 from cvmeasure.diagnose.intervals import averaged, widened
 from cvmeasure.diagnose.misfit import Misfit, lack_of_fit, lack_of_fit_residuals
 from cvmeasure.diagnose.naming import Naming
@@ -454,16 +454,21 @@ def check_misfit(ctx: Context, base: _Baseline, v: _Verdict) -> Misfit | None:
 
 
 def leftover_check(ctx: Context, base: _Baseline, v: _Verdict) -> LeftoverCheck:
-    """Structure the explanation leaves along the commanded angle, with a note."""
-    left_res = v.residual_deg
-    if current_form().fit_with_causes and v.fit.discrepancy:
-        # the learned curve is the machine's no-effect relation, not a leftover
+    """Structure the explanation leaves along the commanded angle, beyond its model-form
+    discrepancy and the noise, with a note."""
+    left_res, nuisance = v.residual_deg, None
+    if v.fit.discrepancy:
+        # the discrepancy (bounded, or the learned curve: the machine's no-effect
+        # relation) is part of the model, not a leftover: the smoother is judged beyond it
         left_res = v.residual_deg - base.basis @ np.asarray(v.fit.discrepancy)
-    leftover = leftover_structure(ctx.trials, left_res, list(ctx.fold_masks))
+        nuisance = base.basis
+    leftover = leftover_structure(ctx.trials, left_res, list(ctx.fold_masks), nuisance=nuisance)
     if leftover.unnamed:
         v.notes.append(
             f"a discrepancy remains that no named cause explains (a smoother along the "
-            f"commanded angle lowers the held-out residual RMSE by {100 * leftover.gain:.0f} %): "
+            f"commanded angle changes the held-out residual RMSE by {-100 * leftover.gain:+.0f} "
+            f"%, {-100 * leftover.noise_gain:+.0f} % on the noise alone: p = "
+            f"{leftover.p_value:.1g}): "
             "check the geometry parameters (die radius, pin radius and orbit, head axis) "
             "or look for two causes at once"
         )
