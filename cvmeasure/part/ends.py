@@ -263,9 +263,11 @@ def _dark_limb_outline(
     limb bounds the wire's sides, whose silhouette edges are taken at the last step before
     the plate (:func:`cvmeasure.part.profiles.outer_edges`); here too: the outline is the
     rise out of a stretch darker than the plate (by more than twice the plate's spread and
-    :data:`LIMB_DEPTH_SHARE` of the crest's height over the plate) that starts at the strongest fall and ends within a half-width of it. None where the
-    axis beyond the strongest fall does not go below the plate (a dark plate, a dim
-    cap), or stays dark past a half-width (cast shadow).
+    :data:`LIMB_DEPTH_SHARE` of the crest's height over the plate) that starts at the
+    strongest fall and ends within a half-width of it. None where the axis beyond the
+    strongest fall does not go below the plate (a dark plate, a dim cap), or stays dark
+    past a half-width (cast shadow). Not used at an end facing its cast shadow, which is
+    dark beyond the cap too (:func:`_cap_edge`).
     """
     step = float(t[1] - t[0])
     g = gaussian_filter1d(axial, 0.5 / step, order=1) / step  # grey per px, outward
