@@ -30,6 +30,11 @@ from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure_datasets.optics import Pose, _undistort_normalized
 
+#: The plate's albedo per sheet: black card, a mid-tone sheet (a cork or card about as
+#: light as the wire's lit top, so its dark limb is darker and its crest lighter than the
+#: plate) and a light one.
+SHEET_ALBEDO = {"dark": 0.04, "grey": 0.2, "light": 0.55}
+
 
 @dataclass(frozen=True)
 class RoundWirePhoto:
@@ -156,7 +161,7 @@ def render_round_wire(
     rot, t_mm = pose.extrinsics("board")
     centre = -rot.T @ t_mm
     w, h = camera.image_size_px
-    albedo = 0.04 if sheet == "dark" else 0.55
+    albedo = SHEET_ALBEDO[sheet]
     az, el = np.radians(light_azimuth_deg), np.radians(light_elev_deg)
     light = np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), -np.sin(el)])
     ambient, direct = 0.25, 0.9

@@ -18,7 +18,14 @@ from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.fit import fit_line
 from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
 
-__all__ = ["INTO_SHADOW_COS", "SHADOW_STEP_SHARE", "SHADOW_DARKER", "EndShape", "end_point"]
+__all__ = [
+    "INTO_SHADOW_COS",
+    "LIMB_DEPTH_SHARE",
+    "SHADOW_STEP_SHARE",
+    "SHADOW_DARKER",
+    "EndShape",
+    "end_point",
+]
 
 
 #: An end whose outward axis is within 60 deg of the shadow's direction faces away from
@@ -32,6 +39,11 @@ SHADOW_STEP_SHARE = 0.25
 #: A stretch along the axis whose darkening below the plate exceeds this many times the
 #: wire body's is cast shadow (measured: shadows 1.9-2.4, caps' own stretches <= 0.9).
 SHADOW_DARKER = 1.25
+
+#: A cap's dark limb is taken where the axis beyond the crest's fall dips below the plate by
+#: more than this share of the crest's height over it (:func:`_dark_limb_outline`; Mitsuba's
+#: polished 2 mm caps on cork: 0.3-0.4; the photo lab's caps on the dark sheet: 0.01).
+LIMB_DEPTH_SHARE = 0.15
 
 EndShape = Literal["round", "flat"]
 
@@ -183,6 +195,10 @@ def _cap_edge(
     peaks = np.nonzero((inner >= grad[:-2]) & (inner > grad[2:]) & (inner > 0))[0] + 1
     if len(peaks) == 0:
         return None
+    if not facing_shadow:
+        limb = _dark_limb_outline(axial, t, block, half_width, background, reached_px)
+        if limb is not None:
+            return limb, 0.0
     every = peaks  # the walk over a cast shadow below may go back inside
     if np.any(t[peaks] > reached_px):
         peaks = peaks[t[peaks] > reached_px]
@@ -226,6 +242,65 @@ def _cap_edge(
     den = g0 - 2 * g1 + g2
     frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
     return float(t[k] + np.clip(frac, -0.5, 0.5) * PROFILE_STEP_PX), spread
+
+
+def _dark_limb_outline(
+    axial: np.ndarray,
+    t: np.ndarray,
+    block: np.ndarray,
+    half_width: float,
+    background: float,
+    reached_px: float,
+) -> float | None:
+    """The outline of a polished cap ringed by its own dark limb (px along ``t``), else None.
+
+    A polished round end under a lamp is bright at its crest and dark at its rim, where it
+    mirrors the dim room at grazing angles: along the axis the brightness falls from the
+    crest into a narrow stretch darker than the plate and rises back to the plate at the
+    outline. The fall is the strongest step but lies inside the cap (by the limb's width,
+    up to a half-width) and the plate's texture beyond can step as strongly as the rise
+    (a Mitsuba part's 2 mm caps on cork were read 2.9 px short and 4.2 px long). The same
+    limb bounds the wire's sides, whose silhouette edges are taken at the last step before
+    the plate (:func:`cvmeasure.part.profiles.outer_edges`); here too: the outline is the
+    rise out of a stretch darker than the plate (by more than twice the plate's spread and
+    :data:`LIMB_DEPTH_SHARE` of the crest's height over the plate) that starts at the
+    strongest fall and ends within a half-width of it. None where the axis beyond the
+    strongest fall does not go below the plate (a dark plate, a dim cap), or stays dark
+    past a half-width (cast shadow). Not used at an end facing its cast shadow, which is
+    dark beyond the cap too (:func:`_cap_edge`).
+    """
+    step = float(t[1] - t[0])
+    g = gaussian_filter1d(axial, 0.5 / step, order=1) / step  # grey per px, outward
+    beyond = t > reached_px
+    if not beyond.any():
+        return None
+    k = int(np.argmin(np.where(beyond, g, np.inf)))  # the strongest fall outward
+    outer = max(2, block.shape[1] // 10)
+    plate = np.concatenate((block[:, :outer], block[:, -outer:]), axis=1).ravel()
+    noise = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
+    win = (t > t[k]) & (t <= t[k] + half_width)
+    if g[k] >= 0 or not win.any():
+        return None
+    m = int(np.nonzero(win)[0][np.argmin(axial[win])])
+    depth = background - float(axial[m])
+    # the crest the fall starts from, over the plate
+    crest = float(axial[(t >= t[k] - half_width) & (t <= t[k])].max()) - background
+    if depth <= max(2.0 * noise, LIMB_DEPTH_SHARE * crest):
+        return None
+    rise = (t > t[m]) & (t <= t[k] + half_width)
+    if not rise.any():
+        return None
+    j = int(np.nonzero(rise)[0][np.argmax(g[rise])])
+    if g[j] <= 0 or j + 1 >= len(t):
+        return None
+    # back out of the dark stretch: at least half-way up to the plate within a pixel past it
+    after = (t > t[j]) & (t <= t[j] + 1.0)
+    if not after.any() or float(axial[after].max()) < float(axial[m]) + 0.5 * depth:
+        return None
+    g0, g1, g2 = g[j - 1], g[j], g[j + 1]
+    den = g0 - 2 * g1 + g2
+    frac = 0.5 * (g0 - g2) / den if den < 0 else 0.0
+    return float(t[j] + np.clip(frac, -0.5, 0.5) * step)
 
 
 def _past_lit_wire(

@@ -364,3 +364,31 @@ def test_a_dark_sheets_vertex_bends_are_off_by_the_noise_not_by_the_shading(nois
     if noise == 0.0:
         assert np.max(np.abs(err)) < 0.03, err
     assert np.max(np.abs(err) / np.asarray(m.vertex_bend_sigma_deg)) < 2.5, err
+
+
+def test_a_cap_ringed_by_its_dark_limb_is_measured_to_its_outline():
+    """On a mid-tone sheet the lit steel's crest is lighter and its rim darker than the
+    plate: along the axis the cap falls from its crest into a dark limb, then rises to the
+    plate at its outline. The fall is the strongest step but lies inside the cap; the end
+    is the rise out of the limb (before: the cap's centre read 4.1 px short, 0.65 mm)."""
+    camera = cvmeasure_datasets.default_camera().scaled(SCALE)
+    part = cvmeasure_datasets.arc_part(50.0, 120.0, 8, wire_diameter_mm=WIRE_MM)
+    photo = render_round_wire(
+        part.placed(20.0, (0.0, 0.0)), camera=camera, pose=POSE, sheet="grey",
+        light_azimuth_deg=30.0, light_elev_deg=50.0,
+    )  # fmt: skip
+    mm_per_px = POSE.distance_mm / camera.fx
+    wire = segment_wire(photo.bgr, max_wire_width_px=7 / mm_per_px, min_length_px=15 / mm_per_px)
+    width_px = WIRE_MM / mm_per_px * POSE.distance_mm / (POSE.distance_mm - WIRE_MM / 2)
+    c = measure_centreline(
+        gray_float(photo.bgr), wire.path_px, width_guess_px=wire.width_px, wire_width_px=width_px
+    )
+    assert c.centre_from == "silhouette"
+    rot, t_mm = POSE.extrinsics("board")
+    v = photo.vertices_mm
+    end, inner = camera.project(v[[-1, -2]] @ rot.T + t_mm)  # the end lit from behind
+    out = (end - inner) / np.hypot(*(end - inner))
+    got = c.ends_px[int(np.argmin(np.hypot(*(c.ends_px - end).T)))]
+    # along the axis: measured 0.23 px (a 19 px wide wire); across it the end lies on the
+    # line through the last centres, extrapolated (2.8 px off here): not asserted
+    assert abs(float((got - end) @ out)) < 1.0
