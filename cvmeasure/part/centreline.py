@@ -80,6 +80,7 @@ from cvmeasure.part.profiles import (
     path_normals,
     resample_path,
     sample_across,
+    side_levels,
     silhouette_edges,
     smooth_path,
     symmetric_centres,
@@ -387,8 +388,7 @@ def _darker_than_sheet(prof: np.ndarray, shift: np.ndarray, rho: float) -> np.nd
     out = np.zeros(len(prof), dtype=bool)
     if len(prof) == 0 or _dark_on_sheet(prof, offsets, max(rho, 1.0)):
         return out
-    outer = max(2, n // 10)
-    sheet = np.maximum(np.median(prof[:, :outer], axis=1), np.median(prof[:, -outer:], axis=1))
+    sheet = np.maximum(*side_levels(prof))
     ok = np.isfinite(shift)
     at = np.clip(np.rint(shift[ok] / PROFILE_STEP_PX).astype(int) + n // 2, 0, n - 1)
     out[ok] = prof[np.nonzero(ok)[0], at] < sheet[ok]
@@ -557,9 +557,7 @@ def _dark_on_sheet(profiles: np.ndarray, offsets: np.ndarray, half_width: float)
     mid-tone sheet (white, printed cork) it is darker or within a few tens of percent of it
     (``LIGHT_SHEET_BAND_MAX``).
     """
-    n = profiles.shape[1]
-    outer = max(2, n // 10)
-    bg = 0.5 * (np.median(profiles[:, :outer], axis=1) + np.median(profiles[:, -outer:], axis=1))
+    bg = 0.5 * np.add(*side_levels(profiles))
     band = profiles[:, np.abs(offsets) <= max(half_width, 1.0)].mean(axis=1)
     return bool(np.mean(band <= LIGHT_SHEET_BAND_MAX * bg) > 0.5)
 

@@ -151,6 +151,15 @@ def end_point(
     return start + best * d, 0.0
 
 
+def _plate(block: np.ndarray) -> tuple[float, float]:
+    """The plate's grey level beside the wire and its own spread (texture and noise, a
+    robust sd), from the outer tenths of the profiles across the wire near an end."""
+    outer = max(2, block.shape[1] // 10)
+    plate = np.concatenate((block[:, :outer], block[:, -outer:]), axis=1).ravel()
+    level = float(np.median(plate))
+    return level, 1.4826 * float(np.median(np.abs(plate - level)))
+
+
 def _cap_edge(
     gray: np.ndarray,
     start: np.ndarray,
@@ -185,8 +194,7 @@ def _cap_edge(
     mid = block.shape[1] // 2
     k_in = max(1, int(round(0.8 * half_width / PROFILE_STEP_PX)))
     wire = float(np.median(block[:, mid - k_in : mid + k_in + 1]))
-    outer = max(2, block.shape[1] // 10)
-    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    background, plate_spread = _plate(block)
     sign = 1.0 if wire > background else -1.0
     t = np.arange(0, round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
     axial = sample_image(gray, start[None, :] + t[:, None] * d[None, :])
@@ -196,7 +204,7 @@ def _cap_edge(
     if len(peaks) == 0:
         return None
     if not facing_shadow:
-        limb = _dark_limb_outline(axial, t, block, half_width, background, reached_px)
+        limb = _dark_limb_outline(axial, t, half_width, background, plate_spread, reached_px)
         if limb is not None:
             return limb, 0.0
     every = peaks  # the walk over a cast shadow below may go back inside
@@ -208,7 +216,7 @@ def _cap_edge(
     if not facing_shadow and sign < 0:
         # a light plate only: on a dark one the cap's own glow and blur beyond the
         # silhouette are brighter than the plate too (a black card's cap moved 1-2 px out)
-        k = _past_lit_wire(axial, t, grad, peaks, k, half_width, background, block)
+        k = _past_lit_wire(axial, t, grad, peaks, k, half_width, background, plate_spread)
     spread = 0.0
     # the shadow's far edge steps like the silhouette, and as strongly, only where the plate
     # is brighter than the wire (a light sheet); on a dark one it is faint beside the wire's
@@ -247,9 +255,9 @@ def _cap_edge(
 def _dark_limb_outline(
     axial: np.ndarray,
     t: np.ndarray,
-    block: np.ndarray,
     half_width: float,
     background: float,
+    plate_spread: float,
     reached_px: float,
 ) -> float | None:
     """The outline of a polished cap ringed by its own dark limb (px along ``t``), else None.
@@ -275,9 +283,6 @@ def _dark_limb_outline(
     if not beyond.any():
         return None
     k = int(np.argmin(np.where(beyond, g, np.inf)))  # the strongest fall outward
-    outer = max(2, block.shape[1] // 10)
-    plate = np.concatenate((block[:, :outer], block[:, -outer:]), axis=1).ravel()
-    noise = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
     win = (t > t[k]) & (t <= t[k] + half_width)
     if g[k] >= 0 or not win.any():
         return None
@@ -285,7 +290,7 @@ def _dark_limb_outline(
     depth = background - float(axial[m])
     # the crest the fall starts from, over the plate
     crest = float(axial[(t >= t[k] - half_width) & (t <= t[k])].max()) - background
-    if depth <= max(2.0 * noise, LIMB_DEPTH_SHARE * crest):
+    if depth <= max(2.0 * plate_spread, LIMB_DEPTH_SHARE * crest):
         return None
     rise = (t > t[m]) & (t <= t[k] + half_width)
     if not rise.any():
@@ -311,7 +316,7 @@ def _past_lit_wire(
     k: int,
     half_width: float,
     background: float,
-    block: np.ndarray,
+    plate_spread: float,
 ) -> int:
     """The step taken for the cap's silhouette (index ``k`` into ``t``), moved out past lit
     wire: where the axis beyond the taken step is brighter than the plate, that is the wire
@@ -321,17 +326,14 @@ def _past_lit_wire(
     crest brighter than the plate, while the profiles before the end hold the dark flanks
     too: the strongest step was inside that crest and a Mitsuba part's end was read 14 px
     (4 mm) short. Elsewhere (the plate beyond the taken step, as on every photo-lab cap)
-    the step is kept. For a plate brighter than the wire's band (``background``).
+    the step is kept. For a plate brighter than the wire's band (``background``), whose
+    own spread is ``plate_spread`` (:func:`_plate`).
     """
-    outer = max(2, block.shape[1] // 10)
-    plate = np.concatenate((block[:, :outer], block[:, -outer:]), axis=1).ravel()
-    # the plate's own spread (texture and noise), robustly
-    noise = 1.4826 * float(np.median(np.abs(plate - np.median(plate))))
     span = max(half_width, 1.0)
 
     def lit_beyond(j: int) -> bool:
         sel = (t > t[j] + 1.0) & (t <= t[j] + 1.0 + span)
-        return bool(sel.any()) and float(np.median(axial[sel])) > background + 2.0 * noise
+        return bool(sel.any()) and float(np.median(axial[sel])) > background + 2.0 * plate_spread
 
     if not lit_beyond(k):
         return k
@@ -361,8 +363,7 @@ def _flat_end(
     """The end face of a square-cut wire along the axis ``start + t d``, pixels."""
     mid = block.shape[1] // 2
     crest = float(np.median(block[:, mid]))
-    outer = max(2, block.shape[1] // 10)
-    background = float(np.median(np.concatenate((block[:, :outer], block[:, -outer:]), axis=1)))
+    background, _ = _plate(block)
     level = 0.5 * (crest + background)
     t = np.arange(
         -round(half_width / PROFILE_STEP_PX), round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1

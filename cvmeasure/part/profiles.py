@@ -41,6 +41,7 @@ __all__ = [
     "true_runs",
     "long_runs",
     "despike",
+    "side_levels",
     "half_width_px",
 ]
 
@@ -521,6 +522,13 @@ def despike(shift: np.ndarray, window: int) -> np.ndarray:
     return out
 
 
+def side_levels(profiles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sheet's grey level beyond each end of every profile across the wire: the
+    medians of its outer tenths (at least 2 samples), left and right, each (P,)."""
+    outer = max(2, profiles.shape[1] // 10)
+    return np.median(profiles[:, :outer], axis=1), np.median(profiles[:, -outer:], axis=1)
+
+
 def half_width_px(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) -> np.ndarray:
     """Per profile, the smaller distance from 0 to a flank at half contrast (P,).
 
@@ -530,9 +538,7 @@ def half_width_px(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) ->
     """
     p = profiles
     n = p.shape[1]
-    outer = max(2, n // 10)
-    bg_l = np.median(p[:, :outer], axis=1)
-    bg_r = np.median(p[:, -outer:], axis=1)
+    bg_l, bg_r = side_levels(p)
     core = np.abs(offsets) <= 1.5 * guess_px
     bg = 0.5 * (bg_l + bg_r)
     dev = p[:, core] - bg[:, None]
