@@ -269,14 +269,12 @@ def leftover_structure(
     p_obs, p_null = [], []
     for c in np.unique(cells):
         m = cells == c
-        null_c = np.sort(_ratio(null_smoothed[m], z[m]))
+        null_ratio = _ratio(null_smoothed[m], z[m])
+        null_c = np.sort(null_ratio)
         p_obs.append(
             (1 + np.searchsorted(null_c, _ratio(smoothed[m], y[m]), "right")) / (1 + null_draws)
         )
-        p_null.append(
-            (1 + np.searchsorted(null_c, _ratio(null_smoothed[m], z[m]), "right"))
-            / (1 + null_draws)
-        )
+        p_null.append((1 + np.searchsorted(null_c, null_ratio, "right")) / (1 + null_draws))
     least = min(p_obs)
     p = float((1 + np.sum(np.min(p_null, axis=0) <= least)) / (1 + null_draws))
     return LeftoverCheck(base, after, bool(p < UNNAMED_P), p, noise_gain)
