@@ -223,6 +223,15 @@ def _codes(rec: dict) -> list[str]:
     return out
 
 
+def _covering(codes: set[str], quantity: str, lift_effect: float | None, error: float) -> bool:
+    """Whether the warnings cover ``quantity`` off by ``error`` (%, deg): ``part_lifted``
+    only as far as the effect it states on that quantity reaches (a warning that a lift
+    may move the radius by 0.4 % does not excuse one 1.2 % off), the others whole."""
+    if codes & (COVERS[quantity] - {"part_lifted"}):
+        return True
+    return "part_lifted" in codes and (lift_effect or 0.0) >= error
+
+
 def score(truth: dict, rc: int, rec: dict) -> dict:
     """One photo against its truth: errors, and for each quantity ok / refused / silent."""
     out = {"radius_err_pct": None, "bend_err_deg": None, "divisions": None}
@@ -238,8 +247,13 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
     out.update(radius_err_pct=r_err, bend_err_deg=b_err, divisions=rec.get("divisions"))
     ok_r = abs(r_err) <= 100.0 * RADIUS_TOL
     ok_b = b_err is not None and abs(b_err) <= BEND_TOL_DEG
-    out["radius"] = "ok" if ok_r else ("warned" if codes & COVERS["radius"] else "silent")
-    out["bend"] = "ok" if ok_b else ("warned" if codes & COVERS["bend"] else "silent")
+    lift = rec.get("lift") or {}
+    covers_r = _covering(codes, "radius", lift.get("effect_radius_pct"), abs(r_err))
+    covers_b = _covering(
+        codes, "bend", lift.get("effect_segment_bend_deg"), abs(b_err or float("inf"))
+    )
+    out["radius"] = "ok" if ok_r else ("warned" if covers_r else "silent")
+    out["bend"] = "ok" if ok_b else ("warned" if covers_b else "silent")
     states = {out["radius"], out["bend"]}
     out["verdict"] = "silent" if "silent" in states else ("warned" if "warned" in states else "ok")
     return out
@@ -428,7 +442,9 @@ def main(argv: list[str] | None = None) -> dict:
             "a miss counts as refused when exit 2 or a warning covering it: radius by "
             + ", ".join(sorted(COVERS["radius"]))
             + "; bend per chord also by "
-            + ", ".join(sorted(COVERS["bend"] - COVERS["radius"])),
+            + ", ".join(sorted(COVERS["bend"] - COVERS["radius"]))
+            + "; part_lifted only as far as the effect it states on the quantity "
+            "(JSON lift.effect_radius_pct, lift.effect_segment_bend_deg) reaches the error",
         ],
     )
 

@@ -82,6 +82,14 @@ def test_score_counts_refusals_warnings_and_silent_misses() -> None:
     bent = {"radius_mm": 50.0, "segment_bend_deg": 10.2, "divisions": 9}
     assert score(truth, 0, {**bent, "warnings": gap})["verdict"] == "warned"
     assert score(truth, 0, {**bent, "warnings": []})["verdict"] == "silent"
+    # part_lifted covers a miss only as far as the effect it states on that quantity
+    lifted = [{"code": "part_lifted", "message": "..."}]
+    small = {"effect_radius_pct": 0.4, "effect_segment_bend_deg": 0.05}
+    assert score(truth, 0, {**off, "warnings": lifted, "lift": small})["verdict"] == "silent"
+    large = {"effect_radius_pct": 1.5, "effect_segment_bend_deg": 0.05}
+    assert score(truth, 0, {**off, "warnings": lifted, "lift": large})["verdict"] == "warned"
+    assert score(truth, 0, {**bent, "warnings": lifted, "lift": large})["verdict"] == "silent"
+    assert score(truth, 0, {**bent, "warnings": lifted})["verdict"] == "silent"
 
 
 def test_a_lifted_part_is_the_flat_one_tilted_rigidly() -> None:
