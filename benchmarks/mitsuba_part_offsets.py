@@ -81,6 +81,31 @@ def chord_offsets(
     return out
 
 
+def end_chord_tilts_deg(
+    scene: PartScene, truth: dict, vertices_mm: np.ndarray, vertices_px: np.ndarray
+) -> list[float]:
+    """Each end chord's measured direction less its true one (deg), the inner chords' median
+    difference removed (the board frame's turn against the scene's): an end chord tilted by
+    its centres or its end point, in the true chords' order (first, last)."""
+    px, world, _ = true_chords_px(scene, truth)
+    v = np.asarray(vertices_mm, float)
+    if len(v) != len(px):
+        return []
+    vpx = np.asarray(vertices_px, float)
+    if np.linalg.norm(vpx[0] - px[0]) > np.linalg.norm(vpx[0] - px[-1]):
+        v = v[::-1]
+    measured = np.degrees(np.arctan2(*np.diff(v, axis=0).T[::-1]))
+    true = np.degrees(np.arctan2(*np.diff(world[:, :2], axis=0).T[::-1]))
+    # the board frame may be the scene's mirrored: then the measured turns run the other way
+    if np.sign(np.mean(np.diff(np.unwrap(np.radians(measured))))) != np.sign(
+        np.mean(np.diff(np.unwrap(np.radians(true))))
+    ):
+        measured = -measured
+    err = (measured - true + 180.0) % 360.0 - 180.0
+    inner = np.median(err[1:-1]) if len(err) > 2 else 0.0
+    return [float(err[0] - inner), float(err[-1] - inner)]
+
+
 def _circle_centre(px: np.ndarray) -> np.ndarray:
     """Least-squares centre of the circle through points (px)."""
     a = np.c_[2.0 * px, np.ones(len(px))]
@@ -124,18 +149,26 @@ def main(argv: list[str] | None = None) -> dict:
         photo = mp.through_camera(jpg, rig, seed=i)
         rc, rec, _ = mp.measure(photo, board, cam, scene.wire_diameter_mm)
         if rc != 0 or not rec.get("centreline_px"):
-            rows.append([photo.name, sheet, lamp, scene.wire_diameter_mm, None, None, None, None])
+            rows.append(
+                [photo.name, sheet, lamp, scene.wire_diameter_mm, None, None, None, None, None]
+            )
             continue
         offs = chord_offsets(scene, truth, np.asarray(rec["centreline_px"]))
         every += offs
         r_err = 100.0 * (float(rec["radius_mm"]) - truth["radius_mm"]) / truth["radius_mm"]
         inner = [o for _, o, e in offs if not e]
         ends = [o for _, o, e in offs if e]
+        tilts = (
+            end_chord_tilts_deg(scene, truth, rec["vertices_mm"], rec["vertices_px"])
+            if rec.get("vertices_mm") and rec.get("vertices_px")
+            else []
+        )
         rows.append([
             photo.name, sheet, lamp, scene.wire_diameter_mm, round(r_err, 4),
             round(float(np.median(inner)), 3) if inner else None,
             [round(o, 3) for o in ends],
             [round(ln, 2) for ln, _, _ in offs],
+            [round(t, 3) for t in tilts],
         ])  # fmt: skip
     a_in, b_in, n_in = _fit(every, end=False)
     a_end, b_end, n_end = _fit(every, end=True)
@@ -151,6 +184,7 @@ def main(argv: list[str] | None = None) -> dict:
         "photo", "sheet", "lamp", "wire_mm", "radius_err_pct",
         "inner chords' median offset (px, outward +)", "end chords' offsets (px)",
         "lamp direction across each chord (l . n)",
+        "end chords' tilt (deg, inner chords' median removed)",
     ]  # fmt: skip
     return finish(
         __file__,
