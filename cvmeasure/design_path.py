@@ -344,7 +344,13 @@ def divide_into_chords(points_mm: np.ndarray, divisions: int) -> np.ndarray:
             lo = mid
         if hi - lo < 1e-12 * max(1.0, total):
             break
-    verts, _ = walk(0.5 * (lo + hi))
+    verts, rest = walk(0.5 * (lo + hi))
+    if rest < 0:
+        # a curve that doubles back (a noisy centreline) can lose the last step at the
+        # bisection's midpoint: the longest chord known to step through is taken instead
+        verts, rest = walk(lo)
+    if rest < 0 or len(verts) != divisions:
+        raise ValueError(f"the curve cannot be divided into {divisions} chords of equal length")
     return np.vstack((verts, pts[-1:]))
 
 

@@ -154,8 +154,18 @@ def render_round_wire(
     blur_px: float = 0.7,
     noise: float = 1.5,
     seed: int = 0,
+    specular: float = 1.4,
+    shininess: float = 25.0,
+    ambient: float = 0.25,
 ) -> RoundWirePhoto:
-    """The part (plate vertices (N + 1, 2), mm) as a lifted, shaded, shadowing cylinder."""
+    """The part (plate vertices (N + 1, 2), mm) as a lifted, shaded, shadowing cylinder.
+
+    ``specular`` and ``shininess`` are the highlight's strength and Blinn-Phong exponent:
+    the defaults a polished wire's narrow bright highlight, a weaker broader lobe rough
+    (brushed or drawn) steel's. ``ambient``: the room's light on the plate, relative to the
+    lamp's at normal incidence (0.9); a lamp a few degrees above the plate adds little to a
+    lit room's, so its shadow is faint.
+    """
     r = wire_diameter_mm / 2
     verts = lifted_vertices(vertices_mm, r, lift_mm, lift_direction_deg)
     rot, t_mm = pose.extrinsics("board")
@@ -164,7 +174,7 @@ def render_round_wire(
     albedo = SHEET_ALBEDO[sheet]
     az, el = np.radians(light_azimuth_deg), np.radians(light_elev_deg)
     light = np.array([np.cos(az) * np.cos(el), np.sin(az) * np.cos(el), -np.sin(el)])
-    ambient, direct = 0.25, 0.9
+    direct = 0.9
     plate_lit = albedo * (ambient + direct * np.sin(el))
     img = np.full((h, w), plate_lit)
     # pixels near the wire or its shadow: draw both polylines on the plate, dilate
@@ -212,9 +222,9 @@ def render_round_wire(
     half = to_light + view
     half /= np.linalg.norm(half, axis=1)[:, None]
     lam = np.clip(nn @ to_light, 0, None)
-    spec = np.clip(np.einsum("ij,ij->i", nn, half), 0, None) ** 25
+    spec = np.clip(np.einsum("ij,ij->i", nn, half), 0, None) ** shininess
     up = np.clip(-nn[:, 2], 0, None)  # sky light from above
-    value[on_wire] = 0.22 * (0.6 * up + direct * lam) + 1.4 * spec
+    value[on_wire] = 0.22 * (0.6 * up + direct * lam) + specular * spec
     # the plate, shadowed by the wire towards an extended light
     t_plate = -centre[2] / rays[~on_wire, 2]
     ground = centre + t_plate[:, None] * rays[~on_wire]

@@ -46,7 +46,10 @@ ray grazing the limb goes on to the sheet), so on a dark sheet only the lit flan
 highlight stand out and edges the wire's width apart are found along a minority of it
 (the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
 then, where the profiles are a round wire's symmetric ones, their centres are kept
-(``centre_from`` says why). The end
+(``centre_from`` says why). Where they are not (a lamp a few degrees above the plate lights
+one flank only) and single profiles show the pair along too little of the wire (a grainy
+sheet), the pairs are looked for again on profiles averaged along a wire width
+(``EDGE_AVERAGE_WIDTHS``). The end
 points are the caps' silhouettes on the axis less the half-width. The edges' distance is the wire's apparent width, which
 :mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
 
@@ -64,6 +67,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 from scipy.spatial import cKDTree
 
 from cvmeasure.part.ends import EndShape, end_point
@@ -146,6 +150,18 @@ KNOWN_WIDTH_REFINE = 0.3
 #: flank fix. Only there: where the edges are found they place the centres, and without
 #: the wire's width the symmetric centres stay the whole window's.
 HIGHLIGHT_TRIM_SHARE = 0.4
+
+#: Length of wire (in wire widths) over which neighbouring cross-profiles are averaged
+#: before the silhouette edges are looked for again, where neither the symmetry test nor
+#: single profiles' edges say wire (:func:`_silhouette_if_whole`): the wire's edges run on
+#: along it, a sheet's grain does not. Path-traced renders under a lamp 8 deg above a white
+#: sheet are grainy enough (a tenth of the sheet's level, pixel to pixel) that single
+#: profiles had the wire's pair a width apart along under half of a 3 mm wire, and the
+#: first pass's wide reach took grain pairs up to a width off the axis (its 84 % of pairs
+#: spread +-0.9 widths), from which the later passes' narrow reach lost the wire. A width
+#: is well short of a chord (>= 10 mm); on every profile it moved results on photos whose
+#: single profiles were enough, so it is only the fallback.
+EDGE_AVERAGE_WIDTHS = 1.0
 
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
@@ -425,6 +441,22 @@ def _silhouette_if_whole(
         )
     except ValueError:
         found = None
+    if symmetry > SYMMETRIC_WIRE_MAX and (found is None or found[3] < SILHOUETTE_MIN_COVERAGE):
+        # neither test says wire: the profiles are not symmetric (a lamp a few degrees above
+        # the plate lights one flank only) and single profiles have the edges a width apart
+        # along too little of it. On a grainy sheet the grain's gradient peaks are as strong
+        # as a soft limb's; the wire's edges run on along it, the grain's do not: the edges
+        # are looked for again on profiles averaged along a width of wire
+        # (EDGE_AVERAGE_WIDTHS), kept where they follow more of it
+        try:
+            averaged = _silhouette_centres(
+                profiles_at, path, offsets, width_px, step_px, rough, window, prior,
+                along_widths=EDGE_AVERAGE_WIDTHS,
+            )  # fmt: skip
+        except ValueError:
+            averaged = None
+        if averaged is not None and (found is None or averaged[3] > found[3]):
+            found = averaged
     # the silhouette edges must follow the wire as far as its symmetric centres do;
     # where they lose a stretch at an end the part would be cut short: keep the
     # symmetric centres and say so (centre_from)
@@ -610,6 +642,7 @@ def _silhouette_centres(
     smooth_px: float,
     window: int,
     prior: np.ndarray | None = None,
+    along_widths: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray | None, np.ndarray | None, float]:
     """Centres between the silhouette edges (:func:`outer_edges`), from rough ``centres``.
 
@@ -640,6 +673,9 @@ def _silhouette_centres(
     centre (within ``SYMMETRIC_REACH`` widths; :func:`_symmetric_prior`), and within
     ``FIRST_PASS_REACH`` of the rough centre only where none lies beside it.
 
+    ``along_widths`` > 0: the edges are looked for on the profiles averaged along that
+    length of wire (in widths; :func:`_edges_of_pass`), 0: on each profile alone.
+
     Returns the centres, their profiles, the edge widths (px, NaN where only one
     edge was used), the share of profiles with a centre, the image direction in
     which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen),
@@ -654,6 +690,7 @@ def _silhouette_centres(
     # blurred 6 px wire's limbs read 4-5 % wide)
     tol = max(PAIR_TOLERANCE, 0.5 / width_px)
     stated_px = width_px
+    along = max(1, int(round(along_widths * width_px / step_px)) | 1) if along_widths > 0 else 1
     for n_pass, final in enumerate((False, False, True)):
         normals = path_normals(smooth_path(centres, max(2.0, smooth_px) / step_px))
         # the mask's path can lie half a width off the axis or more (a shadow joined to the
@@ -680,10 +717,12 @@ def _silhouette_centres(
             # the photo lab's light sheet), about which the pairs are then taken
             # only where such pairs run along nearly all of it: a polished tube's lit flank
             # and highlight on a dark sheet give a narrower pair along a part of it only
-            _, _, seen_w, seen_pair = _edges_of_pass(prof, offsets, stated_px, 2.0 * tol, near)
+            _, _, seen_w, seen_pair = _edges_of_pass(
+                prof, offsets, stated_px, 2.0 * tol, near, along
+            )
             if seen_pair.mean() >= WIDTH_SEEN_SHARE and seen_pair.sum() >= 10:
                 width_px = float(np.median(seen_w[seen_pair]))
-        left, right, width, pair = _edges_of_pass(prof, offsets, width_px, tol, near)
+        left, right, width, pair = _edges_of_pass(prof, offsets, width_px, tol, near, along)
         shift, from_left, from_right, shadow, towards = _one_rule_shift(
             prof, normals, offsets, left, right, width, pair, width_px, step_px
         )
@@ -729,8 +768,12 @@ def _edges_of_pass(
     width_px: float,
     tol: float,
     near: float | np.ndarray,
+    along: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Left and right silhouette edges of every profile (px), their width and the clean pairs.
+
+    ``along``: how many neighbouring profiles along the wire are averaged before the edges
+    are looked for (``EDGE_AVERAGE_WIDTHS``), 1: none.
 
     The strongest pair of gradient peaks a width apart about the centre (the midpoint
     within ``near`` widths of it, scalar or per profile); where there is none, the edges
@@ -739,6 +782,10 @@ def _edges_of_pass(
     # Not the other way round (a penumbra joined to one side blurs its edge): on a light
     # sheet a dark wire's gently shaded body is flat to that test and a soft shadow ramp
     # joins one side, so a shadow's outer edge and the highlight's can pass for the wire
+    if along > 1:
+        # a sheet's grain puts gradient peaks as strong as the wire's soft limb into each
+        # single profile; the wire's edges run on along it, the grain's do not
+        prof = uniform_filter1d(prof, size=along, axis=0, mode="nearest")
     left, right = silhouette_edges(prof, offsets, width_px, tolerance=tol, centre_tolerance=near)
     width = right - left
     pair = np.abs(width / width_px - 1.0) <= tol
