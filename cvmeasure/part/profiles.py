@@ -158,8 +158,11 @@ def symmetric_centres(
         if by_variance:
             # choose the basin by asymmetry relative to the window's variance, so a
             # flat, soft shadow band (symmetric but featureless) loses to the wire
-            cs = np.cumsum(np.pad(p, ((0, 0), (1, 0))), axis=1)
-            cs2 = np.cumsum(np.pad(p * p, ((0, 0), (1, 0))), axis=1)
+            # running sums as far as the last window reaches (the samples beyond it would
+            # change no sum read)
+            used = p[:, : mid + kc + ku + 1]
+            cs = np.cumsum(np.pad(used, ((0, 0), (1, 0))), axis=1)
+            cs2 = np.cumsum(np.pad(used * used, ((0, 0), (1, 0))), axis=1)
             lo, hi = mid + shifts - ku, mid + shifts + ku + 1
             n = 2 * ku + 1
             mean = (cs[:, hi] - cs[:, lo]) / n
@@ -548,23 +551,27 @@ def half_width_px(profiles: np.ndarray, offsets: np.ndarray, guess_px: float) ->
     extreme = np.where(bright, p[:, core].max(axis=1), p[:, core].min(axis=1))
     ref = np.where(bright, np.minimum(bg_l, bg_r), np.maximum(bg_l, bg_r))
     level = 0.5 * (ref + extreme)
-    sign = np.where(bright, 1.0, -1.0)
-    above = (p - level[:, None]) * sign[:, None] > 0
+    # past the level towards the extreme; the sign's product is exact, so kept in the
+    # profiles' own type (no float64 copy of them)
+    past = p - level[:, None]
+    past *= np.where(bright, 1.0, -1.0).astype(past.dtype)[:, None]
+    above = past > 0
     out = np.full(len(p), np.nan)
     centre = n // 2
-    for i in range(len(p)):
-        row = above[i]
-        left = np.nonzero(row[:centre])[0]
-        right = np.nonzero(row[centre:])[0]
-        if len(left) == 0 or len(right) == 0:
-            continue
-        a = left[0]
-        b = centre + right[-1]
-        if a == 0 or b == n - 1:
-            continue
-        fa = (level[i] - p[i, a - 1]) / (p[i, a] - p[i, a - 1])
-        fb = (level[i] - p[i, b]) / (p[i, b + 1] - p[i, b])
-        xa = offsets[a - 1] + fa * (offsets[a] - offsets[a - 1])
-        xb = offsets[b] + fb * (offsets[b + 1] - offsets[b])
-        out[i] = min(-xa, xb)
+    # the first sample past the level from the left end, the last from the right end (every
+    # profile at once: the same samples, and the same float32 and float64 operations, as one
+    # profile at a time)
+    has_left = above[:, :centre].any(axis=1)
+    has_right = above[:, centre:].any(axis=1)
+    a = np.argmax(above[:, :centre], axis=1)
+    b = n - 1 - np.argmax(above[:, centre:][:, ::-1], axis=1)
+    rows = np.nonzero(has_left & has_right & (a > 0) & (b < n - 1))[0]
+    a, b, lv = a[rows], b[rows], level[rows]
+    pa0, pa1 = p[rows, a - 1], p[rows, a]
+    pb0, pb1 = p[rows, b], p[rows, b + 1]
+    fa = (lv - pa0) / (pa1 - pa0)
+    fb = (lv - pb0) / (pb1 - pb0)
+    xa = offsets[a - 1] + fa * (offsets[a] - offsets[a - 1])
+    xb = offsets[b] + fb * (offsets[b + 1] - offsets[b])
+    out[rows] = np.where(xb < -xa, xb, -xa)  # min(-xa, xb), ties and all
     return out
