@@ -29,8 +29,6 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from skimage.morphology import skeletonize
 
-from cvmeasure.part.morph import dilate_local
-
 __all__ = ["WireMask", "segment_wire", "wire_candidates", "gray_float", "longest_skeleton_path"]
 
 Sheet = Literal["dark", "light"]
@@ -298,12 +296,15 @@ def _wire_mask(
     else:
         mask, path = filled, path_small
     mask_b = mask.astype(bool)
-    inside = levels[mask_b].astype(np.float32)
-    ring = dilate_local(
-        mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(max_wire_width_px),) * 2)
-    )
-    around = ring.astype(bool) & ~mask_b
-    bg_level = float(np.median(levels[around])) if around.any() else float(np.median(levels))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (_odd(max_wire_width_px),) * 2)
+    # the wire's levels and the ring about it read within the mask's bounding box grown by
+    # the ring's kernel, where every pixel of both lies (the same pixels, in the same order,
+    # as reading the whole photo: a candidate is a few percent of it)
+    box = _grown_box(mask_b, kernel.shape)
+    mask_in, levels_in = mask_b[box], levels[box]
+    inside = levels_in[mask_in].astype(np.float32)
+    around = cv2.dilate(mask_in.astype(np.uint8), kernel).astype(bool) & ~mask_in
+    bg_level = float(np.median(levels_in[around])) if around.any() else float(np.median(levels))
     # which way the wire stands out: compare its mean absolute deviation sides
     dev = inside - bg_level
     sheet: Sheet = (
@@ -316,5 +317,21 @@ def _wire_mask(
         background_level=bg_level,
         contrast=float(np.median(np.abs(dev))),
         threshold=threshold,
-        width_px=float(mask_b.sum()) / max(length_px, 1.0),
+        width_px=float(mask_in.sum()) / max(length_px, 1.0),
+    )
+
+
+def _grown_box(mask: np.ndarray, kernel_shape: tuple[int, int]) -> tuple[slice, slice]:
+    """Rows and columns of ``mask``'s bounding box grown by half an odd kernel either side
+    (clipped to the image): what a dilation by that kernel can reach. The whole image when
+    the mask is empty."""
+    ys = np.nonzero(mask.any(axis=1))[0]
+    if not len(ys):
+        return slice(None), slice(None)
+    xs = np.nonzero(mask[ys[0] : ys[-1] + 1].any(axis=0))[0]
+    ay, ax = kernel_shape[0] // 2, kernel_shape[1] // 2
+    h, w = mask.shape
+    return (
+        slice(max(0, ys[0] - ay), min(h, ys[-1] + ay + 1)),
+        slice(max(0, xs[0] - ax), min(w, xs[-1] + ax + 1)),
     )
