@@ -30,7 +30,13 @@ import numpy as np
 
 from cvmeasure.design import divide_into_chords
 from cvmeasure.geometry import CircleFit, arclength_mm, fit_circle_robust, wrap_deg
-from cvmeasure.part.chord_period import MIN_DIVISIONS, PeriodicChords, periodic_chords
+from cvmeasure.part.chord_period import (
+    MAX_MISFIT,
+    MIN_DIVISIONS,
+    PeriodicChords,
+    centreline_noise_mm,
+    periodic_chords,
+)
 from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
@@ -479,7 +485,10 @@ def _vertex_search(
     vertex it turns by the bend. Peaks of that turn at least ``min_turn_deg``
     above the wire's own noise and ``min_chord_mm`` apart are vertices. The count
     is kept only when the N-chord polyline fits the centreline far better than a
-    circle does (a smooth arc turns evenly and has no peaks).
+    circle does (a smooth arc turns evenly and has no peaks) and the centreline's robust
+    scatter about it is within ``MAX_MISFIT`` times its noise below a chord
+    (:func:`~cvmeasure.part.chord_period.centreline_noise_mm`: a centreline stepping or
+    drifting off the axis bends where the wire does not).
     """
     seg = np.hypot(*np.diff(pts, axis=0).T)
     s = np.concatenate(([0.0], np.cumsum(seg)))
@@ -551,9 +560,37 @@ def _vertex_search(
             f"a circle (RMS {poly.rms_residual_mm:.4f} vs {circle_rms:.4f} mm)"
         )
         return ChordCount(None, positions, turns, poly.rms_residual_mm, circle_rms, why)
+    # chords the wire was bent in describe its centreline to within the centreline's own
+    # noise below a chord (as the equal-chord test asks of its model), rounded vertices
+    # aside: the robust scatter about the chords, which a vertex's rounding (a few centres
+    # either side) does not move. Chords that leave several times the noise along most of
+    # the wire stand on something else, steps and drifts in the centreline (its centre
+    # pulled off the axis by a shadow, then back), and their count is not the wire's
+    noise_mm = centreline_noise_mm(pts)
+    scatter_mm = _polyline_scatter_mm(pts, poly.vertices_mm)
+    if math.isfinite(noise_mm) and not scatter_mm <= MAX_MISFIT * noise_mm:
+        why = (
+            f"{divisions - 1} direction changes found, but the centreline scatters by "
+            f"{scatter_mm:.4f} mm about {divisions} chords, {scatter_mm / noise_mm:.1f} times "
+            f"its noise below a chord ({noise_mm:.4f} mm): it has structure the chords do not "
+            "describe (steps, a centre pulled off the wire's axis)"
+        )
+        return ChordCount(None, positions, turns, poly.rms_residual_mm, circle_rms, why)
     why = (
         f"{divisions - 1} vertices (bends of {min(np.abs(turns)):.2f}-{max(np.abs(turns)):.2f} deg); "
         f"{divisions} chords fit with RMS {poly.rms_residual_mm:.4f} mm vs {circle_rms:.4f} mm "
         "for a circle"
     )
     return ChordCount(divisions, positions, turns, poly.rms_residual_mm, circle_rms, why)
+
+
+def _polyline_scatter_mm(pts: np.ndarray, vertices_mm: np.ndarray) -> float:
+    """Robust scatter (1.4826 median distance, mm) of points about a polyline."""
+    a, b = vertices_mm[:-1], vertices_mm[1:]
+    ab = b - a
+    t = np.einsum("pmk,mk->pm", pts[:, None, :] - a[None], ab) / np.maximum(
+        np.einsum("mk,mk->m", ab, ab), 1e-24
+    )
+    near = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    dist = np.hypot(*(pts[:, None, :] - near).transpose(2, 0, 1)).min(axis=1)
+    return 1.4826 * float(np.median(dist))

@@ -438,3 +438,34 @@ def test_a_fleck_on_the_light_sheet_beyond_a_cap_is_not_its_outline(beyond_hw):
         assert float(np.min(np.hypot(*(ends_px[[0, -1]] - end).T))) < 1.0
     assert abs(m.result.radius_mm / 45.0 - 1.0) < 0.003
     assert abs(float(m.result.segment_bend_deg) - 125.0 / 7) < 0.03
+
+
+def test_a_grey_sheets_centreline_pulled_by_the_shadow_gives_no_false_chord_count():
+    """The photo lab's grey sheet at 0.28 mm/px (3 mm wire, lamp at 22 deg): the wire's
+    edges are lost and the centre of symmetry runs along the wire's shadow side, stepping
+    1.8 mm across the wire where the shadow leaves it. Vertex by vertex that step and
+    drift read as 4 chords of 8 (bends 7.7-20.6 deg, RMS 0.155 mm about them against the
+    centreline's noise of 0.025 mm) and the bend per chord came out 15.6 deg for 7.6
+    (+8.0 deg) with no warning on it. The chord count found must be the wire's, or none."""
+    radius_mm, arc_deg, n = 77.25058611414653, 61.185581930981265, 8
+    camera = cvmeasure_datasets.default_camera().scaled(0.28)
+    part = cvmeasure_datasets.arc_part(radius_mm, arc_deg, n, wire_diameter_mm=WIRE_MM)
+    photo = render_round_wire(
+        part.placed(34.769890854444014, (0.0, 0.0)), camera=camera,
+        pose=Pose(tilt_deg=1.0, tilt_direction_deg=30.0, distance_mm=550.0, offset_mm=(0.0, 0.0)),
+        sheet="grey", light_azimuth_deg=198.51711274050695, light_elev_deg=22.0,
+        wire_diameter_mm=WIRE_MM, seed=7,
+    )  # fmt: skip
+    try:
+        m = measure_part(
+            photo.bgr, None, None, plane=photo.plane,
+            options=PartOptions(wire=WireOptions(diameter_mm=WIRE_MM)),
+        )  # fmt: skip
+    except InputError:
+        return  # a clear refusal
+    if m.result.divisions is None:
+        assert m.result.segment_bend_deg is None
+        assert has_code(m.warnings, "part_chords_not_found"), m.warnings
+        return
+    assert m.result.divisions == n, m.warnings
+    assert abs(m.result.segment_bend_deg - arc_deg / n) < 0.1
