@@ -268,7 +268,7 @@ def _dark_limb_outline(
     background: float,
     plate_spread: float,
     reached_px: float,
-    plate_inside: Callable[[float], bool] | None = None,
+    plate_inside: Callable[[float], bool],
 ) -> float | None:
     """The outline of a polished cap ringed by its own dark limb (px along ``t``), else None.
 
@@ -300,7 +300,7 @@ def _dark_limb_outline(
     falls = np.nonzero((mid <= g[:-2]) & (mid < g[2:]) & (mid < 0) & beyond[1:-1])[0] + 1
     falls = falls[np.argsort(g[falls])]
     k = next(
-        (int(i) for i in falls if plate_inside is None or not plate_inside(float(t[i]))),
+        (int(i) for i in falls if not plate_inside(float(t[i]))),
         strongest,
     )
     win = (t > t[k]) & (t <= t[k] + half_width)

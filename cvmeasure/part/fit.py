@@ -37,6 +37,7 @@ from cvmeasure.part.chord_period import (
     centreline_noise_mm,
     periodic_chords,
 )
+from cvmeasure.part.compare import point_to_polyline
 from cvmeasure.part.peaks import find_peaks
 
 __all__ = [
@@ -567,7 +568,8 @@ def _vertex_search(
     # the wire stand on something else, steps and drifts in the centreline (its centre
     # pulled off the axis by a shadow, then back), and their count is not the wire's
     noise_mm = centreline_noise_mm(pts)
-    scatter_mm = _polyline_scatter_mm(pts, poly.vertices_mm)
+    # robust scatter (1.4826 median distance) about the chords
+    scatter_mm = 1.4826 * float(np.median(np.abs(point_to_polyline(pts, poly.vertices_mm)[1])))
     if math.isfinite(noise_mm) and not scatter_mm <= MAX_MISFIT * noise_mm:
         why = (
             f"{divisions - 1} direction changes found, but the centreline scatters by "
@@ -582,15 +584,3 @@ def _vertex_search(
         "for a circle"
     )
     return ChordCount(divisions, positions, turns, poly.rms_residual_mm, circle_rms, why)
-
-
-def _polyline_scatter_mm(pts: np.ndarray, vertices_mm: np.ndarray) -> float:
-    """Robust scatter (1.4826 median distance, mm) of points about a polyline."""
-    a, b = vertices_mm[:-1], vertices_mm[1:]
-    ab = b - a
-    t = np.einsum("pmk,mk->pm", pts[:, None, :] - a[None], ab) / np.maximum(
-        np.einsum("mk,mk->m", ab, ab), 1e-24
-    )
-    near = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
-    dist = np.hypot(*(pts[:, None, :] - near).transpose(2, 0, 1)).min(axis=1)
-    return 1.4826 * float(np.median(dist))
