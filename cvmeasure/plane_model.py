@@ -162,19 +162,29 @@ class PlaneModel:
         rot, _ = cv2.Rodrigues(self.rvec)
         return -rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3)
 
-    def plane_to_image_px(self, points_mm: Any) -> NDArray[np.float64]:
+    def plane_to_image_px(self, points_mm: Any, *, height_mm: float = 0.0) -> NDArray[np.float64]:
         """Board-frame mm (N, 2) on the plane, or board-frame points (N, 3) -> photo pixels (N, 2).
 
-        With distortion. For (N, 3), z is the board frame's own (away from the camera for a
-        plane from ``cvmeasure plane``: a height above the plate is -z).
+        With distortion. (N, 2) points lie ``height_mm`` above the board (towards the camera,
+        as in :meth:`image_to_plane_mm`, which this inverts): the axis of a wire lying on the
+        plate is drawn where the photo shows it, not about ``height / distance`` of its offset
+        from the camera's foot point nearer to it. For (N, 3), z is the board frame's own
+        (away from the camera for a plane from ``cvmeasure plane``: a height above the plate
+        is -z) and ``height_mm`` must be 0.
         """
 
         arr = np.asarray(points_mm, dtype=np.float64)
         if arr.ndim == 2 and arr.shape[1] == 3:
+            if height_mm != 0.0:
+                raise ValueError("height_mm is for (N, 2) points; (N, 3) points carry their z")
             obj = arr
         else:
             pts = arr.reshape(-1, 2)
-            obj = np.column_stack((pts, np.zeros(len(pts))))
+            rot, _ = cv2.Rodrigues(self.rvec)
+            # the same sense as image_to_plane_mm: towards the camera whichever way z points
+            away = (rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3))[2] >= 0
+            z = -height_mm if away else height_mm
+            obj = np.column_stack((pts, np.full(len(pts), z)))
         if len(obj) == 0:
             return np.zeros((0, 2))
         img, _ = cv2.projectPoints(

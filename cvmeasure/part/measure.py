@@ -273,7 +273,7 @@ def measure_part(
         )  # fmt: skip
     return _assemble(
         source, methods[method], shape, divisions_from, chords, methods, fit, bend_sigma,
-        plane, centre, wire, seed_arcs, comparison, warnings,
+        plane, centre, wire, seed_arcs, comparison, warnings, base_mm,
     )  # fmt: skip
 
 
@@ -333,8 +333,10 @@ def _assemble(
     seed_arcs: dict[str, SeedArc],
     comparison: DesignComparison | None,
     warnings: list[StageWarning],
+    axis_height_mm: float,
 ) -> PartMeasurement:
-    """The :class:`PartMeasurement` of the steps' results."""
+    """The :class:`PartMeasurement` of the steps' results (``axis_height_mm``: where the
+    vertices are drawn in the photo, the height the centreline was mapped at)."""
     poly, vpoly = fit.poly, fit.vpoly
     return PartMeasurement(
         source=source,
@@ -346,7 +348,9 @@ def _assemble(
         vertex_bend_deg=None if vpoly is None else vpoly.bend_deg,
         vertex_bend_sigma_deg=bend_sigma,
         vertices_mm=None if poly is None else poly.vertices_mm,
-        vertices_px=None if poly is None else plane.plane_to_image_px(poly.vertices_mm),
+        vertices_px=None
+        if poly is None
+        else plane.plane_to_image_px(poly.vertices_mm, height_mm=axis_height_mm),
         centreline_mm=fit.centreline_mm,
         centreline_px=centre.points_px,
         wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,

@@ -87,6 +87,10 @@ def test_plane_to_image_px_of_raised_points_inverts_image_to_plane(charuco_board
     assert np.min(np.hypot(*(raised - flat).T)) > 1.0  # the height moves every point
     back = plane.image_to_plane_mm(raised, height_mm=height_mm)
     assert np.max(np.abs(back - xy)) < 1e-6  # the ray intersection undoes the projection
+    # (N, 2) points at a height: the same pixels as their (N, 3) form
+    np.testing.assert_allclose(plane.plane_to_image_px(xy, height_mm=height_mm), raised, atol=1e-9)
+    with pytest.raises(ValueError, match="height_mm"):
+        plane.plane_to_image_px(np.column_stack((xy, 0 * xy[:, 0])), height_mm=1.0)
 
 
 def test_worst_angle_error_of_known_maps():
