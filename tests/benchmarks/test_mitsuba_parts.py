@@ -90,6 +90,10 @@ def test_score_counts_refusals_warnings_and_silent_misses() -> None:
     assert score(truth, 0, {**off, "warnings": lifted, "lift": large})["verdict"] == "warned"
     assert score(truth, 0, {**bent, "warnings": lifted, "lift": large})["verdict"] == "silent"
     assert score(truth, 0, {**bent, "warnings": lifted})["verdict"] == "silent"
+    # the radius error in the circle's stated sigmas (None without one)
+    circled = {**off, "warnings": [], "circle": {"radius_sigma_mm": 0.25}}
+    assert score(truth, 0, circled)["radius_z"] == pytest.approx(2.0)
+    assert score(truth, 0, {**off, "warnings": []})["radius_z"] is None
 
 
 def test_a_lifted_part_is_the_flat_one_tilted_rigidly() -> None:
