@@ -45,11 +45,27 @@ class RoundWirePhoto:
 
 
 def true_plane(camera: CameraModel, pose: Pose) -> PlaneModel:
+    """The plate's exact plane for ``pose`` (board frame), as ``cvmeasure plane`` states one.
+
+    Its ``mm_per_px`` is the scale at the board origin's image, as the measured plane's is
+    at the board's centre: the measurement reads the wire's expected width in pixels, the
+    resolution and every pixel tolerance from it, so a misstated scale misleads them all.
+    """
     rot, t_mm = pose.extrinsics("board")
     h = camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
+    h_board_image = np.linalg.inv(h)
+    origin_px = h[:2, 2] / h[2, 2]
+
+    def to_board(px: np.ndarray) -> np.ndarray:
+        q = h_board_image @ np.append(px, 1.0)
+        return q[:2] / q[2]
+
+    # the map's Jacobian at the origin's image (central differences of a smooth map)
+    jac = np.column_stack([to_board(origin_px + e) - to_board(origin_px - e) for e in np.eye(2)])
+    mm_per_px = float(np.sqrt(abs(np.linalg.det(jac / 2.0))))
     nan = float("nan")
     return PlaneModel(
-        camera, np.linalg.inv(h), cv2.Rodrigues(rot)[0], t_mm, 0.0, 0.0, 0.1, nan, nan, 0.0, 0
+        camera, h_board_image, cv2.Rodrigues(rot)[0], t_mm, 0.0, 0.0, mm_per_px, nan, nan, 0.0, 0
     )
 
 

@@ -447,7 +447,17 @@ def count_chords(
     pts = _check_points(ordered_points_mm, 8)
     periodic = periodic_chords(pts, min_chord_mm=min_chord_mm)
     if periodic is not None and periodic.divisions is not None:
-        poly = fit_polyline(pts, periodic.divisions)
+        try:
+            poly = fit_polyline(pts, periodic.divisions)
+        except ValueError:
+            # the scallop's count, but a chord falls in a gap of the centreline: no line to
+            # place there, so the count is not established on this centreline
+            return ChordCount(
+                None, (), (), None, float(fit_circle_robust(pts).rms_residual),
+                f"the centreline's scallop shows {periodic.divisions} equal chords, but one "
+                "of them falls in a gap of the centreline (no points to place it on)",
+                periodic,
+            )  # fmt: skip
         circle_rms = float(fit_circle_robust(pts).rms_residual)
         s = arclength_mm(pts)
         positions = tuple(

@@ -95,3 +95,22 @@ def test_an_end_cut_short_is_told_by_the_vertices_spacing(cut_mm):
     assert abs(arc_over_n - 7.5) > 0.1 if cut_mm else abs(arc_over_n - 7.5) < 0.03
     assert (warning is not None) == bool(cut_mm)
     assert warning is None or warning.code == "part_chord_spacing"
+
+
+def test_a_count_whose_chord_falls_in_a_gap_is_not_established():
+    """Two chords of eight lost from the centreline (a shadow, a glare): the scallop still shows
+    eight equal chords, but no line can be placed on the missing ones; no count, said why
+    (was a ValueError out of ``cvmeasure part``: an internal error, not a refusal)."""
+    radius_mm, arc_deg, chords = 60.0, 100.0, 8
+    ang = np.radians(np.linspace(-arc_deg / 2, arc_deg / 2, chords + 1))
+    v = np.c_[radius_mm * np.cos(ang), radius_mm * np.sin(ang)]
+    pts = np.vstack(
+        [np.linspace(a, b, 120, endpoint=False) for a, b in zip(v[:-1], v[1:], strict=True)]
+        + [v[-1:]]
+    )
+    pts = pts + np.random.default_rng(0).normal(0.0, 0.01, pts.shape)
+    one_lost = count_chords(np.r_[pts[:370], pts[510:]])
+    assert one_lost.divisions == chords  # a gap within one chord's reach: still placed
+    two_lost = count_chords(np.r_[pts[:220], pts[500:]])
+    assert two_lost.divisions is None
+    assert "falls in a gap" in two_lost.reason and two_lost.periodic.divisions == chords
