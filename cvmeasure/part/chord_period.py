@@ -31,7 +31,13 @@ from scipy.special import chdtri
 from cvmeasure.geometry import fit_circle_robust
 from cvmeasure.warning import StageWarning
 
-__all__ = ["PeriodicChords", "centreline_noise_mm", "chord_spacing_warning", "periodic_chords"]
+__all__ = [
+    "PeriodicChords",
+    "centreline_noise_mm",
+    "chord_spacing_warning",
+    "periodic_chords",
+    "spacing_disagreement_deg",
+]
 
 #: Degree of the smooth curve (Legendre in the angle about the centre) the scallop is
 #: tested against: large-scale departures from a circle (a tilted or lifted part, a lens
@@ -332,6 +338,22 @@ def _decide(
     )  # fmt: skip
 
 
+def spacing_disagreement_deg(
+    segment_bend_deg: float | None, divisions: int | None, periodic: PeriodicChords | None
+) -> float:
+    """How far the bend per chord from the wire's ends lies from its vertices' spacing
+    (signed, deg) where :func:`chord_spacing_warning` warns about it, else 0."""
+    if segment_bend_deg is None or periodic is None or periodic.best_divisions != divisions:
+        return 0.0
+    if not periodic.applies or periodic.significance < periodic.threshold:
+        return 0.0
+    sigma = periodic.chord_angle_sigma_deg
+    diff = abs(segment_bend_deg) - periodic.chord_angle_deg
+    if not math.isfinite(sigma) or abs(diff) <= SPACING_SIGMAS * sigma:
+        return 0.0
+    return float(diff)
+
+
 def chord_spacing_warning(
     segment_bend_deg: float | None, divisions: int | None, periodic: PeriodicChords | None
 ) -> StageWarning | None:
@@ -344,14 +366,10 @@ def chord_spacing_warning(
     per chord is not measured to better than their difference. Checked only where the
     equal-chord test found this count significant.
     """
-    if segment_bend_deg is None or periodic is None or periodic.best_divisions != divisions:
-        return None
-    if not periodic.applies or periodic.significance < periodic.threshold:
+    diff = spacing_disagreement_deg(segment_bend_deg, divisions, periodic)
+    if diff == 0.0 or segment_bend_deg is None or periodic is None:
         return None
     sigma = periodic.chord_angle_sigma_deg
-    diff = abs(segment_bend_deg) - periodic.chord_angle_deg
-    if not math.isfinite(sigma) or abs(diff) <= SPACING_SIGMAS * sigma:
-        return None
     return StageWarning(
         "part_chord_spacing",
         f"the bend per chord from the wire's ends ({abs(segment_bend_deg):.3f} deg, the arc "

@@ -42,6 +42,7 @@ from cvmeasure.part.arc import (
     part_shape,
     polygon_arc,
 )
+from cvmeasure.part.arc_uncertainty import ArcUncertainty, arc_uncertainty
 from cvmeasure.part.centreline import Centreline
 from cvmeasure.part.checks import (
     END_BEND_DEG,
@@ -49,7 +50,7 @@ from cvmeasure.part.checks import (
     ends_at_a_boundary,
     widen_for_centreline_gaps,
 )
-from cvmeasure.part.chord_period import chord_spacing_warning
+from cvmeasure.part.chord_period import chord_spacing_warning, spacing_disagreement_deg
 from cvmeasure.part.compare import (
     compare_bends,
     deviation_profile,
@@ -271,10 +272,58 @@ def measure_part(
             design, design_source=design_source, allow_mirror=opts.allow_mirror,
             reference_mm=reference_mm,
         )  # fmt: skip
+    uncertainty = None
+    if method == "centreline_fit":
+        spacing_deg = spacing_disagreement_deg(ours.segment_bend_deg, divisions, chords.periodic)
+        uncertainty = _arc_uncertainty(fit, plane, centre, divisions, wire_diameter_mm, spacing_deg)
     return _assemble(
         source, methods[method], shape, divisions_from, chords, methods, fit, bend_sigma,
-        plane, centre, wire, seed_arcs, comparison, warnings, base_mm,
+        plane, centre, wire, seed_arcs, comparison, warnings, base_mm, uncertainty,
     )  # fmt: skip
+
+
+def _arc_uncertainty(
+    fit: _Fit,
+    plane: PlaneModel,
+    centre: Centreline,
+    divisions: int | None,
+    wire_diameter_mm: float | None,
+    spacing_deg: float,
+) -> ArcUncertainty | None:
+    """The radius' and bend per chord's standard uncertainties of our fit
+    (:func:`cvmeasure.part.arc_uncertainty.arc_uncertainty`)."""
+    ours, circle = fit.ours, fit.circle
+    wire_radius_mm = (
+        wire_diameter_mm / 2.0
+        if wire_diameter_mm is not None
+        else centre.half_width_px * plane.mm_per_px
+    )
+    # the even/odd halves' disagreement (model error too) where the camera carries it
+    lens = plane.lens_uncertainty_mm()
+    lens_mm = lens["cross_validation_mm"]
+    lens_mm = lens["sigma_mm"] if lens_mm is None else lens_mm
+    lift_r_mm = lift_bend_deg = 0.0
+    info = fit.lift_info
+    if info is not None and info.used == LiftUse.CORRECTION:
+        # the correction's effect is stated at 2 sigma of the lift read: half is one sigma
+        lift_r_mm = 0.5 * info.effect_radius_pct / 100.0 * ours.radius_mm
+        lift_bend_deg = 0.5 * info.effect_segment_bend_deg
+    return arc_uncertainty(
+        radius_mm=ours.radius_mm,
+        vertices_mm=fit.centreline_mm if fit.poly is None else fit.poly.vertices_mm,
+        circle_centre_mm=circle.centre,
+        circle_covariance_mm2=circle.covariance,
+        circle_radius_sigma_mm=circle.radius_sigma,
+        divisions=divisions,
+        mm_per_px=plane.mm_per_px,
+        wire_radius_mm=wire_radius_mm,
+        silhouette=centre.centre_from == "silhouette",
+        end_uncertainty_px=centre.end_uncertainty_px,
+        lens_sigma_mm=lens_mm,
+        lift_radius_sigma_mm=lift_r_mm,
+        lift_segment_bend_sigma_deg=lift_bend_deg,
+        spacing_disagreement_deg=spacing_deg,
+    )
 
 
 def _checked_sigma(
@@ -334,6 +383,7 @@ def _assemble(
     comparison: DesignComparison | None,
     warnings: list[StageWarning],
     axis_height_mm: float,
+    uncertainty: ArcUncertainty | None = None,
 ) -> PartMeasurement:
     """The :class:`PartMeasurement` of the steps' results (``axis_height_mm``: where the
     vertices are drawn in the photo, the height the centreline was mapped at)."""
@@ -361,6 +411,7 @@ def _assemble(
         seed_arcs=seed_arcs,
         comparison=comparison,
         warnings=tuple(warnings),
+        uncertainty=uncertainty,
     )
 
 

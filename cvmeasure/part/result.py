@@ -15,6 +15,7 @@ import numpy as np
 
 from cvmeasure.geometry import CircleFit
 from cvmeasure.method_names import PART_METHODS
+from cvmeasure.part.arc_uncertainty import ArcUncertainty
 from cvmeasure.part.compare import (
     BendComparison,
     Deviation,
@@ -291,6 +292,12 @@ class PartMeasurement:
     chords_found : what the vertex search on the centreline found.
     lift : with a wire diameter, the part's lift off the plate and its effect
         (:class:`PartLift`); else None.
+    uncertainty : the headline radius' and bend per chord's standard uncertainties with
+        what moves every vertex alike (:class:`~cvmeasure.part.arc_uncertainty.ArcUncertainty`:
+        the circle's sampling, the plane's scale, the centreline's offset across the wire,
+        the end points along it, a corrected lift, the vertices' spacing where
+        ``part_chord_spacing`` warns; not a lift only bounded); None for a seed method's
+        headline or a straight part.
     """
 
     source: str
@@ -313,9 +320,26 @@ class PartMeasurement:
     divisions_from: DivisionsSource | None = None
     chords_found: ChordCount | None = None
     lift: PartLift | None = None
+    uncertainty: ArcUncertainty | None = None
+
+    @property
+    def radius_sigma_mm(self) -> float | None:
+        """One standard uncertainty of the headline radius, mm (see ``uncertainty``)."""
+        return None if self.uncertainty is None else self.uncertainty.radius_sigma_mm
+
+    @property
+    def segment_bend_sigma_deg(self) -> float | None:
+        """One standard uncertainty of the bend per chord, degrees (see ``uncertainty``)."""
+        return None if self.uncertainty is None else self.uncertainty.segment_bend_sigma_deg
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"photo": self.source, **self.result.to_dict()}
+        out["radius_sigma_mm"] = self.radius_sigma_mm
+        out["arc_angle_sigma_deg"] = (
+            None if self.uncertainty is None else self.uncertainty.arc_angle_sigma_deg
+        )
+        out["segment_bend_sigma_deg"] = self.segment_bend_sigma_deg
+        out["uncertainty"] = None if self.uncertainty is None else self.uncertainty.to_dict()
         out["divisions"] = self.result.divisions
         out["divisions_from"] = None if self.divisions_from is None else self.divisions_from.value
         out["shape"] = self.shape

@@ -94,6 +94,13 @@ def test_score_counts_refusals_warnings_and_silent_misses() -> None:
     circled = {**off, "warnings": [], "circle": {"radius_sigma_mm": 0.25}}
     assert score(truth, 0, circled)["radius_z"] == pytest.approx(2.0)
     assert score(truth, 0, {**off, "warnings": []})["radius_z"] is None
+    # and in the part's stated sigmas (radius_sigma_mm, segment_bend_sigma_deg)
+    stated = {**bent, "warnings": [], "radius_sigma_mm": 0.5, "segment_bend_sigma_deg": 0.1}
+    got = score(truth, 0, stated)
+    assert got["radius_z_stated"] == pytest.approx((bent["radius_mm"] - truth["radius_mm"]) / 0.5)
+    assert got["bend_z_stated"] == pytest.approx(got["bend_err_deg"] / 0.1)
+    assert got["radius_sigma_pct"] == pytest.approx(100.0 * 0.5 / bent["radius_mm"])
+    assert score(truth, 0, {**bent, "warnings": []})["bend_z_stated"] is None
 
 
 def test_a_lifted_part_is_the_flat_one_tilted_rigidly() -> None:
