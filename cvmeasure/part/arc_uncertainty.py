@@ -69,8 +69,8 @@ SYMMETRY_OFFSET_SHARE = 0.1
 #: Standard uncertainty (px) of each end point along the wire: the cap's outline is one
 #: edge across the axis, read at half contrast; unlike the centreline, between two flanks
 #: whose shading biases cancel, nothing cancels its own, which the blur and the cap's
-#: shading set at about a pixel (the photo lab's round wires: median 0.4 px, RMS 1.0 px
-#: over 88 ends at 0.16 and 0.26 mm/px, leaving out 8 ends misplaced by over 5 px).
+#: shading set at about a pixel (the photo lab's round wires at 0.16 and 0.28 mm/px: median
+#: 0.25 px, RMS 0.96 px over 168 ends, leaving out 14 ends misplaced by over 5 px).
 END_ALONG_PX = 1.0
 
 
