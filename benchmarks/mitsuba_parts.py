@@ -245,15 +245,12 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
         bend = float(rec["arc_angle_deg"]) / int(rec["divisions"])
     b_err = None if bend is None else float(bend) - truth["segment_bend_deg"]
     out.update(radius_err_pct=r_err, bend_err_deg=b_err, divisions=rec.get("divisions"))
+    r_err_mm = float(rec["radius_mm"]) - truth["radius_mm"]
     sigma_mm = (rec.get("circle") or {}).get("radius_sigma_mm")
-    out["radius_z"] = (
-        None if not sigma_mm else (float(rec["radius_mm"]) - truth["radius_mm"]) / float(sigma_mm)
-    )
+    out["radius_z"] = None if not sigma_mm else r_err_mm / float(sigma_mm)
     # the errors in the part's stated standard uncertainties (None without them)
     r_sigma, b_sigma = rec.get("radius_sigma_mm"), rec.get("segment_bend_sigma_deg")
-    out["radius_z_stated"] = (
-        None if not r_sigma else (float(rec["radius_mm"]) - truth["radius_mm"]) / float(r_sigma)
-    )
+    out["radius_z_stated"] = None if not r_sigma else r_err_mm / float(r_sigma)
     out["bend_z_stated"] = None if not b_sigma or b_err is None else b_err / float(b_sigma)
     out["radius_sigma_pct"] = (
         None if not r_sigma else 100.0 * float(r_sigma) / float(rec["radius_mm"])
@@ -352,7 +349,6 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
     errs_r = [abs(s["radius_err_pct"]) for s in scores if s["radius_err_pct"] is not None]
     errs_b = [abs(s["bend_err_deg"]) for s in scores if s["bend_err_deg"] is not None]
     med = lambda v: round(float(np.median(v)), 4) if v else None  # noqa: E731
-    zs = [s["radius_z"] for s in scores if s.get("radius_z") is not None]
 
     def within_2(key: str) -> float | None:
         z = [s[key] for s in scores if s.get(key) is not None]
@@ -384,7 +380,7 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
         # scatter only: how often it holds the error says what it leaves out
         Metric(
             "radius within 2 stated circle sigma (sampling only)",
-            round(100.0 * sum(abs(z) <= 2.0 for z in zs) / len(zs), 1) if zs else None,
+            within_2("radius_z"),
             "%",
             None,
             None,

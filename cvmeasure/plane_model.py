@@ -145,14 +145,22 @@ class PlaneModel:
 
         rot, _ = cv2.Rodrigues(self.rvec)
         rays = np.column_stack((self.camera.normalized(pts), np.ones(len(pts))))
-        # board point X = R^T (s ray - t); pick s so that its z is -height
+        # board point X = R^T (s ray - t); pick s so that its z is the raised plane's
         rt_rays = rays @ rot  # rows: R^T ray
         rt_t = rot.T @ self.tvec_mm
-        # the camera is at z = -rt_t[2]: a board frame's z points away from it (rt_t[2] > 0)
-        towards = height_mm if rt_t[2] >= 0 else -height_mm
-        scale = (rt_t[2] - towards) / rt_rays[:, 2]
+        scale = (rt_t[2] + self._board_z_mm(height_mm)) / rt_rays[:, 2]
         board = scale[:, None] * rt_rays - rt_t[None, :]
         return board[:, :2]
+
+    def _board_z_mm(self, height_mm: float) -> float:
+        """The board frame's z of the plane ``height_mm`` above the board towards the camera."""
+        if height_mm == 0.0:
+            return 0.0
+        rot, _ = cv2.Rodrigues(self.rvec)
+        # the camera is at z = -(R^T t)[2]: a board frame's z points away from it when that
+        # is positive (a plane from ``cvmeasure plane``)
+        away = (rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3))[2] >= 0
+        return -height_mm if away else height_mm
 
     @property
     def camera_centre_mm(self) -> NDArray[np.float64]:
@@ -180,11 +188,7 @@ class PlaneModel:
             obj = arr
         else:
             pts = arr.reshape(-1, 2)
-            rot, _ = cv2.Rodrigues(self.rvec)
-            # the same sense as image_to_plane_mm: towards the camera whichever way z points
-            away = (rot.T @ np.asarray(self.tvec_mm, dtype=np.float64).reshape(3))[2] >= 0
-            z = -height_mm if away else height_mm
-            obj = np.column_stack((pts, np.full(len(pts), z)))
+            obj = np.column_stack((pts, np.full(len(pts), self._board_z_mm(height_mm))))
         if len(obj) == 0:
             return np.zeros((0, 2))
         img, _ = cv2.projectPoints(

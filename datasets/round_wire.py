@@ -28,6 +28,7 @@ import numpy as np
 
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.lens.plane import mm_per_px_at
 from cvmeasure_datasets.optics import Pose, _undistort_normalized
 
 #: The plate's albedo per sheet: black card, a mid-tone sheet (a cork or card about as
@@ -54,15 +55,7 @@ def true_plane(camera: CameraModel, pose: Pose) -> PlaneModel:
     rot, t_mm = pose.extrinsics("board")
     h = camera.camera_matrix @ np.column_stack((rot[:, 0], rot[:, 1], t_mm))
     h_board_image = np.linalg.inv(h)
-    origin_px = h[:2, 2] / h[2, 2]
-
-    def to_board(px: np.ndarray) -> np.ndarray:
-        q = h_board_image @ np.append(px, 1.0)
-        return q[:2] / q[2]
-
-    # the map's Jacobian at the origin's image (central differences of a smooth map)
-    jac = np.column_stack([to_board(origin_px + e) - to_board(origin_px - e) for e in np.eye(2)])
-    mm_per_px = float(np.sqrt(abs(np.linalg.det(jac / 2.0))))
+    mm_per_px = mm_per_px_at(h_board_image, h[:2, 2] / h[2, 2])  # at the origin's image
     nan = float("nan")
     return PlaneModel(
         camera, h_board_image, cv2.Rodrigues(rot)[0], t_mm, 0.0, 0.0, mm_per_px, nan, nan, 0.0, 0

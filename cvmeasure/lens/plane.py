@@ -33,6 +33,7 @@ __all__ = [
     "estimate_plane",
     "fit_plane",
     "worst_angle_error_deg",
+    "mm_per_px_at",
     "rectify_image",
 ]
 
@@ -50,6 +51,13 @@ def _h_jacobians(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
         for j in range(2):
             jac[:, i, j] = (h[i, j] * w - hom[:, i] * h[2, j]) / w**2
     return jac
+
+
+def mm_per_px_at(h_board_image: np.ndarray, point_px: np.ndarray) -> float:
+    """The plane's scale (mm per px, the square root of the area ratio) at an undistorted
+    image point, from the homography image px -> board mm."""
+    jac = _h_jacobians(h_board_image, np.asarray(point_px, dtype=np.float64)[None])[0]
+    return float(np.sqrt(abs(np.linalg.det(jac))))
 
 
 def worst_angle_error_deg(
@@ -140,8 +148,7 @@ def fit_plane(
     rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - img) ** 2, axis=1))))
     centre_mm = obj[:, :2].mean(axis=0)
     centre_px = apply_homography(h_img_board / h_img_board[2, 2], centre_mm[None])[0]
-    jac = _h_jacobians(h_board_img, centre_px[None])[0]
-    mm_per_px = float(np.sqrt(abs(np.linalg.det(jac))))
+    mm_per_px = mm_per_px_at(h_board_img, centre_px)
     # Region: the board's corner hull in the undistorted image, sampled on a grid.
     lo, hi = obj[:, :2].min(axis=0), obj[:, :2].max(axis=0)
     gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 9), np.linspace(lo[1], hi[1], 9))

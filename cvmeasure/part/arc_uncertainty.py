@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from cvmeasure.geometry import fit_circle_taubin
+from cvmeasure.part.fit import arc_sweep_rad
 
 __all__ = [
     "SILHOUETTE_OFFSET_PX",
@@ -242,5 +243,4 @@ def _radius_and_sweep(v: np.ndarray) -> tuple[float, float] | None:
         c, r = fit_circle_taubin(v)
     except ValueError:
         return None
-    ang = np.unwrap(np.arctan2(v[:, 1] - c[1], v[:, 0] - c[0]))
-    return float(r), math.degrees(abs(float(ang[-1] - ang[0])))
+    return float(r), math.degrees(arc_sweep_rad(c, v))

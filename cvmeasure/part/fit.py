@@ -48,6 +48,7 @@ __all__ = [
     "ArcGeometry",
     "fit_polyline",
     "arc_geometry",
+    "arc_sweep_rad",
     "arc_angle_from_chord_deg",
     "sagitta_radius_mm",
     "fit_line",
@@ -107,6 +108,14 @@ def _check_points(points: np.ndarray, minimum: int) -> np.ndarray:
     return pts
 
 
+def arc_sweep_rad(centre: Any, ordered_points: np.ndarray) -> float:
+    """The total unwrapped angle (rad, >= 0) ordered points (N, 2) sweep about ``centre``,
+    first to last (any length unit)."""
+    c = np.asarray(centre, dtype=np.float64)
+    ang = np.unwrap(np.arctan2(ordered_points[:, 1] - c[1], ordered_points[:, 0] - c[0]))
+    return abs(float(ang[-1] - ang[0]))
+
+
 def arc_geometry(circle: CircleFit, ordered_points_mm: np.ndarray) -> ArcGeometry:
     """Arc quantities of ordered points (N, 2) lying along ``circle``.
 
@@ -115,9 +124,7 @@ def arc_geometry(circle: CircleFit, ordered_points_mm: np.ndarray) -> ArcGeometr
     degrees are measured as such).
     """
     pts = _check_points(ordered_points_mm, 2)
-    c = np.asarray(circle.centre)
-    ang = np.unwrap(np.arctan2(pts[:, 1] - c[1], pts[:, 0] - c[0]))
-    sweep = abs(float(ang[-1] - ang[0]))
+    sweep = arc_sweep_rad(circle.centre, pts)
     r = circle.radius
     return ArcGeometry(
         radius_mm=r,
@@ -447,18 +454,18 @@ def count_chords(
     pts = _check_points(ordered_points_mm, 8)
     periodic = periodic_chords(pts, min_chord_mm=min_chord_mm)
     if periodic is not None and periodic.divisions is not None:
+        circle_rms = float(fit_circle_robust(pts).rms_residual)
         try:
             poly = fit_polyline(pts, periodic.divisions)
         except ValueError:
             # the scallop's count, but a chord falls in a gap of the centreline: no line to
             # place there, so the count is not established on this centreline
             return ChordCount(
-                None, (), (), None, float(fit_circle_robust(pts).rms_residual),
+                None, (), (), None, circle_rms,
                 f"the centreline's scallop shows {periodic.divisions} equal chords, but one "
                 "of them falls in a gap of the centreline (no points to place it on)",
                 periodic,
             )  # fmt: skip
-        circle_rms = float(fit_circle_robust(pts).rms_residual)
         s = arclength_mm(pts)
         positions = tuple(
             float(s[int(np.argmin(np.hypot(*(pts - v).T)))]) for v in poly.vertices_mm[1:-1]

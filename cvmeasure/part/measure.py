@@ -383,7 +383,7 @@ def _assemble(
     comparison: DesignComparison | None,
     warnings: list[StageWarning],
     axis_height_mm: float,
-    uncertainty: ArcUncertainty | None = None,
+    uncertainty: ArcUncertainty | None,
 ) -> PartMeasurement:
     """The :class:`PartMeasurement` of the steps' results (``axis_height_mm``: where the
     vertices are drawn in the photo, the height the centreline was mapped at)."""

@@ -45,6 +45,17 @@ def _offsets_px(photo, points_px: np.ndarray) -> np.ndarray:
     return cKDTree(axis_px).query(points_px)[0]
 
 
+def _measured_on_true_plane(photo, divisions: int):
+    """``measure_part`` of a lab photo on its true plane, the stated wire, the given count."""
+    return measure_part(
+        photo.bgr,
+        None,
+        None,
+        plane=photo.plane,
+        options=PartOptions(divisions=divisions, wire=WireOptions(diameter_mm=WIRE_MM)),
+    )
+
+
 @pytest.mark.parametrize("sheet", ["light", "dark"])
 def test_silhouette_centres_follow_the_axis_not_the_side_lit_highlight(sheet):
     photo = _photo(sheet, 0.0)
@@ -251,13 +262,7 @@ def test_an_end_facing_its_shadow_on_a_light_plate_is_found_at_its_cap():
         part.placed(20.0, (0.0, 0.0)), camera=camera, pose=POSE, lift_mm=1.5,
         lift_direction_deg=20.0, sheet="light", light_azimuth_deg=0.0, light_elev_deg=50.0,
     )  # fmt: skip
-    m = measure_part(
-        photo.bgr,
-        None,
-        None,
-        plane=photo.plane,
-        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
-    )
+    m = _measured_on_true_plane(photo, divisions=8)
     rot, t_mm = POSE.extrinsics("board")
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
     for end in m.centreline_px[[0, -1]]:
@@ -283,13 +288,7 @@ def test_a_chord_whose_shadow_joins_its_silhouette_keeps_its_centres():
         lift_direction_deg=301.94041691724664, light_azimuth_deg=348.2205802124632,
         light_elev_deg=54.97370483416649, seed=9103,
     )  # fmt: skip
-    m = measure_part(
-        photo.bgr,
-        None,
-        None,
-        plane=photo.plane,
-        options=PartOptions(divisions=10, wire=WireOptions(diameter_mm=WIRE_MM)),
-    )
+    m = _measured_on_true_plane(photo, divisions=10)
     err = np.asarray(m.vertex_bend_deg) - 12.0
     assert np.max(np.abs(err)) < 0.12, err
     assert not has_code(m.warnings, "part_centreline_gap"), m.warnings
@@ -314,13 +313,7 @@ def test_an_end_whose_cap_meets_its_shadow_without_a_step_is_stated_uncertain():
         lift_direction_deg=337.71, sheet="light", light_azimuth_deg=201.93,
         light_elev_deg=61.40, seed=9101,
     )  # fmt: skip
-    m = measure_part(
-        photo.bgr,
-        None,
-        None,
-        plane=photo.plane,
-        options=PartOptions(divisions=6, wire=WireOptions(diameter_mm=WIRE_MM)),
-    )
+    m = _measured_on_true_plane(photo, divisions=6)
     rot, t_mm = pose.extrinsics("board")
     true_ends_px = photo.plane.camera.project(photo.vertices_mm[[0, -1]] @ rot.T + t_mm)
     off = [float(np.min(np.hypot(*(true_ends_px - e).T))) for e in m.centreline_px[[0, -1]]]
@@ -476,13 +469,7 @@ def test_the_vertices_are_drawn_where_the_photo_shows_the_axis():
     mapped at), not on the plate: 1.5 mm nearer the camera moves them by about height /
     distance of their offset from the camera's foot point (0.9 px here)."""
     photo = _photo("dark", 0.0)
-    m = measure_part(
-        photo.bgr,
-        None,
-        None,
-        plane=photo.plane,
-        options=PartOptions(divisions=8, wire=WireOptions(diameter_mm=WIRE_MM)),
-    )
+    m = _measured_on_true_plane(photo, divisions=8)
     back = photo.plane.image_to_plane_mm(m.vertices_px, height_mm=WIRE_MM / 2)
     np.testing.assert_allclose(back, m.vertices_mm, atol=1e-6)
     rot, t_mm = POSE.extrinsics("board")
