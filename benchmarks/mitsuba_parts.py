@@ -395,8 +395,21 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
     ]
 
 
+#: The photo size of the default set (2.2 MP: about 0.28 mm/px on the sheet).
+SMALL_PX = (1800, 1200)
+#: The seed's camera at its full sensor size (Nikon D3100, 14.2 MP: about 0.11 mm/px here).
+FULL_PX = (4608, 3072)
+
+
 def main(argv: list[str] | None = None) -> dict:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.mitsuba_parts", description=__doc__)
+    return run(argv, size_px=SMALL_PX, file=__file__, section=SECTION)
+
+
+def run(argv: list[str] | None, *, size_px: tuple[int, int], file: str, section: str) -> dict:
+    """The benchmark with photos of ``size_px`` (same scenes, lens and field of view),
+    published as ``file``'s ``section``."""
+    name = Path(file).stem
+    p = argparse.ArgumentParser(prog=f"python -m benchmarks.{name}", description=__doc__)
     p.add_argument("--quick", action="store_true", help="small renders, 4 part photos")
     p.add_argument(
         "--cache",
@@ -417,7 +430,8 @@ def main(argv: list[str] | None = None) -> dict:
     import drjit as dr
 
     dr.set_thread_count(args.threads)
-    w, h, spp, n = (1200, 800, 8, 4) if args.quick else (1800, 1200, 8, 24)
+    w, h = (size_px[0] * 2 // 3, size_px[1] * 2 // 3) if args.quick else size_px
+    spp, n = 8, (4 if args.quick else 24)
     n = args.photos or n
     if args.lifted is None:
         args.lifted = not args.quick
@@ -469,8 +483,8 @@ def main(argv: list[str] | None = None) -> dict:
     ]
     scale = 2.0 * 650.0 * math.tan(math.radians(21.0)) / w
     return finish(
-        __file__,
-        SECTION,
+        file,
+        section,
         argv,
         quick=args.quick,
         metrics=metrics,
