@@ -223,11 +223,20 @@ def _codes(rec: dict) -> list[str]:
     return out
 
 
-def _covering(codes: set[str], quantity: str, lift_effect: float | None, error: float) -> bool:
+def _covering(
+    codes: set[str],
+    quantity: str,
+    lift_effect: float | None,
+    error: float,
+    two_sigma: float | None = None,
+) -> bool:
     """Whether the warnings cover ``quantity`` off by ``error`` (%, deg): ``part_lifted``
     only as far as the effect it states on that quantity reaches (a warning that a lift
-    may move the radius by 0.4 % does not excuse one 1.2 % off), the others whole."""
+    may move the radius by 0.4 % does not excuse one 1.2 % off), ``part_imprecise`` as far
+    as twice the quantity's stated sigma (``two_sigma``) reaches, the others whole."""
     if codes & (COVERS[quantity] - {"part_lifted"}):
+        return True
+    if "part_imprecise" in codes and (two_sigma or 0.0) >= error:
         return True
     return "part_lifted" in codes and (lift_effect or 0.0) >= error
 
@@ -259,14 +268,37 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
     ok_r = abs(r_err) <= 100.0 * RADIUS_TOL
     ok_b = b_err is not None and abs(b_err) <= BEND_TOL_DEG
     lift = rec.get("lift") or {}
-    covers_r = _covering(codes, "radius", lift.get("effect_radius_pct"), abs(r_err))
+    two_sigma = {
+        "radius": None if not r_sigma else 2.0 * out["radius_sigma_pct"],
+        "bend": None if not b_sigma else 2.0 * float(b_sigma),
+    }
+    covers_r = _covering(
+        codes, "radius", lift.get("effect_radius_pct"), abs(r_err), two_sigma["radius"]
+    )
     covers_b = _covering(
-        codes, "bend", lift.get("effect_segment_bend_deg"), abs(b_err or float("inf"))
+        codes,
+        "bend",
+        lift.get("effect_segment_bend_deg"),
+        abs(b_err or float("inf")),
+        two_sigma["bend"],
     )
     out["radius"] = "ok" if ok_r else ("warned" if covers_r else "silent")
     out["bend"] = "ok" if ok_b else ("warned" if covers_b else "silent")
     states = {out["radius"], out["bend"]}
     out["verdict"] = "silent" if "silent" in states else ("warned" if "warned" in states else "ok")
+    # Read strictly: an unmeasured lift's bound (every photo of a part that may not lie
+    # flat carries it) covers only a part that is lifted, not an error from elsewhere.
+    if lift.get("used") == "bound" and not truth.get("lift_mm"):
+        codes = codes - {"part_lifted"}
+    strict = {
+        q: ok
+        or _covering(codes, q, lift.get(f"effect_{key}"), abs(err or float("inf")), two_sigma[q])
+        for q, ok, key, err in (
+            ("radius", ok_r, "radius_pct", r_err),
+            ("bend", ok_b, "segment_bend_deg", b_err),
+        )
+    }
+    out["silent_strict"] = not all(strict.values())
     return out
 
 
@@ -321,7 +353,7 @@ def _row(shot: Shot, rc: int, rec: dict, err: str, s: dict) -> list:
         rnd(s["bend_err_deg"], 4),
         rnd(s.get("radius_z_stated"), 2),
         rnd(s.get("bend_z_stated"), 2),
-        s["verdict"],
+        s["verdict"] + (" (lift bound only)" if s.get("silent_strict") else ""),
         why[:200],
     ]
 
@@ -334,6 +366,7 @@ _FLAT_ROWS = (
     "bend per chord within 0.03 deg",
     "refused or warned (covering the quantity off)",
     "silently wrong (off target, no covering warning)",
+    "silently wrong, an unmeasured lift's bound covering lifted parts only",
     "radius within 2 stated sigma",
     "bend per chord within 2 stated sigma",
 )
@@ -374,6 +407,13 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
             "photos",
             target="0",
             met=silent == 0,
+        ),
+        Metric(
+            "silently wrong, an unmeasured lift's bound covering lifted parts only",
+            sum(bool(s.get("silent_strict")) for s in scores),
+            "photos",
+            None,
+            None,
         ),
         Metric("median |radius error| (measured)", med(errs_r), "%", None, None),
         # the circle's radius_sigma_mm is the fit's sampling uncertainty from the vertices'
@@ -509,7 +549,13 @@ def run(argv: list[str] | None, *, size_px: tuple[int, int], file: str, section:
             + "; bend per chord also by "
             + ", ".join(sorted(COVERS["bend"] - COVERS["radius"]))
             + "; part_lifted only as far as the effect it states on the quantity "
-            "(JSON lift.effect_radius_pct, lift.effect_segment_bend_deg) reaches the error",
+            "(JSON lift.effect_radius_pct, lift.effect_segment_bend_deg) reaches the error; "
+            "part_imprecise (the stated 2 sigma wider than the targets) as far as twice the "
+            "quantity's stated sigma reaches it",
+            "read strictly, an unmeasured lift's bound (part_lifted with lift.used 'bound', "
+            "which a part that may not lie flat always carries) covers lifted parts only: "
+            "a flat part off target with no other covering warning is marked "
+            "'(lift bound only)' and counted in the strict silent row",
         ],
     )
 

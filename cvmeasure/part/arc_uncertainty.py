@@ -40,6 +40,7 @@ import numpy as np
 
 from cvmeasure.geometry import fit_circle_taubin
 from cvmeasure.part.fit import arc_sweep_rad
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "SILHOUETTE_OFFSET_PX",
@@ -47,6 +48,7 @@ __all__ = [
     "END_ALONG_PX",
     "ArcUncertainty",
     "arc_uncertainty",
+    "imprecision_warning",
 ]
 
 #: Standard uncertainty (px) of a centreline between silhouette edges across the wire,
@@ -244,3 +246,30 @@ def _radius_and_sweep(v: np.ndarray) -> tuple[float, float] | None:
     except ValueError:
         return None
     return float(r), math.degrees(arc_sweep_rad(c, v))
+
+
+def imprecision_warning(
+    uncertainty: ArcUncertainty, radius_mm: float, *, radius_pct: float, bend_deg: float
+) -> StageWarning | None:
+    """``part_imprecise`` when the photo states the radius or the bend per chord only to
+    wider than ``radius_pct`` (%) / ``bend_deg`` (degrees) at 2 sigma, else None.
+
+    A result is then within those tolerances only by chance: the camera's pixels across the
+    wire, not the method, limit it, and a closer camera or a larger photo narrows it.
+    """
+    radius_2sigma_pct = 200.0 * uncertainty.radius_sigma_mm / radius_mm
+    bend_2sigma = uncertainty.segment_bend_sigma_deg
+    bend_2sigma = None if bend_2sigma is None else 2.0 * bend_2sigma
+    wide = []
+    if radius_2sigma_pct > radius_pct:
+        wide.append(f"the radius to +-{radius_2sigma_pct:.2f} %")
+    if bend_2sigma is not None and bend_2sigma > bend_deg:
+        wide.append(f"the bend per chord to +-{bend_2sigma:.3f} deg")
+    if not wide:
+        return None
+    return StageWarning(
+        "part_imprecise",
+        f"this photo pins {' and '.join(wide)} (2 sigma), wider than {radius_pct:g} % / "
+        f"{bend_deg:g} deg: either may be off by that much; a closer camera or a larger "
+        "photo (more pixels across the wire) narrows it",
+    )

@@ -42,7 +42,7 @@ from cvmeasure.part.arc import (
     part_shape,
     polygon_arc,
 )
-from cvmeasure.part.arc_uncertainty import ArcUncertainty, arc_uncertainty
+from cvmeasure.part.arc_uncertainty import ArcUncertainty, arc_uncertainty, imprecision_warning
 from cvmeasure.part.centreline import Centreline
 from cvmeasure.part.checks import (
     END_BEND_DEG,
@@ -276,6 +276,11 @@ def measure_part(
     if method == "centreline_fit":
         spacing_deg = spacing_disagreement_deg(ours.segment_bend_deg, divisions, chords.periodic)
         uncertainty = _arc_uncertainty(fit, plane, centre, divisions, wire_diameter_mm, spacing_deg)
+        # the same tolerances a lift is warned about at: the parts' targets
+        imprecise = imprecision_warning(
+            uncertainty, ours.radius_mm, radius_pct=LIFT_RADIUS_PCT, bend_deg=LIFT_BEND_DEG
+        )
+        warnings += [imprecise] if imprecise else []
     return _assemble(
         source, methods[method], shape, divisions_from, chords, methods, fit, bend_sigma,
         plane, centre, wire, seed_arcs, comparison, warnings, base_mm, uncertainty,

@@ -11,9 +11,15 @@ import pytest
 
 import cvmeasure_datasets
 from cvmeasure.part.arc import polygon_arc
-from cvmeasure.part.arc_uncertainty import END_ALONG_PX, SILHOUETTE_OFFSET_PX, arc_uncertainty
+from cvmeasure.part.arc_uncertainty import (
+    END_ALONG_PX,
+    SILHOUETTE_OFFSET_PX,
+    arc_uncertainty,
+    imprecision_warning,
+)
 from cvmeasure.part.measure import measure_part
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
 
@@ -125,3 +131,28 @@ def test_the_radius_and_bend_per_chord_lie_within_two_stated_sigmas(sheet, seed,
     # widest where the vertices' spacing disagrees with the ends, part_chord_spacing)
     assert m.radius_sigma_mm < 0.003 * R_MM
     assert m.segment_bend_sigma_deg < 0.05
+    # part_imprecise exactly where a stated 2 sigma is wider than those targets
+    wide = 2.0 * m.radius_sigma_mm > 0.003 * m.result.radius_mm or (
+        2.0 * m.segment_bend_sigma_deg > 0.03
+    )
+    assert has_code(m.warnings, "part_imprecise") == wide
+
+
+def test_imprecision_is_warned_about_the_quantities_wider_than_the_tolerances():
+    """Tolerances 1 % above and below an arc's stated 2 sigmas: warned about exactly
+    the quantity whose 2 sigma is wider, with its figure."""
+    offset_only = _uncertainty(_arc_vertices(), silhouette=True)
+    radius_pct = 200.0 * offset_only.radius_sigma_mm / R_MM
+    bend_2sigma = 2.0 * offset_only.segment_bend_sigma_deg
+    assert (
+        imprecision_warning(
+            offset_only, R_MM, radius_pct=radius_pct * 1.01, bend_deg=bend_2sigma * 1.01
+        )
+        is None
+    )
+    w = imprecision_warning(offset_only, R_MM, radius_pct=radius_pct * 0.99, bend_deg=1.0)
+    assert w is not None and w.code == "part_imprecise"
+    assert "radius" in w.message and "bend per chord" not in w.message
+    assert f"{radius_pct:.2f} %" in w.message
+    w = imprecision_warning(offset_only, R_MM, radius_pct=5.0, bend_deg=bend_2sigma * 0.99)
+    assert w is not None and "bend per chord" in w.message and "radius" not in w.message
