@@ -197,7 +197,7 @@ def _wire_centreline(
         if centre.centre_from.startswith("symmetry ("):
             # why its silhouette edges did not say wire either
             problem = f"{problem[:-1]}; {centre.centre_from[len('symmetry (') : -1]})"
-        hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet)
+        hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet, wire_diameter_mm)
         raise InputError(source, problem + hint)
     return centre
 
