@@ -12,9 +12,12 @@ parabola through the cost minimum. Four passes: normals from the skeleton
 with a window of most of the wire's rough width (a small window finds false
 centres in each dark flank: a local valley is symmetric too), then normals from
 the centres found with the window set from the half-width measured about
-them; centres that jump from the running median along the wire are dropped, and so are
-those darker than the sheet beside a wire brighter than its sheet (a lifted end's shadow
-parts from the wire as a dark valley, symmetric too: :func:`_darker_than_sheet`).
+them; centres that jump from the running median along the wire are dropped. Beside a wire
+brighter than its sheet, the last pass looks for the centres only where the profile stands
+out above the sheet (a lifted end's shadow parts from the wire as a dark valley, symmetric
+too: :func:`_sheet_floor`), and so does every pass where the symmetric centres are the
+measurement (no stated width, or its silhouette edges not used), the first across the
+whole mask (which holds the shadow too).
 With the wire's expected width known and the wire's band not clearly brighter than the
 sheet (white, printed cork), the window is set from that width instead: a polished tube's
 limbs mirror the light sheet, so the mask and the half-width measured about it hold only one
@@ -286,9 +289,14 @@ def measure_centreline(
         return sample_across(g, centres, normals, offsets)
 
     window = int(round(6.0 * hw0 / step_px))
+    known_hw = None if wire_width_px is None else 0.5 * float(wire_width_px)
+    # without the wire's width the symmetric centres are the measurement: their passes keep
+    # above a dark sheet's level from the first (:func:`_sheet_floor`). With it they seed
+    # the silhouette edges' search, measured from passes as before; where the edges are not
+    # used, the passes are run again with the floor for the symmetric centres below
     centres, normals, prof, rough, rho, search = _symmetric_passes(
-        profiles_at, path, offsets, hw0, reach, step_px, window,
-        known_hw=None if wire_width_px is None else 0.5 * float(wire_width_px),
+        profiles_at, path, offsets, hw0, reach, step_px, window, known_hw=known_hw,
+        above_sheet=wire_width_px is None,
     )  # fmt: skip
     half_width = rough
     centres0 = centres
@@ -309,9 +317,18 @@ def measure_centreline(
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
             centre_from = f"symmetry ({found})"
+            centres0, normals, prof, rough, rho, search = _symmetric_passes(
+                profiles_at, path, offsets, hw0, reach, step_px, window, known_hw=known_hw,
+                above_sheet=True,
+            )  # fmt: skip
+            half_width = rough
+            # the trimmed symmetry places the centres of a wire whose edges were lost; it
+            # does not make a wire of a line whose profiles are not symmetric and whose
+            # edges are both seen closer together than the wire (a strip 7 px across beside
+            # a 9.5 px wire: 0.15 untrimmed, 0.12 trimmed): its untrimmed asymmetry stands
             centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
                 prof, centres0, normals, rho, search, step_px, window,
-                trim_share=HIGHLIGHT_TRIM_SHARE,
+                trim_share=0.0 if isinstance(found, _NarrowerThanWire) else HIGHLIGHT_TRIM_SHARE,
             )  # fmt: skip
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
@@ -367,11 +384,15 @@ def _final_symmetric(
     window's, else the whole window's.
     """
     slope = 0.4 * step_px
-    shift, asym = symmetric_centres(prof, rho_px=rho, search_px=search, max_slope_px=slope)
+    floor = _sheet_floor(prof, rho)
+    shift, asym = symmetric_centres(
+        prof, rho_px=rho, search_px=search, max_slope_px=slope, min_level=floor
+    )
     if trim_share > 0.0:
         trimmed, _ = symmetric_centres(
-            prof, rho_px=rho, search_px=search, max_slope_px=slope, trim_share=trim_share
-        )
+            prof, rho_px=rho, search_px=search, max_slope_px=slope, trim_share=trim_share,
+            min_level=floor,
+        )  # fmt: skip
         near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
         shift = np.where(near, trimmed, shift)
     shift = despike(shift, window)
@@ -386,29 +407,49 @@ def _final_symmetric(
 
 
 def _darker_than_sheet(prof: np.ndarray, shift: np.ndarray, rho: float) -> np.ndarray:
-    """True (P,) at the symmetric centres that lie darker than the sheet beside them, on a
-    wire that stands out brighter than its sheet (dark card: :func:`_dark_on_sheet` false).
+    """True (P,) at the symmetric centres that lie below the sheet's floor beside them, on
+    a wire that stands out brighter than its sheet (:func:`_sheet_floor`).
 
-    A bright wire's centre of symmetry is on its crest or a lit flank, brighter than the
-    sheet (path-traced steel on dark and black card: 2-7 times the sheet's level at every
-    centre); a lifted end's cast shadow parts from the wire as a dark valley a width beside
-    it, symmetric too, which the centres can follow for a chord's length (at a part's
-    lifted end on dark card: 5-6 px off an 11 px wire, a sixth of the wire, and no chord
-    count found). Such a centre lies on no wire. ``prof`` are sampled every
-    ``PROFILE_STEP_PX`` about the guesses, ``shift`` (P,) the centres' offsets (NaN: none);
-    the sheet's level is the brighter side's outer tenth (the other may be in the shadow).
-    On a light sheet (the wire darker than it) nothing is flagged.
+    ``prof`` are sampled every ``PROFILE_STEP_PX`` about the guesses, ``shift`` (P,) the
+    centres' offsets (NaN: none). On a light sheet (the wire darker than it) nothing is
+    flagged.
     """
     n = prof.shape[1]
-    offsets = (np.arange(n) - n // 2) * PROFILE_STEP_PX
     out = np.zeros(len(prof), dtype=bool)
-    if len(prof) == 0 or _dark_on_sheet(prof, offsets, max(rho, 1.0)):
+    sheet = _sheet_floor(prof, rho)
+    if sheet is None:
         return out
-    sheet = np.maximum(*side_levels(prof))
     ok = np.isfinite(shift)
     at = np.clip(np.rint(shift[ok] / PROFILE_STEP_PX).astype(int) + n // 2, 0, n - 1)
     out[ok] = prof[np.nonzero(ok)[0], at] < sheet[ok]
     return out
+
+
+def _sheet_floor(prof: np.ndarray, rho: float) -> np.ndarray | None:
+    """The sheet's level (P,) below which no centre of a bright wire lies, or None where the
+    wire does not stand out brighter than its sheet (:func:`_dark_on_sheet` true).
+
+    A bright wire's centre of symmetry is on its crest or a lit flank, well above the sheet
+    (path-traced steel on dark and black card: 2-7 times the sheet's level at every
+    centre); a lifted end's cast shadow parts from the wire as a dark valley a width beside
+    it, symmetric too, which the centres followed for a chord's length and more (at a
+    part's lifted end on dark card: 5-6 px off an 11 px wire, a sixth of the wire; on the
+    photo lab's 19 px wire lifted 3 mm, 26 px off along a sixth of it and lost along
+    another), and the gap between them, at the sheet's level, took the last centres at the
+    end. Such a centre lies on no wire: the passes look for the centres where the profile
+    stands out above the sheet by the ratio that tells a bright wire's band from its sheet
+    (``LIGHT_SHEET_BAND_MAX``; :func:`symmetric_centres`' ``min_level``), so they stay on
+    the wire beside the shadow. ``prof`` are sampled every ``PROFILE_STEP_PX`` about the
+    guesses; the sheet's level is the brighter side's outer tenth (the other may be in the
+    shadow).
+    """
+    if len(prof) == 0:
+        return None
+    n = prof.shape[1]
+    offsets = (np.arange(n) - n // 2) * PROFILE_STEP_PX
+    if _dark_on_sheet(prof, offsets, max(rho, 1.0)):
+        return None
+    return LIGHT_SHEET_BAND_MAX * np.maximum(*side_levels(prof))
 
 
 def _silhouette_if_whole(
@@ -476,13 +517,31 @@ def _silhouette_if_whole(
     # apart), and a centre from one of them moved by half the width guesses which. Where
     # the profiles are a round wire's symmetric ones, their centre is the measured one
     misfit = found[6]
-    if misfit > PAIR_TOLERANCE and symmetry <= SYMMETRIC_WIRE_MAX:
-        return f"the edges seen are {100 * misfit:.0f} % off the wire's width apart (median)"
+    if abs(misfit) > PAIR_TOLERANCE and symmetry <= SYMMETRIC_WIRE_MAX:
+        return f"the edges seen are {100 * abs(misfit):.0f} % off the wire's width apart (median)"
+    # nor, where the profiles are not symmetric either, edges closer together than the
+    # wire's width in their median: a shadow joined to one flank moves that edge out (the
+    # centre is then the other edge moved by half the width), nothing moves both in. Both
+    # edges stepping opposite ways narrower than the wire are something else across (a
+    # grainy strip at a sheet's edge, bright on one side and dark on the other, 7 px
+    # across beside a 9.5 px wire: the centres from one of its edges passed for a wire's
+    # along three quarters of it); neither test says round wire
+    if misfit < -PAIR_TOLERANCE:
+        return _NarrowerThanWire(
+            f"the edges seen are {100 * -misfit:.0f} % narrower than the wire's width apart "
+            "(median)"
+        )
     # edges along too little of the wire to say it is one (a grainy sheet's noise in its
     # flanks), while its profiles are a round wire's symmetric ones along it: those say it
     if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
         return f"silhouette edges along only {100 * found[3]:.0f} % of it"
     return found[:6]
+
+
+class _NarrowerThanWire(str):
+    """Why the silhouette edges were not used, where that also says the line is no round
+    wire across: its profiles are not symmetric and both its edges are closer together than
+    the wire's width (:func:`_silhouette_if_whole`)."""
 
 
 def _inside_ends(
@@ -514,8 +573,12 @@ def _symmetric_passes(
     step_px: float,
     window: int,
     known_hw: float | None = None,
+    above_sheet: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float, float]:
     """The three passes of symmetric centres from the mask's ``path`` (the module notes).
+
+    ``above_sheet``: beside a wire brighter than its sheet, the centres are looked for only
+    above the sheet's floor (:func:`_sheet_floor`), the first pass's across the whole mask.
 
     Returns the last pass's centres, normals and profiles, the half-width measured
     about them (``known_hw`` when given), and the symmetry window and search (px) for the
@@ -556,9 +619,17 @@ def _symmetric_passes(
         # the ratio along a whole end chord of a Mitsuba part on white card (3.5 px off the
         # axis: the radius 7 % off); elsewhere (no width, or a bright wire on a dark sheet)
         # the ratio keeps a flat soft shadow band, symmetric but featureless, from winning
+        floor = _sheet_floor(prof, rho) if above_sheet else None
+        reach_px = search
+        if n_pass == 0 and floor is not None:
+            # a bright wire on a dark sheet: the mask may hold its shadow too, parted from
+            # a lifted end by a gap (the mask's path then runs beside the wire, 10-12 px
+            # off a 19 px wire's axis 3 mm up), so the first pass looks for the wire's
+            # centre across the whole mask; the shadow's valley is barred (the floor)
+            reach_px = max(search, min(hw0 - rough, reach - rho - 0.5))
         shift, _ = symmetric_centres(
-            prof, rho_px=rho, search_px=search, max_slope_px=0.4 * step_px,
-            by_variance=not (n_pass == 0 and known_hw is not None),
+            prof, rho_px=rho, search_px=reach_px, max_slope_px=0.4 * step_px,
+            by_variance=not (n_pass == 0 and known_hw is not None), min_level=floor,
         )  # fmt: skip
         shift = despike(shift, window)
         ok = np.isfinite(shift)
@@ -680,7 +751,8 @@ def _silhouette_centres(
     edge was used), the share of profiles with a centre, the image direction in
     which the wire's shadow lies (:func:`_shadow_side`, last pass; None when none is seen),
     the lit centres (None when the shadow's side is not seen) and how far all edges'
-    distances (paired or not) are off the width, relative, by their median (last pass).
+    distances (paired or not) are off the width, relative, by their median (last pass;
+    negative: narrower, inf: none found).
     """
     coverage = 1.0
     typical_misfit = np.inf
@@ -738,7 +810,7 @@ def _silhouette_centres(
         centres = (centres + shift[:, None] * normals)[ok]
         widths = np.where(pair, width, np.nan)[ok]
         seen = width[np.isfinite(width)] / stated_px - 1.0
-        typical_misfit = abs(float(np.median(seen))) if seen.size else np.inf
+        typical_misfit = float(np.median(seen)) if seen.size else np.inf
         if not final:
             centres = resample_path(centres, step_px)
     centres, widths, lit = _trim_stray_runs(centres, widths, lit, step_px, width_px)

@@ -194,7 +194,10 @@ def _wire_centreline(
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)"
         )
-        hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet)
+        if centre.centre_from.startswith("symmetry ("):
+            # why its silhouette edges did not say wire either
+            problem = f"{problem[:-1]}; {centre.centre_from[len('symmetry (') : -1]})"
+        hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet, wire_diameter_mm)
         raise InputError(source, problem + hint)
     return centre
 

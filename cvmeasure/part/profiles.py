@@ -116,6 +116,7 @@ def symmetric_centres(
     max_slope_px: float | None = None,
     trim_share: float = 0.0,
     by_variance: bool = True,
+    min_level: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift (P,) about which each profile is most symmetric, and the cost there.
 
@@ -152,8 +153,11 @@ def symmetric_centres(
     shifts = np.arange(-kc, kc + 1)
     cost = asymmetry_costs(p, mid, kc, ku, trim_share=trim_share)
     rows = np.arange(len(p))
+    barred = np.zeros(cost.shape, dtype=bool)
+    if min_level is not None:
+        barred = p[:, mid + shifts] < np.asarray(min_level, dtype=np.float64)[:, None]
     if max_slope_px is None:
-        k = np.argmin(cost, axis=1)
+        k = np.argmin(np.where(barred, np.inf, cost), axis=1)
     else:
         if by_variance:
             # choose the basin by asymmetry relative to the window's variance, so a
@@ -170,13 +174,20 @@ def symmetric_centres(
             ratio = cost / (2.0 * var + 1e-6 * (1.0 + float(np.median(var))))
         else:  # the same path search on the asymmetry (scaled to order 1)
             ratio = cost / (1e-6 + float(np.median(cost)))
+        # a barred shift costs as much as the row's worst, so the path crosses it only
+        # where nothing else is in reach
+        ratio = np.where(barred, ratio.max(axis=1, keepdims=True), ratio)
         k = least_cost_path(ratio, max(1, int(np.ceil(max_slope_px / step_px))))
         # then the raw asymmetry's own minimum within a few samples of it
         near = 4
         idx = np.clip(k[:, None] + np.arange(-near, near + 1)[None, :], 0, len(shifts) - 1)
-        k = idx[rows, np.argmin(cost[rows[:, None], idx], axis=1)]
+        open_cost = np.where(barred, np.inf, cost)
+        k = idx[rows, np.argmin(open_cost[rows[:, None], idx], axis=1)]
     inner = (k > 0) & (k < len(shifts) - 1)
     kk = np.clip(k, 1, len(shifts) - 2)
+    # a minimum against a barred shift is the bar's edge, no centre of symmetry (as one
+    # at the search's edge)
+    inner &= ~(barred[rows, kk - 1] | barred[rows, kk] | barred[rows, kk + 1])
     c0, c1, c2 = cost[rows, kk - 1], cost[rows, kk], cost[rows, kk + 1]
     denom = c0 - 2 * c1 + c2
     frac = np.where(denom > 0, 0.5 * (c0 - c2) / np.where(denom > 0, denom, 1.0), 0.0)

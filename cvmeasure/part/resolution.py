@@ -129,13 +129,18 @@ def resolution_warnings(
     return [warning] if warning else []
 
 
-def coarse_line_hint(half_width_px: float, mm_per_px: float, sheet: str) -> str:
+def coarse_line_hint(
+    half_width_px: float, mm_per_px: float, sheet: str, wire_diameter_mm: float | None = None
+) -> str:
     """A clause for a refused line resolved under the threshold ('' otherwise).
 
     A coarse photo can lose the wire to its shadow or a flank, so "no wire found" there may
-    mean "too few pixels": the clause says so and what to do.
+    mean "too few pixels": the clause says so and what to do. With the wire's stated
+    diameter its pixels per radius are the diameter's over the plane's scale, not the
+    refused line's half-width (a line thinner than the wire is not the wire, whatever the
+    photo's resolution).
     """
-    resolution = wire_resolution(half_width_px, mm_per_px, None, sheet)
+    resolution = wire_resolution(half_width_px, mm_per_px, wire_diameter_mm, sheet)
     if not resolution.px_per_radius < WARN_PX_PER_RADIUS:
         return ""
     return (

@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-import pytest
 
 import cvmeasure_datasets
 from cvmeasure.part.compare import point_to_polyline
@@ -29,11 +28,6 @@ def _photo():
     )  # fmt: skip
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open: with the photo lab's true plane scale (0.31 mm/px, not the 0.1 it used to "
-    "state) the strip is taken for the wire",
-)
 def test_a_longer_grainy_strip_is_passed_over_for_the_wire():
     """A sheet's edge seen as a grainy strip as thin as a wire, longer than the part and
     not round across (bright on one side, dark on the other), is the longest thin line;
