@@ -272,33 +272,34 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
         "radius": None if not r_sigma else 2.0 * out["radius_sigma_pct"],
         "bend": None if not b_sigma else 2.0 * float(b_sigma),
     }
-    covers_r = _covering(
-        codes, "radius", lift.get("effect_radius_pct"), abs(r_err), two_sigma["radius"]
-    )
-    covers_b = _covering(
-        codes,
-        "bend",
-        lift.get("effect_segment_bend_deg"),
-        abs(b_err or float("inf")),
-        two_sigma["bend"],
-    )
-    out["radius"] = "ok" if ok_r else ("warned" if covers_r else "silent")
-    out["bend"] = "ok" if ok_b else ("warned" if covers_b else "silent")
+
+    def covered(warned: set[str]) -> dict[str, bool]:
+        """Each quantity on target or covered by the warnings ``warned``."""
+        return {
+            q: ok
+            or _covering(
+                warned,
+                q,
+                lift.get(f"effect_{key}"),
+                float("inf") if err is None else abs(err),
+                two_sigma[q],
+            )
+            for q, ok, key, err in (
+                ("radius", ok_r, "radius_pct", r_err),
+                ("bend", ok_b, "segment_bend_deg", b_err),
+            )
+        }
+
+    as_stated = covered(codes)
+    out["radius"] = "ok" if ok_r else ("warned" if as_stated["radius"] else "silent")
+    out["bend"] = "ok" if ok_b else ("warned" if as_stated["bend"] else "silent")
     states = {out["radius"], out["bend"]}
     out["verdict"] = "silent" if "silent" in states else ("warned" if "warned" in states else "ok")
     # Read strictly: an unmeasured lift's bound (every photo of a part that may not lie
     # flat carries it) covers only a part that is lifted, not an error from elsewhere.
     if lift.get("used") == "bound" and not truth.get("lift_mm"):
         codes = codes - {"part_lifted"}
-    strict = {
-        q: ok
-        or _covering(codes, q, lift.get(f"effect_{key}"), abs(err or float("inf")), two_sigma[q])
-        for q, ok, key, err in (
-            ("radius", ok_r, "radius_pct", r_err),
-            ("bend", ok_b, "segment_bend_deg", b_err),
-        )
-    }
-    out["silent_strict"] = not all(strict.values())
+    out["silent_strict"] = not all(covered(codes).values())
     return out
 
 
