@@ -104,11 +104,14 @@ class EdgeModel:
         along = _along(edge[seg], edge[seg + 1], q[rows], d[rows], ca, cb)
         ahead = along > 0
         rows, seg, along = rows[ahead], seg[ahead], along[ahead]
-        if np.all(rows[1:] > rows[:-1]):  # one crossing per line (rows come sorted)
-            first = slice(None)
-        else:
-            order = np.lexsort((along, rows))
-            first = order[np.unique(rows[order], return_index=True)[1]]
+        # each line's nearest crossing ahead (of equally near ones, the lower segment):
+        # rows come sorted, and each row's segments in order
+        starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if len(rows) else rows
+        nearest = np.repeat(np.minimum.reduceat(along, starts), np.diff(np.r_[starts, len(rows)]))
+        at_min = np.flatnonzero(along == nearest)
+        first = (
+            at_min[np.r_[True, rows[at_min[1:]] != rows[at_min[:-1]]]] if len(at_min) else at_min
+        )
         out = np.full(len(q), np.nan)
         out_seg = np.full(len(q), -1)
         out[rows[first]] = along[first]
