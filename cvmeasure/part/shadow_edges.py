@@ -400,7 +400,7 @@ def fit_ramps(
         # each edge on a grid, then a parabola through the best three
         ramp = np.clip(0.5 - (u[None, :] - grid[:, None]) / w, 0.0, 1.0)  # (G, U)
         pred = 1.0 - k * ramp
-        sse = np.einsum("ku,gu->kg", rc.astype(float), pred**2) - 2.0 * (qc * rc) @ pred.T
+        sse = rc.astype(float) @ (pred**2).T - 2.0 * (qc * rc) @ pred.T
         g = np.clip(np.argmin(sse, axis=1), 1, len(grid) - 2)
         rows = np.arange(len(g))
         y0, y1, y2 = sse[rows, g - 1], sse[rows, g], sse[rows, g + 1]
@@ -464,12 +464,22 @@ def _refine_local_levels(
          & (u[None, :] < (e + 0.5 * w + outside_mm)[:, None])).astype(float)  # fmt: skip
     qm = np.where(m > 0, q, 0.0)
     cand = e[:, None] + offs[None, :]  # (K, G)
-    r = np.clip(0.5 - (u[None, None, :] - cand[..., None]) / w, 0.0, 1.0)  # (K, G, U)
-    s_rr = np.einsum("kgu,ku->kg", r * r, m)
-    s_r = np.einsum("kgu,ku->kg", r, m)
     s_n = m.sum(axis=1)[:, None]
-    s_qr = np.einsum("kgu,ku->kg", r, qm)
     s_q = qm.sum(axis=1)[:, None]
+    # the sums run over each profile's window only (from its first sample in it to its
+    # last): elsewhere its weight is 0, and a fine photo's profiles are far longer
+    used = m > 0
+    first = np.argmax(used, axis=1)
+    span = np.where(used.any(axis=1), len(u) - np.argmax(used[:, ::-1], axis=1) - first, 0)
+    at = np.minimum(first[:, None] + np.arange(max(int(span.max(initial=0)), 1)), len(u) - 1)
+    inside_window = np.arange(at.shape[1])[None, :] < span[:, None]
+    rows_k = np.arange(len(e))[:, None]
+    m_w = np.where(inside_window, m[rows_k, at], 0.0)
+    qm_w = np.where(inside_window, qm[rows_k, at], 0.0)
+    r = np.clip(0.5 - (u[at][:, None, :] - cand[..., None]) / w, 0.0, 1.0)  # (K, G, window)
+    s_rr = np.einsum("kgu,ku->kg", r * r, m_w)
+    s_r = np.einsum("kgu,ku->kg", r, m_w)
+    s_qr = np.einsum("kgu,ku->kg", r, qm_w)
     # q = b (1 - k r): the sheet's level b just outside the shadow free, the shadow's depth
     # the common one (the ratio of shadowed to bare sheet)
     s_mm = s_n - 2.0 * k * s_r + k * k * s_rr

@@ -88,27 +88,30 @@ class EdgeModel:
         each sample's own index (a window as long as the shadow's largest displacement).
         Returns the distance along ``d`` (K,) (NaN where none) and the crossed segment's
         first point (K,) (-1 where none).
+
+        The window's segments are grouped in blocks of :data:`CROSSING_BLOCK`; only the
+        blocks whose bounding box the line passes through are searched segment by segment
+        (a line crosses a segment only inside that segment's block's box): the same
+        crossings as searching every segment, at a cost that grows with the window's
+        blocks, not its segments (a low lamp's window is hundreds of segments long).
         """
         q = self.edges.axis_mm
         reach = float(np.max(np.hypot(shadow[..., 0], shadow[..., 1])))
         win = 3.0 + (self.radius_mm + 2.0 * MAX_LIFT_MM) * reach
         step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
         kw = int(np.ceil(win / step))
-        p = np.clip(self.edges.index[:, None] + np.arange(-kw, kw + 1)[None, :], 0, len(edge) - 1)
-        ex, ey = edge[:, 0].take(p), edge[:, 1].take(p)
-        cross = (ex - q[:, :1]) * d[:, 1:] - (ey - q[:, 1:]) * d[:, :1]
-        cross_a, cross_b = cross[:, :-1], cross[:, 1:]
-        rows, cols = np.nonzero((cross_a * cross_b <= 0) & (cross_a != cross_b))
-        ca, cb = cross_a[rows, cols], cross_b[rows, cols]
-        seg = p[rows, cols]
-        along = _along(edge[seg], edge[p[rows, cols + 1]], q[rows], d[rows], ca, cb)
+        rows, seg, ca, cb = _window_sign_changes(edge, q, d, self.edges.index, kw)
+        along = _along(edge[seg], edge[seg + 1], q[rows], d[rows], ca, cb)
         ahead = along > 0
         rows, seg, along = rows[ahead], seg[ahead], along[ahead]
-        if np.all(rows[1:] > rows[:-1]):  # one crossing per line (rows come sorted)
-            first = slice(None)
-        else:
-            order = np.lexsort((along, rows))
-            first = order[np.unique(rows[order], return_index=True)[1]]
+        # each line's nearest crossing ahead (of equally near ones, the lower segment):
+        # rows come sorted, and each row's segments in order
+        starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if len(rows) else rows
+        nearest = np.repeat(np.minimum.reduceat(along, starts), np.diff(np.r_[starts, len(rows)]))
+        at_min = np.flatnonzero(along == nearest)
+        first = (
+            at_min[np.r_[True, rows[at_min[1:]] != rows[at_min[:-1]]]] if len(at_min) else at_min
+        )
         out = np.full(len(q), np.nan)
         out_seg = np.full(len(q), -1)
         out[rows[first]] = along[first]
@@ -127,6 +130,55 @@ class EdgeModel:
         cb = rel_b[..., 0] * d[:, 1] - rel_b[..., 1] * d[:, 0]
         along = _along(a, b, q, d, ca, np.where(ca != cb, cb, ca + 1.0))
         return np.where(seg >= 0, along, np.nan)
+
+
+#: Segments per block in :meth:`EdgeModel.crossings`' search (about the square root of a
+#: low lamp's window, so the blocks' tests and the searched blocks' segments cost alike).
+CROSSING_BLOCK = 16
+
+
+def _window_sign_changes(
+    edge: np.ndarray, q: np.ndarray, d: np.ndarray, index: np.ndarray, kw: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The segments of ``edge`` (M, 2) whose ends lie on opposite sides of (or one on) each
+    line from ``q`` (K, 2) along ``d`` (K, 2), among the segments starting within ``kw``
+    points before ``index`` (K,) to ``kw - 1`` after it. Returns the lines' rows, the
+    segments' first points (sorted by row, then segment) and the ends' cross products.
+    """
+    m, b = len(edge), CROSSING_BLOCK
+    lo = np.maximum(index - kw, 0)
+    hi = np.minimum(index + kw - 1, m - 2)
+    none = np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0)
+    if m < 2 or len(q) == 0:
+        return none
+    # each block's bounding box (its B segments' B + 1 points; NaN points ignored)
+    n_blocks = (m - 2) // b + 1
+    pts = edge[np.minimum(np.arange(n_blocks)[:, None] * b + np.arange(b + 1), m - 1)]
+    box_lo, box_hi = np.fmin.reduce(pts, axis=1), np.fmax.reduce(pts, axis=1)
+    centre, half = 0.5 * (box_lo + box_hi), 0.5 * (box_hi - box_lo)
+    # the blocks of each line's window; the line passes through a box where the box's
+    # centre is no farther from it than the box's half extent across it (a margin for
+    # rounding: a block too many is only searched)
+    first_block, last_block = lo // b, hi // b
+    blocks = first_block[:, None] + np.arange(int(np.max(last_block - first_block, initial=0)) + 1)
+    in_window = blocks <= last_block[:, None]
+    blocks = np.minimum(blocks, n_blocks - 1)
+    dx, dy = d[:, :1], d[:, 1:]
+    c = centre[blocks]
+    dist = np.abs((c[..., 0] - q[:, :1]) * dy - (c[..., 1] - q[:, 1:]) * dx)
+    extent = half[blocks, 0] * np.abs(dy) + half[blocks, 1] * np.abs(dx)
+    rows, cols = np.nonzero(in_window & (dist <= extent + 1e-6 * (1.0 + extent)))
+    if len(rows) == 0:
+        return none
+    # the searched blocks' segments, as the line's window holds them
+    s0 = blocks[rows, cols][:, None] * b + np.arange(b)[None, :]
+    valid = (s0 >= lo[rows, None]) & (s0 <= hi[rows, None])
+    pt = np.minimum(np.concatenate((s0, s0[:, -1:] + 1), axis=1), m - 1)
+    ex, ey = edge[:, 0].take(pt), edge[:, 1].take(pt)
+    cross = (ex - q[rows, :1]) * d[rows, 1:] - (ey - q[rows, 1:]) * d[rows, :1]
+    cross_a, cross_b = cross[:, :-1], cross[:, 1:]
+    r, j = np.nonzero(valid & (cross_a * cross_b <= 0) & (cross_a != cross_b))
+    return rows[r], s0[r, j], cross_a[r, j], cross_b[r, j]
 
 
 def _along(a, b, q, d, cross_a, cross_b):

@@ -116,3 +116,69 @@ def test_a_lamp_near_the_part_reads_a_flat_part_flat():
     assert near.lift is not None, near.message
     assert near.lift.lift_mm < 0.05
     assert near.lamp_height_mm == pytest.approx(150.0, rel=0.1)
+
+
+def _crossings_every_segment(model, axis3, edge, shadow, d):
+    """The crossings searched over every segment of each line's window (the reference)."""
+    from cvmeasure.part.lift import MAX_LIFT_MM
+    from cvmeasure.part.shadow_model import _along
+
+    q = model.edges.axis_mm
+    reach = float(np.max(np.hypot(shadow[..., 0], shadow[..., 1])))
+    win = 3.0 + (model.radius_mm + 2.0 * MAX_LIFT_MM) * reach
+    step = float(np.median(np.hypot(*np.diff(axis3, axis=0).T))) + 1e-9
+    kw = int(np.ceil(win / step))
+    p = np.clip(model.edges.index[:, None] + np.arange(-kw, kw + 1)[None, :], 0, len(edge) - 1)
+    cross = (edge[:, 0].take(p) - q[:, :1]) * d[:, 1:] - (edge[:, 1].take(p) - q[:, 1:]) * d[:, :1]
+    ca, cb = cross[:, :-1], cross[:, 1:]
+    rows, cols = np.nonzero((ca * cb <= 0) & (ca != cb))
+    seg = p[rows, cols]
+    along = _along(edge[seg], edge[seg + 1], q[rows], d[rows], ca[rows, cols], cb[rows, cols])
+    out, out_seg = np.full(len(q), np.nan), np.full(len(q), -1)
+    for k in np.unique(rows[along > 0]):
+        here = (rows == k) & (along > 0)
+        j = np.flatnonzero(here)[np.argmin(along[here])]
+        out[k], out_seg[k] = along[j], seg[j]
+    return out, out_seg
+
+
+@pytest.mark.parametrize("lamp_k", [None, 4e-3])
+@pytest.mark.parametrize("shadow", [(0.4, -0.3), (2.5, 1.5)])
+def test_the_blocked_crossing_search_finds_every_segments_crossing(shadow, lamp_k):
+    """A bent wire (a U: each measuring line meets the edge curve several times, a low
+    lamp's window spans both legs), lifted at one end: the blocked search's crossings are
+    the ones a search over every segment of the window finds, bit for bit."""
+    from cvmeasure.part.shadow_model import EdgeModel, predict_edges
+
+    t = np.linspace(0.0, np.pi, 700)
+    leg = np.linspace(0.0, 30.0, 120)[1:]
+    path = np.concatenate((
+        np.column_stack((-20.0 + 0.0 * leg[::-1], 30.0 - leg[::-1])),
+        np.column_stack((-20.0 * np.cos(t), -20.0 * np.sin(t))),
+        np.column_stack((20.0 + 0.0 * leg, -leg + 0.0 * leg)),
+    ))  # fmt: skip
+    path = path[np.r_[True, np.hypot(*np.diff(path, axis=0).T) > 1e-9]]
+    rng = np.random.default_rng(3)
+    index = np.sort(rng.choice(len(path), 400, replace=False))
+    normal = np.column_stack((-np.gradient(path[:, 1]), np.gradient(path[:, 0])))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    edges = ShadowEdges(
+        index, path[index] + rng.normal(0.0, 0.05, (400, 2)), normal[index],
+        np.full((400, 2), np.nan), np.zeros((400, 2)), np.zeros((400, 2)),
+    )  # fmt: skip
+    model = EdgeModel(path, np.zeros_like(path) + (0.01, -0.02), edges, 1.5)
+    height = 1.5 + 3.0 * (path[:, 0] - path[:, 0].min()) / np.ptp(path[:, 0])
+    s = np.array(shadow)
+    axis3, edge = model.curve(height, s, lamp_k)
+    every = model.shadow_vectors(axis3, height[:, None], s, lamp_k)
+    found = 0
+    for side in (1.0, -1.0):
+        d = normal[index] * side
+        got = model.crossings(axis3, edge, every, d)
+        want = _crossings_every_segment(model, axis3, edge, every, d)
+        found += np.isfinite(want[0]).sum()
+        np.testing.assert_array_equal(got[1], want[1])
+        np.testing.assert_array_equal(got[0], want[0])
+    assert found > 350
+    pred = predict_edges(model, height, s, None, lamp_k)
+    assert np.isfinite(pred[0]).sum() > 300
