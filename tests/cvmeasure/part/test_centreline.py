@@ -211,3 +211,25 @@ def test_polished_wire_end_found_from_a_short_guide():
         ends = ends[::-1]
     # before the caps were searched at the wire's half-width: 18-27 px short
     np.testing.assert_allclose(ends, axis[[0, -1]], atol=0.25)
+
+
+def test_midpoints_zigzagging_across_the_wire_are_followed_along_it():
+    """Pair midpoints jumping 10 px across a 400 px wire every profile (1 px apart) trace a
+    path about 10 times its length: the next pass's path follows the wire's axis, as many points
+    as its length in steps, in order along it; a centreline noisy by 0.3 px is kept as it
+    lies."""
+    from cvmeasure.part.centreline import _next_pass_path
+    from cvmeasure.part.profiles import resample_path
+
+    x = np.arange(0.0, 400.0, 1.0)
+    zigzag = np.column_stack((x, 100.0 + 5.0 * (-1.0) ** np.arange(len(x))))
+    path = _next_pass_path(zigzag, smooth_samples=4.0, step_px=1.0)
+    assert abs(len(path) - 400) <= 2  # the old resampling: about 4000
+    assert np.all(np.diff(path[:, 0]) > 0)
+    # within a pixel of the axis beyond the smoothing's reach of the ends (3 sigma)
+    assert np.max(np.abs(path[12:-12, 1] - 100.0)) < 1.0
+    rng = np.random.default_rng(3)
+    noisy = np.column_stack((x, 100.0 + rng.normal(0.0, 0.3, len(x))))
+    np.testing.assert_array_equal(
+        _next_pass_path(noisy, smooth_samples=4.0, step_px=1.0), resample_path(noisy, 1.0)
+    )
