@@ -131,7 +131,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--photos", type=int, default=24, help="flat part photos (default 24)")
     p.add_argument("--cache", type=Path, default=mp.RENDER_CACHE, help="render cache")
     args = p.parse_args(argv)
-    w, h, spp = 1800, 1200, 8
+    (w, h), spp = mp.SMALL_PX, 8
     rig = mp.part_rig(w, h)
     work = Path(tempfile.mkdtemp(prefix="mitsuba_offsets_"))
     board_png = work / "board.png"

@@ -402,7 +402,7 @@ def _final_symmetric(
         near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
         shift = np.where(near, trimmed, shift)
     shift = despike(shift, window)
-    ok = np.isfinite(shift) & ~_darker_than_sheet(prof, shift, rho)
+    ok = np.isfinite(shift) & ~_darker_than_sheet(prof, shift, floor)
     rejected = int((~ok).sum())
     coverage = float(ok.mean())
     symmetry = asymmetry_ratio(prof[ok], shift[ok], asym[ok], rho)
@@ -412,17 +412,16 @@ def _final_symmetric(
     return centres, prof[ok], rejected, coverage, symmetry
 
 
-def _darker_than_sheet(prof: np.ndarray, shift: np.ndarray, rho: float) -> np.ndarray:
-    """True (P,) at the symmetric centres that lie below the sheet's floor beside them, on
-    a wire that stands out brighter than its sheet (:func:`_sheet_floor`).
+def _darker_than_sheet(prof: np.ndarray, shift: np.ndarray, sheet: np.ndarray | None) -> np.ndarray:
+    """True (P,) at the symmetric centres that lie below the sheet's floor ``sheet`` (P,)
+    beside them (:func:`_sheet_floor`; None, a wire not brighter than its sheet: nothing
+    flagged).
 
     ``prof`` are sampled every ``PROFILE_STEP_PX`` about the guesses, ``shift`` (P,) the
-    centres' offsets (NaN: none). On a light sheet (the wire darker than it) nothing is
-    flagged.
+    centres' offsets (NaN: none).
     """
     n = prof.shape[1]
     out = np.zeros(len(prof), dtype=bool)
-    sheet = _sheet_floor(prof, rho)
     if sheet is None:
         return out
     ok = np.isfinite(shift)
