@@ -70,7 +70,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
+from scipy.ndimage import gaussian_filter1d, uniform_filter1d
 from scipy.spatial import cKDTree
 
 from cvmeasure.part.ends import EndShape, end_point
@@ -334,7 +334,7 @@ def measure_centreline(
             # a 9.5 px wire: 0.15 untrimmed, 0.12 trimmed): its untrimmed asymmetry stands
             centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
                 prof, centres0, normals, rho, search, step_px, window,
-                trim_share=0.0 if isinstance(found, _NarrowerThanWire) else HIGHLIGHT_TRIM_SHARE,
+                trim_share=0.0 if isinstance(found, _NoWireAcross) else HIGHLIGHT_TRIM_SHARE,
             )  # fmt: skip
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
@@ -515,6 +515,18 @@ def _silhouette_if_whole(
     )
     if found is None or path_length(found[0]) < reach_px:
         return "no silhouette edges along the whole wire"
+    # a wire stands out of what lies beside it: between its edges the profile rises above,
+    # or falls below, both sides (a highlight, a dark limb) by more than the sides differ.
+    # Where two surfaces meet (a board's edge seen beside a dark sheet: white, a banded
+    # strip, black) the profile steps down twice, and bands inside the strip give pairs of
+    # edges a wire's width apart that step opposite ways (at 0.11 mm/px such a strip 48 px
+    # wide passed for a 28 px wire along its whole length)
+    step_share = _step_share(found[1], offsets, width_px, step_px)
+    if step_share > 0.5:
+        return _NoWireAcross(
+            f"its profile steps from one level to another across it along "
+            f"{100 * step_share:.0f} % of it, an edge between two surfaces"
+        )
     # the edges found are not the wire's width apart even in their median (not noise
     # about it, a bias): what
     # steps there is not the silhouette (a polished tube's limbs mirror the sheet beside
@@ -532,7 +544,7 @@ def _silhouette_if_whole(
     # across beside a 9.5 px wire: the centres from one of its edges passed for a wire's
     # along three quarters of it); neither test says round wire
     if misfit < -PAIR_TOLERANCE:
-        return _NarrowerThanWire(
+        return _NoWireAcross(
             f"the edges seen are {100 * -misfit:.0f} % narrower than the wire's width apart "
             "(median)"
         )
@@ -543,10 +555,33 @@ def _silhouette_if_whole(
     return found[:6]
 
 
-class _NarrowerThanWire(str):
+class _NoWireAcross(str):
     """Why the silhouette edges were not used, where that also says the line is no round
-    wire across: its profiles are not symmetric and both its edges are closer together than
-    the wire's width (:func:`_silhouette_if_whole`)."""
+    wire across: both its edges closer together than the wire's width, or a step between
+    two surfaces (:func:`_silhouette_if_whole`)."""
+
+
+def _step_share(prof: np.ndarray, offsets: np.ndarray, width_px: float, step_px: float) -> float:
+    """Share of the profiles (centred between the edges) that step from one side's level to
+    the other's: what lies between the edges rises above or falls below both sides by less
+    than the sides differ. Each profile is averaged along a width of wire and smoothed across
+    by a tenth of it first (sensor noise would make every flat side a small extremum)."""
+    if len(prof) == 0:
+        return 0.0
+    along = max(1, int(round(width_px / step_px)))
+    across = max(0.5, 0.1 * width_px / float(offsets[1] - offsets[0]))
+    smooth = gaussian_filter1d(
+        uniform_filter1d(prof, size=along, axis=0, mode="nearest"), across, axis=1
+    )
+    # the sides: the outer sixth of the profile each way (at least 1.06 widths + 4 px from
+    # the centre, beyond both edges)
+    k = max(2, len(offsets) // 6)
+    left, right = np.median(smooth[:, :k], axis=1), np.median(smooth[:, -k:], axis=1)
+    inside = smooth[:, np.abs(offsets) <= 0.5 * width_px]
+    beyond = np.maximum(0.0, inside.max(axis=1) - np.maximum(left, right)) + np.maximum(
+        0.0, np.minimum(left, right) - inside.min(axis=1)
+    )
+    return float(np.mean(beyond < np.abs(left - right)))
 
 
 def _inside_ends(

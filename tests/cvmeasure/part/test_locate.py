@@ -63,6 +63,76 @@ def test_a_longer_grainy_strip_is_passed_over_for_the_wire():
     assert len(wire.passed_over) == 1 and "no wire found" in wire.passed_over[0]
 
 
+def test_the_edge_between_two_surfaces_is_passed_over_for_the_wire():
+    """Where a white board's edge meets a black sheet, a strip between them (the board's
+    side, banded along its length) steps down twice across: bands inside it give edge pairs
+    a wire's width apart stepping opposite ways, and it is longer than the part. It is no
+    wire (the level between its edges lies between those beside them); the wire is."""
+    photo = _photo()
+    bgr = photo.bgr.copy().astype(np.float64)
+    rng = np.random.default_rng(12)
+    rot, t_mm = POSE.extrinsics("board")
+    axis_px = photo.plane.camera.project(photo.vertices_mm @ rot.T + t_mm)
+    h, w = bgr.shape[:2]
+    wire_px = 3.0 / photo.plane.mm_per_px
+    strip_px = int(round(1.7 * wire_px))
+    reach = 2 * strip_px  # the white and black surfaces, as far as the profiles reach
+    gap = reach + 40  # from the wire
+    x0 = (
+        int(axis_px[:, 0].min()) - gap - strip_px
+        if axis_px[:, 0].min() > gap + strip_px + reach
+        else int(axis_px[:, 0].max()) + gap
+    )
+    rows = np.arange(int(0.05 * h), int(0.95 * h))
+    # white board | strip, banded along its length (each band a few px, its own level;
+    # its part beyond a wire's width brighter) | black sheet
+    band = (rows - rows[0]) // 6
+    level = rng.uniform(50.0, 120.0, band[-1] + 1)[band]
+    brighter = rng.uniform(40.0, 80.0, band[-1] + 1)[band]
+    strip = np.repeat(level[:, None], strip_px, axis=1)
+    strip[:, int(round(wire_px)) :] += brighter[:, None]
+    x_white, x_black = max(0, x0 - reach), min(w, x0 + strip_px + reach)
+    bgr[rows[0] : rows[-1] + 1, x_white:x0] = 200.0
+    bgr[rows[0] : rows[-1] + 1, x0 : x0 + strip_px] = strip[:, :, None]
+    bgr[rows[0] : rows[-1] + 1, x0 + strip_px : x_black] = 32.0
+    bgr = np.clip(bgr + rng.normal(0.0, 6.0, bgr.shape), 0, 255).astype(np.uint8)
+    mm_per_px = photo.plane.mm_per_px
+    lines = wire_candidates(bgr, max_wire_width_px=7 / mm_per_px, min_length_px=15 / mm_per_px)
+    assert any(
+        abs(np.median(line.path_px[:, 0]) - (x0 + strip_px / 2)) < strip_px for line in lines
+    )
+    _, wire, centre, _ = measure_centreline_mm(
+        bgr, None, None, wire_diameter_mm=3.0, plane=photo.plane
+    )
+    _, dist, _ = point_to_polyline(centre.points_px[1:-1], axis_px)
+    assert np.median(np.abs(dist)) < 0.5
+    assert any("steps from one level to another" in why for why in wire.passed_over)
+
+
+def test_a_wire_beside_its_long_shadow_is_no_step_between_surfaces():
+    """Under a lamp 8 deg above a light sheet the wire's shadow reaches past the profiles'
+    end on one side, so the sides' levels differ (sheet, shadow) as they do where two
+    surfaces meet; the wire's shading still rises or falls beyond both, and it is measured
+    between its silhouette edges."""
+    camera = cvmeasure_datasets.default_camera().scaled(0.5)
+    pose = Pose(tilt_deg=2.0, tilt_direction_deg=162.2, distance_mm=550.0, offset_mm=(0.0, 0.0))
+    verts = cvmeasure_datasets.arc_part(47.7, 76.3, 11, wire_diameter_mm=3.0).placed(
+        299.9, (0.0, 0.0)
+    )
+    photo = render_round_wire(
+        verts, camera=camera, pose=pose, wire_diameter_mm=3.0, sheet="light",
+        light_azimuth_deg=40.5, light_elev_deg=8.0, seed=379, specular=0.4, shininess=8.0,
+    )  # fmt: skip
+    _, wire, centre, _ = measure_centreline_mm(
+        photo.bgr, None, None, wire_diameter_mm=3.0, plane=photo.plane
+    )
+    rot, t_mm = pose.extrinsics("board")
+    axis_px = photo.plane.camera.project(photo.vertices_mm @ rot.T + t_mm)
+    _, dist, _ = point_to_polyline(centre.points_px[1:-1], axis_px)
+    assert centre.centre_from == "silhouette"
+    assert np.median(np.abs(dist)) < 1.0
+
+
 def test_the_wire_is_the_line_round_along_the_longest_stretch(monkeypatch):
     """Of the lines that pass as a round wire, the one round along the longest stretch
     (length x share of profiles with a wire's centre) is the wire, not the longest: a cork
