@@ -22,6 +22,11 @@ __all__ = [
     "ChessboardSpec",
     "BoardSpec",
     "DEFAULT_BOARD",
+    "SHEET_MARGIN_MM",
+    "SHEET_FOOTER_MM",
+    "SHEET_RULER_MM",
+    "SHEET_FOOTER_WIDTH_MM",
+    "printed_footer_mm",
     "board_from_dict",
     "load_board",
 ]
@@ -172,3 +177,37 @@ def load_board(path: str | os.PathLike[str]) -> BoardSpec:
 #: The spec's example board (14 x 10 squares of 20 mm, 15 mm markers, DICT_5X5_100;
 #: 280 x 200 mm, prints on A3): what ``cvmeasure targets charuco`` draws without ``--board``.
 DEFAULT_BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0, "DICT_5X5_100")
+
+
+#: Blank margin around what ``cvmeasure targets charuco`` prints (mm).
+SHEET_MARGIN_MM = 15.0
+
+#: Below the board the printed sheet holds its print-check ruler and the board JSON as
+#: text, within this far of the board's lower edge (mm).
+SHEET_FOOTER_MM = 42.0
+
+#: Length of the printed print-check ruler (mm).
+SHEET_RULER_MM = 100.0
+
+#: Width of the ruler and its caption beside it (mm): the footer is at least this wide.
+SHEET_FOOTER_WIDTH_MM = 145.0
+
+
+def printed_footer_mm(board: BoardSpec) -> tuple[float, float, float, float]:
+    """Where the sheet printed by ``cvmeasure targets charuco`` carries its ruler and
+    text: (x0, y0, x1, y1) in the board frame, mm.
+
+    The footer starts under the board's left edge (or, on a board narrower than the
+    ruler and its caption, centred under it) and runs to the board's right edge or the
+    caption's end, whichever is further; the part's wire search leaves it out with the
+    board (a ruler 0.2 mm thick with its ticks is a thin line as long as a part).
+
+    Examples
+    --------
+    >>> printed_footer_mm(DEFAULT_BOARD)
+    (0.0, 200.0, 280.0, 242.0)
+    """
+    w_mm, h_mm = board.size_mm
+    needed = SHEET_FOOTER_WIDTH_MM
+    x0 = min(0.0, 0.5 * (w_mm - needed))
+    return (x0, h_mm, max(w_mm, x0 + needed), h_mm + SHEET_FOOTER_MM)

@@ -13,7 +13,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from cvmeasure.board import BoardSpec
+from cvmeasure.board import BoardSpec, printed_footer_mm
 from cvmeasure.camera_model import CameraModel
 from cvmeasure.contracts import PlaneModel
 from cvmeasure.errors import InputError
@@ -55,10 +55,20 @@ BOARD_MARGIN_MM = 4.0
 
 
 def board_exclusion(board: BoardSpec, plane: PlaneModel, shape: tuple[int, int]) -> np.ndarray:
+    """True (H, W) on the board and on its printed sheet's footer (ruler and text below
+    it, :func:`printed_footer_mm`), each grown by ``BOARD_MARGIN_MM``."""
     w_mm, h_mm = board.size_mm
+    mask = _rect_mask(plane, shape, (0.0, 0.0, w_mm, h_mm))
+    return mask | _rect_mask(plane, shape, printed_footer_mm(board))
+
+
+def _rect_mask(
+    plane: PlaneModel, shape: tuple[int, int], rect_mm: tuple[float, float, float, float]
+) -> np.ndarray:
+    """True (H, W) inside a board-frame rectangle (x0, y0, x1, y1) grown by the margin."""
     m = BOARD_MARGIN_MM
     s = np.linspace(0.0, 1.0, 25)
-    x0, y0, x1, y1 = -m, -m, w_mm + m, h_mm + m
+    x0, y0, x1, y1 = rect_mm[0] - m, rect_mm[1] - m, rect_mm[2] + m, rect_mm[3] + m
     outline = np.vstack(
         (
             np.column_stack((x0 + (x1 - x0) * s, np.full_like(s, y0))),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import pytest
 
 import cvmeasure_datasets
 from cvmeasure.part.compare import point_to_polyline
@@ -170,3 +171,37 @@ def test_the_wire_is_the_line_round_along_the_longest_stretch(monkeypatch):
     assert len(found.passed_over) == 1 and "57 %" in found.passed_over[0]
     # the 120 px line cannot be round along more than the wire's 300 px: not looked at
     assert seen == [100.0, 300.0]
+
+
+@pytest.mark.parametrize("page", [None, "a3"])
+@pytest.mark.parametrize("squares", [(14, 10), (5, 4)])
+def test_the_printed_rulers_and_text_are_left_out_of_the_wire_search(page, squares):
+    """The sheet ``cvmeasure targets charuco`` prints carries a 100 mm ruler with ticks and
+    the board JSON below the board: a thin line as long as a part, beside it (at the seed
+    camera's full size it was measured as a straight part on 6 of 28 renders). Everywhere
+    it is drawn, on a page just large enough or a larger one, for a board wider or
+    narrower than the ruler, the wire search leaves it out."""
+    from types import SimpleNamespace
+
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.part.locate import board_exclusion
+    from cvmeasure_calib_targets.charuco import sheet_layout
+
+    board = CharucoBoardSpec(*squares, 20.0, 15.0, "DICT_5X5_100")
+    layout = sheet_layout(board, page=page)
+    ox, oy = layout.board_origin_mm
+    rx, ry = layout.ruler_origin_mm
+    # the ruler's ends, its tallest tick's top, its caption's far end (about 35 mm of text)
+    # and the text lines below it, board frame
+    drawn_mm = np.array(
+        [[rx, ry], [rx + 100.0, ry], [rx + 50.0, ry - 4.8], [rx + 140.0, ry], [rx, ry + 12.0]]
+    ) - (ox, oy)
+    # a plane seen straight down at 5 px/mm, the board's corner 400 px in from the photo's
+    plane = SimpleNamespace(plane_to_image_px=lambda mm: 400.0 + 5.0 * np.asarray(mm))
+    excluded = board_exclusion(board, plane, (2000, 2400))
+    px = np.round(plane.plane_to_image_px(drawn_mm)).astype(int)
+    assert excluded[px[:, 1], px[:, 0]].all()
+    # and not beyond 10 mm past the drawn marks on the side the part lies on
+    right_mm = max(board.size_mm[0], drawn_mm[:4, 0].max()) + 10.0
+    x, y = np.round(plane.plane_to_image_px([right_mm, ry - oy])).astype(int)
+    assert not excluded[y, x]
