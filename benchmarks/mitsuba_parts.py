@@ -52,6 +52,9 @@ COVERS = {
         "part_s_curve",
         "part_cut_off",
         "round_wire_edges_lost",
+        # without the chord count the radius is the wire's circle, not the vertices' (the
+        # warning says so and by how much it can lie inside)
+        "part_chords_not_found",
     },
     "bend": {
         "part_lifted",
