@@ -202,7 +202,10 @@ class Centreline:
         symmetric, about 1 for no symmetry at all).
     centre_from : ``"symmetry"``, ``"silhouette"`` (between the two silhouette edges),
         or ``"symmetry (...)"`` when silhouette edges were asked for but did not follow
-        the whole wire.
+        the whole wire (the record's prose; :attr:`between_edges` and
+        :attr:`edges_refused` are the same, typed).
+    edges_refused : why the silhouette edges, asked for, were not used (None: used, or
+        not asked for).
     edge_width_px : with silhouette edges, ndarray (M,): the distance between the
         two edges at each point (NaN at the end points), pixels; else None.
     lit_points_px : with silhouette edges and the shadow's side seen, ndarray (M, 2): the
@@ -226,6 +229,12 @@ class Centreline:
     edge_width_px: np.ndarray | None = None
     end_uncertainty_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
     lit_points_px: np.ndarray | None = None
+    edges_refused: str | None = None
+
+    @property
+    def between_edges(self) -> bool:
+        """Whether the centres lie between the wire's two silhouette edges."""
+        return self.centre_from == "silhouette"
 
     def to_dict(self) -> dict[str, Any]:
         widths = self.edge_width_px
@@ -310,19 +319,20 @@ def measure_centreline(
         prof, centres0, normals, rho, search, step_px, window
     )
     centre_from = "symmetry"
-    widths = shadow = lit = None
+    widths = shadow = lit = refused = None
     if wire_width_px is not None:
         found = _silhouette_if_whole(
             profiles_at, path, centres, offsets, float(wire_width_px), step_px, rough, window,
             symmetry,
         )  # fmt: skip
-        if not isinstance(found, str):
+        if not isinstance(found, _EdgesRefused):
             centres, prof_ok, widths, coverage, shadow, lit = found
             centre_from = "silhouette"
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
-            centre_from = f"symmetry ({found})"
+            refused = found.reason
+            centre_from = f"symmetry ({refused})"
             centres0, normals, prof, rough, rho, search = _symmetric_passes(
                 profiles_at, path, offsets, hw0, reach, step_px, window, known_hw=known_hw,
                 above_sheet=True,
@@ -334,7 +344,7 @@ def measure_centreline(
             # a 9.5 px wire: 0.15 untrimmed, 0.12 trimmed): its untrimmed asymmetry stands
             centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
                 prof, centres0, normals, rho, search, step_px, window,
-                trim_share=0.0 if isinstance(found, _NoWireAcross) else HIGHLIGHT_TRIM_SHARE,
+                trim_share=0.0 if found.no_wire_across else HIGHLIGHT_TRIM_SHARE,
             )  # fmt: skip
     # between silhouette edges the end is found from the cap's silhouette too
     at_edges = centre_from == "silhouette"
@@ -369,6 +379,7 @@ def measure_centreline(
         edge_width_px=edge_width,
         end_uncertainty_px=end_uncertainty,
         lit_points_px=lit_points,
+        edges_refused=refused,
     )
 
 
@@ -467,7 +478,7 @@ def _silhouette_if_whole(
     rough: float,
     window: int,
     symmetry: float,
-) -> tuple | str:
+) -> tuple | _EdgesRefused:
     """:func:`_silhouette_centres` when they follow the wire far enough and stand for its
     silhouette, else why not (the symmetric centres are then used).
 
@@ -514,7 +525,7 @@ def _silhouette_if_whole(
         else SILHOUETTE_MIN_SHARE_OF_PATH * path_length(path)
     )
     if found is None or path_length(found[0]) < reach_px:
-        return "no silhouette edges along the whole wire"
+        return _EdgesRefused("no silhouette edges along the whole wire")
     # a wire stands out of what lies beside it: between its edges the profile rises above,
     # or falls below, both sides (a highlight, a dark limb) by more than the sides differ.
     # Where two surfaces meet (a board's edge seen beside a dark sheet: white, a banded
@@ -523,9 +534,10 @@ def _silhouette_if_whole(
     # wide passed for a 28 px wire along its whole length)
     step_share = _step_share(found[1], offsets, width_px, step_px)
     if step_share > 0.5:
-        return _NoWireAcross(
+        return _EdgesRefused(
             f"its profile steps from one level to another across it along "
-            f"{100 * step_share:.0f} % of it, an edge between two surfaces"
+            f"{100 * step_share:.0f} % of it, an edge between two surfaces",
+            no_wire_across=True,
         )
     # the edges found are not the wire's width apart even in their median (not noise
     # about it, a bias): what
@@ -535,7 +547,9 @@ def _silhouette_if_whole(
     # the profiles are a round wire's symmetric ones, their centre is the measured one
     misfit = found[6]
     if abs(misfit) > PAIR_TOLERANCE and symmetry <= SYMMETRIC_WIRE_MAX:
-        return f"the edges seen are {100 * abs(misfit):.0f} % off the wire's width apart (median)"
+        return _EdgesRefused(
+            f"the edges seen are {100 * abs(misfit):.0f} % off the wire's width apart (median)"
+        )
     # nor, where the profiles are not symmetric either, edges closer together than the
     # wire's width in their median: a shadow joined to one flank moves that edge out (the
     # centre is then the other edge moved by half the width), nothing moves both in. Both
@@ -544,21 +558,26 @@ def _silhouette_if_whole(
     # across beside a 9.5 px wire: the centres from one of its edges passed for a wire's
     # along three quarters of it); neither test says round wire
     if misfit < -PAIR_TOLERANCE:
-        return _NoWireAcross(
+        return _EdgesRefused(
             f"the edges seen are {100 * -misfit:.0f} % narrower than the wire's width apart "
-            "(median)"
+            "(median)",
+            no_wire_across=True,
         )
     # edges along too little of the wire to say it is one (a grainy sheet's noise in its
     # flanks), while its profiles are a round wire's symmetric ones along it: those say it
     if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
-        return f"silhouette edges along only {100 * found[3]:.0f} % of it"
+        return _EdgesRefused(f"silhouette edges along only {100 * found[3]:.0f} % of it")
     return found[:6]
 
 
-class _NoWireAcross(str):
-    """Why the silhouette edges were not used, where that also says the line is no round
-    wire across: both its edges closer together than the wire's width, or a step between
-    two surfaces (:func:`_silhouette_if_whole`)."""
+@dataclass(frozen=True)
+class _EdgesRefused:
+    """Why the silhouette edges were not used (:func:`_silhouette_if_whole`);
+    ``no_wire_across``: that also says the line is no round wire across (both its edges
+    closer together than the wire's width, or a step between two surfaces)."""
+
+    reason: str
+    no_wire_across: bool = False
 
 
 def _step_share(prof: np.ndarray, offsets: np.ndarray, width_px: float, step_px: float) -> float:

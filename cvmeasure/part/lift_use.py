@@ -231,21 +231,26 @@ def moved_lift(
     wire_diameter_mm: float,
     axis_height_mm: float | None,
     end_shape: EndShape,
-    centre_from: str,
+    between_edges: bool,
 ) -> tuple[dict[str, Any], Any, StageWarning | None]:
-    """The lift from a second photo of the slid part: (info, the MovedLift when usable, warning)."""
+    """The lift from a second photo of the slid part: (info, the MovedLift when usable, warning).
+
+    ``between_edges``: the first photo's centres lie between the wire's silhouette edges
+    (:attr:`cvmeasure.part.centreline.Centreline.between_edges`); only then is the two
+    views' difference the lift.
+    """
     plane2, _, centre2, _ = measure_centreline_mm(
         moved_image, board, camera, axis_height_mm=axis_height_mm, end_shape=end_shape,
         source="moved photo", wire_diameter_mm=wire_diameter_mm, plane=moved_plane,
     )  # fmt: skip
-    if centre_from != "silhouette" or centre2.centre_from != "silhouette":
+    if not (between_edges and centre2.between_edges):
         return (
             {"lift_mm": None, "message": "silhouette edges lost"},
             None,
             StageWarning(
                 "moved_photo_unused",
                 "the wire's silhouette edges were not found along the whole wire in "
-                + ("the first photo" if centre_from != "silhouette" else "the moved photo")
+                + ("the moved photo" if between_edges else "the first photo")
                 + ": the profiles' centre of symmetry follows the highlight, which moves with "
                 "the view, so the two views' difference is not the lift; the lift is bounded "
                 "instead",

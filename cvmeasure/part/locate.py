@@ -193,7 +193,7 @@ def _wire_centreline(
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
     # a side-lit round wire is not symmetric across; between silhouette edges a wire
     # wide along most of its length is the test instead
-    asymmetric = centre.asymmetry > MAX_ASYMMETRY and centre.centre_from != "silhouette"
+    asymmetric = centre.asymmetry > MAX_ASYMMETRY and not centre.between_edges
     if centre.coverage < MIN_COVERAGE or asymmetric:
         problem = (
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
@@ -204,9 +204,9 @@ def _wire_centreline(
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)"
         )
-        if centre.centre_from.startswith("symmetry ("):
+        if centre.edges_refused is not None:
             # why its silhouette edges did not say wire either
-            problem = f"{problem[:-1]}; {centre.centre_from[len('symmetry (') : -1]})"
+            problem = f"{problem[:-1]}; {centre.edges_refused})"
         hint = coarse_line_hint(centre.half_width_px, plane.mm_per_px, wire.sheet, wire_diameter_mm)
         raise InputError(source, problem + hint)
     return centre

@@ -244,10 +244,10 @@ def measure_part(
         reading.moved_info, reading.corrected, moved_warning = moved_lift(
             moved_image, moved_plane if moved_plane is not None else plane if moved_given else None,
             board, camera, plane, centre.points_px, wire_diameter_mm, axis_height_mm, end_shape,
-            centre.centre_from,
+            centre.between_edges,
         )  # fmt: skip
         warnings += [moved_warning] if moved_warning else []
-    elif lift_opts.shadow and wire_diameter_mm is not None and centre.centre_from == "silhouette":
+    elif lift_opts.shadow and wire_diameter_mm is not None and centre.between_edges:
         bound_mm = lift_bound_mm(lift, lift_opts.max_lift_mm)
         reading = _shadow_reading(image, plane, centre, wire_diameter_mm, base_mm, bound_mm)
     fit = _with_lift(image, plane, centre, flat, reading, divisions, base_mm, source, warnings)
@@ -255,7 +255,7 @@ def measure_part(
         max_lift_mm = lift_opts.max_lift_mm
         _bound_lift(fit, plane, centre, lift, reading, divisions, base_mm, max_lift_mm, warnings)
     ours, poly, vpoly = fit.ours, fit.poly, fit.vpoly
-    if wire_diameter_mm is not None and centre.centre_from != "silhouette":
+    if wire_diameter_mm is not None and not centre.between_edges:
         warnings.insert(0, _edges_lost(wire_diameter_mm, ours.radius_mm))
     bend_sigma = _checked_sigma(fit, centre, plane, divisions, warnings)
     methods, seed_arcs = _seed_methods(image, wire, plane, ours, divisions, warnings)
@@ -322,7 +322,7 @@ def _arc_uncertainty(
         divisions=divisions,
         mm_per_px=plane.mm_per_px,
         wire_radius_mm=wire_radius_mm,
-        silhouette=centre.centre_from == "silhouette",
+        silhouette=centre.between_edges,
         end_uncertainty_px=centre.end_uncertainty_px,
         lens_sigma_mm=lens_mm,
         lift_radius_sigma_mm=lift_r_mm,
