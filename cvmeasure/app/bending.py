@@ -390,6 +390,9 @@ class Bending:
             f"the next part of {name} is corrected (worst error {corr.max_abs_error_deg:.2f} deg fed "
             "back); bend it from the Bend page"
         )
+        if corr.warnings:  # kept with the correction in the calibration's history too
+            codes = ", ".join(dict.fromkeys(w.code for w in corr.warnings))
+            ins.message += f" (the part measured with warnings: {codes})"
         self._check = None
         self.op.publish("inspect")
 

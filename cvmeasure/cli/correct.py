@@ -64,7 +64,6 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part
     from cvmeasure.part.options import PartOptions
-    from cvmeasure.warning import StageWarning
 
     if args.gain > 1:
         raise InputError("--gain", f"must be in (0, 1], got {args.gain}")
@@ -81,15 +80,6 @@ def run(args: argparse.Namespace) -> int:
         options=PartOptions(allow_mirror=args.flipped),
         reference_mm=plan.vertices_mm,
     )
-    found = None if m.chords_found is None else m.chords_found.divisions
-    if found is not None and found != plan.divisions:
-        warning = StageWarning(
-            "part_chords_differ",
-            f"the photo shows {found} chords, the job bends {plan.divisions}; measured with "
-            f"{plan.divisions}",
-            str(args.photo),
-        )
-        print(f"warning: {warning}", file=sys.stderr)
     try:
         cal2, corr, job = correct_from_part(
             cal,
@@ -104,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(exc, InputError):
             raise
         raise InputError(args.material, str(exc)) from None
+    for w in corr.warnings:
+        print(f"warning: {w}", file=sys.stderr)
     save_calibration(args.out, cal2)
     header = f"; cvmeasure correct: {args.design.name} after {args.photo.name}, gain {args.gain:g}"
     header = "".join(c for c in header if c.isprintable() and c not in "!~%$?")

@@ -74,6 +74,7 @@ from cvmeasure.material.compensation import (
     direction_of,
     fit_compensation,
 )
+from cvmeasure.warning import StageWarning
 
 __all__ = [
     "GROUP_GAP_DEG",
@@ -144,6 +145,9 @@ class Correction:
         bent with the same pin, left out of the pool (a measurement outlier, or a
         process jump confirmed by the next part).
     notes : what was not corrected and why.
+    warnings : what to doubt in the errors corrected: the measured part's warnings (a
+        lift, a gap in the centreline, a chord count the photo does not show) and this
+        correction's own (``part_chords_differ``), as the part measurement gave them.
     """
 
     part: str
@@ -167,6 +171,7 @@ class Correction:
     noise_factor: float = 1.0
     suspect: tuple[bool, ...] = ()
     notes: tuple[str, ...] = ()
+    warnings: tuple[StageWarning, ...] = ()
 
     @property
     def max_abs_error_deg(self) -> float:
@@ -197,6 +202,7 @@ class Correction:
             "noise_factor": self.noise_factor,
             "suspect": list(self.suspect),
             "notes": list(self.notes),
+            "warnings": [w.to_json() for w in self.warnings],
         }
 
 

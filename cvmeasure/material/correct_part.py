@@ -25,6 +25,7 @@ from cvmeasure.material.correct import (
     correct_calibration,
     corrections_of,
 )
+from cvmeasure.warning import StageWarning
 from cvmeasure.wireplan import bent_polygon
 
 __all__ = [
@@ -152,14 +153,36 @@ def correct_from_part(
         deadband_sigma=deadband_sigma,
         min_deadband_deg=min_deadband_deg,
     )
+    notes = corr.notes
     if turned:
-        note = (
-            "the photo's registration matched the part end to end reversed; its bends fit the "
-            "job far better the other way round, which was used"
+        notes = (
+            *notes,
+            "the photo's registration matched the part end to end reversed; its bends fit "
+            "the job far better the other way round, which was used",
         )
-        corr = replace(corr, notes=(*corr.notes, note))
-        history = corrections_of(cal)
-        history[-1] = corr.to_dict()
-        cal = replace(cal, provenance={**cal.provenance, "corrections": history})
+    # the part's warnings travel with the correction made from it (its record and the
+    # calibration's history): a lift or a gap the measurement warned of is what to doubt
+    # in the errors corrected
+    corr = replace(corr, notes=notes, warnings=_warnings_of(measurement, reference_mm))
+    history = corrections_of(cal)
+    history[-1] = corr.to_dict()
+    cal = replace(cal, provenance={**cal.provenance, "corrections": history})
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
     return cal, corr, GcodeJob(lines, bends, corr.pin_deg)
+
+
+def _warnings_of(measurement: Any, reference_mm: Any) -> tuple[StageWarning, ...]:
+    """The measured part's warnings, and ``part_chords_differ`` where the photo shows
+    another chord count than the polygon bent (``reference_mm``, N + 1 vertices)."""
+    found = None if measurement.chords_found is None else measurement.chords_found.divisions
+    bent = None if reference_mm is None else len(reference_mm) - 1
+    differ = ()
+    if found is not None and bent is not None and found != bent:
+        differ = (
+            StageWarning(
+                "part_chords_differ",
+                f"the photo shows {found} chords, the job bends {bent}; measured with {bent}",
+                str(measurement.source),
+            ),
+        )
+    return (*measurement.warnings, *differ)

@@ -262,6 +262,13 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     assert max(abs(e) for e in corr["error_deg"]) > 0.5
     cal2 = load_calibration(tmp_path / "cal2.json")
     assert corrections_of(cal2)[-1]["part"] == str(jpg)
+    # the part's warnings travel with the correction, as `cvmeasure part` gives them
+    part_args = ["--design", str(design), "--divisions", "10", *common[6:]]
+    assert main(["part", str(jpg), *part_args, "--json"]) == 0
+    part_warnings = json.loads(capsys.readouterr().out)["warnings"]
+    assert part_warnings  # (a flat render still warns: the lift is not measured)
+    assert corr["warnings"] == part_warnings
+    assert corrections_of(cal2)[-1]["warnings"] == part_warnings
     # the machine under-bends: every corrected pin goes further
     new_pins = corr["pin_deg"]
     assert all(abs(n) > abs(p) for n, p in zip(new_pins, pins, strict=True))
