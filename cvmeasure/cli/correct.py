@@ -35,6 +35,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the part may lie upside down (default: it lies as it left the machine, so a "
         "design symmetric end to end is matched vertex for vertex)",
     )
+    p.add_argument(
+        "--wire-diameter-mm",
+        type=positive_float,
+        help="the wire's diameter, as for `cvmeasure part`: the centreline between the wire's "
+        "silhouette edges and the part's lift read or bounded (default: none, the profiles' "
+        "centre of symmetry)",
+    )
     p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
     p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")
     p.add_argument(
@@ -63,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from cvmeasure.material.bender_calibration import load_calibration, save_calibration
     from cvmeasure.material.correct_part import correct_from_part
     from cvmeasure.part.measure import measure_part
-    from cvmeasure.part.options import PartOptions
+    from cvmeasure.part.options import PartOptions, WireOptions
 
     if args.gain > 1:
         raise InputError("--gain", f"must be in (0, 1], got {args.gain}")
@@ -77,7 +84,9 @@ def run(args: argparse.Namespace) -> int:
         design=design,
         design_source=str(args.design),
         source=str(args.photo),
-        options=PartOptions(allow_mirror=args.flipped),
+        options=PartOptions(
+            allow_mirror=args.flipped, wire=WireOptions(diameter_mm=args.wire_diameter_mm)
+        ),
         reference_mm=plan.vertices_mm,
     )
     try:

@@ -330,3 +330,46 @@ def test_a_settled_job_is_not_walked_about_by_noise():
         assert np.abs(made[2] - target).max() < 0.11  # converged after 2 corrections
         walk = np.abs(np.diff(made[3:], axis=0)).max()
         assert walk < 2 * NOISE_DEG, (seed, walk)
+
+
+def test_cli_correct_measures_a_round_wire_as_part_does(tmp_path, capsys):
+    """With ``--wire-diameter-mm`` the part is measured as ``cvmeasure part`` measures it
+    (between the round wire's silhouette edges, its lift bounded): the same warnings, and
+    the errors corrected those of the same reading (within 0.01 deg)."""
+    import json
+
+    import cvmeasure_datasets
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.camera_model import save_camera
+    from cvmeasure.cli import main
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure_datasets.effects import SceneEffects
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    part = cvmeasure_datasets.arc_part(55.0, 120.0, 8, wire_diameter_mm=3.0)
+    photo = cvmeasure_datasets.render_part_photo(
+        part=part, board=board, seed=4, scale=0.5, effects=SceneEffects(wire_3d=True)
+    )
+    jpg, _ = photo.save(tmp_path / "part")
+    save_camera(tmp_path / "camera.json", photo.camera)
+    atomic_write_json(tmp_path / "board.json", board.to_dict())
+    save_calibration(tmp_path / "cal.json", default_calibration())
+    pts = " ".join(f"{x:.4f},{-y:.4f}" for x, y in part.vertices_mm[:, :2])  # the design
+    design = tmp_path / "arc.svg"
+    design.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="400mm" height="400mm" '
+        f'viewBox="-200 -200 400 400"><polyline fill="none" points="{pts}"/></svg>',
+        encoding="utf-8",
+    )
+    seen = ["--board", str(tmp_path / "board.json"), "--camera", str(tmp_path / "camera.json")]
+    wire = ["--design", str(design), "--divisions", "8", "--wire-diameter-mm", "3"]
+    assert main(["part", str(jpg), *seen, *wire, "--json"]) == 0
+    measured = json.loads(capsys.readouterr().out)
+    out = ["-o", str(tmp_path / "cal2.json"), "--gcode", str(tmp_path / "job2.gcode")]
+    material = ["--material", str(tmp_path / "cal.json")]
+    assert main(["correct", str(jpg), *seen, *wire, *material, *out, "--json"]) == 0
+    corr = json.loads(capsys.readouterr().out)
+    assert corr["warnings"] == measured["warnings"]
+    assert any(w["code"] == "part_lifted" for w in corr["warnings"])  # read as a round wire
+    errors = sorted(abs(e) for e in measured["comparison"]["bends"]["error_deg"])
+    np.testing.assert_allclose(sorted(abs(e) for e in corr["error_deg"]), errors, atol=0.01)
