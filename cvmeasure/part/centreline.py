@@ -592,8 +592,8 @@ def _step_share(prof: np.ndarray, offsets: np.ndarray, width_px: float, step_px:
     smooth = gaussian_filter1d(
         uniform_filter1d(prof, size=along, axis=0, mode="nearest"), across, axis=1
     )
-    # the sides: the outer sixth of the profile each way (at least 1.06 widths + 4 px from
-    # the centre, beyond both edges)
+    # the sides: the outer sixth of the profile each way (more than a width from the
+    # centre: the profiles reach at least 1.25 widths + 5 px, beyond both edges)
     k = max(2, len(offsets) // 6)
     left, right = np.median(smooth[:, :k], axis=1), np.median(smooth[:, -k:], axis=1)
     inside = smooth[:, np.abs(offsets) <= 0.5 * width_px]
