@@ -355,7 +355,7 @@ def _past_lit_wire(
 
     def lit_beyond(j: int) -> bool:
         sel = (t > t[j] + 1.0) & (t <= t[j] + 1.0 + span)
-        return bool(sel.any()) and float(np.median(axial[sel])) > background + 2.0 * plate_spread
+        return _above_plate(axial[sel], background, plate_spread)
 
     if not lit_beyond(k):
         return k
@@ -394,13 +394,18 @@ def _past_dim_limb(
             & (t[peaks] <= t[k] + half_width)
             & (grad[peaks] >= SHADOW_STEP_SHARE * reference)
         ]
-        for j in np.sort(beyond):
-            between = (t > t[k] + 1.0) & (t < t[j] - 1.0)
-            if between.any() and float(np.median(axial[between])) > background + 2.0 * plate_spread:
+        for j in beyond:
+            if _above_plate(axial[(t > t[k] + 1.0) & (t < t[j] - 1.0)], background, plate_spread):
                 k = int(j)
                 break
         else:
             return k
+
+
+def _above_plate(stretch: np.ndarray, background: float, plate_spread: float) -> bool:
+    """Whether a stretch of the axis' samples (not empty) is brighter than the plate: its
+    median above the plate's level ``background`` by twice the plate's own spread."""
+    return len(stretch) > 0 and float(np.median(stretch)) > background + 2.0 * plate_spread
 
 
 def _plate_inside(
