@@ -200,10 +200,8 @@ class Centreline:
     asymmetry : median over the profiles of the remaining asymmetry at the centre
         relative to the profile's own variance in the window (0 perfectly
         symmetric, about 1 for no symmetry at all).
-    centre_from : ``"symmetry"``, ``"silhouette"`` (between the two silhouette edges),
-        or ``"symmetry (...)"`` when silhouette edges were asked for but did not follow
-        the whole wire (the record's prose; :attr:`between_edges` and
-        :attr:`edges_refused` are the same, typed).
+    between_edges : whether the centres lie between the wire's two silhouette edges
+        (else at the profiles' centre of symmetry).
     edges_refused : why the silhouette edges, asked for, were not used (None: used, or
         not asked for).
     edge_width_px : with silhouette edges, ndarray (M,): the distance between the
@@ -225,16 +223,20 @@ class Centreline:
     rejected: int
     coverage: float = 1.0
     asymmetry: float = 0.0
-    centre_from: str = "symmetry"
+    between_edges: bool = False
     edge_width_px: np.ndarray | None = None
     end_uncertainty_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
     lit_points_px: np.ndarray | None = None
     edges_refused: str | None = None
 
     @property
-    def between_edges(self) -> bool:
-        """Whether the centres lie between the wire's two silhouette edges."""
-        return self.centre_from == "silhouette"
+    def centre_from(self) -> str:
+        """How the centres were placed, as the record says it: ``"silhouette"`` (between the
+        two silhouette edges), ``"symmetry"``, or ``"symmetry (...)"`` with why the
+        silhouette edges, asked for, were not used."""
+        if self.between_edges:
+            return "silhouette"
+        return "symmetry" if self.edges_refused is None else f"symmetry ({self.edges_refused})"
 
     def to_dict(self) -> dict[str, Any]:
         widths = self.edge_width_px
@@ -318,7 +320,7 @@ def measure_centreline(
     centres, prof_ok, rejected, coverage, symmetry = _final_symmetric(
         prof, centres0, normals, rho, search, step_px, window
     )
-    centre_from = "symmetry"
+    at_edges = False
     widths = shadow = lit = refused = None
     if wire_width_px is not None:
         found = _silhouette_if_whole(
@@ -327,12 +329,11 @@ def measure_centreline(
         )  # fmt: skip
         if not isinstance(found, _EdgesRefused):
             centres, prof_ok, widths, coverage, shadow, lit = found
-            centre_from = "silhouette"
+            at_edges = True
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
         else:
             refused = found.reason
-            centre_from = f"symmetry ({refused})"
             centres0, normals, prof, rough, rho, search = _symmetric_passes(
                 profiles_at, path, offsets, hw0, reach, step_px, window, known_hw=known_hw,
                 above_sheet=True,
@@ -347,7 +348,6 @@ def measure_centreline(
                 trim_share=0.0 if found.no_wire_across else HIGHLIGHT_TRIM_SHARE,
             )  # fmt: skip
     # between silhouette edges the end is found from the cap's silhouette too
-    at_edges = centre_from == "silhouette"
     # a polished wire's profiles may have a half-contrast flank about its narrow crest only:
     # its cap is searched at the wire's own half-width where that is known
     cap_half_width = half_width
@@ -375,7 +375,7 @@ def measure_centreline(
         rejected=rejected,
         coverage=coverage,
         asymmetry=symmetry,
-        centre_from=centre_from,
+        between_edges=at_edges,
         edge_width_px=edge_width,
         end_uncertainty_px=end_uncertainty,
         lit_points_px=lit_points,
