@@ -48,9 +48,6 @@ PAGE_SIZES_MM: dict[str, tuple[float, float]] = {
     "tabloid": (279.4, 431.8),
 }
 
-_MARGIN_MM = SHEET_MARGIN_MM
-_FOOTER_MM = SHEET_FOOTER_MM
-_RULER_MM = SHEET_RULER_MM
 _INCH_MM = 25.4
 
 
@@ -116,8 +113,8 @@ def sheet_layout(board: BoardSpec, *, page: str | tuple[float, float] | None = N
     """Lay out board, ruler and text; ``page`` a name of :data:`PAGE_SIZES_MM`, (w, h) mm,
     or None for a page just large enough. Raises ValueError when the board does not fit."""
     bw, bh = board.size_mm
-    need_w = max(bw, SHEET_FOOTER_WIDTH_MM) + 2 * _MARGIN_MM
-    need_h = bh + 2 * _MARGIN_MM + _FOOTER_MM
+    need_w = max(bw, SHEET_FOOTER_WIDTH_MM) + 2 * SHEET_MARGIN_MM
+    need_h = bh + 2 * SHEET_MARGIN_MM + SHEET_FOOTER_MM
     if page is None:
         pw, ph = need_w, need_h
     else:
@@ -135,11 +132,11 @@ def sheet_layout(board: BoardSpec, *, page: str | tuple[float, float] | None = N
                 f"{pw:g}x{ph:g} mm is too small"
             )
     ox = (pw - bw) / 2
-    oy = _MARGIN_MM + max(0.0, (ph - need_h) / 2)
+    oy = SHEET_MARGIN_MM + max(0.0, (ph - need_h) / 2)
     # under the board's left edge (printed_footer_mm: where the wire search leaves it out),
     # not the page's: on a page wider than needed it would lie beside the board
     ruler = (ox + printed_footer_mm(board)[0], oy + bh + 12.0)
-    return SheetLayout((pw, ph), (ox, oy), (bw, bh), ruler, _RULER_MM)
+    return SheetLayout((pw, ph), (ox, oy), (bw, bh), ruler, SHEET_RULER_MM)
 
 
 def render_board_sheet(
