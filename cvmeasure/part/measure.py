@@ -35,6 +35,7 @@ from cvmeasure.contracts import PlaneModel
 from cvmeasure.design import DesignPath
 from cvmeasure.errors import InputError
 from cvmeasure.geometry import CircleFit, arclength_mm
+from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.part.arc import (
     arc_from_points,
     chord_and_height_mm,
@@ -56,6 +57,7 @@ from cvmeasure.part.compare import (
     deviation_profile,
     register_to_design,
 )
+from cvmeasure.part.downsample import downsample_photo, in_photo_px
 from cvmeasure.part.fit import ChordCount, PolylineFit, count_chords, fit_polyline
 from cvmeasure.part.lift import LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
@@ -217,6 +219,11 @@ def measure_part(
     Raises InputError (no board, no wire, a part the divisions cannot describe).
     """
     opts = PartOptions() if options is None else options
+    if opts.downsample > 1:
+        return _measure_downsampled(
+            image, board, camera, opts, plane, design, design_source, reference_mm,
+            moved_image, moved_plane, source,
+        )  # fmt: skip
     wire_opts, lift_opts = opts.wire, opts.lift
     method, divisions, wire_diameter_mm = opts.method, opts.divisions, wire_opts.diameter_mm
     axis_height_mm, end_shape = wire_opts.axis_height_mm, wire_opts.end_shape
@@ -525,6 +532,48 @@ def _reference_fractions(centreline_mm: np.ndarray, reference_mm: np.ndarray) ->
         except ValueError:
             fits.append(np.inf)
     return f if fits[0] <= fits[1] else back
+
+
+def _measure_downsampled(
+    image: np.ndarray,
+    board: BoardSpec | None,
+    camera: CameraModel | None,
+    opts: PartOptions,
+    plane: PlaneModel | None,
+    design: DesignPath | None,
+    design_source: str,
+    reference_mm: np.ndarray | None,
+    moved_image: np.ndarray | None,
+    moved_plane: PlaneModel | None,
+    source: str,
+) -> PartMeasurement:
+    """:func:`measure_part` on the photo averaged over ``opts.downsample`` pixel blocks.
+
+    The board plane is found on the photo itself (every corner at full resolution) and
+    rescaled; so is the moved photo's. The result's pixel figures are the photo's.
+    """
+    factor = int(opts.downsample)
+    plane_given = plane is not None
+    if plane is None:
+        if board is None or camera is None:
+            raise ValueError("need a plane, or a board and a camera")
+        plane = estimate_plane(image, board, camera, source=source)
+    small, small_plane = downsample_photo(image, plane, factor)
+    small_moved = small_moved_plane = None
+    if moved_image is not None:
+        if moved_plane is None:  # as measure_part does: the given plane, else the board's
+            moved_plane = (
+                plane
+                if plane_given
+                else estimate_plane(moved_image, board, camera, source="moved photo")
+            )
+        small_moved, small_moved_plane = downsample_photo(moved_image, moved_plane, factor)
+    m = measure_part(
+        small, board, camera, options=replace(opts, downsample=1), plane=small_plane,
+        design=design, design_source=design_source, reference_mm=reference_mm,
+        moved_image=small_moved, moved_plane=small_moved_plane, source=source,
+    )  # fmt: skip
+    return in_photo_px(m, factor, plane)
 
 
 def _counter_clockwise(

@@ -298,6 +298,9 @@ class PartMeasurement:
         the end points along it, a corrected lift, the vertices' spacing where
         ``part_chord_spacing`` warns; not a lift only bounded); None for a seed method's
         headline or a straight part.
+    downsample : the wire was measured on the photo averaged over blocks of this many
+        pixels a side (:attr:`~cvmeasure.part.options.PartOptions.downsample`; 1: the
+        photo's own pixels). The pixel figures above are the photo's either way.
     """
 
     source: str
@@ -321,6 +324,7 @@ class PartMeasurement:
     chords_found: ChordCount | None = None
     lift: PartLift | None = None
     uncertainty: ArcUncertainty | None = None
+    downsample: int = 1
 
     @property
     def radius_sigma_mm(self) -> float | None:
@@ -357,6 +361,7 @@ class PartMeasurement:
         out["methods"] = {k: v.to_dict() for k, v in self.methods.items()}
         out["seed_arcs"] = {k: v.to_dict() for k, v in self.seed_arcs.items()}
         out["plane"] = self.plane.to_dict()
+        out["downsample"] = self.downsample
         out["wire"] = self.wire.to_dict()
         out["centreline_mm"] = self.centreline_mm.tolist()
         # for overlays: the centreline in photo pixels, at most 400 points

@@ -193,3 +193,17 @@ def test_part_help(capsys):
         main(["part", "--help"])
     assert exc.value.code == 0
     assert "--divisions" in capsys.readouterr().out
+
+
+def test_downsample_option(files, capsys):
+    """``--downsample 2`` measures on 2 x 2 blocks (recorded as such); a count other than a
+    whole number from 1 is refused by the parser, exit 2 naming the option."""
+    base = ["--board", str(files["board"]), "--camera", str(files["camera"])]
+    assert main(["part", str(files["jpg"]), *base, "--downsample", "2", "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["downsample"] == 2
+    assert rec["radius_mm"] == pytest.approx(files["truth"]["radius_mm"], rel=0.01)
+    for bad in ("0", "1.5"):
+        with pytest.raises(SystemExit) as info:
+            main(["part", str(files["jpg"]), *base, "--downsample", bad])
+        assert info.value.code == 2 and "--downsample" in capsys.readouterr().err
