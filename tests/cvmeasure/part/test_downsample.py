@@ -73,9 +73,7 @@ def test_part_measured_on_blocks_against_truth():
     truth = photo.truth
     n = truth["divisions"]
     plain = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=n))
-    m = measure_part(
-        photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=n, downsample=2)
-    )
+    m = measure_part(photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=n, downsample=2))
     assert m.downsample == 2 and plain.downsample == 1
     assert m.result.radius_mm == pytest.approx(truth["radius_mm"], rel=0.003)
     assert m.result.segment_bend_deg == pytest.approx(truth["arc_angle_deg"] / n, abs=0.05)
