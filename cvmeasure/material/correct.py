@@ -482,6 +482,8 @@ def correct_calibration(
     informed_gain: float = DEFAULT_INFORMED_GAIN,
     vertex_offset_deg: ArrayLike | None = None,
     shrink_sigma: float = SHRINK_SIGMA,
+    extra_notes: tuple[str, ...] = (),
+    part_warnings: tuple[StageWarning, ...] = (),
 ) -> tuple[BenderCalibration, Correction]:
     """Correct a calibration from one part's per-vertex final bends (see the module notes).
 
@@ -503,6 +505,8 @@ def correct_calibration(
         the calibration's history for this design and N.
     shrink_sigma : a significant error pooled over two or more parts is corrected less
         this many sigmas of its estimate (see :func:`_band_and_spread`).
+    extra_notes, part_warnings : notes on how the bends were read and the measured
+        part's warnings, kept with the correction (its record and the history).
 
     Returns
     -------
@@ -563,7 +567,8 @@ def correct_calibration(
         sigma_deg=tuple(float(v) for v in sig),
         noise_factor=factor,
         suspect=tuple(bool(v) for v in pool.suspect),
-        notes=tuple(notes),
+        notes=(*notes, *extra_notes),
+        warnings=tuple(part_warnings),
     )
     history = {"corrections": [*corrections_of(calibration), correction.to_dict()]}
     return replace(new_cal, provenance={**calibration.provenance, **history}), correction

@@ -9,7 +9,6 @@ offsets; the next job bends the same polygon with the corrected pins.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -23,7 +22,6 @@ from cvmeasure.material.correct import (
     DEFAULT_GAIN,
     Correction,
     correct_calibration,
-    corrections_of,
 )
 from cvmeasure.warning import StageWarning
 from cvmeasure.wireplan import bent_polygon
@@ -142,6 +140,13 @@ def correct_from_part(
             f"{len(target)} vertices measured but the job has {len(bends.bends_deg)} bends "
             "(straight vertices merged)",
         )
+    turned_note = (
+        "the photo's registration matched the part end to end reversed; its bends fit "
+        "the job far better the other way round, which was used",
+    )
+    # the part's warnings travel with the correction made from it (its record and the
+    # calibration's history): a lift or a gap the measurement warned of is what to doubt
+    # in the errors corrected
     cal, corr = correct_calibration(
         calibration,
         bends.bends_deg,
@@ -152,21 +157,9 @@ def correct_from_part(
         gain=gain,
         deadband_sigma=deadband_sigma,
         min_deadband_deg=min_deadband_deg,
+        extra_notes=turned_note if turned else (),
+        part_warnings=_warnings_of(measurement, reference_mm),
     )
-    notes = corr.notes
-    if turned:
-        notes = (
-            *notes,
-            "the photo's registration matched the part end to end reversed; its bends fit "
-            "the job far better the other way round, which was used",
-        )
-    # the part's warnings travel with the correction made from it (its record and the
-    # calibration's history): a lift or a gap the measurement warned of is what to doubt
-    # in the errors corrected
-    corr = replace(corr, notes=notes, warnings=_warnings_of(measurement, reference_mm))
-    history = corrections_of(cal)
-    history[-1] = corr.to_dict()
-    cal = replace(cal, provenance={**cal.provenance, "corrections": history})
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
     return cal, corr, GcodeJob(lines, bends, corr.pin_deg)
 
