@@ -670,6 +670,14 @@ def _width_metrics(rows: list[dict]) -> list[Metric]:
     ]  # fmt: skip
 
 
+def _width_lift_cell(lift: dict) -> str:
+    """The width's lift estimate and its sigma, mm; "none" where the width gave none."""
+    if lift.get("lift_mm") is None:
+        return "none"
+    sigma = lift.get("lift_sigma_mm")
+    return f"{lift['lift_mm']:.1f} +- {float('nan') if sigma is None else sigma:.1f}"
+
+
 def _round_table(rows: list[dict]) -> Table:
     def val(r: dict, key: str) -> Any:
         return r.get(key, "refused")
@@ -698,8 +706,7 @@ def _round_table(rows: list[dict]) -> Table:
                 val(r, "width_radius_err_pct"),
                 val(r, "width_segment_bend_err_deg"),
                 val(r, "width_vertex_err_deg"),
-                f"{width_lift.get('lift_mm', float('nan')):.1f} +- "
-                f"{width_lift.get('lift_sigma_mm', float('nan')):.1f}",
+                _width_lift_cell(width_lift),
                 "yes" if r.get("width_lifted_warning") else "no",
             ]
         )

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
-from cvmeasure.cli.options import int_in, non_negative_float, positive_float
+from cvmeasure.cli.options import downsample_blocks, non_negative_float, positive_float
 
 __all__ = ["register", "run"]
 
@@ -44,13 +44,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--downsample",
-        type=int_in(1, 8),
+        type=downsample_blocks,
         default=1,
-        metavar="N",
-        help="as for `cvmeasure part`: measure the wire on the photo averaged over N x N pixel blocks (default 1: its "
-        "own pixels). For a wire more than about 15 px wide (2-3 mm at 0.11 mm/px, a 24 MP "
-        "camera's full size): 2 brings it to 9-14 px, where its edges are the silhouette's and "
-        "not the polished tube's reflections; the board's plane is found at full size",
+        metavar="N|auto",
+        help="as for `cvmeasure part`: measure the wire on the photo averaged over N x N pixel blocks (default 1: "
+        "its own pixels); auto: with the wire's diameter, the blocks that bring it nearest 12 px "
+        "wide. For a wire about 18 px wide or more (2-3 mm at 0.11 mm/px, a 24 MP camera's full "
+        "size) 2 measured better on the held-out renders (docs/part-measurement.md says where it "
+        "costs); the board's plane is always found at full size",
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
     p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")

@@ -82,3 +82,15 @@ def int_in(low: int, high: int | None = None) -> Callable[[str], int]:
 
 positive_int = int_in(1)
 non_negative_int = int_in(0)
+
+
+def downsample_blocks(text: str) -> int | None:
+    """``auto`` (None: chosen from the wire's width) or a block size 1..8."""
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        return int_in(1, 8)(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be auto or a whole number in 1..8, got {text!r}"
+        ) from None

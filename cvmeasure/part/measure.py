@@ -57,7 +57,7 @@ from cvmeasure.part.compare import (
     deviation_profile,
     register_to_design,
 )
-from cvmeasure.part.downsample import downsample_photo, in_photo_px
+from cvmeasure.part.downsample import auto_downsample, downsample_photo, in_photo_px
 from cvmeasure.part.fit import ChordCount, PolylineFit, count_chords, fit_polyline
 from cvmeasure.part.lift import LiftEstimate, estimate_lift, lift_bound_mm
 from cvmeasure.part.lift_use import (
@@ -219,7 +219,7 @@ def measure_part(
     Raises InputError (no board, no wire, a part the divisions cannot describe).
     """
     opts = PartOptions() if options is None else options
-    if opts.downsample > 1:
+    if opts.downsample != 1:
         return _measure_downsampled(
             image, board, camera, opts, plane, design, design_source, reference_mm,
             moved_image, moved_plane, source,
@@ -547,33 +547,37 @@ def _measure_downsampled(
     moved_plane: PlaneModel | None,
     source: str,
 ) -> PartMeasurement:
-    """:func:`measure_part` on the photo averaged over ``opts.downsample`` pixel blocks.
+    """:func:`measure_part` on the photo averaged over ``opts.downsample`` pixel blocks
+    (None: :func:`~cvmeasure.part.downsample.auto_downsample` on the photo's plane).
 
     The board plane is found on the photo itself (every corner at full resolution) and
     rescaled; so is the moved photo's. The result's pixel figures are the photo's.
     """
-    factor = int(opts.downsample)
     plane_given = plane is not None
     if plane is None:
         if board is None or camera is None:
             raise ValueError("need a plane, or a board and a camera")
         plane = estimate_plane(image, board, camera, source=source)
-    small, small_plane = downsample_photo(image, plane, factor)
-    small_moved = small_moved_plane = None
-    if moved_image is not None:
-        if moved_plane is None:  # as measure_part does: the given plane, else the board's
-            moved_plane = (
-                plane
-                if plane_given
-                else estimate_plane(moved_image, board, camera, source="moved photo")
-            )
-        small_moved, small_moved_plane = downsample_photo(moved_image, moved_plane, factor)
+    factor = opts.downsample or auto_downsample(plane.mm_per_px, opts.wire.diameter_mm)
+    if moved_image is not None and moved_plane is None:
+        # as measure_part does: the given plane, else the board's in the moved photo
+        moved_plane = (
+            plane
+            if plane_given
+            else estimate_plane(moved_image, board, camera, source="moved photo")
+        )
+    small, small_plane = image, plane
+    small_moved, small_moved_plane = moved_image, moved_plane
+    if factor > 1:
+        small, small_plane = downsample_photo(image, plane, factor)
+        if moved_image is not None:
+            small_moved, small_moved_plane = downsample_photo(moved_image, moved_plane, factor)
     m = measure_part(
         small, board, camera, options=replace(opts, downsample=1), plane=small_plane,
         design=design, design_source=design_source, reference_mm=reference_mm,
         moved_image=small_moved, moved_plane=small_moved_plane, source=source,
     )  # fmt: skip
-    return in_photo_px(m, factor, plane)
+    return in_photo_px(m, factor, plane) if factor > 1 else m
 
 
 def _counter_clockwise(

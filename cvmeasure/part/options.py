@@ -79,11 +79,15 @@ class PartOptions:
     wire : the wire stock (:class:`WireOptions`).
     lift : the lift off the plate (:class:`LiftOptions`).
     downsample : measure the wire on the photo averaged over blocks of this many pixels
-        a side (1: on the photo's own pixels). For a wire many pixels wide: at 0.11
-        mm/px a 2-3 mm wire spans 18-28 px, and its polished surface's reflections and
-        its shadow's grain give edges a wire's width apart that are not its silhouette;
-        over 2 x 2 blocks (9-14 px) the edges are those at the wire's own scale
-        (:mod:`cvmeasure.part.downsample`). The board plane is found on the photo itself.
+        a side (1, the default: on the photo's own pixels); None: the block that brings a
+        wire of known diameter nearest 12 px wide
+        (:func:`~cvmeasure.part.downsample.auto_downsample`; 1 without a diameter). For a
+        wire many pixels wide: at 0.11 mm/px a 2-3 mm wire spans 18-28 px, and on the
+        held-out renderer's photos its polished surface's reflections and its shadow's
+        grain gave edges a wire's width apart that are not its silhouette; over 2 x 2
+        blocks (9-14 px) the edges are those at the wire's own scale
+        (:mod:`cvmeasure.part.downsample`, which says what it costs). The board plane is
+        found on the photo itself.
 
     Raises ValueError on an unknown ``method``, ``divisions < 1`` or ``downsample < 1``.
     """
@@ -93,7 +97,7 @@ class PartOptions:
     allow_mirror: bool = True
     wire: WireOptions = field(default_factory=WireOptions)
     lift: LiftOptions = field(default_factory=LiftOptions)
-    downsample: int = 1
+    downsample: int | None = 1
 
     def __post_init__(self) -> None:
         method = part_method(self.method)
@@ -101,6 +105,7 @@ class PartOptions:
             raise ValueError(f"method must be one of {', '.join(METHODS)}; got {self.method!r}")
         if self.divisions is not None and self.divisions < 1:
             raise ValueError(f"divisions must be >= 1, got {self.divisions}")
-        if int(self.downsample) != self.downsample or self.downsample < 1:
+        ds = self.downsample
+        if ds is not None and (int(ds) != ds or ds < 1):
             raise ValueError(f"downsample must be a whole number >= 1, got {self.downsample}")
         object.__setattr__(self, "method", method)  # an older name read as the current one

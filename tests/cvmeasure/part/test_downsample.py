@@ -12,9 +12,9 @@ from cvmeasure.board import CharucoBoardSpec
 from cvmeasure.errors import InputError
 from cvmeasure.lens.plane import estimate_plane
 from cvmeasure.part.compare import point_to_polyline
-from cvmeasure.part.downsample import downsample_photo, photo_px
+from cvmeasure.part.downsample import auto_downsample, downsample_photo, photo_px
 from cvmeasure.part.measure import measure_part
-from cvmeasure.part.options import PartOptions
+from cvmeasure.part.options import PartOptions, WireOptions
 
 BOARD = CharucoBoardSpec(14, 10, 20.0, 15.0)
 
@@ -88,6 +88,29 @@ def test_part_measured_on_blocks_against_truth():
     # the same radius within the two readings' stated sigmas
     both = np.hypot(m.radius_sigma_mm, plain.radius_sigma_mm)
     assert abs(m.result.radius_mm - plain.result.radius_mm) <= 2 * both
+
+
+def test_auto_blocks_bring_a_wide_wire_near_twelve_px():
+    # a 3 mm wire at 0.13 mm/px is 23 px wide: auto measures it over 2 x 2 blocks
+    pose = cvmeasure_datasets.Pose(
+        tilt_deg=2.5, tilt_direction_deg=40.0, distance_mm=900.0, offset_mm=(280.0, 100.0)
+    )
+    photo = cvmeasure_datasets.render_part_photo(
+        part=cvmeasure_datasets.arc_part(70.0, 120.0, 8, wire_diameter_mm=3.0), board=BOARD,
+        sheet="dark", pose=pose, seed=8, scale=1.0,
+    )  # fmt: skip
+    truth, n = photo.truth, photo.truth["divisions"]
+    opts = PartOptions(divisions=n, wire=WireOptions(diameter_mm=3.0), downsample=None)
+    m = measure_part(photo.bgr, BOARD, photo.camera, options=opts)
+    assert m.downsample == auto_downsample(m.plane.mm_per_px, 3.0) == 2
+    assert m.result.radius_mm == pytest.approx(truth["radius_mm"], rel=0.003)
+    assert m.result.segment_bend_deg == pytest.approx(truth["arc_angle_deg"] / n, abs=0.05)
+    # without the diameter the profiles' centre of symmetry is measured on the photo itself
+    assert auto_downsample(m.plane.mm_per_px, None) == 1
+
+
+def test_the_default_is_the_photos_own_pixels():
+    assert PartOptions().downsample == 1
 
 
 def test_downsample_must_be_whole_and_positive():

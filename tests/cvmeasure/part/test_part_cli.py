@@ -203,7 +203,10 @@ def test_downsample_option(files, capsys):
     rec = json.loads(capsys.readouterr().out)
     assert rec["downsample"] == 2
     assert rec["radius_mm"] == pytest.approx(files["truth"]["radius_mm"], rel=0.01)
-    for bad in ("0", "1.5"):
+    # auto (the default) keeps a 6 px wire on the photo's own pixels
+    assert main(["part", str(files["jpg"]), *base, "--downsample", "auto", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["downsample"] == 1
+    for bad in ("0", "1.5", "many"):
         with pytest.raises(SystemExit) as info:
             main(["part", str(files["jpg"]), *base, "--downsample", bad])
         assert info.value.code == 2 and "--downsample" in capsys.readouterr().err
