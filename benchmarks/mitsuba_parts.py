@@ -200,8 +200,12 @@ def _run(args: list[str]) -> subprocess.CompletedProcess:
     return subprocess.run([_CLI, *args], capture_output=True, text=True)
 
 
-def measure(photo: Path, board: Path, cam: Path, wire_mm: float) -> tuple[int, dict, str]:
-    """``cvmeasure part`` as a process: exit code, result JSON (empty when refused), stderr."""
+def measure(
+    photo: Path, board: Path, cam: Path, wire_mm: float, extra: tuple[str, ...] = ()
+) -> tuple[int, dict, str]:
+    """``cvmeasure part`` as a process: exit code, result JSON (empty when refused), stderr.
+
+    ``extra``: more options (``--downsample 2``)."""
     res = _run(
         [
             "part",
@@ -213,6 +217,7 @@ def measure(photo: Path, board: Path, cam: Path, wire_mm: float) -> tuple[int, d
             "--wire-diameter-mm",
             f"{wire_mm:g}",
             "--json",
+            *extra,
         ]
     )
     rec = json.loads(res.stdout) if res.returncode == 0 and res.stdout.strip() else {}
@@ -439,6 +444,36 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
     ]
 
 
+#: The rows repeated for photos measured with ``--downsample``.
+_DOWNSAMPLE_ROWS = (
+    "radius within 0.3 % and bend per chord within 0.03 deg",
+    "silently wrong (off target, no covering warning)",
+    "silently wrong, an unmeasured lift's bound covering lifted parts only",
+    "radius within 2 stated sigma",
+    "bend per chord within 2 stated sigma",
+    "median stated radius sigma",
+    "median stated bend per chord sigma",
+)
+
+
+def _downsampled_metrics(shots: list, board: Path, cam: Path, blocks: int) -> list[Metric]:
+    """The same photos measured with ``--downsample blocks``: the main rows, no targets."""
+    t = time.perf_counter()
+    scores = []
+    for shot in shots:
+        rc, rec, _ = measure(
+            shot.photo, board, cam, shot.scene.wire_diameter_mm, ("--downsample", str(blocks))
+        )
+        scores.append(score(shot.truth, rc, rec))
+    wall_s = time.perf_counter() - t
+    label = f"with --downsample {blocks}"
+    return [
+        Metric(f"{m.name}, {label}", m.value, m.unit, None, None)
+        for m in _metrics(scores, len(scores))
+        if m.name in _DOWNSAMPLE_ROWS
+    ] + [Metric(f"measure time (all photos, wall), {label}", round(wall_s, 1), "s", None, None)]
+
+
 #: The photo size of the default set (2.2 MP: about 0.28 mm/px on the sheet).
 SMALL_PX = (1800, 1200)
 #: The seed's camera at its full sensor size (Nikon D3100, 14.2 MP: about 0.11 mm/px here).
@@ -449,9 +484,17 @@ def main(argv: list[str] | None = None) -> dict:
     return run(argv, size_px=SMALL_PX, file=__file__, section=SECTION)
 
 
-def run(argv: list[str] | None, *, size_px: tuple[int, int], file: str, section: str) -> dict:
+def run(
+    argv: list[str] | None,
+    *,
+    size_px: tuple[int, int],
+    file: str,
+    section: str,
+    downsample: int | None = None,
+) -> dict:
     """The benchmark with photos of ``size_px`` (same scenes, lens and field of view),
-    published as ``file``'s ``section``."""
+    published as ``file``'s ``section``; with ``downsample``, every photo measured again
+    with ``--downsample`` (rows without targets: an option, not the default chain)."""
     name = Path(file).stem
     p = argparse.ArgumentParser(prog=f"python -m benchmarks.{name}", description=__doc__)
     p.add_argument("--quick", action="store_true", help="small renders, 4 part photos")
@@ -515,6 +558,8 @@ def run(argv: list[str] | None, *, size_px: tuple[int, int], file: str, section:
             for m in _metrics(flat, len(flat))
             if m.name in _FLAT_ROWS
         ]
+    if downsample:
+        metrics += _downsampled_metrics(shots, board, cam, downsample)
     metrics += [
         Metric("calibration rms", calib.get("rms_px"), "px", None, None),
         Metric(
