@@ -163,3 +163,24 @@ def test_cli_part_moved(tmp_path, capsys):
     assert "from the moved photo" in capsys.readouterr().out
     assert main(["part", str(paths[0]), *base, "--moved", str(paths[1])]) == 2
     assert "--moved" in capsys.readouterr().err
+
+
+def test_auto_blocks_read_the_moved_photo_as_the_photo_itself_does():
+    """``downsample=None`` (auto) keeps this 11 px wire on its own pixels: the moved photo's
+    plane, found from its board up front, gives the very lift and radius as without it."""
+    first, second = _lab(3.0, 1700, "dark", (60.0, 0.0))
+    wire = WireOptions(diameter_mm=WIRE_MM)
+    plain, auto = (
+        measure_part(
+            first.bgr,
+            BOARD,
+            first.camera,
+            moved_image=second.bgr,
+            options=PartOptions(divisions=8, wire=wire, downsample=blocks),
+        )  # fmt: skip
+        for blocks in (1, None)
+    )
+    assert auto.downsample == 1
+    assert auto.lift.used == plain.lift.used == "correction"
+    assert auto.lift.lift_mm == plain.lift.lift_mm
+    assert auto.result.radius_mm == plain.result.radius_mm
