@@ -107,7 +107,7 @@ def in_photo_px(m: PartMeasurement, factor: int, plane: PlaneModel) -> PartMeasu
         m,
         centreline_px=photo_px(m.centreline_px, factor),
         vertices_px=None if m.vertices_px is None else photo_px(m.vertices_px, factor),
-        plane=PlaneSummary(plane.tilt_deg, plane.mm_per_px, plane.rms_px, plane.corner_count),
+        plane=PlaneSummary.of(plane),
         wire=wire,
         downsample=factor,
     )

@@ -417,7 +417,7 @@ def _assemble(
         centreline_px=centre.points_px,
         wire_width_mm=2.0 * centre.half_width_px * plane.mm_per_px,
         circle=fit.circle,
-        plane=PlaneSummary(plane.tilt_deg, plane.mm_per_px, plane.rms_px, plane.corner_count),
+        plane=PlaneSummary.of(plane),
         wire=PartWire.of(wire.to_dict(), centre.to_dict()),
         lift=fit.lift_info,
         seed_arcs=seed_arcs,

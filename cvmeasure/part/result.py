@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -26,6 +26,9 @@ from cvmeasure.part.fit import (
 )
 from cvmeasure.part.seed_methods import SeedArc
 from cvmeasure.warning import StageWarning
+
+if TYPE_CHECKING:
+    from cvmeasure.contracts import PlaneModel
 
 __all__ = [
     "Method",
@@ -129,6 +132,11 @@ class PlaneSummary:
     mm_per_px: float
     rms_px: float
     corner_count: int
+
+    @classmethod
+    def of(cls, plane: PlaneModel) -> PlaneSummary:
+        """The summary of a :class:`~cvmeasure.plane_model.PlaneModel`."""
+        return cls(plane.tilt_deg, plane.mm_per_px, plane.rms_px, plane.corner_count)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
