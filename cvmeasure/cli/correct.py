@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
-from cvmeasure.cli.options import downsample_blocks, non_negative_float, positive_float
+from cvmeasure.cli.options import add_downsample_option, non_negative_float, positive_float
 
 __all__ = ["register", "run"]
 
@@ -42,17 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "silhouette edges and the part's lift read or bounded (default: none, the profiles' "
         "centre of symmetry)",
     )
-    p.add_argument(
-        "--downsample",
-        type=downsample_blocks,
-        default=1,
-        metavar="N|auto",
-        help="as for `cvmeasure part`: measure the wire on the photo averaged over N x N pixel blocks (default 1: "
-        "its own pixels); auto: with the wire's diameter, the blocks that bring it nearest 12 px "
-        "wide. For a wire about 18 px wide or more (2-3 mm at 0.11 mm/px, a 24 MP camera's full "
-        "size) 2 measured better on the held-out renders (docs/part-measurement.md says where it "
-        "costs); the board's plane is always found at full size",
-    )
+    add_downsample_option(p, as_for="as for `cvmeasure part`: ")
     p.add_argument("-o", "--out", type=Path, required=True, help="corrected calibration JSON")
     p.add_argument("--gcode", type=Path, required=True, help="corrected G-code of the next part")
     p.add_argument(

@@ -94,3 +94,19 @@ def downsample_blocks(text: str) -> int | None:
         raise argparse.ArgumentTypeError(
             f"must be auto or a whole number in 1..8, got {text!r}"
         ) from None
+
+
+def add_downsample_option(p: argparse.ArgumentParser, *, as_for: str = "") -> None:
+    """``--downsample N|auto`` (:func:`downsample_blocks`), for ``part`` and the commands
+    that measure a part as it does (``as_for`` begins the help with that)."""
+    p.add_argument(
+        "--downsample",
+        type=downsample_blocks,
+        default=1,
+        metavar="N|auto",
+        help=as_for + "measure the wire on the photo averaged over N x N pixel blocks (default 1: "
+        "its own pixels); auto: with the wire's diameter, the blocks that bring it nearest 12 px "
+        "wide. For a wire about 18 px wide or more (2-3 mm at 0.11 mm/px, a 24 MP camera's full "
+        "size) 2 measured better on the held-out renders (docs/part-measurement.md says where it "
+        "costs); the board's plane is always found at full size",
+    )

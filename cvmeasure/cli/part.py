@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from cvmeasure.cli.design_options import add_plan_options, plan_from_args
-from cvmeasure.cli.options import downsample_blocks, int_in, non_negative_float, positive_float
+from cvmeasure.cli.options import add_downsample_option, int_in, non_negative_float, positive_float
 from cvmeasure.cli.startup import libraries_loading
 from cvmeasure.method_names import PART_METHOD_ALIASES, PART_METHODS
 
@@ -130,17 +130,7 @@ def _add_wire_and_lift_options(p: argparse.ArgumentParser) -> None:
         default="round",
         help="shape of the wire's ends: round (hemispherical, default) or flat (square-cut)",
     )
-    p.add_argument(
-        "--downsample",
-        type=downsample_blocks,
-        default=1,
-        metavar="N|auto",
-        help="measure the wire on the photo averaged over N x N pixel blocks (default 1: "
-        "its own pixels); auto: with the wire's diameter, the blocks that bring it nearest 12 px "
-        "wide. For a wire about 18 px wide or more (2-3 mm at 0.11 mm/px, a 24 MP camera's full "
-        "size) 2 measured better on the held-out renders (docs/part-measurement.md says where it "
-        "costs); the board's plane is always found at full size",
-    )
+    add_downsample_option(p)
 
 
 def run(args: argparse.Namespace) -> int:
