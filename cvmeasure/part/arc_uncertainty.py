@@ -31,6 +31,13 @@ ends' sweep by moving the vertices by it and refitting:
   ``part_chord_spacing`` warning): the bend per chord is uncertain by their difference,
   and the radius by the same share (the wire's length along the arc, which the
   centreline measures best, is the radius times the angle);
+* a part whose chords the photo did not show (no chord count: the radius is the wire's
+  best circle): bent in chords, its vertices lie on the bend's circle and each chord
+  inside it, at most by the sagitta s, so the best circle lies about 2/3 s inside and the
+  centreline's residuals about it (the chords' scallop) have an RMS of about 0.30 s; the
+  radius may so be low by up to :data:`UNSEEN_CHORDS_BIAS_PER_RMS` times that RMS
+  (the centreline's noise counts in too, so a bound), a one-sided bias counted as a
+  standard uncertainty of half of it, so that 2 sigma reaches it;
 * a lift measured and corrected (a shadow or a moved photo): its 2-sigma effect
   (``lift.effect_*``) halved. A lift only bounded (``lift.used == "bound"``) is left out:
   its worst effect is stated in ``lift`` and the ``part_lifted`` warning.
@@ -52,6 +59,7 @@ __all__ = [
     "SILHOUETTE_OFFSET_PX",
     "SYMMETRY_OFFSET_SHARE",
     "END_ALONG_PX",
+    "UNSEEN_CHORDS_BIAS_PER_RMS",
     "ArcUncertainty",
     "arc_uncertainty",
     "imprecision_warning",
@@ -82,6 +90,12 @@ SYMMETRY_OFFSET_SHARE = 0.1
 #: 0.25 px, RMS 0.96 px over 168 ends, leaving out 14 ends misplaced by over 5 px).
 END_ALONG_PX = 1.0
 
+#: How far below the vertices' circle the best circle of a part bent in chords can lie, in
+#: units of the centreline's RMS about that circle: a chord's points lie inside the circle
+#: by s (1 - phi^2 / alpha^2) (s the sagitta, phi the angle along the chord, alpha its half),
+#: whose mean is 2/3 s and RMS about the mean 2 / sqrt(45) s: the ratio is sqrt(5).
+UNSEEN_CHORDS_BIAS_PER_RMS = math.sqrt(5.0)
+
 
 @dataclass(frozen=True)
 class ArcUncertainty:
@@ -94,9 +108,10 @@ class ArcUncertainty:
     arc_angle_sigma_deg : one standard uncertainty of the arc angle, degrees.
     segment_bend_sigma_deg : that over the chords, degrees (None without divisions).
     sampling_radius_mm, scale_radius_mm, offset_radius_mm, ends_radius_mm, lift_radius_mm,
-    spacing_radius_mm : the radius' terms: the circle fit's sampling, the plane's scale, the
-        centreline's common offset across the wire, the end points' along it, a corrected
-        lift's, and the spacing's disagreement (where ``part_chord_spacing`` warns); mm.
+    spacing_radius_mm, chords_radius_mm : the radius' terms: the circle fit's sampling, the
+        plane's scale, the centreline's common offset across the wire, the end points' along
+        it, a corrected lift's, the spacing's disagreement (where ``part_chord_spacing``
+        warns), and unseen chords' (without a chord count; 0 with one); mm.
     sampling_arc_deg, ends_arc_deg, offset_arc_deg, lift_arc_deg, spacing_arc_deg : the
         arc angle's terms: the fitted centre's, the end points' along the wire, the
         centreline's offset, a corrected lift's, and the vertices' spacing's disagreement
@@ -112,6 +127,7 @@ class ArcUncertainty:
     ends_radius_mm: float
     lift_radius_mm: float
     spacing_radius_mm: float
+    chords_radius_mm: float
     sampling_arc_deg: float
     ends_arc_deg: float
     offset_arc_deg: float
@@ -217,8 +233,19 @@ def arc_uncertainty(
     # the wire's length along the arc is what the centreline measures best: its radius is
     # that over the angle, so an angle uncertain by a share is a radius uncertain by it
     spacing_r = radius_mm * spacing_arc / base[1] if base[1] > 0.0 else 0.0
+    chords_r = 0.0
+    if n is None:
+        # no chord count: chords the photo did not show may pull the best circle inside
+        res = np.hypot(*(v - c).T) - radius_mm
+        chords_r = 0.5 * UNSEEN_CHORDS_BIAS_PER_RMS * math.sqrt(float(np.mean(res**2)))
     radius_sigma = math.sqrt(
-        sampling_r**2 + scale_r**2 + offset_r**2 + ends_r**2 + lift_r**2 + spacing_r**2
+        sampling_r**2
+        + scale_r**2
+        + offset_r**2
+        + ends_r**2
+        + lift_r**2
+        + spacing_r**2
+        + chords_r**2
     )
 
     # the arc angle is the end vertices' sweep about the centre: the centre moved by dc
@@ -244,6 +271,7 @@ def arc_uncertainty(
         ends_radius_mm=ends_r,
         lift_radius_mm=lift_r,
         spacing_radius_mm=spacing_r,
+        chords_radius_mm=chords_r,
         sampling_arc_deg=sampling_arc,
         ends_arc_deg=ends_arc,
         offset_arc_deg=float(offset_arc),

@@ -85,6 +85,43 @@ def test_each_common_term_is_what_moving_the_vertices_alike_does_to_the_fit():
     assert _uncertainty(v, end_uncertainty_px=[5.0, 0.0]).ends_arc_deg > u.ends_arc_deg
 
 
+def _along_polygon(v: np.ndarray, step_mm: float = 0.1) -> np.ndarray:
+    """Points every ``step_mm`` along the polygon's chords (a centreline without noise)."""
+    pts = [a + t * (b - a) for a, b in zip(v[:-1], v[1:], strict=True)
+           for t in np.arange(0.0, 1.0, step_mm / float(np.hypot(*(b - a))))]  # fmt: skip
+    return np.vstack((pts, v[-1:]))
+
+
+@pytest.mark.parametrize("divisions", [6, 13])
+def test_without_a_chord_count_the_radius_sigma_reaches_the_vertices_circle(divisions):
+    # a part bent in chords, its count not found: the radius is the centreline's best
+    # circle, inside the vertices' circle by about 2/3 of the sagitta; the stated 2 sigma
+    # must reach the vertices' circle (the radius asked for)
+    phi = np.radians(-90.0 - ARC_DEG / 2 + np.linspace(0.0, ARC_DEG, divisions + 1))
+    v = R_MM * np.column_stack((np.cos(phi), np.sin(phi)))
+    line = _along_polygon(v)
+    geo, circle = polygon_arc(line)
+    sagitta_mm = R_MM * (1.0 - math.cos(math.radians(ARC_DEG / divisions / 2)))
+    low_mm = R_MM - geo.radius_mm
+    assert 0.5 * sagitta_mm < low_mm < 0.8 * sagitta_mm  # 2/3 of it, the arc's ends aside
+    u = _uncertainty(line, divisions=None)
+    assert u.chords_radius_mm > 0.0
+    assert low_mm <= 2.0 * u.radius_sigma_mm <= 1.6 * low_mm  # reached, not far beyond
+    # with the count, the chords are fitted: no such term
+    assert _uncertainty(v, divisions=divisions).chords_radius_mm == 0.0
+
+
+def test_a_smooth_arcs_unseen_chords_term_is_its_noise():
+    # a smooth arc (no chords) with centreline noise 0.05 mm: the term is the bound sqrt(5)
+    # times the noise, halved
+    rng = np.random.default_rng(3)
+    phi = np.radians(np.linspace(-150.0, -30.0, 1200))
+    line = R_MM * np.column_stack((np.cos(phi), np.sin(phi)))
+    line += rng.normal(0.0, 0.05, line.shape)  # 0.05 mm rms on each axis, so radially too
+    u = _uncertainty(line, divisions=None)
+    assert u.chords_radius_mm == pytest.approx(0.5 * math.sqrt(5.0) * 0.05, rel=0.1)
+
+
 def test_a_straight_wire_has_no_radius_uncertainty():
     line = np.column_stack((np.linspace(0.0, 80.0, N + 1), np.zeros(N + 1)))
     geo, circle = polygon_arc(line)
