@@ -208,7 +208,8 @@ def arc_uncertainty(
     if base is None:
         return None
     c = np.asarray(circle_centre_mm, dtype=np.float64)
-    outward = (v - c) / np.hypot(*(v - c).T)[:, None]
+    from_centre_mm = np.hypot(*(v - c).T)
+    outward = (v - c) / from_centre_mm[:, None]
     moved = _radius_and_sweep(v + offset_mm * outward)
     offset_r, offset_arc = (0.0, 0.0) if moved is None else np.abs(np.subtract(moved, base))
     # an end off along the wire moves along its chord: the arc turns by about u / R, and
@@ -236,7 +237,7 @@ def arc_uncertainty(
     chords_r = 0.0
     if n is None:
         # no chord count: chords the photo did not show may pull the best circle inside
-        res = np.hypot(*(v - c).T) - radius_mm
+        res = from_centre_mm - radius_mm
         chords_r = 0.5 * UNSEEN_CHORDS_BIAS_PER_RMS * math.sqrt(float(np.mean(res**2)))
     radius_sigma = math.sqrt(
         sampling_r**2

@@ -19,6 +19,7 @@ from cvmeasure.part.arc_uncertainty import (
 )
 from cvmeasure.part.measure import measure_part
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
+from cvmeasure.part.profiles import resample_path
 from cvmeasure.warning import has_code
 from cvmeasure_datasets.optics import Pose
 from cvmeasure_datasets.round_wire import render_round_wire
@@ -85,13 +86,6 @@ def test_each_common_term_is_what_moving_the_vertices_alike_does_to_the_fit():
     assert _uncertainty(v, end_uncertainty_px=[5.0, 0.0]).ends_arc_deg > u.ends_arc_deg
 
 
-def _along_polygon(v: np.ndarray, step_mm: float = 0.1) -> np.ndarray:
-    """Points every ``step_mm`` along the polygon's chords (a centreline without noise)."""
-    pts = [a + t * (b - a) for a, b in zip(v[:-1], v[1:], strict=True)
-           for t in np.arange(0.0, 1.0, step_mm / float(np.hypot(*(b - a))))]  # fmt: skip
-    return np.vstack((pts, v[-1:]))
-
-
 @pytest.mark.parametrize("divisions", [6, 13])
 def test_without_a_chord_count_the_radius_sigma_reaches_the_vertices_circle(divisions):
     # a part bent in chords, its count not found: the radius is the centreline's best
@@ -99,7 +93,7 @@ def test_without_a_chord_count_the_radius_sigma_reaches_the_vertices_circle(divi
     # must reach the vertices' circle (the radius asked for)
     phi = np.radians(-90.0 - ARC_DEG / 2 + np.linspace(0.0, ARC_DEG, divisions + 1))
     v = R_MM * np.column_stack((np.cos(phi), np.sin(phi)))
-    line = _along_polygon(v)
+    line = resample_path(v, 0.1)  # every 0.1 mm along the chords: a centreline without noise
     geo, circle = polygon_arc(line)
     sagitta_mm = R_MM * (1.0 - math.cos(math.radians(ARC_DEG / divisions / 2)))
     low_mm = R_MM - geo.radius_mm
