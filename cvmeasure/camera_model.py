@@ -22,9 +22,24 @@ import numpy as np
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, read_json
 
-__all__ = ["CameraModel", "implausible_distortion", "load_camera", "save_camera"]
+__all__ = [
+    "SCALED_LENS_FIGURES",
+    "CameraModel",
+    "implausible_distortion",
+    "load_camera",
+    "save_camera",
+]
 
 _VALID_DIST_LENGTHS = (4, 5, 8, 12, 14)
+
+#: The lens record's figures a rescaled camera carries, each ``(section, key)`` in pixels
+#: (:meth:`CameraModel.scaled`): the median projection uncertainty and the even/odd
+#: halves' disagreement that :meth:`cvmeasure.plane_model.PlaneModel.lens_uncertainty_mm`
+#: states in mm.
+SCALED_LENS_FIGURES = (
+    ("projection_uncertainty", "median_px"),
+    ("cross_validation", "central_60pct_rms_px"),
+)
 
 
 @dataclass(frozen=True)
@@ -88,14 +103,26 @@ class CameraModel:
         return cls((w, h), k, np.asarray(dist_coeffs, dtype=np.float64))
 
     def scaled(self, factor: float) -> CameraModel:
-        """The same lens for an image resized by ``factor`` (pixel-centre convention kept)."""
+        """The same lens for an image resized by ``factor`` (pixel-centre convention kept).
+
+        The lens record keeps the calibration's own uncertainty, in pixels of the resized
+        image (:data:`SCALED_LENS_FIGURES`), so that a reduced photo states the same
+        uncertainty in mm on the plate as the photo the camera was calibrated at; the rest
+        of the record (views, RMS of the calibration's own images) is not carried.
+        """
         k = self.camera_matrix.copy()
         k[0, 0] *= factor
         k[1, 1] *= factor
         k[0, 2] = (k[0, 2] + 0.5) * factor - 0.5
         k[1, 2] = (k[1, 2] + 0.5) * factor - 0.5
         w, h = self.image_size_px
-        return CameraModel((round(w * factor), round(h * factor)), k, self.dist_coeffs.copy())
+        record: dict[str, Any] = {}
+        for section, key in SCALED_LENS_FIGURES:
+            value = (self.lens_record.get(section) or {}).get(key)
+            if value is not None:
+                record[section] = {key: float(value) * factor}
+        size = (round(w * factor), round(h * factor))
+        return CameraModel(size, k, self.dist_coeffs.copy(), lens_record=record)
 
     def for_image(self, size_px: tuple[int, int], source: str = "photo") -> CameraModel:
         """This camera for a photo of ``size_px`` (width, height) px.

@@ -65,19 +65,9 @@ def downsample_photo(
     h, w = image.shape[:2]
     hk, wk = h // factor, w // factor
     small = cv2.resize(image[: hk * factor, : wk * factor], (wk, hk), interpolation=cv2.INTER_AREA)
-    scaled = plane.scaled(1.0 / factor)
-    # the lens' uncertainty is read in pixels of the image the camera is for: carried to
-    # the working pixels so that its figure in mm on the plate stays the photo's
-    lens = plane.camera.lens_record or {}
-    unc = (lens.get("projection_uncertainty") or {}).get("median_px")
-    cv = (lens.get("cross_validation") or {}).get("central_60pct_rms_px")
-    record = {}
-    if unc is not None:
-        record["projection_uncertainty"] = {"median_px": float(unc) / factor}
-    if cv is not None:
-        record["cross_validation"] = {"central_60pct_rms_px": float(cv) / factor}
-    camera = replace(scaled.camera, lens_record=record)
-    return small, replace(scaled, camera=camera)
+    # the lens' uncertainty goes with the camera, in working pixels: its figure in mm on
+    # the plate stays the photo's (:meth:`cvmeasure.camera_model.CameraModel.scaled`)
+    return small, plane.scaled(1.0 / factor)
 
 
 def photo_px(points_px: np.ndarray, factor: int) -> np.ndarray:

@@ -43,6 +43,21 @@ def test_scaled_keeps_pixel_centre_convention():
     assert cam.fx == pytest.approx(3000.0)
 
 
+def test_scaled_carries_the_lens_uncertainty_in_its_own_pixels():
+    record = {
+        "rms_px": 0.2,
+        "projection_uncertainty": {"median_px": 0.12, "p95_px": 0.3},
+        "cross_validation": {"central_60pct_rms_px": 0.4},
+    }
+    cam = CameraModel(_cam().image_size_px, _cam().camera_matrix, _cam().dist_coeffs, record)
+    half = cam.scaled(0.5)
+    assert half.lens_record == {
+        "projection_uncertainty": {"median_px": pytest.approx(0.06)},
+        "cross_validation": {"central_60pct_rms_px": pytest.approx(0.2)},
+    }
+    assert _cam().scaled(0.5).lens_record == {}  # nothing stated, nothing made up
+
+
 @pytest.mark.parametrize(
     "payload, message",
     [

@@ -71,6 +71,12 @@ def test_image_to_plane_maps_corners_to_board_mm(charuco_board, true_camera):
     lens = fit_plane(det, cam2).lens_uncertainty_mm()
     assert lens["sigma_mm"] == pytest.approx(0.1 * plane.mm_per_px)
     assert lens["cross_validation_mm"] == pytest.approx(0.5 * plane.mm_per_px)
+    # a photo resized to half (a reduced JPEG, a half-size RAW) states the same in mm: its
+    # plane is the photo's rescaled, and the camera's figures go with it in its pixels
+    w, h = true_camera.image_size_px
+    half = fit_plane(det, cam2).for_image((w // 2, h // 2))
+    assert half.mm_per_px == pytest.approx(2.0 * plane.mm_per_px)
+    assert half.lens_uncertainty_mm() == pytest.approx(lens)
 
 
 def test_plane_to_image_px_of_raised_points_inverts_image_to_plane(charuco_board, true_camera):
