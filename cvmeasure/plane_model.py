@@ -207,7 +207,9 @@ class PlaneModel:
         a view's corners share);
         ``cross_validation_mm``: the even/odd halves' central disagreement, which
         also holds model error -- the honest figure. None when the camera JSON
-        does not carry them (not written by ``cvmeasure calibrate``, or rescaled).
+        does not carry them (not written by ``cvmeasure calibrate``); a camera rescaled
+        for a resized photo carries them in its pixels
+        (:meth:`cvmeasure.camera_model.CameraModel.scaled`).
         """
         cal = self.camera.lens_record or {}
         unc = (cal.get("projection_uncertainty") or {}).get("median_px")
