@@ -31,6 +31,7 @@ from benchmarks.heldout.mitsuba_scenes import (
     BoardScene,
     CameraRig,
     PartScene,
+    part_axis_mm,
     render_board,
     render_part,
 )
@@ -339,11 +340,67 @@ _COLUMNS = [
     "radius_err_sigmas",
     "bend_err_sigmas",
     "verdict",
+    "axis_offset_px",
+    "ends_along_px",
+    "ends_across_px",
     "warnings / refusal",
 ]
 
 
-def _row(shot: Shot, rc: int, rec: dict, err: str, s: dict) -> list:
+#: An end point farther than this from the true axis's end (px, along or across) counts
+#: as misplaced in the axis rows.
+END_OFF_PX = 5.0
+
+
+def _axis_px(scene: PartScene, rig: CameraRig, per_chord: int = 200) -> np.ndarray:
+    """The rendered wire's axis in the photo (M, 2) px: its polygon sampled densely and
+    projected through the rig and the lens distortion the photos are made with."""
+    v = part_axis_mm(scene)
+    t = np.linspace(0.0, 1.0, per_chord, endpoint=False)[:, None]
+    dense = np.vstack([a + t * (b - a) for a, b in zip(v[:-1], v[1:], strict=True)] + [v[-1:]])
+    rot, tvec = rig.world_to_camera()
+    rvec, _ = cv2.Rodrigues(rot)
+    px, _ = cv2.projectPoints(dense, rvec, tvec, rig.matrix(), np.asarray(LENS_DIST))
+    return px[:, 0]
+
+
+def axis_errors_px(scene: PartScene, rig: CameraRig, centreline_px: np.ndarray) -> dict:
+    """Where a measured centreline (M, 2 px, end to end) lies against the rendered axis.
+
+    ``offset_px``: the median over the centres of their distance from the axis, positive
+    outside the arc (a common offset moves the radius by it); ``ends_along_px``: each end
+    point's distance past the axis's end along the end chord (positive beyond, negative
+    short), in the axis's order; ``ends_across_px``: its distance from the end chord's line.
+    """
+    axis = _axis_px(scene, rig)
+    pts = np.asarray(centreline_px, dtype=np.float64)
+    if np.hypot(*(pts[0] - axis[0])) > np.hypot(*(pts[0] - axis[-1])):
+        pts = pts[::-1]
+    a, d = axis[:-1], np.diff(axis, axis=0)
+    length2 = np.maximum((d * d).sum(axis=1), 1e-12)
+    t = np.clip(((pts[:, None, :] - a[None]) * d[None]).sum(axis=2) / length2, 0.0, 1.0)
+    foot = a[None] + t[..., None] * d[None]
+    dist = np.hypot(*(pts[:, None, :] - foot).transpose(2, 0, 1))
+    j = np.argmin(dist, axis=1)
+    left = np.column_stack((-d[j, 1], d[j, 0])) / np.sqrt(length2[j])[:, None]
+    side = ((pts - foot[np.arange(len(pts)), j]) * left).sum(axis=1)
+    # the arc bends towards its centre: a left offset is outward where the axis turns right
+    (ax, ay), (bx, by) = axis[len(axis) // 2] - axis[0], axis[-1] - axis[len(axis) // 2]
+    turn = ax * by - ay * bx
+    outward = -side if turn > 0 else side
+    along, across = [], []
+    for end, a0, a1 in ((pts[0], axis[0], axis[1]), (pts[-1], axis[-1], axis[-2])):
+        u = (a0 - a1) / np.hypot(*(a0 - a1))  # outward along the end chord
+        along.append(float((end - a0) @ u))
+        across.append(float(abs((end - a0) @ np.array([-u[1], u[0]]))))
+    return {
+        "offset_px": float(np.median(outward[1:-1])),
+        "ends_along_px": along,
+        "ends_across_px": across,
+    }
+
+
+def _row(shot: Shot, rc: int, rec: dict, err: str, s: dict, ax: dict | None) -> list:
     sc = shot.scene
     why = "; ".join(_codes(rec)) if rc == 0 else f"exit {rc}: {err.splitlines()[-1] if err else ''}"
     rnd = lambda v, d: None if v is None else round(v, d)  # noqa: E731
@@ -363,6 +420,9 @@ def _row(shot: Shot, rc: int, rec: dict, err: str, s: dict) -> list:
         rnd(s.get("radius_z_stated"), 2),
         rnd(s.get("bend_z_stated"), 2),
         s["verdict"] + (" (lift bound only)" if s.get("silent_strict") else ""),
+        None if ax is None else round(ax["offset_px"], 2),
+        None if ax is None else " / ".join(f"{v:+.1f}" for v in ax["ends_along_px"]),
+        None if ax is None else " / ".join(f"{v:.1f}" for v in ax["ends_across_px"]),
         why[:200],
     ]
 
@@ -379,6 +439,32 @@ _FLAT_ROWS = (
     "radius within 2 stated sigma",
     "bend per chord within 2 stated sigma",
 )
+
+
+def _axis_metrics(axes: list[dict | None]) -> list[Metric]:
+    """Rows on where the centrelines lie against the rendered axis (no targets: what the
+    stated sigmas rest on, seen directly)."""
+    got = [a for a in axes if a is not None]
+    if not got:
+        return []
+    offsets = [abs(a["offset_px"]) for a in got]
+    misplaced = sum(
+        max(abs(v) for v in a["ends_along_px"] + a["ends_across_px"]) > END_OFF_PX for a in got
+    )
+    return [
+        Metric(
+            "centreline's common offset from the true axis, |median|, largest over photos",
+            round(max(offsets), 2), "px", None, None,
+        ),
+        Metric(
+            "centreline's common offset from the true axis, |median|, median over photos",
+            round(float(np.median(offsets)), 2), "px", None, None,
+        ),
+        Metric(
+            f"photos with an end point over {END_OFF_PX:g} px from the true axis's end",
+            misplaced, "photos", None, None,
+        ),
+    ]  # fmt: skip
 
 
 def _metrics(scores: list[dict], n: int) -> list[Metric]:
@@ -543,11 +629,15 @@ def run(
     render_s, render_cpu_s = time.perf_counter() - t0, time.process_time() - c0
     rows, scores = [], []
     t1 = time.perf_counter()
+    axes = []
     for shot in shots:
         rc, rec, err = measure(shot.photo, board, cam, shot.scene.wire_diameter_mm)
         s = score(shot.truth, rc, rec)
         scores.append(s)
-        rows.append(_row(shot, rc, rec, err, s))
+        line = rec.get("centreline_px") if rc == 0 else None
+        ax = None if not line else axis_errors_px(shot.scene, rig, np.asarray(line))
+        axes.append(ax)
+        rows.append(_row(shot, rc, rec, err, s, ax))
     measure_s = time.perf_counter() - t1
     calib = json.loads(cam.read_text())
     metrics = _metrics(scores, len(scores))
@@ -558,6 +648,7 @@ def run(
             for m in _metrics(flat, len(flat))
             if m.name in _FLAT_ROWS
         ]
+    metrics += _axis_metrics(axes)
     if downsample:
         metrics += _downsampled_metrics(shots, board, cam, downsample)
     metrics += [
@@ -593,6 +684,12 @@ def run(
             "printed cork; the default lamp (22 deg) or a low one (8 deg)",
             "measured with `cvmeasure part PHOTO --board --camera --wire-diameter-mm D --json` "
             "(chord count found in the photo); truth: the circle's radius and arc angle / N",
+            "axis columns: the record's centreline_px against the rendered axis projected into "
+            "the photo through the rig and the lens distortion above: axis_offset_px the "
+            "centres' median distance from it (+ outside the arc: a common offset moves the "
+            "radius by it), ends_along_px each end point past (+) or short of (-) the axis's "
+            "end along the end chord, ends_across_px its distance from that chord's line; "
+            "their rows have no targets",
             "a miss counts as refused when exit 2 or a warning covering it: radius by "
             + ", ".join(sorted(COVERS["radius"]))
             + "; bend per chord also by "

@@ -520,28 +520,36 @@ def _lifted(flat_xy: np.ndarray, lift_mm: float) -> np.ndarray:
     return np.column_stack([xy, along * math.sin(tilt)])
 
 
-def _arc_shapes(
-    scene: PartScene, centre_xy: tuple[float, float], sheet_z_mm: float
-) -> dict[str, dict]:
-    rw = scene.wire_diameter_mm / 2.0
-    z = sheet_z_mm + rw
+#: The matte sheet's top above the board's plane (mm), and where the arc's midpoint sits
+#: (over the matte sheet's centre, world mm).
+SHEET_Z_MM = 0.05
+MATTE_CENTRE_X_MM = 140.0
+
+
+def part_axis_mm(scene: PartScene) -> np.ndarray:
+    """The wire's axis as rendered: its polygon's vertices (N+1, 3), world mm (the arc's
+    midpoint over the matte sheet's centre, the axis a wire radius above the sheet, lifted
+    as the scene says). A smooth arc (no chords) is drawn as 3-degree chords."""
     half = math.radians(scene.arc_angle_deg) / 2.0
     yaw = math.radians(scene.yaw_deg)
+    back = scene.radius_mm - part_truth(scene)["height_mm"] / 2.0
+    centre = (MATTE_CENTRE_X_MM - back * math.cos(yaw), -back * math.sin(yaw))
     n = scene.chords if scene.chords > 0 else max(8, int(scene.arc_angle_deg / 3.0))
     ang = yaw + np.linspace(-half, half, n + 1)
-    flat = np.array(
-        [
-            [
-                centre_xy[0] + scene.radius_mm * math.cos(a),
-                centre_xy[1] + scene.radius_mm * math.sin(a),
-            ]
-            for a in ang
-        ]
+    flat = np.column_stack(
+        [centre[0] + scene.radius_mm * np.cos(ang), centre[1] + scene.radius_mm * np.sin(ang)]
     )
-    pts = [[x, y, z + dz] for x, y, dz in _lifted(flat, scene.lift_mm)]
+    pts = _lifted(flat, scene.lift_mm)
+    pts[:, 2] += SHEET_Z_MM + scene.wire_diameter_mm / 2.0
+    return pts
+
+
+def _arc_shapes(scene: PartScene) -> dict[str, dict]:
+    rw = scene.wire_diameter_mm / 2.0
+    pts = [[float(v) for v in p] for p in part_axis_mm(scene)]
     steel = _metal("Fe", scene.steel_alpha)
     shapes: dict[str, dict] = {}
-    for i in range(n):
+    for i in range(len(pts) - 1):
         shapes[f"arc{i}"] = {
             "type": "cylinder",
             "p0": pts[i],
@@ -583,14 +591,12 @@ def render_part(
         d["sheet"] = _sheet_shape(mi, Path(board_png), (0.0, 0.0, 0.0), (-110.0, 0.0, 0.0))
         d["matte"] = {
             "type": "rectangle",
-            "to_world": tf().translate([140.0, 0.0, 0.05]).scale([100.0, 95.0, 1.0]),
+            "to_world": tf()
+            .translate([MATTE_CENTRE_X_MM, 0.0, SHEET_Z_MM])
+            .scale([100.0, 95.0, 1.0]),
             "bsdf": _sheet_bsdf(scene, texture_png),
         }
-        # the arc's midpoint sits over the matte sheet's centre
-        mid = math.radians(scene.yaw_deg)
-        back = scene.radius_mm - truth["height_mm"] / 2.0
-        centre = (140.0 - back * math.cos(mid), -back * math.sin(mid))
-        d.update(_arc_shapes(scene, centre, 0.05))
+        d.update(_arc_shapes(scene))
         _write_jpeg(mi, mi.render(mi.load_dict(d)), jpg)
         jpg.with_suffix(".json").write_text(json.dumps(truth, indent=1))
     return jpg, truth
