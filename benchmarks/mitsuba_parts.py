@@ -372,6 +372,8 @@ def axis_errors_px(scene: PartScene, rig: CameraRig, centreline_px: np.ndarray) 
     point's distance past the axis's end along the end chord (positive beyond, negative
     short), in the axis's order; ``ends_across_px``: its distance from the end chord's line.
     """
+    # the closest points on the axis computed here, not by the measured package's own
+    # (cvmeasure.part.compare.point_to_polyline): this module scores through the CLI only
     axis = _axis_px(scene, rig)
     pts = np.asarray(centreline_px, dtype=np.float64)
     if np.hypot(*(pts[0] - axis[0])) > np.hypot(*(pts[0] - axis[-1])):

@@ -21,6 +21,7 @@ from benchmarks.heldout.mitsuba_scenes import (  # noqa: E402
     render_part,
 )
 from benchmarks.mitsuba_parts import part_rig, score  # noqa: E402
+from cvmeasure.part.compare import point_to_polyline  # noqa: E402
 
 
 def _board_png(tmp_path: Path) -> Path:
@@ -74,12 +75,8 @@ def test_rendered_arc_has_the_truth_radius_and_chords(tmp_path: Path) -> None:
     assert radius == pytest.approx(60.0, rel=0.015)
     # and the axis the benchmark scores against is the one drawn: every steel pixel on the
     # matte lies within the wire's radius (and a pixel, 0.8 mm) of it
-    v = part_axis_mm(scene)[:, :2]
-    pts = world[:, on_matte].T
-    a, d = v[:-1], np.diff(v, axis=0)
-    t = np.clip(((pts[:, None] - a[None]) * d[None]).sum(2) / (d * d).sum(1)[None], 0.0, 1.0)
-    gap = np.hypot(*(pts[:, None] - a[None] - t[..., None] * d[None]).transpose(2, 0, 1))
-    assert gap.min(axis=1).max() < scene.wire_diameter_mm / 2.0 + 0.8
+    _, gap, _ = point_to_polyline(world[:, on_matte].T, part_axis_mm(scene)[:, :2])
+    assert np.abs(gap).max() < scene.wire_diameter_mm / 2.0 + 0.8
 
 
 def test_score_counts_refusals_warnings_and_silent_misses() -> None:
