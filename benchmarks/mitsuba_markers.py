@@ -154,15 +154,40 @@ def _timed(cache: Path, kind: str, render, *args) -> Path | tuple:
 _RENDERED: list[tuple[str, float | None]] = []
 
 
-def _render_cpu_h() -> float:
+def _render_cpu_h(kinds: tuple[str, ...] = ("board", "bender")) -> float:
     """CPU hours of every render of the set; a render whose cost was not kept counted at
     the mean of its kind's."""
     total = 0.0
-    for kind in ("board", "bender"):
+    for kind in kinds:
         known = [s for k, s in _RENDERED if k == kind and s is not None]
         n = sum(k == kind for k, _ in _RENDERED)
         total += float(np.mean(known)) * n if known else float("nan")
     return total / 3600.0
+
+
+#: The Mitsuba sections whose renders make up the whole held-out set (issue 41's budget).
+RENDER_SETS = ("mitsuba_markers", "mitsuba_parts", "mitsuba_parts_full")
+
+
+def record_render_set(cache: Path, name: str, cpu_h: float, renders: int) -> None:
+    """Keep this set's render cost beside the cache, for the whole set's budget."""
+    log = cache / "render_sets.json"
+    sets = json.loads(log.read_text()) if log.exists() else {}
+    sets[name] = {"cpu_h": None if math.isnan(cpu_h) else round(cpu_h, 4), "renders": renders}
+    tmp = log.with_suffix(".tmp")
+    tmp.write_text(json.dumps(sets, indent=1))
+    tmp.replace(log)
+
+
+def whole_set_cpu_h(cache: Path) -> tuple[float, list[str]]:
+    """CPU hours of every render of every Mitsuba set, and the sets whose cost is not known
+    (not run on this cache, or rendered before costs were kept): NaN when any is missing."""
+    log = cache / "render_sets.json"
+    sets = json.loads(log.read_text()) if log.exists() else {}
+    missing = [n for n in RENDER_SETS if (sets.get(n) or {}).get("cpu_h") is None]
+    if missing:
+        return float("nan"), missing
+    return sum(float(sets[n]["cpu_h"]) for n in RENDER_SETS), []
 
 
 def _unc(rec: dict, key: str) -> float:
@@ -377,6 +402,8 @@ def main(argv: list[str] | None = None) -> dict:
         Metric("render and calibrate time (this run)", round(render_s, 1), "s", None, None)
     )
     cpu_h = _render_cpu_h()
+    if not args.quick and args.photos is None:  # the set as the benchmark defines it
+        record_render_set(args.cache, Path(__file__).stem, cpu_h, len(_RENDERED))
     metrics.append(
         Metric(
             "render budget: CPU time of every render / 2 cores",

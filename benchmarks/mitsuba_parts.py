@@ -35,7 +35,15 @@ from benchmarks.heldout.mitsuba_scenes import (
     render_board,
     render_part,
 )
-from benchmarks.mitsuba_markers import _VIEWS, RENDER_CACHE
+from benchmarks.mitsuba_markers import (
+    _RENDERED,
+    _VIEWS,
+    RENDER_CACHE,
+    _render_cpu_h,
+    _timed,
+    record_render_set,
+    whole_set_cpu_h,
+)
 
 SECTION = "Finished parts on Mitsuba 3 renders (held-out renderer)"
 
@@ -315,7 +323,8 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
 def _calibrate(rig: CameraRig, spp: int, board_png: Path, board: Path, cache: Path, work: Path):
     views = []
     for i, (rvec, shift) in enumerate(_VIEWS):
-        jpg = render_board(BoardScene(rvec, shift, _view_rig(rig), spp), board_png, cache)
+        scene = BoardScene(rvec, shift, _view_rig(rig), spp)
+        jpg = _timed(cache, "board", render_board, scene, board_png, cache)
         views.append(through_camera(jpg, rig, seed=1000 + i))
     cam = work / "camera.json"
     res = _run(["calibrate", "--board", str(board), "-o", str(cam), *map(str, views)])
@@ -568,6 +577,16 @@ SMALL_PX = (1800, 1200)
 FULL_PX = (4608, 3072)
 
 
+def _whole_set_budget(cache: Path) -> Metric:
+    """Issue 41's render budget: every render of the held-out sets (bender photos, parts at
+    both sizes, their board views) in CPU hours over 2 cores."""
+    cpu_h, missing = whole_set_cpu_h(cache)
+    name = "render budget: CPU time of every Mitsuba render (bender and part sets) / 2 cores"
+    if missing:
+        name += " (not known: " + ", ".join(missing) + ")"
+    return Metric(name, round(cpu_h / 2, 3), "h", target="< 1", met=bool(cpu_h / 2 < 1.0))
+
+
 def main(argv: list[str] | None = None) -> dict:
     return run(argv, size_px=SMALL_PX, file=__file__, section=SECTION)
 
@@ -624,11 +643,13 @@ def run(
     shots = []
     lifted = scenes(0, rig, spp, seed=43, lifts=LIFTS_MM) if args.lifted else []
     for i, (scene, sheet, lamp) in enumerate(scenes(n, rig, spp) + lifted):
-        jpg, truth = render_part(
-            scene, board_png, args.cache, cork if scene.sheet_texture else None
-        )
+        texture = cork if scene.sheet_texture else None
+        jpg, truth = _timed(args.cache, "part", render_part, scene, board_png, args.cache, texture)
         shots.append(Shot(scene, sheet, lamp, through_camera(jpg, rig, seed=i), truth))
     render_s, render_cpu_s = time.perf_counter() - t0, time.process_time() - c0
+    set_cpu_h = _render_cpu_h(("board", "part"))
+    if not args.quick and args.photos is None and args.lifted:  # the set as defined
+        record_render_set(args.cache, name, set_cpu_h, len(_RENDERED))
     rows, scores = [], []
     t1 = time.perf_counter()
     axes = []
@@ -662,7 +683,16 @@ def run(
             "render CPU time, this run (0 when cached)", round(render_cpu_s, 1), "s", None, None
         ),
         Metric("measure time (all photos, wall)", round(measure_s, 1), "s", None, None),
+        Metric(
+            "render budget: CPU time of this set's renders / 2 cores",
+            round(set_cpu_h / 2, 3),
+            "h",
+            None,
+            None,
+        ),
     ]
+    if size_px == FULL_PX and not args.quick:
+        metrics.append(_whole_set_budget(args.cache))
     scale = 2.0 * 650.0 * math.tan(math.radians(21.0)) / w
     return finish(
         file,
