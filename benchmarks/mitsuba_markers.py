@@ -437,9 +437,9 @@ def main(argv: list[str] | None = None) -> dict:
             "filter stays 1 px: at these pixels (10 um on the D3100's sensor, 2x2 of its own) "
             "its lens and demosaic blur are no wider",
             "render budget: this set's renders are about 4x the pixels of a 1152x768 one "
-            "(about 50-60 CPU s each, 35 renders); with mitsuba_parts' 38 renders at 1800x1200 "
-            "px and 8 spp the whole Mitsuba set renders once in well under an hour on 2 cores "
-            "(this set's share is the budget metric above)",
+            "(about 50-60 CPU s each, 35 renders); the budget row above is this set's share, "
+            "the whole held-out set's (this one and the part sets at both sizes, each render's "
+            "CPU time kept beside the cache) is stated by mitsuba_parts_full",
             f"camera from `cvmeasure calibrate` on {len(_VIEWS)} rendered board views; plane from a board-on-plate render",
             "caps rendered at heights drawn within +-10 % of the built-in kit's nominal heights (as built); "
             f"the described kit holds those heights with height_sigma_mm {_HEIGHT_SIGMA_MM} (exact, "
