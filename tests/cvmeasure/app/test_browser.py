@@ -227,7 +227,7 @@ def test_server_killed_mid_session_resumes_from_the_page(browser, server):
     assert sorted(samples) == list(range(6))  # no bend lost, no completed bend repeated
 
 
-def _logged_bends(log_path) -> int:
+def _logged_bends(log_path: Path) -> int:
     """Bends a session log holds (0 before it exists)."""
     if not log_path.is_file():
         return 0
