@@ -53,7 +53,10 @@ then, where the profiles are a round wire's symmetric ones, their centres are ke
 one flank only) and single profiles show the pair along too little of the wire (a grainy
 sheet), the pairs are looked for again on profiles averaged along a wire width
 (``EDGE_AVERAGE_WIDTHS``). The end
-points are the caps' silhouettes on the axis less the half-width. The edges' distance is the wire's apparent width, which
+points are the caps' silhouettes on the axis less the half-width. Before they are looked
+for, an end whose first centres' profiles are not like the wire's nearby (a guide whose
+skeleton ends in a branch into the sheet: the centres run off the wire) is cut back to the
+first stretch that is, and the wire followed on from there (:mod:`cvmeasure.part.ends`). The edges' distance is the wire's apparent width, which
 :mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
 
 The steps live in their own modules: profile sampling and analysis in
@@ -94,6 +97,19 @@ from cvmeasure.part.profiles import (
 )
 
 __all__ = ["Centreline", "measure_centreline"]
+
+#: Least correlation of a centre's profile with the wire's nearby for it to be the wire's
+#: near an end (:func:`_end_stretches_like`).
+LIKE_MIN = 0.6
+#: Share of the centres along a wire width from an end's first kept one that must be like
+#: the wire's.
+LIKE_RUN_SHARE = 0.7
+#: Half-widths either side of a centre compared (:func:`_like_the_wire`).
+LIKE_SPAN = 1.3
+#: Wire widths either side of a centre whose profiles' median is the wire's profile there.
+LIKE_WINDOW_WIDTHS = 3.0
+#: Wire widths from each end within which centres unlike the wire are dropped.
+LIKE_END_WIDTHS = 3.0
 
 #: A pass's edge midpoints tracing a path this many times longer than their smoothed
 #: path zigzag across the wire; the next pass follows the smoothed one
@@ -352,13 +368,18 @@ def measure_centreline(
     # its cap is searched at the wire's own half-width where that is known
     cap_half_width = half_width
     known_width = not at_edges and wire_width_px is not None
+    like = _like_the_wire(prof_ok, offsets, half_width, step_px)
+    keep_like, cut = _end_stretches_like(like, half_width, step_px)
+    centres, prof_ok = centres[keep_like], prof_ok[keep_like]
+    widths = None if widths is None else widths[keep_like]
+    lit = None if lit is None else lit[keep_like]
     if known_width:
         cap_half_width = max(half_width, 0.5 * float(wire_width_px))
     found_ends = [
         end_point(
             g, centres, prof_ok, offsets, rho, cap_half_width,
             head=head, shape=end_shape, silhouette=at_edges, shadow=shadow,
-            axis_level=known_width,
+            axis_level=known_width, follow=cut[0 if head else 1],
         )
         for head in (True, False)
     ]  # fmt: skip
@@ -601,6 +622,80 @@ def _step_share(prof: np.ndarray, offsets: np.ndarray, width_px: float, step_px:
         0.0, np.minimum(left, right) - inside.min(axis=1)
     )
     return float(np.mean(beyond < np.abs(left - right)))
+
+
+def _like_the_wire(
+    profiles: np.ndarray, offsets: np.ndarray, half_width: float, step_px: float
+) -> np.ndarray:
+    """Each centre's profile's correlation with the wire's own profile nearby (M,), near
+    the ends (where :func:`_end_stretches_like` reads it; 1 elsewhere).
+
+    The wire's profile near a centre is the median of the profiles within
+    ``LIKE_WINDOW_WIDTHS`` wire widths along it, over ``LIKE_SPAN`` half-widths either
+    side of the centre (the wire, its silhouette and its foot on the sheet). A centre on
+    the axis has a profile like its neighbours' (0.85-0.98 on full-size Mitsuba parts); a
+    centre off it, or one whose normal crosses the wire (a skeleton's end branch turning
+    into the sheet), does not (-0.7 to 0.5).
+    """
+    sel = np.abs(offsets) <= LIKE_SPAN * half_width
+    block = profiles[:, sel].astype(np.float64)
+    block = block - block.mean(axis=1, keepdims=True)
+    n = len(block)
+    half = max(2, int(round(LIKE_WINDOW_WIDTHS * half_width / step_px)))
+    run, zone = _end_run_and_zone(half_width, step_px)
+    near = min(n, n // 4 + run + zone)
+    corr = np.ones(n)
+    for i in sorted(set(range(near)) | set(range(n - near, n))):
+        lo, hi = max(0, i - half), min(n, i + half + 1)
+        template = np.median(block[lo:hi], axis=0)
+        template = template - template.mean()
+        den = float(np.sqrt((block[i] @ block[i]) * (template @ template)))
+        corr[i] = float(block[i] @ template) / den if den > 0 else 0.0
+    return corr
+
+
+def _end_stretches_like(
+    corr: np.ndarray, half_width: float, step_px: float
+) -> tuple[np.ndarray, tuple[bool, bool]]:
+    """True (M,) at the centres kept for the end points, and whether each end (head, tail)
+    was cut back.
+
+    At an end whose first centres are not like the wire (:func:`_like_the_wire`; a
+    skeleton's branch turning into the sheet, a run of centres off the axis), the centres
+    before the first one that is like it, and followed by such centres along a wire width,
+    are dropped, and so are those unlike it within ``LIKE_END_WIDTHS`` widths of it. An
+    end whose first centre is like the wire is left as it is. Nothing is dropped where that
+    would leave under half the centres.
+    """
+    n = len(corr)
+    like = corr >= LIKE_MIN
+    keep = np.ones(n, dtype=bool)
+    cut = [False, False]
+    run, zone = _end_run_and_zone(half_width, step_px)
+    for e, order in enumerate((np.arange(n), np.arange(n)[::-1])):
+        first = next(
+            (
+                k
+                for k in range(min(n // 4, n - run))
+                if like[order[k]] and like[order[k : k + run]].mean() >= LIKE_RUN_SHARE
+            ),
+            None,
+        )
+        if not first:
+            continue
+        cut[e] = True
+        keep[order[:first]] = False
+        end_zone = order[first : first + zone]
+        keep[end_zone] &= like[end_zone]
+    if keep.sum() < n // 2:
+        return np.ones(n, dtype=bool), (False, False)
+    return keep, (cut[0], cut[1])
+
+
+def _end_run_and_zone(half_width: float, step_px: float) -> tuple[int, int]:
+    """Centres along a wire width, and along ``LIKE_END_WIDTHS`` widths."""
+    run = max(2, int(round(2.0 * half_width / step_px)))
+    return run, int(round(2.0 * LIKE_END_WIDTHS * half_width / step_px))
 
 
 def _inside_ends(

@@ -5,11 +5,17 @@ brightness beyond the end along the axis repeats the half-profile across the wir
 round wire measured between silhouette edges ends at its cap's silhouette less the
 half-width. An end facing its cast shadow on a light plate states how far inside the
 taken outline the true one could lie.
+
+Where the centres were cut back at an end (their guide, the mask's skeleton, ended in a
+branch turning off the wire into the sheet), the wire is followed on from the last centre
+kept by its own cross profile (:func:`_follow_end`): the end's line is the followed axis',
+and the cap is looked for at the followed reach.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -46,6 +52,36 @@ SHADOW_DARKER = 1.25
 #: polished 2 mm caps on cork: 0.3-0.4; the photo lab's caps on the dark sheet: 0.01).
 LIMB_DEPTH_SHARE = 0.15
 
+#: Least correlation of the photo's cross profile with the wire's own for a followed end
+#: to go on (:func:`_follow_profile`): the wire's own profiles correlate 0.85-0.98 with
+#: their neighbours' on full-size Mitsuba parts, the sheet's grain and a skeleton's branch
+#: crossing the wire -0.7 to 0.5.
+FOLLOW_MIN_CORRELATION = 0.6
+
+#: Half-widths either side of the axis compared while following the wire: the wire and its
+#: silhouette, little of what lies beside it.
+FOLLOW_SPAN = 1.1
+
+#: Half-widths either way across which each step's best match is looked for.
+FOLLOW_SHIFT = 0.3
+
+#: Farthest the wire is followed, in half-widths from the end's line's start.
+FOLLOW_MAX = 30.0
+
+#: Half-widths the followed axis may drift across the centres' line before its own line is
+#: the end's (:func:`_follow_end`).
+FOLLOW_DRIFT = 0.5
+
+#: The followed profile runs on past the cylinder into the cap (by up to a half-width): the
+#: steps more than this many half-widths inside its reach are the wire's own shading.
+FOLLOW_INSIDE = 1.0
+
+#: The cap's outline is looked for up to this many half-widths beyond the followed reach: a
+#: low lamp can light the last few millimetres so that the profile there is no longer the
+#: wire's (a lit crest 3-4 half-widths long), while the sheet's grain farther out can step
+#: like an outline (a full-size Mitsuba part's end 54-72 px out without the bound).
+FOLLOW_BEYOND = 5.0
+
 EndShape = Literal["round", "flat"]
 
 
@@ -62,6 +98,7 @@ def end_point(
     silhouette: bool = False,
     shadow: np.ndarray | None = None,
     axis_level: bool = False,
+    follow: bool = False,
 ) -> tuple[np.ndarray, float]:
     """The end point of the wire's axis at one end, pixels, and its uncertainty (px).
 
@@ -89,6 +126,12 @@ def end_point(
     The axis near the end is a robust line through the centres 1.5 to 4.5
     half-widths from the last one (the last centres can be pulled by the
     cap's shadow); the cap is searched along that line.
+
+    ``follow``: the centres at this end were cut back (they ran off the wire); the wire
+    is followed on by its profile (:func:`_follow_end`), the end's line moved onto the
+    followed axis, and a round cap looked for from ``FOLLOW_INSIDE`` half-widths inside
+    the followed reach (not where the end faces its cast shadow, which the profile can
+    follow too) up to ``FOLLOW_BEYOND`` half-widths beyond it.
     """
     pts = centres if head else centres[::-1]
     prof = profiles if head else profiles[::-1]
@@ -114,19 +157,40 @@ def end_point(
     template = np.median(0.5 * (right + left), axis=0)
     if shape == "flat":
         return _flat_end(gray, start, d, block, half_width), 0.0
+    normal = np.array([-d[1], d[0]])
+    followed = _follow_end(gray, start, d, block, offsets, half_width) if follow else None
+    across = 0.0
+    reached_centres = float((pts[0] - start) @ d)
+    if followed is not None:
+        if followed.moved:
+            # the end's line is the followed axis': the centres stop short of it
+            start, d = followed.start, followed.direction
+            normal = np.array([-d[1], d[0]])
+            reached_centres = 0.0
+        across = followed.across_px
     if silhouette:
         into_shadow = shadow is not None and float(d @ shadow) >= INTO_SHADOW_COS
         # the centres between the silhouette edges reach the last one: the cap lies beyond
-        reached = float((pts[0] - start) @ d)
+        reached, limit = reached_centres, None
+        if followed is not None:
+            # the followed profile can run on over a cast shadow beyond the cap: not
+            # taken as the wire's reach where the end faces its shadow
+            if not into_shadow:
+                reached = max(reached, followed.reach_px - FOLLOW_INSIDE * half_width)
+            if followed.reach_px >= reached_centres:
+                limit = followed.reach_px + FOLLOW_BEYOND * half_width + 2.0
         found = _cap_edge(
-            gray, start, d, block, half_width, facing_shadow=into_shadow, reached_px=reached
-        )
+            gray, start, d, block, half_width, facing_shadow=into_shadow, reached_px=reached,
+            limit_px=limit,
+        )  # fmt: skip
         if found is not None:
             edge, spread = found
-            return start + (edge - half_width) * d, spread
+            return start + (edge - half_width) * d + across * normal, spread
+    far = 8.0 * half_width + 4.0
+    if followed is not None:
+        far = max(far, followed.reach_px + 2.0 * half_width + 2.0)
     search = np.arange(
-        -round((1.0 * half_width) / PROFILE_STEP_PX),
-        round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1,
+        -round((1.0 * half_width) / PROFILE_STEP_PX), round(far / PROFILE_STEP_PX) + 1
     )
     search = search * PROFILE_STEP_PX
     # with axis_level also the axis' own level on the wire before the cap's centre: a flank
@@ -149,7 +213,130 @@ def end_point(
         best = float(search[k] + np.clip(frac, -1, 1) * PROFILE_STEP_PX)
     else:
         best = float(search[k])
-    return start + best * d, 0.0
+    return start + best * d + across * normal, 0.0
+
+
+@dataclass(frozen=True)
+class _Followed:
+    """The wire followed on from an end's last centre kept (:func:`_follow_end`).
+
+    ``start + t direction`` is the end's line (px); the wire's profile is seen up to
+    ``reach_px`` along it, its axis ``across_px`` to the left of the line there (px,
+    along ``(-direction[1], direction[0])``). ``moved``: the line is the followed axis',
+    not the centres'.
+    """
+
+    start: np.ndarray
+    direction: np.ndarray
+    reach_px: float
+    across_px: float
+    moved: bool
+
+
+def _follow_end(
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    offsets: np.ndarray,
+    half_width: float,
+) -> _Followed | None:
+    """The wire followed on from ``start`` along ``d`` by its own cross profile, None when
+    not seen there.
+
+    For an end whose centres were cut back (their skeleton's branch turned into the sheet:
+    :func:`cvmeasure.part.centreline.measure_centreline`), the wire goes on where its
+    profile does. Where the followed axis drifts off the centres' line by over
+    ``FOLLOW_DRIFT`` half-widths (at least 2 px; a last chord past a vertex the centres
+    did not reach), the line through the followed axis is the end's, followed again.
+    """
+    found = _follow_profile(gray, start, d, block, offsets, half_width)
+    if found is None:
+        return None
+    moved = False
+    for _ in range(3):
+        t, lateral = found
+        near = t >= t[-1] - 4.0 * half_width
+        if near.sum() < 5 or np.abs(lateral[near]).max() <= max(FOLLOW_DRIFT * half_width, 2.0):
+            break
+        normal = np.array([-d[1], d[0]])
+        axis = start + t[near, None] * d + lateral[near, None] * normal
+        p0, d1, _ = fit_line(axis)
+        d = d1 if d1 @ d >= 0 else -d1
+        start = p0 + ((axis[0] - p0) @ d) * d
+        moved = True
+        again = _follow_profile(gray, start, d, block, offsets, half_width)
+        if again is None:
+            found = (np.array([float((axis[-1] - start) @ d)]), np.zeros(1))
+            break
+        found = again
+    t, lateral = found
+    last = t >= t[-1] - 2.0 * half_width
+    return _Followed(start, d, float(t[-1]), float(np.median(lateral[last])), moved)
+
+
+def _follow_profile(
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    offsets: np.ndarray,
+    half_width: float,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Where along ``start + t d`` the photo shows the wire's cross profile: the steps
+    ``t`` (px, every half pixel, ascending) and the axis' offset across the line at each
+    (px); None where it is not seen at all.
+
+    The wire's profile is the median of ``block`` (the profiles across the wire near the
+    end, at ``offsets``) within ``FOLLOW_SPAN`` half-widths of the axis. At each step the
+    photo's profile, averaged over half a half-width along, is matched by correlation
+    across ``FOLLOW_SHIFT`` half-widths either way; it is the wire's where the best
+    correlation is at least ``FOLLOW_MIN_CORRELATION`` and its contrast within a factor
+    of 2 of the wire's (the bare sheet's grain correlates by chance, at a fraction of the
+    contrast). The axis moves by at most 0.25 px a step towards the best match. Followed
+    until more than a quarter half-width of steps in a row are not the wire's, or to the
+    photo's edge.
+    """
+    span = np.abs(offsets) <= FOLLOW_SPAN * half_width
+    every = max(1, int(round(0.25 / PROFILE_STEP_PX)))
+    u = offsets[span][::every]
+    du = float(u[1] - u[0])
+    wire = np.median(block[:, span], axis=0)[::every]
+    wire = wire - wire.mean()
+    wire_norm = float(np.sqrt(wire @ wire))
+    if wire_norm <= 0:
+        return None
+    reach_k = max(1, int(round(FOLLOW_SHIFT * half_width / du)))
+    u_wide = u[0] + du * np.arange(-reach_k, len(u) + reach_k)
+    normal = np.array([-d[1], d[0]])
+    along = np.linspace(-0.25 * half_width, 0.25 * half_width, 5)
+    step = 0.5
+    gap = max(1, int(round(0.25 * half_width / step)))
+    h, w = gray.shape[:2]
+    lateral, misses = 0.0, 0
+    seen: list[tuple[float, float]] = []
+    for t in np.arange(0.0, FOLLOW_MAX * half_width + 4.0 + step, step):
+        pts = start + (t + along)[:, None, None] * d + (lateral + u_wide)[None, :, None] * normal
+        if (pts < 0.0).any() or (pts[..., 0] > w - 1.0).any() or (pts[..., 1] > h - 1.0).any():
+            break  # the photo's edge: the wire is not seen beyond it
+        prof = sample_image(gray, pts).mean(axis=0)
+        windows = np.lib.stride_tricks.sliding_window_view(prof, len(u))
+        windows = windows - windows.mean(axis=1, keepdims=True)
+        norms = np.sqrt(np.sum(windows * windows, axis=1))
+        corr = windows @ wire / np.maximum(norms * wire_norm, 1e-12)
+        k = int(np.argmax(corr))
+        if corr[k] >= FOLLOW_MIN_CORRELATION and 0.5 <= norms[k] / wire_norm <= 2.0:
+            seen.append((float(t), lateral))
+            lateral += float(np.clip((k - reach_k) * du, -0.25, 0.25))
+            misses = 0
+        else:
+            misses += 1
+            if misses > gap:
+                break
+    if not seen:
+        return None
+    t_px, lateral_px = np.array(seen).T
+    return t_px, lateral_px
 
 
 def _plate(block: np.ndarray) -> tuple[float, float]:
@@ -170,6 +357,7 @@ def _cap_edge(
     *,
     facing_shadow: bool = False,
     reached_px: float = -np.inf,
+    limit_px: float | None = None,
 ) -> tuple[float, float] | None:
     """Distance (px) from ``start`` along ``d`` to a round end's silhouette, None if none,
     and how far inside it a weaker step could be the silhouette instead (px, else 0).
@@ -197,7 +385,8 @@ def _cap_edge(
     wire = float(np.median(block[:, mid - k_in : mid + k_in + 1]))
     background, plate_spread = _plate(block)
     sign = 1.0 if wire > background else -1.0
-    t = np.arange(0, round((8.0 * half_width + 4.0) / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
+    far = 8.0 * half_width + 4.0 if limit_px is None else max(limit_px, 4.0 * PROFILE_STEP_PX)
+    t = np.arange(0, round(far / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
     axial = sample_image(gray, start[None, :] + t[:, None] * d[None, :])
     grad = -sign * gaussian_filter1d(axial, 0.5 / PROFILE_STEP_PX, order=1)
     inner = grad[1:-1]
