@@ -379,6 +379,8 @@ def _cap_edge(
     silhouette edges). Steps inside it are the wire's own shading -- a low lamp's highlight
     rising out of a dark flank on a light plate steps as strongly as the cap's outline
     (a 2 mm wire's end read 5 mm short) -- and are not taken while a step lies beyond it.
+    ``limit_px``: the farthest along ``d`` the outline is looked for (px; None: eight
+    half-widths and 4 px, the reach before an end was followed, :func:`end_point`).
     """
     mid = block.shape[1] // 2
     k_in = max(1, int(round(0.8 * half_width / PROFILE_STEP_PX)))
