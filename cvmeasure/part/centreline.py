@@ -368,8 +368,7 @@ def measure_centreline(
     # its cap is searched at the wire's own half-width where that is known
     cap_half_width = half_width
     known_width = not at_edges and wire_width_px is not None
-    like = _like_the_wire(prof_ok, offsets, half_width, step_px)
-    keep_like, cut = _end_stretches_like(like, half_width, step_px)
+    keep_like, cut = _end_stretches_like(prof_ok, offsets, half_width, step_px)
     centres, prof_ok = centres[keep_like], prof_ok[keep_like]
     widths = None if widths is None else widths[keep_like]
     lit = None if lit is None else lit[keep_like]
@@ -625,10 +624,10 @@ def _step_share(prof: np.ndarray, offsets: np.ndarray, width_px: float, step_px:
 
 
 def _like_the_wire(
-    profiles: np.ndarray, offsets: np.ndarray, half_width: float, step_px: float
+    profiles: np.ndarray, offsets: np.ndarray, half_width: float, step_px: float, at: np.ndarray
 ) -> np.ndarray:
-    """Each centre's profile's correlation with the wire's own profile nearby (M,), near
-    the ends (where :func:`_end_stretches_like` reads it; 1 elsewhere).
+    """The correlation of the profiles of the centres ``at`` (indices) with the wire's own
+    profile nearby.
 
     The wire's profile near a centre is the median of the profiles within
     ``LIKE_WINDOW_WIDTHS`` wire widths along it, over ``LIKE_SPAN`` half-widths either
@@ -642,20 +641,17 @@ def _like_the_wire(
     block = block - block.mean(axis=1, keepdims=True)
     n = len(block)
     half = max(2, int(round(LIKE_WINDOW_WIDTHS * half_width / step_px)))
-    run, zone = _end_run_and_zone(half_width, step_px)
-    near = min(n, n // 4 + run + zone)
-    corr = np.ones(n)
-    for i in sorted(set(range(near)) | set(range(n - near, n))):
-        lo, hi = max(0, i - half), min(n, i + half + 1)
-        template = np.median(block[lo:hi], axis=0)
+    corr = np.empty(len(at))
+    for j, i in enumerate(at):
+        template = np.median(block[max(0, i - half) : min(n, i + half + 1)], axis=0)
         template = template - template.mean()
         den = float(np.sqrt((block[i] @ block[i]) * (template @ template)))
-        corr[i] = float(block[i] @ template) / den if den > 0 else 0.0
+        corr[j] = float(block[i] @ template) / den if den > 0 else 0.0
     return corr
 
 
 def _end_stretches_like(
-    corr: np.ndarray, half_width: float, step_px: float
+    profiles: np.ndarray, offsets: np.ndarray, half_width: float, step_px: float
 ) -> tuple[np.ndarray, tuple[bool, bool]]:
     """True (M,) at the centres kept for the end points, and whether each end (head, tail)
     was cut back.
@@ -665,28 +661,31 @@ def _end_stretches_like(
     before the first one that is like it, and followed by such centres along a wire width,
     are dropped, and so are those unlike it within ``LIKE_END_WIDTHS`` widths of it. An
     end whose first centre is like the wire is left as it is. Nothing is dropped where that
-    would leave under half the centres.
+    would leave under half the centres. The profiles are compared at the ends only, and
+    past the first wire's width only where an end is cut.
     """
-    n = len(corr)
-    like = corr >= LIKE_MIN
+    n = len(profiles)
     keep = np.ones(n, dtype=bool)
     cut = [False, False]
     run, zone = _end_run_and_zone(half_width, step_px)
+    searched = min(n // 4, n - run)
     for e, order in enumerate((np.arange(n), np.arange(n)[::-1])):
+        if searched <= 0:
+            break
+        like = _like_the_wire(profiles, offsets, half_width, step_px, order[:run]) >= LIKE_MIN
+        if like[0] and like.mean() >= LIKE_RUN_SHARE:
+            continue  # like the wire from its first centre: left as it is
+        idx = order[: min(n, searched + run + zone)]
+        like = _like_the_wire(profiles, offsets, half_width, step_px, idx) >= LIKE_MIN
         first = next(
-            (
-                k
-                for k in range(min(n // 4, n - run))
-                if like[order[k]] and like[order[k : k + run]].mean() >= LIKE_RUN_SHARE
-            ),
+            (k for k in range(searched) if like[k] and like[k : k + run].mean() >= LIKE_RUN_SHARE),
             None,
         )
-        if not first:
+        if first is None:
             continue
         cut[e] = True
         keep[order[:first]] = False
-        end_zone = order[first : first + zone]
-        keep[end_zone] &= like[end_zone]
+        keep[idx[first : first + zone]] &= like[first : first + zone]
     if keep.sum() < n // 2:
         return np.ones(n, dtype=bool), (False, False)
     return keep, (cut[0], cut[1])
