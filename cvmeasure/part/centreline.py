@@ -49,7 +49,12 @@ ray grazing the limb goes on to the sheet), so on a dark sheet only the lit flan
 highlight stand out and edges the wire's width apart are found along a minority of it
 (the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
 then, where the profiles are a round wire's symmetric ones, their centres are kept
-(``centre_from`` says why). Where they are not (a lamp a few degrees above the plate lights
+(``centre_from`` says why). On a light sheet the same mirroring hides the silhouette where
+the limb meets its own cast shadow, and a pair the width apart forms from the shadow's outer
+edge and the far flank's dark band (path-traced 2 mm steel on white card and cork: 1.4-1.7 px
+towards the shadow along the whole wire, the radius 0.3-0.5 % low): there too, where the
+profiles are a round wire's symmetric ones and their centres lie on its crest all along
+(:func:`_symmetric_on_crest`), those are the centres. Where they are not (a lamp a few degrees above the plate lights
 one flank only) and single profiles show the pair along too little of the wire (a grainy
 sheet), the pairs are looked for again on profiles averaged along a wire width
 (``EDGE_AVERAGE_WIDTHS``). The end
@@ -187,6 +192,20 @@ HIGHLIGHT_TRIM_SHARE = 0.4
 #: is well short of a chord (>= 10 mm); on every profile it moved results on photos whose
 #: single profiles were enough, so it is only the fallback.
 EDGE_AVERAGE_WIDTHS = 1.0
+
+#: Why the silhouette edges found were not used for a polished wire on a light sheet
+#: (:attr:`Centreline.edges_refused`).
+EDGES_ON_LIGHT_SHEET = (
+    "on a light sheet a polished wire's limbs mirror the sheet, so the edges found need not "
+    "be its silhouette; its profiles are a round wire's symmetric ones, centred on its crest"
+)
+#: Widths either side of a symmetric centre whose mean level it must not lie below (a
+#: flank's dark valley, not the wire's crest; :func:`_symmetric_on_crest`).
+VALLEY_REACH_WIDTHS = 0.25
+#: Largest share of the symmetric centres in a valley for them to be taken on a light sheet
+#: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
+#: 0-1.3 % where they followed the axis, 5-12 % where a stretch ran into one flank's valley.
+VALLEY_SHARE_MAX = 0.03
 
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
@@ -348,6 +367,18 @@ def measure_centreline(
             at_edges = True
             if np.isfinite(widths).any():
                 half_width = 0.5 * float(np.nanmedian(widths))
+            crest = None
+            if symmetry <= SYMMETRIC_WIRE_MAX and _dark_on_sheet(prof, offsets, max(rho, 1.0)):
+                crest = _symmetric_on_crest(
+                    profiles_at, offsets, (centres0, normals, prof, rho, search), step_px,
+                    window, centres, float(wire_width_px),
+                )  # fmt: skip
+            if crest is not None:
+                # a polished wire on a light sheet, its profiles a round wire's symmetric
+                # ones: the edges found need not be its silhouette (the module notes)
+                centres, prof_ok, rejected, coverage, symmetry = crest
+                at_edges, half_width, refused = False, rough, EDGES_ON_LIGHT_SHEET
+                widths = shadow = lit = None
         else:
             refused = found.reason
             centres0, normals, prof, rough, rho, search = _symmetric_passes(
@@ -588,6 +619,52 @@ def _silhouette_if_whole(
     if found[3] < SILHOUETTE_MIN_COVERAGE and symmetry <= SYMMETRIC_WIRE_MAX:
         return _EdgesRefused(f"silhouette edges along only {100 * found[3]:.0f} % of it")
     return found[:6]
+
+
+def _symmetric_on_crest(
+    profiles_at: Any,
+    offsets: np.ndarray,
+    last_pass: tuple[np.ndarray, np.ndarray, np.ndarray, float, float],
+    step_px: float,
+    window: int,
+    edge_centres: np.ndarray,
+    width_px: float,
+) -> tuple[np.ndarray, np.ndarray, int, float, float] | None:
+    """The symmetric centres (as :func:`_final_symmetric` returns them) where they lie on
+    the wire's crest all along it, else None.
+
+    ``last_pass``: the symmetric passes' last centres, normals, profiles, window and search
+    (:func:`_symmetric_passes`); ``edge_centres`` (M, 2) the silhouette centres
+    (:func:`_silhouette_centres`); ``width_px`` the stated width.
+
+    A round wire's centre of symmetry lies on its crest, the brightest across it (the lamp's
+    highlight, or the room mirrored in the flank facing the camera). One flank's dark valley
+    is symmetric too, and on a light sheet it can be as wide as the window over a chord whose
+    flanks the lamp lights alike (path-traced steel on white card: a last chord's centres
+    9 px, a third of the wire, off the axis). So the centres are taken only where hardly any
+    lie below the profile's level a quarter of a width either side (``VALLEY_SHARE_MAX``),
+    counted beside the edges' centreline (past its ends lie the caps and the sheet).
+    """
+    centres, normals, prof, rho, search = last_pass
+    found = _final_symmetric(
+        prof, centres, normals, rho, search, step_px, window, trim_share=HIGHLIGHT_TRIM_SHARE
+    )
+    sym, asymmetry = found[0], found[4]
+    if asymmetry > SYMMETRIC_WIRE_MAX:
+        return None
+    guide = resample_path(smooth_path(edge_centres, width_px / step_px), 0.25 * step_px)
+    _, k = cKDTree(guide).query(sym)
+    beside = (k > 0) & (k < len(guide) - 1)
+    across = profiles_at(sym, path_normals(smooth_path(sym, 0.5 * width_px / step_px)))
+
+    def level(u_px: float) -> np.ndarray:
+        return across[:, int(np.argmin(np.abs(offsets - u_px)))]
+
+    side_px = VALLEY_REACH_WIDTHS * width_px
+    valley = level(0.0) < 0.5 * (level(-side_px) + level(side_px))
+    if not beside.any() or float(np.mean(valley[beside])) > VALLEY_SHARE_MAX:
+        return None
+    return found
 
 
 @dataclass(frozen=True)

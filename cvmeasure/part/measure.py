@@ -122,9 +122,10 @@ def _edges_lost(wire_diameter_mm: float, radius_mm: float) -> StageWarning:
     pct = 100.0 * r / radius_mm if radius_mm > 0 else float("inf")
     return StageWarning(
         "round_wire_edges_lost",
-        "the wire's silhouette edges were not used (not found along the whole wire, or not "
-        "its width apart: a polished wire's limbs mirror the sheet), so the centreline is the "
-        "profiles' centre of symmetry, which a side-lit highlight or a shadow can pull off the "
+        "the wire's silhouette edges were not used (not found along the whole wire, not its "
+        "width apart, or on a light sheet, where a polished wire's limbs mirror the sheet and "
+        "the edges found need not be its silhouette), so the centreline is the profiles' "
+        "centre of symmetry, which a side-lit highlight or a shadow can pull off the "
         f"axis by up to the wire's radius ({r:g} mm): the radius may be off by {pct:.1f} % "
         "(more where the pull changes along the wire) and the lift is not read",
     )

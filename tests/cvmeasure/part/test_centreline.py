@@ -257,3 +257,46 @@ def test_a_guide_turning_off_the_wire_at_its_end_is_cut_and_the_wire_followed(se
     assert float(np.hypot(*(head - axis[0]))) < 0.5
     tail = min(cl.ends_px, key=lambda e: float(np.hypot(*(e - axis[-1]))))
     assert float(np.hypot(*(tail - axis[-1]))) < 0.5
+
+
+def _mirror_tube_beside_its_shadow(axis: np.ndarray, radius_px: float, seed: int) -> np.ndarray:
+    """A polished tube on a light sheet with its cast shadow beside it on one side: the limbs
+    mirror what lies just beside them (the sheet on one side, the shadow on the other, so no
+    step marks either silhouette), the flanks near 40 deg the dark room, the top the light
+    above. The shadow band is 0.29 radii wide: its outer edge and the far flank's dark band
+    (which starts 0.71 radii out, where the mirrored ray meets the horizon) lie the wire's
+    width apart and step opposite ways."""
+    rng = np.random.default_rng(seed)
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]].astype(np.float64)
+    _, signed, _ = point_to_polyline(np.column_stack((xs.ravel(), ys.ravel())), axis)
+    u = signed.reshape(SIZE) / radius_px  # -1 .. 1 across the tube
+    sheet, shadow = 120.0, 85.0
+    beside = np.where((u > 1.0) & (u < 1.29), shadow, sheet)
+    theta = np.degrees(np.arcsin(np.clip(u, -1.0, 1.0)))
+    elevation = 90.0 - 2.0 * np.abs(theta)  # of the mirrored ray
+    limb = np.where(u > 0, shadow, sheet)  # the ground just beside each limb
+    # the room's dark horizon below 30 deg, the dim ceiling, the lamp's narrow highlight on top
+    tube = np.select(
+        (elevation < 0.0, elevation < 30.0, elevation < 70.0), (limb, 40.0, 90.0), 250.0
+    )
+    alpha = np.clip(radius_px + 0.5 - np.abs(u) * radius_px, 0.0, 1.0)
+    img = alpha * tube + (1.0 - alpha) * beside
+    return gaussian_filter(img, 0.8) + rng.normal(0.0, 1.5, SIZE)
+
+
+def test_a_polished_tube_beside_its_shadow_on_a_light_sheet_is_centred_on_its_crest():
+    """The strongest edge pair the wire's width apart is the shadow's outer edge and the far
+    flank's dark band (measured: their midpoints 1.1 px off a 9 px tube's axis; on path-traced parts on
+    white card and cork, 1.4-1.7 px, a radius 0.3-0.5 % low). The profiles are a round wire's
+    symmetric ones whose centres lie on the crest: those are the centres, and the record says
+    why the edges were not used."""
+    axis = arc_points_mm((160.0, 330.0), 200.0, 240.0, 60.0, chords=6)
+    radius_px = 4.5
+    img = _mirror_tube_beside_its_shadow(axis, radius_px, seed=11)
+    cl = measure_centreline(
+        img, _rough_path(axis, 1.0), width_guess_px=2.0 * radius_px, wire_width_px=2 * radius_px
+    )
+    assert cl.centre_from.startswith("symmetry (on a light sheet a polished wire's limbs")
+    _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)
+    assert abs(float(np.median(dist))) < 0.15
+    assert float(np.sqrt(np.mean(dist**2))) < 0.3
