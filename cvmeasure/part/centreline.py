@@ -50,14 +50,14 @@ highlight stand out and edges the wire's width apart are found along a minority 
 (the edges found typically 30-40 % narrower on Mitsuba renders of a 3 mm tube, 11 px):
 then, where the profiles are a round wire's symmetric ones, their centres are kept
 (``centre_from`` says why). On a light sheet the same mirroring hides the silhouette where
-the limb meets its own cast shadow, and a pair the width apart forms from the shadow's outer
-edge and the far flank's dark band (path-traced 2 mm steel on white card and cork: 1.4-1.7 px
-towards the shadow along the whole wire, the radius 0.3-0.5 % low): there too, where the
-profiles are a round wire's symmetric ones and their centres lie on its crest all along
-(:func:`_symmetric_on_crest`), those are the centres. Where they are not (a lamp a few degrees above the plate lights
-one flank only) and single profiles show the pair along too little of the wire (a grainy
-sheet), the pairs are looked for again on profiles averaged along a wire width
-(``EDGE_AVERAGE_WIDTHS``). The end
+the limb meets its own cast shadow, and a pair the width apart forms from the shadow's
+outer edge and the far flank's dark band (path-traced 2 mm steel on white card and cork:
+1.4-1.7 px towards the shadow along the whole wire, the radius 0.3-0.5 % low): there too,
+where the profiles are a round wire's symmetric ones and their centres lie on its crest all
+along (:func:`_symmetric_on_crest`), those are the centres. Where the profiles are not
+symmetric (a lamp a few degrees above the plate lights one flank only) and single profiles
+show the pair along too little of the wire (a grainy sheet), the pairs are looked for again
+on profiles averaged along a wire width (``EDGE_AVERAGE_WIDTHS``). The end
 points are the caps' silhouettes on the axis less the half-width. Before they are looked
 for, an end whose first centres' profiles are not like the wire's nearby (a guide whose
 skeleton ends in a branch into the sheet: the centres run off the wire) is cut back to the
