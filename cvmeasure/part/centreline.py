@@ -370,8 +370,8 @@ def measure_centreline(
             crest = None
             if symmetry <= SYMMETRIC_WIRE_MAX and _dark_on_sheet(prof, offsets, max(rho, 1.0)):
                 crest = _symmetric_on_crest(
-                    profiles_at, offsets, (centres0, normals, prof, rho, search), step_px,
-                    window, centres, float(wire_width_px),
+                    g, (centres0, normals, prof, rho, search), step_px, window, centres,
+                    float(wire_width_px),
                 )  # fmt: skip
             if crest is not None:
                 # a polished wire on a light sheet, its profiles a round wire's symmetric
@@ -622,8 +622,7 @@ def _silhouette_if_whole(
 
 
 def _symmetric_on_crest(
-    profiles_at: Any,
-    offsets: np.ndarray,
+    gray: np.ndarray,
     last_pass: tuple[np.ndarray, np.ndarray, np.ndarray, float, float],
     step_px: float,
     window: int,
@@ -633,7 +632,7 @@ def _symmetric_on_crest(
     """The symmetric centres (as :func:`_final_symmetric` returns them) where they lie on
     the wire's crest all along it, else None.
 
-    ``last_pass``: the symmetric passes' last centres, normals, profiles, window and search
+    ``gray``: the photo's grey levels; ``last_pass``: the symmetric passes' last centres, normals, profiles, window and search
     (:func:`_symmetric_passes`); ``edge_centres`` (M, 2) the silhouette centres
     (:func:`_silhouette_centres`); ``width_px`` the stated width.
 
@@ -655,13 +654,11 @@ def _symmetric_on_crest(
     guide = resample_path(smooth_path(edge_centres, width_px / step_px), 0.25 * step_px)
     _, k = cKDTree(guide).query(sym)
     beside = (k > 0) & (k < len(guide) - 1)
-    across = profiles_at(sym, path_normals(smooth_path(sym, 0.5 * width_px / step_px)))
-
-    def level(u_px: float) -> np.ndarray:
-        return across[:, int(np.argmin(np.abs(offsets - u_px)))]
-
-    side_px = VALLEY_REACH_WIDTHS * width_px
-    valley = level(0.0) < 0.5 * (level(-side_px) + level(side_px))
+    # the three levels only, at the profiles' sampling step
+    side_px = round(VALLEY_REACH_WIDTHS * width_px / PROFILE_STEP_PX) * PROFILE_STEP_PX
+    normals_sym = path_normals(smooth_path(sym, 0.5 * width_px / step_px))
+    left, mid, right = sample_across(gray, sym, normals_sym, np.array([-side_px, 0.0, side_px])).T
+    valley = mid < 0.5 * (left + right)
     if not beside.any() or float(np.mean(valley[beside])) > VALLEY_SHARE_MAX:
         return None
     return found

@@ -286,10 +286,10 @@ def _mirror_tube_beside_its_shadow(axis: np.ndarray, radius_px: float, seed: int
 
 def test_a_polished_tube_beside_its_shadow_on_a_light_sheet_is_centred_on_its_crest():
     """The strongest edge pair the wire's width apart is the shadow's outer edge and the far
-    flank's dark band (measured: their midpoints 1.1 px off a 9 px tube's axis; on path-traced parts on
-    white card and cork, 1.4-1.7 px, a radius 0.3-0.5 % low). The profiles are a round wire's
-    symmetric ones whose centres lie on the crest: those are the centres, and the record says
-    why the edges were not used."""
+    flank's dark band (measured: their midpoints 1.1 px off a 9 px tube's axis; on
+    path-traced parts on white card and cork, 1.4-1.7 px, a radius 0.3-0.5 % low). The
+    profiles are a round wire's symmetric ones whose centres lie on the crest: those are the
+    centres, and the record says why the edges were not used."""
     axis = arc_points_mm((160.0, 330.0), 200.0, 240.0, 60.0, chords=6)
     radius_px = 4.5
     img = _mirror_tube_beside_its_shadow(axis, radius_px, seed=11)
@@ -329,9 +329,10 @@ def test_symmetric_centres_in_a_flanks_valley_are_not_taken_on_a_light_sheet(off
         return sample_across(img, c, n, offsets)
 
     last = (centres, normals, profiles_at(centres, normals), 0.3 * radius_px, 0.5)
-    found = _final_symmetric(last[2], *last[:2], *last[3:], 1.0, 30, trim_share=0.4)
+    centres_, normals_, prof, rho, search = last
+    found = _final_symmetric(prof, centres_, normals_, rho, search, 1.0, 30, trim_share=0.4)
     _, dist, _ = point_to_polyline(found[0], axis)
     assert found[4] < 0.12  # symmetric either way
     assert abs(float(np.median(dist))) == pytest.approx(offset_radii * radius_px, abs=0.5)
-    got = _symmetric_on_crest(profiles_at, offsets, last, 1.0, 30, path, 2.0 * radius_px)
+    got = _symmetric_on_crest(img, last, 1.0, 30, path, 2.0 * radius_px)
     assert (got is not None) == taken
