@@ -53,8 +53,9 @@ then, where the profiles are a round wire's symmetric ones, their centres are ke
 the limb meets its own cast shadow, and a pair the width apart forms from the shadow's
 outer edge and the far flank's dark band (path-traced 2 mm steel on white card and cork:
 1.4-1.7 px towards the shadow along the whole wire, the radius 0.3-0.5 % low): there too,
-where the profiles are a round wire's symmetric ones and their centres lie on its crest all
-along (:func:`_symmetric_on_crest`), those are the centres. Where the profiles are not
+where the profiles are a round wire's symmetric ones and their centres lie on its crest along
+most of it (valleys barred from the search: :func:`_symmetric_on_crest`), those are the
+centres. Where the profiles are not
 symmetric (a lamp a few degrees above the plate lights one flank only) and single profiles
 show the pair along too little of the wire (a grainy sheet), the pairs are looked for again
 on profiles averaged along a wire width (``EDGE_AVERAGE_WIDTHS``). The end
@@ -202,6 +203,11 @@ EDGES_ON_LIGHT_SHEET = (
 #: Widths either side of a symmetric centre whose mean level it must not lie below (a
 #: flank's dark valley, not the wire's crest; :func:`_symmetric_on_crest`).
 VALLEY_REACH_WIDTHS = 0.25
+#: Least share of the profiles with a centre on the crest for those to be taken on a light
+#: sheet over the silhouette edges. Path-traced parts on white card and cork: 0.78-0.99; a
+#: photo-lab wire lifted 1.5 mm over a light sheet, its crest in reach along a sixth of it:
+#: 0.16 (the few centres left were symmetric to 0.002 and passed every other test).
+CREST_MIN_COVERAGE = 0.5
 #: Largest share of the symmetric centres in a valley for them to be taken on a light sheet
 #: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
 #: 0-1.3 % where they followed the axis, 5-12 % where a stretch ran into one flank's valley.
@@ -443,23 +449,26 @@ def _final_symmetric(
     step_px: float,
     window: int,
     trim_share: float = 0.0,
+    valley_reach_px: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, int, float, float]:
     """The last pass of symmetric centres: the centres and their profiles, the profiles
     rejected, the share kept and the remaining asymmetry (:attr:`Centreline.asymmetry`).
 
     ``trim_share`` > 0: each centre is the trimmed symmetry's (that share of the most
     asymmetric offsets left out) where that lies within half the window of the whole
-    window's, else the whole window's.
+    window's, else the whole window's. ``valley_reach_px``: no centre in a valley that
+    deep either side (:func:`symmetric_centres`).
     """
     slope = 0.4 * step_px
     floor = _sheet_floor(prof, rho)
     shift, asym = symmetric_centres(
-        prof, rho_px=rho, search_px=search, max_slope_px=slope, min_level=floor
-    )
+        prof, rho_px=rho, search_px=search, max_slope_px=slope, min_level=floor,
+        valley_reach_px=valley_reach_px,
+    )  # fmt: skip
     if trim_share > 0.0:
         trimmed, _ = symmetric_centres(
             prof, rho_px=rho, search_px=search, max_slope_px=slope, trim_share=trim_share,
-            min_level=floor,
+            min_level=floor, valley_reach_px=valley_reach_px,
         )  # fmt: skip
         near = np.isfinite(trimmed) & (np.abs(trimmed - shift) <= 0.5 * rho)
         shift = np.where(near, trimmed, shift)
@@ -630,7 +639,7 @@ def _symmetric_on_crest(
     width_px: float,
 ) -> tuple[np.ndarray, np.ndarray, int, float, float] | None:
     """The symmetric centres (as :func:`_final_symmetric` returns them) where they lie on
-    the wire's crest all along it, else None.
+    the wire's crest along most of it, else None.
 
     ``gray``: the photo's grey levels; ``last_pass``: the symmetric passes' last centres, normals, profiles, window and search
     (:func:`_symmetric_passes`); ``edge_centres`` (M, 2) the silhouette centres
@@ -640,16 +649,26 @@ def _symmetric_on_crest(
     highlight, or the room mirrored in the flank facing the camera). One flank's dark valley
     is symmetric too, and on a light sheet it can be as wide as the window over a chord whose
     flanks the lamp lights alike (path-traced steel on white card: a last chord's centres
-    9 px, a third of the wire, off the axis). So the centres are taken only where hardly any
-    lie below the profile's level a quarter of a width either side (``VALLEY_SHARE_MAX``),
-    counted beside the edges' centreline (past its ends lie the caps and the sheet).
+    9 px, a third of the wire, off the axis). So the search bars valleys, a profile's level
+    below its mean a quarter of a width either side, and where the crest is not in reach the
+    profile gives no centre (path-traced steel on white card: 8 % of a wire's centres lay in
+    a valley and the edges, 1.6 px off the axis, were kept; with valleys barred its centres
+    lie 0.24 px off in their median, 5 % of them strays up to a width off where no crest was
+    in reach, which the robust fits drop). The centres are taken where they
+    follow most of the wire (``CREST_MIN_COVERAGE``) and hardly any still lie in a valley
+    where the photo is sampled across their own path (``VALLEY_SHARE_MAX``), counted beside
+    the edges' centreline (past its ends lie the caps and the sheet).
     """
     centres, normals, prof, rho, search = last_pass
-    found = _final_symmetric(
-        prof, centres, normals, rho, search, step_px, window, trim_share=HIGHLIGHT_TRIM_SHARE
-    )
-    sym, asymmetry = found[0], found[4]
-    if asymmetry > SYMMETRIC_WIRE_MAX:
+    try:
+        found = _final_symmetric(
+            prof, centres, normals, rho, search, step_px, window,
+            trim_share=HIGHLIGHT_TRIM_SHARE, valley_reach_px=VALLEY_REACH_WIDTHS * width_px,
+        )  # fmt: skip
+    except ValueError:  # no crest in reach along the wire
+        return None
+    sym, coverage, asymmetry = found[0], found[3], found[4]
+    if asymmetry > SYMMETRIC_WIRE_MAX or coverage < CREST_MIN_COVERAGE:
         return None
     guide = resample_path(smooth_path(edge_centres, width_px / step_px), 0.25 * step_px)
     _, k = cKDTree(guide).query(sym)

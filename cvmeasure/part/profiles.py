@@ -117,6 +117,7 @@ def symmetric_centres(
     trim_share: float = 0.0,
     by_variance: bool = True,
     min_level: np.ndarray | None = None,
+    valley_reach_px: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Shift (P,) about which each profile is most symmetric, and the cost there.
 
@@ -138,6 +139,10 @@ def symmetric_centres(
         both of the wire's silhouette steps to the sheet, where a window about one flank's
         dark valley holds more variance (the sheet on one side only) and so wins by the
         ratio though less symmetric.
+    min_level : ndarray (P,), optional; shifts where the profile lies below it are barred
+        (no centre there; the path crosses them only where nothing else is in reach).
+    valley_reach_px : with it, shifts where the profile lies below the mean of its levels
+        this far either side are barred too: a valley is symmetric but is no crest.
 
     Returns
     -------
@@ -156,6 +161,11 @@ def symmetric_centres(
     barred = np.zeros(cost.shape, dtype=bool)
     if min_level is not None:
         barred = p[:, mid + shifts] < np.asarray(min_level, dtype=np.float64)[:, None]
+    if valley_reach_px is not None:
+        kv = max(1, int(round(valley_reach_px / step_px)))
+        below = np.clip(mid + shifts - kv, 0, p.shape[1] - 1)
+        above = np.clip(mid + shifts + kv, 0, p.shape[1] - 1)
+        barred = barred | (p[:, mid + shifts] < 0.5 * (p[:, below] + p[:, above]))
     if max_slope_px is None:
         k = np.argmin(np.where(barred, np.inf, cost), axis=1)
     else:

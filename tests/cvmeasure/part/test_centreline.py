@@ -302,11 +302,16 @@ def test_a_polished_tube_beside_its_shadow_on_a_light_sheet_is_centred_on_its_cr
     assert float(np.sqrt(np.mean(dist**2))) < 0.3
 
 
-@pytest.mark.parametrize(("offset_radii", "taken"), [(0.0, True), (0.6, False)])
-def test_symmetric_centres_in_a_flanks_valley_are_not_taken_on_a_light_sheet(offset_radii, taken):
+@pytest.mark.parametrize(
+    ("offset_radii", "search_px", "taken"), [(0.0, 0.5, True), (0.6, 0.5, False), (0.6, 3.5, True)]
+)
+def test_symmetric_centres_in_a_flanks_valley_are_not_taken_on_a_light_sheet(
+    offset_radii, search_px, taken
+):
     """One flank's dark valley is symmetric too (asymmetry measured 0.09 in a window of 0.3
     radii about it, under the round wire's 0.12): symmetric centres that lie in it (3 px off
-    a 10.8 px tube's axis) are not taken over the silhouette edges, those on the crest are."""
+    a 10.8 px tube's axis) are not taken over the silhouette edges, those on the crest are;
+    where the crest is within the search, the valley is barred and the crest taken."""
     from cvmeasure.part.centreline import _final_symmetric, _symmetric_on_crest
     from cvmeasure.part.profiles import (
         PROFILE_STEP_PX,
@@ -328,7 +333,7 @@ def test_symmetric_centres_in_a_flanks_valley_are_not_taken_on_a_light_sheet(off
     def profiles_at(c: np.ndarray, n: np.ndarray) -> np.ndarray:
         return sample_across(img, c, n, offsets)
 
-    last = (centres, normals, profiles_at(centres, normals), 0.3 * radius_px, 0.5)
+    last = (centres, normals, profiles_at(centres, normals), 0.3 * radius_px, search_px)
     centres_, normals_, prof, rho, search = last
     found = _final_symmetric(prof, centres_, normals_, rho, search, 1.0, 30, trim_share=0.4)
     _, dist, _ = point_to_polyline(found[0], axis)
@@ -336,3 +341,6 @@ def test_symmetric_centres_in_a_flanks_valley_are_not_taken_on_a_light_sheet(off
     assert abs(float(np.median(dist))) == pytest.approx(offset_radii * radius_px, abs=0.5)
     got = _symmetric_on_crest(img, last, 1.0, 30, path, 2.0 * radius_px)
     assert (got is not None) == taken
+    if taken:
+        _, dist, _ = point_to_polyline(got[0], axis)
+        assert abs(float(np.median(dist))) < 0.2

@@ -85,6 +85,22 @@ def test_trimmed_symmetry_is_not_pulled_by_a_glint_on_one_flank(at: float, wide:
     np.testing.assert_allclose(trimmed, truth, atol=0.02)
 
 
+def test_a_valley_barred_from_the_symmetric_search_leaves_the_crest() -> None:
+    """A flank's dark valley on a flat sheet is more symmetric than a crest a lamp lights
+    a little more on one side: the search finds the valley 7 px out, and with valleys
+    barred (``valley_reach_px``) the crest within 0.3 px of the axis."""
+    rng = np.random.default_rng(17)
+    x = (np.arange(801) - 400) * 0.05
+    crest = 150.0 * np.exp(-((x / 2.0) ** 2)) * (1.0 + 0.15 * np.tanh(x))
+    valley = -100.0 * np.exp(-(((x - 7.0) / 2.0) ** 2))
+    p = 100.0 + crest + valley + rng.normal(0.0, 1.0, (40, 801))
+    kw = {"rho_px": 2.5, "search_px": 9.0, "max_slope_px": 0.4}
+    free, _ = symmetric_centres(p, **kw)
+    barred, _ = symmetric_centres(p, **kw, valley_reach_px=2.0)
+    np.testing.assert_allclose(free, 7.0, atol=0.2)
+    np.testing.assert_allclose(barred, 0.0, atol=0.3)
+
+
 def test_least_cost_path_is_the_least_total_within_reach() -> None:
     """Against an exhaustive search over every path of a small table."""
     import itertools
