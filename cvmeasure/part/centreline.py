@@ -100,6 +100,7 @@ from cvmeasure.part.profiles import (
     silhouette_edges,
     smooth_path,
     symmetric_centres,
+    zero_mean_correlation,
 )
 
 __all__ = ["Centreline", "measure_centreline"]
@@ -737,9 +738,7 @@ def _like_the_wire(
     corr = np.empty(len(at))
     for j, i in enumerate(at):
         template = np.median(block[max(0, i - half) : min(n, i + half + 1)], axis=0)
-        template = template - template.mean()
-        den = float(np.sqrt((block[i] @ block[i]) * (template @ template)))
-        corr[j] = float(block[i] @ template) / den if den > 0 else 0.0
+        corr[j] = zero_mean_correlation(block[i : i + 1], template)[0][0]
     return corr
 
 

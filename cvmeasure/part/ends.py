@@ -23,7 +23,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from cvmeasure.geometry import arclength_mm
 from cvmeasure.part.fit import fit_line
-from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image
+from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image, zero_mean_correlation
 
 __all__ = [
     "INTO_SHADOW_COS",
@@ -321,9 +321,7 @@ def _follow_profile(
             break  # the photo's edge: the wire is not seen beyond it
         prof = sample_image(gray, pts).mean(axis=0)
         windows = np.lib.stride_tricks.sliding_window_view(prof, len(u))
-        windows = windows - windows.mean(axis=1, keepdims=True)
-        norms = np.sqrt(np.sum(windows * windows, axis=1))
-        corr = windows @ wire / np.maximum(norms * wire_norm, 1e-12)
+        corr, norms = zero_mean_correlation(windows, wire)
         k = int(np.argmax(corr))
         if corr[k] >= FOLLOW_MIN_CORRELATION and 0.5 <= norms[k] / wire_norm <= 2.0:
             seen.append((float(t), lateral))

@@ -13,6 +13,7 @@ from cvmeasure.part.profiles import (
     sample_across,
     sample_image,
     symmetric_centres,
+    zero_mean_correlation,
 )
 
 
@@ -99,6 +100,20 @@ def test_a_valley_barred_from_the_symmetric_search_leaves_the_crest() -> None:
     barred, _ = symmetric_centres(p, **kw, valley_reach_px=2.0)
     np.testing.assert_allclose(free, 7.0, atol=0.2)
     np.testing.assert_allclose(barred, 0.0, atol=0.3)
+
+
+def test_zero_mean_correlation_equals_pearsons() -> None:
+    """Against numpy's Pearson correlation, whatever the rows' level and scale; a flat row
+    correlates 0 and has no contrast."""
+    rng = np.random.default_rng(18)
+    template = rng.normal(0.0, 1.0, 40)
+    rows = 50.0 + 3.0 * (0.7 * template + rng.normal(0.0, 1.0, (6, 40)))
+    rows[-1] = 80.0
+    corr, contrast = zero_mean_correlation(rows, template)
+    want = [np.corrcoef(r, template)[0, 1] for r in rows[:-1]]
+    np.testing.assert_allclose(corr[:-1], want, rtol=1e-12)
+    np.testing.assert_allclose(contrast[:-1], np.sqrt(40) * np.std(rows[:-1], axis=1), rtol=1e-12)
+    assert corr[-1] == 0.0 and contrast[-1] == 0.0
 
 
 def test_least_cost_path_is_the_least_total_within_reach() -> None:
