@@ -572,12 +572,14 @@ def correct(
     *,
     gain: float = 0.9,
     deadband_sigma: float = 2.5,
+    min_segment_mm: float = 12.0,
 ) -> CorrectedJob:
     """The closed loop (``cvmeasure correct``): a finished part corrects material and job.
 
     ``part`` must be measured with ``design`` (:func:`measure_part`), so its per-vertex
     bend errors are known. Returns the corrected material calibration, what changed and
-    the next G-code job.
+    the next G-code job, whose segments are held to ``min_segment_mm`` as the part's job
+    was (:func:`gcode_for`).
     """
     if not 0 < gain <= 1:
         raise InputError("gain", f"must be in (0, 1], got {gain}")
@@ -585,8 +587,9 @@ def correct(
     cal = _material(material)
     try:
         cal2, corr, job = correct_from_part(
-            cal, part, _wire(design), design_name=name, gain=gain, deadband_sigma=deadband_sigma
-        )
+            cal, part, _wire(design), design_name=name, gain=gain,
+            deadband_sigma=deadband_sigma, min_segment_mm=min_segment_mm,
+        )  # fmt: skip
     except ValueError as exc:
         if isinstance(exc, InputError):
             raise

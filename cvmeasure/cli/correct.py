@@ -101,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
             reference_mm=plan.vertices_mm,
             gain=args.gain,
             deadband_sigma=args.deadband_sigma,
+            min_segment_mm=args.min_segment_mm,
         )
     except ValueError as exc:
         if isinstance(exc, InputError):

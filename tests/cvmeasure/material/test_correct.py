@@ -373,3 +373,60 @@ def test_cli_correct_measures_a_round_wire_as_part_does(tmp_path, capsys):
     assert any(w["code"] == "part_lifted" for w in corr["warnings"])  # read as a round wire
     errors = sorted(abs(e) for e in measured["comparison"]["bends"]["error_deg"])
     np.testing.assert_allclose(sorted(abs(e) for e in corr["error_deg"]), errors, atol=0.01)
+
+
+def test_cli_correct_plans_the_next_job_with_the_jobs_shortest_segment(tmp_path, capsys):
+    """A design bent in chords under the default 12 mm (`gcode --min-segment-mm 10`) is
+    corrected with the same option: the next job feeds the same lengths as the first and
+    only its pins move (the next job was planned with the default and refused)."""
+    import cvmeasure_datasets
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.camera_model import save_camera
+    from cvmeasure.cli import main
+    from cvmeasure.design import load_design
+    from cvmeasure.fileio import atomic_write_json
+    from cvmeasure.material.correct_part import target_bends_deg
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    a0, a1 = np.radians(30.0), np.radians(150.0)
+    x0, y0 = 100 + 50 * np.cos(a0), 100 - 50 * np.sin(a0)
+    x1, y1 = 100 + 50 * np.cos(a1), 100 - 50 * np.sin(a1)
+    design = tmp_path / "arc.svg"
+    design.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
+        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A 50 50 0 0 0 {x1} {y1}"/></svg>',
+        encoding="utf-8",
+    )
+    chords = load_design(design).wire().chords(10)  # 10.5 mm each
+    lengths = np.hypot(*np.diff(chords, axis=0).T)
+    assert 10.0 < lengths.min() and lengths.max() < 12.0
+    cal = default_calibration()
+    save_calibration(tmp_path / "cal.json", cal)
+    plan = ["--design", str(design), "--divisions", "10", "--min-segment-mm", "10"]
+    job = tmp_path / "job.gcode"
+    gcode_args = [str(design), "--divisions", "10", "--min-segment-mm", "10"]
+    assert (
+        main(["gcode", *gcode_args, "--material", str(tmp_path / "cal.json"), "-o", str(job)]) == 0
+    )
+    made = simulate(corrected_pin_commands(cal, target_bends_deg(chords)), HIDDEN, EFFECTS)
+    heading = np.concatenate([[0.0], np.cumsum(-np.radians(made.unloaded_bend_deg))])
+    pts = np.vstack(
+        [[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)]
+    )
+    photo = cvmeasure_datasets.render_part_photo(
+        part=pts * np.array([1.0, -1.0]), board=board, seed=4, scale=0.5
+    )
+    jpg, _ = photo.save(tmp_path / "part")
+    save_camera(tmp_path / "camera.json", photo.camera)
+    atomic_write_json(tmp_path / "board.json", board.to_dict())
+    capsys.readouterr()
+    seen = ["--board", str(tmp_path / "board.json"), "--camera", str(tmp_path / "camera.json")]
+    out = ["-o", str(tmp_path / "cal2.json"), "--gcode", str(tmp_path / "job2.gcode")]
+    material = ["--material", str(tmp_path / "cal.json"), "--job", str(job)]
+    assert main(["correct", str(jpg), *plan, *material, *seen, *out]) == 0, capsys.readouterr().err
+
+    def feeds(path):
+        return [ln.split("Y")[1].split()[0] for ln in path.read_text().splitlines() if " Y" in ln]
+
+    assert feeds(tmp_path / "job2.gcode") == feeds(job)
+    assert len(feeds(job)) >= 10
