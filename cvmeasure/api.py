@@ -573,13 +573,15 @@ def correct(
     gain: float = 0.9,
     deadband_sigma: float = 2.5,
     min_segment_mm: float = 12.0,
+    max_bend_deg: float = 135.0,
+    bend_radius_mm: float = 0.0,
 ) -> CorrectedJob:
     """The closed loop (``cvmeasure correct``): a finished part corrects material and job.
 
     ``part`` must be measured with ``design`` (:func:`measure_part`), so its per-vertex
     bend errors are known. Returns the corrected material calibration, what changed and
-    the next G-code job, whose segments are held to ``min_segment_mm`` as the part's job
-    was (:func:`gcode_for`).
+    the next G-code job, fed by the rules the part's job was (``min_segment_mm``,
+    ``max_bend_deg``, ``bend_radius_mm`` as for :func:`gcode_for`).
     """
     if not 0 < gain <= 1:
         raise InputError("gain", f"must be in (0, 1], got {gain}")
@@ -589,6 +591,7 @@ def correct(
         cal2, corr, job = correct_from_part(
             cal, part, _wire(design), design_name=name, gain=gain,
             deadband_sigma=deadband_sigma, min_segment_mm=min_segment_mm,
+            max_bend_deg=max_bend_deg, bend_radius_mm=bend_radius_mm,
         )  # fmt: skip
     except ValueError as exc:
         if isinstance(exc, InputError):

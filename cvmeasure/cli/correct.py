@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from cvmeasure.cli.design_options import add_plan_options, plan_from_args
+from cvmeasure.cli.design_options import add_job_rule_options, add_plan_options, plan_from_args
 from cvmeasure.cli.options import add_downsample_option, non_negative_float, positive_float
 
 __all__ = ["register", "run"]
@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--board", type=Path, required=True, help="board JSON")
     p.add_argument("--camera", type=Path, required=True, help="camera JSON")
     add_plan_options(p, job=True)
+    add_job_rule_options(p)
     p.add_argument(
         "--flipped",
         action="store_true",
@@ -102,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
             gain=args.gain,
             deadband_sigma=args.deadband_sigma,
             min_segment_mm=args.min_segment_mm,
+            max_bend_deg=args.max_bend_deg,
+            bend_radius_mm=args.bend_radius_mm,
         )
     except ValueError as exc:
         if isinstance(exc, InputError):

@@ -16,7 +16,7 @@ from cvmeasure.cli.options import positive_float, positive_int
 if TYPE_CHECKING:
     from cvmeasure.wireplan import WirePlan
 
-__all__ = ["add_plan_options", "plan_from_args"]
+__all__ = ["add_job_rule_options", "add_plan_options", "plan_from_args"]
 
 
 def add_plan_options(p: argparse.ArgumentParser, *, job: bool, divisions: bool = True) -> None:
@@ -59,6 +59,15 @@ def add_plan_options(p: argparse.ArgumentParser, *, job: bool, divisions: bool =
             help="the G-code the part was bent with: the polygon in its header (written by "
             "cvmeasure gcode / correct) is what the part is compared with",
         )
+
+
+def add_job_rule_options(p: argparse.ArgumentParser) -> None:
+    """Add --max-bend-deg and --bend-radius-mm: the rules a job is fed by, shared by
+    ``gcode`` and ``correct`` (whose next job must feed the part's job's lengths)."""
+    p.add_argument("--max-bend-deg", type=positive_float, default=135.0, help="largest bend (deg)")
+    p.add_argument(
+        "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
+    )
 
 
 def plan_from_args(args: argparse.Namespace, design: Path) -> WirePlan:

@@ -7,8 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from cvmeasure.cli.design_options import add_plan_options, plan_from_args
-from cvmeasure.cli.options import positive_float
+from cvmeasure.cli.design_options import add_job_rule_options, add_plan_options, plan_from_args
 
 __all__ = ["register", "run"]
 
@@ -34,10 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--params", type=Path, help="simulation params JSON, used when there is no --material"
     )
     add_plan_options(p, job=False)
-    p.add_argument("--max-bend-deg", type=positive_float, default=135.0, help="largest bend (deg)")
-    p.add_argument(
-        "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
-    )
+    add_job_rule_options(p)
     p.add_argument("--json", action="store_true", help="print the bend list as JSON")
     p.set_defaults(func=run)
 

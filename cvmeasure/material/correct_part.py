@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 
 from cvmeasure.design import bend_angles_deg
 from cvmeasure.errors import InputError
-from cvmeasure.gcode import MIN_SEGMENT_MM, GcodeJob, bend_list, gcode_lines
+from cvmeasure.gcode import MAX_BEND_DEG, MIN_SEGMENT_MM, GcodeJob, bend_list, gcode_lines
 from cvmeasure.material.bender_calibration import BenderCalibration
 from cvmeasure.material.correct import (
     DEFAULT_GAIN,
@@ -93,6 +93,8 @@ def correct_from_part(
     deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
     min_segment_mm: float = MIN_SEGMENT_MM,
+    max_bend_deg: float = MAX_BEND_DEG,
+    bend_radius_mm: float = 0.0,
 ) -> tuple[BenderCalibration, Correction, Any]:
     """Correct from a measured part; return (calibration, correction, the next job).
 
@@ -107,8 +109,9 @@ def correct_from_part(
         compared with): the next job bends it again, same feeds, only the pins corrected.
         None: the polygon the planner makes of ``design`` in the N chords measured
         (:func:`cvmeasure.wireplan.bent_polygon`).
-    min_segment_mm : the shortest segment the next job may feed, as the part's job was
-        planned (``cvmeasure gcode --min-segment-mm``).
+    min_segment_mm, max_bend_deg, bend_radius_mm : the rules the next job is fed by, as
+        the part's job was (:func:`cvmeasure.gcode.bend_list`; ``cvmeasure gcode``'s
+        options): its feeds are then the part's job's.
 
     Returns
     -------
@@ -136,7 +139,10 @@ def correct_from_part(
     else:
         # the count measured (given or found), as the planner bends the design in it
         chords = bent_polygon(design, len(target) + 1)
-    bends = bend_list(chords, source=design_name, min_segment_mm=min_segment_mm)
+    bends = bend_list(
+        chords, source=design_name, min_segment_mm=min_segment_mm, max_bend_deg=max_bend_deg,
+        bend_radius_mm=bend_radius_mm,
+    )  # fmt: skip
     if len(bends.bends_deg) != len(target):
         raise InputError(
             design_name,

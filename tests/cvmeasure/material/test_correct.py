@@ -375,10 +375,11 @@ def test_cli_correct_measures_a_round_wire_as_part_does(tmp_path, capsys):
     np.testing.assert_allclose(sorted(abs(e) for e in corr["error_deg"]), errors, atol=0.01)
 
 
-def test_cli_correct_plans_the_next_job_with_the_jobs_shortest_segment(tmp_path, capsys):
-    """A design bent in chords under the default 12 mm (`gcode --min-segment-mm 10`) is
-    corrected with the same option: the next job feeds the same lengths as the first and
-    only its pins move (the next job was planned with the default and refused)."""
+def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
+    """A design bent in chords under the default 12 mm (`gcode --min-segment-mm 10`) about
+    a 10 mm bend radius is corrected with the same options: the next job feeds the same
+    lengths as the first and only its pins move (it was planned with the defaults: refused
+    for its 10.5 mm chords, and without the radius' setback its feeds would differ)."""
     import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
     from cvmeasure.camera_model import save_camera
@@ -402,12 +403,12 @@ def test_cli_correct_plans_the_next_job_with_the_jobs_shortest_segment(tmp_path,
     assert 10.0 < lengths.min() and lengths.max() < 12.0
     cal = default_calibration()
     save_calibration(tmp_path / "cal.json", cal)
-    plan = ["--design", str(design), "--divisions", "10", "--min-segment-mm", "10"]
-    job = tmp_path / "job.gcode"
-    gcode_args = [str(design), "--divisions", "10", "--min-segment-mm", "10"]
-    assert (
-        main(["gcode", *gcode_args, "--material", str(tmp_path / "cal.json"), "-o", str(job)]) == 0
-    )
+    rules = ["--divisions", "10", "--min-segment-mm", "10", "--bend-radius-mm", "10"]
+    plan = ["--design", str(design), *rules]
+    job, flat = tmp_path / "job.gcode", tmp_path / "flat.gcode"
+    cal_arg = ["--material", str(tmp_path / "cal.json")]
+    assert main(["gcode", str(design), *rules, *cal_arg, "-o", str(job)]) == 0
+    assert main(["gcode", str(design), *rules[:4], *cal_arg, "-o", str(flat)]) == 0
     made = simulate(corrected_pin_commands(cal, target_bends_deg(chords)), HIDDEN, EFFECTS)
     heading = np.concatenate([[0.0], np.cumsum(-np.radians(made.unloaded_bend_deg))])
     pts = np.vstack(
@@ -430,3 +431,4 @@ def test_cli_correct_plans_the_next_job_with_the_jobs_shortest_segment(tmp_path,
 
     assert feeds(tmp_path / "job2.gcode") == feeds(job)
     assert len(feeds(job)) >= 10
+    assert feeds(flat) != feeds(job)  # the radius' setback shows in the feeds
