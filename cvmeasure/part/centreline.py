@@ -53,12 +53,12 @@ then, where the profiles are a round wire's symmetric ones, their centres are ke
 the limb meets its own cast shadow, and a pair the width apart forms from the shadow's
 outer edge and the far flank's dark band (path-traced 2 mm steel on white card and cork:
 1.4-1.7 px towards the shadow along the whole wire, the radius 0.3-0.5 % low): there too,
-where the profiles are a round wire's symmetric ones and their centres lie on its crest along
-most of it (valleys barred from the search: :func:`_symmetric_on_crest`), those are the
-centres. Where the profiles are not
-symmetric (a lamp a few degrees above the plate lights one flank only) and single profiles
-show the pair along too little of the wire (a grainy sheet), the pairs are looked for again
-on profiles averaged along a wire width (``EDGE_AVERAGE_WIDTHS``). The end
+where the profiles are a round wire's symmetric ones and their centres lie on its crest
+along most of it (valleys barred from the search: :func:`_symmetric_on_crest`), those are
+the centres. Where the profiles are not symmetric (a lamp a few degrees above the plate
+lights one flank only) and single profiles show the pair along too little of the wire (a
+grainy sheet), the pairs are looked for again on profiles averaged along a wire width
+(``EDGE_AVERAGE_WIDTHS``). The end
 points are the caps' silhouettes on the axis less the half-width. Before they are looked
 for, an end whose first centres' profiles are not like the wire's nearby (a guide whose
 skeleton ends in a branch into the sheet: the centres run off the wire) is cut back to the
@@ -642,24 +642,26 @@ def _symmetric_on_crest(
     """The symmetric centres (as :func:`_final_symmetric` returns them) where they lie on
     the wire's crest along most of it, else None.
 
-    ``gray``: the photo's grey levels; ``last_pass``: the symmetric passes' last centres, normals, profiles, window and search
-    (:func:`_symmetric_passes`); ``edge_centres`` (M, 2) the silhouette centres
-    (:func:`_silhouette_centres`); ``width_px`` the stated width.
+    ``gray``: the photo's grey levels; ``last_pass``: the symmetric passes' last centres,
+    normals, profiles, window and search (:func:`_symmetric_passes`); ``edge_centres``
+    (M, 2) the silhouette centres (:func:`_silhouette_centres`); ``width_px`` the stated
+    width.
 
     A round wire's centre of symmetry lies on its crest, the brightest across it (the lamp's
     highlight, or the room mirrored in the flank facing the camera). One flank's dark valley
     is symmetric too, and on a light sheet it can be as wide as the window over a chord whose
     flanks the lamp lights alike (path-traced steel on white card: a last chord's centres
-    9 px, a third of the wire, off the axis). So the search bars valleys, a profile's level
-    below its mean a quarter of a width either side, and where the crest is not in reach the
-    profile gives no centre (path-traced steel on white card: 8 % of a wire's centres lay in
-    a valley and the edges, 1.6 px off the axis, were kept; with valleys barred its centres
-    lie 0.24 px off in their median, 5 % of them strays up to a width off where no crest was
-    in reach: the radius and the bend per chord are robust to them, a vertex bend beside
-    them is not, 1.1 deg off at 5 stated sigma). The centres are taken where they
-    follow most of the wire (``CREST_MIN_COVERAGE``) and hardly any still lie in a valley
-    where the photo is sampled across their own path (``VALLEY_SHARE_MAX``), counted beside
-    the edges' centreline (past its ends lie the caps and the sheet).
+    9 px, a third of the wire, off the axis). So the search bars valleys (a profile's level
+    below the mean of its levels a quarter of a width either side), and where the crest is
+    not in reach the profile gives no centre (path-traced steel on white card: 8 % of a
+    wire's centres lay in a valley and the edges, 1.6 px off the axis, were kept; with
+    valleys barred its centres lie 0.24 px off in their median, 5 % of them strays up to a
+    width off where no crest was in reach: the radius and the bend per chord are robust to
+    them, a vertex bend beside them is not, 1.1 deg off at 5 stated sigma). The centres are
+    taken where they follow most of the wire (``CREST_MIN_COVERAGE``) and hardly any still
+    lie in a valley where the photo is sampled across their own path
+    (``VALLEY_SHARE_MAX``), counted beside the edges' centreline (past its ends lie the caps
+    and the sheet).
     """
     centres, normals, prof, rho, search = last_pass
     try:
