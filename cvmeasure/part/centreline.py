@@ -209,6 +209,16 @@ VALLEY_REACH_WIDTHS = 0.25
 #: photo-lab wire lifted 1.5 mm over a light sheet, its crest in reach along a sixth of it:
 #: 0.16 (the few centres left were symmetric to 0.002 and passed every other test).
 CREST_MIN_COVERAGE = 0.5
+#: Shortest run of the crest's centres that follows the crest, in wire widths, and the
+#: largest share of the centres in shorter runs for them to be taken. Where the crest is out
+#: of reach the valley-barred search leaves the profiles without a centre but a few find a
+#: symmetric point beside the wire, in runs of 1-5 centres: path-traced steel on white card,
+#: 5 % of a wire's centres 8-19 px off along a sixth of it (its edges there 4-6 px off too),
+#: a vertex bend beside them 1.1 deg off at 5 stated sigma, which the closed loop took for
+#: the machine's; under 1 % between the caps on the light-sheet photos whose crest was
+#: followed (up to 3 % counting the caps, where the ends' rules cut them).
+CREST_RUN_MIN_WIDTHS = 0.5
+STRAY_SHARE_MAX = 0.03
 #: Largest share of the symmetric centres in a valley for them to be taken on a light sheet
 #: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
 #: 0-1.3 % where they followed the axis, 5-12 % where a stretch ran into one flank's valley.
@@ -653,15 +663,14 @@ def _symmetric_on_crest(
     flanks the lamp lights alike (path-traced steel on white card: a last chord's centres
     9 px, a third of the wire, off the axis). So the search bars valleys (a profile's level
     below the mean of its levels a quarter of a width either side), and where the crest is
-    not in reach the profile gives no centre (path-traced steel on white card: 8 % of a
-    wire's centres lay in a valley and the edges, 1.6 px off the axis, were kept; with
-    valleys barred its centres lie 0.24 px off in their median, 5 % of them strays up to a
-    width off where no crest was in reach: the radius and the bend per chord are robust to
-    them, a vertex bend beside them is not, 1.1 deg off at 5 stated sigma). The centres are
-    taken where they follow most of the wire (``CREST_MIN_COVERAGE``) and hardly any still
-    lie in a valley where the photo is sampled across their own path
-    (``VALLEY_SHARE_MAX``), counted beside the edges' centreline (past its ends lie the caps
-    and the sheet).
+    not in reach the profile gives no centre (on white card under the default lamp: the
+    last chord's centres now on the crest, the radius 0.30 -> 0.01 % off). The centres are
+    taken where they follow most of the wire (``CREST_MIN_COVERAGE``), hardly any lie in
+    short runs between the long ones (``STRAY_SHARE_MAX``: where neither crest nor
+    silhouette shows along a stretch, the search leaves a few centres off the wire there),
+    and hardly any still lie in a valley where the photo is sampled across their own path
+    (``VALLEY_SHARE_MAX``), counted beside the edges' centreline (past its ends lie the
+    caps and the sheet).
     """
     centres, normals, prof, rho, search = last_pass
     try:
@@ -674,6 +683,8 @@ def _symmetric_on_crest(
     sym, coverage, asymmetry = found[0], found[3], found[4]
     if asymmetry > SYMMETRIC_WIRE_MAX or coverage < CREST_MIN_COVERAGE:
         return None
+    if _share_in_short_runs(sym, step_px, CREST_RUN_MIN_WIDTHS * width_px) > STRAY_SHARE_MAX:
+        return None
     guide = resample_path(smooth_path(edge_centres, width_px / step_px), 0.25 * step_px)
     _, k = cKDTree(guide).query(sym)
     beside = (k > 0) & (k < len(guide) - 1)
@@ -685,6 +696,22 @@ def _symmetric_on_crest(
     if not beside.any() or float(np.mean(valley[beside])) > VALLEY_SHARE_MAX:
         return None
     return found
+
+
+def _share_in_short_runs(centres: np.ndarray, step_px: float, min_run_px: float) -> float:
+    """The share of ``centres`` (M, 2; in order, every ``step_px`` where found) in runs
+    shorter than ``min_run_px`` between two longer ones, the runs split where consecutive
+    centres lie over 3 steps apart. Short runs before the first long one and after the
+    last lie at the caps, whose centres the ends' rules judge."""
+    if len(centres) < 2:
+        return 0.0
+    gap = np.hypot(*np.diff(centres, axis=0).T) > 3.0 * step_px
+    run = np.concatenate(([0], np.cumsum(gap)))
+    short = np.bincount(run)[run] * step_px < min_run_px
+    long_at = np.nonzero(~short)[0]
+    if len(long_at) == 0:
+        return 0.0
+    return float(np.sum(short[long_at[0] : long_at[-1]]) / len(centres))
 
 
 @dataclass(frozen=True)
