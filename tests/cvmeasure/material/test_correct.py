@@ -210,46 +210,61 @@ def test_bad_arguments():
         correct_calibration(default_calibration("cubic"), [10.0], [10.5])
 
 
-def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
-    """`cvmeasure correct` on a JPEG of a part the hidden machine bent: errors seen, job moved."""
-    import json
-
-    import cvmeasure_datasets
-    from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera_model import save_camera
-    from cvmeasure.cli import main
-    from cvmeasure.design import load_design
-    from cvmeasure.fileio import atomic_write_json
-    from cvmeasure.material.correct_part import target_bends_deg
-
-    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    a0, a1 = np.radians(15.0), np.radians(165.0)
-    x0, y0 = 100 + 55 * np.cos(a0), 100 - 55 * np.sin(a0)
-    x1, y1 = 100 + 55 * np.cos(a1), 100 - 55 * np.sin(a1)
-    design = tmp_path / "arc.svg"
-    design.write_text(
+def _arc_svg(path, radius_mm, from_deg, to_deg):
+    """An SVG arc about (100, 100) mm from ``from_deg`` to ``to_deg`` (y down), written
+    to ``path``."""
+    a0, a1 = np.radians(from_deg), np.radians(to_deg)
+    x0, y0 = 100 + radius_mm * np.cos(a0), 100 - radius_mm * np.sin(a0)
+    x1, y1 = 100 + radius_mm * np.cos(a1), 100 - radius_mm * np.sin(a1)
+    r = radius_mm
+    path.write_text(
         '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
-        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A 55 55 0 0 0 {x1} {y1}"/></svg>',
+        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A {r} {r} 0 0 0 {x1} {y1}"/></svg>',
         encoding="utf-8",
     )
-    chords = load_design(design).wire().chords(10)
-    target = target_bends_deg(chords)
-    cal = default_calibration()
-    pins = corrected_pin_commands(cal, target)
-    made = simulate(pins, HIDDEN, EFFECTS).unloaded_bend_deg
+    return path
+
+
+def _photo_of_bent_part(tmp_path, chords, made_deg, board, seed):
+    """A rendered JPEG of ``chords`` (N+1, 2; mm) bent by ``made_deg`` (N-1 machine bends)
+    beside ``board``; its camera and board JSON written beside it. Returns the JPEG path."""
+    import cvmeasure_datasets
+    from cvmeasure.camera_model import save_camera
+    from cvmeasure.fileio import atomic_write_json
+
     # the bent wire: fed from the first point, turning by minus each machine bend
     lengths = np.hypot(*np.diff(chords, axis=0).T)
-    heading = np.concatenate([[0.0], np.cumsum(-np.radians(made))])
+    heading = np.concatenate([[0.0], np.cumsum(-np.radians(made_deg))])
     pts = np.vstack(
         [[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)]
     )
     # lying design face up (the board frame has y down, the design y up)
     photo = cvmeasure_datasets.render_part_photo(
-        part=pts * np.array([1.0, -1.0]), board=board, seed=3, scale=0.5
+        part=pts * np.array([1.0, -1.0]), board=board, seed=seed, scale=0.5
     )
     jpg, _ = photo.save(tmp_path / "part")
     save_camera(tmp_path / "camera.json", photo.camera)
     atomic_write_json(tmp_path / "board.json", board.to_dict())
+    return jpg
+
+
+def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
+    """`cvmeasure correct` on a JPEG of a part the hidden machine bent: errors seen, job moved."""
+    import json
+
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.cli import main
+    from cvmeasure.design import load_design
+    from cvmeasure.material.correct_part import target_bends_deg
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    design = _arc_svg(tmp_path / "arc.svg", 55.0, 15.0, 165.0)
+    chords = load_design(design).wire().chords(10)
+    target = target_bends_deg(chords)
+    cal = default_calibration()
+    pins = corrected_pin_commands(cal, target)
+    made = simulate(pins, HIDDEN, EFFECTS).unloaded_bend_deg
+    jpg = _photo_of_bent_part(tmp_path, chords, made, board, seed=3)
     save_calibration(tmp_path / "cal.json", cal)
     # bent as `cvmeasure gcode arc.svg --divisions 10`: the same option plans the same polygon
     common = ["--design", str(design), "--divisions", "10"]
@@ -380,24 +395,13 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     a 10 mm bend radius is corrected with the same options: the next job feeds the same
     lengths as the first and only its pins move (it was planned with the defaults: refused
     for its 10.5 mm chords, and without the radius' setback its feeds would differ)."""
-    import cvmeasure_datasets
     from cvmeasure.board import CharucoBoardSpec
-    from cvmeasure.camera_model import save_camera
     from cvmeasure.cli import main
     from cvmeasure.design import load_design
-    from cvmeasure.fileio import atomic_write_json
     from cvmeasure.material.correct_part import target_bends_deg
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    a0, a1 = np.radians(30.0), np.radians(150.0)
-    x0, y0 = 100 + 50 * np.cos(a0), 100 - 50 * np.sin(a0)
-    x1, y1 = 100 + 50 * np.cos(a1), 100 - 50 * np.sin(a1)
-    design = tmp_path / "arc.svg"
-    design.write_text(
-        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
-        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A 50 50 0 0 0 {x1} {y1}"/></svg>',
-        encoding="utf-8",
-    )
+    design = _arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
     chords = load_design(design).wire().chords(10)  # 10.5 mm each
     lengths = np.hypot(*np.diff(chords, axis=0).T)
     assert 10.0 < lengths.min() and lengths.max() < 12.0
@@ -410,16 +414,7 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     assert main(["gcode", str(design), *rules, *cal_arg, "-o", str(job)]) == 0
     assert main(["gcode", str(design), *rules[:4], *cal_arg, "-o", str(flat)]) == 0
     made = simulate(corrected_pin_commands(cal, target_bends_deg(chords)), HIDDEN, EFFECTS)
-    heading = np.concatenate([[0.0], np.cumsum(-np.radians(made.unloaded_bend_deg))])
-    pts = np.vstack(
-        [[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)]
-    )
-    photo = cvmeasure_datasets.render_part_photo(
-        part=pts * np.array([1.0, -1.0]), board=board, seed=4, scale=0.5
-    )
-    jpg, _ = photo.save(tmp_path / "part")
-    save_camera(tmp_path / "camera.json", photo.camera)
-    atomic_write_json(tmp_path / "board.json", board.to_dict())
+    jpg = _photo_of_bent_part(tmp_path, chords, made.unloaded_bend_deg, board, seed=4)
     capsys.readouterr()
     seen = ["--board", str(tmp_path / "board.json"), "--camera", str(tmp_path / "camera.json")]
     out = ["-o", str(tmp_path / "cal2.json"), "--gcode", str(tmp_path / "job2.gcode")]
