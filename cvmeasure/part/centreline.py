@@ -209,15 +209,17 @@ VALLEY_REACH_WIDTHS = 0.25
 #: photo-lab wire lifted 1.5 mm over a light sheet, its crest in reach along a sixth of it:
 #: 0.16 (the few centres left were symmetric to 0.002 and passed every other test).
 CREST_MIN_COVERAGE = 0.5
-#: Shortest run of the crest's centres that follows the crest, in wire widths, and the
-#: largest share of the centres in shorter runs for them to be taken. Where the crest is out
-#: of reach the valley-barred search leaves the profiles without a centre but a few find a
-#: symmetric point beside the wire, in runs of 1-5 centres: path-traced steel on white card,
-#: 5 % of a wire's centres 8-19 px off along a sixth of it (its edges there 4-6 px off too),
-#: a vertex bend beside them 1.1 deg off at 5 stated sigma, which the closed loop took for
-#: the machine's; under 1 % between the caps on the light-sheet photos whose crest was
-#: followed (up to 3 % counting the caps, where the ends' rules cut them).
+#: Shortest run of the crest's centres that follows the crest, in wire widths. Where the
+#: crest is out of reach the valley-barred search leaves the profiles without a centre but
+#: a few find a symmetric point beside the wire, in runs of 1-5 centres: path-traced steel
+#: on white card, 5 % of a wire's centres 8-19 px off along a sixth of it (its edges there
+#: 4-6 px off too), a vertex bend beside them 1.1 deg off at 5 stated sigma, which the
+#: closed loop took for the machine's; under 1.3 % between the caps on the light-sheet
+#: photos whose crest was followed (up to 3 % counting the caps, where the ends' rules
+#: cut them).
 CREST_RUN_MIN_WIDTHS = 0.5
+#: Largest share of the crest's centres in runs shorter than ``CREST_RUN_MIN_WIDTHS``
+#: between longer ones for them to be taken (:func:`_share_in_short_runs`).
 STRAY_SHARE_MAX = 0.03
 #: Largest share of the symmetric centres in a valley for them to be taken on a light sheet
 #: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
@@ -663,8 +665,9 @@ def _symmetric_on_crest(
     flanks the lamp lights alike (path-traced steel on white card: a last chord's centres
     9 px, a third of the wire, off the axis). So the search bars valleys (a profile's level
     below the mean of its levels a quarter of a width either side), and where the crest is
-    not in reach the profile gives no centre (on white card under the default lamp: the
-    last chord's centres now on the crest, the radius 0.30 -> 0.01 % off). The centres are
+    not in reach the profile gives no centre (path-traced steel on white card: where a last
+    chord's free search ran into a valley, the barred one keeps to the crest and the radius
+    is 0.01 % off). The centres are
     taken where they follow most of the wire (``CREST_MIN_COVERAGE``), hardly any lie in
     short runs between the long ones (``STRAY_SHARE_MAX``: where neither crest nor
     silhouette shows along a stretch, the search leaves a few centres off the wire there),
