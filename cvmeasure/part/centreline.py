@@ -667,13 +667,12 @@ def _symmetric_on_crest(
     below the mean of its levels a quarter of a width either side), and where the crest is
     not in reach the profile gives no centre (path-traced steel on white card: where a last
     chord's free search ran into a valley, the barred one keeps to the crest and the radius
-    is 0.01 % off). The centres are
-    taken where they follow most of the wire (``CREST_MIN_COVERAGE``), hardly any lie in
-    short runs between the long ones (``STRAY_SHARE_MAX``: where neither crest nor
-    silhouette shows along a stretch, the search leaves a few centres off the wire there),
-    and hardly any still lie in a valley where the photo is sampled across their own path
-    (``VALLEY_SHARE_MAX``), counted beside the edges' centreline (past its ends lie the
-    caps and the sheet).
+    is 0.01 % off). The centres are taken where they follow most of the wire
+    (``CREST_MIN_COVERAGE``), hardly any lie in short runs between the long ones
+    (``STRAY_SHARE_MAX``: where neither crest nor silhouette shows along a stretch, the
+    search leaves a few centres off the wire there), and hardly any still lie in a valley
+    where the photo is sampled across their own path (``VALLEY_SHARE_MAX``), counted beside
+    the edges' centreline (past its ends lie the caps and the sheet).
     """
     centres, normals, prof, rho, search = last_pass
     try:
