@@ -317,7 +317,21 @@ def score(truth: dict, rc: int, rec: dict) -> dict:
     if lift.get("used") == "bound" and not truth.get("lift_mm"):
         codes = codes - {"part_lifted"}
     out["silent_strict"] = not all(covered(codes).values())
+    out.update(_vertex_scores(truth, rec))
     return out
+
+
+def _vertex_scores(truth: dict, rec: dict) -> dict:
+    """Each vertex bend's error (deg) and its error in its stated sigma, on a flat part
+    measured in its true chord count (what ``correct`` acts on; every vertex of these
+    arcs is bent by the bend per chord). Lifted parts: their vertices' projections
+    differ from the bend, so they are left out."""
+    bends, sigmas = rec.get("vertex_bend_deg"), rec.get("vertex_bend_sigma_deg")
+    if truth.get("lift_mm") or not bends or rec.get("divisions") != truth.get("divisions"):
+        return {"vertex_err_deg": [], "vertex_z": []}
+    err = np.abs(np.asarray(bends, float)) - truth["segment_bend_deg"]
+    z = [] if not sigmas else list(err / np.asarray(sigmas, float))
+    return {"vertex_err_deg": list(err), "vertex_z": z}
 
 
 def _calibrate(rig: CameraRig, spp: int, board_png: Path, board: Path, cache: Path, work: Path):
@@ -538,7 +552,30 @@ def _metrics(scores: list[dict], n: int) -> list[Metric]:
         Metric("median stated radius sigma", med(sig_r), "%", None, None),
         Metric("median stated bend per chord sigma", med(sig_b), "deg", None, None),
         Metric("median |bend per chord error| (measured)", med(errs_b), "deg", None, None),
+        *_vertex_metrics(scores),
     ]
+
+
+def _vertex_metrics(scores: list[dict]) -> list[Metric]:
+    """Rows on the vertex bends of flat parts measured in their true chord count (no
+    targets: the issue sets none; ``correct`` acts on them and their stated sigmas)."""
+    err = np.abs(np.concatenate([s.get("vertex_err_deg", []) for s in scores] + [[]]))
+    z = np.abs(np.concatenate([s.get("vertex_z", []) for s in scores] + [[]]))
+    if not len(err):
+        return []
+    return [
+        Metric("vertex bends scored (flat parts, chord count right)", len(err), "", None, None),
+        Metric("p95 |vertex bend error|", round(float(np.percentile(err, 95)), 4), "deg", None, None),
+        Metric(
+            "vertex bends within 2 stated sigma",
+            None if not len(z) else round(100.0 * float(np.mean(z <= 2.0)), 1), "%", None, None,
+        ),
+        Metric(
+            "photos with a vertex bend beyond 3 stated sigma",
+            sum(bool(np.any(np.abs(s.get("vertex_z", [])) > 3.0)) for s in scores), "photos",
+            None, None,
+        ),
+    ]  # fmt: skip
 
 
 #: The rows repeated for photos measured with ``--downsample``.
@@ -722,6 +759,9 @@ def run(
             "radius by it), ends_along_px each end point past (+) or short of (-) the axis's "
             "end along the end chord, ends_across_px its distance from that chord's line; "
             "their rows have no targets",
+            "vertex rows (no targets; what `correct` acts on): each vertex bend of a flat part "
+            "measured in its true chord count, its magnitude against the bend per chord, and "
+            "that error in the vertex's stated vertex_bend_sigma_deg",
             "a miss counts as refused when exit 2 or a warning covering it: radius by "
             + ", ".join(sorted(COVERS["radius"]))
             + "; bend per chord also by "

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from cvmeasure import __version__
 from cvmeasure.board import BoardSpec
 from cvmeasure.board import load_board as _read_board
 from cvmeasure.camera_model import CameraModel, save_camera
@@ -32,7 +33,7 @@ from cvmeasure.diagnose import Cause, Diagnosis
 from cvmeasure.diagnose import diagnose as _diagnose
 from cvmeasure.errors import InputError
 from cvmeasure.fileio import atomic_write_json, atomic_write_text, to_jsonable
-from cvmeasure.gcode import GcodeJob, SimCompensator, design_job
+from cvmeasure.gcode import GcodeJob, SimCompensator, design_job, job_header
 from cvmeasure.imageio import Photo, read_photo
 from cvmeasure.kit import MarkerKit, default_kit
 from cvmeasure.kit import load_kit as _read_kit
@@ -52,7 +53,7 @@ from cvmeasure.part.measure import measure_part as _measure_part
 from cvmeasure.part.options import LiftOptions, PartOptions, WireOptions
 from cvmeasure.sim import SimParams, params_from_json, params_to_json
 from cvmeasure.warning import StageWarning
-from cvmeasure.wireplan import plan_design
+from cvmeasure.wireplan import plan_design, plan_for_part
 
 __all__ = [
     "Cause",
@@ -208,6 +209,12 @@ def _plane(plane: PlaneModel | PathLike | None, camera: CameraModel | None) -> P
 
 def _kit(kit: MarkerKit | PathLike | None) -> MarkerKit:
     return load_kit(kit) if kit is None or isinstance(kit, str | os.PathLike) else kit
+
+
+def _design(design: Design | DesignPath | PathLike) -> Design:
+    if isinstance(design, str | os.PathLike):
+        design = load_design(design)
+    return Design("design", (design,)) if isinstance(design, DesignPath) else design
 
 
 def _wire(design: Design | DesignPath | PathLike | None) -> DesignPath | None:
@@ -383,6 +390,9 @@ def measure_part(
     camera: CameraModel | PathLike | None = None,
     plane: PlaneModel | PathLike | None = None,
     design: Design | DesignPath | PathLike | None = None,
+    job: GcodeJob | PathLike | None = None,
+    min_segment_mm: float = 12.0,
+    max_bend_deg: float = 135.0,
     moved_photo: Photo | PathLike | np.ndarray | None = None,
     options: PartOptions | None = None,
     **deprecated: Any,
@@ -395,7 +405,12 @@ def measure_part(
     board, camera : the board in the photo and the calibrated camera; or ``plane``, a
         plane measured before (``measure_plane``), which carries its camera.
     design : the SVG/DXF design (or loaded); then the result carries the best rigid fit,
-        the deviation profile and each vertex's bend error.
+        the deviation profile and each vertex's bend error against the polygon bent:
+        the design planned as :func:`gcode_for` plans it (``min_segment_mm``,
+        ``max_bend_deg``, and ``options.divisions`` as its chords per curve), whose
+        chord count the part is then measured in.
+    job : the job the part was bent with (:func:`gcode_for`'s, or its file): the part is
+        compared with the polygon in its header (``cvmeasure part --job``).
     moved_photo : a second photo of the part slid on the plate: the lift is then
         measured from the two views (needs ``board`` and the wire's diameter).
     options : how to measure (:class:`PartOptions`; None: the defaults): the chord count
@@ -419,9 +434,18 @@ def measure_part(
         raise InputError("measure_part", "give the board and camera, or a plane")
     if board is not None and plane is None and camera is None:
         raise InputError("board", "finding the board's plane needs the camera")
+    if job is not None and design is None:
+        raise InputError("job", "comparing with the job's polygon needs the design")
+    plan = None
+    if design is not None:
+        # the polygon bent, planned as gcode_for / `cvmeasure gcode` plan it (or the job's)
+        plan = plan_for_part(
+            _design(design), job=job, min_segment_mm=min_segment_mm,
+            max_bend_deg=max_bend_deg, divisions=opts.divisions,
+        )  # fmt: skip
+        opts = replace(opts, divisions=None)
     cam = _camera(camera)
     p = _photo(photo, "photo")
-    wire = _wire(design)
     moved = None if moved_photo is None else _photo(moved_photo, "moved photo").bgr
     return _measure_part(
         p.bgr,
@@ -429,8 +453,9 @@ def measure_part(
         cam,
         options=opts,
         plane=_plane(plane, cam),
-        design=wire,
+        design=None if plan is None else plan.as_path(),
         design_source=str(design) if isinstance(design, str | os.PathLike) else "design",
+        reference_mm=None if plan is None else plan.vertices_mm,
         moved_image=moved,
         source=p.path,
     )
@@ -546,16 +571,13 @@ def gcode_for(
     that many equal chords.
     """
 
-    if isinstance(design, str | os.PathLike):
-        design = load_design(design)
-    if isinstance(design, DesignPath):
-        design = Design("design", (design,))
+    design = _design(design)
     # the same planner and rules as `cvmeasure gcode` (refusals name element and number)
     plan = plan_design(
         design, min_segment_mm=min_segment_mm, max_bend_deg=max_bend_deg, divisions=divisions
     )
     compensation = SimCompensator() if material is None else _material(material)
-    return design_job(
+    job = design_job(
         plan.vertices_mm,
         source=design.source,
         compensation=compensation,
@@ -563,6 +585,10 @@ def gcode_for(
         max_bend_deg=max_bend_deg,
         bend_radius_mm=bend_radius_mm,
     )
+    # the file `cvmeasure gcode` writes: its header keeps the polygon bent for part/correct
+    title = f"; cvmeasure {__version__} gcode from {Path(design.source).name}"
+    model = "simulation model" if material is None else "calibration"
+    return replace(job, header=job_header(title, job, model=model, plan_lines=plan.header_lines()))
 
 
 def correct(
@@ -575,13 +601,19 @@ def correct(
     min_segment_mm: float = 12.0,
     max_bend_deg: float = 135.0,
     bend_radius_mm: float = 0.0,
+    flipped: bool = False,
 ) -> CorrectedJob:
     """The closed loop (``cvmeasure correct``): a finished part corrects material and job.
 
     ``part`` must be measured with ``design`` (:func:`measure_part`), so its per-vertex
     bend errors are known. Returns the corrected material calibration, what changed and
-    the next G-code job, fed by the rules the part's job was (``min_segment_mm``,
-    ``max_bend_deg``, ``bend_radius_mm`` as for :func:`gcode_for`).
+    the next G-code job: it bends the polygon the part was compared with again (the
+    design's plan or the job's, ``part.comparison.polygon_mm``), fed by the rules the
+    part's job was (``min_segment_mm``, ``max_bend_deg``, ``bend_radius_mm`` as for
+    :func:`gcode_for`); its header keeps that polygon, as ``cvmeasure correct``'s does.
+    A part registered mirrored is refused unless ``flipped`` (it may lie upside down):
+    measure it as it left the machine, ``PartOptions(allow_mirror=False)``, as
+    ``cvmeasure correct`` does.
     """
     if not 0 < gain <= 1:
         raise InputError("gain", f"must be in (0, 1], got {gain}")
@@ -591,7 +623,7 @@ def correct(
         cal2, corr, job = correct_from_part(
             cal, part, _wire(design), design_name=name, gain=gain,
             deadband_sigma=deadband_sigma, min_segment_mm=min_segment_mm,
-            max_bend_deg=max_bend_deg, bend_radius_mm=bend_radius_mm,
+            max_bend_deg=max_bend_deg, bend_radius_mm=bend_radius_mm, flipped=flipped,
         )  # fmt: skip
     except ValueError as exc:
         if isinstance(exc, InputError):

@@ -58,6 +58,7 @@ __all__ = [
     "pin_commands",
     "gcode_lines",
     "design_job",
+    "job_header",
     "MIN_SEGMENT_MM",
     "MAX_BEND_DEG",
     "SHALLOW_SESSION_ANGLES_DEG",
@@ -170,15 +171,22 @@ class MachineLayout:
 
 @dataclass(frozen=True)
 class GcodeJob:
-    """A generated job: its lines, the bend list and pin commands it came from."""
+    """A generated job: its lines, the bend list and pin commands it came from.
+
+    ``header``: comment lines written before the commands (:func:`job_header`: what the
+    job was made from and the polygon it bends, which ``part --job`` and ``correct
+    --job`` read back); ``lines`` are the commands streamed to the bender.
+    """
 
     lines: tuple[str, ...]
     bends: BendList
     pin_deg: tuple[float, ...]
     warnings: tuple[StageWarning, ...] = ()
+    header: tuple[str, ...] = ()
 
     def text(self) -> str:
-        return "\n".join(self.lines) + "\n"
+        """The job file: its header, then its commands, one per line."""
+        return "\n".join((*self.header, *self.lines)) + "\n"
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -432,6 +440,28 @@ def gcode_lines(
     for text in lines:
         encode_line(text)  # never a realtime character; raises ValueError if so
     return tuple(lines)
+
+
+def job_header(
+    title: str, job: GcodeJob, *, model: str | None = None, plan_lines: Sequence[str] = ()
+) -> tuple[str, ...]:
+    """The comment lines a job file starts with (``cvmeasure gcode`` and ``gcode_for``).
+
+    ``title``: what the job was made from; ``model``: the compensation that set its pins
+    (a summary line of bends and wire length with it); ``plan_lines``: the polygon bent
+    (:meth:`cvmeasure.wireplan.WirePlan.header_lines`); the job's warnings last. Characters
+    the controller takes as realtime commands (``! ~ % $ ?``) and unprintable ones are
+    dropped, so the header never acts on the machine.
+    """
+    lines = [title]
+    if model is not None:
+        lines.append(
+            f"; {len(job.pin_deg)} bends, wire {job.bends.total_feed_mm:.3f} mm, "
+            f"compensation: {model}"
+        )
+    lines += list(plan_lines)
+    lines += [f"; warning: {w}" for w in job.warnings]
+    return tuple("".join(c for c in ln if c.isprintable() and c not in "!~%$?") for ln in lines)
 
 
 def design_job(

@@ -54,6 +54,7 @@ from cvmeasure.design import (
     polyline_length_mm,
 )
 from cvmeasure.errors import InputError
+from cvmeasure.gcode import GcodeJob
 
 __all__ = [
     "DesignChange",
@@ -556,43 +557,54 @@ def plan_from_job(text: str, source: str) -> WirePlan | None:
 
 
 def plan_for_part(
-    design: str | os.PathLike[str],
+    design: str | os.PathLike[str] | Design,
     *,
-    job: str | os.PathLike[str] | None = None,
+    job: str | os.PathLike[str] | GcodeJob | None = None,
     units: str | None = None,
     **rules: Any,
 ) -> WirePlan:
     """The polygon a finished part is compared with (``part``, ``correct``, ``track``).
 
-    With the job it was bent from: the plan in the job's header; a job without one
-    (another generator) must bend as many times as the design's plan, which is used.
-    Without a job: the design planned by the same rules as ``cvmeasure gcode``.
+    With the job it was bent from (its file, or the :class:`~cvmeasure.gcode.GcodeJob`
+    itself): the plan in the job's header; a job without one (another generator) must
+    bend as many times as the design's plan, which is used. Without a job: the design
+    (a file, or loaded) planned by the same rules as ``cvmeasure gcode``.
     """
     if job is None:
-        return load_plan(design, units=units, **rules)
-    try:
-        with open(job, encoding="utf-8", errors="replace") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise InputError(job, f"cannot read: {exc.strerror or exc}") from None
+        return _plan_of(design, units, rules)
+    if isinstance(job, GcodeJob):
+        text, source = job.text(), job.bends.source
+    else:
+        source = str(job)
+        try:
+            with open(job, encoding="utf-8", errors="replace") as fh:
+                text = fh.read()
+        except OSError as exc:
+            raise InputError(job, f"cannot read: {exc.strerror or exc}") from None
     _, strokes = job_strokes(text)
     if strokes == 0:
-        raise InputError(job, "no bend strokes (G90 G1 X...) in the job")
-    plan = plan_from_job(text, str(job))
+        raise InputError(source, "no bend strokes (G90 G1 X...) in the job")
+    plan = plan_from_job(text, source)
     if plan is None:
-        plan = load_plan(design, units=units, **rules)
+        plan = _plan_of(design, units, rules)
         if plan.divisions - 1 != strokes:
             raise InputError(
-                job,
+                source,
                 f"the job bends {strokes} times but the design's plan has "
                 f"{plan.divisions - 1} bends: it was not made from this design with these "
                 "options (write the job with cvmeasure gcode, which keeps its plan)",
             )
     elif plan.divisions - 1 != strokes:
         raise InputError(
-            job, f"the job's plan has {plan.divisions - 1} bends but it bends {strokes} times"
+            source, f"the job's plan has {plan.divisions - 1} bends but it bends {strokes} times"
         )
     return plan
+
+
+def _plan_of(design: str | os.PathLike[str] | Design, units: str | None, rules: Any) -> WirePlan:
+    if isinstance(design, Design):
+        return plan_design(design, **rules)
+    return load_plan(design, units=units, **rules)
 
 
 def job_strokes(text: str) -> tuple[list[float], int]:

@@ -243,10 +243,12 @@ class PartCheck:
     warnings: tuple[StageWarning, ...] = ()
 
 
-def measure_finished_part(
-    bgr: np.ndarray, camera: Any, design: Path, divisions: int, source: str
-) -> PartCheck:
-    """Measure a part photo against its design, vertex by vertex (``cvmeasure.measure_part``)."""
+def measure_finished_part(bgr: np.ndarray, camera: Any, design: Path, source: str) -> PartCheck:
+    """Measure a part photo against its design, vertex by vertex (``cvmeasure.measure_part``).
+
+    The part is compared with the polygon the app bends the design as (planned by
+    ``cvmeasure.gcode_for``'s rules, as :func:`check_design` plans it), in its chord count.
+    """
     try:
         m = cvmeasure.measure_part(
             bgr,
@@ -254,7 +256,7 @@ def measure_finished_part(
             camera=camera,
             design=design,
             # the part lies as it left the machine: never matched mirrored
-            options=cvmeasure.PartOptions(divisions=divisions, allow_mirror=False),
+            options=cvmeasure.PartOptions(allow_mirror=False),
         )
     except InputError:
         raise

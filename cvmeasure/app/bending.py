@@ -334,10 +334,7 @@ class Bending:
         cpu0 = time.thread_time()  # the verdict's own work, from the photo on disk
         bgr = cv2.imread(str(path))
         design = self.designs / design_name
-        bends = next((f.bends for f in self.op.state.files if f.name == design_name), 0)
-        check = adapter.measure_finished_part(
-            bgr, self.op.camera_model, design, bends + 1, path.name
-        )
+        check = adapter.measure_finished_part(bgr, self.op.camera_model, design, path.name)
         self._check = (check, design, design_name)
         self.last_check = check
         ok, jpg = cv2.imencode(".jpg", adapter.part_overlay(bgr, check))

@@ -105,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
             min_segment_mm=args.min_segment_mm,
             max_bend_deg=args.max_bend_deg,
             bend_radius_mm=args.bend_radius_mm,
+            plan_lines=plan.header_lines(),
+            flipped=args.flipped,
         )
     except ValueError as exc:
         if isinstance(exc, InputError):
@@ -113,10 +115,7 @@ def run(args: argparse.Namespace) -> int:
     for w in corr.warnings:
         print(f"warning: {w}", file=sys.stderr)
     save_calibration(args.out, cal2)
-    header = f"; cvmeasure correct: {args.design.name} after {args.photo.name}, gain {args.gain:g}"
-    header = "".join(c for c in header if c.isprintable() and c not in "!~%$?")
-    lines = [header, *plan.header_lines()]
-    atomic_write_text(args.gcode, "\n".join(lines) + "\n" + job.text())
+    atomic_write_text(args.gcode, job.text())
     if args.json:
         print(json.dumps(to_jsonable(corr.to_dict()), indent=2, allow_nan=False))
     else:

@@ -61,13 +61,19 @@ def add_plan_options(p: argparse.ArgumentParser, *, job: bool, divisions: bool =
         )
 
 
-def add_job_rule_options(p: argparse.ArgumentParser) -> None:
-    """Add --max-bend-deg and --bend-radius-mm: the rules a job is fed by, shared by
-    ``gcode`` and ``correct`` (whose next job must feed the part's job's lengths)."""
+def add_job_rule_options(p: argparse.ArgumentParser, *, feeds: bool = True) -> None:
+    """Add --max-bend-deg (the planner's rule: ``part --design`` and ``track`` plan the
+    polygon ``gcode`` bent with it) and, with ``feeds``, --bend-radius-mm: the rules a
+    job is fed by, shared by ``gcode`` and ``correct`` (whose next job must feed the
+    part's job's lengths)."""
     p.add_argument("--max-bend-deg", type=positive_float, default=135.0, help="largest bend (deg)")
-    p.add_argument(
-        "--bend-radius-mm", type=float, default=0.0, help="bend radius for the feed setback (mm)"
-    )
+    if feeds:
+        p.add_argument(
+            "--bend-radius-mm",
+            type=float,
+            default=0.0,
+            help="bend radius for the feed setback (mm)",
+        )
 
 
 def plan_from_args(args: argparse.Namespace, design: Path) -> WirePlan:

@@ -39,9 +39,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from cvmeasure import __version__
     from cvmeasure.fileio import atomic_write_text
-    from cvmeasure.gcode import SimCompensator, design_job
+    from cvmeasure.gcode import SimCompensator, design_job, job_header
 
     plan = plan_from_args(args, args.design)
     if args.material is not None:
@@ -64,16 +66,11 @@ def run(args: argparse.Namespace) -> int:
         bend_radius_mm=args.bend_radius_mm,
     )
     model = f"calibration {args.material.name}" if args.material else "simulation model"
-    header = [
-        f"; cvmeasure {__version__} gcode from {args.design.name}",
-        f"; {len(job.pin_deg)} bends, wire {job.bends.total_feed_mm:.3f} mm, compensation: {model}",
-    ]
-    header = ["".join(c for c in h if c.isprintable() and c not in "!~%$?") for h in header]
-    header += plan.header_lines()
-    header += ["; warning: " + "".join(c for c in str(w) if c not in "!~%$?") for w in job.warnings]
+    title = f"; cvmeasure {__version__} gcode from {args.design.name}"
+    job = replace(job, header=job_header(title, job, model=model, plan_lines=plan.header_lines()))
     for w in job.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    atomic_write_text(args.out, "\n".join(header) + "\n" + job.text())
+    atomic_write_text(args.out, job.text())
     if args.json:
         print(json.dumps({"out": str(args.out), **job.to_dict(), "plan": plan.to_dict()}, indent=2))
     else:

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from cvmeasure.cli.design_options import add_plan_options, plan_from_args
+from cvmeasure.cli.design_options import add_job_rule_options, add_plan_options, plan_from_args
 from cvmeasure.cli.options import add_downsample_option, int_in, non_negative_float, positive_float
 from cvmeasure.cli.startup import libraries_loading
 from cvmeasure.method_names import PART_METHOD_ALIASES, PART_METHODS
@@ -53,6 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "rules: the part is compared with the polygon bent (or --job's)",
     )
     add_plan_options(p, job=True, divisions=False)
+    add_job_rule_options(p, feeds=False)
     p.add_argument(
         "--method",
         choices=(*PART_METHODS, *PART_METHOD_ALIASES),

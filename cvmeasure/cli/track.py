@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from cvmeasure.cli.design_options import add_plan_options, plan_from_args
+from cvmeasure.cli.design_options import add_job_rule_options, add_plan_options, plan_from_args
 from cvmeasure.cli.options import int_in
 
 __all__ = ["register", "run"]
@@ -31,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the parts' design (.svg/.dxf), planned by cvmeasure gcode's rules",
     )
     add_plan_options(p, job=True)
+    add_job_rule_options(p, feeds=False)
     p.add_argument("--board", type=Path, help="board JSON (to measure photos)")
     p.add_argument("--camera", type=Path, help="camera JSON (to measure photos)")
     p.add_argument(

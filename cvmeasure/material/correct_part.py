@@ -9,6 +9,8 @@ offsets; the next job bends the same polygon with the corrected pins.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,7 +18,14 @@ from numpy.typing import ArrayLike
 
 from cvmeasure.design import bend_angles_deg
 from cvmeasure.errors import InputError
-from cvmeasure.gcode import MAX_BEND_DEG, MIN_SEGMENT_MM, GcodeJob, bend_list, gcode_lines
+from cvmeasure.gcode import (
+    MAX_BEND_DEG,
+    MIN_SEGMENT_MM,
+    GcodeJob,
+    bend_list,
+    gcode_lines,
+    job_header,
+)
 from cvmeasure.material.bender_calibration import BenderCalibration
 from cvmeasure.material.correct import (
     DEFAULT_GAIN,
@@ -24,7 +33,7 @@ from cvmeasure.material.correct import (
     correct_calibration,
 )
 from cvmeasure.warning import StageWarning
-from cvmeasure.wireplan import bent_polygon
+from cvmeasure.wireplan import WirePlan, bent_polygon
 
 __all__ = [
     "TURN_RATIO",
@@ -95,6 +104,8 @@ def correct_from_part(
     min_segment_mm: float = MIN_SEGMENT_MM,
     max_bend_deg: float = MAX_BEND_DEG,
     bend_radius_mm: float = 0.0,
+    plan_lines: Sequence[str] | None = None,
+    flipped: bool = False,
 ) -> tuple[BenderCalibration, Correction, Any]:
     """Correct from a measured part; return (calibration, correction, the next job).
 
@@ -105,13 +116,18 @@ def correct_from_part(
         found in the photo).
     design : the design wire (:class:`cvmeasure.design.DesignPath`).
     reference_mm : ndarray (N+1, 2), the polygon the part was bent as
-        (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`, the one the measurement was
-        compared with): the next job bends it again, same feeds, only the pins corrected.
-        None: the polygon the planner makes of ``design`` in the N chords measured
-        (:func:`cvmeasure.wireplan.bent_polygon`).
+        (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`): the next job bends it again,
+        same feeds, only the pins corrected. None: the polygon the measurement was
+        compared with (``comparison.polygon_mm``), else the one the planner makes of
+        ``design`` in the N chords measured (:func:`cvmeasure.wireplan.bent_polygon`).
     min_segment_mm, max_bend_deg, bend_radius_mm : the rules the next job is fed by, as
         the part's job was (:func:`cvmeasure.gcode.bend_list`; ``cvmeasure gcode``'s
         options): its feeds are then the part's job's.
+    plan_lines : the plan's header lines for the next job
+        (:meth:`cvmeasure.wireplan.WirePlan.header_lines`); None: the polygon bent's.
+    flipped : the part may lie upside down. Without it a part registered to its design
+        mirrored is refused: for a design symmetric end to end the mirror image read
+        backwards fits as well, so its vertices would be corrected in reverse order.
 
     Returns
     -------
@@ -129,11 +145,20 @@ def correct_from_part(
             measurement.source,
             "no per-vertex bends against the design (no chord vertices found in the photo)",
         )
+    if comp.registration.mirrored and not flipped:
+        raise InputError(
+            measurement.source,
+            "the part was matched to its design mirrored (upside down): measure it as it "
+            "left the machine (PartOptions(allow_mirror=False)), or say it may lie flipped",
+        )
     target, measured = machine_bends_from_comparison(comp.bends)
     sigma = measurement.vertex_bend_sigma_deg
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
     measured, sigma, turned = orient_to_job(target, measured, sigma)
+    polygon = comp.polygon_mm
+    if reference_mm is None and polygon is not None and len(polygon) == len(target) + 2:
+        reference_mm = polygon
     if reference_mm is not None:
         chords = np.asarray(reference_mm, dtype=np.float64)
     else:
@@ -170,7 +195,16 @@ def correct_from_part(
         part_warnings=_warnings_of(measurement, reference_mm),
     )
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
-    return cal, corr, GcodeJob(lines, bends, corr.pin_deg)
+    job = GcodeJob(lines, bends, corr.pin_deg)
+    # the next job's file says what it corrects and keeps the polygon it bends, as a job
+    # from `cvmeasure gcode` does (so `part --job` compares its part with that polygon)
+    if plan_lines is None:
+        plan_lines = WirePlan(
+            design_name, "mm", np.asarray(chords, dtype=np.float64)
+        ).header_lines()
+    photo = Path(measurement.source).name if measurement.source else "a part photo"
+    title = f"; cvmeasure correct: {design_name} after {photo}, gain {gain:g}"
+    return cal, corr, replace(job, header=job_header(title, job, plan_lines=plan_lines))
 
 
 def _warnings_of(measurement: Any, reference_mm: Any) -> tuple[StageWarning, ...]:

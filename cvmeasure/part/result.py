@@ -84,7 +84,9 @@ class DesignComparison:
     """The part registered to its design and how far it deviates.
 
     ``bends`` only with divisions: per-vertex bends (design order and sense)
-    and the seed's absolute / relative errors of the bend per chord.
+    and the seed's absolute / relative errors of the bend per chord. ``polygon_mm``:
+    what the part was compared with (design frame, mm; ndarray (N+1, 2)): the polygon
+    bent, or the design's curve without a chord count; ``correct`` bends it again.
     """
 
     source: str
@@ -92,6 +94,7 @@ class DesignComparison:
     deviation: Deviation
     design_arc: ArcResult
     bends: BendComparison | None
+    polygon_mm: np.ndarray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -51,15 +51,16 @@ def main(argv: list[str] | None = None) -> dict[str, tuple[float, float]]:
 
     # --- what a user writes -------------------------------------------------------------
     angles = cvmeasure.measure_bender_photo(f / "bender.jpg")  # image pixels, built-in kit
+    job = cvmeasure.gcode_for(f / "half-circle.svg", divisions=20)  # the part's job
+    cvmeasure.save(f / "half-circle.gcode", job)
     part = cvmeasure.measure_part(
         f / "part.jpg",
         board=f / "board.json",
         camera=f / "camera.json",
         design=f / "half-circle.svg",
+        job=f / "half-circle.gcode",  # compared with the polygon that job bent
     )
     cvmeasure.save(f / "part.json", part)
-    job = cvmeasure.gcode_for(f / "half-circle.svg", divisions=20)
-    cvmeasure.save(f / "half-circle.gcode", job)
     # -------------------------------------------------------------------------------------
 
     rows = {

@@ -151,6 +151,29 @@ def test_self_contact_is_refused(tmp_path):
         )
 
 
+def test_part_and_track_plan_a_design_by_gcodes_max_bend(tmp_path, capsys):
+    """A 140 deg corner, bent with `gcode --max-bend-deg 150`: `part --design` and `track`
+    plan it with the same option (without it, both refuse the design naming the corner;
+    they had no such option, so the part of that job could not be compared at all)."""
+    verts = polygon_from_chords([30, 30, 30], [140, -20])
+    svg = _write(tmp_path, "hook.svg", _polyline_svg([(20 + x, 150 - y) for x, y in verts]))
+    assert main(["gcode", str(svg), "-o", str(tmp_path / "hook.gcode")]) == 2
+    assert "140" in capsys.readouterr().err
+    rule = ["--max-bend-deg", "150"]
+    assert main(["gcode", str(svg), "-o", str(tmp_path / "hook.gcode"), *rule]) == 0
+    photo = tmp_path / "missing.jpg"  # read only after the design is planned
+    board = _write(tmp_path, "b.json", "{}")
+    seen = ["--board", str(board), "--camera", str(board), "--design", str(svg)]
+    for command in (["part", str(photo)], ["track", str(photo)]):
+        capsys.readouterr()
+        assert main([*command, *seen]) == 2
+        err = capsys.readouterr().err
+        assert "hook.svg" in err and "140" in err, err
+        assert main([*command, *seen, *rule]) == 2
+        err = capsys.readouterr().err
+        assert "hook.svg" not in err and "140" not in err, err
+
+
 def test_zigzag_perfect_part_reads_45_against_the_bent_polygon(tmp_path):
     """part/measure compared with equal chords read -43.84/46.16/43.84 on a perfect part."""
     from cvmeasure.part.measure import ArcResult, compare_with_design

@@ -24,6 +24,7 @@ def test_a_coarse_part_photo_is_checked_with_its_warning(tmp_path):
         f'viewBox="-100 -100 200 200"><path d="M {points}" fill="none" stroke="black"/></svg>\n',
         encoding="utf-8",
     )
-    check = adapter.measure_finished_part(photo.bgr, photo.camera, design, 10, "part.jpg")
+    check = adapter.measure_finished_part(photo.bgr, photo.camera, design, "part.jpg")
+    assert check.measurement.result.divisions == 10  # the design's plan: its 10 drawn chords
     assert has_code(check.warnings, "part_low_resolution")
     assert check.warnings == check.measurement.warnings  # all of them, in their order

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -427,3 +430,74 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     assert feeds(tmp_path / "job2.gcode") == feeds(job)
     assert len(feeds(job)) >= 10
     assert feeds(flat) != feeds(job)  # the radius' setback shows in the feeds
+
+
+def test_the_api_chain_bends_measures_and_corrects_one_polygon(tmp_path, capsys):
+    """``gcode_for -> save -> measure_part(job=) -> correct`` as the CLI chain: a design
+    bent in chords under the default 12 mm is compared and corrected against the polygon
+    ``gcode_for`` bent. The saved job keeps that polygon in its header, so ``cvmeasure part
+    --job`` reads it without the options (it had none: the design's default plan was
+    refused); the part is measured in the plan's chord count; the next job feeds the
+    first's lengths and keeps the polygon too."""
+    import cvmeasure
+    from cvmeasure.board import CharucoBoardSpec
+    from cvmeasure.cli import main
+    from cvmeasure.design import bend_angles_deg, chord_lengths_mm, load_design
+    from cvmeasure.errors import InputError
+    from cvmeasure.material.correct_part import target_bends_deg
+    from cvmeasure.part.result import DivisionsSource
+    from cvmeasure.wireplan import plan_from_job
+
+    board = CharucoBoardSpec(14, 10, 20.0, 15.0)
+    design = _arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
+    chords = load_design(design).wire().chords(10)  # 10.5 mm each
+    cal = default_calibration()
+    rules = {"min_segment_mm": 10.0, "bend_radius_mm": 10.0}
+    job = cvmeasure.gcode_for(design, cal, divisions=10, **rules)
+    cvmeasure.save(tmp_path / "job.gcode", job)
+    made = simulate(corrected_pin_commands(cal, target_bends_deg(chords)), HIDDEN, EFFECTS)
+    jpg = _photo_of_bent_part(tmp_path, chords, made.unloaded_bend_deg, board, seed=4)
+    seen = {"board": tmp_path / "board.json", "camera": tmp_path / "camera.json"}
+
+    def same_polygon(a, b):  # chord lengths and turns: the header's polygon has its own frame
+        np.testing.assert_allclose(chord_lengths_mm(a), chord_lengths_mm(b), atol=1e-3)
+        np.testing.assert_allclose(bend_angles_deg(a), bend_angles_deg(b), atol=1e-3)
+
+    # measured with the defaults, the symmetric arc's mirror image read backwards fits as
+    # well: its vertices would be corrected in reverse order, so that is refused
+    loose = cvmeasure.measure_part(jpg, **seen, design=design, job=tmp_path / "job.gcode")
+    assert loose.comparison.registration.mirrored
+    with pytest.raises(InputError, match="mirrored"):
+        cvmeasure.correct(loose, design, cal, **rules)
+    # as it left the machine
+    as_bent = cvmeasure.PartOptions(allow_mirror=False)
+    part = cvmeasure.measure_part(
+        jpg, **seen, design=design, job=tmp_path / "job.gcode", options=as_bent
+    )
+    assert part.divisions_from is DivisionsSource.PLAN
+    same_polygon(part.comparison.polygon_mm, chords)
+    # without the job, the same rules plan the same polygon
+    again = cvmeasure.measure_part(
+        jpg, **seen, design=design, options=replace(as_bent, divisions=10), min_segment_mm=10.0,
+    )  # fmt: skip
+    same_polygon(again.comparison.polygon_mm, chords)
+    fixed = cvmeasure.correct(part, design, cal, **rules)
+    target = target_bends_deg(chords)
+    np.testing.assert_allclose(
+        fixed.correction.error_deg, made.unloaded_bend_deg - target, atol=0.1
+    )
+
+    def feeds(text):
+        return [ln.split("Y")[1].split()[0] for ln in text.splitlines() if " Y" in ln]
+
+    assert feeds(fixed.job.text()) == feeds(job.text())
+    same_polygon(plan_from_job(fixed.job.text(), "next").vertices_mm, chords)
+    # the CLI reads the API's job: the polygon from its header, no options repeated
+    args = ["--board", str(seen["board"]), "--camera", str(seen["camera"]), "--json"]
+    capsys.readouterr()
+    code = main(
+        ["part", str(jpg), "--design", str(design), "--job", str(tmp_path / "job.gcode"), *args]
+    )
+    assert code == 0, capsys.readouterr().err
+    record = json.loads(capsys.readouterr().out)
+    assert record["divisions"] == 10
