@@ -82,6 +82,19 @@ FOLLOW_INSIDE = 1.0
 #: like an outline (a full-size Mitsuba part's end 54-72 px out without the bound).
 FOLLOW_BEYOND = 5.0
 
+#: A round end read from the crest's first fall (:func:`_crest_fall`) replaces the matched
+#: one within this many half-widths of it: the low lamp's glint on the cap pulled the
+#: match 0.24-0.38 half-widths out on full-size Mitsuba parts; farther off, the axis fell
+#: early (a gap in the crest, a followed end's stray stretch: 1.8-12 half-widths).
+GLINT_REACH = 0.6
+
+#: Least height of the crest over the plate, in the noise of the axis' own level, for the
+#: crest's fall to place a round end (:func:`_crest_fall`).
+CREST_FALL_CONTRAST = 5.0
+
+#: Both profiles are smoothed by this (px, Gaussian sigma) before their fall is read.
+FALL_SMOOTH_PX = 1.0
+
 EndShape = Literal["round", "flat"]
 
 
@@ -213,7 +226,69 @@ def end_point(
         best = float(search[k] + np.clip(frac, -1, 1) * PROFILE_STEP_PX)
     else:
         best = float(search[k])
+    fall = _crest_fall(gray, start, d, block, offsets, half_width, far)
+    if fall is not None and abs(fall - best) <= GLINT_REACH * half_width:
+        best = fall
     return start + best * d + across * normal, 0.0
+
+
+def _crest_fall(
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    offsets: np.ndarray,
+    half_width: float,
+    far: float,
+) -> float | None:
+    """Where the cap's centre lies along ``start + t d`` (t, px) from the crest's fall alone.
+
+    A wire brighter than the plate falls along its axis, past the cap's centre, as it
+    falls across from its axis: the cap centre lies where the axis first falls to the
+    level half-way between crest and plate, less the distance at which the cross profile
+    falls to that level (the median symmetrised profile of ``block``, sampled at
+    ``offsets``). Only the crest's first fall is read: a low lamp lights a glint on the
+    cap's flank facing it (where its normal bisects lamp and camera, about 0.6 of a
+    half-width out for a lamp 8 deg up), which the cylinder's cross profile never shows.
+    None where the crest does not stand clear of the plate (a dark or a dim wire) or the
+    axis does not fall to that level.
+    """
+    mid = len(offsets) // 2
+    reach = min(mid, len(offsets) - 1 - mid, int(round(1.6 * half_width / PROFILE_STEP_PX)))
+    u = np.arange(reach + 1) * PROFILE_STEP_PX
+    outer = u >= 1.2 * half_width
+    if not outer.any():
+        return None
+    half = np.median(
+        0.5 * (block[:, mid : mid + reach + 1] + block[:, mid - reach : mid + 1][:, ::-1]), axis=0
+    )
+    on_axis = block[:, mid]
+    crest, plate = float(np.median(on_axis)), float(np.median(half[outer]))
+    noise = 1.4826 * float(np.median(np.abs(on_axis - crest)))
+    if crest - plate < max(CREST_FALL_CONTRAST * noise, 1.0):
+        return None
+    level = 0.5 * (crest + plate)
+    # both profiles smoothed alike (1 px): the axis' noise, without moving one crossing
+    # against the other on a narrow crest
+    whole = gaussian_filter1d(np.concatenate((half[:0:-1], half)), FALL_SMOOTH_PX / PROFILE_STEP_PX)
+    across = _first_fall(u, whole[reach:], level)
+    step = 10 * PROFILE_STEP_PX
+    t = np.arange(0.0, far + step, step)
+    axial = sample_image(gray, start[None, None, :] + t[:, None, None] * d)[:, 0]
+    along = _first_fall(t, gaussian_filter1d(axial, FALL_SMOOTH_PX / step), level)
+    return None if across is None or along is None else along - across
+
+
+def _first_fall(t: np.ndarray, values: np.ndarray, level: float) -> float | None:
+    """Where ``values`` (sampled at ``t``) first fall below ``level`` (interpolated); None
+    when they start below it or never fall below it."""
+    below = np.flatnonzero(values < level)
+    if not len(below) or below[0] == 0:
+        return None
+    j = int(below[0])
+    return float(
+        t[j - 1] + (values[j - 1] - level) / (values[j - 1] - values[j]) * (t[j] - t[j - 1])
+    )
 
 
 @dataclass(frozen=True)

@@ -133,3 +133,50 @@ def test_the_unlit_side_of_a_cap_on_a_dark_plate_is_wire(dim_side):
     profiles = sample_across(img, centres, normals, offsets)
     end, _ = end_point(img, centres, profiles, offsets, 2.0, radius_px, head=True, silhouette=True)
     assert abs(float((end - axis[0]) @ d)) < 1.0  # along the axis (dim side: was 6.5 px in)
+
+
+def _bright_wire_with_a_cap_glint(axis, half_width, glint_share, seed):
+    """A polished wire brighter than a dark plate (narrow bright crest, dark limbs), round
+    caps, and the glint a low lamp beyond the first end lights on that cap's flank:
+    ``glint_share`` half-widths out from the cap's centre along the axis."""
+    rng = np.random.default_rng(seed)
+    t = _distance_to_axis(axis) / half_width
+    wire = 40.0 + 210.0 * np.exp(-((t / 0.3) ** 2))
+    alpha = np.clip(half_width + 0.5 - t * half_width, 0.0, 1.0)
+    d = (axis[0] - axis[1]) / np.hypot(*(axis[1] - axis[0]))  # outward at the first end
+    ys, xs = np.mgrid[0 : SIZE[0], 0 : SIZE[1]]
+    spot = axis[0] + glint_share * half_width * d
+    r2 = (xs - spot[0]) ** 2 + (ys - spot[1]) ** 2
+    wire = wire + 120.0 * np.exp(-r2 / (2 * (0.12 * half_width) ** 2))
+    img = alpha * wire + (1.0 - alpha) * 30.0 + rng.normal(0.0, 3.0, SIZE)
+    return np.clip(img, 0.0, 255.0).astype(np.float32)
+
+
+@pytest.mark.parametrize(("glint_share", "seed"), [(0.6, 1), (0.66, 2), (0.72, 3)])
+def test_a_low_lamps_glint_on_the_cap_does_not_lengthen_the_wire(glint_share, seed, monkeypatch):
+    """A lamp 8 deg up beyond a wire's end lights a glint on the cap's flank facing it,
+    about 0.66 half-widths out (where the normal bisects lamp and camera), which the cylinder's cross profile never shows: matched
+    with that profile the end lies 2-4 px beyond the cap's centre (3 full-size Mitsuba
+    parts 3.2-4.8 px, the bend per chord 0.03-0.05 deg off); read from the crest's first
+    fall along the axis it lies on it."""
+    import cvmeasure.part.ends as ends
+
+    axis = np.array([[60.0, 80.0], [160.0, 130.0], [250.0, 120.0]])
+    half_width = 12.0
+    img = _bright_wire_with_a_cap_glint(axis, half_width, glint_share, seed)
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    centres = axis[0] + np.arange(6.0, 90.0, 1.0)[:, None] * d
+    normals = np.tile([-d[1], d[0]], (len(centres), 1))
+    reach = round(24.0 / PROFILE_STEP_PX)
+    offsets = np.arange(-reach, reach + 1) * PROFILE_STEP_PX
+    profiles = sample_across(img, centres, normals, offsets)
+
+    def along_px() -> float:
+        end, _ = end_point(
+            img, centres, profiles, offsets, 3.0, half_width, head=True, axis_level=True
+        )
+        return float((end - axis[0]) @ -d)  # + beyond the cap's centre
+
+    assert abs(along_px()) < 0.5
+    monkeypatch.setattr(ends, "GLINT_REACH", 0.0)  # the profile's match alone
+    assert along_px() > 1.5
