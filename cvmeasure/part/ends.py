@@ -4,7 +4,9 @@ A wire's end is taken as a hemispherical cap (a cut end rounded by handling), so
 brightness beyond the end along the axis repeats the half-profile across the wire; a
 round wire measured between silhouette edges ends at its cap's silhouette less the
 half-width. An end facing its cast shadow on a light plate states how far inside the
-taken outline the true one could lie.
+taken outline the true one could lie. Away from silhouette edges the matched cap is read
+again from the crest's first fall along the axis, which a low lamp's glint on the cap's
+flank does not move.
 
 Where the centres were cut back at an end (their guide, the mask's skeleton, ended in a
 branch turning off the wire into the sheet), the wire is followed on from the last centre
@@ -248,7 +250,7 @@ def _crest_fall(
     level half-way between crest and plate, less the distance at which the cross profile
     falls to that level (the median symmetrised profile of ``block``, sampled at
     ``offsets``). Only the crest's first fall is read: a low lamp lights a glint on the
-    cap's flank facing it (where its normal bisects lamp and camera, about 0.6 of a
+    cap's flank facing it (where its normal bisects lamp and camera, about 0.66 of a
     half-width out for a lamp 8 deg up), which the cylinder's cross profile never shows.
     None where the crest does not stand clear of the plate (a dark or a dim wire) or the
     axis does not fall to that level.
