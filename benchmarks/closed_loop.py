@@ -136,9 +136,7 @@ def run_design(design, parts, *, params, effects, cal, camera, scale, seed):
             options=PartOptions(allow_mirror=False),  # the part lies as it left the machine
             reference_mm=ref.vertices_mm,
         )
-        cal, corr, job = correct_from_part(
-            cal, m, ref.as_path(), design_name=name, reference_mm=ref.vertices_mm
-        )
+        cal, corr, job = correct_from_part(cal, m, design_name=name)
         measured = np.asarray(corr.measured_deg)
         bends = m.comparison.bends
         records.append(

@@ -217,12 +217,6 @@ def _design(design: Design | DesignPath | PathLike) -> Design:
     return Design("design", (design,)) if isinstance(design, DesignPath) else design
 
 
-def _wire(design: Design | DesignPath | PathLike | None) -> DesignPath | None:
-    if isinstance(design, str | os.PathLike):
-        design = load_design(design)
-    return design.wire() if isinstance(design, Design) else design
-
-
 def _photo(photo: Photo | PathLike | np.ndarray, source: str) -> Photo:
     if isinstance(photo, Photo):
         return photo
@@ -621,7 +615,7 @@ def correct(
     cal = _material(material)
     try:
         cal2, corr, job = correct_from_part(
-            cal, part, _wire(design), design_name=name, gain=gain,
+            cal, part, design_name=name, gain=gain,
             deadband_sigma=deadband_sigma, min_segment_mm=min_segment_mm,
             max_bend_deg=max_bend_deg, bend_radius_mm=bend_radius_mm, flipped=flipped,
         )  # fmt: skip

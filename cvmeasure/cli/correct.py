@@ -97,9 +97,7 @@ def run(args: argparse.Namespace) -> int:
         cal2, corr, job = correct_from_part(
             cal,
             m,
-            design,
             design_name=args.design.name,
-            reference_mm=plan.vertices_mm,
             gain=args.gain,
             deadband_sigma=args.deadband_sigma,
             min_segment_mm=args.min_segment_mm,

@@ -33,7 +33,7 @@ from cvmeasure.material.correct import (
     correct_calibration,
 )
 from cvmeasure.warning import StageWarning
-from cvmeasure.wireplan import WirePlan, bent_polygon
+from cvmeasure.wireplan import WirePlan
 
 __all__ = [
     "TURN_RATIO",
@@ -94,10 +94,8 @@ def orient_to_job(
 def correct_from_part(
     calibration: BenderCalibration,
     measurement: Any,
-    design: Any,
     *,
     design_name: str = "design",
-    reference_mm: Any = None,
     gain: float = DEFAULT_GAIN,
     deadband_sigma: float = 2.5,
     min_deadband_deg: float = 0.02,
@@ -111,15 +109,11 @@ def correct_from_part(
 
     Parameters
     ----------
-    measurement : a :class:`~cvmeasure.part.measure.PartMeasurement` measured with
-        ``design`` (its ``comparison.bends`` are used; the chord count N is the one
-        found in the photo).
-    design : the design wire (:class:`cvmeasure.design.DesignPath`).
-    reference_mm : ndarray (N+1, 2), the polygon the part was bent as
-        (:attr:`cvmeasure.wireplan.WirePlan.vertices_mm`): the next job bends it again,
-        same feeds, only the pins corrected. None: the polygon the measurement was
-        compared with (``comparison.polygon_mm``), else the one the planner makes of
-        ``design`` in the N chords measured (:func:`cvmeasure.wireplan.bent_polygon`).
+    measurement : a :class:`~cvmeasure.part.measure.PartMeasurement` measured against
+        its design: its ``comparison.bends`` are corrected, and the polygon it was
+        compared with (``comparison.polygon_mm``: the polygon bent, the plan's or the
+        job's) is bent again by the next job, same feeds, only the pins corrected.
+    design_name : the design's name (it keys the job's per-vertex corrections).
     min_segment_mm, max_bend_deg, bend_radius_mm : the rules the next job is fed by, as
         the part's job was (:func:`cvmeasure.gcode.bend_list`; ``cvmeasure gcode``'s
         options): its feeds are then the part's job's.
@@ -156,14 +150,7 @@ def correct_from_part(
     if sigma is not None:
         sigma = np.asarray(sigma, float)[::-1] if comp.registration.reversed else sigma
     measured, sigma, turned = orient_to_job(target, measured, sigma)
-    polygon = comp.polygon_mm
-    if reference_mm is None and polygon is not None and len(polygon) == len(target) + 2:
-        reference_mm = polygon
-    if reference_mm is not None:
-        chords = np.asarray(reference_mm, dtype=np.float64)
-    else:
-        # the count measured (given or found), as the planner bends the design in it
-        chords = bent_polygon(design, len(target) + 1)
+    chords = np.asarray(comp.polygon_mm, dtype=np.float64)
     bends = bend_list(
         chords, source=design_name, min_segment_mm=min_segment_mm, max_bend_deg=max_bend_deg,
         bend_radius_mm=bend_radius_mm,
@@ -192,28 +179,26 @@ def correct_from_part(
         deadband_sigma=deadband_sigma,
         min_deadband_deg=min_deadband_deg,
         extra_notes=turned_note if turned else (),
-        part_warnings=_warnings_of(measurement, reference_mm),
+        part_warnings=_warnings_of(measurement, chords),
     )
     lines = gcode_lines(bends, corr.pin_deg, title=design_name.rsplit("/", 1)[-1])
     job = GcodeJob(lines, bends, corr.pin_deg)
     # the next job's file says what it corrects and keeps the polygon it bends, as a job
     # from `cvmeasure gcode` does (so `part --job` compares its part with that polygon)
     if plan_lines is None:
-        plan_lines = WirePlan(
-            design_name, "mm", np.asarray(chords, dtype=np.float64)
-        ).header_lines()
+        plan_lines = WirePlan(design_name, "mm", chords).header_lines()
     photo = Path(measurement.source).name if measurement.source else "a part photo"
     title = f"; cvmeasure correct: {design_name} after {photo}, gain {gain:g}"
     return cal, corr, replace(job, header=job_header(title, job, plan_lines=plan_lines))
 
 
-def _warnings_of(measurement: Any, reference_mm: Any) -> tuple[StageWarning, ...]:
+def _warnings_of(measurement: Any, polygon_mm: np.ndarray) -> tuple[StageWarning, ...]:
     """The measured part's warnings, and ``part_chords_differ`` where the photo shows
-    another chord count than the polygon bent (``reference_mm``, N + 1 vertices)."""
+    another chord count than the polygon bent (``polygon_mm``, N + 1 vertices)."""
     found = None if measurement.chords_found is None else measurement.chords_found.divisions
-    bent = None if reference_mm is None else len(reference_mm) - 1
+    bent = len(polygon_mm) - 1
     differ = ()
-    if found is not None and bent is not None and found != bent:
+    if found is not None and found != bent:
         differ = (
             StageWarning(
                 "part_chords_differ",

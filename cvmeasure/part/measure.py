@@ -177,7 +177,7 @@ def compare_with_design(
             measured_segment_bend_deg=float(result.segment_bend_deg or 0.0),
             design_segment_bend_deg=float(design_arc.segment_bend_deg or 0.0),
         )
-    return DesignComparison(design_source, reg, dev, design_arc, bends, polygon_mm=verts)
+    return DesignComparison(design_source, reg, dev, design_arc, bends, verts)
 
 
 def measure_part(

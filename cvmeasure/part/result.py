@@ -94,7 +94,7 @@ class DesignComparison:
     deviation: Deviation
     design_arc: ArcResult
     bends: BendComparison | None
-    polygon_mm: np.ndarray | None = None
+    polygon_mm: np.ndarray
 
     def to_dict(self) -> dict[str, Any]:
         return {
