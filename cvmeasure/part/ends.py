@@ -167,9 +167,7 @@ def end_point(
     k0 = int(round(0.35 * half_width / PROFILE_STEP_PX))
     k1 = max(k0 + 2, int(round(max(rho, 0.9 * half_width) / PROFILE_STEP_PX)))
     block = prof[sel]
-    right = block[:, mid + k0 : mid + k1 + 1]
-    left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
-    template = np.median(0.5 * (right + left), axis=0)
+    template = _symmetric_half(block, k0, k1)
     if shape == "flat":
         return _flat_end(gray, start, d, block, half_width), 0.0
     normal = np.array([-d[1], d[0]])
@@ -261,9 +259,7 @@ def _crest_fall(
     outer = u >= 1.2 * half_width
     if not outer.any():
         return None
-    half = np.median(
-        0.5 * (block[:, mid : mid + reach + 1] + block[:, mid - reach : mid + 1][:, ::-1]), axis=0
-    )
+    half = _symmetric_half(block, 0, reach)
     on_axis = block[:, mid]
     crest, plate = float(np.median(on_axis)), float(np.median(half[outer]))
     noise = 1.4826 * float(np.median(np.abs(on_axis - crest)))
@@ -279,6 +275,15 @@ def _crest_fall(
     axial = sample_image(gray, start[None, None, :] + t[:, None, None] * d)[:, 0]
     along = _first_fall(t, gaussian_filter1d(axial, FALL_SMOOTH_PX / step), level)
     return None if across is None or along is None else along - across
+
+
+def _symmetric_half(block: np.ndarray, k0: int, k1: int) -> np.ndarray:
+    """The median over ``block``'s profiles of their half-profile symmetrised about the
+    middle sample, from ``k0`` to ``k1`` samples out (both sides' mean)."""
+    mid = block.shape[1] // 2
+    right = block[:, mid + k0 : mid + k1 + 1]
+    left = block[:, mid - k1 : mid - k0 + 1][:, ::-1]
+    return np.median(0.5 * (right + left), axis=0)
 
 
 def _first_fall(t: np.ndarray, values: np.ndarray, level: float) -> float | None:
