@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike
 
 from cvmeasure.design import bend_angles_deg, chord_lengths_mm
 from cvmeasure.errors import CompensationRangeWarning, InputError
-from cvmeasure.gcode_line import encode_line
+from cvmeasure.gcode_line import comment_text, encode_line
 from cvmeasure.warning import StageWarning
 
 __all__ = [
@@ -449,9 +449,8 @@ def job_header(
 
     ``title``: what the job was made from; ``model``: the compensation that set its pins
     (a summary line of bends and wire length with it); ``plan_lines``: the polygon bent
-    (:meth:`cvmeasure.wireplan.WirePlan.header_lines`); the job's warnings last. Characters
-    the controller takes as realtime commands (``! ~ % $ ?``) and unprintable ones are
-    dropped, so the header never acts on the machine.
+    (:meth:`cvmeasure.wireplan.WirePlan.header_lines`); the job's warnings last; each line
+    as :func:`cvmeasure.gcode_line.comment_text` keeps it.
     """
     lines = [title]
     if model is not None:
@@ -461,7 +460,7 @@ def job_header(
         )
     lines += list(plan_lines)
     lines += [f"; warning: {w}" for w in job.warnings]
-    return tuple("".join(c for c in ln if c.isprintable() and c not in "!~%$?") for ln in lines)
+    return tuple(comment_text(ln) for ln in lines)
 
 
 def design_job(

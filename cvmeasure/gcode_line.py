@@ -7,7 +7,7 @@ below both, and neither imports the other for it.
 
 from __future__ import annotations
 
-__all__ = ["MAX_LINE_CHARS", "encode_line"]
+__all__ = ["MAX_LINE_CHARS", "comment_text", "encode_line"]
 
 #: Longest line this host sends (the firmware's own limit is 255 characters).
 MAX_LINE_CHARS = 80
@@ -35,3 +35,9 @@ def encode_line(text: str) -> bytes:
     if bad:
         raise ValueError(f"G-code line {text!r} contains forbidden character(s) {bad!r}")
     return text.encode("ascii") + b"\n"
+
+
+def comment_text(text: str) -> str:
+    """``text`` fit for a job file's comment lines: unprintable characters and those the
+    board acts on (``! ~ % $ ?``) dropped, so a header never acts on the machine."""
+    return "".join(c for c in text if c.isprintable() and c not in "!~%$?")

@@ -55,6 +55,7 @@ from cvmeasure.design import (
 )
 from cvmeasure.errors import InputError
 from cvmeasure.gcode import GcodeJob
+from cvmeasure.gcode_line import comment_text
 
 __all__ = [
     "DesignChange",
@@ -187,7 +188,7 @@ class WirePlan:
         }
         lines = [f"; {line}" for line in self.table_lines()]
         lines.append(_PLAN_TAG + json.dumps(keep, separators=(",", ":")))
-        return ["".join(c for c in h if c.isprintable() and c not in "!~%$?") for h in lines]
+        return [comment_text(h) for h in lines]
 
     def to_dict(self) -> dict[str, Any]:
         return {
