@@ -228,6 +228,11 @@ def _arc_svg(path, radius_mm, from_deg, to_deg):
     return path
 
 
+def _feeds(job_text):
+    """The feed lengths (text after ``Y``) of a job's G-code, in order."""
+    return [ln.split("Y")[1].split()[0] for ln in job_text.splitlines() if " Y" in ln]
+
+
 def _photo_of_bent_part(tmp_path, chords, made_deg, board, seed):
     """A rendered JPEG of ``chords`` (N+1, 2; mm) bent by ``made_deg`` (N-1 machine bends)
     beside ``board``; its camera and board JSON written beside it. Returns the JPEG path."""
@@ -425,7 +430,7 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     assert main(["correct", str(jpg), *plan, *material, *seen, *out]) == 0, capsys.readouterr().err
 
     def feeds(path):
-        return [ln.split("Y")[1].split()[0] for ln in path.read_text().splitlines() if " Y" in ln]
+        return _feeds(path.read_text())
 
     assert feeds(tmp_path / "job2.gcode") == feeds(job)
     assert len(feeds(job)) >= 10
@@ -487,10 +492,7 @@ def test_the_api_chain_bends_measures_and_corrects_one_polygon(tmp_path, capsys)
         fixed.correction.error_deg, made.unloaded_bend_deg - target, atol=0.1
     )
 
-    def feeds(text):
-        return [ln.split("Y")[1].split()[0] for ln in text.splitlines() if " Y" in ln]
-
-    assert feeds(fixed.job.text()) == feeds(job.text())
+    assert _feeds(fixed.job.text()) == _feeds(job.text())
     same_polygon(plan_from_job(fixed.job.text(), "next").vertices_mm, chords)
     # the CLI reads the API's job: the polygon from its header, no options repeated
     args = ["--board", str(seen["board"]), "--camera", str(seen["camera"]), "--json"]
