@@ -17,7 +17,8 @@ brighter than its sheet, the last pass looks for the centres only where the prof
 out above the sheet (a lifted end's shadow parts from the wire as a dark valley, symmetric
 too: :func:`_sheet_floor`), and so does every pass where the symmetric centres are the
 measurement (no stated width, or its silhouette edges not used), the first across the
-whole mask (which holds the shadow too).
+whole mask (which holds the shadow too); those passes bar a dimmer band beside the crest as
+well (a polished flank mirroring the room: :func:`_crest_level`).
 With the wire's expected width known and the wire's band not clearly brighter than the
 sheet (white, printed cork), the window is set from that width instead: a polished tube's
 limbs mirror the light sheet, so the mask and the half-width measured about it hold only one
@@ -225,6 +226,12 @@ STRAY_SHARE_MAX = 0.03
 #: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
 #: 0-1.3 % where they followed the axis, 5-12 % where a stretch ran into one flank's valley.
 VALLEY_SHARE_MAX = 0.03
+
+#: Least height of a bright wire's symmetric centre over the sheet, as a share of the
+#: brightest's within reach (:func:`_crest_level`). Path-traced polished steel on dark and
+#: black card: 99 % of each photo's centres at 0.71 or more (most at 0.95-1); a flank's
+#: mirrored band beside a saturated crest at 0.45-0.5.
+CREST_LEVEL_SHARE = 0.65
 
 #: Relative range of the silhouette edges' distance about the expected width.
 PAIR_TOLERANCE = 0.08
@@ -868,6 +875,7 @@ def _symmetric_passes(
     # inflates half-widths measured from it: centre with a small window first
     hws = half_width_px(prof, offsets, hw0)
     rough = float(np.nanmedian(hws)) if np.isfinite(hws).any() else hw0
+    stated_hw = known_hw
     if known_hw is not None and _dark_on_sheet(prof, offsets, known_hw):
         # a dark wire on a light sheet: its polished limbs mirror the sheet beside them, the
         # flanks near 45 deg the dark room's horizon, so the mask holds one flank's dark
@@ -902,8 +910,13 @@ def _symmetric_passes(
             # a bright wire on a dark sheet: the mask may hold its shadow too, parted from
             # a lifted end by a gap (the mask's path then runs beside the wire, 10-12 px
             # off a 19 px wire's axis 3 mm up), so the first pass looks for the wire's
-            # centre across the whole mask; the shadow's valley is barred (the floor)
-            reach_px = max(search, min(hw0 - rough, reach - rho - 0.5))
+            # centre across the whole mask, and across the stated wire's half-width where
+            # that is wider (the mask can hold a bright flank's band only); the shadow's
+            # valley is barred (the floor)
+            reach_px = max(search, min(max(hw0 - rough, stated_hw or 0.0), reach - rho - 0.5))
+        if floor is not None:
+            # and a band beside the crest dimmer than it (:func:`_crest_level`)
+            floor = np.maximum(floor, _crest_level(prof, reach_px + rho))
         shift, _ = symmetric_centres(
             prof, rho_px=rho, search_px=reach_px, max_slope_px=0.4 * step_px,
             by_variance=not (n_pass == 0 and known_hw is not None), min_level=floor,
@@ -926,6 +939,26 @@ def _symmetric_passes(
             rho = max(0.6 * rough, min(0.85 * rough, rough - 0.8), _MIN_RHO_PX)
             search = min(0.5 * rough + 1.0, reach - rho - 0.5)
     return centres, normals, prof, rough, rho, search
+
+
+def _crest_level(prof: np.ndarray, reach_px: float) -> np.ndarray:
+    """The level (P,) below which a bright wire's profile holds no crest: the sheet's
+    (the brighter side's outer tenth) plus ``CREST_LEVEL_SHARE`` of the way up to the
+    brightest within ``reach_px`` of the guess (``prof`` sampled every ``PROFILE_STEP_PX``).
+
+    A polished wire's crest is the brightest band across it, but not the only symmetric
+    one: the other flank can mirror a dim band of the room, narrow and symmetric too, and a
+    window sized to a narrow crest holds it as well as the crest. Where the crest is
+    saturated it is flat, of little variance, and the band won by the asymmetry relative to
+    the window's variance (path-traced 2 mm steel on black card under a low lamp: the
+    centres 5 px off the axis on the band along 2.4 chords, at 0.45-0.5 of the crest's
+    height over the sheet, two vertex bends 4.6 deg off at 3.4 stated sigma).
+    """
+    n = prof.shape[1]
+    offsets = (np.arange(n) - n // 2) * PROFILE_STEP_PX
+    sheet = np.maximum(*side_levels(prof))
+    peak = prof[:, np.abs(offsets) <= reach_px].max(axis=1)
+    return sheet + CREST_LEVEL_SHARE * np.maximum(peak - sheet, 0.0)
 
 
 def _dark_on_sheet(profiles: np.ndarray, offsets: np.ndarray, half_width: float) -> bool:
