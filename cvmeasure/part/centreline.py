@@ -916,7 +916,7 @@ def _symmetric_passes(
             reach_px = max(search, min(max(hw0 - rough, stated_hw or 0.0), reach - rho - 0.5))
         if floor is not None:
             # and a band beside the crest dimmer than it (:func:`_crest_level`)
-            floor = np.maximum(floor, _crest_level(prof, reach_px + rho))
+            floor = np.maximum(floor, _crest_level(prof, offsets, reach_px + rho))
         shift, _ = symmetric_centres(
             prof, rho_px=rho, search_px=reach_px, max_slope_px=0.4 * step_px,
             by_variance=not (n_pass == 0 and known_hw is not None), min_level=floor,
@@ -941,10 +941,10 @@ def _symmetric_passes(
     return centres, normals, prof, rough, rho, search
 
 
-def _crest_level(prof: np.ndarray, reach_px: float) -> np.ndarray:
+def _crest_level(prof: np.ndarray, offsets: np.ndarray, reach_px: float) -> np.ndarray:
     """The level (P,) below which a bright wire's profile holds no crest: the sheet's
     (the brighter side's outer tenth) plus ``CREST_LEVEL_SHARE`` of the way up to the
-    brightest within ``reach_px`` of the guess (``prof`` sampled every ``PROFILE_STEP_PX``).
+    brightest within ``reach_px`` of the guess (``prof`` sampled at ``offsets``, px).
 
     A polished wire's crest is the brightest band across it, but not the only symmetric
     one: the other flank can mirror a dim band of the room, narrow and symmetric too, and a
@@ -954,8 +954,6 @@ def _crest_level(prof: np.ndarray, reach_px: float) -> np.ndarray:
     centres 5 px off the axis on the band along 2.4 chords, at 0.45-0.5 of the crest's
     height over the sheet, two vertex bends 4.6 deg off at 3.4 stated sigma).
     """
-    n = prof.shape[1]
-    offsets = (np.arange(n) - n // 2) * PROFILE_STEP_PX
     sheet = np.maximum(*side_levels(prof))
     peak = prof[:, np.abs(offsets) <= reach_px].max(axis=1)
     return sheet + CREST_LEVEL_SHARE * np.maximum(peak - sheet, 0.0)
