@@ -51,7 +51,7 @@ def arc_from_points(
     poly = None
     if divisions:
         poly = fit_polyline(pts, divisions, fractions=fractions)
-        geo, circle = polygon_arc(poly.vertices_mm)
+        geo, circle = polygon_arc(_placed_vertices(poly))
         chord, height = geo.chord_width_mm, geo.height_mm
     else:
         circle = fit_circle_robust(pts)
@@ -59,6 +59,16 @@ def arc_from_points(
         chord, height = geo.chord_width_mm, geo.height_mm
     result = ArcResult("centreline_fit", geo.radius_mm, chord, height, geo.arc_angle_deg, divisions)
     return result, circle, poly
+
+
+def _placed_vertices(poly: PolylineFit) -> np.ndarray:
+    """The polygon's vertices less those between two chords placed across a gap of the
+    centreline (the intersection of two lines through the same gap's ends: not measured)."""
+    if poly.across_gap is None:
+        return poly.vertices_mm
+    gap = np.asarray(poly.across_gap, dtype=bool)
+    inner_unplaced = np.r_[False, gap[:-1] & gap[1:], False]
+    return poly.vertices_mm[~inner_unplaced]
 
 
 def polygon_arc(vertices_mm: np.ndarray) -> tuple[ArcGeometry, CircleFit]:

@@ -63,7 +63,10 @@ grainy sheet), the pairs are looked for again on profiles averaged along a wire 
 points are the caps' silhouettes on the axis less the half-width. Before they are looked
 for, an end whose first centres' profiles are not like the wire's nearby (a guide whose
 skeleton ends in a branch into the sheet: the centres run off the wire) is cut back to the
-first stretch that is, and the wire followed on from there (:mod:`cvmeasure.part.ends`). The edges' distance is the wire's apparent width, which
+first stretch that is, and the wire followed on from there (:mod:`cvmeasure.part.ends`); where
+that leaves over two widths of wire without centres (a lifted end's shadow parting from it
+led the mask's path away), the centres are measured again along the wire's own path, end to
+end. The edges' distance is the wire's apparent width, which
 :mod:`cvmeasure.part.lift` reads as the wire's distance from the camera.
 
 The steps live in their own modules: profile sampling and analysis in
@@ -118,6 +121,9 @@ LIKE_SPAN = 1.3
 LIKE_WINDOW_WIDTHS = 3.0
 #: Wire widths from each end within which centres unlike the wire are dropped.
 LIKE_END_WIDTHS = 3.0
+#: An end followed on past where the guide left the wire, farther than this many wire widths
+#: from the centres kept, is measured again along the followed stretch (:func:`measure_centreline`).
+REMEASURE_GAP_WIDTHS = 2.0
 
 #: A pass's edge midpoints tracing a path this many times longer than their smoothed
 #: path zigzag across the wire; the next pass follows the smoothed one
@@ -214,14 +220,18 @@ CREST_MIN_COVERAGE = 0.5
 #: crest is out of reach the valley-barred search leaves the profiles without a centre but
 #: a few find a symmetric point beside the wire, in runs of 1-5 centres: path-traced steel
 #: on white card, 5 % of a wire's centres 8-19 px off along a sixth of it (its edges there
-#: 4-6 px off too), a vertex bend beside them 1.1 deg off at 5 stated sigma, which the
-#: closed loop took for the machine's; under 1.3 % between the caps on the light-sheet
-#: photos whose crest was followed (up to 3 % counting the caps, where the ends' rules
-#: cut them).
+#: 4-6 px off too, 1.6 px towards the shadow along the whole wire), a vertex bend beside them
+#: 1.1 deg off at 5 stated sigma, which the closed loop took for the machine's; under 1.3 %
+#: between the caps on the light-sheet photos whose crest was followed (up to 3 % counting
+#: the caps, where the ends' rules cut them). Those stray centres are dropped: the stretch
+#: is left without centres, its chords' directions unmeasured and said so
+#: (``part_centreline_gap``), the rest on the crest (that wire's radius 0.05 % off, where the
+#: edges' centres put it 0.55 % off).
 CREST_RUN_MIN_WIDTHS = 0.5
 #: Largest share of the crest's centres in runs shorter than ``CREST_RUN_MIN_WIDTHS``
-#: between longer ones for them to be taken (:func:`_share_in_short_runs`).
-STRAY_SHARE_MAX = 0.03
+#: between longer ones (:func:`_short_runs`) for the rest to be taken: more, and the crest is
+#: not what the search follows.
+STRAY_SHARE_MAX = 0.1
 #: Largest share of the symmetric centres in a valley for them to be taken on a light sheet
 #: over the silhouette edges. On the path-traced parts on white card and cork at 0.11 mm/px:
 #: 0-1.3 % where they followed the axis, 5-12 % where a stretch ran into one flank's valley.
@@ -352,6 +362,55 @@ def measure_centreline(
     if end_shape not in ("round", "flat"):
         raise ValueError(f"end_shape must be 'round' or 'flat', got {end_shape!r}")
     g = np.asarray(gray, dtype=np.float32)
+    centre, followed = _centreline_along(
+        g, path_px, width_guess_px, step_px, end_shape, wire_width_px
+    )
+    reach_px = REMEASURE_GAP_WIDTHS * 2.0 * centre.half_width_px
+    gapped = [f and gap > reach_px for f, gap in zip(followed, _end_gaps_px(centre), strict=True)]
+    if _round_wire(centre) and any(gapped):
+        # the mask's path left the wire before this end (a lifted end's shadow parting from
+        # it: the last 110 px of a Mitsuba part on cork had no centre, its chord's direction
+        # was not measured): the wire's own path, end to end, guides the centres this time.
+        # Only a round wire's: along its own centres a line that is none (a strip between
+        # two surfaces, its profile a step) can look symmetric
+        again, _ = _centreline_along(
+            g, centre.points_px, width_guess_px, step_px, end_shape, wire_width_px
+        )
+        # kept where it measured the stretch (its profiles there like the wire's)
+        filled = all(
+            not was or gap <= reach_px for was, gap in zip(gapped, _end_gaps_px(again), strict=True)
+        )
+        centre = again if _round_wire(again) and filled else centre
+    return centre
+
+
+def _end_gaps_px(centre: Centreline) -> list[float]:
+    """How far each end point lies from the centre next to it, pixels."""
+    inner = centre.points_px[1:-1]
+    if len(inner) == 0:
+        return [0.0, 0.0]
+    return [
+        float(np.hypot(*(centre.ends_px[0] - inner[0]))),
+        float(np.hypot(*(centre.ends_px[1] - inner[-1]))),
+    ]
+
+
+def _round_wire(centre: Centreline) -> bool:
+    """Whether a centreline's profiles are a round wire's: between its silhouette edges, or
+    symmetric (what :mod:`cvmeasure.part.locate` asks of a wire too)."""
+    return centre.between_edges or centre.asymmetry <= SYMMETRIC_WIRE_MAX
+
+
+def _centreline_along(
+    g: np.ndarray,
+    path_px: np.ndarray,
+    width_guess_px: float,
+    step_px: float,
+    end_shape: EndShape,
+    wire_width_px: float | None,
+) -> tuple[Centreline, tuple[bool, bool]]:
+    """:func:`measure_centreline` along one guide path, and whether each end (head, tail)
+    was followed on past where the centres were cut back (:func:`_end_stretches_like`)."""
     hw0 = max(1.0, 0.5 * width_guess_px)
     path = resample_path(np.asarray(path_px, dtype=np.float64), step_px)
     path = smooth_path(path, max(2.0, 2.0 * hw0) / step_px)
@@ -444,7 +503,7 @@ def measure_centreline(
     keep = _inside_ends(centres, ends, half_width, step_px)
     lit_points = None if lit is None else np.vstack((ends[:1], lit[keep], ends[1:]))
     edge_width = None if widths is None else np.concatenate(([np.nan], widths[keep], [np.nan]))
-    return Centreline(
+    centreline = Centreline(
         points_px=np.vstack((ends[:1], centres[keep], ends[1:])),
         half_width_px=half_width,
         rho_px=rho,
@@ -458,6 +517,7 @@ def measure_centreline(
         lit_points_px=lit_points,
         edges_refused=refused,
     )
+    return centreline, cut
 
 
 def _final_symmetric(
@@ -675,9 +735,9 @@ def _symmetric_on_crest(
     not in reach the profile gives no centre (path-traced steel on white card: where a last
     chord's free search ran into a valley, the barred one keeps to the crest and the radius
     is 0.01 % off). The centres are taken where they follow most of the wire
-    (``CREST_MIN_COVERAGE``), hardly any lie in short runs between the long ones
-    (``STRAY_SHARE_MAX``: where neither crest nor silhouette shows along a stretch, the
-    search leaves a few centres off the wire there), and hardly any still lie in a valley
+    (``CREST_MIN_COVERAGE``), few lie in short runs between the long ones (where neither
+    crest nor silhouette shows along a stretch, the search leaves a few centres off the wire
+    there: dropped, up to ``STRAY_SHARE_MAX``), and hardly any still lie in a valley
     where the photo is sampled across their own path (``VALLEY_SHARE_MAX``), counted beside
     the edges' centreline (past its ends lie the caps and the sheet).
     """
@@ -692,8 +752,14 @@ def _symmetric_on_crest(
     sym, coverage, asymmetry = found[0], found[3], found[4]
     if asymmetry > SYMMETRIC_WIRE_MAX or coverage < CREST_MIN_COVERAGE:
         return None
-    if _share_in_short_runs(sym, step_px, CREST_RUN_MIN_WIDTHS * width_px) > STRAY_SHARE_MAX:
+    stray = _short_runs(sym, step_px, CREST_RUN_MIN_WIDTHS * width_px)
+    if stray.mean() > STRAY_SHARE_MAX:
         return None
+    if stray.any():  # off the wire: the stretch left without centres
+        kept = ~stray
+        coverage *= float(kept.mean())
+        sym = sym[kept]
+        found = (sym, found[1][kept], found[2] + int(stray.sum()), coverage, asymmetry)
     guide = resample_path(smooth_path(edge_centres, width_px / step_px), 0.25 * step_px)
     _, k = cKDTree(guide).query(sym)
     beside = (k > 0) & (k < len(guide) - 1)
@@ -707,20 +773,21 @@ def _symmetric_on_crest(
     return found
 
 
-def _share_in_short_runs(centres: np.ndarray, step_px: float, min_run_px: float) -> float:
-    """The share of ``centres`` (M, 2; in order, every ``step_px`` where found) in runs
+def _short_runs(centres: np.ndarray, step_px: float, min_run_px: float) -> np.ndarray:
+    """True (M,) at the ``centres`` (M, 2; in order, every ``step_px`` where found) in runs
     shorter than ``min_run_px`` between two longer ones, the runs split where consecutive
     centres lie over 3 steps apart. Short runs before the first long one and after the
     last lie at the caps, whose centres the ends' rules judge."""
+    stray = np.zeros(len(centres), dtype=bool)
     if len(centres) < 2:
-        return 0.0
+        return stray
     gap = np.hypot(*np.diff(centres, axis=0).T) > 3.0 * step_px
     run = np.concatenate(([0], np.cumsum(gap)))
     short = np.bincount(run)[run] * step_px < min_run_px
     long_at = np.nonzero(~short)[0]
-    if len(long_at) == 0:
-        return 0.0
-    return float(np.sum(short[long_at[0] : long_at[-1]]) / len(centres))
+    if len(long_at):
+        stray[long_at[0] : long_at[-1]] = short[long_at[0] : long_at[-1]]
+    return stray
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import numpy as np
 
 from cvmeasure.board import BoardSpec
 from cvmeasure.contracts import PlaneModel
+from cvmeasure.geometry import wrap_deg
 from cvmeasure.part.arc import part_shape
 from cvmeasure.part.fit import (
     PolylineFit,
@@ -78,16 +79,22 @@ def widen_for_centreline_gaps(
     wider than the wire not counted: the centreline lost there) gets its line from the
     centres at the gap's ends, which lie in the corners: its direction is uncertain by the
     angle half a wire's width subtends over the chord, added (in quadrature) to the sigmas
-    of the bends at both its vertices.
+    of the bends at both its vertices. Where the gap holds two or more chords, their one
+    line spans them all, each chord's direction anywhere between those of the seen chords
+    either side: half the turn between those (:func:`_lost_run_turn_deg`), if larger.
     """
     cover = chord_coverage(centreline_mm, poly.vertices_mm, max_step_mm=wire_width_mm)
+    if poly.across_gap is not None:  # placed across a gap: none of its own centres
+        cover = np.where(poly.across_gap, 0.0, cover)
     lost = np.nonzero(cover < CHORD_MIN_COVERAGE)[0]
     if len(lost) == 0:
         return bend_sigma, None
     sigma = np.asarray(bend_sigma, dtype=float).copy()
     lengths = np.asarray(poly.segment_length_mm, dtype=float)
+    seen = cover >= CHORD_MIN_COVERAGE
     for i in lost:
         dir_sigma = math.degrees(math.atan2(0.5 * wire_width_mm, max(lengths[i], 1e-9)))
+        dir_sigma = max(dir_sigma, _lost_run_turn_deg(poly, seen, int(i)))
         for j in (i - 1, i):
             if 0 <= j < len(sigma):
                 sigma[j] = math.hypot(sigma[j], dir_sigma)
@@ -157,3 +164,20 @@ def arc_consistency_warning(
         f"shadow), and radius_mm, arc_angle_deg (by about {len(lengths) * diff:+.2f} deg), "
         "chord_width_mm and height_mm carry that error; the vertex bends do not",
     )
+
+
+def _lost_run_turn_deg(poly: PolylineFit, seen: np.ndarray, i: int) -> float:
+    """Half the turn (deg) between the seen chords either side of the run of lost chords
+    holding chord ``i``; 0 where the run is that chord alone, 90 where it reaches an end of
+    the wire (no seen chord beyond: its direction not measured at all; ``seen``: (N,) bool)."""
+    lo = hi = i
+    while lo > 0 and not seen[lo - 1]:
+        lo -= 1
+    while hi < len(seen) - 1 and not seen[hi + 1]:
+        hi += 1
+    if hi == lo or poly.direction_deg is None:
+        return 0.0
+    if lo == 0 or hi == len(seen) - 1:
+        return 90.0
+    directions = np.asarray(poly.direction_deg, dtype=float)
+    return 0.5 * abs(float(wrap_deg(directions[hi + 1] - directions[lo - 1])))

@@ -154,6 +154,9 @@ class PolylineFit:
         vector, board frame), degrees; ``direction_sigma_deg`` its standard uncertainty
         from the same scatter (the two of a vertex are independent: their fits share no
         point), so ``bend_sigma_deg`` is the pairs' quadrature sum.
+    across_gap : ndarray (N,) bool, the chords without centres of their own, placed on the
+        line across the centreline's gap (their directions, and the bends at their vertices,
+        not measured; None: every chord has its own).
     """
 
     vertices_mm: np.ndarray
@@ -163,6 +166,7 @@ class PolylineFit:
     bend_sigma_deg: np.ndarray | None = None
     direction_deg: np.ndarray | None = None
     direction_sigma_deg: np.ndarray | None = None
+    across_gap: np.ndarray | None = None
 
     @property
     def divisions(self) -> int:
@@ -266,7 +270,8 @@ def fit_polyline(
 
     Each segment is a robust total-least-squares line through the points between two
     vertices, leaving out a ``corner_margin`` fraction of the segment length at
-    both ends (where the wire is rounded around the bending pin). Inner vertices
+    both ends (where the wire is rounded around the bending pin); a segment in a gap of
+    the centreline is the line through the points at the gap's ends. Inner vertices
     are the intersections of neighbouring lines; the end vertices are the first
     and last points projected onto the end lines. The split points start at an
     equal-chord division of the centreline and follow the vertices for a few
@@ -289,6 +294,7 @@ def fit_polyline(
     s = np.concatenate(([0.0], np.cumsum(seg)))
     verts, window = _start_vertices(pts, s, divisions, fractions)
     lines: list[tuple[np.ndarray, np.ndarray]] = []
+    gap_ends: dict[int, np.ndarray] = {}
     rms = float("nan")
     vs0: np.ndarray | None = None
     for _ in range(max(1, iterations)):
@@ -311,6 +317,14 @@ def fit_polyline(
             sel = (s >= lo) & (s <= hi)
             if sel.sum() < 2:
                 sel = (s >= a) & (s <= b)
+            if sel.sum() < 2 and i not in gap_ends:
+                # a chord in a gap of the centreline: its line through the centres at the
+                # gap's ends, in the corners (its direction not measured: ``across_gap``),
+                # as first placed (moved vertices would give it a neighbour's centres)
+                gap_ends[i] = np.r_[np.nonzero(s < a)[0][-1:], np.nonzero(s > b)[0][:1]]
+            if i in gap_ends:
+                sel = np.zeros(len(s), dtype=bool)
+                sel[gap_ends[i]] = True
             if sel.sum() < 2:
                 raise ValueError("too few centreline points for the number of divisions")
             p0, d, inl = fit_line(pts[sel])
@@ -347,6 +361,7 @@ def fit_polyline(
         bend_sigma_deg=np.degrees(np.sqrt(var[:-1] + var[1:])),
         direction_deg=np.degrees(np.arctan2(dirs[:, 1], dirs[:, 0])),
         direction_sigma_deg=np.degrees(np.sqrt(var)),
+        across_gap=np.isin(np.arange(divisions), list(gap_ends)) if gap_ends else None,
     )
 
 

@@ -170,3 +170,44 @@ def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
     assert np.all(np.delete(sigma, [3, 4]) == 0.01)
     _, none = widen_for_centreline_gaps(pts, fit_polyline(pts, n), np.full(n - 1, 0.01), 3.0)
     assert none is None
+
+
+def test_bends_beside_a_gap_over_two_chords_hold_within_their_widened_sigmas():
+    """A centreline lost along two whole chords of a 12-chord arc (R 60 mm, 10 deg bends):
+    both are placed on the one line across the gap, which bends the vertices beside it by
+    half a bend or more; each vertex bend touching a lost chord gets half the turn between
+    the seen chords either side as its sigma (15 deg), so each lies within it, and the
+    others stay as measured (within 0.01 deg of the bend); the radius and the bend per chord
+    from the vertices placed stay on target."""
+    from cvmeasure.part.checks import widen_for_centreline_gaps
+
+    n, radius, bend = 12, 60.0, 10.0
+    angles = np.radians(np.linspace(0.0, n * bend, n + 1))
+    verts = radius * np.column_stack((np.cos(angles), np.sin(angles)))
+    pts = np.vstack(
+        [np.linspace(a, b, int(np.hypot(*(b - a)) / 0.15), endpoint=False)
+         for a, b in zip(verts[:-1], verts[1:], strict=True)] + [verts[-1:]]
+    )  # fmt: skip
+    seg = np.hypot(*np.diff(verts, axis=0).T)
+    t = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
+    # chords 5 and 6 (0-based 4, 5) lost, with 5 % of their neighbours either side
+    lost = (t > seg[:4].sum() - 0.05 * seg[3]) & (t < seg[:6].sum() + 0.05 * seg[6])
+    kept = pts[~lost]
+    poly = fit_polyline(kept, n)
+    sigma, warning = widen_for_centreline_gaps(kept, poly, np.full(n - 1, 0.01), 3.0)
+    assert "chord(s) 5 (0 %), 6 (0 %)" in warning.message
+    error = np.abs(np.abs(poly.bend_deg) - bend)
+    touching = [3, 4, 5]  # the vertices of chords 4 and 5 (0-based)
+    assert np.all(sigma[touching] >= 0.5 * 3 * bend - 0.5)
+    assert np.all(error[touching] <= sigma[touching])
+    assert np.all(np.delete(error, touching) < 0.01)
+    # the vertex between the two (1.1 mm off the arc) is left out of the vertex circle
+    from cvmeasure.part.arc import _placed_vertices, arc_from_points
+
+    assert (
+        len(_placed_vertices(poly)) == n
+        and not np.isin(poly.vertices_mm[5], _placed_vertices(poly)).all()
+    )
+    arc, _, _ = arc_from_points(kept, n)
+    assert abs(arc.radius_mm / radius - 1.0) < 0.001  # measured 0.05 %
+    assert abs(arc.segment_bend_deg - bend) < 0.01  # measured 0.006
