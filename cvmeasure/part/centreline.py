@@ -373,9 +373,12 @@ def measure_centreline(
         # was not measured): the wire's own path, end to end, guides the centres this time.
         # Only a round wire's: along its own centres a line that is none (a strip between
         # two surfaces, its profile a step) can look symmetric
-        again, _ = _centreline_along(
-            g, centre.points_px, width_guess_px, step_px, end_shape, wire_width_px
-        )
+        try:
+            again, _ = _centreline_along(
+                g, centre.points_px, width_guess_px, step_px, end_shape, wire_width_px
+            )
+        except ValueError:  # no wire along it after all: the first pass stands
+            return centre
         # kept where it measured the stretch (its profiles there like the wire's)
         filled = all(
             not was or gap <= reach_px for was, gap in zip(gapped, _end_gaps_px(again), strict=True)
@@ -409,8 +412,9 @@ def _centreline_along(
     end_shape: EndShape,
     wire_width_px: float | None,
 ) -> tuple[Centreline, tuple[bool, bool]]:
-    """:func:`measure_centreline` along one guide path, and whether each end (head, tail)
-    was followed on past where the centres were cut back (:func:`_end_stretches_like`)."""
+    """:func:`measure_centreline` along one guide path (``g``: the photo's grey levels as
+    float32), and whether each end (head, tail) was followed on past where the centres were
+    cut back (:func:`_end_stretches_like`)."""
     hw0 = max(1.0, 0.5 * width_guess_px)
     path = resample_path(np.asarray(path_px, dtype=np.float64), step_px)
     path = smooth_path(path, max(2.0, 2.0 * hw0) / step_px)
