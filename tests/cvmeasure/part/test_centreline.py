@@ -235,6 +235,22 @@ def test_midpoints_zigzagging_across_the_wire_are_followed_along_it():
     )
 
 
+def _measured_past_a_branch(seed: int):
+    """The axis and the centreline of a wire whose guide starts 3 half-widths short of its
+    head and, before it, turns off the wire: 12 half-widths across it."""
+    axis = np.array([[70.0, 90.0], [170.0, 135.0], [280.0, 125.0]])
+    img = _wire_image(axis, sheet="light", shadow=False, seed=seed)
+    path = _rough_path(axis, 0.5)
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+    path = path[s >= 3 * RADIUS_PX]
+    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
+    branch = path[0] + np.arange(12 * RADIUS_PX, 0.0, -1.0)[:, None] * np.array([-d[1], d[0]])
+    cl = measure_centreline(
+        img, np.vstack((branch, path)), width_guess_px=2.2 * RADIUS_PX, wire_width_px=2 * RADIUS_PX
+    )
+    return axis, cl
+
+
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_guide_turning_off_the_wire_at_its_end_is_cut_and_the_wire_followed(seed):
     """The mask's skeleton can end in a branch turning off the wire into the sheet (a full-
@@ -242,17 +258,7 @@ def test_a_guide_turning_off_the_wire_at_its_end_is_cut_and_the_wire_followed(se
     end was read 60-72 px off, across the wire. The centres unlike the wire's profile at that
     end are cut, and the wire is followed on by its profile to its cap: within 0.1 px
     (measured), asserted within 0.5 px; the other end as without the branch."""
-    axis = np.array([[70.0, 90.0], [170.0, 135.0], [280.0, 125.0]])
-    img = _wire_image(axis, sheet="light", shadow=False, seed=seed)
-    path = _rough_path(axis, 0.5)
-    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
-    path = path[s >= 3 * RADIUS_PX]
-    # the head's last 3 half-widths turn off the wire: 12 half-widths across it
-    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
-    branch = path[0] + np.arange(12 * RADIUS_PX, 0.0, -1.0)[:, None] * np.array([-d[1], d[0]])
-    cl = measure_centreline(
-        img, np.vstack((branch, path)), width_guess_px=2.2 * RADIUS_PX, wire_width_px=2 * RADIUS_PX
-    )
+    axis, cl = _measured_past_a_branch(seed)
     head = min(cl.ends_px, key=lambda e: float(np.hypot(*(e - axis[0]))))
     assert float(np.hypot(*(head - axis[0]))) < 0.5
     tail = min(cl.ends_px, key=lambda e: float(np.hypot(*(e - axis[-1]))))
@@ -266,16 +272,7 @@ def test_the_wire_followed_past_a_guide_turning_off_it_has_its_centres(seed):
     end chord's direction unmeasured), the followed stretch is measured along the wire's
     own path: no gap over a wire width from either end point (measured 3.5 px; 28-29 px
     before), every centre within 0.3 px of the axis (measured 0.04; 0.7 before)."""
-    axis = np.array([[70.0, 90.0], [170.0, 135.0], [280.0, 125.0]])
-    img = _wire_image(axis, sheet="light", shadow=False, seed=seed)
-    path = _rough_path(axis, 0.5)
-    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
-    path = path[s >= 3 * RADIUS_PX]
-    d = (axis[1] - axis[0]) / np.hypot(*(axis[1] - axis[0]))
-    branch = path[0] + np.arange(12 * RADIUS_PX, 0.0, -1.0)[:, None] * np.array([-d[1], d[0]])
-    cl = measure_centreline(
-        img, np.vstack((branch, path)), width_guess_px=2.2 * RADIUS_PX, wire_width_px=2 * RADIUS_PX
-    )
+    axis, cl = _measured_past_a_branch(seed)
     steps = np.hypot(*np.diff(cl.points_px, axis=0).T)
     assert steps.max() < 2 * RADIUS_PX
     _, dist, _ = point_to_polyline(cl.points_px[1:-1], axis)

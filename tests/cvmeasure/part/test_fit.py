@@ -138,6 +138,18 @@ def test_polyline_fit_tolerates_rounded_corners():
     assert math.isfinite(fit.rms_residual_mm)
 
 
+def _arc_of_chords(n: int, radius_mm: float, arc_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices (n+1, 2) of n equal chords on a circle and their centreline, a point
+    every 0.15 mm (mm)."""
+    angles = np.radians(np.linspace(0.0, arc_deg, n + 1))
+    verts = radius_mm * np.column_stack((np.cos(angles), np.sin(angles)))
+    pts = np.vstack(
+        [np.linspace(a, b, int(np.hypot(*(b - a)) / 0.15), endpoint=False)
+         for a, b in zip(verts[:-1], verts[1:], strict=True)] + [verts[-1:]]
+    )  # fmt: skip
+    return verts, pts
+
+
 def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
     """A centreline lost along most of one chord (a 12-chord arc, R 60 mm, centres every
     0.15 mm): that chord's coverage is what is left, the others are whole; the part's check
@@ -147,12 +159,7 @@ def test_chord_coverage_and_the_gap_warning_name_a_chord_without_centres():
     from cvmeasure.part.fit import chord_coverage
 
     n, radius = 12, 60.0
-    angles = np.radians(np.linspace(0.0, 120.0, n + 1))
-    verts = radius * np.column_stack((np.cos(angles), np.sin(angles)))
-    pts = np.vstack(
-        [np.linspace(a, b, int(np.hypot(*(b - a)) / 0.15), endpoint=False)
-         for a, b in zip(verts[:-1], verts[1:], strict=True)] + [verts[-1:]]
-    )  # fmt: skip
+    verts, pts = _arc_of_chords(n, radius, 120.0)
     seg = np.hypot(*np.diff(verts, axis=0).T)
     t = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
     # chord 5 (0-based 4) lost from 10 % to 90 % of its length
@@ -182,12 +189,7 @@ def test_bends_beside_a_gap_over_two_chords_hold_within_their_widened_sigmas():
     from cvmeasure.part.checks import widen_for_centreline_gaps
 
     n, radius, bend = 12, 60.0, 10.0
-    angles = np.radians(np.linspace(0.0, n * bend, n + 1))
-    verts = radius * np.column_stack((np.cos(angles), np.sin(angles)))
-    pts = np.vstack(
-        [np.linspace(a, b, int(np.hypot(*(b - a)) / 0.15), endpoint=False)
-         for a, b in zip(verts[:-1], verts[1:], strict=True)] + [verts[-1:]]
-    )  # fmt: skip
+    verts, pts = _arc_of_chords(n, radius, n * bend)
     seg = np.hypot(*np.diff(verts, axis=0).T)
     t = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))))
     # chords 5 and 6 (0-based 4, 5) lost, with 5 % of their neighbours either side
