@@ -301,6 +301,13 @@ class Centreline:
     edges_refused: str | None = None
 
     @property
+    def round_profile(self) -> bool:
+        """Whether the profiles are a round wire's: between its silhouette edges, or symmetric
+        within ``SYMMETRIC_WIRE_MAX`` (a side-lit round wire is not symmetric across; between
+        the edges a wire wide along most of its length is the test instead)."""
+        return self.between_edges or self.asymmetry <= SYMMETRIC_WIRE_MAX
+
+    @property
     def centre_from(self) -> str:
         """How the centres were placed, as the record says it: ``"silhouette"`` (between the
         two silhouette edges), ``"symmetry"``, or ``"symmetry (...)"`` with why the
@@ -367,7 +374,7 @@ def measure_centreline(
     )
     reach_px = REMEASURE_GAP_WIDTHS * 2.0 * centre.half_width_px
     gapped = [f and gap > reach_px for f, gap in zip(followed, _end_gaps_px(centre), strict=True)]
-    if _round_wire(centre) and any(gapped):
+    if centre.round_profile and any(gapped):
         # the mask's path left the wire before this end (a lifted end's shadow parting from
         # it: the last 110 px of a Mitsuba part on cork had no centre, its chord's direction
         # was not measured): the wire's own path, end to end, guides the centres this time.
@@ -383,7 +390,7 @@ def measure_centreline(
         filled = all(
             not was or gap <= reach_px for was, gap in zip(gapped, _end_gaps_px(again), strict=True)
         )
-        centre = again if _round_wire(again) and filled else centre
+        centre = again if again.round_profile and filled else centre
     return centre
 
 
@@ -396,12 +403,6 @@ def _end_gaps_px(centre: Centreline) -> list[float]:
         float(np.hypot(*(centre.ends_px[0] - inner[0]))),
         float(np.hypot(*(centre.ends_px[1] - inner[-1]))),
     ]
-
-
-def _round_wire(centre: Centreline) -> bool:
-    """Whether a centreline's profiles are a round wire's: between its silhouette edges, or
-    symmetric (what :mod:`cvmeasure.part.locate` asks of a wire too)."""
-    return centre.between_edges or centre.asymmetry <= SYMMETRIC_WIRE_MAX
 
 
 def _centreline_along(
@@ -507,7 +508,7 @@ def _centreline_along(
     keep = _inside_ends(centres, ends, half_width, step_px)
     lit_points = None if lit is None else np.vstack((ends[:1], lit[keep], ends[1:]))
     edge_width = None if widths is None else np.concatenate(([np.nan], widths[keep], [np.nan]))
-    centreline = Centreline(
+    return Centreline(
         points_px=np.vstack((ends[:1], centres[keep], ends[1:])),
         half_width_px=half_width,
         rho_px=rho,
@@ -520,8 +521,7 @@ def _centreline_along(
         end_uncertainty_px=end_uncertainty,
         lit_points_px=lit_points,
         edges_refused=refused,
-    )
-    return centreline, cut
+    ), cut
 
 
 def _final_symmetric(

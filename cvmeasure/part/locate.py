@@ -191,15 +191,12 @@ def _wire_centreline(
         )
     except ValueError as exc:
         raise InputError(source, f"the wire's centreline could not be measured ({exc})") from None
-    # a side-lit round wire is not symmetric across; between silhouette edges a wire
-    # wide along most of its length is the test instead
-    asymmetric = centre.asymmetry > MAX_ASYMMETRY and not centre.between_edges
-    if centre.coverage < MIN_COVERAGE or asymmetric:
+    if centre.coverage < MIN_COVERAGE or not centre.round_profile:
         problem = (
             f"no wire found beside the board (the longest thin line, {wire.length_px:.0f} px, "
             f"has a round wire's symmetric profile along {100 * centre.coverage:.0f} % of it, "
             f"asymmetry {centre.asymmetry:.2f} > {MAX_ASYMMETRY})"
-            if asymmetric
+            if not centre.round_profile
             else f"no wire found beside the board (the longest thin line, "
             f"{wire.length_px:.0f} px, looks like a round wire along only "
             f"{100 * centre.coverage:.0f} % of it)"
