@@ -144,6 +144,13 @@ class Correction:
     suspect : per vertex, whether this part's error was a jump from the earlier parts
         bent with the same pin, left out of the pool (a measurement outlier, or a
         process jump confirmed by the next part).
+    band_deg : per vertex, the dead band (deg) its error had to exceed to be corrected on
+        its own: ``first_look_sigma`` sigmas on a first look, ``deadband_sigma`` sigmas of
+        the pooled mean of the job's parts at this pin otherwise (the sigmas as in
+        ``noise_factor``); 0 for a vertex not bent at all.
+    within_band : per vertex, whether its error lay within ``band_deg``, so that the
+        correction did not act on it on its own (the error weighed is this part's on a
+        first look, the pooled mean otherwise): the measurement cannot tell it from 0.
     notes : what was not corrected and why.
     warnings : what to doubt in the errors corrected: the measured part's warnings (a
         lift, a gap in the centreline, a chord count the photo does not show) and this
@@ -172,10 +179,71 @@ class Correction:
     suspect: tuple[bool, ...] = ()
     notes: tuple[str, ...] = ()
     warnings: tuple[StageWarning, ...] = ()
+    band_deg: tuple[float, ...] = ()
+    within_band: tuple[bool, ...] = ()
 
     @property
     def max_abs_error_deg(self) -> float:
+        """The worst |error| (deg) over every vertex, measured well or not."""
         return float(np.max(np.abs(self.error_deg))) if self.error_deg else 0.0
+
+    @property
+    def resolved_max_abs_error_deg(self) -> float | None:
+        """The worst |error| (deg) among the vertices whose error lies beyond its dead band.
+
+        Those are the errors the measurement resolves and the correction acts on. A
+        vertex whose error lies within its band (``within_band``; e.g. a bend at a
+        chord the photo did not show, its sigma widened to many degrees) is left out,
+        however large its reading: the measurement cannot tell it from 0. The test is
+        the correction's own (on a vertex pooled over the job's parts, the pooled mean's
+        against the pool's band); the error quoted is this part's reading. None when
+        every error lies within its band; without bands (``within_band`` empty) every
+        vertex counts, as in :attr:`max_abs_error_deg`.
+        """
+        within = self.within_band or (False,) * len(self.error_deg)
+        beyond = [abs(e) for e, w in zip(self.error_deg, within, strict=True) if not w]
+        return max(beyond) if beyond else None
+
+    @property
+    def unresolved_vertices(self) -> tuple[int, ...]:
+        """The vertices (job indices, from 0) within their dead band whose |error| exceeds
+        :attr:`resolved_max_abs_error_deg` (all within their band when that is None),
+        largest |error| first: the readings a worst error over all vertices would quote,
+        which the measurement cannot tell from 0."""
+        worst = self.resolved_max_abs_error_deg
+        out = [
+            i
+            for i, (e, w) in enumerate(zip(self.error_deg, self.within_band, strict=False))
+            if w and (worst is None or abs(e) > worst)
+        ]
+        return tuple(sorted(out, key=lambda i: -abs(self.error_deg[i])))
+
+    def error_summary(self, decimals: int = 3, *, name_vertex: bool = True) -> str:
+        """This part's errors in words, e.g. 'worst error 0.412 deg (3 more within their
+        stated uncertainty, up to 9.887 deg at vertex 4, sigma 21.000 deg)'.
+
+        The worst is :attr:`resolved_max_abs_error_deg`; the readings within their dead
+        band that exceed it (:attr:`unresolved_vertices`) are counted apart, with the
+        largest and its stated sigma (deg; vertices by job index, from 0, unless
+        ``name_vertex`` is False).
+        """
+        worst = self.resolved_max_abs_error_deg
+        hidden = self.unresolved_vertices
+        if not hidden:
+            return f"worst error {worst or 0.0:.{decimals}f} deg"
+        top = hidden[0]
+        at = f"vertex {top}, " if name_vertex else ""
+        sigma = self.sigma_deg[top] if self.sigma_deg else 0.0
+        largest = (
+            f"up to {abs(self.error_deg[top]):.{decimals}f} deg at {at}sigma "
+            f"{sigma:.{decimals}f} deg"
+        )
+        if worst is None:
+            return f"every error within its stated uncertainty ({largest})"
+        return (
+            f"worst error {worst:.{decimals}f} deg ({len(hidden)} more within their stated "
+            f"uncertainty, {largest})"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -201,6 +269,8 @@ class Correction:
             "sigma_deg": list(self.sigma_deg),
             "noise_factor": self.noise_factor,
             "suspect": list(self.suspect),
+            "band_deg": list(self.band_deg),
+            "within_band": list(self.within_band),
             "notes": list(self.notes),
             "warnings": [w.to_json() for w in self.warnings],
         }
@@ -569,6 +639,8 @@ def correct_calibration(
         suspect=tuple(bool(v) for v in pool.suspect),
         notes=(*notes, *extra_notes),
         warnings=tuple(part_warnings),
+        band_deg=tuple(float(v) for v in band),
+        within_band=tuple(bool(v) for v in ~_beyond_band(error, band)),
     )
     history = {"corrections": [*corrections_of(calibration), correction.to_dict()]}
     return replace(new_cal, provenance={**calibration.provenance, **history}), correction
@@ -589,6 +661,11 @@ def _band_and_spread(
     band = np.where(pool.k == 1, first_look, deadband) * pool.sigma_deg
     spread = np.where(unbent | (pool.k <= 1), 0.0, shrink * pool.sigma_deg)
     return band, spread
+
+
+def _beyond_band(error: np.ndarray, band: np.ndarray) -> np.ndarray:
+    """Per vertex, whether its error (deg) lies beyond its dead band (deg): corrected on its own."""
+    return np.abs(error) > band
 
 
 def _checked_inputs(
@@ -737,7 +814,7 @@ def _move_knots(
         mags = np.abs(t[idx])
         for group in _groups(mags):
             members = idx[group]
-            own = np.abs(error[members]) > band[members]
+            own = _beyond_band(error[members], band[members])
             corrected[members] = np.where(own, _soft(error[members], spread[members]), 0.0)
             live = members[~unbent[members]]  # a dead-zone vertex says nothing of the curve
             if live.size == 0:

@@ -203,6 +203,52 @@ def test_noise_only_errors_are_left_alone():
     assert corrected_pin_commands(cal2, target) == corrected_pin_commands(cal, target)
 
 
+def test_a_reading_within_its_uncertainty_is_no_worst_error():
+    """A vertex read 9.887 deg off at sigma 21 deg (a chord the photo did not show) lies
+    within its dead band: the worst error quoted is the worst of the vertices read at
+    0.02-0.05 deg beyond theirs, and the wide one is named apart. The band is the first
+    look's 4 sigma; on the job's next part, at a pin that did not move, the pooled mean's
+    2.5 sigma of the two parts' pooled sigma."""
+    cal = default_calibration()
+    target = np.full(6, 15.0)
+    measured = target + np.array([0.3, -0.412, 0.05, 9.887, 0.25, -0.1])
+    sigma = np.array([0.02, 0.02, 0.02, 21.0, 0.02, 0.05])
+    cal2, corr = correct_calibration(cal, target, measured, sigma_deg=sigma, design="job")
+    np.testing.assert_allclose(corr.band_deg, 4.0 * sigma, rtol=0, atol=1e-9)
+    assert corr.within_band == (False, False, True, True, False, True)
+    error = measured - target
+    assert corr.resolved_max_abs_error_deg == np.abs(error[[0, 1, 4]]).max()
+    assert corr.max_abs_error_deg == np.abs(error[3])  # the JSON's figure is unchanged
+    assert corr.unresolved_vertices == (3,)
+    assert corr.error_summary() == (
+        "worst error 0.412 deg (1 more within their stated uncertainty, up to 9.887 deg at "
+        "vertex 3, sigma 21.000 deg)"
+    )
+    record = corrections_of(cal2)[-1]
+    assert record["band_deg"] == list(corr.band_deg)
+    assert record["within_band"] == list(corr.within_band)
+    # the next part, read the same: vertices 0, 1 and 4 were moved (a first look again),
+    # 2, 3 and 5 kept their pins and pool two parts of equal sigmas
+    _, corr = correct_calibration(cal2, target, measured, sigma_deg=sigma, design="job")
+    pooled = corr.deadband_sigma * sigma / np.sqrt(2.0)
+    band = np.where([False, False, True, True, False, True], pooled, 4.0 * sigma)
+    np.testing.assert_allclose(corr.band_deg, band, rtol=0, atol=1e-9)
+    assert corr.within_band == (False, False, False, True, False, False)
+    assert corr.resolved_max_abs_error_deg == np.abs(error[[0, 1, 2, 4, 5]]).max()
+
+
+def test_every_error_within_its_uncertainty_is_said_so():
+    cal = default_calibration()
+    target = np.full(4, 15.0)
+    measured = target + np.array([0.01, -0.03, 0.02, 0.0])
+    _, corr = correct_calibration(cal, target, measured, sigma_deg=np.full(4, 0.02))
+    assert all(corr.within_band) and corr.resolved_max_abs_error_deg is None
+    assert corr.unresolved_vertices == (1, 2, 0, 3)
+    assert corr.error_summary(2, name_vertex=False) == (
+        "every error within its stated uncertainty (up to 0.03 deg at sigma 0.02 deg)"
+    )
+
+
 def test_bad_arguments():
     cal = default_calibration()
     with pytest.raises(ValueError, match="gain"):
