@@ -383,9 +383,11 @@ class Bending:
         )
         ins = self.op.state.inspect
         ins.corrected = True
+        # the worst error quoted is one the measurement resolves, readings within their
+        # uncertainty apart (vertex numbers left out: the job's, not the table's above)
         ins.message = (
-            f"the next part of {name} is corrected (worst error {corr.max_abs_error_deg:.2f} deg fed "
-            "back); bend it from the Bend page"
+            f"the next part of {name} is corrected from the part's errors: "
+            f"{corr.error_summary(2, name_vertex=False)}; bend it from the Bend page"
         )
         if corr.warnings:  # kept with the correction in the calibration's history too
             codes = ", ".join(dict.fromkeys(w.code for w in corr.warnings))

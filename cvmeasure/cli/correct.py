@@ -117,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(to_jsonable(corr.to_dict()), indent=2, allow_nan=False))
     else:
+        # the worst error the measurement resolves; readings within their uncertainty apart
         print(
-            f"{corr.bends} vertices, worst error {corr.max_abs_error_deg:.3f} deg; "
+            f"{corr.bends} vertices, {corr.error_summary()}; "
             f"{len(corr.curve_updates)} curve knot(s) moved; wrote {args.out} and {args.gcode}"
         )
     return 0
