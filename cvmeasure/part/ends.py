@@ -6,7 +6,8 @@ round wire measured between silhouette edges ends at its cap's silhouette less t
 half-width. An end facing its cast shadow on a light plate states how far inside the
 taken outline the true one could lie. Away from silhouette edges the matched cap is read
 again from the crest's first fall along the axis, which a low lamp's glint on the cap's
-flank does not move.
+flank does not move; a wire darker than its plate, whose crest has no such fall, from the
+rise out of its cap's dark limb.
 
 Where the centres were cut back at an end (their guide, the mask's skeleton, ended in a
 branch turning off the wire into the sheet), the wire is followed on from the last centre
@@ -30,6 +31,8 @@ from cvmeasure.part.profiles import PROFILE_STEP_PX, sample_image, zero_mean_cor
 __all__ = [
     "INTO_SHADOW_COS",
     "LIMB_DEPTH_SHARE",
+    "LIMB_LEVEL_SHARE",
+    "LIMB_REACH",
     "SHADOW_STEP_SHARE",
     "SHADOW_DARKER",
     "EndShape",
@@ -53,6 +56,19 @@ SHADOW_DARKER = 1.25
 #: more than this share of the crest's height over it (:func:`_dark_limb_outline`; Mitsuba's
 #: polished 2 mm caps on cork: 0.3-0.4; the photo lab's caps on the dark sheet: 0.01).
 LIMB_DEPTH_SHARE = 0.15
+
+#: On a wire darker than its plate, a cap's dark limb is the rim's: it dips at least as far
+#: as this share of the way from the wire's own darkest (its sides' limb) up to the plate
+#: (:func:`_limb_outline_on_light_plate`). On a full-size Mitsuba part (3 mm steel on white
+#: card) the crest's own ripples dipped to 0.41-0.54 of the way, the paper's grain to 0.71,
+#: the caps' limbs to the wire's darkest or below it.
+LIMB_LEVEL_SHARE = 0.25
+
+#: A dim wire's end placed by its cap's dark limb replaces the matched one within this many
+#: half-widths of it: the flank's match ended a 3 mm wire on white card 0.15 half-widths
+#: short (the side lamp shades the cap's flank along the axis unlike the cylinder's across
+#: it, while the rim's limb is the same), farther off the dip is another's.
+LIMB_REACH = 0.6
 
 #: Least correlation of the photo's cross profile with the wire's own for a followed end
 #: to go on (:func:`_follow_profile`): the wire's own profiles correlate 0.85-0.98 with
@@ -229,7 +245,53 @@ def end_point(
     fall = _crest_fall(gray, start, d, block, offsets, half_width, far)
     if fall is not None and abs(fall - best) <= GLINT_REACH * half_width:
         best = fall
+    reached = reached_centres
+    if followed is not None:
+        reached = max(reached, followed.reach_px - FOLLOW_INSIDE * half_width)
+    rim = _limb_outline_on_light_plate(gray, start, d, block, half_width, far, reached)
+    if rim is not None and abs(rim - half_width - best) <= LIMB_REACH * half_width:
+        best = rim - half_width
     return start + best * d + across * normal, 0.0
+
+
+def _limb_outline_on_light_plate(
+    gray: np.ndarray,
+    start: np.ndarray,
+    d: np.ndarray,
+    block: np.ndarray,
+    half_width: float,
+    far: float,
+    reached_px: float,
+) -> float | None:
+    """Where a wire darker than its plate has its cap's outline along ``start + t d`` (t,
+    px), read from the rise out of the cap's dark limb (:func:`_dark_limb_outline`); None
+    where the wire is not darker than the plate along its axis, or no limb is seen.
+
+    The crest of such a wire does not stand clear of the plate, so its fall along the axis
+    places no end (:func:`_crest_fall`), and the flank's match leans on shading that a side
+    lamp gives the cap's flank differently along the axis than the cylinder's across it.
+    The rim's limb is the same limb as the sides' (the room mirrored at grazing angles): it
+    dips as dark, to within :data:`LIMB_LEVEL_SHARE` of the way from the wire's darkest
+    (``block``'s profiles within 1.2 half-widths of the axis) to the plate, which tells it
+    from the crest's own ripples and the plate's grain.
+    """
+    mid = block.shape[1] // 2
+    background, plate_spread = _plate(block)
+    reach = min(mid, block.shape[1] - 1 - mid, int(round(1.2 * half_width / PROFILE_STEP_PX)))
+    darkest = float(_symmetric_half(block, 0, reach).min())
+    crest = float(np.median(block[:, mid]))
+    if crest >= background - 2.0 * plate_spread or background <= darkest + 4.0 * plate_spread:
+        return None
+    t = np.arange(0, round(far / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
+    axial = sample_image(gray, start[None, :] + t[:, None] * d[None, :])
+
+    def plate_inside(t_px: float) -> bool:
+        return _plate_inside(gray, start, d, t_px, half_width, background, plate_spread)
+
+    level = darkest + LIMB_LEVEL_SHARE * (background - darkest)
+    return _dark_limb_outline(
+        axial, t, half_width, background, plate_spread, reached_px, plate_inside, level
+    )
 
 
 def _crest_fall(
@@ -542,6 +604,7 @@ def _dark_limb_outline(
     plate_spread: float,
     reached_px: float,
     plate_inside: Callable[[float], bool],
+    limb_level: float | None = None,
 ) -> float | None:
     """The outline of a polished cap ringed by its own dark limb (px along ``t``), else None.
 
@@ -556,7 +619,8 @@ def _dark_limb_outline(
     rise out of a stretch darker than the plate (by more than twice the plate's spread and
     :data:`LIMB_DEPTH_SHARE` of the crest's height over the plate) that starts at a strong
     fall (at least half the strongest's, the innermost that makes one) and ends within a
-    half-width of it. None where the axis beyond those falls does not go below the plate
+    half-width of it; with ``limb_level`` (grey), only a stretch dipping to that level.
+    None where the axis beyond those falls does not go below the plate
     (a dark plate, a dim cap), or stays dark past a half-width (cast shadow). Not used at an
     end facing its cast shadow, which is dark beyond the cap too (:func:`_cap_edge`).
     """
@@ -577,7 +641,9 @@ def _dark_limb_outline(
     falls = np.array([i for i in falls if not plate_inside(float(t[i]))] or [strongest])
     strong = falls[g[falls] <= 0.5 * g[falls].min()]
     for k in sorted(strong.tolist(), key=lambda i: t[i]):
-        outline = _rise_out_of_limb(axial, g, t, k, half_width, background, plate_spread)
+        outline = _rise_out_of_limb(
+            axial, g, t, k, half_width, background, plate_spread, limb_level
+        )
         if outline is not None:
             return outline
     return None
@@ -591,10 +657,11 @@ def _rise_out_of_limb(
     half_width: float,
     background: float,
     plate_spread: float,
+    limb_level: float | None = None,
 ) -> float | None:
     """The rise out of the dark limb that the fall at index ``k`` into ``axial`` (grey
     levels at ``t``, px; ``g`` their gradient, grey per px) enters, px along ``t``, else
-    None (:func:`_dark_limb_outline`)."""
+    None (:func:`_dark_limb_outline`); with ``limb_level``, only a limb dipping to it."""
     step = float(t[1] - t[0])
     win = (t > t[k]) & (t <= t[k] + half_width)
     if g[k] >= 0 or not win.any():
@@ -604,6 +671,8 @@ def _rise_out_of_limb(
     # the crest the fall starts from, over the plate
     crest = float(axial[(t >= t[k] - half_width) & (t <= t[k])].max()) - background
     if depth <= max(2.0 * plate_spread, LIMB_DEPTH_SHARE * crest):
+        return None
+    if limb_level is not None and float(axial[m]) > limb_level:
         return None
     rise = (t > t[m]) & (t <= t[k] + half_width)
     if not rise.any():

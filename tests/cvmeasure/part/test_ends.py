@@ -215,3 +215,42 @@ def test_the_papers_grain_just_past_a_dark_limbed_cap_is_not_its_outline():
     outline = _dark_limb_outline(axial, t, 14.11, 175.3, 10.64, 18.2, lambda _: False)
     assert outline is not None
     assert abs(outline - 37.8) < 1.5
+
+
+#: Grey levels along the end's line of a path-traced 3 mm polished wire (27.5 px wide),
+#: darker than the white card it lies on, every 0.4 px from 12 px past the line's start: the
+#: dim crest with its ripples (dips to 148-149), its fall into the cap's dark limb (to 91),
+#: the rise to the card at the outline (48.5 px from the scene's truth), the card's grain.
+_AXIS_OF_A_DIM_WIRE = np.array(
+    [176, 177, 177, 178, 180, 184, 182, 183, 185, 184, 178, 170, 160, 157, 157, 161, 160, 163,
+     170, 181, 176, 169, 167, 160, 149, 148, 157, 165, 165, 164, 160, 161, 161, 160, 158, 154,
+     147, 148, 154, 165, 171, 176, 180, 184, 180, 177, 169, 165, 166, 170, 174, 176, 178, 177,
+     171, 165, 159, 160, 160, 157, 151, 145, 140, 137, 136, 136, 136, 133, 124, 119, 119, 117,
+     112, 108, 105, 104, 101, 95, 96, 97, 96, 93, 91, 91, 93, 100, 103, 103, 103, 107, 113,
+     122, 135, 151, 164, 172, 177, 177, 175, 173, 175, 179, 182, 182, 178, 176, 176, 177, 184,
+     190, 196, 201, 204, 205, 204, 200, 196, 196, 199, 201, 201, 200, 197, 191, 187, 185, 184,
+     185, 185, 189, 195],
+    dtype=float,
+)  # fmt: skip
+
+
+def test_a_dim_wires_cap_is_where_its_limb_dips_as_dark_as_its_sides():
+    """A wire darker than its plate: its crest's ripples dip below the card by more than the
+    card's spread, as the cap's limb does, and the rise out of the first ripple was taken for
+    the outline (20.9 px short). The cap's limb dips as dark as the wire's sides' limb (the
+    wire's darkest, 106 here); a dip that stays a quarter of the way up to the card is not it:
+    the outline within 0.6 px of the truth (measured 0.5 px out)."""
+    from cvmeasure.part.ends import LIMB_LEVEL_SHARE, _dark_limb_outline
+
+    t = np.arange(0, round(64.0 / PROFILE_STEP_PX) + 1) * PROFILE_STEP_PX
+    sampled_at = 12.0 + 0.4 * np.arange(len(_AXIS_OF_A_DIM_WIRE))
+    axial = np.interp(t, sampled_at, _AXIS_OF_A_DIM_WIRE)
+    card, spread, darkest = 183.7, 10.2, 106.3
+
+    def outline(level):
+        return _dark_limb_outline(axial, t, 13.75, card, spread, 18.45, lambda _: False, level)
+
+    assert outline(None) < 30.0  # a ripple's rise
+    found = outline(darkest + LIMB_LEVEL_SHARE * (card - darkest))
+    assert found is not None
+    assert abs(found - 48.47) < 0.6
