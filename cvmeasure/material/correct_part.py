@@ -36,12 +36,18 @@ from cvmeasure.warning import StageWarning
 from cvmeasure.wireplan import WirePlan
 
 __all__ = [
+    "NOT_THE_POLYGON",
     "TURN_RATIO",
     "correct_from_part",
     "machine_bends_from_comparison",
     "orient_to_job",
     "target_bends_deg",
 ]
+
+
+#: The part measurement's warnings that say the part is not the polygon compared with: a
+#: correction from it would fit the job to another part (:func:`correct_from_part` refuses).
+NOT_THE_POLYGON = ("part_chords_longer", "part_chords_shorter")
 
 
 def machine_bends_from_comparison(comparison: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -130,7 +136,9 @@ def correct_from_part(
     Raises
     ------
     InputError
-        The part has no per-vertex bends (no chords found, no design comparison).
+        The part has no per-vertex bends (no chords found, no design comparison), or its
+        chords are not the polygon's (``part_chords_longer``, ``part_chords_shorter``:
+        another design's or job's part).
     """
 
     comp = measurement.comparison
@@ -145,6 +153,10 @@ def correct_from_part(
             "the part was matched to its design mirrored (upside down): measure it as it "
             "left the machine (PartOptions(allow_mirror=False)), or say it may lie flipped",
         )
+    for w in measurement.warnings:
+        if w.code in NOT_THE_POLYGON:
+            # its bend errors are another part's shape, not this job's springback
+            raise InputError(measurement.source, f"not corrected: {w.message}")
     target, measured = machine_bends_from_comparison(comp.bends)
     sigma = measurement.vertex_bend_sigma_deg
     if sigma is not None:

@@ -32,7 +32,17 @@ __all__ = [
     "widen_for_centreline_gaps",
     "ARC_BEND_DISAGREE_DEG",
     "arc_consistency_warning",
+    "CHORD_LENGTH_DIFFER_SHARE",
+    "chord_length_warning",
 ]
+
+#: The part's chords between bend vertices (median) may differ from the polygon bent's by
+#: this share before the part is said not to be that polygon's (``part_chords_longer`` /
+#: ``part_chords_shorter``): the feed sets each chord, within its slip (about 1 %) and a
+#: bend radius' take-up (``r (2 tan(b/2) - b)``: 1.3 mm at a 90 deg bend of a 3 mm radius,
+#: under 0.05 mm at 15 deg), and the measured vertices lie within a few tenths of a mm.
+#: A part of another design, or of the same design in another chord count, differs more.
+CHORD_LENGTH_DIFFER_SHARE = 0.1
 
 
 def ends_at_a_boundary(
@@ -181,3 +191,33 @@ def _lost_run_turn_deg(poly: PolylineFit, seen: np.ndarray, i: int) -> float:
         return 90.0
     directions = np.asarray(poly.direction_deg, dtype=float)
     return 0.5 * abs(float(wrap_deg(directions[hi + 1] - directions[lo - 1])))
+
+
+def chord_length_warning(
+    vertices_mm: np.ndarray, reference_mm: np.ndarray, source: str
+) -> StageWarning | None:
+    """Whether the part's inner chords are the polygon bent's: a warning where their median
+    length differs from the reference's by over :data:`CHORD_LENGTH_DIFFER_SHARE`, else None.
+
+    ``vertices_mm`` (N+1, 2): the part's chord vertices (mm, any frame); ``reference_mm``
+    (N+1, 2): the polygon compared with (mm). Only the chords between two bend vertices
+    count (the end chords end where the wire was cut, and where the photo saw it); a part
+    of fewer than 3 chords has none and is not checked. Said so: a part photographed for
+    another job's, or a design opened for the wrong part, would otherwise be compared and
+    corrected vertex by vertex as if it were bent badly.
+    """
+    measured = np.hypot(*np.diff(np.asarray(vertices_mm, float)[1:-1], axis=0).T)
+    wanted = np.hypot(*np.diff(np.asarray(reference_mm, float)[1:-1], axis=0).T)
+    if len(measured) == 0 or len(measured) != len(wanted):
+        return None
+    part_mm, job_mm = float(np.median(measured)), float(np.median(wanted))
+    if abs(part_mm - job_mm) <= CHORD_LENGTH_DIFFER_SHARE * job_mm:
+        return None
+    code = "part_chords_longer" if part_mm > job_mm else "part_chords_shorter"
+    return StageWarning(
+        code,
+        f"the part's chords between its bends measure {part_mm:.2f} mm (median) where the "
+        f"polygon it is compared with has {job_mm:.2f} mm: this is not that polygon's part "
+        "(another design, job or chord count?); its bend errors are not bending errors",
+        source,
+    )

@@ -48,6 +48,7 @@ from cvmeasure.part.centreline import Centreline
 from cvmeasure.part.checks import (
     END_BEND_DEG,
     arc_consistency_warning,
+    chord_length_warning,
     ends_at_a_boundary,
     widen_for_centreline_gaps,
 )
@@ -280,6 +281,9 @@ def measure_part(
             design, design_source=design_source, allow_mirror=opts.allow_mirror,
             reference_mm=reference_mm,
         )  # fmt: skip
+        if fit.poly is not None and divisions:
+            differ = chord_length_warning(fit.poly.vertices_mm, comparison.polygon_mm, source)
+            warnings += [differ] if differ else []
     uncertainty = None
     if method == "centreline_fit":
         spacing_deg = spacing_disagreement_deg(ours.segment_bend_deg, divisions, chords.periodic)

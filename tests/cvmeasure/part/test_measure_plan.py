@@ -111,3 +111,39 @@ def test_the_polygon_bent_sets_the_chord_count_even_when_the_photo_shows_another
         measure_part(
             photo.bgr, BOARD, photo.camera, options=PartOptions(divisions=4), reference_mm=bent
         )
+
+
+def test_a_part_compared_with_another_jobs_polygon_is_said_not_to_be_its_part():
+    """The same turns fed in chords a quarter longer (another job): compared vertex for
+    vertex, the part's bends differ by what its shorter chords make of them and
+    ``cvmeasure correct`` would fit the machine to that. The part's inner chords (median
+    27.5 mm, measured within 0.5 mm) against the job's 34.4 mm say it is not that job's
+    part, and a correction from it is refused; against its own polygon no such warning."""
+    from cvmeasure.contracts import Trial
+    from cvmeasure.errors import InputError
+    from cvmeasure.material.bender_calibration import fit_calibration
+    from cvmeasure.material.correct_part import correct_from_part
+
+    verts, photo = _photo("unequal")
+    chords, turns = SHAPES["unequal"]
+    other = polygon_from_chords([1.25 * c for c in chords], turns)
+    measured = {}
+    for name, reference in (("own", verts), ("other", other)):
+        measured[name] = measure_part(
+            photo.bgr, BOARD, photo.camera, design=DesignPath(reference, False, "polyline", name),
+            options=PartOptions(allow_mirror=False), reference_mm=reference, source="part.jpg",
+        )  # fmt: skip
+    assert not [w for w in measured["own"].warnings if w.code.startswith("part_chords_")]
+    (differ,) = [w for w in measured["other"].warnings if w.code.startswith("part_chords_")]
+    assert differ.code == "part_chords_shorter"
+    part_mm = float(differ.message.split(" mm (median)")[0].rsplit(" ", 1)[1])
+    assert abs(part_mm - 27.5) < 0.5
+    assert "34.38 mm" in differ.message
+    with pytest.raises(InputError, match="not corrected: the part's chords"):
+        # a springback of 10 % at every angle, either way
+        trials = [
+            Trial(f"{a}{d}", 1.1 * a * d, a * d, a * d) for a in (15, 45, 90) for d in (1, -1)
+        ]
+        correct_from_part(
+            fit_calibration(trials, model="linear"), measured["other"], design_name="other"
+        )
