@@ -45,3 +45,24 @@ def _textured(seed: int, shape: tuple[int, int] = (120, 184), noise: float = 6.0
 def textured_bgr() -> Callable[..., np.ndarray]:
     """``textured_bgr(seed, shape=(120, 184), noise=6.0)``: a BGR uint8 test image."""
     return _textured
+
+
+def _arc_svg(path: Path, radius_mm: float, from_deg: float, to_deg: float) -> Path:
+    """An SVG arc about (100, 100) mm from ``from_deg`` to ``to_deg`` (y down), written
+    to ``path``."""
+    a0, a1 = np.radians(from_deg), np.radians(to_deg)
+    x0, y0 = 100 + radius_mm * np.cos(a0), 100 - radius_mm * np.sin(a0)
+    x1, y1 = 100 + radius_mm * np.cos(a1), 100 - radius_mm * np.sin(a1)
+    r = radius_mm
+    path.write_text(
+        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
+        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A {r} {r} 0 0 0 {x1} {y1}"/></svg>',
+        encoding="utf-8",
+    )
+    return path
+
+
+@pytest.fixture(scope="session")
+def arc_svg() -> Callable[..., Path]:
+    """``arc_svg(path, radius_mm, from_deg, to_deg)``: writes an SVG arc design, returns ``path``."""
+    return _arc_svg

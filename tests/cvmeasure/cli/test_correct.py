@@ -26,19 +26,6 @@ def _calibration():
     return fit_calibration(samples, model="linear")
 
 
-def _arc_svg(path, radius_mm, from_deg, to_deg):
-    a0, a1 = np.radians(from_deg), np.radians(to_deg)
-    x0, y0 = 100 + radius_mm * np.cos(a0), 100 - radius_mm * np.sin(a0)
-    x1, y1 = 100 + radius_mm * np.cos(a1), 100 - radius_mm * np.sin(a1)
-    r = radius_mm
-    path.write_text(
-        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
-        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A {r} {r} 0 0 0 {x1} {y1}"/></svg>',
-        encoding="utf-8",
-    )
-    return path
-
-
 #: Machine-frame bend errors (deg) and their stated sigmas of a part whose chord between
 #: vertices 3 and 4 the photo did not show: those two bends' sigmas widened to 21 and 18 deg.
 ERRORS = np.array([0.3, -0.412, 0.05, 9.887, -4.2, -0.1, 0.2, -0.15, 0.12])
@@ -61,7 +48,9 @@ def _measured_part(bgr, board, camera, *, design, design_source, source, options
     )
 
 
-def test_the_summary_names_the_readings_within_their_uncertainty(tmp_path, monkeypatch, capsys):
+def test_the_summary_names_the_readings_within_their_uncertainty(
+    tmp_path, monkeypatch, capsys, arc_svg
+):
     """The part's worst error is 9.887 deg at sigma 21 deg, which the correction leaves
     alone within its dead band: the line quotes the worst error beyond its band (0.412
     deg) and names the two wide readings apart, the larger with its vertex and sigma."""
@@ -70,7 +59,7 @@ def test_the_summary_names_the_readings_within_their_uncertainty(tmp_path, monke
     monkeypatch.setattr("cvmeasure.camera_model.load_camera", lambda path: None)
     monkeypatch.setattr("cvmeasure.part.measure.measure_part", _measured_part)
     save_calibration(tmp_path / "cal.json", _calibration())
-    design = _arc_svg(tmp_path / "arc.svg", 55.0, 15.0, 165.0)  # 10 chords, 9 bends of 15 deg
+    design = arc_svg(tmp_path / "arc.svg", 55.0, 15.0, 165.0)  # 10 chords, 9 bends of 15 deg
     out, gcode = tmp_path / "cal2.json", tmp_path / "job2.gcode"
     args = ["correct", str(tmp_path / "part.jpg"), "--design", str(design), "--divisions", "10"]
     args += ["--material", str(tmp_path / "cal.json"), "--board", "b.json", "--camera", "c.json"]

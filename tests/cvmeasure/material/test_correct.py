@@ -259,21 +259,6 @@ def test_bad_arguments():
         correct_calibration(default_calibration("cubic"), [10.0], [10.5])
 
 
-def _arc_svg(path, radius_mm, from_deg, to_deg):
-    """An SVG arc about (100, 100) mm from ``from_deg`` to ``to_deg`` (y down), written
-    to ``path``."""
-    a0, a1 = np.radians(from_deg), np.radians(to_deg)
-    x0, y0 = 100 + radius_mm * np.cos(a0), 100 - radius_mm * np.sin(a0)
-    x1, y1 = 100 + radius_mm * np.cos(a1), 100 - radius_mm * np.sin(a1)
-    r = radius_mm
-    path.write_text(
-        '<svg xmlns="http://www.w3.org/2000/svg" width="200mm" height="200mm" '
-        f'viewBox="0 0 200 200"><path d="M {x0} {y0} A {r} {r} 0 0 0 {x1} {y1}"/></svg>',
-        encoding="utf-8",
-    )
-    return path
-
-
 def _feeds(job_text):
     """The feed lengths (text after ``Y``) of a job's G-code, in order."""
     return [ln.split("Y")[1].split()[0] for ln in job_text.splitlines() if " Y" in ln]
@@ -302,7 +287,7 @@ def _photo_of_bent_part(tmp_path, chords, made_deg, board, seed):
     return jpg
 
 
-def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
+def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys, arc_svg):
     """`cvmeasure correct` on a JPEG of a part the hidden machine bent: errors seen, job moved."""
     import json
 
@@ -312,7 +297,7 @@ def test_cli_corrects_from_a_rendered_part_photo(tmp_path, capsys):
     from cvmeasure.material.correct_part import target_bends_deg
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    design = _arc_svg(tmp_path / "arc.svg", 55.0, 15.0, 165.0)
+    design = arc_svg(tmp_path / "arc.svg", 55.0, 15.0, 165.0)
     chords = load_design(design).wire().chords(10)
     target = target_bends_deg(chords)
     cal = default_calibration()
@@ -444,7 +429,7 @@ def test_cli_correct_measures_a_round_wire_as_part_does(tmp_path, capsys):
     np.testing.assert_allclose(sorted(abs(e) for e in corr["error_deg"]), errors, atol=0.01)
 
 
-def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
+def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys, arc_svg):
     """A design bent in chords under the default 12 mm (`gcode --min-segment-mm 10`) about
     a 10 mm bend radius is corrected with the same options: the next job feeds the same
     lengths as the first and only its pins move (it was planned with the defaults: refused
@@ -455,7 +440,7 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     from cvmeasure.material.correct_part import target_bends_deg
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    design = _arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
+    design = arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
     chords = load_design(design).wire().chords(10)  # 10.5 mm each
     lengths = np.hypot(*np.diff(chords, axis=0).T)
     assert 10.0 < lengths.min() and lengths.max() < 12.0
@@ -483,7 +468,7 @@ def test_cli_correct_feeds_the_next_job_by_the_jobs_rules(tmp_path, capsys):
     assert feeds(flat) != feeds(job)  # the radius' setback shows in the feeds
 
 
-def test_the_api_chain_bends_measures_and_corrects_one_polygon(tmp_path, capsys):
+def test_the_api_chain_bends_measures_and_corrects_one_polygon(tmp_path, capsys, arc_svg):
     """``gcode_for -> save -> measure_part(job=) -> correct`` as the CLI chain: a design
     bent in chords under the default 12 mm is compared and corrected against the polygon
     ``gcode_for`` bent. The saved job keeps that polygon in its header, so ``cvmeasure part
@@ -500,7 +485,7 @@ def test_the_api_chain_bends_measures_and_corrects_one_polygon(tmp_path, capsys)
     from cvmeasure.wireplan import plan_from_job
 
     board = CharucoBoardSpec(14, 10, 20.0, 15.0)
-    design = _arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
+    design = arc_svg(tmp_path / "arc.svg", 50.0, 30.0, 150.0)
     chords = load_design(design).wire().chords(10)  # 10.5 mm each
     cal = default_calibration()
     rules = {"min_segment_mm": 10.0, "bend_radius_mm": 10.0}
