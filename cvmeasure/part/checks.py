@@ -41,7 +41,7 @@ __all__ = [
 #: ``part_chords_shorter``): the feed sets each chord, within its slip (about 1 %) and a
 #: bend radius' take-up (``r (2 tan(b/2) - b)``: 1.3 mm at a 90 deg bend of a 3 mm radius,
 #: under 0.05 mm at 15 deg), and the measured vertices lie within a few tenths of a mm.
-#: A part of another design, or of the same design in another chord count, differs more.
+#: A part of another design or job differs more.
 CHORD_LENGTH_DIFFER_SHARE = 0.1
 
 
@@ -218,6 +218,6 @@ def chord_length_warning(
         code,
         f"the part's chords between its bends measure {part_mm:.2f} mm (median) where the "
         f"polygon it is compared with has {job_mm:.2f} mm: this is not that polygon's part "
-        "(another design, job or chord count?); its bend errors are not bending errors",
+        "(another design or job?); its bend errors are not bending errors",
         source,
     )
